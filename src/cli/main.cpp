@@ -1,0 +1,7 @@
+#include <cstdio>
+
+int main()
+{
+    std::puts("posthaste: under construction");
+    return 0;
+}

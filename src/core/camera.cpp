@@ -1,0 +1,92 @@
+#include "core/camera.h"
+
+#include <glm/gtc/matrix_inverse.hpp>
+#include <glm/mat4x4.hpp>
+
+#include "core/error.h"
+
+namespace posthaste {
+namespace {
+
+template<typename T>
+const T &require(const std::optional<T> &v, const char *attribute, const std::string &who)
+{
+    if (!v) {
+        throw_runtime(who, ": camera attribute \"", attribute, "\" is missing from the header");
+    }
+    return *v;
+}
+
+}  // namespace
+
+const glm::mat4 &Camera::require_world_to_camera(const std::string &who) const
+{
+    return require(world_to_camera, attr::kWorldToCamera, who);
+}
+const glm::mat4 &Camera::require_world_to_ndc(const std::string &who) const
+{
+    return require(world_to_ndc, attr::kWorldToNDC, who);
+}
+const glm::mat4 &Camera::require_prev_world_to_camera(const std::string &who) const
+{
+    return require(prev_world_to_camera, attr::kPrevWorldToCamera, who);
+}
+const glm::mat4 &Camera::require_prev_world_to_ndc(const std::string &who) const
+{
+    return require(prev_world_to_ndc, attr::kPrevWorldToNDC, who);
+}
+float Camera::require_fstop(const std::string &who) const
+{
+    return require(fstop, attr::kAperture, who);
+}
+float Camera::require_focus_distance(const std::string &who) const
+{
+    return require(focus_distance, attr::kFocus, who);
+}
+float Camera::require_focal_length_mm(const std::string &who) const
+{
+    return require(focal_length_mm, attr::kFocalLength, who);
+}
+float Camera::require_sensor_width_mm(const std::string &who) const
+{
+    return require(sensor_width_mm, attr::kSensorWidth, who);
+}
+
+CameraMatrices make_camera_matrices(const glm::mat4 &camera_to_world,
+                                    float focal_length_mm,
+                                    float sensor_width_mm,
+                                    float aspect,
+                                    float near_clip)
+{
+    const glm::mat4 world_to_camera = glm::inverse(camera_to_world);
+    // Camera space (x right, y up, z forward) to NDC ([0,1]^2, y down):
+    //   u = 0.5 + (f / sw) * x / z,  v = 0.5 - (f / sw) * aspect * y / z.
+    // As a projective matrix with w = z; the third row keeps z so NDC depth stays monotonic.
+    const float sx = focal_length_mm / sensor_width_mm;
+    const float sy = sx * aspect;
+    glm::mat4 cam_to_ndc(0.0f);  // glm: m[column][row]
+    cam_to_ndc[0][0] = sx;
+    cam_to_ndc[1][1] = -sy;
+    cam_to_ndc[2][0] = 0.5f;
+    cam_to_ndc[2][1] = 0.5f;
+    cam_to_ndc[2][2] = 1.0f;
+    cam_to_ndc[3][2] = -near_clip;
+    cam_to_ndc[2][3] = 1.0f;
+    return {world_to_camera, cam_to_ndc * world_to_camera};
+}
+
+bool world_to_pixel(const glm::mat4 &world_to_ndc,
+                    const glm::vec3 &p,
+                    int width,
+                    int height,
+                    glm::vec2 &pixel)
+{
+    const glm::vec4 h = world_to_ndc * glm::vec4(p, 1.0f);
+    if (!(h.w > 0.0f)) {
+        return false;
+    }
+    pixel = glm::vec2(h.x / h.w * float(width), h.y / h.w * float(height));
+    return true;
+}
+
+}  // namespace posthaste

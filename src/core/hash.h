@@ -1,0 +1,35 @@
+#pragma once
+// Stateless hashing for per-pixel randomness: hash(x, y, sample, seed). Same inputs give the same
+// numbers on every thread, which keeps outputs independent of the thread count.
+
+#include <cstdint>
+
+namespace posthaste {
+
+/// PCG-style 32-bit mix (Jarzynski & Olano 2020, "Hash Functions for GPU Rendering").
+constexpr std::uint32_t pcg_hash(std::uint32_t v)
+{
+    const std::uint32_t state = v * 747796405u + 2891336453u;
+    const std::uint32_t word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+constexpr std::uint32_t hash4(std::uint32_t x, std::uint32_t y, std::uint32_t s, std::uint32_t seed)
+{
+    return pcg_hash(x ^ pcg_hash(y ^ pcg_hash(s ^ pcg_hash(seed))));
+}
+
+/// Uniform float in [0, 1) from a hash (24 high bits).
+constexpr float hash_to_unit(std::uint32_t h)
+{
+    return float(h >> 8) * (1.0f / 16777216.0f);
+}
+
+/// Uniform float in [0, 1) for pixel (x, y), sample index and seed.
+constexpr float hash_unit(int x, int y, int sample, std::uint32_t seed)
+{
+    return hash_to_unit(
+        hash4(std::uint32_t(x), std::uint32_t(y), std::uint32_t(sample), seed));
+}
+
+}  // namespace posthaste

@@ -1,0 +1,94 @@
+#include "core/image.h"
+
+#include <cmath>
+#include <cstring>
+
+#include "core/error.h"
+
+namespace posthaste {
+
+void Image::allocate(int width, int height, int channels)
+{
+    if (width < 0 || height < 0 || width > kMaxImageSide || height > kMaxImageSide) {
+        throw_runtime("image size ", width, "x", height, " is outside 0..", kMaxImageSide);
+    }
+    if (channels < 1 || channels > kMaxChannels) {
+        throw_runtime("image channel count ", channels, " is outside 1..", kMaxChannels);
+    }
+    const std::size_t n = std::size_t(width) * std::size_t(height) * std::size_t(channels);
+    if (n > kMaxImageFloats) {
+        throw_runtime("image of ", width, "x", height, "x", channels, " floats is too large");
+    }
+    width_ = width;
+    height_ = height;
+    channels_ = channels;
+    data_ = std::make_unique_for_overwrite<float[]>(n);
+}
+
+Image::Image(int width, int height, int channels)
+{
+    allocate(width, height, channels);
+    std::fill_n(data_.get(), value_count(), 0.0f);
+}
+
+Image Image::uninitialized(int width, int height, int channels)
+{
+    Image image;
+    image.allocate(width, height, channels);
+    return image;
+}
+
+Image::Image(const Image &other)
+{
+    if (other.channels_ == 0) {
+        return;
+    }
+    allocate(other.width_, other.height_, other.channels_);
+    std::memcpy(data_.get(), other.data_.get(), value_count() * sizeof(float));
+}
+
+Image &Image::operator=(const Image &other)
+{
+    if (this != &other) {
+        Image copy(other);
+        *this = std::move(copy);
+    }
+    return *this;
+}
+
+glm::vec4 Image::load4_clamped(int x, int y) const
+{
+    const float *p = pixel(std::clamp(x, 0, width_ - 1), std::clamp(y, 0, height_ - 1));
+    glm::vec4 v(0.0f);
+    for (int c = 0; c < std::min(channels_, 4); ++c) {
+        v[c] = p[c];
+    }
+    return v;
+}
+
+glm::vec4 Image::sample_bilinear_clamped(float x, float y) const
+{
+    const float fx = x - 0.5f, fy = y - 0.5f;
+    const float x0f = std::floor(fx), y0f = std::floor(fy);
+    const float tx = fx - x0f, ty = fy - y0f;
+    const int x0 = int(x0f), y0 = int(y0f);
+    const glm::vec4 a = load4_clamped(x0, y0), b = load4_clamped(x0 + 1, y0);
+    const glm::vec4 c = load4_clamped(x0, y0 + 1), d = load4_clamped(x0 + 1, y0 + 1);
+    return (a * (1.0f - tx) + b * tx) * (1.0f - ty) + (c * (1.0f - tx) + d * tx) * ty;
+}
+
+void Image::fill(float value)
+{
+    std::fill_n(data_.get(), value_count(), value);
+}
+
+bool Image::bit_equal(const Image &other) const
+{
+    if (width_ != other.width_ || height_ != other.height_ || channels_ != other.channels_) {
+        return false;
+    }
+    return value_count() == 0 ||
+           std::memcmp(data_.get(), other.data_.get(), value_count() * sizeof(float)) == 0;
+}
+
+}  // namespace posthaste

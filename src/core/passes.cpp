@@ -1,0 +1,45 @@
+#include "core/passes.h"
+
+namespace posthaste::pass {
+
+std::span<const CanonicalPass> canonical_passes()
+{
+    static const CanonicalPass kTable[] = {
+        {kColor, "", {"R", "G", "B", "A"}, true, "scene-linear Rec.709 radiance, premultiplied"},
+        {kDepth, "", {"Z"}, false, "camera-space depth (scene units), +inf on the sky"},
+        {kNormal, "N", {"X", "Y", "Z"}, false, "world-space unit normal"},
+        {kPosition, "P", {"X", "Y", "Z"}, false, "world-space position"},
+        {kMotion, "motion", {"X", "Y"}, false, "pixels from the previous frame to this one, y down"},
+        {kMotionNext, "motion_next", {"X", "Y"}, false, "pixels from this frame to the next, y down"},
+        {kAlbedo, "albedo", {"R", "G", "B"}, true, "base color"},
+        {kMaterial, "material", {"roughness", "metallic", "anisotropy"}, false,
+         "GGX perceptual roughness, metallic, anisotropy in [-1,1]"},
+        {kTangent, "T", {"X", "Y", "Z"}, false, "world-space tangent"},
+        {kId, "", {"id"}, false, "material/object id (integer stored as float)"},
+    };
+    return kTable;
+}
+
+const CanonicalPass *find_canonical(std::string_view name)
+{
+    for (const CanonicalPass &p : canonical_passes()) {
+        if (p.name == name) {
+            return &p;
+        }
+    }
+    return nullptr;
+}
+
+std::vector<std::string> exr_channel_names(std::string_view pass,
+                                           const std::vector<std::string> &suffixes)
+{
+    std::vector<std::string> names;
+    const CanonicalPass *canonical = find_canonical(pass);
+    std::string layer = canonical ? std::string(canonical->layer) : std::string(pass);
+    for (const std::string &s : suffixes) {
+        names.push_back(layer.empty() ? s : layer + "." + s);
+    }
+    return names;
+}
+
+}  // namespace posthaste::pass

@@ -1,0 +1,20 @@
+# Runs `posthaste run GRAPH` and checks: exit code 2, one error line containing the text of
+# GRAPH's sibling .expect file.
+get_filename_component(_dir ${GRAPH} DIRECTORY)
+get_filename_component(_name ${GRAPH} NAME_WE)
+file(READ ${_dir}/${_name}.expect _expect)
+string(STRIP "${_expect}" _expect)
+execute_process(COMMAND ${POSTHASTE} run ${GRAPH} --quiet
+                RESULT_VARIABLE _rc OUTPUT_VARIABLE _out ERROR_VARIABLE _err)
+if(NOT _rc EQUAL 2)
+  message(FATAL_ERROR "expected exit code 2, got ${_rc}\nstdout: ${_out}\nstderr: ${_err}")
+endif()
+string(FIND "${_err}" "${_expect}" _pos)
+if(_pos EQUAL -1)
+  message(FATAL_ERROR "stderr does not contain '${_expect}':\n${_err}")
+endif()
+string(STRIP "${_err}" _stripped)
+string(FIND "${_stripped}" "\n" _newline)
+if(NOT _newline EQUAL -1)
+  message(FATAL_ERROR "expected one error line, got:\n${_err}")
+endif()
