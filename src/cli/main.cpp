@@ -1,7 +1,63 @@
-#include <cstdio>
+// posthaste: the command line. Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph
+// error (README.md "Exit codes"). Every error is one line on stderr.
 
-int main()
+#include <cstdio>
+#include <string>
+
+#include <unistd.h>
+
+#include "cli/commands.h"
+#include "core/error.h"
+
+namespace posthaste::cli {
+
+bool stderr_is_terminal()
 {
-    std::puts("posthaste: under construction");
-    return 0;
+    return ::isatty(2) != 0;
+}
+
+}  // namespace posthaste::cli
+
+int main(int argc, char **argv)
+{
+    using namespace posthaste;
+    CLI::App app{"posthaste: a node-graph compositor for multi-layer OpenEXR frame sequences"};
+    app.set_version_flag("--version", std::string("posthaste ") + POSTHASTE_VERSION);
+    app.require_subcommand(1);
+    app.footer("Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph error.\n"
+               "Run 'posthaste COMMAND --help' for a command's options.");
+    int exit_code = 0;
+    cli::add_run_command(app, exit_code);
+    cli::add_info_command(app, exit_code);
+    cli::add_nodes_command(app, exit_code);
+    std::string command_line;
+    for (int i = 0; i < argc; ++i) {
+        command_line += (i ? " " : "") + std::string(argv[i]);
+    }
+    try {
+        app.parse(argc, argv);
+    }
+    catch (const CLI::ParseError &e) {
+        if (e.get_exit_code() == 0) {
+            return app.exit(e);  // --help, --version
+        }
+        std::fprintf(stderr, "error: %s (see --help)\n", e.what());
+        return int(ExitCode::Usage);
+    }
+    catch (const Error &e) {
+        std::string msg = e.what();
+        for (char &c : msg) {
+            c = c == '\n' ? ' ' : c;
+        }
+        if (command_line.find("--set") != std::string::npos) {
+            msg += " [command line: " + command_line + "]";
+        }
+        std::fprintf(stderr, "error: %s\n", msg.c_str());
+        return e.exit_code();
+    }
+    catch (const std::exception &e) {
+        std::fprintf(stderr, "error: %s\n", e.what());
+        return int(ExitCode::Runtime);
+    }
+    return exit_code;
 }

@@ -1,0 +1,21 @@
+#pragma once
+// Everything a node file needs: the node interface, images, frames, passes, parallel loops and
+// errors. Each nodes/<type>.cpp defines one `extern const NodeType k<Type>` listed in
+// nodes/registry.cpp.
+
+#include "core/error.h"
+#include "core/frame.h"
+#include "core/image.h"
+#include "core/parallel.h"
+#include "core/passes.h"
+#include "graph/node.h"
+
+namespace posthaste::nodes {
+
+extern const NodeType kRead;
+extern const NodeType kWrite;
+extern const NodeType kOcio;
+extern const NodeType kMerge;
+extern const NodeType kChannels;
+
+}  // namespace posthaste::nodes

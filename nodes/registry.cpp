@@ -1,0 +1,31 @@
+// The explicit list of node types (not self-registering statics: static libraries may drop
+// them, and their order would be undefined).
+
+#include "graph/node_registry.h"
+#include "nodes/node.h"
+
+namespace posthaste {
+
+std::span<const NodeType *const> all_node_types()
+{
+    static const NodeType *const kAllNodes[] = {
+        &nodes::kRead,
+        &nodes::kWrite,
+        &nodes::kOcio,
+        &nodes::kMerge,
+        &nodes::kChannels,
+    };
+    return kAllNodes;
+}
+
+const NodeType *find_node_type(std::string_view type)
+{
+    for (const NodeType *t : all_node_types()) {
+        if (t->spec.type == type) {
+            return t;
+        }
+    }
+    return nullptr;
+}
+
+}  // namespace posthaste

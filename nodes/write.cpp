@@ -1,0 +1,133 @@
+// nodes/write.cpp: write each frame to EXR (passes, per-pass pixel type, compression, single- or
+// multi-part), or to a display-referred preview (PNG, JPEG, TIFF...) through an OpenColorIO
+// display transform when the path does not end in .exr. Writes are atomic.
+
+#include <OpenImageIO/imageio.h>
+
+#include "io/color.h"
+#include "io/image_file.h"
+#include "io/sequence.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kPath = ParamSpec::string("path", "").mandatory().doc(
+    "Output file or frame pattern; .exr writes passes, other extensions write a preview.");
+constexpr ParamSpec kPasses = ParamSpec::string("passes", "*").doc(
+    "EXR: comma-separated passes to write, or * for every pass the frame has.");
+constexpr ParamSpec kCompression = ParamSpec::string("compression", "piz").doc(
+    "EXR compression: none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab (dwaa:45 sets a "
+    "level).");
+constexpr ParamSpec kLayout = ParamSpec::choice("layout", "single|multipart", "single").doc(
+    "EXR: one part with every channel, or one part per pass.");
+constexpr ParamSpec kStorage = ParamSpec::choice("storage", "auto|half|float", "auto").doc(
+    "EXR pixel type: auto is half for color and albedo, float for data passes.");
+constexpr ParamSpec kAllowLossyData = ParamSpec::boolean("allow_lossy_data", false).doc(
+    "Permit lossy compression (dwaa, dwab, pxr24) on data passes (depth, motion, normals...).");
+constexpr ParamSpec kColorSpace = ParamSpec::string("input_colorspace", "lin_rec709").doc(
+    "Preview: color space of the color pass.");
+constexpr ParamSpec kDisplay = ParamSpec::string("display", "sRGB").doc("Preview: OCIO display.");
+constexpr ParamSpec kView = ParamSpec::string("view", "Standard").doc("Preview: OCIO view.");
+constexpr ParamSpec kAlpha = ParamSpec::boolean("alpha", false).doc(
+    "Preview: write alpha (unpremultiplied) as a fourth channel.");
+constexpr ParamSpec kParams[] = {kPath,  kPasses, kCompression, kLayout, kStorage, kAllowLossyData,
+                                 kColorSpace, kDisplay, kView, kAlpha};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to write."}};
+
+bool is_preview(const NodeParams &params)
+{
+    return !is_exr_path(params.get_string(kPath));
+}
+
+std::vector<std::string> listed_passes(const NodeParams &params)
+{
+    const std::string &p = params.get_string(kPasses);
+    return p == "*" ? std::vector<std::string>{} : split_list(p);
+}
+
+ColorProcessor make_display(const NodeParams &params, const NodeIdentity &node)
+{
+    return ColorProcessor::display_view(params.get_string(kColorSpace), params.get_string(kDisplay),
+                                        params.get_string(kView),
+                                        node.json_path + "/params: " + node.describe());
+}
+
+void execute(NodeContext &ctx)
+{
+    const NodeParams &params = ctx.params();
+    const Frame &frame = ctx.input("image");
+    const std::string path = expand_frame_pattern(params.get_string(kPath), ctx.frame_number());
+    try {
+        if (is_preview(params)) {
+            const ColorProcessor &display = ctx.state().get_or_create<ColorProcessor>(
+                [&] { return make_display(params, ctx.node()); });
+            Image rgba = frame.image(pass::kColor, ctx.where());
+            display.apply(rgba, /*unpremultiply=*/true);
+            write_preview(rgba, path, params.get_bool(kAlpha));
+            return;
+        }
+        WriteOptions options;
+        options.compression = params.get_string(kCompression);
+        options.multipart = params.get_choice(kLayout) == 1;
+        options.passes = listed_passes(params);
+        options.allow_lossy_data = params.get_bool(kAllowLossyData);
+        const int storage = params.get_choice(kStorage);
+        if (storage != 0) {
+            for (const std::string &name : frame.pass_names()) {
+                options.storage[name] = storage == 1 ? PixelStorage::Half : PixelStorage::Float;
+            }
+        }
+        write_exr(frame, path, options);
+    }
+    catch (const Error &e) {
+        throw Error(e.code(), ctx.where() + ": " + e.what());
+    }
+}
+
+void plan(PlanContext &ctx)
+{
+    PassSet &in = ctx.inputs[0];
+    in = PassSet{};
+    if (is_preview(ctx.params)) {
+        in.add(pass::kColor);
+        return;
+    }
+    const std::vector<std::string> passes = listed_passes(ctx.params);
+    if (passes.empty()) {
+        in.all = true;
+    }
+    for (const std::string &p : passes) {
+        in.add(p);
+    }
+}
+
+void check(CheckContext &ctx)
+{
+    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
+    const std::string path = ctx.params.get_string(kPath);
+    if (is_preview(ctx.params)) {
+        make_display(ctx.params, ctx.node);
+        auto out = OIIO::ImageOutput::create(path);
+        if (!out) {
+            throw_usage(where, ": param \"path\": no image writer for \"", path,
+                        "\" (use .exr, .png, .jpg or .tif)");
+        }
+        return;
+    }
+    check_compression(ctx.params.get_string(kCompression), where + ": param \"compression\"");
+    if (ctx.frames.size() > 1 && !has_frame_placeholder(path)) {
+        throw_usage(where, ": param \"path\": \"", path, "\" has no frame placeholder (####) but ",
+                    ctx.frames.size(), " frames would be written to it");
+    }
+}
+
+}  // namespace
+
+extern const NodeType kWrite{{"write", "Write frames to EXR, or previews through an OCIO display.",
+                              kInputs, kParams, "", /*sink=*/true},
+                             &execute,
+                             &plan,
+                             &check};
+
+}  // namespace posthaste::nodes

@@ -1,0 +1,129 @@
+// posthaste info FILE: layers, channels, pixel types, windows, camera, attributes, and where each
+// canonical pass comes from (or that it is absent).
+
+#include <cstdio>
+
+#include <OpenImageIO/imageio.h>
+
+#include "cli/commands.h"
+#include "core/passes.h"
+#include "io/image_file.h"
+
+namespace posthaste::cli {
+namespace {
+
+void print_matrix(const char *name, const std::optional<glm::mat4> &m)
+{
+    if (!m) {
+        std::printf("  %-18s absent\n", name);
+        return;
+    }
+    const float *v = &(*m)[0][0];
+    std::printf("  %-18s", name);
+    for (int r = 0; r < 4; ++r) {
+        std::printf("%s[%g %g %g %g]", r ? " " : "", v[r * 4 + 0], v[r * 4 + 1], v[r * 4 + 2],
+                    v[r * 4 + 3]);
+    }
+    std::printf("\n");
+}
+
+void print_scalar(const char *name, const std::optional<float> &v, const char *unit)
+{
+    if (v) {
+        std::printf("  %-18s %g%s\n", name, *v, unit);
+    }
+    else {
+        std::printf("  %-18s absent\n", name);
+    }
+}
+
+int info(const std::vector<std::string> &files)
+{
+    for (const std::string &path : files) {
+        const FileInfo fi = read_file_info(path);
+        std::printf("%s\n", path.c_str());
+        std::printf("  format             %s, %zu part(s), %d x %d\n", fi.format.c_str(),
+                    fi.parts.size(), fi.width, fi.height);
+        for (std::size_t p = 0; p < fi.parts.size(); ++p) {
+            const FilePart &part = fi.parts[p];
+            std::printf("  part %zu%s%s%s: display (%d,%d)-(%d,%d), data (%d,%d)-(%d,%d) relative, %s"
+                        "%s%s\n",
+                        p, part.name.empty() ? "" : " \"", part.name.c_str(),
+                        part.name.empty() ? "" : "\"", part.display_window.x0,
+                        part.display_window.y0, part.display_window.x1 - 1,
+                        part.display_window.y1 - 1, part.data_window.x0, part.data_window.y0,
+                        part.data_window.x1 - 1, part.data_window.y1 - 1,
+                        part.tiled ? "tiled" : "scanline",
+                        part.compression.empty() ? "" : ", ", part.compression.c_str());
+            std::string line;
+            for (const FileChannel &c : part.channels) {
+                line += (line.empty() ? "" : ", ") + c.name + " (" + c.type + ")";
+            }
+            std::printf("    channels: %s\n", line.c_str());
+        }
+        std::printf("camera\n");
+        print_matrix("worldToCamera", fi.camera.world_to_camera);
+        print_matrix("worldToNDC", fi.camera.world_to_ndc);
+        print_matrix("prevWorldToCamera", fi.camera.prev_world_to_camera);
+        print_matrix("prevWorldToNDC", fi.camera.prev_world_to_ndc);
+        print_scalar("aperture", fi.camera.fstop, " (f-number)");
+        print_scalar("focus", fi.camera.focus_distance, " m");
+        print_scalar("focalLength", fi.camera.focal_length_mm, " mm");
+        print_scalar("sensorWidth", fi.camera.sensor_width_mm, " mm");
+        print_scalar("sensorHeight", fi.camera.sensor_height_mm, " mm");
+        print_scalar("shutter", fi.camera.shutter, " (fraction of a frame)");
+        print_scalar("nearClip", fi.camera.near_clip, "");
+        print_scalar("farClip", fi.camera.far_clip, "");
+        std::printf("attributes\n");
+        for (const OIIO::ParamValue &p : fi.attributes) {
+            std::printf("  %-18s %s = %s\n", p.name().c_str(), p.type().c_str(),
+                        p.get_string(8).c_str());
+        }
+        std::printf("passes\n");
+        for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
+            const PassSource *ps = nullptr;
+            for (const PassSource &s : fi.passes) {
+                if (s.pass == cp.name) {
+                    ps = &s;
+                }
+            }
+            if (!ps) {
+                std::printf("  %-12s absent\n", std::string(cp.name).c_str());
+                continue;
+            }
+            std::string from;
+            for (const ChannelSource &c : ps->sources) {
+                std::string one = c.name.empty() ? std::to_string(c.offset) : c.name;
+                if (c.scale != 1.0f && !c.name.empty()) {
+                    one = (c.scale == -1.0f ? "-" : std::to_string(c.scale) + "*") + one;
+                }
+                from += (from.empty() ? "" : ", ") + one;
+            }
+            std::printf("  %-12s <- %s (%s)\n", std::string(cp.name).c_str(), from.c_str(),
+                        ps->origin.c_str());
+        }
+        for (const PassSource &s : fi.passes) {
+            if (!pass::find_canonical(s.pass)) {
+                std::string from;
+                for (const ChannelSource &c : s.sources) {
+                    from += (from.empty() ? "" : ", ") + c.name;
+                }
+                std::printf("  %-12s <- %s (other layer)\n", s.pass.c_str(), from.c_str());
+            }
+        }
+    }
+    return 0;
+}
+
+}  // namespace
+
+void add_info_command(CLI::App &app, int &exit_code)
+{
+    auto files = std::make_shared<std::vector<std::string>>();
+    CLI::App *cmd = app.add_subcommand(
+        "info", "Describe image files: parts, channels, camera, attributes, pass mapping");
+    cmd->add_option("files", *files, "Image files")->required();
+    cmd->callback([files, &exit_code] { exit_code = info(*files); });
+}
+
+}  // namespace posthaste::cli

@@ -1,0 +1,178 @@
+// posthaste run GRAPH: evaluate a graph over frames, several frames at once (--jobs), tiles in
+// parallel inside each node (--threads), with a progress bar on a terminal and a summary.
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <mutex>
+
+#include <tbb/parallel_pipeline.h>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "core/parallel.h"
+#include "graph/graph.h"
+
+namespace posthaste::cli {
+namespace {
+
+struct RunOptions {
+    std::string graph;
+    std::string frames;
+    std::vector<std::string> sets;
+    int jobs = 0;
+    int threads = 0;
+    bool quiet = false;
+    bool skip_bad_frames = false;
+    bool dry_run = false;
+};
+
+std::string format_seconds(double s)
+{
+    char buf[32];
+    if (s < 60.0) {
+        std::snprintf(buf, sizeof(buf), "%.1fs", s);
+    }
+    else {
+        std::snprintf(buf, sizeof(buf), "%dm%02ds", int(s) / 60, int(s) % 60);
+    }
+    return buf;
+}
+
+int run(const RunOptions &o)
+{
+    set_thread_count(o.threads);
+    Graph graph = Graph::load(o.graph, o.sets);
+    const std::vector<int> frames = o.frames.empty() ? graph.default_frames()
+                                                     : parse_frame_list(o.frames, "--frames");
+    graph.check(frames);
+    if (o.dry_run) {
+        if (!o.quiet) {
+            std::printf("%s: valid; %zu frame(s)\n", o.graph.c_str(), frames.size());
+        }
+        return 0;
+    }
+    const int jobs = std::max(1, o.jobs > 0 ? o.jobs : std::min(4, std::max(1, thread_count())));
+    NodeTimes times = graph.make_times();
+    const bool terminal = stderr_is_terminal() && !o.quiet;
+    std::mutex mutex;
+    std::map<int, std::string> failures;  // frame -> message
+    std::map<int, int> failure_codes;
+    std::atomic<bool> stop{false};
+    std::atomic<int> done{0};
+    std::size_t next = 0;
+    const auto start = std::chrono::steady_clock::now();
+    auto elapsed = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+
+    tbb::parallel_pipeline(
+        std::size_t(jobs),
+        tbb::make_filter<void, int>(tbb::filter_mode::serial_in_order,
+                                    [&](tbb::flow_control &fc) -> int {
+                                        if (next >= frames.size() || stop.load()) {
+                                            fc.stop();
+                                            return 0;
+                                        }
+                                        return frames[next++];
+                                    }) &
+            tbb::make_filter<int, void>(tbb::filter_mode::parallel, [&](int frame) {
+                const auto t0 = std::chrono::steady_clock::now();
+                std::string error;
+                int code = 0;
+                try {
+                    graph.evaluate(frame, &times);
+                }
+                catch (const Error &e) {
+                    error = e.what();
+                    code = e.exit_code();
+                }
+                catch (const std::exception &e) {
+                    error = e.what();
+                    code = int(ExitCode::Runtime);
+                }
+                const double dt =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+                std::lock_guard lock(mutex);
+                const int n = ++done;
+                if (!error.empty()) {
+                    failures[frame] = error;
+                    failure_codes[frame] = code;
+                    if (!o.skip_bad_frames) {
+                        stop = true;
+                    }
+                    else {
+                        std::fprintf(stderr, "%swarning: frame %d skipped: %s\n",
+                                     terminal ? "\r\033[K" : "", frame, error.c_str());
+                    }
+                }
+                if (o.quiet) {
+                    return;
+                }
+                const double t = elapsed();
+                const double fps = n / std::max(t, 1e-9);
+                const double eta = (double(frames.size()) - n) / std::max(fps, 1e-9);
+                if (terminal) {
+                    const int width = 30;
+                    const int filled = int(width * double(n) / double(frames.size()));
+                    std::fprintf(stderr, "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s\033[K",
+                                 std::string(std::size_t(filled), '#').c_str(),
+                                 std::string(std::size_t(width - filled), '-').c_str(), n,
+                                 frames.size(), fps, format_seconds(eta).c_str());
+                }
+                else if (error.empty()) {
+                    std::fprintf(stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n,
+                                 frames.size());
+                }
+            }));
+    if (terminal) {
+        std::fprintf(stderr, "\n");
+    }
+    const double wall = elapsed();
+    if (!failures.empty() && !o.skip_bad_frames) {
+        const auto &[frame, message] = *failures.begin();
+        throw Error(ExitCode(failure_codes[frame]), message);
+    }
+    if (!o.quiet) {
+        const int ok = done.load() - int(failures.size());
+        std::printf("%d frame(s) in %.3f s (%.2f frames/s, %d job(s), %d thread(s))%s\n", ok,
+                    wall, ok / std::max(wall, 1e-9), jobs, thread_count(),
+                    failures.empty()
+                        ? ""
+                        : (", " + std::to_string(failures.size()) + " skipped").c_str());
+        std::printf("%-20s %-12s %12s %14s\n", "node", "type", "total s", "ms/frame");
+        for (int i : graph.order()) {
+            const GraphNode &gn = graph.nodes()[std::size_t(i)];
+            const double s = double(*times.nanoseconds[std::size_t(i)]) * 1e-9;
+            std::printf("%-20s %-12s %12.3f %14.2f\n", gn.identity.id.c_str(),
+                        gn.identity.type.c_str(), s, 1000.0 * s / std::max(1, done.load()));
+        }
+    }
+    return 0;
+}
+
+}  // namespace
+
+void add_run_command(CLI::App &app, int &exit_code)
+{
+    auto opts = std::make_shared<RunOptions>();
+    CLI::App *cmd = app.add_subcommand("run", "Evaluate a graph over a range of frames");
+    cmd->add_option("graph", opts->graph, "Graph file (JSON)")->required();
+    cmd->add_option("--frames,-f", opts->frames,
+                    "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the graph's, else those on disk)");
+    cmd->add_option("--set,-s", opts->sets, "Override a parameter: node.param=value")
+        ->allow_extra_args(false);
+    cmd->add_option("--jobs,-j", opts->jobs, "Frames evaluated at once (default: min(4, threads))")
+        ->check(CLI::Range(0, 256));
+    cmd->add_option("--threads,-t", opts->threads, "Worker threads (default: all cores)")
+        ->check(CLI::Range(0, 1024));
+    cmd->add_flag("--quiet,-q", opts->quiet, "No progress and no summary");
+    cmd->add_flag("--skip-bad-frames", opts->skip_bad_frames,
+                  "Carry on past frames that fail (missing or unreadable input), with a warning");
+    cmd->add_flag("--dry-run", opts->dry_run, "Validate the graph and its inputs, compute nothing");
+    cmd->callback([opts, &exit_code] { exit_code = run(*opts); });
+}
+
+}  // namespace posthaste::cli

@@ -1,0 +1,91 @@
+#pragma once
+// Graph: a JSON graph file parsed, validated against the node declarations, planned (which
+// passes each node asks of its inputs) and evaluated frame by frame.
+//
+// File format (docs/GRAPHS.md):
+//   { "frames": "1-48",                       optional default frame list
+//     "aliases": [ {...}, ... ],              optional channel aliases for every read node
+//     "nodes": [ {"id": "src", "type": "read", "params": {"path": "in.####.exr"}},
+//                {"id": "out", "type": "write", "inputs": {"image": "src"}, "params": {...}} ] }
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "graph/node.h"
+
+namespace posthaste {
+
+struct GraphNode {
+    NodeIdentity identity;
+    const NodeType *type = nullptr;
+    NodeParams params;
+    std::vector<int> inputs;            ///< Producer node index per input port; -1 unconnected.
+    std::vector<PassSet> input_passes;  ///< Passes asked of each input port (after planning).
+    PassSet requested;                  ///< Passes consumers read from this node.
+    std::vector<int> consumers;         ///< Nodes that read this one (one entry per edge).
+    std::unique_ptr<NodeState> state = std::make_unique<NodeState>();
+};
+
+/// Time spent per node, summed over frames (thread-safe).
+struct NodeTimes {
+    std::vector<std::unique_ptr<std::atomic<long long>>> nanoseconds;
+};
+
+class Graph {
+  public:
+    /// Read, parse and validate a graph file; `overrides` are "node.param=value" strings.
+    /// Throws Error (exit code 2) naming the file, JSON path, node and parameter.
+    static Graph load(const std::string &path, const std::vector<std::string> &overrides = {});
+    /// As load, from JSON text; `origin` names it in messages.
+    static Graph parse(const std::string &text,
+                       const std::string &origin,
+                       const std::vector<std::string> &overrides = {});
+
+    Graph(Graph &&) noexcept = default;
+    Graph &operator=(Graph &&) noexcept = default;
+
+    const std::vector<GraphNode> &nodes() const { return nodes_; }
+    const std::string &origin() const { return origin_; }
+    /// Node indices in evaluation (topological) order.
+    const std::vector<int> &order() const { return order_; }
+
+    /// The frames to run when the command line gives none: the graph's "frames", else the
+    /// frames a source finds on disk, else {1}.
+    std::vector<int> default_frames() const;
+    /// Run every node's check hook for these frames (files exist, passes exist, ...).
+    void check(const std::vector<int> &frames) const;
+    /// Evaluate one frame through the whole graph. Sinks write their files. Thread-safe for
+    /// different frames. Adds each node's time to `times` when given. Returns the output frame
+    /// of the capture node (see set_capture), or an empty Frame.
+    Frame evaluate(int frame, NodeTimes *times = nullptr) const;
+    /// Keep the output of node `id` (all its passes) for evaluate() to return; re-plans.
+    void set_capture(const std::string &id);
+    /// Index of node `id`, or -1.
+    int find(const std::string &id) const;
+    /// A NodeTimes with one slot per node.
+    NodeTimes make_times() const;
+
+  private:
+    Graph() = default;
+    void plan();
+
+    std::string origin_;
+    std::vector<GraphNode> nodes_;
+    std::vector<int> order_;
+    std::vector<bool> live_;  ///< Nodes that feed a sink or the capture node.
+    int capture_ = -1;
+    std::string frames_;
+};
+
+/// Parse a frame list ("1-48", "1-48x2", "1,5,10-20"); throws a usage Error naming `what`.
+std::vector<int> parse_frame_list(const std::string &text, const std::string &what = "--frames");
+
+/// Levenshtein distance, for "did you mean" hints.
+int edit_distance(std::string_view a, std::string_view b);
+/// ", did you mean \"x\"?" for the closest candidate within a small distance, or "".
+std::string did_you_mean(std::string_view word, const std::vector<std::string> &candidates);
+
+}  // namespace posthaste

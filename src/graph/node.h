@@ -1,0 +1,224 @@
+#pragma once
+// The node interface: a constexpr NodeSpec (type, summary, input ports, parameters, the passes it
+// makes) and an execute function over a NodeContext. Edges carry whole frames: a port names the
+// passes the node reads from that input, and the evaluator asks each source for exactly the
+// passes that some node downstream reads (see docs/ARCHITECTURE.md).
+
+#include <any>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core/frame.h"
+#include "graph/param.h"
+
+namespace posthaste {
+
+/// A set of pass names, or "every pass".
+struct PassSet {
+    bool all = false;
+    std::set<std::string> names;
+
+    bool empty() const { return !all && names.empty(); }
+    bool contains(const std::string &n) const { return all || names.count(n) != 0; }
+    void add(const std::string &n)
+    {
+        if (!all) {
+            names.insert(n);
+        }
+    }
+    void add(const PassSet &o)
+    {
+        if (o.all) {
+            all = true;
+            names.clear();
+        }
+        else if (!all) {
+            names.insert(o.names.begin(), o.names.end());
+        }
+    }
+    void remove(const std::string &n) { names.erase(n); }
+    std::string to_string() const;
+};
+
+struct PortSpec {
+    std::string_view name;
+    std::string_view passes;  ///< Comma-separated passes this port always reads ("color,depth").
+    bool optional = false;
+    std::string_view help;
+};
+
+struct NodeSpec {
+    std::string_view type;
+    std::string_view summary;
+    std::span<const PortSpec> inputs;
+    std::span<const ParamSpec> params;
+    std::string_view makes;  ///< Comma-separated passes it writes into its output frame.
+    bool sink = false;       ///< Writes files: evaluated even though nothing reads it.
+};
+
+class NodeContext;
+class PlanContext;
+class CheckContext;
+class NodeParams;
+
+struct NodeType {
+    NodeSpec spec;
+    void (*execute)(NodeContext &ctx) = nullptr;
+    /// Optional: adjust the passes asked of each input (the default asks each port for its
+    /// declared passes, and the first port also for what downstream reads that this node does
+    /// not make).
+    void (*plan)(PlanContext &ctx) = nullptr;
+    /// Optional: checks that need more than the parameter declarations (files exist, passes
+    /// exist in them, parameter combinations); runs before any pixel work.
+    void (*check)(CheckContext &ctx) = nullptr;
+    /// Optional, for sources: the frames available on disk (used when no frame list is given).
+    std::vector<int> (*discover_frames)(const NodeParams &params) = nullptr;
+};
+
+/// Parameters of one node instance, validated and defaulted.
+class NodeParams {
+  public:
+    NodeParams() = default;
+    NodeParams(const NodeType *type, std::map<std::string, ParamValue> values)
+        : type_(type), values_(std::move(values))
+    {
+    }
+    int get_int(const ParamSpec &spec) const { return int(value(spec).number); }
+    double get_real(const ParamSpec &spec) const { return value(spec).number; }
+    float get_float(const ParamSpec &spec) const { return float(value(spec).number); }
+    bool get_bool(const ParamSpec &spec) const { return value(spec).number != 0.0; }
+    const std::string &get_string(const ParamSpec &spec) const { return value(spec).text; }
+    /// Index of the chosen word among the spec's choices.
+    int get_choice(const ParamSpec &spec) const;
+    const std::vector<double> &get_vec(const ParamSpec &spec) const { return value(spec).vec; }
+    /// JSON text of a Json parameter.
+    const std::string &get_json(const ParamSpec &spec) const { return value(spec).text; }
+    /// True if the graph or --set gave this parameter (false: the default is in force).
+    bool given(const ParamSpec &spec) const { return value(spec).given; }
+    const std::map<std::string, ParamValue> &values() const { return values_; }
+
+  private:
+    const ParamValue &value(const ParamSpec &spec) const;
+    const NodeType *type_ = nullptr;
+    std::map<std::string, ParamValue> values_;
+};
+
+/// Identity of a node instance, for messages: `node "blur" (motion_blur)`.
+struct NodeIdentity {
+    std::string id;
+    std::string type;
+    std::string json_path;  ///< "graphs/a.json:/nodes/2"
+    std::string describe() const { return "node \"" + id + "\" (" + type + ")"; }
+};
+
+/// Per-instance state that lives across frames (look-up tables, caches). Created once, on first
+/// use, under a lock; afterwards shared read-only by every frame.
+class NodeState {
+  public:
+    template<typename T, typename Make> const T &get_or_create(Make &&make)
+    {
+        std::lock_guard lock(mutex_);
+        if (!value_.has_value()) {
+            value_ = std::make_shared<const T>(make());
+        }
+        return *std::any_cast<std::shared_ptr<const T>>(value_);
+    }
+
+  private:
+    std::mutex mutex_;
+    std::any value_;
+};
+
+class PlanContext {
+  public:
+    const NodeParams &params;
+    const NodeIdentity &node;
+    const PassSet &downstream;     ///< What consumers read from this node's output.
+    std::vector<PassSet> &inputs;  ///< What to ask of each input port (already defaulted).
+    std::vector<bool> connected;   ///< Which input ports are connected.
+};
+
+class CheckContext {
+  public:
+    const NodeParams &params;
+    const NodeIdentity &node;
+    const PassSet &downstream;  ///< For sources: the passes to produce.
+    std::vector<int> frames;    ///< The frames the run will evaluate.
+    std::vector<bool> connected;
+};
+
+class NodeContext {
+  public:
+    NodeContext(const NodeIdentity &node,
+                const NodeParams &params,
+                std::vector<std::shared_ptr<const Frame>> inputs,
+                std::vector<std::string> port_names,
+                const PassSet &requested,
+                int frame_number,
+                NodeState &state)
+        : node_(node),
+          params_(params),
+          inputs_(std::move(inputs)),
+          port_names_(std::move(port_names)),
+          requested_(requested),
+          frame_number_(frame_number),
+          state_(state)
+    {
+        if (!inputs_.empty() && inputs_[0]) {
+            output_ = *inputs_[0];  // shallow: passes are shared pointers
+        }
+        output_.number = frame_number;
+    }
+
+    int frame_number() const { return frame_number_; }
+    const NodeIdentity &node() const { return node_; }
+    /// "node "blur" (motion_blur), frame 12": prefix for error messages.
+    std::string where() const;
+    const NodeParams &params() const { return params_; }
+
+    bool has_input(std::string_view port) const;
+    /// The frame on input `port`; throws if the port is not connected.
+    const Frame &input(std::string_view port) const;
+    /// A pass of the frame on input `port`; throws naming the node, port and pass if absent.
+    const Image &input_pass(std::string_view port, const std::string &pass) const;
+    /// The passes consumers read from this node (sources produce exactly these).
+    const PassSet &requested() const { return requested_; }
+
+    /// The output frame: starts as a shallow copy of the first input (or empty for sources).
+    Frame &output() { return output_; }
+    Frame take_output() { return std::move(output_); }
+
+    int get_int(const ParamSpec &s) const { return params_.get_int(s); }
+    double get_real(const ParamSpec &s) const { return params_.get_real(s); }
+    float get_float(const ParamSpec &s) const { return params_.get_float(s); }
+    bool get_bool(const ParamSpec &s) const { return params_.get_bool(s); }
+    const std::string &get_string(const ParamSpec &s) const { return params_.get_string(s); }
+    int get_choice(const ParamSpec &s) const { return params_.get_choice(s); }
+    const std::vector<double> &get_vec(const ParamSpec &s) const { return params_.get_vec(s); }
+
+    NodeState &state() { return state_; }
+
+  private:
+    int port_index(std::string_view port) const;
+
+    const NodeIdentity &node_;
+    const NodeParams &params_;
+    std::vector<std::shared_ptr<const Frame>> inputs_;
+    std::vector<std::string> port_names_;
+    const PassSet &requested_;
+    int frame_number_;
+    NodeState &state_;
+    Frame output_;
+};
+
+/// Split "a,b,c" into words (empty words dropped, spaces trimmed).
+std::vector<std::string> split_list(std::string_view list);
+
+}  // namespace posthaste

@@ -1,0 +1,104 @@
+#include "graph/param.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace posthaste {
+namespace {
+
+std::string format_number(double v)
+{
+    if (std::isinf(v)) {
+        return v > 0 ? "inf" : "-inf";
+    }
+    std::ostringstream os;
+    os << v;
+    return os.str();
+}
+
+}  // namespace
+
+std::vector<std::string> split_choices(std::string_view choices)
+{
+    std::vector<std::string> words;
+    std::size_t start = 0;
+    while (start <= choices.size()) {
+        std::size_t end = choices.find('|', start);
+        if (end == std::string_view::npos) {
+            end = choices.size();
+        }
+        if (end > start) {
+            words.emplace_back(choices.substr(start, end - start));
+        }
+        start = end + 1;
+    }
+    return words;
+}
+
+std::string describe_type(const ParamSpec &spec)
+{
+    switch (spec.type) {
+        case ParamType::Int:
+            return "integer";
+        case ParamType::Real:
+            return "number";
+        case ParamType::Bool:
+            return "boolean";
+        case ParamType::String:
+            return "string";
+        case ParamType::Choice:
+            return "one of " + std::string(spec.choices);
+        case ParamType::Vec:
+            return "array of " + std::to_string(spec.vec_size) + " numbers";
+        case ParamType::Json:
+            return "JSON";
+    }
+    return "?";
+}
+
+std::string describe_default(const ParamSpec &spec)
+{
+    if (spec.required) {
+        return "(required)";
+    }
+    switch (spec.type) {
+        case ParamType::Int:
+        case ParamType::Real:
+            return format_number(spec.default_number);
+        case ParamType::Bool:
+            return spec.default_number != 0.0 ? "true" : "false";
+        case ParamType::String:
+        case ParamType::Choice:
+            return std::string(1, '"').append(spec.default_text).append(1, '"');
+        case ParamType::Vec: {
+            std::string s = "[";
+            for (int i = 0; i < spec.vec_size; ++i) {
+                if (i > 0) {
+                    s += ", ";
+                }
+                s += format_number(spec.default_vec[std::size_t(i)]);
+            }
+            return s + "]";
+        }
+        case ParamType::Json:
+            return std::string(spec.default_text);
+    }
+    return "";
+}
+
+std::string describe_range(const ParamSpec &spec)
+{
+    const bool lo = std::isfinite(spec.min), hi = std::isfinite(spec.max);
+    if (lo && hi) {
+        return format_number(spec.min) + ".." + format_number(spec.max);
+    }
+    if (lo) {
+        return ">= " + format_number(spec.min);
+    }
+    if (hi) {
+        return "<= " + format_number(spec.max);
+    }
+    return "";
+}
+
+}  // namespace posthaste

@@ -1,0 +1,159 @@
+#pragma once
+// ParamSpec: a node parameter declared once (name, type, default, range or choices, unit, help).
+// Validation, defaults, `--set node.param=value` overrides and `posthaste nodes` all read it;
+// no default exists anywhere else.
+
+#include <array>
+#include <limits>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace posthaste {
+
+enum class ParamType {
+    Int,     ///< integer number
+    Real,    ///< floating-point number
+    Bool,    ///< true / false
+    String,  ///< free text (paths, color-space names, ...)
+    Choice,  ///< one of a fixed list of words
+    Vec,     ///< fixed-size array of numbers (colors, directions)
+    Json,    ///< structured value (lists of lights, mappings), checked by the node
+};
+
+struct ParamSpec {
+    std::string_view name;
+    ParamType type = ParamType::Real;
+    double default_number = 0.0;
+    std::string_view default_text;
+    std::array<double, 4> default_vec{};
+    int vec_size = 0;
+    double min = -std::numeric_limits<double>::infinity();
+    double max = std::numeric_limits<double>::infinity();
+    std::string_view choices;  ///< "a|b|c" for Choice
+    std::string_view unit;
+    std::string_view help;
+    bool required = false;  ///< no default: the graph must give it
+
+    static constexpr ParamSpec integer(std::string_view n, int def)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Int;
+        p.default_number = def;
+        return p;
+    }
+    static constexpr ParamSpec real(std::string_view n, double def)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Real;
+        p.default_number = def;
+        return p;
+    }
+    static constexpr ParamSpec boolean(std::string_view n, bool def)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Bool;
+        p.default_number = def ? 1.0 : 0.0;
+        return p;
+    }
+    static constexpr ParamSpec string(std::string_view n, std::string_view def)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::String;
+        p.default_text = def;
+        return p;
+    }
+    /// A choice among `options` ("over|add|multiply"); `def` must be one of them.
+    static constexpr ParamSpec choice(std::string_view n, std::string_view options, std::string_view def)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Choice;
+        p.choices = options;
+        p.default_text = def;
+        return p;
+    }
+    static constexpr ParamSpec vec3(std::string_view n, double x, double y, double z)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Vec;
+        p.vec_size = 3;
+        p.default_vec = {x, y, z, 0.0};
+        return p;
+    }
+    static constexpr ParamSpec vec4(std::string_view n, double x, double y, double z, double w)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Vec;
+        p.vec_size = 4;
+        p.default_vec = {x, y, z, w};
+        return p;
+    }
+    /// Structured JSON; `def` is JSON text ("[]", "{}").
+    static constexpr ParamSpec json(std::string_view n, std::string_view def)
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Json;
+        p.default_text = def;
+        return p;
+    }
+
+    constexpr ParamSpec range(double lo, double hi) const
+    {
+        ParamSpec p = *this;
+        p.min = lo;
+        p.max = hi;
+        return p;
+    }
+    constexpr ParamSpec at_least(double lo) const
+    {
+        ParamSpec p = *this;
+        p.min = lo;
+        return p;
+    }
+    constexpr ParamSpec units(std::string_view u) const
+    {
+        ParamSpec p = *this;
+        p.unit = u;
+        return p;
+    }
+    constexpr ParamSpec doc(std::string_view h) const
+    {
+        ParamSpec p = *this;
+        p.help = h;
+        return p;
+    }
+    /// No default: the graph (or --set) must give a value.
+    constexpr ParamSpec mandatory() const
+    {
+        ParamSpec p = *this;
+        p.required = true;
+        return p;
+    }
+};
+
+/// A validated parameter value. Which member is meaningful follows the spec's type.
+struct ParamValue {
+    double number = 0.0;             ///< Int, Real, Bool (0/1)
+    std::string text;                ///< String, Choice; JSON text for Json
+    std::vector<double> vec;         ///< Vec
+    bool given = false;              ///< set by the graph or --set (not the default)
+};
+
+/// The words of a Choice spec, in order.
+std::vector<std::string> split_choices(std::string_view choices);
+/// Human-readable type name ("integer", "number", "one of over|add", ...).
+std::string describe_type(const ParamSpec &spec);
+/// The default rendered as JSON text ("32", "0.5", "\"over\"", "[1, 1, 1]").
+std::string describe_default(const ParamSpec &spec);
+/// The range as text ("1..256", ">= 0", "" when unbounded).
+std::string describe_range(const ParamSpec &spec);
+
+}  // namespace posthaste
