@@ -215,7 +215,8 @@ struct Planes {
     Plane c[3];
 };
 
-/// Clamp-to-edge 1D convolution along rows.
+/// Clamp-to-edge 1D convolution along rows. Interior pixels accumulate tap by tap over the
+/// row (a loop the compiler vectorises); the r pixels at each end clamp their reads.
 void convolve_rows(const Plane &in, Plane &out, int w, int h, const std::vector<float> &k)
 {
     const int r = int(k.size() / 2);
@@ -223,20 +224,27 @@ void convolve_rows(const Plane &in, Plane &out, int w, int h, const std::vector<
     parallel_for(0, h, [&](int y) {
         const float *src = in.data() + std::size_t(y) * std::size_t(w);
         float *dst = out.data() + std::size_t(y) * std::size_t(w);
-        for (int x = 0; x < w; ++x) {
-            float s = 0.0f;
-            if (x >= r && x + r < w) {
-                const float *p = src + (x - r);
-                for (int i = 0; i <= 2 * r; ++i) {
-                    s += k[std::size_t(i)] * p[i];
-                }
+        const int x0 = std::min(r, w), x1 = std::max(w - r, x0);
+        std::fill(dst + x0, dst + x1, 0.0f);
+        for (int i = 0; i <= 2 * r; ++i) {
+            const float wk = k[std::size_t(i)];
+            const float *s = src + (i - r);
+            for (int x = x0; x < x1; ++x) {
+                dst[x] += wk * s[x];
             }
-            else {
-                for (int i = 0; i <= 2 * r; ++i) {
-                    s += k[std::size_t(i)] * src[std::clamp(x + i - r, 0, w - 1)];
-                }
+        }
+        auto edge = [&](int x) {
+            float sum = 0.0f;
+            for (int i = 0; i <= 2 * r; ++i) {
+                sum += k[std::size_t(i)] * src[std::clamp(x + i - r, 0, w - 1)];
             }
-            dst[x] = s;
+            dst[x] = sum;
+        };
+        for (int x = 0; x < x0; ++x) {
+            edge(x);
+        }
+        for (int x = x1; x < w; ++x) {
+            edge(x);
         }
     });
 }
