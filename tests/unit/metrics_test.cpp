@@ -404,6 +404,26 @@ TEST_F(DiffIdiffAgreement, HdrWithNegativesAndAlpha)
     check_pair("hdr", a, b, {}, "");
 }
 
+TEST_F(DiffIdiffAgreement, ManyTilesWithTiedMaxima)
+{
+    // 150x90 spans six 64-pixel tiles; equal maxima in tiles 0 and 1 test the merge order.
+    const Image a = noise_image(150, 90, 3, 31, 0.0f, 1.0f);
+    Image b = a;
+    for (int y = 0; y < 90; ++y) {
+        for (int x = 0; x < 150; ++x) {
+            b.at(x, y, 1) += 0.001f * float((x * 7 + y * 3) % 11);
+        }
+    }
+    Image a2 = a;
+    a2.at(5, 10, 2) = a2.at(100, 0, 0) = 0.25f;
+    b.at(5, 10, 2) = b.at(100, 0, 0) = 0.75f;
+    Thresholds t;
+    t.fail = 0.008f;
+    t.warn = 0.004f;
+    t.fail_percent = 10.0f;
+    check_pair("tiles", a2, b, t, "-fail 0.008 -warn 0.004 -failpercent 10");
+}
+
 TEST_F(DiffIdiffAgreement, NonFiniteValues)
 {
     Image a = noise_image(5, 4, 3, 21, 0.0f, 2.0f);
