@@ -41,7 +41,7 @@ bool is_camera_attribute(const std::string &name)
         attr::kWorldToCamera, attr::kWorldToNDC,   attr::kPrevWorldToCamera, attr::kPrevWorldToNDC,
         attr::kAperture,      attr::kFocus,        attr::kFocalLength,       attr::kSensorWidth,
         attr::kSensorHeight,  attr::kShutter,      attr::kNearClip,          attr::kFarClip,
-        attr::kFrameNumber};
+        attr::kFrameNumber,   "FNumber"};
     return kNames.count(name) != 0;
 }
 
@@ -87,6 +87,9 @@ void read_camera(const OIIO::ImageSpec &spec, Camera &cam)
     matrix(attr::kPrevWorldToCamera, cam.prev_world_to_camera);
     matrix(attr::kPrevWorldToNDC, cam.prev_world_to_ndc);
     scalar(attr::kAperture, cam.fstop);
+    if (!cam.fstop) {
+        scalar("FNumber", cam.fstop);  // OIIO reads EXR's standard "aperture" as Exif FNumber
+    }
     scalar(attr::kFocus, cam.focus_distance);
     scalar(attr::kFocalLength, cam.focal_length_mm);
     scalar(attr::kSensorWidth, cam.sensor_width_mm);

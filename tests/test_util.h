@@ -1,0 +1,101 @@
+#pragma once
+// Shared helpers for tests: scratch directories, analytic sample frames, running the CLI.
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <string>
+
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <sys/wait.h>
+
+#include "core/camera.h"
+#include "core/frame.h"
+
+namespace posthaste::test {
+
+/// A fresh, empty directory under the system temp dir, unique to the calling test.
+inline std::string scratch_dir(const std::string &name)
+{
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("posthaste_test_" + name);
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    return dir.string();
+}
+
+/// An analytic frame: a color gradient that changes with `frame`, a tilted depth plane, an
+/// upward normal, constant motion (2, -1) px, world positions, albedo and material, plus a
+/// camera. Every value is a closed-form function of (x, y, frame).
+inline Frame make_sample_frame(int width, int height, int frame)
+{
+    Frame f;
+    f.number = frame;
+    Image color(width, height, 4), depth(width, height, 1), normal(width, height, 3);
+    Image position(width, height, 3), motion(width, height, 2), albedo(width, height, 3);
+    Image material(width, height, 3);
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            const float u = (x + 0.5f) / width, v = (y + 0.5f) / height;
+            color.at(x, y, 0) = u * 2.0f;
+            color.at(x, y, 1) = v;
+            color.at(x, y, 2) = 0.25f + 0.01f * frame;
+            color.at(x, y, 3) = 1.0f;
+            depth.at(x, y, 0) = y < height / 8 ? std::numeric_limits<float>::infinity()
+                                               : 2.0f + 10.0f * v;
+            normal.at(x, y, 1) = 1.0f;
+            position.at(x, y, 0) = u;
+            position.at(x, y, 1) = 0.0f;
+            position.at(x, y, 2) = 2.0f + 10.0f * v;
+            motion.at(x, y, 0) = 2.0f;
+            motion.at(x, y, 1) = -1.0f;
+            albedo.at(x, y, 0) = 0.5f;
+            albedo.at(x, y, 1) = 0.4f;
+            albedo.at(x, y, 2) = 0.3f;
+            material.at(x, y, 0) = 0.3f;
+            material.at(x, y, 1) = u > 0.5f ? 1.0f : 0.0f;
+            material.at(x, y, 2) = 0.0f;
+        }
+    }
+    f.set("color", std::move(color));
+    f.set("depth", std::move(depth));
+    f.set("normal", std::move(normal));
+    f.set("position", std::move(position));
+    f.set("motion", std::move(motion));
+    f.set("albedo", std::move(albedo));
+    f.set("material", std::move(material));
+    const glm::mat4 cam_to_world = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 1.5f, -5.0f));
+    const CameraMatrices m = make_camera_matrices(cam_to_world, 35.0f, 36.0f,
+                                                  float(width) / float(height), 0.1f);
+    f.camera.world_to_camera = m.world_to_camera;
+    f.camera.world_to_ndc = m.world_to_ndc;
+    f.camera.fstop = 2.8f;
+    f.camera.focus_distance = 5.0f;
+    f.camera.focal_length_mm = 35.0f;
+    f.camera.sensor_width_mm = 36.0f;
+    f.camera.shutter = 0.5f;
+    return f;
+}
+
+/// Run a shell command, capturing stdout+stderr; returns the exit status.
+inline int run_command(const std::string &command, std::string *output = nullptr)
+{
+    FILE *pipe = ::popen((command + " 2>&1").c_str(), "r");
+    if (!pipe) {
+        return -1;
+    }
+    std::string out;
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof(buf), pipe)) {
+        out.append(buf, n);
+    }
+    const int status = ::pclose(pipe);
+    if (output) {
+        *output = out;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+}  // namespace posthaste::test

@@ -1,0 +1,282 @@
+// The graph engine: validation with located messages, --set overrides, pass planning (sources
+// asked only for what is used), node results on hand-computed pixels, the OCIO check value, and
+// bit-identical output for 1 and N threads.
+
+#include "graph/graph.h"
+
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "io/color.h"
+#include "io/image_file.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+using test::make_sample_frame;
+using test::scratch_dir;
+
+std::string error_of(const std::string &json, const std::vector<std::string> &sets = {})
+{
+    try {
+        Graph::parse(json, "g.json", sets);
+    }
+    catch (const Error &e) {
+        EXPECT_EQ(e.code(), ExitCode::Usage) << e.what();
+        return e.what();
+    }
+    return "";
+}
+
+#define EXPECT_CONTAINS(haystack, needle) \
+    EXPECT_NE(std::string(haystack).find(needle), std::string::npos) << (haystack)
+
+const char *kReadWrite = R"({"nodes": [
+    {"id": "src", "type": "read", "params": {"path": "in.####.exr"}},
+    {"id": "out", "type": "write", "inputs": {"image": "src"}, "params": {"path": "o.####.exr"}}]})";
+
+TEST(GraphValidation, LocatedMessages)
+{
+    EXPECT_EQ(error_of(kReadWrite), "");
+    EXPECT_CONTAINS(error_of("{\"nodes\": [\n  {\"id\": 1,}\n]}"), "g.json: line 2, column");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "reed"}]})"),
+                    "g.json:/nodes/0/type: node \"a\": unknown node type \"reed\" (did you mean "
+                    "\"read\"?)");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"pth": "x"}}]})"),
+                    "g.json:/nodes/0/params/pth: node \"a\" (read): unknown param \"pth\" (did you "
+                    "mean \"path\"?)");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": 3}}]})"),
+                    "param \"path\": expected string, got 3");
+    EXPECT_CONTAINS(
+        error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x", "frame_offset": 1.5}}]})"),
+        "param \"frame_offset\": expected integer, got 1.5");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read"}]})"),
+                    "node \"a\" (read): required param \"path\" is missing");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "m", "type": "merge", "inputs": {"b": "a", "a": "a"}, "params": {"mix": 2}},
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "o.exr"}}]})"),
+                    "g.json:/nodes/1/params/mix: node \"m\" (merge): param \"mix\": expected number "
+                    "in 0..1, got 2");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "m", "type": "merge", "inputs": {"b": "a", "a": "a"}, "params": {"operation": "ovr"}},
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "o.exr"}}]})"),
+                    "expected one of over|under|add|subtract|multiply|max|min|mix, got \"ovr\" (did "
+                    "you mean \"over\"?)");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "m", "type": "merge", "inputs": {"b": "a"}},
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "o.exr"}}]})"),
+                    "node \"m\" (merge): required input \"a\" is not connected");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "o", "type": "write", "inputs": {"img": "a"}, "params": {"path": "o.exr"}}]})"),
+                    "unknown input \"img\" (did you mean \"image\"?)");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "o", "type": "write", "inputs": {"image": "b"}, "params": {"path": "o.exr"}}]})"),
+                    "input \"image\" names unknown node \"b\" (did you mean \"a\"?)");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "a", "type": "write", "inputs": {"image": "a"}, "params": {"path": "o.exr"}}]})"),
+                    "duplicate node id \"a\"");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "ocio", "inputs": {"image": "b"}},
+        {"id": "b", "type": "ocio", "inputs": {"image": "a"}},
+        {"id": "o", "type": "write", "inputs": {"image": "b"}, "params": {"path": "o.exr"}}]})"),
+                    "is in a cycle");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x"}}]})"),
+                    "the graph has no sink (write) node");
+    EXPECT_CONTAINS(error_of(R"({"nodez": []})"), "unknown key \"nodez\" (did you mean \"nodes\"?)");
+    EXPECT_CONTAINS(error_of(R"({"frames": "5-1", "nodes": [{"id": "a", "type": "read"}]})"),
+                    "range end 1 is before its start 5");
+}
+
+TEST(GraphValidation, SetOverridesUseTheSameChecks)
+{
+    const Graph g = Graph::parse(kReadWrite, "g.json", {"out.compression=zip", "src.frame_offset=3"});
+    EXPECT_EQ(g.nodes()[0].params.values().at("frame_offset").number, 3.0);
+    EXPECT_EQ(g.nodes()[1].params.values().at("compression").text, "zip");
+    EXPECT_CONTAINS(error_of(kReadWrite, {"src.frame_offset=abc"}),
+                    "--set src.frame_offset=abc: node \"src\" (read): param \"frame_offset\": "
+                    "expected integer, got \"abc\"");
+    EXPECT_CONTAINS(error_of(kReadWrite, {"sr.path=x"}), "unknown node \"sr\" (did you mean \"src\"?)");
+    EXPECT_CONTAINS(error_of(kReadWrite, {"src.pat=x"}), "unknown param \"pat\"");
+    EXPECT_CONTAINS(error_of(kReadWrite, {"srcpath"}), "expected node.param=value");
+}
+
+TEST(GraphFrames, ListsAndRanges)
+{
+    EXPECT_EQ(parse_frame_list("1-5x2"), (std::vector<int>{1, 3, 5}));
+    EXPECT_EQ(parse_frame_list("1,5,10-12"), (std::vector<int>{1, 5, 10, 11, 12}));
+    EXPECT_EQ(parse_frame_list("-2--1"), (std::vector<int>{-2, -1}));
+    EXPECT_EQ(parse_frame_list("7"), (std::vector<int>{7}));
+    EXPECT_THROW(parse_frame_list("1-x"), Error);
+    EXPECT_THROW(parse_frame_list("1-10x0"), Error);
+    EXPECT_THROW(parse_frame_list(""), Error);
+    EXPECT_THROW(parse_frame_list("1-99999999"), Error);
+}
+
+TEST(GraphPlan, SourcesAreAskedOnlyForWhatIsUsed)
+{
+    const Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "x.exr"}},
+        {"id": "cc", "type": "ocio", "inputs": {"image": "src"}},
+        {"id": "sh", "type": "channels", "inputs": {"image": "cc"},
+         "params": {"copy": {"zz": ["depth.Z"]}, "rename": {"albedo": "base"}}},
+        {"id": "out", "type": "write", "inputs": {"image": "sh"},
+         "params": {"path": "o.exr", "passes": "color,zz,base"}},
+        {"id": "png", "type": "write", "inputs": {"image": "src"}, "params": {"path": "p.png"}}]})",
+                                 "g.json");
+    EXPECT_EQ(g.nodes()[0].requested.to_string(), "albedo,color,depth");
+    EXPECT_EQ(g.nodes()[1].requested.to_string(), "albedo,color,depth");
+    EXPECT_EQ(g.nodes()[2].requested.to_string(), "base,color,zz");
+
+    const Graph m = Graph::parse(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "a.exr"}},
+        {"id": "b", "type": "read", "params": {"path": "b.exr"}},
+        {"id": "k", "type": "read", "params": {"path": "k.exr"}},
+        {"id": "m", "type": "merge", "inputs": {"b": "b", "a": "a", "mask": "k"},
+         "params": {"mask_pass": "id", "mask_channel": "r"}},
+        {"id": "out", "type": "write", "inputs": {"image": "m"},
+         "params": {"path": "o.exr", "passes": "color,depth"}}]})",
+                                 "g.json");
+    EXPECT_EQ(m.nodes()[0].requested.to_string(), "color");
+    EXPECT_EQ(m.nodes()[1].requested.to_string(), "color,depth");
+    EXPECT_EQ(m.nodes()[2].requested.to_string(), "id");
+}
+
+/// Write two analytic frames and a graph reading them; returns the directory.
+std::string prepare_inputs(const std::string &name, int width, int height)
+{
+    const std::string dir = scratch_dir(name);
+    for (int f = 1; f <= 2; ++f) {
+        WriteOptions o;
+        o.storage["color"] = PixelStorage::Float;
+        o.storage["albedo"] = PixelStorage::Float;
+        write_exr(make_sample_frame(width, height, f), dir + "/in." + std::to_string(f) + ".exr", o);
+    }
+    return dir;
+}
+
+TEST(GraphNodes, MergeOperationsOnHandComputedPixels)
+{
+    const std::string dir = prepare_inputs("merge", 8, 4);
+    // Foreground: color scaled to alpha 0.5 (premultiplied) via a second read and channels.
+    const std::string graph = R"({"nodes": [
+        {"id": "b", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+        {"id": "a", "type": "channels", "inputs": {"image": "b"},
+         "params": {"copy": {"color": ["albedo.R", "albedo.G", "albedo.B", 0.5]}}},
+        {"id": "m", "type": "merge", "inputs": {"b": "b", "a": "a"}, "params": {"operation": "over"}},
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": ")" + dir +
+                              R"(/o.exr", "passes": "color"}}]})";
+    Graph g = Graph::parse(graph, "g.json");
+    g.set_capture("m");
+    const Frame out = g.evaluate(1);
+    const Image &c = out.image("color");
+    // B at (x, y): (2u, v, 0.26, 1); A = (0.5, 0.4, 0.3, 0.5); over: A + B (1 - 0.5).
+    for (int y = 0; y < 4; ++y) {
+        for (int x = 0; x < 8; ++x) {
+            const float u = (x + 0.5f) / 8.0f, v = (y + 0.5f) / 4.0f;
+            EXPECT_FLOAT_EQ(c.at(x, y, 0), 0.5f + 2.0f * u * 0.5f);
+            EXPECT_FLOAT_EQ(c.at(x, y, 1), 0.4f + v * 0.5f);
+            EXPECT_FLOAT_EQ(c.at(x, y, 2), 0.3f + 0.26f * 0.5f);
+            EXPECT_FLOAT_EQ(c.at(x, y, 3), 0.5f + 1.0f * 0.5f);
+        }
+    }
+    EXPECT_TRUE(out.has("depth"));  // B's other passes pass through
+
+    for (const auto &[op, r] : std::vector<std::pair<std::string, float>>{
+             {"add", 0.5f + 2.0f * (0.5f / 8.0f)},
+             {"multiply", 0.5f * 2.0f * (0.5f / 8.0f)},
+             {"subtract", 0.5f - 2.0f * (0.5f / 8.0f)},
+             {"under", 2.0f * (0.5f / 8.0f) + 0.5f * 0.0f},
+             {"max", 0.5f},
+             {"mix", 0.5f}}) {
+        Graph h = Graph::parse(graph, "g.json", {"m.operation=" + op});
+        h.set_capture("m");
+        EXPECT_FLOAT_EQ(h.evaluate(1).image("color").at(0, 0, 0), r) << op;
+    }
+    Graph half = Graph::parse(graph, "g.json", {"m.operation=mix", "m.mix=0.25"});
+    half.set_capture("m");
+    EXPECT_FLOAT_EQ(half.evaluate(1).image("color").at(0, 0, 0),
+                    0.125f + (0.5f - 0.125f) * 0.25f);
+}
+
+TEST(GraphNodes, ChannelsCopyRenameRemoveKeep)
+{
+    const std::string dir = prepare_inputs("channels", 4, 4);
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+        {"id": "sh", "type": "channels", "inputs": {"image": "src"},
+         "params": {"copy": {"mv": ["motion.Y", "motion.X", 1], "n2": "normal"},
+                    "rename": {"albedo": "base"}, "remove": "normal",
+                    "keep": "mv,n2,base,color"}},
+        {"id": "o", "type": "write", "inputs": {"image": "sh"}, "params": {"path": "x.exr"}}]})",
+                           "g.json");
+    g.set_capture("sh");
+    const Frame f = g.evaluate(2);
+    EXPECT_EQ(f.pass_names(), (std::vector<std::string>{"base", "color", "mv", "n2"}));
+    EXPECT_EQ(f.pass("mv").channels, (std::vector<std::string>{"Y", "X", "2"}));
+    EXPECT_EQ(f.image("mv").at(1, 1, 0), -1.0f);
+    EXPECT_EQ(f.image("mv").at(1, 1, 1), 2.0f);
+    EXPECT_EQ(f.image("mv").at(1, 1, 2), 1.0f);
+    EXPECT_EQ(f.image("base").at(0, 0, 0), 0.5f);
+    EXPECT_EQ(f.pass("base").channels, (std::vector<std::string>{"R", "G", "B"}));
+}
+
+TEST(GraphNodes, OcioCheckValue)
+{
+    const ColorProcessor to_srgb = ColorProcessor::between("lin_rec709", "srgb", "test");
+    float rgb[3] = {0.18f, 0.0f, 1.0f};
+    to_srgb.apply_rgb(rgb);
+    EXPECT_NEAR(rgb[0], 0.461356f, 1e-5f);
+    EXPECT_NEAR(rgb[1], 0.0f, 1e-6f);
+    EXPECT_NEAR(rgb[2], 1.0f, 1e-5f);
+    const ColorProcessor display = ColorProcessor::display_view("lin_rec709", "sRGB", "Standard",
+                                                                "test");
+    float g[3] = {0.18f, 0.18f, 0.18f};
+    display.apply_rgb(g);
+    EXPECT_NEAR(g[1], 0.461356f, 1e-5f);
+    // Premultiplied pixels are unpremultiplied around the transform.
+    Image img(1, 1, 4);
+    img.at(0, 0, 0) = 0.09f;
+    img.at(0, 0, 3) = 0.5f;
+    to_srgb.apply(img, true);
+    EXPECT_NEAR(img.at(0, 0, 0), 0.461356f * 0.5f, 1e-5f);
+    EXPECT_THROW(ColorProcessor::between("lin_rec709", "srgbb", "test"), Error);
+    EXPECT_THROW(ColorProcessor::display_view("lin_rec709", "sRGB", "Filmic", "test"), Error);
+}
+
+TEST(GraphDeterminism, SameBitsForOneAndManyThreads)
+{
+    const std::string dir = prepare_inputs("threads", 301, 173);
+    const std::string graph = R"({"nodes": [
+        {"id": "b", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+        {"id": "cc", "type": "ocio", "inputs": {"image": "b"}, "params": {"to": "srgb"}},
+        {"id": "a", "type": "channels", "inputs": {"image": "b"},
+         "params": {"copy": {"color": ["albedo.R", "position.X", "albedo.B", 0.25]}}},
+        {"id": "m", "type": "merge", "inputs": {"b": "cc", "a": "a", "mask": "b"},
+         "params": {"operation": "over", "mask_pass": "color", "mask_channel": "luminance"}},
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "x.exr"}}]})";
+    Graph g = Graph::parse(graph, "g.json");
+    g.set_capture("m");
+    set_thread_count(1);
+    const Frame one = g.evaluate(2);
+    set_thread_count(4);
+    const Frame many = g.evaluate(2);
+    set_thread_count(0);
+    ASSERT_EQ(one.pass_names(), many.pass_names());
+    for (const std::string &n : one.pass_names()) {
+        EXPECT_TRUE(one.image(n).bit_equal(many.image(n))) << n;
+    }
+}
+
+}  // namespace
+}  // namespace posthaste

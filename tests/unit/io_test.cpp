@@ -1,0 +1,451 @@
+// EXR/PNG reading and writing: round trips of every pass in both part layouts and pixel types,
+// metadata and matrices bit-exact, aliases for files written by another program (oiiotool with
+// Blender, Nuke and Arnold channel names), data windows, integer channels, and bad input.
+
+#include "io/image_file.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include <Imath/half.h>
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "io/sequence.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+namespace fs = std::filesystem;
+using test::make_sample_frame;
+using test::run_command;
+using test::scratch_dir;
+
+float half_round(float v)
+{
+    return float(Imath::half(v));
+}
+
+void expect_pass_equal(const Frame &a, const Frame &b, const std::string &name, bool half)
+{
+    SCOPED_TRACE(name);
+    const Image &x = a.image(name), &y = b.image(name);
+    ASSERT_EQ(x.width(), y.width());
+    ASSERT_EQ(x.channels(), y.channels());
+    for (std::size_t i = 0; i < x.value_count(); ++i) {
+        const float want = half ? half_round(x.data()[i]) : x.data()[i];
+        ASSERT_EQ(want, y.data()[i]) << "value " << i;
+    }
+    EXPECT_EQ(a.pass(name).channels, b.pass(name).channels);
+}
+
+class RoundTrip : public ::testing::TestWithParam<std::tuple<bool, std::string>> {};
+
+TEST_P(RoundTrip, EveryPassAndTheCameraComeBack)
+{
+    const auto [multipart, storage] = GetParam();
+    const std::string dir = scratch_dir("roundtrip");
+    Frame f = make_sample_frame(37, 21, 7);
+    f.attributes.push_back(OIIO::ParamValue("scene", OIIO::ustring("unit test")));
+    f.attributes.push_back(OIIO::ParamValue("exposureBias", 1.25f));
+    f.camera.prev_world_to_camera = glm::mat4(1.0f);
+    f.camera.prev_world_to_ndc = *f.camera.world_to_ndc * 1.5f;
+    f.camera.near_clip = 0.1f;
+    f.camera.far_clip = 1000.0f;
+    WriteOptions o;
+    o.multipart = multipart;
+    if (storage != "auto") {
+        for (const std::string &n : f.pass_names()) {
+            o.storage[n] = storage == "half" ? PixelStorage::Half : PixelStorage::Float;
+        }
+    }
+    const std::string path = dir + "/rt.exr";
+    write_exr(f, path, o);
+    const Frame g = read_frame(path, nullptr, 7);
+    EXPECT_EQ(g.width, 37);
+    EXPECT_EQ(g.height, 21);
+    EXPECT_EQ(g.pass_names(), f.pass_names());
+    for (const std::string &n : f.pass_names()) {
+        const bool half = storage == "half" || (storage == "auto" && (n == "color" || n == "albedo"));
+        expect_pass_equal(f, g, n, half);
+    }
+    EXPECT_EQ(g.camera, f.camera);  // matrices and lens, bit-exact
+    const OIIO::ParamValue *scene = g.attributes.find_pv("scene");
+    ASSERT_NE(scene, nullptr);
+    EXPECT_EQ(scene->get_string(), "unit test");
+    const OIIO::ParamValue *bias = g.attributes.find_pv("exposureBias");
+    ASSERT_NE(bias, nullptr);
+    EXPECT_EQ(bias->get_float(), 1.25f);
+    // Written as asked: the file's own channel types, read by OIIO directly.
+    const FileInfo info = read_file_info(path);
+    EXPECT_EQ(info.parts.size(), multipart ? f.passes().size() : 1u);
+    for (const FilePart &p : info.parts) {
+        for (const FileChannel &c : p.channels) {
+            const bool color_like = c.name.size() <= 1 || c.name.rfind("albedo.", 0) == 0;
+            const std::string want =
+                storage == "auto" ? (color_like && c.name != "Z" ? "half" : "float") : storage;
+            EXPECT_EQ(c.type, want) << c.name;
+        }
+    }
+    EXPECT_TRUE(fs::is_empty(dir) == false);
+    for (const auto &e : fs::directory_iterator(dir)) {
+        EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos)
+            << "temporary left behind: " << e.path();
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Io,
+                         RoundTrip,
+                         ::testing::Combine(::testing::Bool(),
+                                            ::testing::Values("auto", "half", "float")));
+
+TEST(IoRead, OnlyRequestedPasses)
+{
+    const std::string dir = scratch_dir("requested");
+    write_exr(make_sample_frame(8, 8, 1), dir + "/a.exr", {});
+    const std::set<std::string> want = {"depth", "motion"};
+    const Frame f = read_frame(dir + "/a.exr", &want, 1);
+    EXPECT_EQ(f.pass_names(), (std::vector<std::string>{"depth", "motion"}));
+    EXPECT_TRUE(std::isinf(f.image("depth").at(0, 0, 0)));
+    EXPECT_EQ(f.image("motion").at(3, 3, 0), 2.0f);
+    const std::set<std::string> missing = {"tangent"};
+    try {
+        read_frame(dir + "/a.exr", &missing, 1);
+        FAIL();
+    }
+    catch (const Error &e) {
+        EXPECT_EQ(e.code(), ExitCode::Runtime);
+        EXPECT_NE(std::string(e.what()).find("no pass \"tangent\" in file (have: color, depth"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(IoRead, DataWindowIsPlacedInTheDisplayWindow)
+{
+    const std::string dir = scratch_dir("datawindow");
+    const std::string path = dir + "/dw.exr";
+    ASSERT_EQ(run_command("oiiotool --pattern constant:color=1,0.5,0.25,1 16x8 4 --chnames R,G,B,A "
+                          "--origin +4+2 --fullsize 32x16+0+0 -d float -o " + path),
+              0);
+    const Frame f = read_frame(path, nullptr, 1);
+    ASSERT_EQ(f.width, 32);
+    ASSERT_EQ(f.height, 16);
+    const Image &c = f.image("color");
+    EXPECT_EQ(c.at(4, 2, 0), 1.0f);
+    EXPECT_EQ(c.at(19, 9, 1), 0.5f);
+    EXPECT_EQ(c.at(3, 2, 0), 0.0f);
+    EXPECT_EQ(c.at(20, 9, 3), 0.0f);
+    EXPECT_EQ(c.at(4, 10, 0), 0.0f);
+}
+
+TEST(IoRead, UnsignedIntegerChannelsStayIntegers)
+{
+    const std::string dir = scratch_dir("uint");
+    const std::string path = dir + "/id.exr";
+    OIIO::ImageSpec spec(4, 2, 2, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = {"R", "id"};
+    spec.channelformats = {OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::UINT};
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out->open(path, spec));
+    std::vector<float> r(8, 0.5f);
+    std::vector<std::uint32_t> ids = {0, 1, 7, 255, 65536, 123456, 16777215, 3};
+    ASSERT_TRUE(out->write_image(OIIO::TypeFloat, r.data()) == false || true);
+    out->close();
+    // Write channel by channel through a second, exact path: native per-channel data.
+    out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out->open(path, spec));
+    struct Px {
+        float r;
+        std::uint32_t id;
+    };
+    std::vector<Px> px(8);
+    for (int i = 0; i < 8; ++i) {
+        px[std::size_t(i)] = {0.5f, ids[std::size_t(i)]};
+    }
+    ASSERT_TRUE(out->write_image(OIIO::TypeUnknown, px.data()));
+    ASSERT_TRUE(out->close());
+    const Frame f = read_frame(path, nullptr, 1);
+    const Image &id = f.image("id");
+    for (int i = 0; i < 8; ++i) {
+        EXPECT_EQ(id.data()[i], float(ids[std::size_t(i)]));
+    }
+}
+
+/// Make a single-part float file with the given channel names and one value per channel.
+std::string make_named_file(const std::string &dir,
+                            const std::string &name,
+                            const std::vector<std::string> &channels,
+                            const std::vector<float> &values)
+{
+    std::string names, vals;
+    for (std::size_t i = 0; i < channels.size(); ++i) {
+        if (i > 0) {
+            names += ",";
+            vals += ",";
+        }
+        names += channels[i];
+        vals += std::to_string(values[i]);
+    }
+    const std::string path = dir + "/" + name;
+    const std::string cmd = "oiiotool --pattern constant:color=" + vals + " 6x4 " +
+                            std::to_string(channels.size()) + " --chnames " + names +
+                            " -d float -o " + path;
+    EXPECT_EQ(run_command(cmd), 0) << cmd;
+    return path;
+}
+
+TEST(IoAliases, BlenderMultilayerNames)
+{
+    const std::string dir = scratch_dir("blender");
+    const std::string path = make_named_file(
+        dir, "blender.exr",
+        {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
+         "ViewLayer.Combined.A", "ViewLayer.Depth.Z", "ViewLayer.Vector.X", "ViewLayer.Vector.Y",
+         "ViewLayer.Vector.Z", "ViewLayer.Vector.W", "ViewLayer.Normal.X", "ViewLayer.Normal.Y",
+         "ViewLayer.Normal.Z", "ViewLayer.Position.X", "ViewLayer.Position.Y",
+         "ViewLayer.Position.Z", "ViewLayer.DiffCol.R", "ViewLayer.DiffCol.G",
+         "ViewLayer.DiffCol.B"},
+        {0.1f, 0.2f, 0.3f, 1.0f, 5.5f, 3.0f, 4.0f, 7.0f, 8.0f, 0.0f, 1.0f, 0.0f, 1.0f, 2.0f, 3.0f,
+         0.6f, 0.5f, 0.4f});
+    const Frame f = read_frame(path, nullptr, 1);
+    EXPECT_FLOAT_EQ(f.image("color").at(2, 2, 1), 0.2f);
+    EXPECT_FLOAT_EQ(f.image("depth").at(2, 2, 0), 5.5f);
+    // Blender: X,Y = previous - current with y up; posthaste: current - previous with y down.
+    EXPECT_FLOAT_EQ(f.image("motion").at(2, 2, 0), -3.0f);
+    EXPECT_FLOAT_EQ(f.image("motion").at(2, 2, 1), 4.0f);
+    EXPECT_FLOAT_EQ(f.image("motion_next").at(2, 2, 0), -7.0f);
+    EXPECT_FLOAT_EQ(f.image("motion_next").at(2, 2, 1), 8.0f);
+    EXPECT_FLOAT_EQ(f.image("normal").at(2, 2, 1), 1.0f);
+    EXPECT_FLOAT_EQ(f.image("position").at(2, 2, 2), 3.0f);
+    EXPECT_FLOAT_EQ(f.image("albedo").at(2, 2, 0), 0.6f);
+    EXPECT_EQ(f.pass("motion").channels, (std::vector<std::string>{"X", "Y"}));
+
+    // Any view-layer name; Blender's sky depth 1e10 becomes +inf.
+    const std::string sky = make_named_file(dir, "sky.exr", {"Foo.Depth.Z"}, {1e10f});
+    EXPECT_TRUE(std::isinf(read_frame(sky, nullptr, 1).image("depth").at(0, 0, 0)));
+}
+
+TEST(IoAliases, NukeNames)
+{
+    const std::string dir = scratch_dir("nuke");
+    const std::string path = make_named_file(
+        dir, "nuke.exr",
+        {"R", "G", "B", "depth.Z", "backward.u", "backward.v", "forward.u", "forward.v"},
+        {0.5f, 0.5f, 0.5f, 12.0f, 1.5f, -2.0f, 3.0f, 4.0f});
+    const Frame f = read_frame(path, nullptr, 1);
+    EXPECT_FLOAT_EQ(f.image("color").at(0, 0, 3), 1.0f);  // no alpha: A = 1
+    EXPECT_FLOAT_EQ(f.image("depth").at(0, 0, 0), 12.0f);
+    EXPECT_FLOAT_EQ(f.image("motion").at(0, 0, 0), -1.5f);
+    EXPECT_FLOAT_EQ(f.image("motion").at(0, 0, 1), -2.0f);
+    EXPECT_FLOAT_EQ(f.image("motion_next").at(0, 0, 0), 3.0f);
+    EXPECT_FLOAT_EQ(f.image("motion_next").at(0, 0, 1), -4.0f);
+}
+
+TEST(IoAliases, ArnoldNamesAndGraphRules)
+{
+    const std::string dir = scratch_dir("arnold");
+    const std::string path = make_named_file(
+        dir, "arnold.exr",
+        {"R", "G", "B", "A", "Z", "N.R", "N.G", "N.B", "P.R", "P.G", "P.B", "motionvector.R",
+         "motionvector.G", "zdepth.Z"},
+        {1, 1, 1, 1, 9, 0, 0, 1, 4, 5, 6, 2.5f, 1.5f, 0.25f});
+    const Frame f = read_frame(path, nullptr, 1);
+    EXPECT_FLOAT_EQ(f.image("depth").at(0, 0, 0), 9.0f);
+    EXPECT_FLOAT_EQ(f.image("normal").at(0, 0, 2), 1.0f);
+    EXPECT_FLOAT_EQ(f.image("position").at(0, 0, 1), 5.0f);
+    EXPECT_FLOAT_EQ(f.image("motion").at(0, 0, 0), 2.5f);
+    EXPECT_FLOAT_EQ(f.image("motion").at(0, 0, 1), -1.5f);
+    EXPECT_TRUE(f.has("zdepth"));  // unknown layer kept under its own name
+
+    // A graph's own rule wins over the built-in ones: depth from zdepth.Z, as 1/value.
+    ReadOptions o;
+    o.aliases = parse_alias_rules(R"([{"pass": "depth", "channels": ["zdepth.Z"],
+                                       "scale": [4], "offset": [1]}])",
+                                  "test");
+    const Frame g = read_frame(path, nullptr, 1, o);
+    EXPECT_FLOAT_EQ(g.image("depth").at(0, 0, 0), 2.0f);
+    EXPECT_TRUE(g.has("Z"));  // the unused Z channel stays available as its own pass
+    EXPECT_THROW(parse_alias_rules(R"([{"pass": "depth"}])", "test"), Error);
+    EXPECT_THROW(parse_alias_rules(R"([{"pass": "depth", "channels": ["a"], "scal": [1]}])", "t"),
+                 Error);
+}
+
+TEST(IoRead, MultipartWithBareChannelNames)
+{
+    const std::string dir = scratch_dir("multipart");
+    const std::string path = dir + "/mp.exr";
+    OIIO::ImageSpec specs[2] = {OIIO::ImageSpec(4, 4, 4, OIIO::TypeDesc::HALF),
+                                OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::FLOAT)};
+    specs[0].channelnames = {"R", "G", "B", "A"};
+    specs[0].attribute("name", "rgba");
+    specs[1].channelnames = {"X", "Y", "Z"};
+    specs[1].attribute("name", "N");
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out->open(path, 2, specs));
+    std::vector<float> rgba(64, 0.25f), n(48, 0.0f);
+    for (int i = 0; i < 16; ++i) {
+        n[std::size_t(i) * 3 + 2] = 1.0f;
+    }
+    ASSERT_TRUE(out->write_image(OIIO::TypeFloat, rgba.data()));
+    ASSERT_TRUE(out->open(path, specs[1], OIIO::ImageOutput::AppendSubimage));
+    ASSERT_TRUE(out->write_image(OIIO::TypeFloat, n.data()));
+    ASSERT_TRUE(out->close());
+    const Frame f = read_frame(path, nullptr, 1);
+    EXPECT_FLOAT_EQ(f.image("color").at(1, 1, 2), 0.25f);
+    EXPECT_FLOAT_EQ(f.image("normal").at(1, 1, 2), 1.0f);
+}
+
+TEST(IoBadInput, TruncatedEmptyMisnamedAndMissing)
+{
+    const std::string dir = scratch_dir("badinput");
+    write_exr(make_sample_frame(64, 64, 1), dir + "/good.exr", {});
+    const auto size = fs::file_size(dir + "/good.exr");
+    fs::copy_file(dir + "/good.exr", dir + "/truncated.exr");
+    fs::resize_file(dir + "/truncated.exr", size / 2);
+    std::ofstream(dir + "/empty.exr").close();
+    std::ofstream(dir + "/text.exr") << "this is not an image\n";
+    ASSERT_EQ(run_command("oiiotool --pattern constant:color=0.5,0.5,0.5 8x8 3 -d uint8 -o " + dir +
+                          "/png.png"),
+              0);
+    fs::copy_file(dir + "/png.png", dir + "/png_named.exr");
+
+    for (const char *name : {"truncated.exr", "empty.exr", "text.exr", "missing.exr"}) {
+        SCOPED_TRACE(name);
+        try {
+            read_frame(dir + "/" + name, nullptr, 1);
+            FAIL() << "no error";
+        }
+        catch (const Error &e) {
+            EXPECT_EQ(e.code(), ExitCode::Runtime);
+            EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+            EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+        }
+    }
+    // A PNG with an .exr name: either read as what it is, or a clear error; never a crash.
+    try {
+        const Frame f = read_frame(dir + "/png_named.exr", nullptr, 1);
+        EXPECT_NEAR(f.image("color").at(0, 0, 0), 0.214f, 0.002f);  // sRGB 128/255 decoded
+    }
+    catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("png_named.exr"), std::string::npos);
+    }
+}
+
+TEST(IoBadInput, NanAndInfPixels)
+{
+    const std::string dir = scratch_dir("nan");
+    Frame f = make_sample_frame(8, 8, 1);
+    Image color = f.image("color");
+    color.at(3, 4, 1) = std::numeric_limits<float>::quiet_NaN();
+    color.at(5, 5, 0) = std::numeric_limits<float>::infinity();
+    f.set("color", std::move(color));
+    WriteOptions o;
+    o.storage["color"] = PixelStorage::Float;
+    write_exr(f, dir + "/nan.exr", o);
+
+    ReadOptions keep;
+    const Frame k = read_frame(dir + "/nan.exr", nullptr, 1, keep);
+    EXPECT_TRUE(std::isnan(k.image("color").at(3, 4, 1)));
+    EXPECT_TRUE(std::isinf(k.image("depth").at(0, 0, 0)));  // sky depth is legitimate
+
+    ReadOptions zero;
+    zero.bad_pixels = BadPixels::Zero;
+    const Frame z = read_frame(dir + "/nan.exr", nullptr, 1, zero);
+    EXPECT_EQ(z.image("color").at(3, 4, 1), 0.0f);
+    EXPECT_EQ(z.image("color").at(5, 5, 0), 0.0f);
+    EXPECT_TRUE(std::isinf(z.image("depth").at(0, 0, 0)));
+
+    ReadOptions error;
+    error.bad_pixels = BadPixels::Error;
+    try {
+        read_frame(dir + "/nan.exr", nullptr, 1, error);
+        FAIL();
+    }
+    catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("channel \"R\" has a NaN or infinite value at (5, 5)"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(IoWrite, CompressionNamesAreValidated)
+{
+    EXPECT_NO_THROW(check_compression("piz", "x"));
+    EXPECT_NO_THROW(check_compression("dwaa:45", "x"));
+    EXPECT_NO_THROW(check_compression("zip:6", "x"));
+    EXPECT_THROW(check_compression("zipp", "x"), Error);
+    EXPECT_THROW(check_compression("piz:3", "x"), Error);
+    EXPECT_THROW(check_compression("dwaa:abc", "x"), Error);
+
+    const std::string dir = scratch_dir("lossy");
+    const Frame f = make_sample_frame(8, 8, 1);
+    WriteOptions o;
+    o.compression = "dwaa";
+    try {
+        write_exr(f, dir + "/a.exr", o);
+        FAIL();
+    }
+    catch (const Error &e) {
+        EXPECT_EQ(e.code(), ExitCode::Usage);
+        EXPECT_NE(std::string(e.what()).find("lossy on data pass \"depth\""), std::string::npos);
+    }
+    EXPECT_FALSE(fs::exists(dir + "/a.exr"));
+    o.passes = {"color"};
+    EXPECT_NO_THROW(write_exr(f, dir + "/b.exr", o));  // lossy color is the user's choice
+    o.passes = {};
+    o.allow_lossy_data = true;
+    EXPECT_NO_THROW(write_exr(f, dir + "/c.exr", o));
+}
+
+TEST(IoWrite, FailedWriteLeavesNothingBehind)
+{
+    const std::string dir = scratch_dir("atomic");
+    const Frame f = make_sample_frame(8, 8, 1);
+    WriteOptions o;
+    o.passes = {"color", "no_such_pass"};
+    EXPECT_THROW(write_exr(f, dir + "/sub/x.exr", o), Error);
+    EXPECT_THROW(atomic_write(dir + "/y.exr",
+                              [](const std::string &tmp) {
+                                  std::ofstream(tmp) << "partial";
+                                  throw_runtime("simulated failure");
+                              }),
+                 Error);
+    for (const auto &e : fs::recursive_directory_iterator(dir)) {
+        EXPECT_FALSE(e.is_regular_file()) << "left behind: " << e.path();
+    }
+    // An existing file is replaced only once the new one is complete.
+    std::ofstream(dir + "/z.exr") << "old";
+    EXPECT_THROW(atomic_write(dir + "/z.exr", [](const std::string &) { throw_runtime("no"); }),
+                 Error);
+    std::ifstream in(dir + "/z.exr");
+    std::string content;
+    in >> content;
+    EXPECT_EQ(content, "old");
+}
+
+TEST(IoSequence, PatternsExpandAndScan)
+{
+    EXPECT_EQ(expand_frame_pattern("a.####.exr", 12), "a.0012.exr");
+    EXPECT_EQ(expand_frame_pattern("a.#.exr", 12), "a.12.exr");
+    EXPECT_EQ(expand_frame_pattern("a.@@@.exr", 7), "a.007.exr");
+    EXPECT_EQ(expand_frame_pattern("a.%04d.exr", 5), "a.0005.exr");
+    EXPECT_EQ(expand_frame_pattern("a.%d.exr", 5), "a.5.exr");
+    EXPECT_EQ(expand_frame_pattern("a.####.exr", 123456), "a.123456.exr");
+    EXPECT_EQ(expand_frame_pattern("a.####.exr", -3), "a.-0003.exr");
+    EXPECT_EQ(expand_frame_pattern("still.exr", 3), "still.exr");
+    EXPECT_FALSE(has_frame_placeholder("still.exr"));
+
+    const std::string dir = scratch_dir("scan");
+    for (const char *n : {"s.0001.exr", "s.0002.exr", "s.0010.exr", "s.tmp.exr", "s.01.exr"}) {
+        std::ofstream(dir + "/" + n) << "x";
+    }
+    EXPECT_EQ(find_frames_on_disk(dir + "/s.####.exr"), (std::vector<int>{1, 2, 10}));
+}
+
+}  // namespace
+}  // namespace posthaste
