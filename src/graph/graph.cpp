@@ -310,9 +310,13 @@ Graph Graph::parse(const std::string &text,
         doc = json::parse(text);
     }
     catch (const json::parse_error &e) {
+        // nlohmann's text repeats the position: keep only what went wrong.
         std::string what = e.what();
-        if (auto p = what.find("parse error"); p != std::string::npos) {
-            what = what.substr(p);
+        if (auto p = what.find(": syntax error"); p != std::string::npos) {
+            what = what.substr(p + 2);
+        }
+        else if (auto q = what.rfind("]"); q != std::string::npos) {
+            what = what.substr(q + 2);
         }
         throw_usage(origin, ": ", line_column(text, e.byte == 0 ? 0 : e.byte - 1),
                     ": invalid JSON: ", what);

@@ -1,0 +1,147 @@
+// The command line as a user meets it: exit codes, one-line errors, missing frames reported by
+// number, --skip-bad-frames, --set echoing the command line, info's pass mapping, nodes docs.
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "io/image_file.h"
+#include "io/sequence.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+namespace fs = std::filesystem;
+using test::run_command;
+
+const std::string kBin = POSTHASTE_BINARY;
+
+int line_count(const std::string &s)
+{
+    return int(std::count(s.begin(), s.end(), '\n'));
+}
+
+std::string write_graph(const std::string &dir)
+{
+    const std::string graph = dir + "/g.json";
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" << dir << R"(/in.####.exr"}},
+        {"id": "cc", "type": "ocio", "inputs": {"image": "src"}},
+        {"id": "out", "type": "write", "inputs": {"image": "cc"},
+         "params": {"path": ")" << dir << R"(/out/o.####.exr", "passes": "color"}},
+        {"id": "png", "type": "write", "inputs": {"image": "src"},
+         "params": {"path": ")" << dir << R"(/out/p.####.png"}}]})";
+    return graph;
+}
+
+void write_inputs(const std::string &dir, std::initializer_list<int> frames)
+{
+    for (int f : frames) {
+        write_exr(test::make_sample_frame(32, 16, f), expand_frame_pattern(dir + "/in.####.exr", f),
+                  {});
+    }
+}
+
+TEST(Cli, RunsFramesFoundOnDisk)
+{
+    const std::string dir = test::scratch_dir("cli_run");
+    write_inputs(dir, {1, 2, 3});
+    const std::string graph = write_graph(dir);
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 2 --jobs 2", &out), 0) << out;
+    for (int f : {1, 2, 3}) {
+        EXPECT_TRUE(fs::exists(expand_frame_pattern(dir + "/out/o.####.exr", f))) << f;
+        EXPECT_TRUE(fs::exists(expand_frame_pattern(dir + "/out/p.####.png", f))) << f;
+    }
+    EXPECT_NE(out.find("3 frame(s)"), std::string::npos) << out;
+    EXPECT_NE(out.find("cc"), std::string::npos) << out;  // per-node timing table
+    const Frame o = read_frame(dir + "/out/o.0002.exr", nullptr, 2);
+    EXPECT_EQ(o.pass_names(), std::vector<std::string>{"color"});
+    EXPECT_TRUE(o.camera.world_to_ndc.has_value());  // header carried through
+
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --dry-run", &out), 0) << out;
+    EXPECT_NE(out.find("valid; 3 frame(s)"), std::string::npos) << out;
+}
+
+TEST(Cli, MissingFrameIsReportedByNumber)
+{
+    const std::string dir = test::scratch_dir("cli_missing");
+    write_inputs(dir, {1, 2, 4});
+    const std::string graph = write_graph(dir);
+    std::string out;
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --frames 1-4 --jobs 1 -q", &out), 1) << out;
+    EXPECT_NE(out.find("error: node \"src\" (read), frame 3: " + dir + "/in.0003.exr: no such file"),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(line_count(out), 1) << out;
+    EXPECT_FALSE(fs::exists(dir + "/out/o.0004.exr"));  // the run stopped at frame 3
+
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --frames 1-4 --skip-bad-frames", &out), 0)
+        << out;
+    EXPECT_NE(out.find("warning: frame 3 skipped"), std::string::npos) << out;
+    EXPECT_NE(out.find("1 skipped"), std::string::npos) << out;
+    EXPECT_TRUE(fs::exists(dir + "/out/o.0004.exr"));
+}
+
+TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
+{
+    const std::string dir = test::scratch_dir("cli_usage");
+    write_inputs(dir, {1});
+    const std::string graph = write_graph(dir);
+    std::string out;
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --set cc.to=srgbb", &out), 2) << out;
+    EXPECT_NE(out.find("unknown color space \"srgbb\""), std::string::npos) << out;
+    EXPECT_NE(out.find("[command line: "), std::string::npos) << out;
+    EXPECT_EQ(line_count(out), 1) << out;
+
+    EXPECT_EQ(run_command(kBin + " run " + dir + "/nope.json", &out), 2) << out;
+    EXPECT_NE(out.find("nope.json: cannot open graph file"), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --frames 3-1", &out), 2) << out;
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --jobs -4", &out), 2) << out;
+    EXPECT_EQ(run_command(kBin + " frobnicate", &out), 2) << out;
+    EXPECT_EQ(run_command(kBin + " nodes mergee", &out), 2) << out;
+    EXPECT_NE(out.find("did you mean \"merge\""), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " --help", &out), 0);
+    EXPECT_EQ(run_command(kBin + " run --help", &out), 0);
+    EXPECT_NE(out.find("--skip-bad-frames"), std::string::npos);
+    EXPECT_EQ(run_command(kBin + " --version", &out), 0);
+    EXPECT_NE(out.find("posthaste 0."), std::string::npos);
+}
+
+TEST(Cli, InfoShowsTheMapping)
+{
+    const std::string dir = test::scratch_dir("cli_info");
+    ASSERT_EQ(run_command("oiiotool --pattern constant:color=1,1,1,1,3,2,1 4x4 7 --chnames "
+                          "RL.Combined.R,RL.Combined.G,RL.Combined.B,RL.Combined.A,RL.Depth.Z,"
+                          "RL.Vector.X,RL.Vector.Y -d float -o " + dir + "/b.exr"),
+              0);
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " info " + dir + "/b.exr", &out), 0) << out;
+    EXPECT_NE(out.find("color        <- RL.Combined.R, RL.Combined.G, RL.Combined.B, "
+                       "RL.Combined.A (Blender)"),
+              std::string::npos)
+        << out;
+    EXPECT_NE(out.find("motion       <- -RL.Vector.X, RL.Vector.Y (Blender)"), std::string::npos)
+        << out;
+    EXPECT_NE(out.find("normal       absent"), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " info " + dir + "/none.exr", &out), 1) << out;
+    EXPECT_NE(out.find("none.exr: no such file"), std::string::npos) << out;
+}
+
+TEST(Cli, NodesDocumentsEveryParameter)
+{
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " nodes merge", &out), 0) << out;
+    EXPECT_NE(out.find("mix"), std::string::npos);
+    EXPECT_NE(out.find("range 0..1"), std::string::npos) << out;
+    ASSERT_EQ(run_command(kBin + " nodes all", &out), 0) << out;
+    for (const char *t : {"read:", "write:", "ocio:", "merge:", "channels:"}) {
+        EXPECT_NE(out.find(t), std::string::npos) << t;
+    }
+}
+
+}  // namespace
+}  // namespace posthaste
