@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# posthaste.sh: set-up, build, demo and tests on Debian bookworm (run as root, or with sudo).
+#   ./posthaste.sh demo    install dependencies, build, render the bundled sequence and run the
+#                          demo graph into out/
+#   ./posthaste.sh test    install dependencies, build, run every test (ctest, all labels)
+#   ./posthaste.sh deps | build | bench
+# Idempotent: packages are installed only when missing, and the build is incremental.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+PACKAGES=(build-essential cmake ninja-build pkg-config
+          libopenimageio-dev openimageio-tools libopenexr-dev libopencolorio-dev
+          libglm-dev nlohmann-json3-dev libcli11-dev libtbb-dev libgtest-dev libbenchmark-dev)
+BUILD_DIR=${POSTHASTE_BUILD_DIR:-build}
+JOBS=$(nproc 2>/dev/null || echo 2)
+
+deps() {
+    local missing=()
+    for p in "${PACKAGES[@]}"; do
+        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
+            missing+=("$p")
+    done
+    if ((${#missing[@]})); then
+        echo "posthaste.sh: installing ${missing[*]}"
+        local sudo=""
+        [[ $(id -u) -ne 0 ]] && sudo=sudo
+        $sudo apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
+            "${missing[@]}" >/dev/null
+    fi
+}
+
+build() {
+    if [[ ! -f $BUILD_DIR/build.ninja ]]; then
+        cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release
+    fi
+    cmake --build "$BUILD_DIR" -j "$JOBS"
+}
+
+demo() {
+    deps
+    build
+    local bin=$BUILD_DIR/posthaste
+    mkdir -p out
+    if [[ -f graphs/minecrappy.json ]] && "$bin" nodes render >/dev/null 2>&1; then
+        "$bin" run graphs/minecrappy.json --frames "${POSTHASTE_DEMO_FRAMES:-1-12}"
+    else
+        # Until the rasterizer lands: a small generated sample through the demo graph.
+        mkdir -p out/sample
+        for f in $(seq 1 12); do
+            local n; n=$(printf %04d "$f")
+            [[ -f out/sample/in.$n.exr ]] && continue
+            oiiotool --pattern fill:topleft=0.02,0.03,0.05,1:topright=0.9,0.6,0.3,1:bottomleft=0.1,0.4,0.1,1:bottomright=$(awk "BEGIN{print 0.05*$f}"),0.2,0.8,1 320x180 4 \
+                     --chnames R,G,B,A -d half -o "out/sample/in.$n.exr"
+        done
+        "$bin" run graphs/sample.json
+    fi
+    echo "posthaste.sh: demo output in out/"
+}
+
+test_all() {
+    deps
+    build
+    ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
+}
+
+bench() {
+    deps
+    build
+    "$BUILD_DIR"/tests/posthaste_benchmarks --benchmark_repetitions=5 \
+        --benchmark_report_aggregates_only=true
+}
+
+case "${1:-}" in
+    deps) deps ;;
+    build) deps; build ;;
+    demo) demo ;;
+    test) test_all ;;
+    bench) bench ;;
+    *) echo "usage: $0 demo|test|deps|build|bench" >&2; exit 2 ;;
+esac
