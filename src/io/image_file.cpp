@@ -1,12 +1,14 @@
 #include "io/image_file.h"
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <random>
 
+#include <Imath/half.h>
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
@@ -162,15 +164,16 @@ bool is_exr_path(const std::string &path)
     return ext == ".exr" || ext == ".sxr" || ext == ".mxr";
 }
 
-FileInfo read_file_info(const std::string &path, const ReadOptions &options)
+namespace {
+
+FileInfo info_from_input(OIIO::ImageInput &in, const std::string &path, const ReadOptions &options)
 {
-    auto in = open_input(path);
     FileInfo info;
     info.path = path;
-    info.format = in->format_name();
+    info.format = in.format_name();
     std::vector<PartChannels> parts;
-    for (int sub = 0; in->seek_subimage(sub, 0); ++sub) {
-        const OIIO::ImageSpec &spec = in->spec();
+    for (int sub = 0; in.seek_subimage(sub, 0); ++sub) {
+        const OIIO::ImageSpec &spec = in.spec();
         if (spec.deep) {
             throw_runtime(path, ": deep images are not supported (part ", sub, ")");
         }
@@ -226,12 +229,120 @@ FileInfo read_file_info(const std::string &path, const ReadOptions &options)
     return info;
 }
 
+/// One channel of a part's native pixel buffer.
+struct NativeChannel {
+    std::size_t offset = 0;  ///< Byte offset within a pixel.
+    OIIO::TypeDesc type;
+};
+
+/// A part's needed channel span, read at native pixel types (converted here, in parallel,
+/// rather than by OIIO on one thread).
+struct PartPixels {
+    int chbegin = 0, chend = 0;
+    std::size_t pixel_bytes = 0;
+    std::vector<NativeChannel> channels;  ///< By channel - chbegin.
+    std::unique_ptr<unsigned char[]> data;
+};
+
+/// Convert `count` values of one native channel to float, `src` stepping `stride` bytes.
+void convert_channel(const unsigned char *src,
+                     std::size_t stride,
+                     OIIO::TypeDesc type,
+                     float *dst,
+                     std::size_t dst_stride,
+                     int count)
+{
+    switch (type.basetype) {
+        case OIIO::TypeDesc::HALF:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                Imath::half h;
+                std::memcpy(&h, src, sizeof(h));
+                *dst = float(h);
+            }
+            break;
+        case OIIO::TypeDesc::FLOAT:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::memcpy(dst, src, sizeof(float));
+            }
+            break;
+        case OIIO::TypeDesc::DOUBLE:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                double d;
+                std::memcpy(&d, src, sizeof(d));
+                *dst = float(d);
+            }
+            break;
+        case OIIO::TypeDesc::UINT:  // ids: integers, not normalised
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::uint32_t u;
+                std::memcpy(&u, src, sizeof(u));
+                *dst = float(u);
+            }
+            break;
+        case OIIO::TypeDesc::UINT8:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                *dst = float(*src) * (1.0f / 255.0f);
+            }
+            break;
+        case OIIO::TypeDesc::UINT16:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::uint16_t u;
+                std::memcpy(&u, src, sizeof(u));
+                *dst = float(u) * (1.0f / 65535.0f);
+            }
+            break;
+        case OIIO::TypeDesc::INT8:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                *dst = std::max(-1.0f, float(std::int8_t(*src)) * (1.0f / 127.0f));
+            }
+            break;
+        case OIIO::TypeDesc::INT16:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::int16_t v;
+                std::memcpy(&v, src, sizeof(v));
+                *dst = std::max(-1.0f, float(v) * (1.0f / 32767.0f));
+            }
+            break;
+        default:
+            for (int i = 0; i < count; ++i, dst += dst_stride) {
+                *dst = 0.0f;  // types refused when the part is read
+            }
+            break;
+    }
+}
+
+bool supported_native(OIIO::TypeDesc t)
+{
+    switch (t.basetype) {
+        case OIIO::TypeDesc::HALF:
+        case OIIO::TypeDesc::FLOAT:
+        case OIIO::TypeDesc::DOUBLE:
+        case OIIO::TypeDesc::UINT:
+        case OIIO::TypeDesc::UINT8:
+        case OIIO::TypeDesc::UINT16:
+        case OIIO::TypeDesc::INT8:
+        case OIIO::TypeDesc::INT16:
+            return t.aggregate == OIIO::TypeDesc::SCALAR;
+        default:
+            return false;
+    }
+}
+
+}  // namespace
+
+FileInfo read_file_info(const std::string &path, const ReadOptions &options)
+{
+    auto in = open_input(path);
+    return info_from_input(*in, path, options);
+}
+
 Frame read_frame(const std::string &path,
                  const std::set<std::string> *wanted,
                  int frame_number,
                  const ReadOptions &options)
 {
-    const FileInfo info = read_file_info(path, options);
+    auto in = open_input(path);
+    const FileInfo info = info_from_input(*in, path, options);
     std::vector<const PassSource *> selected;
     if (wanted) {
         for (const std::string &name : *wanted) {
@@ -253,7 +364,6 @@ Frame read_frame(const std::string &path,
         }
     }
 
-    auto in = open_input(path);
     Frame frame;
     frame.number = frame_number;
     frame.width = info.width;
@@ -261,13 +371,8 @@ Frame read_frame(const std::string &path,
     frame.camera = info.camera;
     frame.attributes = info.attributes;
 
-    // Read, per part, the span of channels that covers every selected channel.
-    struct PartData {
-        int chbegin = 0, chend = 0;
-        std::vector<float> pixels;  // data window, (chend - chbegin) channels
-        std::vector<std::vector<std::uint32_t>> uint_channels;  // by channel - chbegin
-    };
-    std::vector<PartData> data(info.parts.size());
+    // Read, per part, the span of channels that covers every selected channel, natively.
+    std::vector<PartPixels> data(info.parts.size());
     std::vector<std::set<int>> needed(info.parts.size());
     for (const PassSource *ps : selected) {
         for (const ChannelSource &cs : ps->sources) {
@@ -285,28 +390,25 @@ Frame read_frame(const std::string &path,
             throw_runtime(path, ": cannot seek to part ", p, ": ", in->geterror());
         }
         const OIIO::ImageSpec spec = in->spec();
-        PartData &pd = data[p];
+        PartPixels &pd = data[p];
         pd.chbegin = *needed[p].begin();
         pd.chend = *needed[p].rbegin() + 1;
+        for (int c = pd.chbegin; c < pd.chend; ++c) {
+            const OIIO::TypeDesc t = spec.channelformat(c);
+            if (!supported_native(t)) {
+                throw_runtime(path, ": channel \"", spec.channel_name(c), "\" has pixel type ",
+                              t.c_str(), ", which is not supported");
+            }
+            pd.channels.push_back({pd.pixel_bytes, t});
+            pd.pixel_bytes += t.size();
+        }
         const std::size_t npix = std::size_t(spec.width) * std::size_t(spec.height);
-        pd.pixels.resize(npix * std::size_t(pd.chend - pd.chbegin));
-        if (!in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeFloat, pd.pixels.data())) {
+        pd.data = std::make_unique_for_overwrite<unsigned char[]>(npix * pd.pixel_bytes);
+        if (!in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeUnknown, pd.data.get())) {
             std::string err = in->geterror();
             std::replace(err.begin(), err.end(), '\n', ' ');
             throw_runtime(path, ": cannot read pixels of part ", p, " (truncated or corrupt?): ",
                           err);
-        }
-        pd.uint_channels.resize(std::size_t(pd.chend - pd.chbegin));
-        for (int c : needed[p]) {
-            // OIIO normalises integer channels when converting to float; ids must stay integers.
-            if (spec.channelformat(c) == OIIO::TypeDesc::UINT) {
-                auto &u = pd.uint_channels[std::size_t(c - pd.chbegin)];
-                u.resize(npix);
-                if (!in->read_image(int(p), 0, c, c + 1, OIIO::TypeDesc::UINT, u.data())) {
-                    throw_runtime(path, ": cannot read channel ", spec.channel_name(c), ": ",
-                                  in->geterror());
-                }
-            }
         }
         if (p == 0 && is_integer_type(spec.format) && options.linearize) {
             const std::string cs = spec.get_string_attribute("oiio:ColorSpace", "sRGB");
@@ -314,68 +416,88 @@ Frame read_frame(const std::string &path,
         }
     }
 
+    const int width = info.width, height = info.height;
     for (const PassSource *ps : selected) {
         const int nch = int(ps->sources.size());
-        Image img = Image::uninitialized(info.width, info.height, nch);
+        Image img = Image::uninitialized(width, height, nch);
         const bool is_depth = ps->pass == pass::kDepth;
-        const float outside = is_depth ? std::numeric_limits<float>::infinity() : 0.0f;
         const bool linearize = srgb_encoded && ps->pass == pass::kColor;
-        bool bad_found = false;
-        int bad_x = 0, bad_y = 0, bad_c = 0;
-        for (int k = 0; k < nch; ++k) {
-            const ChannelSource &cs = ps->sources[std::size_t(k)];
-            const FilePart *part = cs.part >= 0 ? &info.parts[std::size_t(cs.part)] : nullptr;
-            const PartData *pd = cs.part >= 0 ? &data[std::size_t(cs.part)] : nullptr;
-            const int span = pd ? pd->chend - pd->chbegin : 0;
-            const int local = pd ? cs.channel - pd->chbegin : 0;
-            const std::vector<std::uint32_t> *uints =
-                pd && !pd->uint_channels[std::size_t(local)].empty()
-                    ? &pd->uint_channels[std::size_t(local)]
-                    : nullptr;
-            for (int y = 0; y < info.height; ++y) {
-                float *row = img.pixel(0, y);
-                for (int x = 0; x < info.width; ++x) {
-                    float v;
-                    if (!part) {
-                        v = cs.offset;
+        // First bad value per row (x, channel), for BadPixels::Error; -1 when none.
+        std::vector<std::pair<int, int>> bad(std::size_t(height), {-1, -1});
+        parallel_for(0, height, [&](int y) {
+            float *row = img.pixel(0, y);
+            for (int k = 0; k < nch; ++k) {
+                const ChannelSource &cs = ps->sources[std::size_t(k)];
+                float *out = row + k;
+                const std::size_t step = std::size_t(nch);
+                if (cs.part < 0) {
+                    for (int x = 0; x < width; ++x) {
+                        out[std::size_t(x) * step] = cs.offset;
                     }
-                    else if (!part->data_window.contains(x, y)) {
-                        v = (ps->pass == pass::kColor && k == 3) ? 0.0f : outside;
+                    continue;
+                }
+                const FilePart &part = info.parts[std::size_t(cs.part)];
+                const PartPixels &pd = data[std::size_t(cs.part)];
+                const Rect &dw = part.data_window;
+                const float outside = (ps->pass == pass::kColor && k == 3) ? 0.0f
+                                      : is_depth ? std::numeric_limits<float>::infinity()
+                                                 : 0.0f;
+                const int x0 = std::clamp(dw.x0, 0, width), x1 = std::clamp(dw.x1, 0, width);
+                if (y < dw.y0 || y >= dw.y1 || x0 >= x1) {
+                    for (int x = 0; x < width; ++x) {
+                        out[std::size_t(x) * step] = outside;
                     }
-                    else {
-                        const std::size_t i =
-                            std::size_t(y - part->data_window.y0) *
-                                std::size_t(part->data_window.width()) +
-                            std::size_t(x - part->data_window.x0);
-                        v = uints ? float((*uints)[i]) : pd->pixels[i * std::size_t(span) +
-                                                                    std::size_t(local)];
-                        if (linearize && k < 3) {
-                            v = srgb_to_linear(v);
-                        }
+                    continue;
+                }
+                for (int x = 0; x < x0; ++x) {
+                    out[std::size_t(x) * step] = outside;
+                }
+                for (int x = x1; x < width; ++x) {
+                    out[std::size_t(x) * step] = outside;
+                }
+                const NativeChannel &nc = pd.channels[std::size_t(cs.channel - pd.chbegin)];
+                const std::size_t first =
+                    std::size_t(y - dw.y0) * std::size_t(dw.width()) + std::size_t(x0 - dw.x0);
+                convert_channel(pd.data.get() + first * pd.pixel_bytes + nc.offset,
+                                pd.pixel_bytes, nc.type, out + std::size_t(x0) * step, step,
+                                x1 - x0);
+                const bool affine = cs.scale != 1.0f || cs.offset != 0.0f;
+                const bool lin = linearize && k < 3;
+                const bool clip_inf = ps->infinite_above > 0.0f;
+                const bool check_bad = options.bad_pixels != BadPixels::Keep;
+                if (!(affine || lin || clip_inf || check_bad)) {
+                    continue;
+                }
+                for (int x = x0; x < x1; ++x) {
+                    float &v = out[std::size_t(x) * step];
+                    if (lin) {
+                        v = srgb_to_linear(v);
+                    }
+                    if (affine) {
                         v = cs.scale * v + cs.offset;
-                        if (ps->infinite_above > 0.0f && v >= ps->infinite_above) {
-                            v = std::numeric_limits<float>::infinity();
+                    }
+                    if (clip_inf && v >= ps->infinite_above) {
+                        v = std::numeric_limits<float>::infinity();
+                    }
+                    if (check_bad && !std::isfinite(v) && !(is_depth && v > 0.0f)) {
+                        if (options.bad_pixels == BadPixels::Zero) {
+                            v = 0.0f;
                         }
-                        if (!std::isfinite(v) && !(is_depth && v > 0.0f)) {
-                            if (options.bad_pixels == BadPixels::Zero) {
-                                v = 0.0f;
-                            }
-                            else if (options.bad_pixels == BadPixels::Error && !bad_found) {
-                                bad_found = true;
-                                bad_x = x;
-                                bad_y = y;
-                                bad_c = k;
-                            }
+                        else if (bad[std::size_t(y)].first < 0 ||
+                                 std::make_pair(x, k) < bad[std::size_t(y)]) {
+                            bad[std::size_t(y)] = {x, k};
                         }
                     }
-                    row[std::size_t(x) * std::size_t(nch) + std::size_t(k)] = v;
                 }
             }
-        }
-        if (bad_found) {
-            throw_runtime(path, ": pass \"", ps->pass, "\" channel \"",
-                          ps->sources[std::size_t(bad_c)].name, "\" has a NaN or infinite value at (",
-                          bad_x, ", ", bad_y, ")");
+        });
+        for (int y = 0; y < height; ++y) {
+            if (bad[std::size_t(y)].first >= 0) {
+                const auto [x, k] = bad[std::size_t(y)];
+                throw_runtime(path, ": pass \"", ps->pass, "\" channel \"",
+                              ps->sources[std::size_t(k)].name,
+                              "\" has a NaN or infinite value at (", x, ", ", y, ")");
+            }
         }
         frame.set(ps->pass, std::make_shared<const Image>(std::move(img)), ps->channel_suffixes);
     }
@@ -547,27 +669,39 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
             if (part > 0 && !out->open(tmp, specs[part], OIIO::ImageOutput::AppendSubimage)) {
                 throw_runtime(path, ": cannot append part ", part, ": ", out->geterror());
             }
-            const int nch = specs[part].nchannels;
-            std::vector<float> buf(std::size_t(frame.width) * std::size_t(frame.height) *
-                                   std::size_t(nch));
-            int offset = 0;
+            // Native per-channel layout (half or float), converted here in parallel so OIIO
+            // only compresses.
+            std::size_t pixel_bytes = 0;
+            for (const Layer *l : part_layers[part]) {
+                pixel_bytes += l->channel_names.size() * l->type.size();
+            }
+            const std::size_t row_bytes = pixel_bytes * std::size_t(frame.width);
+            auto buf = std::make_unique_for_overwrite<unsigned char[]>(
+                row_bytes * std::size_t(frame.height));
+            std::size_t offset = 0;
             for (const Layer *l : part_layers[part]) {
                 const Image &img = *l->pass->image;
                 const int lc = img.channels();
+                const bool half = l->type == OIIO::TypeDesc::HALF;
                 parallel_for(0, frame.height, [&](int y) {
                     const float *src = img.pixel(0, y);
-                    float *dst = buf.data() + std::size_t(y) * std::size_t(frame.width) *
-                                                  std::size_t(nch);
-                    for (int x = 0; x < frame.width; ++x) {
+                    unsigned char *dst = buf.get() + std::size_t(y) * row_bytes + offset;
+                    for (int x = 0; x < frame.width; ++x, dst += pixel_bytes) {
                         for (int c = 0; c < lc; ++c) {
-                            dst[std::size_t(x) * std::size_t(nch) + std::size_t(offset + c)] =
-                                src[std::size_t(x) * std::size_t(lc) + std::size_t(c)];
+                            const float v = src[std::size_t(x) * std::size_t(lc) + std::size_t(c)];
+                            if (half) {
+                                const Imath::half h(v);
+                                std::memcpy(dst + std::size_t(c) * 2, &h, 2);
+                            }
+                            else {
+                                std::memcpy(dst + std::size_t(c) * 4, &v, 4);
+                            }
                         }
                     }
                 });
-                offset += lc;
+                offset += std::size_t(lc) * l->type.size();
             }
-            if (!out->write_image(OIIO::TypeFloat, buf.data())) {
+            if (!out->write_image(OIIO::TypeUnknown, buf.get())) {
                 throw_runtime(path, ": cannot write pixels: ", out->geterror());
             }
         }

@@ -60,4 +60,3 @@ BENCHMARK(BM_MetricsFlipHdr)->Unit(benchmark::kMillisecond);
 }  // namespace
 }  // namespace posthaste::metrics
 
-BENCHMARK_MAIN();
