@@ -453,7 +453,7 @@ CameraState Scene::camera_at(double t) const
 
 void Scene::invalidate_cache()
 {
-    cache.reset();
+    cache = make_scene_cache();
 }
 
 void generate_world(Scene &s)

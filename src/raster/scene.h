@@ -136,7 +136,9 @@ struct VoxelGrid {
     }
 };
 
-struct SceneCache;  // meshes built on first render (renderer.cpp)
+struct SceneCache;  // meshes and shadow maps built on first render (render.cpp)
+/// A new, empty cache (render.cpp).
+std::shared_ptr<SceneCache> make_scene_cache();
 
 struct Scene {
     std::string name = "scene";
