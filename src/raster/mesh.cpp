@@ -182,15 +182,13 @@ Mesh mesh_sphere(float radius, int segments, int material)
         for (int i = 0; i < nphi; ++i) {
             const std::uint32_t a = std::uint32_t(j) * row + std::uint32_t(i), b = a + 1;
             const std::uint32_t c = a + row, d = c + 1;
-            // Outward: a (top) -> b (east) -> c (below) turns clockwise seen from outside...
-            // cross(b - a, c - a) with phi increasing toward +z and theta toward -y points
-            // inward, so use (a, c, b).
+            // cross(b - a, c - a) points outward (phi toward +z, theta toward -y).
             if (j != 0) {
-                m.triangles.emplace_back(a, c, b);
+                m.triangles.emplace_back(a, b, c);
                 m.materials.push_back(std::uint8_t(material));
             }
             if (j != ntheta - 1) {
-                m.triangles.emplace_back(b, c, d);
+                m.triangles.emplace_back(b, d, c);
                 m.materials.push_back(std::uint8_t(material));
             }
         }
