@@ -6,6 +6,7 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -80,23 +81,24 @@ struct Instance {
     const Mesh *mesh = nullptr;
     glm::mat4 m{1.0f}, m_prev{1.0f};
     bool identity = true;  // static world: m = m_prev = identity
-    std::uint32_t base = 0;
+    std::uint32_t base = 0;  // triangle ids are base + index
 };
+
+// Triangle ids: instance index in the high 16 bits, triangle index in the low 16 (chunks hold at
+// most 24576 triangles, spheres at most 32400; scenes have fewer than 65535 instances).
+constexpr int kInstanceShift = 16;
 
 struct Geometry {
     std::vector<Instance> instances;
-    std::vector<std::uint32_t> bases;  // instances[i].base, for id lookup
-    std::size_t dynamic_begin = 0;     // instances from here on move
+    std::size_t dynamic_begin = 0;  // instances from here on move
 };
 
 Geometry make_geometry(const Scene &s, const SceneMeshes &meshes, double t, double t_prev)
 {
     Geometry g;
-    std::uint32_t base = 0;
     auto add = [&](const Mesh &mesh, const glm::mat4 &m, const glm::mat4 &mp, bool identity) {
+        const auto base = std::uint32_t(g.instances.size()) << kInstanceShift;
         g.instances.push_back({&mesh, m, mp, identity, base});
-        g.bases.push_back(base);
-        base += std::uint32_t(mesh.triangle_count());
     };
     for (const Mesh &c : meshes.chunks) {
         add(c, glm::mat4(1.0f), glm::mat4(1.0f), true);
@@ -358,51 +360,77 @@ struct Hit {
     int material;
 };
 
-// Intersect the ray with triangle `id` (Moller-Trumbore, no culling or bounds: the rasterizer
-// already decided coverage) and interpolate its attributes.
-Hit surface_hit(const Geometry &g, std::uint32_t id, const glm::vec3 &o, const glm::vec3 &d)
-{
-    const auto it = std::upper_bound(g.bases.begin(), g.bases.end(), id);
-    const Instance &in = g.instances[std::size_t(it - g.bases.begin()) - 1];
-    const std::uint32_t tri = id - in.base;
-    const Mesh &m = *in.mesh;
-    const glm::uvec3 ix = m.triangles[tri];
-    glm::vec3 a = m.positions[ix.x], b = m.positions[ix.y], c = m.positions[ix.z];
-    const glm::vec3 la = a, lb = b, lc = c;
-    if (!in.identity) {
-        a = glm::vec3(in.m * glm::vec4(a, 1.0f));
-        b = glm::vec3(in.m * glm::vec4(b, 1.0f));
-        c = glm::vec3(in.m * glm::vec4(c, 1.0f));
+// Intersects pixel rays with the triangle the rasterizer found (Moller-Trumbore, no culling or
+// bounds: coverage was decided by the rasterizer) and interpolates its attributes. Neighbouring
+// pixels mostly see the same triangle, so its world-space setup is kept between calls.
+class SurfaceHitter {
+  public:
+    explicit SurfaceHitter(const Geometry &g) : g_(g) {}
+
+    Hit hit(std::uint32_t id, const glm::vec3 &o, const glm::vec3 &d)
+    {
+        if (id != id_) {
+            load(id);
+        }
+        const glm::vec3 pv = glm::cross(d, e2_);
+        const float det = glm::dot(e1_, pv);
+        const float inv = det != 0.0f ? 1.0f / det : 0.0f;
+        const glm::vec3 tv = o - a_;
+        const float u = glm::dot(tv, pv) * inv;
+        const glm::vec3 qv = glm::cross(tv, e1_);
+        const float v = glm::dot(d, qv) * inv;
+        const float w = 1.0f - u - v;
+        Hit h;
+        h.p = o + d * (glm::dot(e2_, qv) * inv);
+        h.material = material_;
+        h.n = glm::normalize(w * n_[0] + u * n_[1] + v * n_[2]);
+        glm::vec3 t = w * t_[0] + u * t_[1] + v * t_[2];
+        t -= h.n * glm::dot(h.n, t);
+        const float tl = glm::length(t);
+        h.t = tl > 1e-12f ? t / tl : glm::vec3(0.0f);
+        h.p_prev = moving_ ? glm::vec3(prev_ * glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f))
+                           : h.p;
+        return h;
     }
-    const glm::vec3 e1 = b - a, e2 = c - a;
-    const glm::vec3 pv = glm::cross(d, e2);
-    const float det = glm::dot(e1, pv);
-    const float inv = det != 0.0f ? 1.0f / det : 0.0f;
-    const glm::vec3 tv = o - a;
-    const float u = glm::dot(tv, pv) * inv;
-    const glm::vec3 qv = glm::cross(tv, e1);
-    const float v = glm::dot(d, qv) * inv;
-    const float w = 1.0f - u - v;
-    Hit h;
-    h.p = o + d * (glm::dot(e2, qv) * inv);
-    h.material = m.materials[tri];
-    glm::vec3 n = w * m.normals[ix.x] + u * m.normals[ix.y] + v * m.normals[ix.z];
-    glm::vec3 t = w * m.tangents[ix.x] + u * m.tangents[ix.y] + v * m.tangents[ix.z];
-    if (in.identity) {
-        h.p_prev = h.p;
-    } else {
-        const glm::vec3 local = w * la + u * lb + v * lc;
-        h.p_prev = glm::vec3(in.m_prev * glm::vec4(local, 1.0f));
-        const glm::mat3 rot(in.m);
-        n = rot * n;
-        t = rot * t;
+
+  private:
+    void load(std::uint32_t id)
+    {
+        id_ = id;
+        const Instance &in = g_.instances[id >> kInstanceShift];
+        const std::uint32_t tri = id & ((1u << kInstanceShift) - 1u);
+        const Mesh &m = *in.mesh;
+        const glm::uvec3 ix = m.triangles[tri];
+        material_ = m.materials[tri];
+        glm::vec3 p[3];
+        for (int k = 0; k < 3; ++k) {
+            l_[k] = p[k] = m.positions[ix[k]];
+            n_[k] = m.normals[ix[k]];
+            t_[k] = m.tangents[ix[k]];
+        }
+        moving_ = !in.identity;
+        if (moving_) {
+            const glm::mat3 rot(in.m);
+            for (int k = 0; k < 3; ++k) {
+                p[k] = glm::vec3(in.m * glm::vec4(p[k], 1.0f));
+                n_[k] = rot * n_[k];
+                t_[k] = rot * t_[k];
+            }
+            prev_ = in.m_prev;
+        }
+        a_ = p[0];
+        e1_ = p[1] - p[0];
+        e2_ = p[2] - p[0];
     }
-    h.n = glm::normalize(n);
-    t -= h.n * glm::dot(h.n, t);
-    const float tl = glm::length(t);
-    h.t = tl > 1e-12f ? t / tl : glm::vec3(0.0f);
-    return h;
-}
+
+    const Geometry &g_;
+    std::uint32_t id_ = kNoTriangle;
+    glm::vec3 a_{0.0f}, e1_{0.0f}, e2_{0.0f};
+    glm::vec3 l_[3], n_[3], t_[3];  // local positions, world normals and tangents
+    glm::mat4 prev_{1.0f};
+    bool moving_ = false;
+    int material_ = 0;
+};
 
 struct MaterialTable {
     Material m[256];
@@ -520,6 +548,7 @@ void shade_color(const Geometry &g, const View &v, const Visibility &vis, const 
                  int ss, Image &out)
 {
     parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
+        SurfaceHitter hitter(g);
         for (int y = tile.y0; y < tile.y1; ++y) {
             for (int x = tile.x0; x < tile.x1; ++x) {
                 glm::vec3 sum(0.0f);
@@ -532,7 +561,7 @@ void shade_color(const Geometry &g, const View &v, const Visibility &vis, const 
                         if (id == kNoTriangle) {
                             sum += sky_radiance(dn, lt.scene->sun.direction);
                         } else {
-                            sum += shade(lt, surface_hit(g, id, v.origin, d), dn);
+                            sum += shade(lt, hitter.hit(id, v.origin, d), dn);
                         }
                     }
                 }
@@ -547,30 +576,41 @@ void shade_color(const Geometry &g, const View &v, const Visibility &vis, const 
     });
 }
 
+// Sun shadow maps and materials for the beauty at one time.
+struct LightingState {
+    MaterialTable materials;
+    std::shared_ptr<const ShadowMap> static_map;
+    std::unique_ptr<ShadowMap> dynamic_map;
+    Lighting lighting;
+
+    LightingState(const Scene &s, SceneCache &cache, const Geometry &g, const RenderOptions &o,
+                  RenderStats *stats)
+        : materials(s), lighting{&s, nullptr, nullptr, &materials}
+    {
+        if (o.shadows) {
+            const auto t0 = Clock::now();
+            static_map = static_shadow(s, cache, g, o.greedy_meshing, o.shadow_map_size);
+            dynamic_map = dynamic_shadow(s, g);
+            lighting.static_map = static_map.get();
+            lighting.dynamic_map = dynamic_map.get();
+            if (stats) {
+                stats->shadow_ms += ms_since(t0);
+            }
+        }
+    }
+};
+
 // Render the beauty of the scene at time t through `lens` into out (RGBA, options size).
 void render_color(const Scene &s, SceneCache &cache, double t, glm::vec2 lens, const CameraState &cam,
                   const RenderOptions &o, Image &out, RenderStats *stats)
 {
     const auto meshes = scene_meshes(s, cache, o.greedy_meshing);
     const Geometry g = make_geometry(s, *meshes, t, t - 1.0);
-    const MaterialTable mats(s);
-    Lighting lt{&s, nullptr, nullptr, &mats};
-    std::shared_ptr<const ShadowMap> stat;
-    std::unique_ptr<ShadowMap> dyn;
-    if (o.shadows) {
-        auto t0 = Clock::now();
-        stat = static_shadow(s, cache, g, o.greedy_meshing, o.shadow_map_size);
-        dyn = dynamic_shadow(s, g);
-        lt.static_map = stat.get();
-        lt.dynamic_map = dyn.get();
-        if (stats) {
-            stats->shadow_ms += ms_since(t0);
-        }
-    }
+    const LightingState ls(s, cache, g, o, stats);
     const View v = make_view(cam, o.width * o.supersample, o.height * o.supersample, s.near_clip, lens);
     const Visibility vis = visibility(g, v, stats);
     auto t0 = Clock::now();
-    shade_color(g, v, vis, lt, o.supersample, out);
+    shade_color(g, v, vis, ls.lighting, o.supersample, out);
     if (stats) {
         stats->shade_ms += ms_since(t0);
     }
@@ -685,26 +725,45 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     const CameraState cam = s.camera_at(t);
     auto has = [&](const char *p) { return o.passes.count(p) != 0; };
 
-    if (has(pass::kColor)) {
-        Image color = Image::uninitialized(o.width, o.height, 4);
-        render_color(s, cache, t, glm::vec2(0.0f), cam, o, color, stats);
-        f.set(pass::kColor, std::move(color));
-    }
-    const bool data = std::any_of(o.passes.begin(), o.passes.end(),
-                                  [](const std::string &p) { return p != pass::kColor; });
-    if (!data) {
-        return f;
-    }
     auto t0 = Clock::now();
     const auto meshes = scene_meshes(s, cache, o.greedy_meshing);
     const Geometry g = make_geometry(s, *meshes, t, t - 1.0);
     if (stats) {
         stats->mesh_ms += ms_since(t0);
     }
+    const bool want_color = has(pass::kColor);
+    const bool data = std::any_of(o.passes.begin(), o.passes.end(),
+                                  [](const std::string &p) { return p != pass::kColor; });
+    std::unique_ptr<LightingState> ls;
+    Image color;
+    if (want_color) {
+        ls = std::make_unique<LightingState>(s, cache, g, o, stats);
+        color = Image::uninitialized(o.width, o.height, 4);
+        if (o.supersample > 1) {
+            // The beauty gets its own visibility at the supersampled size.
+            const View vs = make_view(cam, o.width * o.supersample, o.height * o.supersample,
+                                      s.near_clip, glm::vec2(0.0f));
+            const Visibility vis_ss = visibility(g, vs, stats);
+            t0 = Clock::now();
+            shade_color(g, vs, vis_ss, ls->lighting, o.supersample, color);
+            if (stats) {
+                stats->shade_ms += ms_since(t0);
+            }
+        }
+    }
+    const bool color_here = want_color && o.supersample == 1;
+    if (!data && !color_here) {
+        f.set(pass::kColor, std::move(color));
+        return f;
+    }
     const View v = make_view(cam, o.width, o.height, s.near_clip, glm::vec2(0.0f));
     const Visibility vis = visibility(g, v, stats);
     t0 = Clock::now();
-    const MaterialTable mats(s);
+    std::optional<MaterialTable> own_materials;
+    if (!ls) {
+        own_materials.emplace(s);
+    }
+    const MaterialTable &mats = ls ? ls->materials : *own_materials;
     const glm::mat4 prev_ndc = *f.camera.prev_world_to_ndc;
     const glm::mat4 cur_ndc = *f.camera.world_to_ndc;
 
@@ -720,10 +779,18 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                          v.world_to_camera[3][2]);
 
     parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
+        SurfaceHitter hitter(g);
         for (int y = tile.y0; y < tile.y1; ++y) {
             for (int x = tile.x0; x < tile.x1; ++x) {
                 const std::uint32_t tid = vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
                 const glm::vec3 d = v.ray_dir(float(x) + 0.5f, float(y) + 0.5f);
+                auto put_color = [&](const glm::vec3 &c) {
+                    float *p = color.pixel(x, y);
+                    p[0] = c.x;
+                    p[1] = c.y;
+                    p[2] = c.z;
+                    p[3] = 1.0f;
+                };
                 auto put3 = [&](Image &img, const glm::vec3 &c) {
                     if (!img.empty()) {
                         float *p = img.pixel(x, y);
@@ -733,6 +800,9 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                     }
                 };
                 if (tid == kNoTriangle) {
+                    if (color_here) {
+                        put_color(sky_radiance(glm::normalize(d), s.sun.direction));
+                    }
                     if (!depth.empty()) {
                         depth.at(x, y, 0) = std::numeric_limits<float>::infinity();
                     }
@@ -758,7 +828,10 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                     }
                     continue;
                 }
-                const Hit h = surface_hit(g, tid, v.origin, d);
+                const Hit h = hitter.hit(tid, v.origin, d);
+                if (color_here) {
+                    put_color(shade(ls->lighting, h, glm::normalize(d)));
+                }
                 if (!depth.empty()) {
                     depth.at(x, y, 0) = glm::dot(zrow, glm::vec4(h.p, 1.0f));
                 }
@@ -792,6 +865,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
             f.set(name, std::move(img));
         }
     };
+    store(pass::kColor, color);
     store(pass::kDepth, depth);
     store(pass::kNormal, normal);
     store(pass::kPosition, position);

@@ -530,9 +530,10 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         WorldParams &p = s.world_params;
         p.seed = std::uint32_t(o.number("seed", p.seed, 0, 4294967295.0));
         const glm::ivec3 size = o.ivec3("size", {p.size_x, p.size_y, p.size_z});
-        if (glm::any(glm::lessThan(size, glm::ivec3(1))) || size.x > 1024 || size.y > 256 ||
-            size.z > 1024) {
-            o.fail("size", "expected [x, y, z] in [1, 1024] x [1, 256] x [1, 1024]");
+        if (glm::any(glm::lessThan(size, glm::ivec3(1))) || size.x > 512 || size.y > 256 ||
+            size.z > 512) {
+            o.fail("size", "expected [x, y, z] in [1, 512] x [1, 256] x [1, 512], got " +
+                               o.get("size").dump());
         }
         p.size_x = size.x;
         p.size_y = size.y;
@@ -562,7 +563,7 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         b.center = o.vec3("center", b.center);
         b.radius = float(o.number("radius", b.radius, 1e-3, 1e4));
         b.material = check_material(o, "material", o.integer("material", 1, 1, 255));
-        b.segments = o.integer("segments", b.segments, 4, 1024);
+        b.segments = o.integer("segments", b.segments, 4, 180);
         o.child("motion", [&](Obj &m) { b.motion = read_motion(m); });
         s.balls.push_back(b);
     });
@@ -583,6 +584,9 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         s.sun.color = o.vec3("color", s.sun.color);
         s.sun.illuminance = float(o.number("illuminance", s.sun.illuminance, 0.0, 1e9));
     });
+    if (s.balls.size() + s.movers.size() > 10000) {
+        root.fail("balls", "expected at most 10000 balls and movers together");
+    }
     s.sun.direction = glm::normalize(s.sun.direction);
     CameraKey defaults;
     root.child("camera_defaults", [&](Obj &o) { read_camera_key(o, defaults); });

@@ -32,7 +32,7 @@ struct Material {
 /// The world generator's parameters.
 struct WorldParams {
     std::uint32_t seed = 1;
-    int size_x = 128, size_y = 48, size_z = 128;  ///< Blocks along x, y (up), z.
+    int size_x = 128, size_y = 48, size_z = 128;  ///< Blocks along x, y (up), z; <= 512, 256, 512.
     /// "procedural" (seeded terrain, trees, pillars, a lake; needs materials named grass, dirt,
     /// stone, sand, wood, leaves, water) or "none" (only the boxes).
     std::string terrain = "procedural";
@@ -66,7 +66,7 @@ struct Ball {
     float radius = 1.0f;
     int material = 1;
     Motion motion;
-    int segments = 48;  ///< Tessellation: longitude segments (latitude rings = segments / 2).
+    int segments = 48;  ///< Longitude segments, 4..180 (latitude bands = segments / 2).
 
     /// Object-to-world transform at time t (frames).
     glm::mat4 transform(double t) const;

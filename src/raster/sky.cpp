@@ -19,13 +19,15 @@ glm::vec3 sky_radiance(const glm::vec3 &dir, const glm::vec3 &sun_dir)
     const float y = dir.y;
     glm::vec3 c;
     if (y >= 0.0f) {
-        const float t = std::pow(1.0f - std::min(y, 1.0f), 3.0f);
+        const float m = 1.0f - std::min(y, 1.0f);
+        const float t = m * m * m;
         c = glm::mix(kZenith, kHorizon, t);
     } else {
         c = glm::mix(kHorizon, kGround, std::min(1.0f, -y * 4.0f));
     }
     const float cs = std::max(glm::dot(dir, sun_dir), 0.0f);
-    const float glow = 0.6f * std::pow(cs, 64.0f) + 0.15f * std::pow(cs, 4.0f);
+    const float c2 = cs * cs, c4 = c2 * c2, c16 = (c4 * c4) * (c4 * c4);
+    const float glow = 0.6f * (c16 * c16) * (c16 * c16) + 0.15f * c4;
     return c + glow * glm::vec3(1.0f, 0.9f, 0.7f);
 }
 
