@@ -365,29 +365,32 @@ struct Hit {
 // pixels mostly see the same triangle, so its world-space setup is kept between calls.
 class SurfaceHitter {
   public:
-    explicit SurfaceHitter(const Geometry &g) : g_(g) {}
+    /// All rays start at `origin` (one view).
+    SurfaceHitter(const Geometry &g, const glm::vec3 &origin) : g_(g), o_(origin) {}
 
-    Hit hit(std::uint32_t id, const glm::vec3 &o, const glm::vec3 &d)
+    Hit hit(std::uint32_t id, const glm::vec3 &d)
     {
         if (id != id_) {
             load(id);
         }
-        const glm::vec3 pv = glm::cross(d, e2_);
-        const float det = glm::dot(e1_, pv);
-        const float inv = det != 0.0f ? 1.0f / det : 0.0f;
-        const glm::vec3 tv = o - a_;
-        const float u = glm::dot(tv, pv) * inv;
-        const glm::vec3 qv = glm::cross(tv, e1_);
-        const float v = glm::dot(d, qv) * inv;
-        const float w = 1.0f - u - v;
+        // Ray-plane distance, then barycentrics from the dual basis of (e1, e2).
+        const float dn = glm::dot(ng_, d);
+        const float t = dn != 0.0f ? plane_ / dn : 0.0f;
         Hit h;
-        h.p = o + d * (glm::dot(e2_, qv) * inv);
+        h.p = o_ + d * t;
+        const glm::vec3 ap = h.p - a_;
+        const float u = glm::dot(ap, b1_), v = glm::dot(ap, b2_), w = 1.0f - u - v;
         h.material = material_;
-        h.n = glm::normalize(w * n_[0] + u * n_[1] + v * n_[2]);
-        glm::vec3 t = w * t_[0] + u * t_[1] + v * t_[2];
-        t -= h.n * glm::dot(h.n, t);
-        const float tl = glm::length(t);
-        h.t = tl > 1e-12f ? t / tl : glm::vec3(0.0f);
+        if (flat_) {
+            h.n = n_[0];
+            h.t = t_[0];
+        } else {
+            h.n = glm::normalize(w * n_[0] + u * n_[1] + v * n_[2]);
+            glm::vec3 tg = w * t_[0] + u * t_[1] + v * t_[2];
+            tg -= h.n * glm::dot(h.n, tg);
+            const float tl = glm::length(tg);
+            h.t = tl > 1e-12f ? tg / tl : glm::vec3(0.0f);
+        }
         h.p_prev = moving_ ? glm::vec3(prev_ * glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f))
                            : h.p;
         return h;
@@ -418,17 +421,26 @@ class SurfaceHitter {
             }
             prev_ = in.m_prev;
         }
+        // Voxel faces: one normal and tangent, already orthonormal.
+        flat_ = n_[0] == n_[1] && n_[0] == n_[2] && t_[0] == t_[1] && t_[0] == t_[2];
         a_ = p[0];
-        e1_ = p[1] - p[0];
-        e2_ = p[2] - p[0];
+        const glm::vec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+        ng_ = glm::cross(e1, e2);
+        const float n2 = glm::dot(ng_, ng_);
+        const float inv = n2 > 0.0f ? 1.0f / n2 : 0.0f;
+        b1_ = glm::cross(e2, ng_) * inv;
+        b2_ = glm::cross(ng_, e1) * inv;
+        plane_ = glm::dot(ng_, a_ - o_);
     }
 
     const Geometry &g_;
+    glm::vec3 o_;
     std::uint32_t id_ = kNoTriangle;
-    glm::vec3 a_{0.0f}, e1_{0.0f}, e2_{0.0f};
+    glm::vec3 a_{0.0f}, ng_{0.0f}, b1_{0.0f}, b2_{0.0f};
+    float plane_ = 0.0f;
     glm::vec3 l_[3], n_[3], t_[3];  // local positions, world normals and tangents
     glm::mat4 prev_{1.0f};
-    bool moving_ = false;
+    bool moving_ = false, flat_ = false;
     int material_ = 0;
 };
 
@@ -548,7 +560,7 @@ void shade_color(const Geometry &g, const View &v, const Visibility &vis, const 
                  int ss, Image &out)
 {
     parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
-        SurfaceHitter hitter(g);
+        SurfaceHitter hitter(g, v.origin);
         for (int y = tile.y0; y < tile.y1; ++y) {
             for (int x = tile.x0; x < tile.x1; ++x) {
                 glm::vec3 sum(0.0f);
@@ -561,7 +573,7 @@ void shade_color(const Geometry &g, const View &v, const Visibility &vis, const 
                         if (id == kNoTriangle) {
                             sum += sky_radiance(dn, lt.scene->sun.direction);
                         } else {
-                            sum += shade(lt, hitter.hit(id, v.origin, d), dn);
+                            sum += shade(lt, hitter.hit(id, d), dn);
                         }
                     }
                 }
@@ -779,7 +791,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                          v.world_to_camera[3][2]);
 
     parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
-        SurfaceHitter hitter(g);
+        SurfaceHitter hitter(g, v.origin);
         for (int y = tile.y0; y < tile.y1; ++y) {
             for (int x = tile.x0; x < tile.x1; ++x) {
                 const std::uint32_t tid = vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
@@ -828,7 +840,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                     }
                     continue;
                 }
-                const Hit h = hitter.hit(tid, v.origin, d);
+                const Hit h = hitter.hit(tid, d);
                 if (color_here) {
                     put_color(shade(ls->lighting, h, glm::normalize(d)));
                 }
