@@ -509,9 +509,12 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
     const glm::vec3 amb = sky_ambient_radiance(n, l) * s.sky_ambient;
     c += shading::diffuse_albedo(surf) * amb;
     const float nv = std::max(glm::dot(n, v), 0.0f);
-    const glm::vec3 r = glm::reflect(-v, n);
+    const glm::vec3 r = glm::reflect(-v, n);  // only used by glossy materials
     const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
-    const glm::vec3 env = glm::mix(amb, sky_radiance(r, l) * s.sky_ambient, gloss);
+    // Rough materials (gloss < 0.05, roughness > 0.78) reflect the ambient term alone: the sky
+    // lookup would change them by less than 5% of a small term.
+    const glm::vec3 env =
+        gloss < 0.05f ? amb : glm::mix(amb, sky_radiance(r, l) * s.sky_ambient, gloss);
     c += shading::fresnel_schlick(shading::specular_f0(surf), nv) * env;
     return c;
 }

@@ -597,5 +597,41 @@ TEST(RasterTruth, ZeroShutterEqualsFrameAndIsDeterministic)
     EXPECT_TRUE(a.camera == render_frame(s, 3, o).camera);
 }
 
+TEST(RasterTruth, DofKeepsFocusPlaneSharpAndBlursTheRest)
+{
+    // Camera 2 m from the near wall (z = 20, left half) and 22 m from the far wall (z = 40),
+    // focused on the far wall with a wide aperture: far-wall pixels away from the edge match the
+    // pinhole render (only the specular view direction changes), while the near wall's edge
+    // (image centre) spreads over about 3 pixels.
+    Scene s = load_scene(sample("two_planes.json"));
+    for (CameraKey &k : s.camera_keys) {
+        k.position = glm::vec3(32.0f, 32.0f, 18.0f);
+        k.focus_distance = 22.0f;
+        k.fstop = 1.0f;
+        k.focal_length_mm = 50.0f;
+    }
+    RenderOptions o = small(192, 108, {"color"});
+    o.shadows = false;
+    TruthOptions t;
+    t.motion = false;
+    t.dof = true;
+    t.samples = 64;
+    const Image a = render_truth(s, 1, o, t).image("color");
+    const Image b = render_frame(s, 1, o).image("color");
+    for (int y = 10; y < 98; ++y) {
+        for (int x = 110; x < 190; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                ASSERT_NEAR(a.at(x, y, c), b.at(x, y, c), 0.02f * b.at(x, y, c) + 1e-4f)
+                    << x << "," << y;
+            }
+        }
+    }
+    float worst = 0.0f;
+    for (int x = 90; x < 102; ++x) {
+        worst = std::max(worst, std::abs(a.at(x, 54, 0) - b.at(x, 54, 0)));
+    }
+    EXPECT_GT(worst, 0.05f);
+}
+
 }  // namespace
 }  // namespace posthaste::raster
