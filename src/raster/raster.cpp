@@ -16,6 +16,13 @@ constexpr int kHalf = kOne / 2;
 constexpr float kGuard = 16384.0f;
 constexpr std::size_t kJobTriangles = 4096;
 
+// floor(a / b) for b > 0.
+std::int64_t floor_div(std::int64_t a, std::int64_t b)
+{
+    const std::int64_t q = a / b;
+    return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+
 struct SetupTri {
     std::int32_t x[3], y[3];  // fixed point
     float x0, y0, k0, kdx, kdy;  // key plane, relative to (x0, y0) in pixels
@@ -179,29 +186,42 @@ void raster_tile(const Rect &tile,
             const bool top_left = A[i] > 0 || (A[i] == 0 && B[i] > 0);
             E[i] = A[i] * (cx - t.x[i]) + B[i] * (cy - t.y[i]) - (top_left ? 0 : 1);
         }
+        const std::int64_t step[3] = {A[0] * kOne, A[1] * kOne, A[2] * kOne};
+        const int span = x1 - x0;
         for (int y = y0; y <= y1; ++y) {
-            std::int64_t e0 = E[0], e1 = E[1], e2 = E[2];
-            const float ky = t.k0 + t.kdy * (float(y) + 0.5f - t.y0);
-            float *keys = target.keys + std::size_t(y) * std::size_t(rp.width);
-            std::uint32_t *ids =
-                target.ids ? target.ids + std::size_t(y) * std::size_t(rp.width) : nullptr;
-            for (int x = x0; x <= x1; ++x) {
-                if ((e0 | e1 | e2) >= 0) {
-                    const float k = ky + t.kdx * (float(x) + 0.5f - t.x0);
-                    if (k > keys[x]) {
-                        keys[x] = k;
-                        if (ids) {
-                            ids[x] = t.id;
-                        }
+            // The covered pixels of a row are one span: intersect, per edge, the steps k >= 0
+            // from x0 where E + k step >= 0 (exact integer bounds, no per-pixel edge tests).
+            int k0 = 0, k1 = span;
+            for (int i = 0; i < 3; ++i) {
+                if (step[i] > 0) {
+                    if (E[i] < 0) {
+                        k0 = std::max<std::int64_t>(k0, -floor_div(E[i], step[i]));
                     }
+                } else if (step[i] < 0) {
+                    k1 = int(std::min<std::int64_t>(k1, E[i] < 0 ? -1 : floor_div(E[i], -step[i])));
+                } else if (E[i] < 0) {
+                    k1 = -1;
                 }
-                e0 += A[0] * kOne;
-                e1 += A[1] * kOne;
-                e2 += A[2] * kOne;
             }
             E[0] += B[0] * kOne;
             E[1] += B[1] * kOne;
             E[2] += B[2] * kOne;
+            if (k0 > k1) {
+                continue;
+            }
+            const float ky = t.k0 + t.kdy * (float(y) + 0.5f - t.y0);
+            float *keys = target.keys + std::size_t(y) * std::size_t(rp.width);
+            std::uint32_t *ids =
+                target.ids ? target.ids + std::size_t(y) * std::size_t(rp.width) : nullptr;
+            for (int x = x0 + k0; x <= x0 + k1; ++x) {
+                const float k = ky + t.kdx * (float(x) + 0.5f - t.x0);
+                if (k > keys[x]) {
+                    keys[x] = k;
+                    if (ids) {
+                        ids[x] = t.id;
+                    }
+                }
+            }
         }
     }
 }

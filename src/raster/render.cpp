@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
+#include <tbb/task_arena.h>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -64,7 +65,9 @@ std::shared_ptr<const SceneMeshes> scene_meshes(const Scene &s, SceneCache &cach
     auto &slot = cache.meshes[greedy];
     if (!slot) {
         auto m = std::make_shared<SceneMeshes>();
-        m->chunks = mesh_chunks(s.world, greedy);
+        // Isolated: while this thread waits inside the parallel loop it must not pick up another
+        // frame's task that would block on the mutex it holds.
+        tbb::this_task_arena::isolate([&] { m->chunks = mesh_chunks(s.world, greedy); });
         for (const Ball &b : s.balls) {
             m->balls.push_back(mesh_sphere(b.radius, b.segments, b.material));
         }
@@ -310,7 +313,7 @@ std::shared_ptr<const ShadowMap> static_shadow(const Scene &s, SceneCache &cache
         auto sm = std::make_shared<ShadowMap>(make_shadow_frame(
             s.sun.direction, glm::vec3(0.0f),
             glm::vec3(float(s.world.nx), float(s.world.ny), float(s.world.nz)), size));
-        draw_shadow(*sm, g, 0, g.dynamic_begin);
+        tbb::this_task_arena::isolate([&] { draw_shadow(*sm, g, 0, g.dynamic_begin); });
         slot = std::move(sm);
     }
     return slot;

@@ -633,5 +633,18 @@ TEST(RasterTruth, DofKeepsFocusPlaneSharpAndBlursTheRest)
     EXPECT_GT(worst, 0.05f);
 }
 
+TEST(RasterFrame, FramesInParallelShareTheCache)
+{
+    // Frames rendered concurrently (as a CLI would) build the cached meshes and shadow map once,
+    // without deadlocking inside nested parallel loops, and match sequential renders.
+    const Scene s = load_scene(sample("minecrappy.json"));
+    const RenderOptions o = small(64, 36, {"color", "depth"});
+    std::vector<Frame> frames(6);
+    parallel_for(0, 6, [&](int i) { frames[std::size_t(i)] = render_frame(s, 1 + i * 8, o); });
+    for (int i = 0; i < 6; ++i) {
+        expect_frames_equal(frames[std::size_t(i)], render_frame(s, 1 + i * 8, o));
+    }
+}
+
 }  // namespace
 }  // namespace posthaste::raster
