@@ -47,6 +47,20 @@ Mesh mesh_chunk(const VoxelGrid &g, glm::ivec3 c0, bool greedy)
 {
     Mesh m;
     const glm::ivec3 c1 = glm::min(c0 + kChunkSize, glm::ivec3(g.nx, g.ny, g.nz));
+    bool solid = false;
+    for (int y = c0.y; y < c1.y && !solid; ++y) {
+        for (int z = c0.z; z < c1.z && !solid; ++z) {
+            for (int x = c0.x; x < c1.x; ++x) {
+                if (g.at(x, y, z) != 0) {
+                    solid = true;
+                    break;
+                }
+            }
+        }
+    }
+    if (!solid) {
+        return m;  // all air: no faces
+    }
     std::uint8_t mask[kChunkSize * kChunkSize];
     for (int d = 0; d < 3; ++d) {
         const int u = (d + 1) % 3, v = (d + 2) % 3;

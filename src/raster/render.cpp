@@ -525,8 +525,8 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
 // Visibility buffer of a view.
 struct Visibility {
     int width = 0, height = 0;
-    std::vector<float> keys;
-    std::vector<std::uint32_t> ids;
+    std::unique_ptr<float[]> keys;
+    std::unique_ptr<std::uint32_t[]> ids;
 };
 
 Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
@@ -536,8 +536,9 @@ Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
     Visibility vis;
     vis.width = v.width;
     vis.height = v.height;
-    vis.keys.resize(std::size_t(v.width) * std::size_t(v.height));
-    vis.ids.resize(vis.keys.size());
+    const std::size_t n = std::size_t(v.width) * std::size_t(v.height);
+    vis.keys.reset(new float[n]);  // uninitialised: rasterize() clears
+    vis.ids.reset(new std::uint32_t[n]);
     RasterParams rp;
     rp.width = v.width;
     rp.height = v.height;
@@ -546,7 +547,7 @@ Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
         stats->setup_bin_ms += ms_since(t0);
         t0 = Clock::now();
     }
-    const RasterCounts counts = rasterize(b.draws, rp, {vis.keys.data(), vis.ids.data()});
+    const RasterCounts counts = rasterize(b.draws, rp, {vis.keys.get(), vis.ids.get()});
     if (stats) {
         stats->raster_ms += ms_since(t0);
         stats->triangles += counts.submitted;
