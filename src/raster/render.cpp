@@ -342,6 +342,10 @@ float shadow_lookup(const ShadowMap &sm, const glm::vec3 &p, const glm::vec3 &n)
     const glm::vec3 q = p + n * (1.5f * sm.texel_m);  // normal offset against acne
     const glm::vec4 h = sm.raster * glm::vec4(q, 1.0f);
     const float x = h.x - 0.5f, y = h.y - 0.5f;
+    const float limit = float(sm.size);
+    if (!(x > -1.0f && y > -1.0f && x < limit && y < limit)) {
+        return 1.0f;  // outside the map: nothing there casts a shadow
+    }
     const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
     const float fx = x - float(x0), fy = y - float(y0);
     const float bias = 0.5f * sm.texel_m;
