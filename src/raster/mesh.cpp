@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <glm/geometric.hpp>
 
 #include "core/parallel.h"
@@ -116,8 +115,15 @@ Mesh mesh_chunk(const VoxelGrid &g, glm::ivec3 c0, bool greedy)
                                 mask[(j + jj) * kChunkSize + i + k] = 0;
                             }
                         }
-                        emit_quad(m, d, s, plane, float(c0[u] + i), float(c0[u] + i + wi),
-                                  float(c0[v] + j), float(c0[v] + j + hj), mat);
+                        emit_quad(m,
+                                  d,
+                                  s,
+                                  plane,
+                                  float(c0[u] + i),
+                                  float(c0[u] + i + wi),
+                                  float(c0[v] + j),
+                                  float(c0[v] + j + hj),
+                                  mat);
                         i += wi;
                     }
                 }
@@ -184,8 +190,8 @@ Mesh mesh_sphere(float radius, int segments, int material)
         const float theta = pi * float(j) / float(ntheta);  // from +y down to -y
         for (int i = 0; i <= nphi; ++i) {
             const float phi = 2.0f * pi * float(i) / float(nphi);
-            const glm::vec3 n(std::sin(theta) * std::cos(phi), std::cos(theta),
-                              std::sin(theta) * std::sin(phi));
+            const glm::vec3 n(
+                std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
             m.positions.push_back(n * radius);
             m.normals.push_back(n);
             m.tangents.push_back(glm::vec3(-std::sin(phi), 0.0f, std::cos(phi)));

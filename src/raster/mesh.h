@@ -4,9 +4,8 @@
 // Winding: a triangle (a, b, c) faces outward along cross(b - a, c - a).
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "raster/scene.h"
 

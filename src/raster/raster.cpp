@@ -24,29 +24,28 @@ std::int64_t floor_div(std::int64_t a, std::int64_t b)
 }
 
 struct SetupTri {
-    std::int32_t x[3], y[3];  // fixed point
+    std::int32_t x[3], y[3];     // fixed point
     float x0, y0, k0, kdx, kdy;  // key plane, relative to (x0, y0) in pixels
     int bx0, by0, bx1, by1;      // inclusive pixel bounds
     std::uint32_t id;
 };
 
-// Planes in raster space: dot(plane, v) >= 0 is inside.
-glm::vec4 clip_plane(int i, float near_w)
-{
-    switch (i) {
-    case 0: return {0, 0, 0, 1};  // W >= near_w, with the offset applied below
-    case 1: return {1, 0, 0, kGuard};
-    case 2: return {-1, 0, 0, kGuard};
-    case 3: return {0, 1, 0, kGuard};
-    default: return {0, -1, 0, kGuard};
-    }
-    (void)near_w;
-}
-
+// Signed distance of v to clip plane i (>= 0 inside): 0 is W >= near_w, 1-4 the guard band
+// |X / W| <= kGuard, |Y / W| <= kGuard.
 float plane_dist(int i, const glm::vec4 &v, float near_w)
 {
-    const glm::vec4 p = clip_plane(i, near_w);
-    return p.x * v.x + p.y * v.y + p.w * v.w - (i == 0 ? near_w : 0.0f);
+    switch (i) {
+        case 0:
+            return v.w - near_w;
+        case 1:
+            return v.x + kGuard * v.w;
+        case 2:
+            return kGuard * v.w - v.x;
+        case 3:
+            return v.y + kGuard * v.w;
+        default:
+            return kGuard * v.w - v.y;
+    }
 }
 
 void setup_triangle(const glm::vec4 &a,
@@ -131,7 +130,6 @@ void clip_and_setup(const glm::vec4 &a,
     if (all_out) {
         return;
     }
-    // Cheap screen rejection for unclipped triangles: all left, right, above or below.
     if (!any_out) {
         setup_triangle(a, b, c, id, rp, out);
         return;
@@ -176,7 +174,8 @@ void raster_tile(const Rect &tile,
             continue;
         }
         std::int64_t A[3], B[3], E[3];
-        const std::int64_t cx = std::int64_t(x0) * kOne + kHalf, cy = std::int64_t(y0) * kOne + kHalf;
+        const std::int64_t cx = std::int64_t(x0) * kOne + kHalf,
+                           cy = std::int64_t(y0) * kOne + kHalf;
         for (int i = 0; i < 3; ++i) {
             const int j = (i + 1) % 3;
             A[i] = std::int64_t(t.y[i]) - t.y[j];
@@ -252,8 +251,11 @@ RasterCounts rasterize_over(const std::vector<DrawBatch> &batches,
         out.reserve(job.end - job.begin);
         for (std::size_t i = job.begin; i < job.end; ++i) {
             const glm::uvec3 &t = job.batch->triangles[i];
-            clip_and_setup(job.batch->vertices[t.x], job.batch->vertices[t.y],
-                           job.batch->vertices[t.z], job.batch->id_base + std::uint32_t(i), rp,
+            clip_and_setup(job.batch->vertices[t.x],
+                           job.batch->vertices[t.y],
+                           job.batch->vertices[t.z],
+                           job.batch->id_base + std::uint32_t(i),
+                           rp,
                            out);
         }
     });
@@ -287,16 +289,15 @@ RasterCounts rasterize(const std::vector<DrawBatch> &batches,
                        const RasterParams &rp,
                        RasterTarget target)
 {
-    const std::size_t n = std::size_t(rp.width) * std::size_t(rp.height);
     parallel_for(0, rp.height, [&](int y) {
         const std::size_t row = std::size_t(y) * std::size_t(rp.width);
-        std::fill(target.keys + row, target.keys + row + std::size_t(rp.width),
+        std::fill(target.keys + row,
+                  target.keys + row + std::size_t(rp.width),
                   -std::numeric_limits<float>::infinity());
         if (target.ids) {
             std::fill(target.ids + row, target.ids + row + std::size_t(rp.width), kNoTriangle);
         }
     });
-    (void)n;
     return rasterize_over(batches, rp, target);
 }
 

@@ -12,10 +12,9 @@
 // ones W = 1 and Q = distance toward the viewer.
 
 #include <cstdint>
-#include <vector>
-
 #include <glm/vec3.hpp>
 #include <glm/vec4.hpp>
+#include <vector>
 
 #include "core/image.h"
 

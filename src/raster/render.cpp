@@ -1,17 +1,17 @@
 #include "raster/render.h"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/mat3x3.hpp>
 #include <limits>
 #include <map>
 #include <mutex>
 #include <optional>
-
-#include <glm/geometric.hpp>
-#include <glm/gtc/matrix_transform.hpp>
-#include <glm/mat3x3.hpp>
-#include <tbb/task_arena.h>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -29,14 +29,14 @@ namespace posthaste::raster {
 struct ShadowMap {
     glm::mat4 raster{1.0f};  // world -> (X, Y, Q, 1); Q grows toward the sun
     int size = 0;
-    float texel_m = 0.0f;    // texel size in metres
+    float texel_m = 0.0f;  // texel size in metres
     std::vector<float> keys;
 };
 
 struct SceneMeshes {
-    std::vector<Mesh> chunks;   // static world
-    std::vector<Mesh> balls;    // one per Scene::balls, centred at the origin
-    std::vector<Mesh> movers;   // one per Scene::movers, in world space at offset 0
+    std::vector<Mesh> chunks;  // static world
+    std::vector<Mesh> balls;   // one per Scene::balls, centred at the origin
+    std::vector<Mesh> movers;  // one per Scene::movers, in world space at offset 0
 };
 
 struct SceneCache {
@@ -83,7 +83,7 @@ std::shared_ptr<const SceneMeshes> scene_meshes(const Scene &s, SceneCache &cach
 struct Instance {
     const Mesh *mesh = nullptr;
     glm::mat4 m{1.0f}, m_prev{1.0f};
-    bool identity = true;  // static world: m = m_prev = identity
+    bool identity = true;    // static world: m = m_prev = identity
     std::uint32_t base = 0;  // triangle ids are base + index
 };
 
@@ -125,7 +125,8 @@ struct View {
     float focus = 1.0f;      // focus distance when lens != 0
     glm::mat4 raster{1.0f};  // world -> (X, Y, Q = 1, W = z)
     glm::vec3 origin{0.0f};  // ray origin (world)
-    glm::vec3 dir00{0.0f}, dir_dx{0.0f}, dir_dy{0.0f};  // ray direction = dir00 + x dir_dx + y dir_dy
+    glm::vec3 dir00{0.0f}, dir_dx{0.0f},
+        dir_dy{0.0f};  // ray direction = dir00 + x dir_dx + y dir_dy
 
     glm::vec3 ray_dir(float x, float y) const { return dir00 + x * dir_dx + y * dir_dy; }
 };
@@ -138,8 +139,8 @@ View make_view(const CameraState &c, int width, int height, float near_clip, glm
     v.near_clip = near_clip;
     v.cam_to_world = c.camera_to_world();
     const float aspect = float(width) / float(height);
-    const CameraMatrices cm =
-        make_camera_matrices(v.cam_to_world, c.focal_length_mm, c.sensor_width_mm, aspect, near_clip);
+    const CameraMatrices cm = make_camera_matrices(
+        v.cam_to_world, c.focal_length_mm, c.sensor_width_mm, aspect, near_clip);
     v.world_to_camera = cm.world_to_camera;
     v.world_to_ndc = cm.world_to_ndc;
     v.sx = c.focal_length_mm / c.sensor_width_mm;
@@ -171,8 +172,8 @@ View make_view(const CameraState &c, int width, int height, float near_clip, glm
     }
     r[3][2] = 1.0f;  // Q = 1: key = 1 / z
     v.raster = r;
-    // Rays through pixel (x, y): camera-space direction ((u - .5) / sx f - ox, (.5 - v) / sy f - oy, f)
-    // with u = x / W, v = y / H and f the focus distance (1 for a pinhole).
+    // Rays through pixel (x, y): camera-space direction ((u - .5) / sx f - ox, (.5 - v) / sy f -
+    // oy, f) with u = x / W, v = y / H and f the focus distance (1 for a pinhole).
     const float f = lens == glm::vec2(0.0f) ? 1.0f : c.focus_distance;
     const glm::mat3 rot(v.cam_to_world);
     v.origin = glm::vec3(v.cam_to_world * glm::vec4(lens.x, lens.y, 0.0f, 1.0f));
@@ -183,7 +184,8 @@ View make_view(const CameraState &c, int width, int height, float near_clip, glm
 }
 
 // World-space AABB of a mesh under a transform.
-void transformed_bounds(const Mesh &m, const glm::mat4 &t, bool identity, glm::vec3 &lo, glm::vec3 &hi)
+void transformed_bounds(
+    const Mesh &m, const glm::mat4 &t, bool identity, glm::vec3 &lo, glm::vec3 &hi)
 {
     if (identity) {
         lo = m.bounds_min;
@@ -204,8 +206,12 @@ void transformed_bounds(const Mesh &m, const glm::mat4 &t, bool identity, glm::v
 
 // True when the box is entirely outside one plane of the raster frustum (W >= near,
 // 0 <= X <= width W, 0 <= Y <= height W) or of an orthographic map.
-bool outside_frustum(const glm::mat4 &r, float width, float height, float near_w,
-                     const glm::vec3 &lo, const glm::vec3 &hi)
+bool outside_frustum(const glm::mat4 &r,
+                     float width,
+                     float height,
+                     float near_w,
+                     const glm::vec3 &lo,
+                     const glm::vec3 &hi)
 {
     unsigned all = 0x1f;
     for (int i = 0; i < 8; ++i) {
@@ -229,8 +235,13 @@ struct Batches {
     std::size_t triangles = 0;
 };
 
-Batches make_batches(const Geometry &g, std::size_t begin, std::size_t end, const glm::mat4 &r,
-                     int width, int height, float near_w)
+Batches make_batches(const Geometry &g,
+                     std::size_t begin,
+                     std::size_t end,
+                     const glm::mat4 &r,
+                     int width,
+                     int height,
+                     float near_w)
 {
     Batches b;
     std::vector<std::size_t> visible;
@@ -254,22 +265,26 @@ Batches make_batches(const Geometry &g, std::size_t begin, std::size_t end, cons
     });
     for (std::size_t k = 0; k < visible.size(); ++k) {
         const Instance &in = g.instances[visible[k]];
-        b.draws.push_back({b.vertices[k].data(), in.mesh->triangles.data(),
-                           in.mesh->triangle_count(), in.base});
+        b.draws.push_back(
+            {b.vertices[k].data(), in.mesh->triangles.data(), in.mesh->triangle_count(), in.base});
         b.triangles += in.mesh->triangle_count();
     }
     return b;
 }
 
 // Orthographic map looking down -sun over a world-space box.
-ShadowMap make_shadow_frame(const glm::vec3 &sun, const glm::vec3 &lo, const glm::vec3 &hi, int size)
+ShadowMap make_shadow_frame(const glm::vec3 &sun,
+                            const glm::vec3 &lo,
+                            const glm::vec3 &hi,
+                            int size)
 {
     ShadowMap sm;
     sm.size = size;
     const glm::vec3 helper = std::abs(sun.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
     const glm::vec3 e1 = glm::normalize(glm::cross(helper, sun));
     const glm::vec3 e2 = glm::cross(sun, e1);
-    glm::vec3 mn(std::numeric_limits<float>::infinity()), mx(-std::numeric_limits<float>::infinity());
+    glm::vec3 mn(std::numeric_limits<float>::infinity()),
+        mx(-std::numeric_limits<float>::infinity());
     for (int i = 0; i < 8; ++i) {
         const glm::vec3 c((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
         const glm::vec3 p(glm::dot(c, e1), glm::dot(c, e2), glm::dot(c, sun));
@@ -304,15 +319,17 @@ void draw_shadow(ShadowMap &sm, const Geometry &g, std::size_t begin, std::size_
     rasterize_over(b.draws, rp, {sm.keys.data(), nullptr});
 }
 
-std::shared_ptr<const ShadowMap> static_shadow(const Scene &s, SceneCache &cache,
-                                               const Geometry &g, bool greedy, int size)
+std::shared_ptr<const ShadowMap> static_shadow(
+    const Scene &s, SceneCache &cache, const Geometry &g, bool greedy, int size)
 {
     std::lock_guard<std::mutex> lock(cache.mutex);
     auto &slot = cache.shadows[{greedy, size}];
     if (!slot) {
-        auto sm = std::make_shared<ShadowMap>(make_shadow_frame(
-            s.sun.direction, glm::vec3(0.0f),
-            glm::vec3(float(s.world.nx), float(s.world.ny), float(s.world.nz)), size));
+        auto sm = std::make_shared<ShadowMap>(
+            make_shadow_frame(s.sun.direction,
+                              glm::vec3(0.0f),
+                              glm::vec3(float(s.world.nx), float(s.world.ny), float(s.world.nz)),
+                              size));
         tbb::this_task_arena::isolate([&] { draw_shadow(*sm, g, 0, g.dynamic_begin); });
         slot = std::move(sm);
     }
@@ -331,7 +348,8 @@ std::unique_ptr<ShadowMap> dynamic_shadow(const Scene &s, const Geometry &g)
         lo = glm::min(lo, a);
         hi = glm::max(hi, b);
     }
-    auto sm = std::make_unique<ShadowMap>(make_shadow_frame(s.sun.direction, lo - 0.5f, hi + 0.5f, 512));
+    auto sm =
+        std::make_unique<ShadowMap>(make_shadow_frame(s.sun.direction, lo - 0.5f, hi + 0.5f, 512));
     draw_shadow(*sm, g, g.dynamic_begin, g.instances.size());
     return sm;
 }
@@ -356,7 +374,9 @@ float shadow_lookup(const ShadowMap &sm, const glm::vec3 &p, const glm::vec3 &n)
             lit[i] = 1.0f;
             continue;
         }
-        lit[i] = sm.keys[std::size_t(yi) * std::size_t(sm.size) + std::size_t(xi)] > h.z + bias ? 0.0f : 1.0f;
+        lit[i] = sm.keys[std::size_t(yi) * std::size_t(sm.size) + std::size_t(xi)] > h.z + bias
+                     ? 0.0f
+                     : 1.0f;
     }
     return (lit[0] * (1 - fx) + lit[1] * fx) * (1 - fy) + (lit[2] * (1 - fx) + lit[3] * fx) * fy;
 }
@@ -371,7 +391,7 @@ struct Hit {
 // bounds: coverage was decided by the rasterizer) and interpolates its attributes. Neighbouring
 // pixels mostly see the same triangle, so its world-space setup is kept between calls.
 class SurfaceHitter {
-  public:
+   public:
     /// All rays start at `origin` (one view).
     SurfaceHitter(const Geometry &g, const glm::vec3 &origin) : g_(g), o_(origin) {}
 
@@ -398,12 +418,12 @@ class SurfaceHitter {
             const float tl = glm::length(tg);
             h.t = tl > 1e-12f ? tg / tl : glm::vec3(0.0f);
         }
-        h.p_prev = moving_ ? glm::vec3(prev_ * glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f))
-                           : h.p;
+        h.p_prev =
+            moving_ ? glm::vec3(prev_ * glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f)) : h.p;
         return h;
     }
 
-  private:
+   private:
     void load(std::uint32_t id)
     {
         id_ = id;
@@ -506,7 +526,8 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
             spec.albedo = glm::vec3(0.0f);
             spec.metallic = 0.0f;
             c = (shading::diffuse_albedo(surf) / shading::kPi * band +
-                 shading::evaluate(spec, n, v, l)) * e_sun;
+                 shading::evaluate(spec, n, v, l)) *
+                e_sun;
         } else {
             c = shading::evaluate(surf, n, v, l) * e_sun;
         }
@@ -536,7 +557,8 @@ struct Visibility {
 Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
 {
     auto t0 = Clock::now();
-    const Batches b = make_batches(g, 0, g.instances.size(), v.raster, v.width, v.height, v.near_clip);
+    const Batches b =
+        make_batches(g, 0, g.instances.size(), v.raster, v.width, v.height, v.near_clip);
     Visibility vis;
     vis.width = v.width;
     vis.height = v.height;
@@ -560,15 +582,10 @@ Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
     return vis;
 }
 
-struct ColorContext {
-    std::shared_ptr<const ShadowMap> static_map;
-    std::unique_ptr<ShadowMap> dynamic_map;
-};
-
 // Beauty of one view into `out` (RGBA), averaging ss x ss samples per pixel when vis is ss times
 // the output size.
-void shade_color(const Geometry &g, const View &v, const Visibility &vis, const Lighting &lt,
-                 int ss, Image &out)
+void shade_color(
+    const Geometry &g, const View &v, const Visibility &vis, const Lighting &lt, int ss, Image &out)
 {
     parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
@@ -578,7 +595,8 @@ void shade_color(const Geometry &g, const View &v, const Visibility &vis, const 
                 for (int sy = 0; sy < ss; ++sy) {
                     for (int sx = 0; sx < ss; ++sx) {
                         const int X = x * ss + sx, Y = y * ss + sy;
-                        const std::uint32_t id = vis.ids[std::size_t(Y) * std::size_t(vis.width) + std::size_t(X)];
+                        const std::uint32_t id =
+                            vis.ids[std::size_t(Y) * std::size_t(vis.width) + std::size_t(X)];
                         const glm::vec3 d = v.ray_dir(float(X) + 0.5f, float(Y) + 0.5f);
                         const glm::vec3 dn = glm::normalize(d);
                         if (id == kNoTriangle) {
@@ -606,7 +624,10 @@ struct LightingState {
     std::unique_ptr<ShadowMap> dynamic_map;
     Lighting lighting;
 
-    LightingState(const Scene &s, SceneCache &cache, const Geometry &g, const RenderOptions &o,
+    LightingState(const Scene &s,
+                  SceneCache &cache,
+                  const Geometry &g,
+                  const RenderOptions &o,
                   RenderStats *stats)
         : materials(s), lighting{&s, nullptr, nullptr, &materials}
     {
@@ -624,13 +645,20 @@ struct LightingState {
 };
 
 // Render the beauty of the scene at time t through `lens` into out (RGBA, options size).
-void render_color(const Scene &s, SceneCache &cache, double t, glm::vec2 lens, const CameraState &cam,
-                  const RenderOptions &o, Image &out, RenderStats *stats)
+void render_color(const Scene &s,
+                  SceneCache &cache,
+                  double t,
+                  glm::vec2 lens,
+                  const CameraState &cam,
+                  const RenderOptions &o,
+                  Image &out,
+                  RenderStats *stats)
 {
     const auto meshes = scene_meshes(s, cache, o.greedy_meshing);
     const Geometry g = make_geometry(s, *meshes, t, t - 1.0);
     const LightingState ls(s, cache, g, o, stats);
-    const View v = make_view(cam, o.width * o.supersample, o.height * o.supersample, s.near_clip, lens);
+    const View v =
+        make_view(cam, o.width * o.supersample, o.height * o.supersample, s.near_clip, lens);
     const Visibility vis = visibility(g, v, stats);
     auto t0 = Clock::now();
     shade_color(g, v, vis, ls.lighting, o.supersample, out);
@@ -646,10 +674,10 @@ void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
     f.height = o.height;
     const CameraState c = s.camera_at(frame), cp = s.camera_at(frame - 1);
     const float aspect = float(o.width) / float(o.height);
-    const CameraMatrices m = make_camera_matrices(c.camera_to_world(), c.focal_length_mm,
-                                                  c.sensor_width_mm, aspect, s.near_clip);
-    const CameraMatrices mp = make_camera_matrices(cp.camera_to_world(), cp.focal_length_mm,
-                                                   cp.sensor_width_mm, aspect, s.near_clip);
+    const CameraMatrices m = make_camera_matrices(
+        c.camera_to_world(), c.focal_length_mm, c.sensor_width_mm, aspect, s.near_clip);
+    const CameraMatrices mp = make_camera_matrices(
+        cp.camera_to_world(), cp.focal_length_mm, cp.sensor_width_mm, aspect, s.near_clip);
     f.camera.world_to_camera = m.world_to_camera;
     f.camera.world_to_ndc = m.world_to_ndc;
     f.camera.prev_world_to_camera = mp.world_to_camera;
@@ -661,9 +689,10 @@ void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
     f.camera.sensor_height_mm = c.sensor_width_mm / aspect;
     f.camera.shutter = c.shutter;
     f.camera.near_clip = s.near_clip;
-    f.camera.far_clip = std::sqrt(float(s.world.nx) * float(s.world.nx) +
-                                  float(s.world.ny) * float(s.world.ny) +
-                                  float(s.world.nz) * float(s.world.nz)) + 1000.0f;
+    f.camera.far_clip =
+        std::sqrt(float(s.world.nx) * float(s.world.nx) + float(s.world.ny) * float(s.world.ny) +
+                  float(s.world.nz) * float(s.world.nz)) +
+        1000.0f;
     f.attributes["posthaste:scene"] = s.name;
     f.attributes["posthaste:fps"] = float(s.fps);
 }
@@ -688,7 +717,8 @@ glm::vec2 concentric_disc(float u1, float u2)
     if (std::abs(a) > std::abs(b)) {
         return a * glm::vec2(std::cos(pi4 * b / a), std::sin(pi4 * b / a));
     }
-    return b * glm::vec2(std::cos(shading::kPi / 2 - pi4 * a / b), std::sin(shading::kPi / 2 - pi4 * a / b));
+    return b * glm::vec2(std::cos(shading::kPi / 2 - pi4 * a / b),
+                         std::sin(shading::kPi / 2 - pi4 * a / b));
 }
 
 float radical_inverse2(std::uint32_t i)
@@ -705,16 +735,27 @@ float radical_inverse2(std::uint32_t i)
 
 const std::set<std::string> &render_pass_names()
 {
-    static const std::set<std::string> names = {pass::kColor,  pass::kDepth,    pass::kNormal,
-                                                pass::kPosition, pass::kMotion, pass::kAlbedo,
-                                                pass::kMaterial, pass::kTangent, pass::kId};
+    static const std::set<std::string> names = {pass::kColor,
+                                                pass::kDepth,
+                                                pass::kNormal,
+                                                pass::kPosition,
+                                                pass::kMotion,
+                                                pass::kAlbedo,
+                                                pass::kMaterial,
+                                                pass::kTangent,
+                                                pass::kId};
     return names;
 }
 
 void validate(const RenderOptions &o)
 {
-    if (o.width <= 0 || o.height <= 0 || o.width > kMaxImageSide / 4 || o.height > kMaxImageSide / 4) {
-        throw_usage("render: expected a size in [1, ", kMaxImageSide / 4, "], got ", o.width, "x",
+    if (o.width <= 0 || o.height <= 0 || o.width > kMaxImageSide / 4 ||
+        o.height > kMaxImageSide / 4) {
+        throw_usage("render: expected a size in [1, ",
+                    kMaxImageSide / 4,
+                    "], got ",
+                    o.width,
+                    "x",
                     o.height);
     }
     if (o.supersample != 1 && o.supersample != 2 && o.supersample != 4) {
@@ -755,8 +796,8 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
         stats->mesh_ms += ms_since(t0);
     }
     const bool want_color = has(pass::kColor);
-    const bool data = std::any_of(o.passes.begin(), o.passes.end(),
-                                  [](const std::string &p) { return p != pass::kColor; });
+    const bool data = std::any_of(
+        o.passes.begin(), o.passes.end(), [](const std::string &p) { return p != pass::kColor; });
     std::unique_ptr<LightingState> ls;
     Image color;
     if (want_color) {
@@ -764,8 +805,11 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
         color = Image::uninitialized(o.width, o.height, 4);
         if (o.supersample > 1) {
             // The beauty gets its own visibility at the supersampled size.
-            const View vs = make_view(cam, o.width * o.supersample, o.height * o.supersample,
-                                      s.near_clip, glm::vec2(0.0f));
+            const View vs = make_view(cam,
+                                      o.width * o.supersample,
+                                      o.height * o.supersample,
+                                      s.near_clip,
+                                      glm::vec2(0.0f));
             const Visibility vis_ss = visibility(g, vs, stats);
             t0 = Clock::now();
             shade_color(g, vs, vis_ss, ls->lighting, o.supersample, color);
@@ -798,14 +842,17 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     Image albedo = make(pass::kAlbedo, 3), material = make(pass::kMaterial, 3);
     Image tangent = make(pass::kTangent, 3), id = make(pass::kId, 1);
     const float W = float(o.width), H = float(o.height);
-    const glm::vec4 zrow(v.world_to_camera[0][2], v.world_to_camera[1][2], v.world_to_camera[2][2],
+    const glm::vec4 zrow(v.world_to_camera[0][2],
+                         v.world_to_camera[1][2],
+                         v.world_to_camera[2][2],
                          v.world_to_camera[3][2]);
 
     parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
         for (int y = tile.y0; y < tile.y1; ++y) {
             for (int x = tile.x0; x < tile.x1; ++x) {
-                const std::uint32_t tid = vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
+                const std::uint32_t tid =
+                    vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
                 const glm::vec3 d = v.ray_dir(float(x) + 0.5f, float(y) + 0.5f);
                 auto put_color = [&](const glm::vec3 &c) {
                     float *p = color.pixel(x, y);
@@ -929,16 +976,20 @@ Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const Trut
     for (int i = 0; i < n; ++i) {
         double t = frame;
         if (truth.motion) {
-            const float u = (float(truth.dof ? perm[std::size_t(i)] : i) +
-                             hash_unit(i, frame, 0, truth.seed)) / float(n);
+            const float u =
+                (float(truth.dof ? perm[std::size_t(i)] : i) + hash_unit(i, frame, 0, truth.seed)) /
+                float(n);
             t = frame + (double(u) - 0.5) * double(centre.shutter);
         }
         const CameraState cam = s.camera_at(t);
         glm::vec2 lens(0.0f);
         if (truth.dof) {
             const float u1 = (float(i) + hash_unit(i, frame, 1, truth.seed)) / float(n);
-            const float u2 = float((std::uint32_t(radical_inverse2(std::uint32_t(i)) * 16777216.0f) ^
-                                    (scramble >> 8)) & 0xffffffu) / 16777216.0f;
+            const float u2 =
+                float((std::uint32_t(radical_inverse2(std::uint32_t(i)) * 16777216.0f) ^
+                       (scramble >> 8)) &
+                      0xffffffu) /
+                16777216.0f;
             const float radius = 0.5f * cam.focal_length_mm / cam.fstop * 1e-3f;  // metres
             lens = concentric_disc(u1, u2) * radius;
         }

@@ -41,10 +41,10 @@ struct RenderOptions {
 
 /// Ground-truth accumulation settings.
 struct TruthOptions {
-    bool motion = true;     ///< Average over the shutter, centred on the frame time.
-    bool dof = false;       ///< Average over a thin-lens aperture.
-    int samples = 64;       ///< Accumulated renders.
-    std::uint32_t seed = 0; ///< Jitter seed.
+    bool motion = true;      ///< Average over the shutter, centred on the frame time.
+    bool dof = false;        ///< Average over a thin-lens aperture.
+    int samples = 64;        ///< Accumulated renders.
+    std::uint32_t seed = 0;  ///< Jitter seed.
 };
 
 /// Time spent per stage of the last render, milliseconds, and triangle counts.

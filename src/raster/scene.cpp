@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <set>
-#include <sstream>
-
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
+#include <set>
+#include <sstream>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -20,7 +19,7 @@ using Json = nlohmann::json;
 // A JSON object being read: remembers its path for messages and which keys were used, so that
 // unknown keys are reported (pbrt ReportUnused).
 class Obj {
-  public:
+   public:
     Obj(const Json &j, std::string origin, std::string path)
         : j_(j), origin_(std::move(origin)), path_(std::move(path))
     {
@@ -122,7 +121,8 @@ class Obj {
         return {v[0].get<int>(), v[1].get<int>(), v[2].get<int>()};
     }
     // Each element of an array-valued key as an Obj.
-    template<typename Fn> void each(const std::string &key, Fn &&fn)
+    template <typename Fn>
+    void each(const std::string &key, Fn &&fn)
     {
         if (!has(key)) {
             return;
@@ -137,7 +137,8 @@ class Obj {
             o.finish();
         }
     }
-    template<typename Fn> void child(const std::string &key, Fn &&fn)
+    template <typename Fn>
+    void child(const std::string &key, Fn &&fn)
     {
         if (!has(key)) {
             return;
@@ -156,12 +157,13 @@ class Obj {
                 for (const auto &k : used_) {
                     known += (known.empty() ? "" : ", ") + k;
                 }
-                fail(it.key(), "unknown key " + posthaste::quoted(it.key()) + " (known here: " + known + ")");
+                fail(it.key(),
+                     "unknown key " + posthaste::quoted(it.key()) + " (known here: " + known + ")");
             }
         }
     }
 
-  private:
+   private:
     const Json &j_;
     std::string origin_, path_;
     std::set<std::string> used_;
@@ -199,8 +201,8 @@ float hermite(double t, double t0, double t1, float p0, float p1, float m0, floa
     const double h = t1 - t0;
     const double s = (t - t0) / h;
     const double s2 = s * s, s3 = s2 * s;
-    return float((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * m0 +
-                 (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * m1);
+    return float((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * m0 + (-2 * s3 + 3 * s2) * p1 +
+                 (s3 - s2) * h * m1);
 }
 
 // Value noise for the terrain height field.
@@ -227,8 +229,10 @@ int find_material(const Scene &s, const char *name)
             return m.id;
         }
     }
-    throw_usage("error: ", s.path.empty() ? s.name : s.path,
-                ":/world: procedural terrain needs a material named ", posthaste::quoted(name));
+    throw_usage("error: ",
+                s.path.empty() ? s.name : s.path,
+                ":/world: procedural terrain needs a material named ",
+                posthaste::quoted(name));
 }
 
 void generate_procedural(Scene &s)
@@ -305,7 +309,8 @@ void generate_procedural(Scene &s)
             const int r = dy == 1 ? 1 : 2;
             for (int dz = -r; dz <= r; ++dz) {
                 for (int dx = -r; dx <= r; ++dx) {
-                    if (std::abs(dx) == r && std::abs(dz) == r && hash_unit(x + dx, z + dz, dy, p.seed) < 0.6f) {
+                    if (std::abs(dx) == r && std::abs(dz) == r &&
+                        hash_unit(x + dx, z + dz, dy, p.seed) < 0.6f) {
                         continue;  // ragged corners
                     }
                     if (w.at(x + dx, top + dy, z + dz) == 0) {
@@ -373,8 +378,8 @@ glm::mat4 CameraState::camera_to_world() const
 {
     const float yaw = glm::radians(yaw_deg), pitch = glm::radians(pitch_deg);
     const float roll = glm::radians(roll_deg);
-    const glm::vec3 fwd(std::sin(yaw) * std::cos(pitch), std::sin(pitch),
-                        std::cos(yaw) * std::cos(pitch));
+    const glm::vec3 fwd(
+        std::sin(yaw) * std::cos(pitch), std::sin(pitch), std::cos(yaw) * std::cos(pitch));
     const glm::vec3 right0(std::cos(yaw), 0.0f, -std::sin(yaw));
     const glm::vec3 up0 = glm::cross(fwd, right0);
     // Positive roll tilts the camera's right axis up (anticlockwise seen from behind), so the
@@ -495,8 +500,8 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         const Json &r = root.get("frame_range");
         if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() ||
             !r[1].is_number_integer() || r[1].get<int>() < r[0].get<int>()) {
-            root.fail("frame_range", "expected [first, last] integers with first <= last, got " +
-                                         r.dump());
+            root.fail("frame_range",
+                      "expected [first, last] integers with first <= last, got " + r.dump());
         }
         s.frame_start = r[0].get<int>();
         s.frame_end = r[1].get<int>();
@@ -532,15 +537,17 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         const glm::ivec3 size = o.ivec3("size", {p.size_x, p.size_y, p.size_z});
         if (glm::any(glm::lessThan(size, glm::ivec3(1))) || size.x > 512 || size.y > 256 ||
             size.z > 512) {
-            o.fail("size", "expected [x, y, z] in [1, 512] x [1, 256] x [1, 512], got " +
-                               o.get("size").dump());
+            o.fail("size",
+                   "expected [x, y, z] in [1, 512] x [1, 256] x [1, 512], got " +
+                       o.get("size").dump());
         }
         p.size_x = size.x;
         p.size_y = size.y;
         p.size_z = size.z;
         p.terrain = o.string("terrain", p.terrain);
         if (p.terrain != "procedural" && p.terrain != "none") {
-            o.fail("terrain", "expected \"procedural\" or \"none\", got " + posthaste::quoted(p.terrain));
+            o.fail("terrain",
+                   "expected \"procedural\" or \"none\", got " + posthaste::quoted(p.terrain));
         }
         p.base_height = o.integer("base_height", p.base_height, 1, 255);
         p.height_amplitude = o.integer("height_amplitude", p.height_amplitude, 0, 255);

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <glm/geometric.hpp>
 
 namespace posthaste::shading {
@@ -141,11 +140,8 @@ glm::vec3 diffuse_albedo(const Surface &s)
     return s.albedo * (1.0f - s.metallic);
 }
 
-glm::vec3 evaluate(const Surface &s,
-                   const glm::vec3 &n,
-                   const glm::vec3 &v,
-                   const glm::vec3 &l,
-                   Geometry geometry)
+glm::vec3 evaluate(
+    const Surface &s, const glm::vec3 &n, const glm::vec3 &v, const glm::vec3 &l, Geometry geometry)
 {
     const float nl = glm::dot(n, l);
     if (nl <= 0.0f) {
@@ -169,8 +165,8 @@ glm::vec3 evaluate(const Surface &s,
         const float d = d_ggx_aniso(nh, glm::dot(t, h), glm::dot(b, h), ax, ay);
         float vis;
         if (geometry == Geometry::SmithCorrelated) {
-            vis = v_smith_correlated_aniso(nv, nl, glm::dot(t, v), glm::dot(b, v), glm::dot(t, l),
-                                           glm::dot(b, l), ax, ay);
+            vis = v_smith_correlated_aniso(
+                nv, nl, glm::dot(t, v), glm::dot(b, v), glm::dot(t, l), glm::dot(b, l), ax, ay);
         } else {
             // Separable: G1 per direction with the projected alpha (Heitz 2014 eq. 80).
             auto g1 = [&](float c, float tx, float bx) {
@@ -186,15 +182,15 @@ glm::vec3 evaluate(const Surface &s,
         const float d = d_ggx(nh, alpha);
         float vis;
         switch (geometry) {
-        case Geometry::SmithSeparable:
-            vis = g2_smith_separable(nv, nl, alpha) / (4.0f * clamp_cos(nl) * nv);
-            break;
-        case Geometry::CookTorrance:
-            vis = g_cook_torrance(nh, nv, nl, vh) / (4.0f * clamp_cos(nl) * nv);
-            break;
-        default:
-            vis = v_smith_correlated(nv, nl, alpha);
-            break;
+            case Geometry::SmithSeparable:
+                vis = g2_smith_separable(nv, nl, alpha) / (4.0f * clamp_cos(nl) * nv);
+                break;
+            case Geometry::CookTorrance:
+                vis = g_cook_torrance(nh, nv, nl, vh) / (4.0f * clamp_cos(nl) * nv);
+                break;
+            default:
+                vis = v_smith_correlated(nv, nl, alpha);
+                break;
         }
         dv = d * vis;
     }

@@ -76,11 +76,11 @@ enum class Geometry { SmithCorrelated, SmithSeparable, CookTorrance };
 
 /// A surface point in the metallic workflow.
 struct Surface {
-    glm::vec3 albedo{0.8f};     ///< Base colour, linear.
-    float roughness = 0.5f;     ///< Perceptual roughness in [0, 1].
-    float metallic = 0.0f;      ///< 0 dielectric (F0 = 0.04), 1 metal (F0 = albedo).
-    float anisotropy = 0.0f;    ///< [-1, 1]; needs `tangent`. 0: isotropic.
-    glm::vec3 tangent{1, 0, 0}; ///< Unit tangent (used only when anisotropy != 0).
+    glm::vec3 albedo{0.8f};      ///< Base colour, linear.
+    float roughness = 0.5f;      ///< Perceptual roughness in [0, 1].
+    float metallic = 0.0f;       ///< 0 dielectric (F0 = 0.04), 1 metal (F0 = albedo).
+    float anisotropy = 0.0f;     ///< [-1, 1]; needs `tangent`. 0: isotropic.
+    glm::vec3 tangent{1, 0, 0};  ///< Unit tangent (used only when anisotropy != 0).
 };
 
 /// F0 = mix(0.04, albedo, metallic).

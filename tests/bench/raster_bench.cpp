@@ -2,10 +2,10 @@
 // 1920x1080, the beauty alone, and motion-blur ground truth (256 samples at 960x540). Counters
 // report triangles and the time split (mesh, setup+bin, raster, shade, shadow) of the last run.
 //   build/tests/posthaste_benchmarks --benchmark_filter=Raster --benchmark_repetitions=5
+#include <benchmark/benchmark.h>
+
 #include <ctime>
 #include <string>
-
-#include <benchmark/benchmark.h>
 
 #include "raster/render.h"
 
@@ -14,8 +14,8 @@ namespace {
 
 const Scene &default_scene()
 {
-    static const Scene s = load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                      "/samples/scenes/minecrappy.json");
+    static const Scene s =
+        load_scene(std::string(POSTHASTE_SOURCE_DIR) + "/samples/scenes/minecrappy.json");
     return s;
 }
 

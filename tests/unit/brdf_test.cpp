@@ -1,10 +1,10 @@
 // Tests for src/shading/brdf: hand-computed values, GGX normalisation, finiteness at the edges.
 #include "shading/brdf.h"
 
-#include <cmath>
-
-#include <glm/geometric.hpp>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <glm/geometric.hpp>
 
 namespace posthaste::shading {
 namespace {
@@ -52,7 +52,8 @@ TEST(Brdf, SmithHandValues)
     // Anisotropic V with ax = ay equals the isotropic V.
     const float nv = 0.6f, nl = 0.8f;
     EXPECT_NEAR(v_smith_correlated_aniso(nv, nl, 0.8f, 0.0f, 0.0f, 0.6f, 0.3f, 0.3f),
-                v_smith_correlated(nv, nl, 0.3f), 1e-5);
+                v_smith_correlated(nv, nl, 0.3f),
+                1e-5);
 }
 
 TEST(Brdf, CookTorranceExact)
@@ -82,9 +83,11 @@ double integrate_d(float ax, float ay)
         const double ct = std::cos(th), st = std::sin(th);
         for (int j = 0; j < np; ++j) {
             const double ph = (j + 0.5) * 2 * M_PI / np;
-            const float d = ax == ay ? d_ggx(float(ct), ax)
-                                     : d_ggx_aniso(float(ct), float(st * std::cos(ph)),
-                                                   float(st * std::sin(ph)), ax, ay);
+            const float d =
+                ax == ay
+                    ? d_ggx(float(ct), ax)
+                    : d_ggx_aniso(
+                          float(ct), float(st * std::cos(ph)), float(st * std::sin(ph)), ax, ay);
             sum += d * ct * st;
         }
     }
@@ -112,8 +115,8 @@ TEST(Brdf, EvaluateMatchesFormula)
     const glm::vec3 l = glm::normalize(glm::vec3(-0.5f, 0.2f, 1.0f));
     const glm::vec3 h = glm::normalize(v + l);
     const float a = 0.25f;
-    const float spec = d_ggx(h.z, a) * v_smith_correlated(v.z, l.z, a) *
-                       fresnel_schlick(0.04f, glm::dot(v, h));
+    const float spec =
+        d_ggx(h.z, a) * v_smith_correlated(v.z, l.z, a) * fresnel_schlick(0.04f, glm::dot(v, h));
     const glm::vec3 expect = (s.albedo / kPi + glm::vec3(spec)) * l.z;
     const glm::vec3 got = evaluate(s, n, v, l);
     for (int c = 0; c < 3; ++c) {
@@ -130,7 +133,8 @@ TEST(Brdf, EvaluateMatchesFormula)
 TEST(Brdf, FiniteAtEdges)
 {
     const glm::vec3 n(0, 0, 1);
-    for (Geometry g : {Geometry::SmithCorrelated, Geometry::SmithSeparable, Geometry::CookTorrance}) {
+    for (Geometry g :
+         {Geometry::SmithCorrelated, Geometry::SmithSeparable, Geometry::CookTorrance}) {
         for (float r : {0.0f, 0.3f, 1.0f}) {
             for (float an : {0.0f, 0.8f, -1.0f}) {
                 Surface s;

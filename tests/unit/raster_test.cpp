@@ -1,28 +1,28 @@
 // Tests for the Minecrappy rasterizer: exact data passes on analytic scenes, motion vectors
 // against analytic reprojection, watertight edges, a brute-force coverage oracle, thread-count
 // independence, determinism, pass requests and ground-truth accumulation.
-#include "raster/render.h"
+#include "raster/raster.h"
+
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdint>
+#include <glm/geometric.hpp>
 #include <limits>
 #include <random>
 #include <string>
 #include <vector>
 
-#include <glm/geometric.hpp>
-#include <gtest/gtest.h>
-
 #include "core/error.h"
 #include "core/parallel.h"
 #include "raster/mesh.h"
-#include "raster/raster.h"
+#include "raster/render.h"
 
 namespace posthaste::raster {
 namespace {
 
-const std::set<std::string> kAllPasses = {"color",  "depth",    "normal",  "position", "motion",
-                                          "albedo", "material", "tangent", "id"};
+const std::set<std::string> kAllPasses = {
+    "color", "depth", "normal", "position", "motion", "albedo", "material", "tangent", "id"};
 
 std::string sample(const std::string &name)
 {
@@ -67,7 +67,9 @@ struct PlaneHit {
     glm::dvec3 normal;
 };
 
-void check_planes(const Frame &f, const CameraState &c, const std::vector<PlaneHit> &planes,
+void check_planes(const Frame &f,
+                  const CameraState &c,
+                  const std::vector<PlaneHit> &planes,
                   std::function<int(const glm::dvec3 &)> which)
 {
     const Image &depth = f.image("depth"), &pos = f.image("position"), &nrm = f.image("normal");
@@ -154,13 +156,13 @@ TEST(RasterAnalytic, TwoPlanesExact)
 {
     const Scene s = load_scene(sample("two_planes.json"));
     const Frame f = render_frame(s, 1, small(96, 54, {"depth", "position", "normal"}));
-    check_planes(f, s.camera_at(1), {{2, 20.0, {0, 0, -1}}, {2, 40.0, {0, 0, -1}}},
-                 [](const glm::dvec3 &p) {
-                     if (std::abs(p.z - 20.0) < 1e-6) {
-                         return inside(p.x, 0, 32, 1e-3) ? 0 : -1;
-                     }
-                     return 1;
-                 });
+    check_planes(
+        f, s.camera_at(1), {{2, 20.0, {0, 0, -1}}, {2, 40.0, {0, 0, -1}}}, [](const glm::dvec3 &p) {
+            if (std::abs(p.z - 20.0) < 1e-6) {
+                return inside(p.x, 0, 32, 1e-3) ? 0 : -1;
+            }
+            return 1;
+        });
 }
 
 Scene moving_camera_scene(const std::string &second_key)
@@ -192,7 +194,8 @@ void check_motion_against_reprojection(const Scene &s, int frame)
             // The current projection is the pixel centre: header and raster agree.
             EXPECT_NEAR(a.x, x + 0.5f, 0.01f);
             EXPECT_NEAR(a.y, y + 0.5f, 0.01f);
-            worst = std::max({worst, double(std::abs(mv.at(x, y, 0) - (a.x - b.x))),
+            worst = std::max({worst,
+                              double(std::abs(mv.at(x, y, 0) - (a.x - b.x))),
                               double(std::abs(mv.at(x, y, 1) - (a.y - b.y)))});
         }
     }
@@ -216,8 +219,8 @@ TEST(RasterMotion, CameraTranslation)
 
 TEST(RasterMotion, CameraRotation)
 {
-    const Scene s =
-        moving_camera_scene(R"({"frame": 2, "position": [32, 32, 10], "yaw_deg": 4, "pitch_deg": 3, "roll_deg": 2})");
+    const Scene s = moving_camera_scene(
+        R"({"frame": 2, "position": [32, 32, 10], "yaw_deg": 4, "pitch_deg": 3, "roll_deg": 2})");
     check_motion_against_reprojection(s, 2);
     // Pure yaw to the right: content moves left in the image (negative x motion).
     const Frame f = render_frame(s, 2, small(64, 36, {"motion"}));
@@ -239,7 +242,8 @@ TEST(RasterMotion, SkyMovesWithRotationOnly)
             const Ray r = pixel_ray(c, 64, 36, x, y);
             const glm::vec4 hc = cur * glm::vec4(glm::vec3(r.d), 0.0f);
             const glm::vec4 hp = prev * glm::vec4(glm::vec3(r.d), 0.0f);
-            const float ex = (hc.x / hc.w - hp.x / hp.w) * 64, ey = (hc.y / hc.w - hp.y / hp.w) * 36;
+            const float ex = (hc.x / hc.w - hp.x / hp.w) * 64,
+                        ey = (hc.y / hc.w - hp.y / hp.w) * 36;
             EXPECT_NEAR(f.image("motion").at(x, y, 0), ex, 0.01f);
             EXPECT_NEAR(f.image("motion").at(x, y, 1), ey, 0.01f);
         }
@@ -261,7 +265,8 @@ TEST(RasterMotion, ObjectMotion)
                 continue;
             }
             ++moving;
-            const glm::vec3 p(f.image("position").at(x, y, 0), f.image("position").at(x, y, 1),
+            const glm::vec3 p(f.image("position").at(x, y, 0),
+                              f.image("position").at(x, y, 1),
                               f.image("position").at(x, y, 2));
             glm::vec2 a, b;
             ASSERT_TRUE(world_to_pixel(cur, p, f.width, f.height, a));
@@ -276,8 +281,8 @@ TEST(RasterMotion, ObjectMotion)
 // ---- The rasterizer core ------------------------------------------------------------------
 
 // Coverage counts of each triangle rasterized on its own (W = 1 vertices unless given).
-std::vector<int> coverage_counts(const std::vector<glm::vec4> &v, const std::vector<glm::uvec3> &t,
-                                 int w, int h, bool cull)
+std::vector<int> coverage_counts(
+    const std::vector<glm::vec4> &v, const std::vector<glm::uvec3> &t, int w, int h, bool cull)
 {
     std::vector<int> count(std::size_t(w) * std::size_t(h), 0);
     std::vector<float> keys(count.size());
@@ -306,7 +311,8 @@ TEST(RasterCore, WatertightGridMesh)
     std::vector<glm::vec4> v;
     for (int j = 0; j <= ny; ++j) {
         for (int i = 0; i <= nx; ++i) {
-            float x = -10.0f + (w + 20.0f) * float(i) / nx, y = -10.0f + (h + 20.0f) * float(j) / ny;
+            float x = -10.0f + (w + 20.0f) * float(i) / nx,
+                  y = -10.0f + (h + 20.0f) * float(j) / ny;
             if (i > 0 && i < nx) {
                 x += jit(rng);
             }
@@ -319,8 +325,10 @@ TEST(RasterCore, WatertightGridMesh)
     std::vector<glm::uvec3> t;
     for (int j = 0; j < ny; ++j) {
         for (int i = 0; i < nx; ++i) {
-            const unsigned a = unsigned(j * (nx + 1) + i), b = a + 1, c = a + unsigned(nx + 1), d = c + 1;
-            // Clockwise in y-up is counter-clockwise on a y-down screen: (a, b, c) has positive area.
+            const unsigned a = unsigned(j * (nx + 1) + i), b = a + 1, c = a + unsigned(nx + 1),
+                           d = c + 1;
+            // Clockwise in y-up is counter-clockwise on a y-down screen: (a, b, c) has positive
+            // area.
             t.emplace_back(a, b, d);
             t.emplace_back(a, d, c);
         }
@@ -344,8 +352,8 @@ TEST(RasterCore, WatertightSphereAroundCamera)
     c.pitch_deg = 11.0f;
     c.focal_length_mm = 20.0f;
     const int w = 120, h = 80;
-    const CameraMatrices cm = make_camera_matrices(c.camera_to_world(), c.focal_length_mm,
-                                                   c.sensor_width_mm, float(w) / h, 0.05f);
+    const CameraMatrices cm = make_camera_matrices(
+        c.camera_to_world(), c.focal_length_mm, c.sensor_width_mm, float(w) / h, 0.05f);
     std::vector<glm::vec4> v;
     for (const glm::vec3 &p : m.positions) {
         glm::vec4 q = cm.world_to_ndc * glm::vec4(p, 1.0f);
@@ -424,7 +432,8 @@ TEST(RasterCore, RandomTrianglesMatchOracle)
         if (n % 11 == 0) {
             q[2].x = q[0].x;  // vertical edges exercise the left rule
         }
-        const std::vector<glm::vec4> v = {{q[0], 0.5f, 1.0f}, {q[1], 0.5f, 1.0f}, {q[2], 0.5f, 1.0f}};
+        const std::vector<glm::vec4> v = {
+            {q[0], 0.5f, 1.0f}, {q[1], 0.5f, 1.0f}, {q[2], 0.5f, 1.0f}};
         const glm::uvec3 t(0, 1, 2);
         rasterize({DrawBatch{v.data(), &t, 1, 0}}, rp, {keys.data(), ids.data()});
         for (int y = 0; y < h; ++y) {
@@ -442,8 +451,12 @@ TEST(RasterCore, DepthTestKeepsNearest)
     std::vector<float> keys(std::size_t(w) * h);
     std::vector<std::uint32_t> ids(keys.size());
     // Two full-screen quads: the far one (key 0.1) submitted after the near one (key 0.5).
-    const std::vector<glm::vec4> v = {{-1, -1, 0.5f, 1}, {200, -1, 0.5f, 1}, {-1, 200, 0.5f, 1},
-                                      {-1, -1, 0.1f, 1}, {200, -1, 0.1f, 1}, {-1, 200, 0.1f, 1}};
+    const std::vector<glm::vec4> v = {{-1, -1, 0.5f, 1},
+                                      {200, -1, 0.5f, 1},
+                                      {-1, 200, 0.5f, 1},
+                                      {-1, -1, 0.1f, 1},
+                                      {200, -1, 0.1f, 1},
+                                      {-1, 200, 0.1f, 1}};
     const std::vector<glm::uvec3> t = {{0, 1, 2}, {3, 4, 5}};
     RasterParams rp;
     rp.width = w;
@@ -466,8 +479,8 @@ TEST(RasterMesh, SphereWindsOutwardAndBoxIsClosed)
     EXPECT_EQ(b.triangle_count(), 12u);
     for (std::size_t i = 0; i < b.triangles.size(); ++i) {
         const glm::uvec3 t = b.triangles[i];
-        const glm::vec3 e = glm::cross(b.positions[t.y] - b.positions[t.x],
-                                       b.positions[t.z] - b.positions[t.x]);
+        const glm::vec3 e =
+            glm::cross(b.positions[t.y] - b.positions[t.x], b.positions[t.z] - b.positions[t.x]);
         EXPECT_GT(glm::dot(e, b.normals[t.x]), 0.0f);
     }
 }

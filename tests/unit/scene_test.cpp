@@ -2,11 +2,11 @@
 // camera interpolation.
 #include "raster/scene.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "core/error.h"
 
@@ -31,8 +31,12 @@ std::string error_of(const std::string &json)
 
 TEST(Scene, LoadsSamples)
 {
-    for (const char *name : {"minecrappy.json", "cube.json", "plane.json", "two_planes.json",
-                             "thin_sky.json", "fast_crossing.json"}) {
+    for (const char *name : {"minecrappy.json",
+                             "cube.json",
+                             "plane.json",
+                             "two_planes.json",
+                             "thin_sky.json",
+                             "fast_crossing.json"}) {
         const Scene s = load_scene(sample(name));
         EXPECT_FALSE(s.camera_keys.empty()) << name;
         EXPECT_EQ(s.world.cells.size(),
