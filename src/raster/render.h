@@ -72,7 +72,8 @@ Frame render_frame(const Scene &scene,
 /// stratified shutter times t = frame + (u - 0.5) shutter (camera and objects moved for each)
 /// and/or thin-lens samples (aperture diameter = focal length / f-number, concentric disc
 /// mapping, focus plane at the focus distance). Motion and dof together are jointly stratified
-/// (time strata permuted against a 2D lens sequence). Returns a Frame with the "color" pass
+/// (time strata permuted against a 2D lens sequence). options.passes is ignored; each sample
+/// uses options.supersample and options.shadows. Returns a Frame with the "color" pass
 /// and the same header as render_frame; hash-based jitter, same bits for any thread count.
 Frame render_truth(const Scene &scene,
                    int frame,
