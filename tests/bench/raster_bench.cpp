@@ -2,8 +2,14 @@
 // 1920x1080, the beauty alone, and motion-blur ground truth (256 samples at 960x540). Counters
 // report triangles and the time split (mesh, setup+bin, raster, shade, shadow) of the last run.
 //   build/tests/posthaste_benchmarks --benchmark_filter=Raster --benchmark_repetitions=5
+// POSTHASTE_BENCH_KEEP_HEAP=1 makes glibc serve large blocks from the heap and keep freed memory
+// (mallopt M_MMAP_MAX = 0, M_TRIM_THRESHOLD = 1 GiB), so each frame's fresh pass images reuse
+// pages instead of faulting in ~180 MB of zeroed memory: a process policy a renderer of many
+// frames can choose.
 #include <benchmark/benchmark.h>
+#include <malloc.h>
 
+#include <cstdlib>
 #include <ctime>
 #include <string>
 
@@ -99,4 +105,17 @@ BENCHMARK(BM_RasterTruthMotion256)->Unit(benchmark::kMillisecond)->UseRealTime()
 }  // namespace
 }  // namespace posthaste::raster
 
-BENCHMARK_MAIN();
+int main(int argc, char **argv)
+{
+    if (const char *keep = std::getenv("POSTHASTE_BENCH_KEEP_HEAP"); keep && keep[0] == '1') {
+        mallopt(M_MMAP_MAX, 0);
+        mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    }
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) {
+        return 1;
+    }
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}
