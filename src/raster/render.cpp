@@ -1,0 +1,1016 @@
+#include "raster/render.h"
+
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/mat3x3.hpp>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <optional>
+
+#include "core/error.h"
+#include "core/hash.h"
+#include "core/parallel.h"
+#include "core/passes.h"
+#include "raster/mesh.h"
+#include "raster/raster.h"
+#include "raster/sky.h"
+#include "shading/brdf.h"
+
+namespace posthaste::raster {
+
+// ---- Per-scene cache -----------------------------------------------------------------------
+
+struct ShadowMap {
+    glm::mat4 raster{1.0f};  // world -> (X, Y, Q, 1); Q grows toward the sun
+    int size = 0;
+    float texel_m = 0.0f;  // texel size in metres
+    std::vector<float> keys;
+};
+
+struct SceneMeshes {
+    std::vector<Mesh> chunks;  // static world
+    std::vector<Mesh> balls;   // one per Scene::balls, centred at the origin
+    std::vector<Mesh> movers;  // one per Scene::movers, in world space at offset 0
+};
+
+struct SceneCache {
+    std::mutex mutex;
+    std::map<bool, std::shared_ptr<const SceneMeshes>> meshes;
+    std::map<std::pair<bool, int>, std::shared_ptr<const ShadowMap>> shadows;
+};
+
+std::shared_ptr<SceneCache> make_scene_cache()
+{
+    return std::make_shared<SceneCache>();
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point t0)
+{
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+std::shared_ptr<const SceneMeshes> scene_meshes(const Scene &s, SceneCache &cache, bool greedy)
+{
+    std::lock_guard<std::mutex> lock(cache.mutex);
+    auto &slot = cache.meshes[greedy];
+    if (!slot) {
+        auto m = std::make_shared<SceneMeshes>();
+        // Isolated: while this thread waits inside the parallel loop it must not pick up another
+        // frame's task that would block on the mutex it holds.
+        tbb::this_task_arena::isolate([&] { m->chunks = mesh_chunks(s.world, greedy); });
+        for (const Ball &b : s.balls) {
+            m->balls.push_back(mesh_sphere(b.radius, b.segments, b.material));
+        }
+        for (const Mover &mv : s.movers) {
+            m->movers.push_back(mesh_box(mv.min, mv.size, mv.material));
+        }
+        slot = std::move(m);
+    }
+    return slot;
+}
+
+// One mesh placed in the world at the render time and at the previous frame.
+struct Instance {
+    const Mesh *mesh = nullptr;
+    glm::mat4 m{1.0f}, m_prev{1.0f};
+    bool identity = true;    // static world: m = m_prev = identity
+    std::uint32_t base = 0;  // triangle ids are base + index
+};
+
+// Triangle ids: instance index in the high 16 bits, triangle index in the low 16 (chunks hold at
+// most 24576 triangles, spheres at most 32400; scenes have fewer than 65535 instances).
+constexpr int kInstanceShift = 16;
+
+struct Geometry {
+    std::vector<Instance> instances;
+    std::size_t dynamic_begin = 0;  // instances from here on move
+};
+
+Geometry make_geometry(const Scene &s, const SceneMeshes &meshes, double t, double t_prev)
+{
+    Geometry g;
+    auto add = [&](const Mesh &mesh, const glm::mat4 &m, const glm::mat4 &mp, bool identity) {
+        const auto base = std::uint32_t(g.instances.size()) << kInstanceShift;
+        g.instances.push_back({&mesh, m, mp, identity, base});
+    };
+    for (const Mesh &c : meshes.chunks) {
+        add(c, glm::mat4(1.0f), glm::mat4(1.0f), true);
+    }
+    g.dynamic_begin = g.instances.size();
+    for (std::size_t i = 0; i < s.balls.size(); ++i) {
+        add(meshes.balls[i], s.balls[i].transform(t), s.balls[i].transform(t_prev), false);
+    }
+    for (std::size_t i = 0; i < s.movers.size(); ++i) {
+        add(meshes.movers[i], s.movers[i].transform(t), s.movers[i].transform(t_prev), false);
+    }
+    return g;
+}
+
+// A camera for one render: pinhole, or a thin-lens sample (lens point in camera space, metres).
+struct View {
+    int width = 0, height = 0;
+    glm::mat4 cam_to_world{1.0f}, world_to_camera{1.0f}, world_to_ndc{1.0f};
+    float sx = 1, sy = 1, near_clip = 0.05f;
+    glm::vec2 lens{0.0f};
+    float focus = 1.0f;      // focus distance when lens != 0
+    glm::mat4 raster{1.0f};  // world -> (X, Y, Q = 1, W = z)
+    glm::vec3 origin{0.0f};  // ray origin (world)
+    glm::vec3 dir00{0.0f}, dir_dx{0.0f},
+        dir_dy{0.0f};  // ray direction = dir00 + x dir_dx + y dir_dy
+
+    glm::vec3 ray_dir(float x, float y) const { return dir00 + x * dir_dx + y * dir_dy; }
+};
+
+View make_view(const CameraState &c, int width, int height, float near_clip, glm::vec2 lens)
+{
+    View v;
+    v.width = width;
+    v.height = height;
+    v.near_clip = near_clip;
+    v.cam_to_world = c.camera_to_world();
+    const float aspect = float(width) / float(height);
+    const CameraMatrices cm = make_camera_matrices(
+        v.cam_to_world, c.focal_length_mm, c.sensor_width_mm, aspect, near_clip);
+    v.world_to_camera = cm.world_to_camera;
+    v.world_to_ndc = cm.world_to_ndc;
+    v.sx = c.focal_length_mm / c.sensor_width_mm;
+    v.sy = v.sx * aspect;
+    v.lens = lens;
+    v.focus = c.focus_distance;
+    const float W = float(width), H = float(height);
+    glm::mat4 r(0.0f);  // glm: r[column][row]
+    if (lens == glm::vec2(0.0f)) {
+        // Pixel = NDC * size: the rows of worldToNDC, so raster and header agree exactly.
+        for (int col = 0; col < 4; ++col) {
+            r[col][0] = cm.world_to_ndc[col][0] * W;
+            r[col][1] = cm.world_to_ndc[col][1] * H;
+            r[col][3] = cm.world_to_ndc[col][3];
+        }
+    } else {
+        // Thin lens: a point seen through lens point L lands where the line L -> p meets the
+        // focus plane, i.e. x' = x - ox (1 - z / focus) before the pinhole projection.
+        const float ox = lens.x, oy = lens.y, fd = c.focus_distance;
+        glm::mat4 cam(0.0f);
+        cam[0][0] = W * v.sx;
+        cam[2][0] = W * (v.sx * ox / fd + 0.5f);
+        cam[3][0] = -W * v.sx * ox;
+        cam[1][1] = -H * v.sy;
+        cam[2][1] = H * (-v.sy * oy / fd + 0.5f);
+        cam[3][1] = H * v.sy * oy;
+        cam[2][3] = 1.0f;
+        r = cam * cm.world_to_camera;
+    }
+    r[3][2] = 1.0f;  // Q = 1: key = 1 / z
+    v.raster = r;
+    // Rays through pixel (x, y): camera-space direction ((u - .5) / sx f - ox, (.5 - v) / sy f -
+    // oy, f) with u = x / W, v = y / H and f the focus distance (1 for a pinhole).
+    const float f = lens == glm::vec2(0.0f) ? 1.0f : c.focus_distance;
+    const glm::mat3 rot(v.cam_to_world);
+    v.origin = glm::vec3(v.cam_to_world * glm::vec4(lens.x, lens.y, 0.0f, 1.0f));
+    v.dir00 = rot * glm::vec3(-0.5f / v.sx * f - lens.x, 0.5f / v.sy * f - lens.y, f);
+    v.dir_dx = rot * glm::vec3(f / (v.sx * W), 0.0f, 0.0f);
+    v.dir_dy = rot * glm::vec3(0.0f, -f / (v.sy * H), 0.0f);
+    return v;
+}
+
+// World-space AABB of a mesh under a transform.
+void transformed_bounds(
+    const Mesh &m, const glm::mat4 &t, bool identity, glm::vec3 &lo, glm::vec3 &hi)
+{
+    if (identity) {
+        lo = m.bounds_min;
+        hi = m.bounds_max;
+        return;
+    }
+    lo = glm::vec3(std::numeric_limits<float>::infinity());
+    hi = -lo;
+    for (int i = 0; i < 8; ++i) {
+        const glm::vec3 c((i & 1) ? m.bounds_max.x : m.bounds_min.x,
+                          (i & 2) ? m.bounds_max.y : m.bounds_min.y,
+                          (i & 4) ? m.bounds_max.z : m.bounds_min.z);
+        const glm::vec3 p(t * glm::vec4(c, 1.0f));
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+    }
+}
+
+// True when the box is entirely outside one plane of the raster frustum (W >= near,
+// 0 <= X <= width W, 0 <= Y <= height W) or of an orthographic map.
+bool outside_frustum(const glm::mat4 &r,
+                     float width,
+                     float height,
+                     float near_w,
+                     const glm::vec3 &lo,
+                     const glm::vec3 &hi)
+{
+    unsigned all = 0x1f;
+    for (int i = 0; i < 8; ++i) {
+        const glm::vec3 c((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
+        const glm::vec4 h = r * glm::vec4(c, 1.0f);
+        unsigned o = 0;
+        o |= h.w < near_w ? 1u : 0u;
+        o |= h.x < 0.0f ? 2u : 0u;
+        o |= h.x > width * h.w ? 4u : 0u;
+        o |= h.y < 0.0f ? 8u : 0u;
+        o |= h.y > height * h.w ? 16u : 0u;
+        all &= o;
+    }
+    return all != 0;
+}
+
+// Raster-space vertices of the instances that survive culling.
+struct Batches {
+    std::vector<std::vector<glm::vec4>> vertices;
+    std::vector<DrawBatch> draws;
+    std::size_t triangles = 0;
+};
+
+Batches make_batches(const Geometry &g,
+                     std::size_t begin,
+                     std::size_t end,
+                     const glm::mat4 &r,
+                     int width,
+                     int height,
+                     float near_w)
+{
+    Batches b;
+    std::vector<std::size_t> visible;
+    for (std::size_t i = begin; i < end; ++i) {
+        const Instance &in = g.instances[i];
+        glm::vec3 lo, hi;
+        transformed_bounds(*in.mesh, in.m, in.identity, lo, hi);
+        if (!outside_frustum(r, float(width), float(height), near_w, lo, hi)) {
+            visible.push_back(i);
+        }
+    }
+    b.vertices.resize(visible.size());
+    parallel_for(0, int(visible.size()), [&](int k) {
+        const Instance &in = g.instances[visible[std::size_t(k)]];
+        const glm::mat4 m = in.identity ? r : r * in.m;
+        std::vector<glm::vec4> &out = b.vertices[std::size_t(k)];
+        out.resize(in.mesh->positions.size());
+        for (std::size_t v = 0; v < out.size(); ++v) {
+            out[v] = m * glm::vec4(in.mesh->positions[v], 1.0f);
+        }
+    });
+    for (std::size_t k = 0; k < visible.size(); ++k) {
+        const Instance &in = g.instances[visible[k]];
+        b.draws.push_back(
+            {b.vertices[k].data(), in.mesh->triangles.data(), in.mesh->triangle_count(), in.base});
+        b.triangles += in.mesh->triangle_count();
+    }
+    return b;
+}
+
+// Orthographic map looking down -sun over a world-space box.
+ShadowMap make_shadow_frame(const glm::vec3 &sun,
+                            const glm::vec3 &lo,
+                            const glm::vec3 &hi,
+                            int size)
+{
+    ShadowMap sm;
+    sm.size = size;
+    const glm::vec3 helper = std::abs(sun.y) < 0.9f ? glm::vec3(0, 1, 0) : glm::vec3(1, 0, 0);
+    const glm::vec3 e1 = glm::normalize(glm::cross(helper, sun));
+    const glm::vec3 e2 = glm::cross(sun, e1);
+    glm::vec3 mn(std::numeric_limits<float>::infinity()),
+        mx(-std::numeric_limits<float>::infinity());
+    for (int i = 0; i < 8; ++i) {
+        const glm::vec3 c((i & 1) ? hi.x : lo.x, (i & 2) ? hi.y : lo.y, (i & 4) ? hi.z : lo.z);
+        const glm::vec3 p(glm::dot(c, e1), glm::dot(c, e2), glm::dot(c, sun));
+        mn = glm::min(mn, p);
+        mx = glm::max(mx, p);
+    }
+    const float extent = std::max(mx.x - mn.x, mx.y - mn.y) + 1e-3f;
+    const float scale = float(size) / extent;
+    sm.texel_m = extent / float(size);
+    glm::mat4 r(0.0f);
+    for (int c = 0; c < 3; ++c) {
+        r[c][0] = e1[c] * scale;
+        r[c][1] = e2[c] * scale;
+        r[c][2] = sun[c];
+    }
+    r[3][0] = -mn.x * scale;
+    r[3][1] = -mn.y * scale;
+    r[3][2] = -mn.z + 1.0f;
+    r[3][3] = 1.0f;
+    sm.raster = r;
+    sm.keys.assign(std::size_t(size) * std::size_t(size), -std::numeric_limits<float>::infinity());
+    return sm;
+}
+
+void draw_shadow(ShadowMap &sm, const Geometry &g, std::size_t begin, std::size_t end)
+{
+    const Batches b = make_batches(g, begin, end, sm.raster, sm.size, sm.size, 0.5f);
+    RasterParams rp;
+    rp.width = rp.height = sm.size;
+    rp.cull_backfaces = false;
+    rp.near_w = 0.5f;
+    rasterize_over(b.draws, rp, {sm.keys.data(), nullptr});
+}
+
+std::shared_ptr<const ShadowMap> static_shadow(
+    const Scene &s, SceneCache &cache, const Geometry &g, bool greedy, int size)
+{
+    std::lock_guard<std::mutex> lock(cache.mutex);
+    auto &slot = cache.shadows[{greedy, size}];
+    if (!slot) {
+        auto sm = std::make_shared<ShadowMap>(
+            make_shadow_frame(s.sun.direction,
+                              glm::vec3(0.0f),
+                              glm::vec3(float(s.world.nx), float(s.world.ny), float(s.world.nz)),
+                              size));
+        tbb::this_task_arena::isolate([&] { draw_shadow(*sm, g, 0, g.dynamic_begin); });
+        slot = std::move(sm);
+    }
+    return slot;
+}
+
+std::unique_ptr<ShadowMap> dynamic_shadow(const Scene &s, const Geometry &g)
+{
+    if (g.dynamic_begin == g.instances.size()) {
+        return nullptr;
+    }
+    glm::vec3 lo(std::numeric_limits<float>::infinity()), hi(-lo);
+    for (std::size_t i = g.dynamic_begin; i < g.instances.size(); ++i) {
+        glm::vec3 a, b;
+        transformed_bounds(*g.instances[i].mesh, g.instances[i].m, false, a, b);
+        lo = glm::min(lo, a);
+        hi = glm::max(hi, b);
+    }
+    auto sm =
+        std::make_unique<ShadowMap>(make_shadow_frame(s.sun.direction, lo - 0.5f, hi + 0.5f, 512));
+    draw_shadow(*sm, g, g.dynamic_begin, g.instances.size());
+    return sm;
+}
+
+// Fraction of sun light reaching p (1 lit, 0 shadowed): 2x2 percentage-closer filter.
+float shadow_lookup(const ShadowMap &sm, const glm::vec3 &p, const glm::vec3 &n)
+{
+    const glm::vec3 q = p + n * (1.5f * sm.texel_m);  // normal offset against acne
+    const glm::vec4 h = sm.raster * glm::vec4(q, 1.0f);
+    const float x = h.x - 0.5f, y = h.y - 0.5f;
+    const float limit = float(sm.size);
+    if (!(x > -1.0f && y > -1.0f && x < limit && y < limit)) {
+        return 1.0f;  // outside the map: nothing there casts a shadow
+    }
+    const int x0 = int(std::floor(x)), y0 = int(std::floor(y));
+    const float fx = x - float(x0), fy = y - float(y0);
+    const float bias = 0.5f * sm.texel_m;
+    float lit[4];
+    for (int i = 0; i < 4; ++i) {
+        const int xi = x0 + (i & 1), yi = y0 + (i >> 1);
+        if (xi < 0 || yi < 0 || xi >= sm.size || yi >= sm.size) {
+            lit[i] = 1.0f;
+            continue;
+        }
+        lit[i] = sm.keys[std::size_t(yi) * std::size_t(sm.size) + std::size_t(xi)] > h.z + bias
+                     ? 0.0f
+                     : 1.0f;
+    }
+    return (lit[0] * (1 - fx) + lit[1] * fx) * (1 - fy) + (lit[2] * (1 - fx) + lit[3] * fx) * fy;
+}
+
+// The surface seen through one pixel.
+struct Hit {
+    glm::vec3 p, p_prev, n, t;
+    int material;
+};
+
+// Intersects pixel rays with the triangle the rasterizer found (Moller-Trumbore, no culling or
+// bounds: coverage was decided by the rasterizer) and interpolates its attributes. Neighbouring
+// pixels mostly see the same triangle, so its world-space setup is kept between calls.
+class SurfaceHitter {
+   public:
+    /// All rays start at `origin` (one view).
+    SurfaceHitter(const Geometry &g, const glm::vec3 &origin) : g_(g), o_(origin) {}
+
+    Hit hit(std::uint32_t id, const glm::vec3 &d)
+    {
+        if (id != id_) {
+            load(id);
+        }
+        // Ray-plane distance, then barycentrics from the dual basis of (e1, e2).
+        const float dn = glm::dot(ng_, d);
+        const float t = dn != 0.0f ? plane_ / dn : 0.0f;
+        Hit h;
+        h.p = o_ + d * t;
+        const glm::vec3 ap = h.p - a_;
+        const float u = glm::dot(ap, b1_), v = glm::dot(ap, b2_), w = 1.0f - u - v;
+        h.material = material_;
+        if (flat_) {
+            h.n = n_[0];
+            h.t = t_[0];
+        } else {
+            h.n = glm::normalize(w * n_[0] + u * n_[1] + v * n_[2]);
+            glm::vec3 tg = w * t_[0] + u * t_[1] + v * t_[2];
+            tg -= h.n * glm::dot(h.n, tg);
+            const float tl = glm::length(tg);
+            h.t = tl > 1e-12f ? tg / tl : glm::vec3(0.0f);
+        }
+        h.p_prev =
+            moving_ ? glm::vec3(prev_ * glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f)) : h.p;
+        return h;
+    }
+
+   private:
+    void load(std::uint32_t id)
+    {
+        id_ = id;
+        const Instance &in = g_.instances[id >> kInstanceShift];
+        const std::uint32_t tri = id & ((1u << kInstanceShift) - 1u);
+        const Mesh &m = *in.mesh;
+        const glm::uvec3 ix = m.triangles[tri];
+        material_ = m.materials[tri];
+        glm::vec3 p[3];
+        for (int k = 0; k < 3; ++k) {
+            l_[k] = p[k] = m.positions[ix[k]];
+            n_[k] = m.normals[ix[k]];
+            t_[k] = m.tangents[ix[k]];
+        }
+        moving_ = !in.identity;
+        if (moving_) {
+            const glm::mat3 rot(in.m);
+            for (int k = 0; k < 3; ++k) {
+                p[k] = glm::vec3(in.m * glm::vec4(p[k], 1.0f));
+                n_[k] = rot * n_[k];
+                t_[k] = rot * t_[k];
+            }
+            prev_ = in.m_prev;
+        }
+        // Voxel faces: one normal and tangent, already orthonormal.
+        flat_ = n_[0] == n_[1] && n_[0] == n_[2] && t_[0] == t_[1] && t_[0] == t_[2];
+        a_ = p[0];
+        const glm::vec3 e1 = p[1] - p[0], e2 = p[2] - p[0];
+        ng_ = glm::cross(e1, e2);
+        const float n2 = glm::dot(ng_, ng_);
+        const float inv = n2 > 0.0f ? 1.0f / n2 : 0.0f;
+        b1_ = glm::cross(e2, ng_) * inv;
+        b2_ = glm::cross(ng_, e1) * inv;
+        plane_ = glm::dot(ng_, a_ - o_);
+    }
+
+    const Geometry &g_;
+    glm::vec3 o_;
+    std::uint32_t id_ = kNoTriangle;
+    glm::vec3 a_{0.0f}, ng_{0.0f}, b1_{0.0f}, b2_{0.0f};
+    float plane_ = 0.0f;
+    glm::vec3 l_[3], n_[3], t_[3];  // local positions, world normals and tangents
+    glm::mat4 prev_{1.0f};
+    bool moving_ = false, flat_ = false;
+    int material_ = 0;
+};
+
+struct MaterialTable {
+    Material m[256];
+    explicit MaterialTable(const Scene &s)
+    {
+        for (int i = 0; i < 256; ++i) {
+            m[i].id = i;
+            m[i].albedo = glm::vec3(0.0f);
+        }
+        for (const Material &mat : s.materials) {
+            m[mat.id] = mat;
+        }
+    }
+};
+
+struct Lighting {
+    const Scene *scene;
+    const ShadowMap *static_map = nullptr;
+    const ShadowMap *dynamic_map = nullptr;
+    const MaterialTable *materials;
+};
+
+glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
+{
+    const Scene &s = *lt.scene;
+    const Material &mat = lt.materials->m[h.material];
+    const glm::vec3 v = -view_dir;
+    glm::vec3 n = h.n;
+    if (glm::dot(n, v) < 0.0f) {
+        n = -n;  // seen from behind (near-plane cuts): shade the side we see
+    }
+    shading::Surface surf;
+    surf.albedo = mat.albedo;
+    surf.roughness = mat.roughness;
+    surf.metallic = mat.metallic;
+    surf.anisotropy = mat.anisotropy;
+    surf.tangent = h.t;
+    const glm::vec3 l = s.sun.direction;
+    float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;
+    if (vis > 0.0f && lt.static_map) {
+        vis *= shadow_lookup(*lt.static_map, h.p, n);
+    }
+    if (vis > 0.0f && lt.dynamic_map) {
+        vis *= shadow_lookup(*lt.dynamic_map, h.p, n);
+    }
+    const glm::vec3 e_sun = s.sun.color * s.sun.illuminance * vis;
+    glm::vec3 c(0.0f);
+    if (vis > 0.0f) {
+        if (mat.toon) {
+            // Banded diffuse: n.l quantised to thirds, plus the specular lobe.
+            const float nl = glm::dot(n, l);
+            const float band = std::ceil(nl * 3.0f) / 3.0f;
+            shading::Surface spec = surf;
+            spec.albedo = glm::vec3(0.0f);
+            spec.metallic = 0.0f;
+            c = (shading::diffuse_albedo(surf) / shading::kPi * band +
+                 shading::evaluate(spec, n, v, l)) *
+                e_sun;
+        } else {
+            c = shading::evaluate(surf, n, v, l) * e_sun;
+        }
+    }
+    // Sky light: hemispherical diffuse plus the sky seen in the mirror direction, weighted by
+    // Schlick Fresnel and faded with roughness (a split-sum stand-in).
+    const glm::vec3 amb = sky_ambient_radiance(n, l) * s.sky_ambient;
+    c += shading::diffuse_albedo(surf) * amb;
+    const float nv = std::max(glm::dot(n, v), 0.0f);
+    const glm::vec3 r = glm::reflect(-v, n);  // only used by glossy materials
+    const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
+    // Rough materials (gloss < 0.05, roughness > 0.78) reflect the ambient term alone: the sky
+    // lookup would change them by less than 5% of a small term.
+    const glm::vec3 env =
+        gloss < 0.05f ? amb : glm::mix(amb, sky_radiance(r, l) * s.sky_ambient, gloss);
+    c += shading::fresnel_schlick(shading::specular_f0(surf), nv) * env;
+    return c;
+}
+
+// Visibility buffer of a view.
+struct Visibility {
+    int width = 0, height = 0;
+    std::unique_ptr<float[]> keys;
+    std::unique_ptr<std::uint32_t[]> ids;
+};
+
+Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
+{
+    auto t0 = Clock::now();
+    const Batches b =
+        make_batches(g, 0, g.instances.size(), v.raster, v.width, v.height, v.near_clip);
+    Visibility vis;
+    vis.width = v.width;
+    vis.height = v.height;
+    const std::size_t n = std::size_t(v.width) * std::size_t(v.height);
+    vis.keys.reset(new float[n]);  // uninitialised: rasterize() clears
+    vis.ids.reset(new std::uint32_t[n]);
+    RasterParams rp;
+    rp.width = v.width;
+    rp.height = v.height;
+    rp.near_w = v.near_clip;
+    if (stats) {
+        stats->setup_bin_ms += ms_since(t0);
+        t0 = Clock::now();
+    }
+    const RasterCounts counts = rasterize(b.draws, rp, {vis.keys.get(), vis.ids.get()});
+    if (stats) {
+        stats->raster_ms += ms_since(t0);
+        stats->triangles += counts.submitted;
+        stats->triangles_binned += counts.binned;
+    }
+    return vis;
+}
+
+// Beauty of one view into `out` (RGBA), averaging ss x ss samples per pixel when vis is ss times
+// the output size.
+void shade_color(
+    const Geometry &g, const View &v, const Visibility &vis, const Lighting &lt, int ss, Image &out)
+{
+    parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
+        SurfaceHitter hitter(g, v.origin);
+        for (int y = tile.y0; y < tile.y1; ++y) {
+            for (int x = tile.x0; x < tile.x1; ++x) {
+                glm::vec3 sum(0.0f);
+                for (int sy = 0; sy < ss; ++sy) {
+                    for (int sx = 0; sx < ss; ++sx) {
+                        const int X = x * ss + sx, Y = y * ss + sy;
+                        const std::uint32_t id =
+                            vis.ids[std::size_t(Y) * std::size_t(vis.width) + std::size_t(X)];
+                        const glm::vec3 d = v.ray_dir(float(X) + 0.5f, float(Y) + 0.5f);
+                        const glm::vec3 dn = glm::normalize(d);
+                        if (id == kNoTriangle) {
+                            sum += sky_radiance(dn, lt.scene->sun.direction);
+                        } else {
+                            sum += shade(lt, hitter.hit(id, d), dn);
+                        }
+                    }
+                }
+                sum /= float(ss * ss);
+                float *px = out.pixel(x, y);
+                px[0] = sum.x;
+                px[1] = sum.y;
+                px[2] = sum.z;
+                px[3] = 1.0f;
+            }
+        }
+    });
+}
+
+// Sun shadow maps and materials for the beauty at one time.
+struct LightingState {
+    MaterialTable materials;
+    std::shared_ptr<const ShadowMap> static_map;
+    std::unique_ptr<ShadowMap> dynamic_map;
+    Lighting lighting;
+
+    LightingState(const Scene &s,
+                  SceneCache &cache,
+                  const Geometry &g,
+                  const RenderOptions &o,
+                  RenderStats *stats)
+        : materials(s), lighting{&s, nullptr, nullptr, &materials}
+    {
+        if (o.shadows) {
+            const auto t0 = Clock::now();
+            static_map = static_shadow(s, cache, g, o.greedy_meshing, o.shadow_map_size);
+            dynamic_map = dynamic_shadow(s, g);
+            lighting.static_map = static_map.get();
+            lighting.dynamic_map = dynamic_map.get();
+            if (stats) {
+                stats->shadow_ms += ms_since(t0);
+            }
+        }
+    }
+};
+
+// Render the beauty of the scene at time t through `lens` into out (RGBA, options size).
+void render_color(const Scene &s,
+                  SceneCache &cache,
+                  double t,
+                  glm::vec2 lens,
+                  const CameraState &cam,
+                  const RenderOptions &o,
+                  Image &out,
+                  RenderStats *stats)
+{
+    const auto meshes = scene_meshes(s, cache, o.greedy_meshing);
+    const Geometry g = make_geometry(s, *meshes, t, t - 1.0);
+    const LightingState ls(s, cache, g, o, stats);
+    const View v =
+        make_view(cam, o.width * o.supersample, o.height * o.supersample, s.near_clip, lens);
+    const Visibility vis = visibility(g, v, stats);
+    auto t0 = Clock::now();
+    shade_color(g, v, vis, ls.lighting, o.supersample, out);
+    if (stats) {
+        stats->shade_ms += ms_since(t0);
+    }
+}
+
+void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
+{
+    f.number = frame;
+    f.width = o.width;
+    f.height = o.height;
+    const CameraState c = s.camera_at(frame), cp = s.camera_at(frame - 1);
+    const float aspect = float(o.width) / float(o.height);
+    const CameraMatrices m = make_camera_matrices(
+        c.camera_to_world(), c.focal_length_mm, c.sensor_width_mm, aspect, s.near_clip);
+    const CameraMatrices mp = make_camera_matrices(
+        cp.camera_to_world(), cp.focal_length_mm, cp.sensor_width_mm, aspect, s.near_clip);
+    f.camera.world_to_camera = m.world_to_camera;
+    f.camera.world_to_ndc = m.world_to_ndc;
+    f.camera.prev_world_to_camera = mp.world_to_camera;
+    f.camera.prev_world_to_ndc = mp.world_to_ndc;
+    f.camera.fstop = c.fstop;
+    f.camera.focus_distance = c.focus_distance;
+    f.camera.focal_length_mm = c.focal_length_mm;
+    f.camera.sensor_width_mm = c.sensor_width_mm;
+    f.camera.sensor_height_mm = c.sensor_width_mm / aspect;
+    f.camera.shutter = c.shutter;
+    f.camera.near_clip = s.near_clip;
+    f.camera.far_clip =
+        std::sqrt(float(s.world.nx) * float(s.world.nx) + float(s.world.ny) * float(s.world.ny) +
+                  float(s.world.nz) * float(s.world.nz)) +
+        1000.0f;
+    f.attributes["posthaste:scene"] = s.name;
+    f.attributes["posthaste:fps"] = float(s.fps);
+}
+
+SceneCache &cache_of(const Scene &s, std::shared_ptr<SceneCache> &local)
+{
+    if (s.cache) {
+        return *s.cache;
+    }
+    local = make_scene_cache();
+    return *local;
+}
+
+// Concentric mapping of [0,1)^2 onto the unit disc (Shirley & Chiu 1997).
+glm::vec2 concentric_disc(float u1, float u2)
+{
+    const float a = 2.0f * u1 - 1.0f, b = 2.0f * u2 - 1.0f;
+    if (a == 0.0f && b == 0.0f) {
+        return glm::vec2(0.0f);
+    }
+    const float pi4 = shading::kPi / 4.0f;
+    if (std::abs(a) > std::abs(b)) {
+        return a * glm::vec2(std::cos(pi4 * b / a), std::sin(pi4 * b / a));
+    }
+    return b * glm::vec2(std::cos(shading::kPi / 2 - pi4 * a / b),
+                         std::sin(shading::kPi / 2 - pi4 * a / b));
+}
+
+float radical_inverse2(std::uint32_t i)
+{
+    i = (i << 16u) | (i >> 16u);
+    i = ((i & 0x55555555u) << 1u) | ((i & 0xAAAAAAAAu) >> 1u);
+    i = ((i & 0x33333333u) << 2u) | ((i & 0xCCCCCCCCu) >> 2u);
+    i = ((i & 0x0F0F0F0Fu) << 4u) | ((i & 0xF0F0F0F0u) >> 4u);
+    i = ((i & 0x00FF00FFu) << 8u) | ((i & 0xFF00FF00u) >> 8u);
+    return float(i >> 8) * (1.0f / 16777216.0f);
+}
+
+}  // namespace
+
+const std::set<std::string> &render_pass_names()
+{
+    static const std::set<std::string> names = {pass::kColor,
+                                                pass::kDepth,
+                                                pass::kNormal,
+                                                pass::kPosition,
+                                                pass::kMotion,
+                                                pass::kAlbedo,
+                                                pass::kMaterial,
+                                                pass::kTangent,
+                                                pass::kId};
+    return names;
+}
+
+void validate(const RenderOptions &o)
+{
+    if (o.width <= 0 || o.height <= 0 || o.width > kMaxImageSide / 4 ||
+        o.height > kMaxImageSide / 4) {
+        throw_usage("render: expected a size in [1, ",
+                    kMaxImageSide / 4,
+                    "], got ",
+                    o.width,
+                    "x",
+                    o.height);
+    }
+    if (o.supersample != 1 && o.supersample != 2 && o.supersample != 4) {
+        throw_usage("render: \"supersample\": expected 1, 2 or 4, got ", o.supersample);
+    }
+    if (o.shadow_map_size < 16 || o.shadow_map_size > 16384) {
+        throw_usage("render: \"shadow_map_size\": expected [16, 16384], got ", o.shadow_map_size);
+    }
+    for (const std::string &p : o.passes) {
+        if (!render_pass_names().count(p)) {
+            std::string known;
+            for (const std::string &k : render_pass_names()) {
+                known += (known.empty() ? "" : ", ") + k;
+            }
+            throw_usage("render: unknown pass ", posthaste::quoted(p), " (have: ", known, ")");
+        }
+    }
+}
+
+Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStats *stats)
+{
+    validate(o);
+    std::shared_ptr<SceneCache> local;
+    SceneCache &cache = cache_of(s, local);
+    if (stats) {
+        *stats = RenderStats{};
+    }
+    Frame f;
+    fill_header(s, frame, o, f);
+    const double t = frame;
+    const CameraState cam = s.camera_at(t);
+    auto has = [&](const char *p) { return o.passes.count(p) != 0; };
+
+    auto t0 = Clock::now();
+    const auto meshes = scene_meshes(s, cache, o.greedy_meshing);
+    const Geometry g = make_geometry(s, *meshes, t, t - 1.0);
+    if (stats) {
+        stats->mesh_ms += ms_since(t0);
+    }
+    const bool want_color = has(pass::kColor);
+    const bool data = std::any_of(
+        o.passes.begin(), o.passes.end(), [](const std::string &p) { return p != pass::kColor; });
+    std::unique_ptr<LightingState> ls;
+    Image color;
+    if (want_color) {
+        ls = std::make_unique<LightingState>(s, cache, g, o, stats);
+        color = Image::uninitialized(o.width, o.height, 4);
+        if (o.supersample > 1) {
+            // The beauty gets its own visibility at the supersampled size.
+            const View vs = make_view(cam,
+                                      o.width * o.supersample,
+                                      o.height * o.supersample,
+                                      s.near_clip,
+                                      glm::vec2(0.0f));
+            const Visibility vis_ss = visibility(g, vs, stats);
+            t0 = Clock::now();
+            shade_color(g, vs, vis_ss, ls->lighting, o.supersample, color);
+            if (stats) {
+                stats->shade_ms += ms_since(t0);
+            }
+        }
+    }
+    const bool color_here = want_color && o.supersample == 1;
+    if (!data && !color_here) {
+        f.set(pass::kColor, std::move(color));
+        return f;
+    }
+    const View v = make_view(cam, o.width, o.height, s.near_clip, glm::vec2(0.0f));
+    const Visibility vis = visibility(g, v, stats);
+    t0 = Clock::now();
+    std::optional<MaterialTable> own_materials;
+    if (!ls) {
+        own_materials.emplace(s);
+    }
+    const MaterialTable &mats = ls ? ls->materials : *own_materials;
+    const glm::mat4 prev_ndc = *f.camera.prev_world_to_ndc;
+    const glm::mat4 cur_ndc = *f.camera.world_to_ndc;
+
+    auto make = [&](const char *name, int channels) {
+        return has(name) ? Image::uninitialized(o.width, o.height, channels) : Image();
+    };
+    Image depth = make(pass::kDepth, 1), normal = make(pass::kNormal, 3);
+    Image position = make(pass::kPosition, 3), motion = make(pass::kMotion, 2);
+    Image albedo = make(pass::kAlbedo, 3), material = make(pass::kMaterial, 3);
+    Image tangent = make(pass::kTangent, 3), id = make(pass::kId, 1);
+    const float W = float(o.width), H = float(o.height);
+    const glm::vec4 zrow(v.world_to_camera[0][2],
+                         v.world_to_camera[1][2],
+                         v.world_to_camera[2][2],
+                         v.world_to_camera[3][2]);
+
+    parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
+        SurfaceHitter hitter(g, v.origin);
+        for (int y = tile.y0; y < tile.y1; ++y) {
+            for (int x = tile.x0; x < tile.x1; ++x) {
+                const std::uint32_t tid =
+                    vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
+                const glm::vec3 d = v.ray_dir(float(x) + 0.5f, float(y) + 0.5f);
+                auto put_color = [&](const glm::vec3 &c) {
+                    float *p = color.pixel(x, y);
+                    p[0] = c.x;
+                    p[1] = c.y;
+                    p[2] = c.z;
+                    p[3] = 1.0f;
+                };
+                auto put3 = [&](Image &img, const glm::vec3 &c) {
+                    if (!img.empty()) {
+                        float *p = img.pixel(x, y);
+                        p[0] = c.x;
+                        p[1] = c.y;
+                        p[2] = c.z;
+                    }
+                };
+                if (tid == kNoTriangle) {
+                    if (color_here) {
+                        put_color(sky_radiance(glm::normalize(d), s.sun.direction));
+                    }
+                    if (!depth.empty()) {
+                        depth.at(x, y, 0) = std::numeric_limits<float>::infinity();
+                    }
+                    if (!motion.empty()) {
+                        // A point at infinity moves with the camera rotation only.
+                        const glm::vec4 hc = cur_ndc * glm::vec4(d, 0.0f);
+                        const glm::vec4 hp = prev_ndc * glm::vec4(d, 0.0f);
+                        glm::vec2 mv(0.0f);
+                        if (hc.w > 0.0f && hp.w > 0.0f) {
+                            mv = glm::vec2(hc.x / hc.w - hp.x / hp.w, hc.y / hc.w - hp.y / hp.w) *
+                                 glm::vec2(W, H);
+                        }
+                        motion.at(x, y, 0) = mv.x;
+                        motion.at(x, y, 1) = mv.y;
+                    }
+                    put3(normal, glm::vec3(0.0f));
+                    put3(position, glm::vec3(0.0f));
+                    put3(albedo, glm::vec3(0.0f));
+                    put3(material, glm::vec3(0.0f));
+                    put3(tangent, glm::vec3(0.0f));
+                    if (!id.empty()) {
+                        id.at(x, y, 0) = 0.0f;
+                    }
+                    continue;
+                }
+                const Hit h = hitter.hit(tid, d);
+                if (color_here) {
+                    put_color(shade(ls->lighting, h, glm::normalize(d)));
+                }
+                if (!depth.empty()) {
+                    depth.at(x, y, 0) = glm::dot(zrow, glm::vec4(h.p, 1.0f));
+                }
+                if (!motion.empty()) {
+                    glm::vec2 cur, prev;
+                    glm::vec2 mv(0.0f);
+                    if (world_to_pixel(cur_ndc, h.p, o.width, o.height, cur) &&
+                        world_to_pixel(prev_ndc, h.p_prev, o.width, o.height, prev)) {
+                        mv = cur - prev;
+                    }
+                    motion.at(x, y, 0) = mv.x;
+                    motion.at(x, y, 1) = mv.y;
+                }
+                const Material &m = mats.m[h.material];
+                put3(normal, h.n);
+                put3(position, h.p);
+                put3(albedo, m.albedo);
+                put3(material, glm::vec3(m.roughness, m.metallic, m.anisotropy));
+                put3(tangent, h.t);
+                if (!id.empty()) {
+                    id.at(x, y, 0) = float(h.material);
+                }
+            }
+        }
+    });
+    if (stats) {
+        stats->shade_ms += ms_since(t0);
+    }
+    auto store = [&](const char *name, Image &img) {
+        if (!img.empty()) {
+            f.set(name, std::move(img));
+        }
+    };
+    store(pass::kColor, color);
+    store(pass::kDepth, depth);
+    store(pass::kNormal, normal);
+    store(pass::kPosition, position);
+    store(pass::kMotion, motion);
+    store(pass::kAlbedo, albedo);
+    store(pass::kMaterial, material);
+    store(pass::kTangent, tangent);
+    store(pass::kId, id);
+    return f;
+}
+
+Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const TruthOptions &truth)
+{
+    validate(o);
+    if (truth.samples < 1 || truth.samples > 1 << 20) {
+        throw_usage("render truth: \"samples\": expected [1, 1048576], got ", truth.samples);
+    }
+    std::shared_ptr<SceneCache> local;
+    SceneCache &cache = cache_of(s, local);
+    Frame f;
+    fill_header(s, frame, o, f);
+    const int n = truth.samples;
+    // Time strata are a hashed permutation of the sample index, so that the joint (time, lens)
+    // pattern is stratified in each dimension without correlating them.
+    std::vector<int> perm(static_cast<std::size_t>(n));
+    for (int i = 0; i < n; ++i) {
+        perm[std::size_t(i)] = i;
+    }
+    for (int i = n - 1; i > 0; --i) {
+        const int j = int(hash4(std::uint32_t(i), std::uint32_t(frame), 17u, truth.seed) %
+                          std::uint32_t(i + 1));
+        std::swap(perm[std::size_t(i)], perm[std::size_t(j)]);
+    }
+    const std::uint32_t scramble = hash4(std::uint32_t(frame), 3u, 5u, truth.seed);
+    Image acc(o.width, o.height, 4);
+    Image sample = Image::uninitialized(o.width, o.height, 4);
+    const CameraState centre = s.camera_at(frame);
+    for (int i = 0; i < n; ++i) {
+        double t = frame;
+        if (truth.motion) {
+            const float u =
+                (float(truth.dof ? perm[std::size_t(i)] : i) + hash_unit(i, frame, 0, truth.seed)) /
+                float(n);
+            t = frame + (double(u) - 0.5) * double(centre.shutter);
+        }
+        const CameraState cam = s.camera_at(t);
+        glm::vec2 lens(0.0f);
+        if (truth.dof) {
+            const float u1 = (float(i) + hash_unit(i, frame, 1, truth.seed)) / float(n);
+            const float u2 =
+                float((std::uint32_t(radical_inverse2(std::uint32_t(i)) * 16777216.0f) ^
+                       (scramble >> 8)) &
+                      0xffffffu) /
+                16777216.0f;
+            const float radius = 0.5f * cam.focal_length_mm / cam.fstop * 1e-3f;  // metres
+            lens = concentric_disc(u1, u2) * radius;
+        }
+        render_color(s, cache, t, lens, cam, o, sample, nullptr);
+        parallel_for(0, o.height, [&](int y) {
+            float *a = acc.pixel(0, y);
+            const float *b = sample.pixel(0, y);
+            for (int k = 0; k < o.width * 4; ++k) {
+                a[k] += b[k];
+            }
+        });
+    }
+    const float inv = 1.0f / float(n);
+    parallel_for(0, o.height, [&](int y) {
+        float *a = acc.pixel(0, y);
+        for (int k = 0; k < o.width * 4; ++k) {
+            a[k] *= inv;
+        }
+    });
+    f.set(pass::kColor, std::move(acc));
+    return f;
+}
+
+}  // namespace posthaste::raster
