@@ -17,5 +17,6 @@ extern const NodeType kWrite;
 extern const NodeType kOcio;
 extern const NodeType kMerge;
 extern const NodeType kChannels;
+extern const NodeType kRender;
 
 }  // namespace posthaste::nodes

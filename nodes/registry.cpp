@@ -10,6 +10,7 @@ std::span<const NodeType *const> all_node_types()
 {
     static const NodeType *const kAllNodes[] = {
         &nodes::kRead,
+        &nodes::kRender,
         &nodes::kWrite,
         &nodes::kOcio,
         &nodes::kMerge,

@@ -18,15 +18,9 @@
 namespace posthaste::cli {
 namespace {
 
-struct RunOptions {
+struct RunOptions : RunSettings {
     std::string graph;
-    std::string frames;
     std::vector<std::string> sets;
-    int jobs = 0;
-    int threads = 0;
-    bool quiet = false;
-    bool skip_bad_frames = false;
-    bool dry_run = false;
 };
 
 std::string format_seconds(double s)
@@ -41,16 +35,17 @@ std::string format_seconds(double s)
     return buf;
 }
 
-int run(const RunOptions &o)
+}  // namespace
+
+int run_graph(Graph &graph, const RunSettings &o)
 {
     set_thread_count(o.threads);
-    Graph graph = Graph::load(o.graph, o.sets);
     const std::vector<int> frames = o.frames.empty() ? graph.default_frames()
                                                      : parse_frame_list(o.frames, "--frames");
     graph.check(frames);
     if (o.dry_run) {
         if (!o.quiet) {
-            std::printf("%s: valid; %zu frame(s)\n", o.graph.c_str(), frames.size());
+            std::printf("%s: valid; %zu frame(s)\n", graph.origin().c_str(), frames.size());
         }
         return 0;
     }
@@ -153,8 +148,6 @@ int run(const RunOptions &o)
     return 0;
 }
 
-}  // namespace
-
 void add_run_command(CLI::App &app, int &exit_code)
 {
     auto opts = std::make_shared<RunOptions>();
@@ -172,7 +165,11 @@ void add_run_command(CLI::App &app, int &exit_code)
     cmd->add_flag("--skip-bad-frames", opts->skip_bad_frames,
                   "Carry on past frames that fail (missing or unreadable input), with a warning");
     cmd->add_flag("--dry-run", opts->dry_run, "Validate the graph and its inputs, compute nothing");
-    cmd->callback([opts, &exit_code] { exit_code = run(*opts); });
+    cmd->callback([opts, &exit_code] {
+        set_thread_count(opts->threads);
+        Graph graph = Graph::load(opts->graph, opts->sets);
+        exit_code = run_graph(graph, *opts);
+    });
 }
 
 }  // namespace posthaste::cli

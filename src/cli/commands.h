@@ -2,9 +2,31 @@
 // Each subcommand adds itself to the CLI11 app; its callback throws posthaste::Error on failure
 // and stores its exit code in `exit_code` otherwise.
 
+#include <string>
+#include <vector>
+
 #include <CLI/CLI.hpp>
 
+namespace posthaste {
+class Graph;
+}
+
 namespace posthaste::cli {
+
+/// Options shared by the commands that evaluate a graph (run, render).
+struct RunSettings {
+    std::string frames;
+    int jobs = 0;
+    int threads = 0;
+    bool quiet = false;
+    bool skip_bad_frames = false;
+    bool dry_run = false;
+};
+
+/// Check and evaluate `graph` over the frames (settings.frames, else the graph's default), with
+/// progress and a summary. Returns the exit code; throws Error on failure.
+int run_graph(Graph &graph, const RunSettings &settings);
+void add_render_command(CLI::App &app, int &exit_code);
 
 void add_run_command(CLI::App &app, int &exit_code);
 void add_info_command(CLI::App &app, int &exit_code);

@@ -28,6 +28,7 @@ int main(int argc, char **argv)
                "Run 'posthaste COMMAND --help' for a command's options.");
     int exit_code = 0;
     cli::add_run_command(app, exit_code);
+    cli::add_render_command(app, exit_code);
     cli::add_info_command(app, exit_code);
     cli::add_nodes_command(app, exit_code);
     std::string command_line;

@@ -1,0 +1,127 @@
+// nodes/render.cpp: the bundled rasterizer as a source: renders a Minecrappy scene's frames
+// with exactly the passes nodes downstream read (src/raster/render.h), or, with `truth`, the
+// ground-truth color by accumulation over the shutter and/or the lens aperture.
+
+#include "nodes/node.h"
+#include "raster/render.h"
+#include "raster/scene.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kScene = ParamSpec::string("scene", "samples/scenes/minecrappy.json").doc(
+    "Scene file (JSON, samples/scenes/README.md).");
+constexpr ParamSpec kWidth = ParamSpec::integer("width", 1920).range(1, 16384).units("px").doc(
+    "Image width.");
+constexpr ParamSpec kHeight = ParamSpec::integer("height", 1080).range(1, 16384).units("px").doc(
+    "Image height.");
+constexpr ParamSpec kSupersample = ParamSpec::integer("supersample", 1).range(1, 4).doc(
+    "Beauty supersampling per axis: 1, 2 or 4 (data passes stay one sample per pixel).");
+constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", true).doc("Sun shadow map.");
+constexpr ParamSpec kTruth = ParamSpec::choice("truth", "none|motion|dof|motion_dof", "none").doc(
+    "Replace color by ground truth: accumulated over the shutter, the aperture, or both.");
+constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64).range(1, 65536).doc(
+    "Renders accumulated for the ground truth.");
+constexpr ParamSpec kSeed = ParamSpec::integer("seed", 0).range(0, 2147483647).doc(
+    "Jitter seed for the ground truth.");
+constexpr ParamSpec kParams[] = {kScene, kWidth, kHeight, kSupersample, kShadows, kTruth,
+                                 kSamples, kSeed};
+
+raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
+{
+    raster::RenderOptions o;
+    o.width = params.get_int(kWidth);
+    o.height = params.get_int(kHeight);
+    o.supersample = params.get_int(kSupersample);
+    o.shadows = params.get_bool(kShadows);
+    o.passes.clear();
+    for (const std::string &p : raster::render_pass_names()) {
+        if (requested.contains(p)) {
+            o.passes.insert(p);
+        }
+    }
+    return o;
+}
+
+const raster::Scene &scene_of(NodeContext &ctx)
+{
+    return ctx.state().get_or_create<raster::Scene>(
+        [&] { return raster::load_scene(ctx.get_string(kScene)); });
+}
+
+void execute(NodeContext &ctx)
+{
+    const raster::Scene &scene = scene_of(ctx);
+    raster::RenderOptions options = render_options(ctx.params(), ctx.requested());
+    const int truth = ctx.get_choice(kTruth);
+    try {
+        if (truth == 0) {
+            ctx.output() = raster::render_frame(scene, ctx.frame_number(), options);
+            return;
+        }
+        raster::TruthOptions t;
+        t.motion = truth == 1 || truth == 3;
+        t.dof = truth == 2 || truth == 3;
+        t.samples = ctx.get_int(kSamples);
+        t.seed = std::uint32_t(ctx.get_int(kSeed));
+        Frame truth_frame = raster::render_truth(scene, ctx.frame_number(), options, t);
+        options.passes.erase(pass::kColor);
+        if (!options.passes.empty()) {
+            Frame f = raster::render_frame(scene, ctx.frame_number(), options);
+            f.set(pass::kColor, truth_frame.pass(pass::kColor).image);
+            truth_frame = std::move(f);
+        }
+        ctx.output() = std::move(truth_frame);
+    }
+    catch (const Error &e) {
+        throw Error(e.code(), ctx.where() + ": " + e.what());
+    }
+}
+
+void check(CheckContext &ctx)
+{
+    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
+    if (!ctx.downstream.all) {
+        for (const std::string &p : ctx.downstream.names) {
+            if (!raster::render_pass_names().count(p)) {
+                std::string have;
+                for (const std::string &n : raster::render_pass_names()) {
+                    have += (have.empty() ? "" : ", ") + n;
+                }
+                throw_usage(where, ": the renderer makes no pass \"", p, "\" (it makes: ", have,
+                            "); a node downstream reads it");
+            }
+        }
+    }
+    const int ss = ctx.params.get_int(kSupersample);
+    if (ss == 3) {
+        throw_usage(where, ": param \"supersample\": expected 1, 2 or 4, got 3");
+    }
+    try {
+        raster::load_scene(ctx.params.get_string(kScene));
+    }
+    catch (const Error &e) {
+        throw Error(ExitCode::Usage, where + ": " + e.what());
+    }
+}
+
+std::vector<int> discover(const NodeParams &params)
+{
+    const raster::Scene scene = raster::load_scene(params.get_string(kScene));
+    std::vector<int> frames;
+    for (int f = scene.frame_start; f <= scene.frame_end; ++f) {
+        frames.push_back(f);
+    }
+    return frames;
+}
+
+}  // namespace
+
+extern const NodeType kRender{{"render", "Render a Minecrappy scene (bundled rasterizer), or its "
+                               "ground truth.", {}, kParams, "*"},
+                              &execute,
+                              nullptr,
+                              &check,
+                              &discover};
+
+}  // namespace posthaste::nodes

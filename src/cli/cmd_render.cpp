@@ -1,0 +1,106 @@
+// posthaste render SCENE -o PATTERN: render a Minecrappy scene's frames (every pass by default),
+// or their ground truth, to EXR. Built as a two-node graph (render -> write) so it shares run's
+// validation, parallel frames, progress and summary.
+
+#include <nlohmann/json.hpp>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "graph/graph.h"
+
+namespace posthaste::cli {
+namespace {
+
+struct RenderCommand : RunSettings {
+    std::string scene;
+    std::string output;
+    std::string passes = "all";
+    std::string size = "1920x1080";
+    int supersample = 1;
+    bool no_shadows = false;
+    std::string truth;
+    int samples = 64;
+    int seed = 0;
+    std::string compression = "piz";
+};
+
+int render(const RenderCommand &o)
+{
+    int width = 0, height = 0;
+    char extra = 0;
+    if (std::sscanf(o.size.c_str(), "%dx%d%c", &width, &height, &extra) != 2 || width <= 0 ||
+        height <= 0) {
+        throw_usage("--size: expected WIDTHxHEIGHT, got \"", o.size, "\"");
+    }
+    std::string truth = "none";
+    if (!o.truth.empty()) {
+        const bool motion = o.truth.find("motion") != std::string::npos;
+        const bool dof = o.truth.find("dof") != std::string::npos;
+        for (const std::string &w : split_list(o.truth)) {
+            if (w != "motion" && w != "dof") {
+                throw_usage("--truth: expected motion, dof or motion,dof, got \"", o.truth, "\"");
+            }
+        }
+        truth = motion && dof ? "motion_dof" : motion ? "motion" : "dof";
+    }
+    std::string passes = o.passes;
+    if (passes == "all") {
+        passes = o.truth.empty() ? "*" : "color";
+    }
+    nlohmann::json g;
+    g["nodes"] = nlohmann::json::array();
+    g["nodes"].push_back({{"id", "render"},
+                          {"type", "render"},
+                          {"params",
+                           {{"scene", o.scene},
+                            {"width", width},
+                            {"height", height},
+                            {"supersample", o.supersample},
+                            {"shadows", !o.no_shadows},
+                            {"truth", truth},
+                            {"samples", o.samples},
+                            {"seed", o.seed}}}});
+    g["nodes"].push_back({{"id", "write"},
+                          {"type", "write"},
+                          {"inputs", {{"image", "render"}}},
+                          {"params",
+                           {{"path", o.output}, {"passes", passes}, {"compression", o.compression}}}});
+    if (passes == "*") {
+        // "every pass the renderer makes": ask for them by name so the planner requests them.
+        g["nodes"][1]["params"]["passes"] =
+            "color,depth,normal,position,motion,albedo,material,tangent,id";
+    }
+    Graph graph = Graph::parse(g.dump(), "posthaste render " + o.scene);
+    return run_graph(graph, o);
+}
+
+}  // namespace
+
+void add_render_command(CLI::App &app, int &exit_code)
+{
+    auto o = std::make_shared<RenderCommand>();
+    CLI::App *cmd = app.add_subcommand(
+        "render", "Render a Minecrappy scene's frames with every pass, or their ground truth");
+    cmd->add_option("scene", o->scene, "Scene file (samples/scenes/*.json)")->required();
+    cmd->add_option("-o,--output", o->output, "Output EXR pattern, e.g. out/shot.####.exr")
+        ->required();
+    cmd->add_option("--frames,-f", o->frames, "Frames (default: the scene's range)");
+    cmd->add_option("--passes", o->passes,
+                    "Comma-separated passes, or all (default: all; color only with --truth)");
+    cmd->add_option("--size", o->size, "WIDTHxHEIGHT (default 1920x1080)");
+    cmd->add_option("--supersample", o->supersample, "Beauty supersampling per axis: 1, 2 or 4")
+        ->check(CLI::IsMember({1, 2, 4}));
+    cmd->add_flag("--no-shadows", o->no_shadows, "Turn the sun's shadow map off");
+    cmd->add_option("--truth", o->truth, "Ground truth: motion, dof or motion,dof");
+    cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")
+        ->check(CLI::Range(1, 65536));
+    cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")->check(CLI::Range(0, 1 << 30));
+    cmd->add_option("--compression", o->compression, "EXR compression (default piz)");
+    cmd->add_option("--jobs,-j", o->jobs, "Frames rendered at once")->check(CLI::Range(0, 256));
+    cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
+        ->check(CLI::Range(0, 1024));
+    cmd->add_flag("--quiet,-q", o->quiet, "No progress and no summary");
+    cmd->callback([o, &exit_code] { exit_code = render(*o); });
+}
+
+}  // namespace posthaste::cli
