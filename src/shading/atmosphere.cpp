@@ -151,6 +151,7 @@ Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
     top_ = double(p.top_radius_m);
     horizon_distance_top_ = std::sqrt(top_ * top_ - bottom_ * bottom_);
     sin_sun_radius_ = std::sin(double(p.sun_angular_radius_rad));
+    cos_sun_radius_ = std::cos(p.sun_angular_radius_rad);
     build_transmittance();
     build_multi_scattering();
     sky_view_ = make_sky_view(glm::vec3(0.0f, p.sky_view_y, 0.0f));
@@ -289,11 +290,13 @@ void Atmosphere::build_multi_scattering()
                 const bool ground = z < mu_h;
                 const double t_end =
                     ground ? distance_to_ground(r, z, bottom_) : distance_to_sphere(r, z, top_);
-                const float dt = float(t_end / steps);
                 ScatteringResult acc;
                 for (int i = 0; i < steps; ++i) {
+                    // Quadratic step distribution, as in integrate().
+                    const double s0 = double(i) / steps, s1 = double(i + 1) / steps;
+                    const float dt = float((s1 * s1 - s0 * s0) * t_end);
                     double ri, musi;
-                    ray.at((i + 0.5) * double(dt), ri, musi);
+                    ray.at(0.5 * (s0 * s0 + s1 * s1) * t_end, ri, musi);
                     const Medium m = medium(ri - bottom_);
                     const glm::vec3 scattering = m.rayleigh + m.mie;
                     const glm::vec3 source =
@@ -326,16 +329,26 @@ ScatteringResult Atmosphere::integrate(const Ray &ray,
                                        double t_end,
                                        int steps,
                                        ScatteringResult acc,
-                                       int sun_steps) const
+                                       int sun_steps,
+                                       bool quadratic) const
 {
     if (!(t_end > t_begin) || steps <= 0) {
         return acc;
     }
-    const double dt = (t_end - t_begin) / steps;
+    const double length = t_end - t_begin;
     const glm::vec3 &sun = params_.sun_illuminance;
     for (int i = 0; i < steps; ++i) {
+        // Step i spans [s_i, s_{i+1}] of the segment, s = i / steps (uniform) or (i / steps)^2
+        // (quadratic: short steps near the start where the air is densest for a camera near the
+        // ground, as the paper's variable sample count intends).
+        double s0 = double(i) / steps, s1 = double(i + 1) / steps;
+        if (quadratic) {
+            s0 *= s0;
+            s1 *= s1;
+        }
+        const double dt = (s1 - s0) * length;
         double r, mus;
-        ray.at(t_begin + (i + 0.5) * dt, r, mus);
+        ray.at(t_begin + 0.5 * (s0 + s1) * length, r, mus);
         const double altitude = std::max(r - bottom_, 0.0);
         const Medium m = medium(altitude);
         glm::vec3 t_sun;
@@ -397,7 +410,7 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
         const double t_end =
             below ? distance_to_ground(r, mu, bottom_) : distance_to_sphere(r, mu, top_);
         for (int x = 0; x < w; ++x) {
-            const double azimuth = kPiD * double(x) / double(w - 1);
+            const double azimuth = 2.0 * std::asin(double(x) / double(w - 1));
             Ray ray;
             ray.r0 = r;
             ray.mu0 = mu;
@@ -406,7 +419,8 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
             ray.phase_rayleigh = rayleigh_phase(float(ray.nu));
             ray.phase_mie = cornette_shanks_phase(float(ray.nu), params_.mie_g);
             view.lut_.at(x, y) =
-                integrate(ray, 0.0, t_end, params_.sky_view_steps, ScatteringResult{}, 0).inscatter;
+                integrate(ray, 0.0, t_end, params_.sky_view_steps, ScatteringResult{}, 0, true)
+                    .inscatter;
         }
     });
     return view;
@@ -414,11 +428,10 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
 
 glm::vec3 Atmosphere::sun_disc_radiance(const glm::vec3 &view_dir, const glm::vec3 &camera_pos) const
 {
-    const float cos_radius = std::cos(params_.sun_angular_radius_rad);
-    if (!(glm::dot(view_dir, sun_dir_) >= cos_radius)) {
+    if (!(glm::dot(view_dir, sun_dir_) >= cos_sun_radius_)) {
         return glm::vec3(0.0f);
     }
-    const float solid_angle = 2.0f * kPi * (1.0f - cos_radius);
+    const float solid_angle = 2.0f * kPi * (1.0f - cos_sun_radius_);
     return params_.sun_illuminance / solid_angle * transmittance(camera_pos, view_dir);
 }
 

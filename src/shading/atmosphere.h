@@ -14,7 +14,9 @@
 //
 // Departures from the paper: the earth shadow on the sun is softened over the sun disc; the
 // sky-view LUT stores the sky above and below the horizon in separate halves that are never
-// blended (no leak of ground in-scattering into the sky across the horizon).
+// blended (no leak of ground in-scattering into the sky across the horizon); its azimuth
+// coordinate is sin(azimuth / 2) from the sun, and its latitude mapping is quadratic in the angle
+// from the horizon on each side (the paper's non-linear mapping, split at the horizon).
 
 #include <algorithm>
 #include <cmath>
@@ -80,6 +82,23 @@ inline float cornette_shanks_phase(float cos_theta, float g)
            ((2.0f + g2) * denom * std::sqrt(denom));
 }
 
+/// acos(x) for x in [-1, 1] to about 2e-8 rad (Abramowitz and Stegun 4.4.46), without the libm
+/// call; out-of-range and NaN inputs clamp to [-1, 1] (NaN reads as 1).
+inline float fast_acos(float x)
+{
+    const float ax = std::min(1.0f, std::fabs(x));  // NaN -> 1
+    float p = -0.0012624911f;
+    p = p * ax + 0.0066700901f;
+    p = p * ax - 0.0170881256f;
+    p = p * ax + 0.0308918810f;
+    p = p * ax - 0.0501743046f;
+    p = p * ax + 0.0889789874f;
+    p = p * ax - 0.2145988016f;
+    p = p * ax + 1.5707963050f;
+    const float r = std::sqrt(1.0f - ax) * p;
+    return x < 0.0f ? 3.14159265358979f - r : r;
+}
+
 /// Clamp to [0, 1]; NaN goes to 0.
 inline float saturate(float x)
 {
@@ -141,14 +160,17 @@ class SkyView {
     /// Sky radiance (no sun disc) for a unit world-space view direction; NaN gives finite output.
     glm::vec3 radiance(const glm::vec3 &view_dir) const
     {
-        const float mu = std::clamp(glm::dot(view_dir, up_), -1.0f, 1.0f);
+        const float mu = glm::dot(view_dir, up_);
         const float along = glm::dot(view_dir, sun_tangent_);
-        const float side = std::fabs(glm::dot(view_dir, sun_side_));
-        const float azimuth = std::atan2(side, along);  // [0, pi], 0 towards the sun
-        const float u = azimuth * (1.0f / 3.14159265358979f);
-        const float theta = std::acos(mu);
+        const float side = glm::dot(view_dir, sun_side_);
+        // u = sin(azimuth / 2) = sqrt((1 - cos azimuth) / 2): 0 towards the sun, 1 away from it,
+        // finest near the sun's Mie halo.
+        const float horizontal = std::sqrt(along * along + side * side);
+        const float cos_azimuth = horizontal > 1e-12f ? along / horizontal : 1.0f;
+        const float u = std::sqrt(std::max(0.5f - 0.5f * cos_azimuth, 0.0f));
+        const float theta = fast_acos(mu);
         const int half = lut_.height() / 2;
-        if (mu >= mu_horizon_) {
+        if (!(mu < mu_horizon_)) {
             const float s = 1.0f - std::sqrt(saturate(1.0f - theta / theta_horizon_));
             return lut_.sample_rows(u, s, 0, half);
         }
@@ -321,7 +343,8 @@ class Atmosphere {
                                double t_end,
                                int steps,
                                ScatteringResult start,
-                               int sun_steps) const;
+                               int sun_steps,
+                               bool quadratic = false) const;
     void build_transmittance();
     void build_multi_scattering();
 
@@ -330,6 +353,7 @@ class Atmosphere {
     double bottom_, top_;
     double horizon_distance_top_;  // sqrt(top^2 - bottom^2)
     double sin_sun_radius_;
+    float cos_sun_radius_;
     Lut2D transmittance_;
     Lut2D multi_scattering_;
     SkyView sky_view_;

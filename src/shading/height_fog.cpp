@@ -25,7 +25,7 @@ void apply_height_fog(const HeightFog &fog, const CameraRays &rays, const Image 
             for (int x = tile.x0; x < tile.x1; ++x, px += channels, ++z) {
                 const glm::vec3 ray = rays.depth_ray((float(x) + 0.5f) * inv_w, v);
                 const float len = glm::length(ray);
-                const FogResult f = height_fog(c, ray / len, *z * len);
+                const FogResult f = height_fog(c, ray * (1.0f / len), *z * len);
                 px[0] = px[0] * f.transmittance + f.inscatter.x;
                 px[1] = px[1] * f.transmittance + f.inscatter.y;
                 px[2] = px[2] * f.transmittance + f.inscatter.z;
