@@ -5,7 +5,6 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
-#include "shading/height_fog.h"
 
 namespace posthaste::shading {
 namespace {
@@ -50,12 +49,14 @@ glm::vec3 exp3(const glm::vec3 &v)
 // integral factor per channel and the segment transmittance in `seg`.
 glm::vec3 step_integral(const glm::vec3 &extinction, float dt, glm::vec3 &seg)
 {
-    seg = exp3(-extinction * dt);
-    // (1 - exp(-x)) / sigma_t = dt * (1 - exp(-x)) / x with x = sigma_t dt, via expm1 so thin steps
-    // do not cancel to 0 in float.
+    // (1 - exp(-x)) / sigma_t with x = sigma_t dt; a series for thin steps, where 1 - exp(-x)
+    // would cancel to 0 in float.
     glm::vec3 integral;
     for (int c = 0; c < 3; ++c) {
-        integral[c] = dt * one_minus_exp_over_x(extinction[c] * dt);
+        const float x = extinction[c] * dt;
+        seg[c] = fast_exp(-x);
+        integral[c] = std::fabs(x) < 0.03f ? dt * (1.0f - x * (0.5f - x * (1.0f / 6.0f)))
+                                           : (1.0f - seg[c]) / extinction[c];
     }
     return integral;
 }
@@ -173,8 +174,8 @@ Atmosphere::Medium Atmosphere::medium(double altitude_m) const
         return {glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f)};
     }
     const float hf = float(h);
-    const float rayleigh = std::exp(-hf / params_.rayleigh_scale_height_m);
-    const float mie = std::exp(-hf / params_.mie_scale_height_m);
+    const float rayleigh = fast_exp(-hf / params_.rayleigh_scale_height_m);
+    const float mie = fast_exp(-hf / params_.mie_scale_height_m);
     const float ozone =
         std::max(0.0f, 1.0f - std::fabs(hf - params_.ozone_center_m) / (0.5f * params_.ozone_width_m));
     Medium m;
@@ -503,6 +504,7 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
     const float max_distance = settings.max_distance > 0.0f ? settings.max_distance : 1.0f;
     settings_.max_distance = max_distance;
     inv_max_distance_ = 1.0f / max_distance;
+    inv_slices_ = 1.0f / float(slices_);
     froxels_.assign(std::size_t(width_) * height_ * slices_,
                     Froxel{glm::vec3(0.0f), glm::vec3(1.0f)});
 

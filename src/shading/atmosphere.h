@@ -29,6 +29,7 @@
 
 #include "core/image.h"
 #include "shading/camera_rays.h"
+#include "shading/fast_math.h"
 
 namespace posthaste::shading {
 
@@ -80,23 +81,6 @@ inline float cornette_shanks_phase(float cos_theta, float g)
     const float denom = std::max(1.0f + g2 - 2.0f * g * cos_theta, 1e-8f);
     return 3.0f / (8.0f * 3.14159265358979f) * (1.0f - g2) * (1.0f + cos_theta * cos_theta) /
            ((2.0f + g2) * denom * std::sqrt(denom));
-}
-
-/// acos(x) for x in [-1, 1] to about 2e-8 rad (Abramowitz and Stegun 4.4.46), without the libm
-/// call; out-of-range and NaN inputs clamp to [-1, 1] (NaN reads as 1).
-inline float fast_acos(float x)
-{
-    const float ax = std::min(1.0f, std::fabs(x));  // NaN -> 1
-    float p = -0.0012624911f;
-    p = p * ax + 0.0066700901f;
-    p = p * ax - 0.0170881256f;
-    p = p * ax + 0.0308918810f;
-    p = p * ax - 0.0501743046f;
-    p = p * ax + 0.0889789874f;
-    p = p * ax - 0.2145988016f;
-    p = p * ax + 1.5707963050f;
-    const float r = std::sqrt(1.0f - ax) * p;
-    return x < 0.0f ? 3.14159265358979f - r : r;
 }
 
 /// Clamp to [0, 1]; NaN goes to 0.
@@ -221,20 +205,24 @@ class AerialPerspective {
         const int x0 = std::clamp(int(std::floor(fx)), 0, width_ - 2);
         const int y0 = std::clamp(int(std::floor(fy)), 0, height_ - 2);
         const float tx = saturate(fx - float(x0)), ty = saturate(fy - float(y0));
-        // Slice k's centre is at w = (k + 0.5) / slices with distance = max * w^2.
+        // Slice k's centre is at w = (k + 0.5) / slices with distance = max * w^2. Interpolation
+        // between slices is linear in distance (not in w), which in-scatter nearly is.
         const float w = std::sqrt(saturate(distance * inv_max_distance_));
         const float fz = w * float(slices_) - 0.5f;
         ScatteringResult r;
         if (fz < 0.0f) {
             // Before the first slice centre: blend towards (0, 1) at the camera.
-            const float tz = saturate(2.0f * fz + 1.0f);
+            const float w0 = 2.0f * w * float(slices_);  // distance / first centre = w0^2
+            const float tz = saturate(w0 * w0);
             bilinear(0, x0, y0, tx, ty, r);
             r.inscatter *= tz;
             r.transmittance = glm::vec3(1.0f) + tz * (r.transmittance - glm::vec3(1.0f));
             return r;
         }
         const int z0 = std::min(int(fz), slices_ - 2);
-        const float tz = saturate(fz - float(z0));
+        // (w^2 - a^2) / (b^2 - a^2) with a, b the slice centres' w: = (fz - z0) (w + a) / (b + a).
+        const float wa = (float(z0) + 0.5f) * inv_slices_;
+        const float tz = saturate((fz - float(z0)) * (w + wa) / (2.0f * wa + inv_slices_));
         ScatteringResult a, b;
         bilinear(z0, x0, y0, tx, ty, a);
         bilinear(z0 + 1, x0, y0, tx, ty, b);
@@ -273,6 +261,7 @@ class AerialPerspective {
     CameraRays rays_;
     int width_ = 0, height_ = 0, slices_ = 0;
     float inv_max_distance_ = 0.0f;
+    float inv_slices_ = 0.0f;
     std::vector<Froxel> froxels_;  // [slice][y][x]
 };
 

@@ -18,6 +18,7 @@
 
 #include "core/image.h"
 #include "shading/camera_rays.h"
+#include "shading/fast_math.h"
 
 namespace posthaste::shading {
 
@@ -58,8 +59,8 @@ inline float one_minus_exp_over_x(float x)
         // Taylor series; truncation error < x^4 / 120 < 7e-9 here.
         return 1.0f - x * (0.5f - x * (1.0f / 6.0f - x * (1.0f / 24.0f)));
     }
-    // expf is much cheaper than expm1f; the cancellation costs at most 1 ulp / 0.03 = 4e-6.
-    return (1.0f - std::exp(-x)) / x;
+    // exp is much cheaper than expm1; the cancellation costs at most about 1 ulp / 0.03 = 4e-6.
+    return (1.0f - fast_exp(-x)) / x;
 }
 
 /// Per-camera constants of height fog, so that per-pixel work is about two exponentials.
@@ -124,16 +125,16 @@ inline float height_fog_optical_depth(const HeightFogCamera &c, const glm::vec3 
         log_a -= k * t0;  // density at the start of the segment
     }
     if (std::isinf(distance)) {
-        return k > 0.0f ? std::exp(log_a) / k : INFINITY;
+        return k > 0.0f ? fast_exp(log_a) / k : INFINITY;
     }
     const float length = distance - t0;
     const float x = k * length;
     if (x >= 0.0f) {
-        return std::exp(log_a) * length * one_minus_exp_over_x(x);
+        return fast_exp(log_a) * length * one_minus_exp_over_x(x);
     }
     // Looking down: (exp(-x) - 1) / -x = exp(-x) * (1 - exp(x)) / -x, so the growing exponential
     // joins the density's exponent instead of overflowing on its own.
-    return std::exp(log_a - x) * length * one_minus_exp_over_x(-x);
+    return fast_exp(log_a - x) * length * one_minus_exp_over_x(-x);
 }
 
 /// Height fog for one pixel: transmittance exp(-tau) and inscatter (1 - T) * (colour + sun lobe),
@@ -146,7 +147,7 @@ inline FogResult height_fog(const HeightFogCamera &c, const glm::vec3 &dir, floa
     if (tau <= 0.0f) {
         return r;
     }
-    r.transmittance = std::exp(-tau);
+    r.transmittance = fast_exp(-tau);
     glm::vec3 radiance = c.fog.color;
     if (c.has_lobe) {
         // 4 pi * HG(cos) = (1 - g^2) / d^1.5, d = 1 + g^2 - 2 g cos (>= (1 - |g|)^2 > 0).
