@@ -3,6 +3,10 @@
 #include <cassert>
 #include <limits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "core/error.h"
 #include "core/parallel.h"
 
@@ -395,6 +399,8 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
     const double theta_h = std::acos(mu_h);
     view.mu_horizon_ = float(mu_h);
     view.theta_horizon_ = float(theta_h);
+    view.inv_theta_above_ = float(1.0 / theta_h);
+    view.inv_theta_below_ = float(1.0 / (kPiD - theta_h));
     const double sin_sun = std::sqrt(std::max(0.0, 1.0 - double(mus) * double(mus)));
     const int half = h / 2;
     parallel_for(0, h, [&](int y) {
@@ -569,6 +575,143 @@ void apply_aerial_perspective(const AerialPerspective &ap, const Image &depth, I
                 px[0] = px[0] * s.transmittance.x + s.inscatter.x;
                 px[1] = px[1] * s.transmittance.y + s.inscatter.y;
                 px[2] = px[2] * s.transmittance.z + s.inscatter.z;
+            }
+        }
+    });
+}
+
+#if defined(__SSE2__)
+namespace {
+
+// fast_acos for four lanes (inputs within [-1, 1]; NaN reads as 1).
+__m128 acos4(__m128 x)
+{
+    const __m128 sign = _mm_set1_ps(-0.0f);
+    const __m128 ax = _mm_min_ps(_mm_andnot_ps(sign, x), _mm_set1_ps(1.0f));
+    __m128 p = _mm_set1_ps(-0.0012624911f);
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(0.0066700901f));
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(-0.0170881256f));
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(0.0308918810f));
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(-0.0501743046f));
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(0.0889789874f));
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(-0.2145988016f));
+    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(1.5707963050f));
+    const __m128 r = _mm_mul_ps(_mm_sqrt_ps(_mm_sub_ps(_mm_set1_ps(1.0f), ax)), p);
+    const __m128 negative = _mm_cmplt_ps(x, _mm_setzero_ps());
+    return _mm_or_ps(_mm_and_ps(negative, _mm_sub_ps(_mm_set1_ps(kPi), r)), _mm_andnot_ps(negative, r));
+}
+
+__m128 dot4(__m128 x, __m128 y, __m128 z, const glm::vec3 &v)
+{
+    return _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, _mm_set1_ps(v.x)), _mm_mul_ps(y, _mm_set1_ps(v.y))),
+                      _mm_mul_ps(z, _mm_set1_ps(v.z)));
+}
+
+__m128 saturate4(__m128 x)
+{
+    return _mm_min_ps(_mm_max_ps(x, _mm_setzero_ps()), _mm_set1_ps(1.0f));  // NaN -> 0
+}
+
+}  // namespace
+#endif
+
+void SkyView::radiance_n(const float *x, const float *y, const float *z, int n, glm::vec3 *out) const
+{
+    int i = 0;
+#if defined(__SSE2__)
+    alignas(16) float u4[4], s4[4];
+    for (; i + 4 <= n; i += 4) {
+        const __m128 dx = _mm_loadu_ps(x + i), dy = _mm_loadu_ps(y + i), dz = _mm_loadu_ps(z + i);
+        const __m128 mu = dot4(dx, dy, dz, up_);
+        const __m128 along = dot4(dx, dy, dz, sun_tangent_);
+        const __m128 side = dot4(dx, dy, dz, sun_side_);
+        const __m128 h2 = _mm_add_ps(_mm_mul_ps(along, along), _mm_mul_ps(side, side));
+        const __m128 tiny = _mm_cmple_ps(h2, _mm_set1_ps(1e-24f));
+        const __m128 cos_az = _mm_or_ps(
+            _mm_andnot_ps(tiny, _mm_div_ps(along, _mm_sqrt_ps(_mm_max_ps(h2, _mm_set1_ps(1e-24f))))),
+            _mm_and_ps(tiny, _mm_set1_ps(1.0f)));
+        const __m128 u = _mm_sqrt_ps(
+            _mm_max_ps(_mm_sub_ps(_mm_set1_ps(0.5f), _mm_mul_ps(_mm_set1_ps(0.5f), cos_az)),
+                       _mm_setzero_ps()));
+        const __m128 theta = acos4(mu);
+        const __m128 s_above = _mm_sub_ps(
+            _mm_set1_ps(1.0f),
+            _mm_sqrt_ps(saturate4(
+                _mm_sub_ps(_mm_set1_ps(1.0f), _mm_mul_ps(theta, _mm_set1_ps(inv_theta_above_))))));
+        const __m128 s_below = _mm_sqrt_ps(saturate4(_mm_mul_ps(
+            _mm_sub_ps(theta, _mm_set1_ps(theta_horizon_)), _mm_set1_ps(inv_theta_below_))));
+        const __m128 below_mask = _mm_cmplt_ps(mu, _mm_set1_ps(mu_horizon_));  // NaN: above
+        const int below = _mm_movemask_ps(below_mask);
+        _mm_store_ps(u4, u);
+        _mm_store_ps(s4, _mm_or_ps(_mm_and_ps(below_mask, s_below), _mm_andnot_ps(below_mask, s_above)));
+        for (int k = 0; k < 4; ++k) {
+            out[i + k] = lookup(u4[k], s4[k], !(below & (1 << k)));
+        }
+    }
+#endif
+    for (; i < n; ++i) {
+        out[i] = radiance(glm::vec3(x[i], y[i], z[i]));
+    }
+}
+
+void apply_atmosphere(const Atmosphere &atmosphere,
+                      const SkyView &sky,
+                      const AerialPerspective &ap,
+                      const Image &depth,
+                      Image &color,
+                      bool sun_disc)
+{
+    assert(color.channels() >= 3 && depth.channels() == 1);
+    assert(color.width() == depth.width() && color.height() == depth.height());
+    const float inv_w = 1.0f / float(color.width());
+    const float inv_h = 1.0f / float(color.height());
+    const int channels = color.channels();
+    const CameraRays &rays = ap.rays();
+    const glm::vec3 sun = atmosphere.sun_direction();
+    const float cos_sun = std::cos(atmosphere.params().sun_angular_radius_rad);
+    parallel_for_tiles(color.bounds(), [&](const Rect &tile) {
+        // Sky pixels of one tile row are gathered and looked up in a batch.
+        float dx[kDefaultTileSize], dy[kDefaultTileSize], dz[kDefaultTileSize];
+        int sky_x[kDefaultTileSize];
+        glm::vec3 sky_l[kDefaultTileSize];
+        for (int y = tile.y0; y < tile.y1; ++y) {
+            const float v = (float(y) + 0.5f) * inv_h;
+            const float *z = depth.pixel(0, y);
+            float *row = color.pixel(0, y);
+            int n = 0;
+            for (int x = tile.x0; x < tile.x1; ++x) {
+                const float d = z[x];
+                if (!(d == d)) {
+                    continue;  // NaN: left alone
+                }
+                const glm::vec2 uv((float(x) + 0.5f) * inv_w, v);
+                const glm::vec3 ray = rays.depth_ray(uv.x, uv.y);
+                const float len = glm::length(ray);
+                float *px = row + std::size_t(x) * channels;
+                if (d < std::numeric_limits<float>::infinity()) {
+                    const ScatteringResult s = ap.sample(uv, d * len);
+                    px[0] = px[0] * s.transmittance.x + s.inscatter.x;
+                    px[1] = px[1] * s.transmittance.y + s.inscatter.y;
+                    px[2] = px[2] * s.transmittance.z + s.inscatter.z;
+                } else if (n < kDefaultTileSize) {
+                    const float inv_len = 1.0f / len;
+                    dx[n] = ray.x * inv_len;
+                    dy[n] = ray.y * inv_len;
+                    dz[n] = ray.z * inv_len;
+                    sky_x[n++] = x;
+                }
+            }
+            sky.radiance_n(dx, dy, dz, n, sky_l);
+            for (int i = 0; i < n; ++i) {
+                glm::vec3 l = sky_l[i];
+                const glm::vec3 dir(dx[i], dy[i], dz[i]);
+                if (sun_disc && glm::dot(dir, sun) >= cos_sun) {
+                    l += atmosphere.sun_disc_radiance(dir, rays.position());
+                }
+                float *px = row + std::size_t(sky_x[i]) * channels;
+                px[0] = l.x;
+                px[1] = l.y;
+                px[2] = l.z;
             }
         }
     });

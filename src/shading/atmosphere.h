@@ -153,14 +153,22 @@ class SkyView {
         const float cos_azimuth = horizontal > 1e-12f ? along / horizontal : 1.0f;
         const float u = std::sqrt(std::max(0.5f - 0.5f * cos_azimuth, 0.0f));
         const float theta = fast_acos(mu);
-        const int half = lut_.height() / 2;
-        if (!(mu < mu_horizon_)) {
-            const float s = 1.0f - std::sqrt(saturate(1.0f - theta / theta_horizon_));
-            return lut_.sample_rows(u, s, 0, half);
-        }
-        const float s = std::sqrt(saturate((theta - theta_horizon_) / (3.14159265f - theta_horizon_)));
-        return lut_.sample_rows(u, s, half, lut_.height() - half);
+        const bool above = !(mu < mu_horizon_);
+        const float s = above ? 1.0f - std::sqrt(saturate(1.0f - theta * inv_theta_above_))
+                              : std::sqrt(saturate((theta - theta_horizon_) * inv_theta_below_));
+        return lookup(u, s, above);
     }
+    /// The LUT at azimuth coordinate u = sin(azimuth / 2) and latitude coordinate s in [0, 1]
+    /// of the half above (zenith to horizon) or below (horizon to nadir) the horizon.
+    glm::vec3 lookup(float u, float s, bool above) const
+    {
+        const int half = lut_.height() / 2;
+        return above ? lut_.sample_rows(u, s, 0, half)
+                     : lut_.sample_rows(u, s, half, lut_.height() - half);
+    }
+    /// radiance() for n unit directions given as separate x, y, z arrays (4-wide SSE2 where
+    /// available; the same results as radiance() up to float rounding).
+    void radiance_n(const float *x, const float *y, const float *z, int n, glm::vec3 *out) const;
     const Lut2D &lut() const { return lut_; }
     /// Cosine of the horizon's zenith angle at the LUT's camera (rays below hit the ground).
     float mu_horizon() const { return mu_horizon_; }
@@ -170,6 +178,7 @@ class SkyView {
     Lut2D lut_;
     glm::vec3 up_{0.0f, 1.0f, 0.0f}, sun_tangent_{1.0f, 0.0f, 0.0f}, sun_side_{0.0f, 0.0f, 1.0f};
     float mu_horizon_ = 0.0f, theta_horizon_ = 1.5707963f;
+    float inv_theta_above_ = 1.0f / 1.5707963f, inv_theta_below_ = 1.0f / 1.5707963f;
 };
 
 /// Froxel settings of the aerial perspective volume.
@@ -177,8 +186,8 @@ struct AerialPerspectiveSettings {
     int width = 32;
     int height = 32;
     int slices = 32;
-    /// Distance (along the ray, scene units) covered by the slices; slice k ends at
-    /// max_distance * ((k + 1) / slices)^2, so near slices are thin.
+    /// Distance (along the ray, scene units) covered by the slices; slice k holds the values at
+    /// distance max_distance * ((k + 0.5) / slices)^2, so near slices are thin.
     float max_distance = 32000.0f;
     int steps_per_slice = 2;
 };
@@ -347,6 +356,18 @@ class Atmosphere {
     Lut2D multi_scattering_;
     SkyView sky_view_;
 };
+
+/// Apply the atmosphere to a frame: aerial perspective (RGB = RGB * T + inscatter) on pixels with
+/// a finite depth, and on pixels with +inf depth RGB replaced by the sky from `sky` (plus the sun
+/// disc when `sun_disc`); alpha untouched, NaN depths left alone. `sky` is normally
+/// atmosphere.cached_sky_view() or atmosphere.make_sky_view(camera position). color has >= 3
+/// channels, depth 1 (camera-space z, scene units), same size. Parallel, thread-count independent.
+void apply_atmosphere(const Atmosphere &atmosphere,
+                      const SkyView &sky,
+                      const AerialPerspective &ap,
+                      const Image &depth,
+                      Image &color,
+                      bool sun_disc = true);
 
 /// Apply aerial perspective to a frame: RGB = RGB * T + inscatter for every pixel with a finite
 /// depth (camera-space z, scene units); sky pixels (+inf depth) are left alone. color has >= 3

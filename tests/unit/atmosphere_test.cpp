@@ -314,6 +314,73 @@ TEST(Atmosphere, LutsAreFiniteAndMultipleScatteringAddsLight)
     EXPECT_LT(ms.z, 1.0f);
 }
 
+TEST(Atmosphere, BatchedSkyLookupMatchesScalar)
+{
+    const Atmosphere &atmo = atmosphere_with_sun(30.0f);
+    const SkyView &sky = atmo.cached_sky_view();
+    std::mt19937 rng(3);
+    std::normal_distribution<float> gauss;
+    const int n = 1001;
+    std::vector<float> x(n), y(n), z(n);
+    for (int i = 0; i < n; ++i) {
+        const glm::vec3 d = glm::normalize(glm::vec3(gauss(rng), gauss(rng), gauss(rng)));
+        x[i] = d.x;
+        y[i] = d.y;
+        z[i] = d.z;
+    }
+    x[5] = y[5] = z[5] = std::numeric_limits<float>::quiet_NaN();
+    std::vector<glm::vec3> batch(n);
+    sky.radiance_n(x.data(), y.data(), z.data(), n, batch.data());
+    for (int i = 0; i < n; ++i) {
+        const glm::vec3 one = sky.radiance(glm::vec3(x[i], y[i], z[i]));
+        EXPECT_TRUE(finite_non_negative(batch[i])) << i;
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(batch[i][c], one[c], 1e-5f * one[c] + 1e-9f) << i;
+        }
+    }
+}
+
+TEST(Atmosphere, ApplyToFrameMatchesPerPixel)
+{
+    const Atmosphere &atmo = atmosphere_with_sun(20.0f);
+    const int w = 40, h = 24;
+    glm::mat4 c2w(1.0f);
+    c2w[3] = glm::vec4(0.0f, 50.0f, 0.0f, 1.0f);
+    const CameraMatrices m = make_camera_matrices(c2w, 20.0f, 36.0f, float(w) / h, 0.1f);
+    const AerialPerspective ap(atmo, m.world_to_camera, m.world_to_ndc);
+    Image depth(w, h, 1), color(w, h, 4);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            depth.at(x, y, 0) = y < h / 2 ? INFINITY : 10.0f * float(1 + x * y);
+            for (int ch = 0; ch < 4; ++ch) {
+                color.at(x, y, ch) = 0.1f * float(ch + 1);
+            }
+        }
+    }
+    depth.at(3, 20, 0) = std::numeric_limits<float>::quiet_NaN();
+    Image out = color;
+    apply_atmosphere(atmo, atmo.cached_sky_view(), ap, depth, out);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const glm::vec2 uv((x + 0.5f) / w, (y + 0.5f) / h);
+            const float d = depth.at(x, y, 0);
+            glm::vec3 expected;
+            if (std::isnan(d)) {
+                expected = glm::vec3(0.1f, 0.2f, 0.3f);
+            } else if (std::isinf(d)) {
+                expected = atmo.sky_radiance(ap.rays().direction(uv.x, uv.y), ap.rays().position());
+            } else {
+                const ScatteringResult s = ap.sample(uv, ap.distance_from_depth(uv, d));
+                expected = glm::vec3(0.1f, 0.2f, 0.3f) * s.transmittance + s.inscatter;
+            }
+            for (int c = 0; c < 3; ++c) {
+                EXPECT_NEAR(out.at(x, y, c), expected[c], 1e-5f * expected[c] + 1e-8f) << x << " " << y;
+            }
+            EXPECT_EQ(out.at(x, y, 3), 0.4f);
+        }
+    }
+}
+
 TEST(Atmosphere, InvalidParamsNameTheParameter)
 {
     AtmosphereParams p;
