@@ -511,8 +511,12 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
     settings_.max_distance = max_distance;
     inv_max_distance_ = 1.0f / max_distance;
     inv_slices_ = 1.0f / float(slices_);
+    inv_centre_sum_.resize(std::size_t(slices_));
+    for (int k = 0; k < slices_; ++k) {
+        inv_centre_sum_[k] = float(slices_) / (2.0f * float(k) + 2.0f);
+    }
     froxels_.assign(std::size_t(width_) * height_ * slices_,
-                    Froxel{glm::vec3(0.0f), glm::vec3(1.0f)});
+                    Froxel{{0.0f, 0.0f, 0.0f, 0.0f}, {1.0f, 1.0f, 1.0f, 1.0f}});
 
     const double bottom = atmosphere.bottom_, top = atmosphere.top_;
     const glm::dvec3 p = atmosphere.planet_position(rays_.position());
@@ -543,7 +547,9 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
             const double t = std::min(double(slice_distance(k)) * metres, t_top);
             acc = atmosphere.integrate(ray, t_prev, t, steps, acc, 0);
             t_prev = std::max(t_prev, t);
-            froxels_[(std::size_t(k) * height_ + y) * width_ + x] = {acc.inscatter, acc.transmittance};
+            froxels_[(std::size_t(k) * height_ + y) * width_ + x] =
+                Froxel{{acc.inscatter.x, acc.inscatter.y, acc.inscatter.z, 0.0f},
+                       {acc.transmittance.x, acc.transmittance.y, acc.transmittance.z, 1.0f}};
         }
     });
 }

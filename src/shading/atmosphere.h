@@ -209,34 +209,45 @@ class AerialPerspective {
     /// to pixels without geometry. uv outside [0,1]^2 clamps.
     ScatteringResult sample(glm::vec2 uv, float distance) const
     {
-        const float fx = saturate(uv.x) * float(width_) - 0.5f;
+        const float fx = saturate(uv.x) * float(width_) - 0.5f;  // >= -0.5
         const float fy = saturate(uv.y) * float(height_) - 0.5f;
-        const int x0 = std::clamp(int(std::floor(fx)), 0, width_ - 2);
-        const int y0 = std::clamp(int(std::floor(fy)), 0, height_ - 2);
-        const float tx = saturate(fx - float(x0)), ty = saturate(fy - float(y0));
+        const int x0 = std::min(int(fx + 1.0f) - 1, width_ - 2);  // floor, without a libm call
+        const int y0 = std::min(int(fy + 1.0f) - 1, height_ - 2);
+        const int cx = std::max(x0, 0), cy = std::max(y0, 0);
+        const float tx = saturate(fx - float(cx)), ty = saturate(fy - float(cy));
         // Slice k's centre is at w = (k + 0.5) / slices with distance = max * w^2. Interpolation
         // between slices is linear in distance (not in w), which in-scatter nearly is.
         const float w = std::sqrt(saturate(distance * inv_max_distance_));
         const float fz = w * float(slices_) - 0.5f;
-        ScatteringResult r;
+        int z0;
+        float tz;
+        bool from_camera = false;
         if (fz < 0.0f) {
-            // Before the first slice centre: blend towards (0, 1) at the camera.
+            // Before the first slice centre: blend from (0, 1) at the camera, linear in distance.
             const float w0 = 2.0f * w * float(slices_);  // distance / first centre = w0^2
-            const float tz = saturate(w0 * w0);
-            bilinear(0, x0, y0, tx, ty, r);
-            r.inscatter *= tz;
-            r.transmittance = glm::vec3(1.0f) + tz * (r.transmittance - glm::vec3(1.0f));
-            return r;
+            z0 = 0;
+            tz = saturate(w0 * w0);
+            from_camera = true;
+        } else {
+            z0 = std::min(int(fz), slices_ - 2);
+            // (w^2 - a^2) / (b^2 - a^2) with a, b the two centres' w = (fz - z0) (w + a) / (b + a).
+            const float wa = (float(z0) + 0.5f) * inv_slices_;
+            tz = saturate((fz - float(z0)) * (w + wa) * inv_centre_sum_[z0]);
         }
-        const int z0 = std::min(int(fz), slices_ - 2);
-        // (w^2 - a^2) / (b^2 - a^2) with a, b the slice centres' w: = (fz - z0) (w + a) / (b + a).
-        const float wa = (float(z0) + 0.5f) * inv_slices_;
-        const float tz = saturate((fz - float(z0)) * (w + wa) / (2.0f * wa + inv_slices_));
-        ScatteringResult a, b;
-        bilinear(z0, x0, y0, tx, ty, a);
-        bilinear(z0 + 1, x0, y0, tx, ty, b);
-        r.inscatter = a.inscatter + tz * (b.inscatter - a.inscatter);
-        r.transmittance = a.transmittance + tz * (b.transmittance - a.transmittance);
+        Froxel a = bilinear(z0, cx, cy, tx, ty);
+        if (from_camera) {
+            Froxel camera;
+            for (int c = 0; c < 4; ++c) {
+                camera.inscatter[c] = 0.0f;
+                camera.transmittance[c] = 1.0f;
+            }
+            lerp(camera, a, tz, a);
+        } else {
+            lerp(a, bilinear(z0 + 1, cx, cy, tx, ty), tz, a);
+        }
+        ScatteringResult r;
+        r.inscatter = glm::vec3(a.inscatter[0], a.inscatter[1], a.inscatter[2]);
+        r.transmittance = glm::vec3(a.transmittance[0], a.transmittance[1], a.transmittance[2]);
         return r;
     }
     /// Distance along the ray of the pixel at NDC uv whose depth pass (camera-space z) is `depth`.
@@ -250,20 +261,27 @@ class AerialPerspective {
     float slice_distance(int k) const;
 
   private:
-    struct Froxel {
-        glm::vec3 inscatter;
-        glm::vec3 transmittance;
+    // Padded to 8 floats so a froxel is two aligned 4-lane loads.
+    struct alignas(16) Froxel {
+        float inscatter[4];
+        float transmittance[4];
     };
-    void bilinear(int z, int x0, int y0, float tx, float ty, ScatteringResult &r) const
+    // out = a + t (b - a), lane by lane (the compiler vectorises the fixed-size loops).
+    static void lerp(const Froxel &a, const Froxel &b, float t, Froxel &out)
+    {
+        for (int c = 0; c < 4; ++c) {
+            out.inscatter[c] = a.inscatter[c] + t * (b.inscatter[c] - a.inscatter[c]);
+            out.transmittance[c] = a.transmittance[c] + t * (b.transmittance[c] - a.transmittance[c]);
+        }
+    }
+    Froxel bilinear(int z, int x0, int y0, float tx, float ty) const
     {
         const Froxel *p = &froxels_[(std::size_t(z) * height_ + y0) * width_ + x0];
-        const Froxel &a = p[0], &b = p[1], &c = p[width_], &d = p[width_ + 1];
-        const glm::vec3 li0 = a.inscatter + tx * (b.inscatter - a.inscatter);
-        const glm::vec3 li1 = c.inscatter + tx * (d.inscatter - c.inscatter);
-        const glm::vec3 lt0 = a.transmittance + tx * (b.transmittance - a.transmittance);
-        const glm::vec3 lt1 = c.transmittance + tx * (d.transmittance - c.transmittance);
-        r.inscatter = li0 + ty * (li1 - li0);
-        r.transmittance = lt0 + ty * (lt1 - lt0);
+        Froxel top, bottom;
+        lerp(p[0], p[1], tx, top);
+        lerp(p[width_], p[width_ + 1], tx, bottom);
+        lerp(top, bottom, ty, top);
+        return top;
     }
 
     AerialPerspectiveSettings settings_;
@@ -271,6 +289,8 @@ class AerialPerspective {
     int width_ = 0, height_ = 0, slices_ = 0;
     float inv_max_distance_ = 0.0f;
     float inv_slices_ = 0.0f;
+    std::vector<float> inv_centre_sum_;  // 1 / (w_k + w_{k+1}) per slice k
+
     std::vector<Froxel> froxels_;  // [slice][y][x]
 };
 
