@@ -105,6 +105,29 @@ struct Atmosphere::Ray {
     }
 };
 
+// The same ray evaluated in float for the integration loops: rho^2 = r^2 - R^2 grows as
+// rho0^2 + t (t + 2 r0 mu0), and the altitude rho^2 / (r + R) keeps full relative precision.
+struct FloatRay {
+    float rho0_sq, two_r0_mu0, r0_mus0, nu, bottom, bottom_sq;
+
+    FloatRay(double r0, double mu0, double mus0, double nu_, double bottom_radius)
+        : rho0_sq(float((r0 - bottom_radius) * (r0 + bottom_radius))),
+          two_r0_mu0(float(2.0 * r0 * mu0)),
+          r0_mus0(float(r0 * mus0)),
+          nu(float(nu_)),
+          bottom(float(bottom_radius)),
+          bottom_sq(float(bottom_radius * bottom_radius))
+    {
+    }
+    void at(float t, float &altitude, float &mus) const
+    {
+        const float rho_sq = std::max(rho0_sq + t * (t + two_r0_mu0), 0.0f);
+        const float r = std::sqrt(bottom_sq + rho_sq);
+        altitude = rho_sq / (r + bottom);
+        mus = std::clamp((r0_mus0 + t * nu) / r, -1.0f, 1.0f);
+    }
+};
+
 Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
 {
     check_param(std::isfinite(p.bottom_radius_m) && p.bottom_radius_m > 0.0f,
@@ -156,6 +179,10 @@ Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
     top_ = double(p.top_radius_m);
     horizon_distance_top_ = std::sqrt(top_ * top_ - bottom_ * bottom_);
     sin_sun_radius_ = std::sin(double(p.sun_angular_radius_rad));
+    inv_horizon_distance_top_ = float(1.0 / horizon_distance_top_);
+    inv_rayleigh_height_ = 1.0f / p.rayleigh_scale_height_m;
+    inv_mie_height_ = 1.0f / p.mie_scale_height_m;
+    inv_ozone_half_width_ = 2.0f / p.ozone_width_m;
     cos_sun_radius_ = std::cos(p.sun_angular_radius_rad);
     build_transmittance();
     build_multi_scattering();
@@ -171,17 +198,15 @@ glm::dvec3 Atmosphere::planet_position(const glm::vec3 &world) const
             double(world.z) * s};
 }
 
-Atmosphere::Medium Atmosphere::medium(double altitude_m) const
+Atmosphere::Medium Atmosphere::medium(float altitude_m) const
 {
-    const double h = std::max(altitude_m, 0.0);
-    if (h > top_ - bottom_) {
+    const float h = std::max(altitude_m, 0.0f);
+    if (h > float(top_ - bottom_)) {
         return {glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(0.0f)};
     }
-    const float hf = float(h);
-    const float rayleigh = fast_exp(-hf / params_.rayleigh_scale_height_m);
-    const float mie = fast_exp(-hf / params_.mie_scale_height_m);
-    const float ozone =
-        std::max(0.0f, 1.0f - std::fabs(hf - params_.ozone_center_m) / (0.5f * params_.ozone_width_m));
+    const float rayleigh = fast_exp(-h * inv_rayleigh_height_);
+    const float mie = fast_exp(-h * inv_mie_height_);
+    const float ozone = std::max(0.0f, 1.0f - std::fabs(h - params_.ozone_center_m) * inv_ozone_half_width_);
     Medium m;
     m.rayleigh = params_.rayleigh_scattering * rayleigh;
     m.mie = params_.mie_scattering * mie;
@@ -193,15 +218,19 @@ Atmosphere::Medium Atmosphere::medium(double altitude_m) const
 // radius as the horizon distance fraction, u the distance to the top between its extremes.
 glm::vec3 Atmosphere::transmittance_lut(float altitude_m, float cos_zenith) const
 {
-    const double hh = std::isnan(altitude_m) ? 0.0 : std::clamp(double(altitude_m), 0.0, top_ - bottom_);
-    const double mu = std::isnan(cos_zenith) ? 1.0 : std::clamp(double(cos_zenith), -1.0, 1.0);
-    const double big_h = horizon_distance_top_;
-    const double rho = std::sqrt(hh * (2.0 * bottom_ + hh));
-    const double r = bottom_ + hh;
-    const double d = distance_to_sphere(r, mu, top_);
-    const double d_min = top_ - r, d_max = rho + big_h;
-    const float u = float((d - d_min) / (d_max - d_min));
-    const float v = float(rho / big_h);
+    // Float throughout, written so that nothing cancels near the ground: r^2 - R^2 = h (2R + h)
+    // and top^2 - r^2 = (T - h)(top + r), T the atmosphere's thickness.
+    const float bottom = float(bottom_), top = float(top_), thickness = float(top_ - bottom_);
+    const float h = std::isnan(altitude_m) ? 0.0f : std::clamp(altitude_m, 0.0f, thickness);
+    const float mu = std::isnan(cos_zenith) ? 1.0f : std::clamp(cos_zenith, -1.0f, 1.0f);
+    const float rho = std::sqrt(h * (2.0f * bottom + h));
+    const float r = bottom + h;
+    const float to_top = (thickness - h) * (top + r);  // top^2 - r^2
+    const float root = std::sqrt(std::max(r * r * mu * mu + to_top, 0.0f));
+    const float d = mu > 0.0f ? to_top / (r * mu + root) : root - r * mu;  // distance to the top
+    const float d_min = thickness - h, d_max = rho + float(horizon_distance_top_);
+    const float u = (d - d_min) / (d_max - d_min);
+    const float v = rho * inv_horizon_distance_top_;
     return transmittance_.sample(u, v);
 }
 
@@ -223,20 +252,24 @@ glm::vec3 Atmosphere::optical_depth_numeric(float altitude_m, float cos_zenith, 
     for (int i = 0; i < steps; ++i) {
         double r, mus;
         ray.at((i + 0.5) * dt, r, mus);
-        tau += glm::dvec3(medium(r - bottom_).extinction) * dt;
+        tau += glm::dvec3(medium(float(r - bottom_)).extinction) * dt;
     }
     return glm::vec3(tau);
 }
 
-glm::vec3 Atmosphere::sun_transmittance(double altitude_m, double cos_sun_zenith) const
+glm::vec3 Atmosphere::sun_transmittance(float altitude_m, float cos_sun_zenith) const
 {
-    const double mu_h = horizon_cos(altitude_m, bottom_);
-    const double s = sin_sun_radius_;
-    const double visible = smoothstep(mu_h - s, mu_h + s, cos_sun_zenith);
-    if (visible <= 0.0) {
+    // Soft earth shadow: the fraction of the sun disc above the horizon, as a smoothstep.
+    const float h = std::max(altitude_m, 0.0f);
+    const float bottom = float(bottom_);
+    const float mu_h = -std::sqrt(h * (2.0f * bottom + h)) / (bottom + h);
+    const float s = float(sin_sun_radius_);
+    const float x = std::clamp((cos_sun_zenith - (mu_h - s)) * (0.5f / s), 0.0f, 1.0f);
+    const float visible = x * x * (3.0f - 2.0f * x);
+    if (!(visible > 0.0f)) {
         return glm::vec3(0.0f);
     }
-    return float(visible) * transmittance_lut(float(altitude_m), float(cos_sun_zenith));
+    return visible * transmittance_lut(h, cos_sun_zenith);
 }
 
 void Atmosphere::build_transmittance()
@@ -292,6 +325,7 @@ void Atmosphere::build_multi_scattering()
                 ray.mu0 = z;
                 ray.mus0 = mus;
                 ray.nu = glm::dot(dir, sun);
+                const FloatRay fray(r, z, mus, ray.nu, bottom_);
                 const bool ground = z < mu_h;
                 const double t_end =
                     ground ? distance_to_ground(r, z, bottom_) : distance_to_sphere(r, z, top_);
@@ -300,12 +334,12 @@ void Atmosphere::build_multi_scattering()
                     // Quadratic step distribution, as in integrate().
                     const double s0 = double(i) / steps, s1 = double(i + 1) / steps;
                     const float dt = float((s1 * s1 - s0 * s0) * t_end);
-                    double ri, musi;
-                    ray.at(0.5 * (s0 * s0 + s1 * s1) * t_end, ri, musi);
-                    const Medium m = medium(ri - bottom_);
+                    float hi, musi;
+                    fray.at(float(0.5 * (s0 * s0 + s1 * s1) * t_end), hi, musi);
+                    const Medium m = medium(hi);
                     const glm::vec3 scattering = m.rayleigh + m.mie;
                     const glm::vec3 source =
-                        sun_transmittance(ri - bottom_, musi) * scattering * isotropic;
+                        sun_transmittance(hi, musi) * scattering * isotropic;
                     glm::vec3 seg;
                     const glm::vec3 integral = step_integral(m.extinction, dt, seg);
                     f_ms += glm::dvec3(acc.transmittance * scattering * integral);
@@ -315,7 +349,7 @@ void Atmosphere::build_multi_scattering()
                 if (ground) {
                     double rg, mus_g;
                     ray.at(t_end, rg, mus_g);
-                    const glm::vec3 lit = sun_transmittance(0.0, mus_g) *
+                    const glm::vec3 lit = sun_transmittance(0.0f, float(mus_g)) *
                                           float(std::max(mus_g, 0.0)) * params_.ground_albedo / kPi;
                     acc.inscatter += acc.transmittance * lit;
                 }
@@ -342,6 +376,7 @@ ScatteringResult Atmosphere::integrate(const Ray &ray,
     }
     const double length = t_end - t_begin;
     const glm::vec3 &sun = params_.sun_illuminance;
+    const FloatRay fray(ray.r0, ray.mu0, ray.mus0, ray.nu, bottom_);
     for (int i = 0; i < steps; ++i) {
         // Step i spans [s_i, s_{i+1}] of the segment, s = i / steps (uniform) or (i / steps)^2
         // (quadratic: short steps near the start where the air is densest for a camera near the
@@ -352,20 +387,19 @@ ScatteringResult Atmosphere::integrate(const Ray &ray,
             s1 *= s1;
         }
         const double dt = (s1 - s0) * length;
-        double r, mus;
-        ray.at(t_begin + 0.5 * (s0 + s1) * length, r, mus);
-        const double altitude = std::max(r - bottom_, 0.0);
+        float altitude, mus;
+        fray.at(float(t_begin + 0.5 * (s0 + s1) * length), altitude, mus);
         const Medium m = medium(altitude);
         glm::vec3 t_sun;
         if (sun_steps > 0) {
             const double mu_h = horizon_cos(altitude, bottom_);
             const double s = sin_sun_radius_;
             t_sun = float(smoothstep(mu_h - s, mu_h + s, mus)) *
-                    exp3(-optical_depth_numeric(float(altitude), float(mus), sun_steps));
+                    exp3(-optical_depth_numeric(altitude, mus, sun_steps));
         } else {
             t_sun = sun_transmittance(altitude, mus);
         }
-        const glm::vec3 ms = multi_scattering_lut(float(altitude), float(mus));
+        const glm::vec3 ms = multi_scattering_lut(altitude, mus);
         const glm::vec3 source =
             sun * (t_sun * (m.rayleigh * ray.phase_rayleigh + m.mie * ray.phase_mie) +
                    ms * (m.rayleigh + m.mie));

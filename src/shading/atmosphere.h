@@ -354,8 +354,8 @@ class Atmosphere {
     struct Medium {
         glm::vec3 rayleigh, mie, extinction;  // scattering, scattering, extinction (per metre)
     };
-    Medium medium(double altitude_m) const;
-    glm::vec3 sun_transmittance(double altitude_m, double cos_sun_zenith) const;
+    Medium medium(float altitude_m) const;
+    glm::vec3 sun_transmittance(float altitude_m, float cos_sun_zenith) const;
     ScatteringResult integrate(const Ray &ray,
                                double t_begin,
                                double t_end,
@@ -371,6 +371,7 @@ class Atmosphere {
     double bottom_, top_;
     double horizon_distance_top_;  // sqrt(top^2 - bottom^2)
     double sin_sun_radius_;
+    float inv_horizon_distance_top_, inv_rayleigh_height_, inv_mie_height_, inv_ozone_half_width_;
     float cos_sun_radius_;
     Lut2D transmittance_;
     Lut2D multi_scattering_;
