@@ -61,7 +61,7 @@ struct AtmosphereParams {
     int transmittance_height = 64;
     int multi_scattering_size = 32;
     int sky_view_width = 192;
-    int sky_view_height = 108;  ///< even: the upper half is above the horizon
+    int sky_view_height = 108;  ///< rows [0, h/2) above the horizon, the rest below
     int transmittance_steps = 128;
     int multi_scattering_directions = 64;
     int multi_scattering_steps = 24;

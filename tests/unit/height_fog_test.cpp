@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "core/camera.h"
+#include "core/parallel.h"
 
 namespace posthaste::shading {
 namespace {
@@ -244,8 +245,16 @@ TEST(HeightFog, ApplyToFrameMatchesPerPixel)
     }
     HeightFog fog;
     fog.density = 0.05f;
+    fog.sun_color = glm::vec3(0.3f);
+    fog.sun_direction = glm::normalize(glm::vec3(0.2f, 0.3f, 1.0f));
     Image out = color;
+    set_thread_count(1);
     apply_height_fog(fog, rays, depth, out);
+    Image out2 = color;
+    set_thread_count(2);
+    apply_height_fog(fog, rays, depth, out2);
+    set_thread_count(0);
+    EXPECT_TRUE(out.bit_equal(out2));
     const HeightFogCamera c = prepare_height_fog(fog, glm::vec3(0.0f, 3.0f, 0.0f));
     for (int y = 0; y < h; ++y) {
         for (int x = 0; x < w; ++x) {
