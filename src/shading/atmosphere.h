@@ -93,13 +93,16 @@ inline float saturate(float x)
 class Lut2D {
   public:
     Lut2D() = default;
+    /// A zero-filled width x height table.
     Lut2D(int width, int height)
         : width_(width), height_(height), texels_(std::size_t(width) * std::size_t(height))
     {
     }
-    int width() const { return width_; }
-    int height() const { return height_; }
+    int width() const { return width_; }    ///< texels per row
+    int height() const { return height_; }  ///< rows
+    /// Texel (x, y), unchecked.
     glm::vec3 &at(int x, int y) { return texels_[std::size_t(y) * std::size_t(width_) + x]; }
+    /// Texel (x, y), unchecked.
     const glm::vec3 &at(int x, int y) const
     {
         return texels_[std::size_t(y) * std::size_t(width_) + x];
@@ -140,6 +143,7 @@ class Atmosphere;
 /// the atmosphere top or the ground) by view direction. Immutable; cheap to look up.
 class SkyView {
   public:
+    /// An empty view; build one with Atmosphere::make_sky_view.
     SkyView() = default;
     /// Sky radiance (no sun disc) for a unit world-space view direction; NaN gives finite output.
     glm::vec3 radiance(const glm::vec3 &view_dir) const
@@ -169,6 +173,7 @@ class SkyView {
     /// radiance() for n unit directions given as separate x, y, z arrays (4-wide SSE2 where
     /// available; the same results as radiance() up to float rounding).
     void radiance_n(const float *x, const float *y, const float *z, int n, glm::vec3 *out) const;
+    /// The table: columns u = sin(azimuth / 2) from the sun, rows as described on the class.
     const Lut2D &lut() const { return lut_; }
     /// Cosine of the horizon's zenith angle at the LUT's camera (rays below hit the ground).
     float mu_horizon() const { return mu_horizon_; }
@@ -196,6 +201,7 @@ struct AerialPerspectiveSettings {
 /// camera to each slice, over the camera frustum (NDC xy, distance along the ray).
 class AerialPerspective {
   public:
+    /// An empty volume; use the other constructor.
     AerialPerspective() = default;
     /// Build for the camera given by worldToCamera and worldToNDC (core/camera.h conventions).
     AerialPerspective(const Atmosphere &atmosphere,
@@ -255,7 +261,9 @@ class AerialPerspective {
     {
         return depth * glm::length(rays_.depth_ray(uv.x, uv.y));
     }
+    /// The camera's position and per-pixel rays.
     const CameraRays &rays() const { return rays_; }
+    /// The settings used (sizes clamped to >= 2, max_distance to > 0).
     const AerialPerspectiveSettings &settings() const { return settings_; }
     /// Distance (scene units) of slice k's centre.
     float slice_distance(int k) const;
@@ -301,6 +309,7 @@ class Atmosphere {
     /// Validate (throws Error, exit code 2, naming the parameter) and build every LUT.
     explicit Atmosphere(const AtmosphereParams &params);
 
+    /// The parameters it was built with.
     const AtmosphereParams &params() const { return params_; }
     /// Unit world-space direction towards the sun.
     const glm::vec3 &sun_direction() const { return sun_dir_; }
@@ -315,6 +324,7 @@ class Atmosphere {
     /// A sky-view LUT for a camera at world position `camera_pos` (a few ms; use per frame when
     /// the camera moves hundreds of metres vertically).
     SkyView make_sky_view(const glm::vec3 &camera_pos) const;
+    /// The sky-view LUT built at construction for a camera at (0, sky_view_y, 0).
     const SkyView &cached_sky_view() const { return sky_view_; }
     /// Radiance of the sun disc (0 outside it or when the planet blocks it) along view_dir.
     glm::vec3 sun_disc_radiance(const glm::vec3 &view_dir, const glm::vec3 &camera_pos) const;
@@ -342,7 +352,9 @@ class Atmosphere {
                                int steps,
                                int sun_steps = 0) const;
 
+    /// The transmittance LUT (Bruneton's parametrisation, see transmittance_lut).
     const Lut2D &transmittance_table() const { return transmittance_; }
+    /// The multiple-scattering LUT: u = cos sun zenith * 0.5 + 0.5, v = altitude / thickness.
     const Lut2D &multi_scattering_table() const { return multi_scattering_; }
 
     /// Planet-centric position (metres, double) of a world point.
