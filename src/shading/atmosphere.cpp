@@ -502,6 +502,18 @@ glm::vec3 Atmosphere::transmittance(const glm::vec3 &pos, const glm::vec3 &dir) 
     return transmittance_lut(float(r - bottom_), float(mu));
 }
 
+glm::vec3 Atmosphere::sun_transmittance_at(const glm::vec3 &pos) const
+{
+    const glm::dvec3 p = planet_position(pos);
+    const double len = glm::length(p);
+    if (!(len > 0.0) || !std::isfinite(len)) {
+        return glm::vec3(0.0f);
+    }
+    const double r = std::clamp(len, bottom_, top_);
+    const double mus = glm::dot(p / len, glm::dvec3(sun_dir_));
+    return sun_transmittance(float(r - bottom_), float(mus));
+}
+
 ScatteringResult Atmosphere::ray_march(const glm::vec3 &origin,
                                        const glm::vec3 &dir,
                                        float max_distance,

@@ -332,6 +332,10 @@ class Atmosphere {
     /// Transmittance from world position `pos` along unit `dir` to space, from the LUT; 0 when the
     /// ray hits the planet.
     glm::vec3 transmittance(const glm::vec3 &pos, const glm::vec3 &dir) const;
+    /// Transmittance of sunlight reaching world position `pos`, with the earth's shadow softened
+    /// over the sun disc: the sun's illuminance at the point is sun_illuminance * this (for the
+    /// rasterizer's direct light). 0 for NaN positions.
+    glm::vec3 sun_transmittance_at(const glm::vec3 &pos) const;
     /// Transmittance LUT lookup at altitude (metres above the planet surface) for a ray with the
     /// given cosine of the zenith angle; rays that would hit the ground read the horizon value.
     glm::vec3 transmittance_lut(float altitude_m, float cos_zenith) const;

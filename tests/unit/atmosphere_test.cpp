@@ -238,6 +238,13 @@ TEST(Atmosphere, SunsetReddens)
     const glm::vec3 t_noon = noon.transmittance(camera, noon.sun_direction());
     const glm::vec3 t_set = sunset.transmittance(camera, sunset.sun_direction());
     EXPECT_GT(t_set.x / t_set.z, 2.0f * t_noon.x / t_noon.z);
+    // The rasterizer's direct sunlight: the LUT value by day, 0 once the sun has set.
+    const glm::vec3 at_noon = noon.sun_transmittance_at(camera);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(at_noon[c], t_noon[c], 1e-5f);
+    }
+    EXPECT_EQ(atmosphere_with_sun(-10.0f).sun_transmittance_at(camera), glm::vec3(0.0f));
+    EXPECT_EQ(noon.sun_transmittance_at(glm::vec3(NAN)), glm::vec3(0.0f));
     // Sky near the sun.
     const glm::vec3 sky_noon = noon.sky_radiance(sun_at_elevation(70.0f), camera, false);
     const glm::vec3 sky_set = sunset.sky_radiance(sun_at_elevation(5.0f), camera, false);
