@@ -1,6 +1,7 @@
 #include "shading/atmosphere.h"
 
 #include <cassert>
+#include <cstdint>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -600,6 +601,47 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
     });
 }
 
+void AerialPerspective::sample_n(const float *u,
+                                 float v,
+                                 const float *distance,
+                                 int n,
+                                 ScatteringResult *out) const
+{
+    const float fy = saturate(v) * float(height_) - 0.5f;
+    const int cy = std::max(std::min(int(fy + 1.0f) - 1, height_ - 2), 0);
+    const float ty = saturate(fy - float(cy));
+    int i = 0;
+#if defined(__SSE2__)
+    alignas(16) float tx4[4], w4[4];
+    alignas(16) std::int32_t cx4[4];
+    const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
+    for (; i + 4 <= n; i += 4) {
+        const __m128 fx = _mm_sub_ps(
+            _mm_mul_ps(_mm_min_ps(_mm_max_ps(_mm_loadu_ps(u + i), zero), one), _mm_set1_ps(float(width_))),
+            _mm_set1_ps(0.5f));
+        __m128i cx = _mm_sub_epi32(_mm_cvttps_epi32(_mm_add_ps(fx, one)), _mm_set1_epi32(1));
+        // min(max(cx, 0), width - 2) with SSE2 compares.
+        const __m128i hi = _mm_set1_epi32(width_ - 2);
+        cx = _mm_andnot_si128(_mm_cmplt_epi32(cx, _mm_setzero_si128()), cx);
+        const __m128i over = _mm_cmpgt_epi32(cx, hi);
+        cx = _mm_or_si128(_mm_and_si128(over, hi), _mm_andnot_si128(over, cx));
+        const __m128 tx = _mm_min_ps(_mm_max_ps(_mm_sub_ps(fx, _mm_cvtepi32_ps(cx)), zero), one);
+        const __m128 w = _mm_sqrt_ps(_mm_min_ps(
+            _mm_max_ps(_mm_mul_ps(_mm_loadu_ps(distance + i), _mm_set1_ps(inv_max_distance_)), zero),
+            one));
+        _mm_store_si128(reinterpret_cast<__m128i *>(cx4), cx);
+        _mm_store_ps(tx4, tx);
+        _mm_store_ps(w4, w);
+        for (int k = 0; k < 4; ++k) {
+            out[i + k] = fetch(cx4[k], cy, tx4[k], ty, w4[k]);
+        }
+    }
+#endif
+    for (; i < n; ++i) {
+        out[i] = sample(glm::vec2(u[i], v), distance[i]);
+    }
+}
+
 float AerialPerspective::slice_distance(int k) const
 {
     const float w = (float(k) + 0.5f) / float(slices_);
@@ -726,25 +768,28 @@ void apply_atmosphere(const Atmosphere &atmosphere,
         float dx[kDefaultTileSize], dy[kDefaultTileSize], dz[kDefaultTileSize];
         int sky_x[kDefaultTileSize];
         glm::vec3 sky_l[kDefaultTileSize];
+        float ap_u[kDefaultTileSize], ap_d[kDefaultTileSize];
+        int ap_x[kDefaultTileSize];
+        ScatteringResult ap_s[kDefaultTileSize];
         for (int y = tile.y0; y < tile.y1; ++y) {
             const float v = (float(y) + 0.5f) * inv_h;
             const float *z = depth.pixel(0, y);
             float *row = color.pixel(0, y);
-            int n = 0;
+            int n = 0, m = 0;
             for (int x = tile.x0; x < tile.x1; ++x) {
                 const float d = z[x];
                 if (!(d == d)) {
                     continue;  // NaN: left alone
                 }
-                const glm::vec2 uv((float(x) + 0.5f) * inv_w, v);
-                const glm::vec3 ray = rays.depth_ray(uv.x, uv.y);
+                const float u = (float(x) + 0.5f) * inv_w;
+                const glm::vec3 ray = rays.depth_ray(u, v);
                 const float len = glm::length(ray);
-                float *px = row + std::size_t(x) * channels;
                 if (d < std::numeric_limits<float>::infinity()) {
-                    const ScatteringResult s = ap.sample(uv, d * len);
-                    px[0] = px[0] * s.transmittance.x + s.inscatter.x;
-                    px[1] = px[1] * s.transmittance.y + s.inscatter.y;
-                    px[2] = px[2] * s.transmittance.z + s.inscatter.z;
+                    if (m < kDefaultTileSize) {
+                        ap_u[m] = u;
+                        ap_d[m] = d * len;
+                        ap_x[m++] = x;
+                    }
                 } else if (n < kDefaultTileSize) {
                     const float inv_len = 1.0f / len;
                     dx[n] = ray.x * inv_len;
@@ -752,6 +797,14 @@ void apply_atmosphere(const Atmosphere &atmosphere,
                     dz[n] = ray.z * inv_len;
                     sky_x[n++] = x;
                 }
+            }
+            ap.sample_n(ap_u, v, ap_d, m, ap_s);
+            for (int i = 0; i < m; ++i) {
+                const ScatteringResult &s = ap_s[i];
+                float *px = row + std::size_t(ap_x[i]) * channels;
+                px[0] = px[0] * s.transmittance.x + s.inscatter.x;
+                px[1] = px[1] * s.transmittance.y + s.inscatter.y;
+                px[2] = px[2] * s.transmittance.z + s.inscatter.z;
             }
             sky.radiance_n(dx, dy, dz, n, sky_l);
             for (int i = 0; i < n; ++i) {
