@@ -66,7 +66,10 @@ glm::vec3 step_integral(const glm::vec3 &extinction, float dt, glm::vec3 &seg)
     return integral;
 }
 
-void accumulate(ScatteringResult &acc, const glm::vec3 &source, const glm::vec3 &extinction, float dt)
+void accumulate(ScatteringResult &acc,
+                const glm::vec3 &source,
+                const glm::vec3 &extinction,
+                float dt)
 {
     glm::vec3 seg;
     const glm::vec3 integral = step_integral(extinction, dt, seg);
@@ -74,7 +77,8 @@ void accumulate(ScatteringResult &acc, const glm::vec3 &source, const glm::vec3 
     acc.transmittance *= seg;
 }
 
-template<typename T> void check_param(bool ok, const char *name, const char *expected, T got)
+template <typename T>
+void check_param(bool ok, const char *name, const char *expected, T got)
 {
     if (!ok) {
         throw_usage("atmosphere: param \"", name, "\": expected ", expected, ", got ", got);
@@ -139,27 +143,39 @@ Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
                 "top_radius_m",
                 "number > bottom_radius_m",
                 p.top_radius_m);
-    check_param(p.rayleigh_scale_height_m > 0.0f, "rayleigh_scale_height_m", "number > 0",
+    check_param(p.rayleigh_scale_height_m > 0.0f,
+                "rayleigh_scale_height_m",
+                "number > 0",
                 p.rayleigh_scale_height_m);
-    check_param(p.mie_scale_height_m > 0.0f, "mie_scale_height_m", "number > 0",
-                p.mie_scale_height_m);
+    check_param(
+        p.mie_scale_height_m > 0.0f, "mie_scale_height_m", "number > 0", p.mie_scale_height_m);
     check_param(p.ozone_width_m > 0.0f, "ozone_width_m", "number > 0", p.ozone_width_m);
     check_param(p.mie_g > -1.0f && p.mie_g < 1.0f, "mie_g", "number in (-1, 1)", p.mie_g);
     check_param(non_negative3(p.rayleigh_scattering), "rayleigh_scattering", "finite >= 0", "");
     check_param(non_negative3(p.mie_scattering), "mie_scattering", "finite >= 0", "");
-    check_param(non_negative3(p.mie_extinction - p.mie_scattering), "mie_extinction",
-                ">= mie_scattering", "");
+    check_param(non_negative3(p.mie_extinction - p.mie_scattering),
+                "mie_extinction",
+                ">= mie_scattering",
+                "");
     check_param(non_negative3(p.ozone_absorption), "ozone_absorption", "finite >= 0", "");
     check_param(non_negative3(p.ground_albedo), "ground_albedo", "finite >= 0", "");
     check_param(non_negative3(p.sun_illuminance), "sun_illuminance", "finite >= 0", "");
-    check_param(finite3(p.sun_direction) && glm::length(p.sun_direction) > 0.0f, "sun_direction",
-                "finite non-zero vector", "");
+    check_param(finite3(p.sun_direction) && glm::length(p.sun_direction) > 0.0f,
+                "sun_direction",
+                "finite non-zero vector",
+                "");
     check_param(p.sun_angular_radius_rad > 0.0f && p.sun_angular_radius_rad < 0.5f,
-                "sun_angular_radius_rad", "number in (0, 0.5)", p.sun_angular_radius_rad);
+                "sun_angular_radius_rad",
+                "number in (0, 0.5)",
+                p.sun_angular_radius_rad);
     check_param(std::isfinite(p.ground_altitude_m) && std::isfinite(p.camera_offset_m),
-                "ground_altitude_m", "finite number", p.ground_altitude_m);
-    check_param(p.metres_per_unit > 0.0f && std::isfinite(p.metres_per_unit), "metres_per_unit",
-                "number > 0", p.metres_per_unit);
+                "ground_altitude_m",
+                "finite number",
+                p.ground_altitude_m);
+    check_param(p.metres_per_unit > 0.0f && std::isfinite(p.metres_per_unit),
+                "metres_per_unit",
+                "number > 0",
+                p.metres_per_unit);
     check_param(std::isfinite(p.sky_view_y), "sky_view_y", "finite number", p.sky_view_y);
     const auto check_size = [](int v, const char *name) {
         check_param(v >= 2 && v <= 4096, name, "integer in [2, 4096]", v);
@@ -168,8 +184,10 @@ Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
     check_size(p.transmittance_height, "transmittance_height");
     check_size(p.multi_scattering_size, "multi_scattering_size");
     check_size(p.sky_view_width, "sky_view_width");
-    check_param(p.sky_view_height >= 4 && p.sky_view_height <= 4096, "sky_view_height",
-                "integer in [4, 4096]", p.sky_view_height);
+    check_param(p.sky_view_height >= 4 && p.sky_view_height <= 4096,
+                "sky_view_height",
+                "integer in [4, 4096]",
+                p.sky_view_height);
     check_size(p.transmittance_steps, "transmittance_steps");
     check_size(p.multi_scattering_directions, "multi_scattering_directions");
     check_size(p.multi_scattering_steps, "multi_scattering_steps");
@@ -207,7 +225,8 @@ Atmosphere::Medium Atmosphere::medium(float altitude_m) const
     }
     const float rayleigh = fast_exp(-h * inv_rayleigh_height_);
     const float mie = fast_exp(-h * inv_mie_height_);
-    const float ozone = std::max(0.0f, 1.0f - std::fabs(h - params_.ozone_center_m) * inv_ozone_half_width_);
+    const float ozone =
+        std::max(0.0f, 1.0f - std::fabs(h - params_.ozone_center_m) * inv_ozone_half_width_);
     Medium m;
     m.rayleigh = params_.rayleigh_scattering * rayleigh;
     m.mie = params_.mie_scattering * mie;
@@ -286,9 +305,9 @@ void Atmosphere::build_transmittance()
             const double d_min = top_ - r, d_max = rho + big_h;
             const double d = d_min + (d_max - d_min) * double(x) / double(w - 1);
             const double mu =
-                d <= 0.0 ? 1.0 : std::clamp((big_h * big_h - rho * rho - d * d) / (2.0 * r * d),
-                                            -1.0,
-                                            1.0);
+                d <= 0.0
+                    ? 1.0
+                    : std::clamp((big_h * big_h - rho * rho - d * d) / (2.0 * r * d), -1.0, 1.0);
             const glm::vec3 tau =
                 optical_depth_numeric(float(altitude), float(mu), params_.transmittance_steps);
             transmittance_.at(x, y) = exp3(-tau);
@@ -339,8 +358,7 @@ void Atmosphere::build_multi_scattering()
                     fray.at(float(0.5 * (s0 * s0 + s1 * s1) * t_end), hi, musi);
                     const Medium m = medium(hi);
                     const glm::vec3 scattering = m.rayleigh + m.mie;
-                    const glm::vec3 source =
-                        sun_transmittance(hi, musi) * scattering * isotropic;
+                    const glm::vec3 source = sun_transmittance(hi, musi) * scattering * isotropic;
                     glm::vec3 seg;
                     const glm::vec3 integral = step_integral(m.extinction, dt, seg);
                     f_ms += glm::dvec3(acc.transmittance * scattering * integral);
@@ -425,7 +443,7 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
     glm::vec3 tangent = sun_dir_ - up * mus;
     if (glm::length(tangent) < 1e-6f) {
         tangent = std::fabs(up.x) < 0.9f ? glm::cross(up, glm::vec3(1, 0, 0))
-                                          : glm::cross(up, glm::vec3(0, 0, 1));
+                                         : glm::cross(up, glm::vec3(0, 0, 1));
     }
     view.up_ = up;
     view.sun_tangent_ = glm::normalize(tangent);
@@ -468,7 +486,8 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
     return view;
 }
 
-glm::vec3 Atmosphere::sun_disc_radiance(const glm::vec3 &view_dir, const glm::vec3 &camera_pos) const
+glm::vec3 Atmosphere::sun_disc_radiance(const glm::vec3 &view_dir,
+                                        const glm::vec3 &camera_pos) const
 {
     if (!(glm::dot(view_dir, sun_dir_) >= cos_sun_radius_)) {
         return glm::vec3(0.0f);
@@ -577,7 +596,8 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
     const double metres = atmosphere.params().metres_per_unit;
     parallel_for(0, width_ * height_, [&](int index) {
         const int x = index % width_, y = index / width_;
-        const glm::dvec3 dir(rays_.direction((x + 0.5f) / float(width_), (y + 0.5f) / float(height_)));
+        const glm::dvec3 dir(
+            rays_.direction((x + 0.5f) / float(width_), (y + 0.5f) / float(height_)));
         Atmosphere::Ray ray;
         ray.r0 = r0;
         ray.mu0 = std::clamp(glm::dot(up, dir), -1.0, 1.0);
@@ -601,11 +621,8 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
     });
 }
 
-void AerialPerspective::sample_n(const float *u,
-                                 float v,
-                                 const float *distance,
-                                 int n,
-                                 ScatteringResult *out) const
+void AerialPerspective::sample_n(
+    const float *u, float v, const float *distance, int n, ScatteringResult *out) const
 {
     const float fy = saturate(v) * float(height_) - 0.5f;
     const int cy = std::max(std::min(int(fy + 1.0f) - 1, height_ - 2), 0);
@@ -616,9 +633,10 @@ void AerialPerspective::sample_n(const float *u,
     alignas(16) std::int32_t cx4[4];
     const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
     for (; i + 4 <= n; i += 4) {
-        const __m128 fx = _mm_sub_ps(
-            _mm_mul_ps(_mm_min_ps(_mm_max_ps(_mm_loadu_ps(u + i), zero), one), _mm_set1_ps(float(width_))),
-            _mm_set1_ps(0.5f));
+        const __m128 fx =
+            _mm_sub_ps(_mm_mul_ps(_mm_min_ps(_mm_max_ps(_mm_loadu_ps(u + i), zero), one),
+                                  _mm_set1_ps(float(width_))),
+                       _mm_set1_ps(0.5f));
         __m128i cx = _mm_sub_epi32(_mm_cvttps_epi32(_mm_add_ps(fx, one)), _mm_set1_epi32(1));
         // min(max(cx, 0), width - 2) with SSE2 compares.
         const __m128i hi = _mm_set1_epi32(width_ - 2);
@@ -627,7 +645,8 @@ void AerialPerspective::sample_n(const float *u,
         cx = _mm_or_si128(_mm_and_si128(over, hi), _mm_andnot_si128(over, cx));
         const __m128 tx = _mm_min_ps(_mm_max_ps(_mm_sub_ps(fx, _mm_cvtepi32_ps(cx)), zero), one);
         const __m128 w = _mm_sqrt_ps(_mm_min_ps(
-            _mm_max_ps(_mm_mul_ps(_mm_loadu_ps(distance + i), _mm_set1_ps(inv_max_distance_)), zero),
+            _mm_max_ps(_mm_mul_ps(_mm_loadu_ps(distance + i), _mm_set1_ps(inv_max_distance_)),
+                       zero),
             one));
         _mm_store_si128(reinterpret_cast<__m128i *>(cx4), cx);
         _mm_store_ps(tx4, tx);
@@ -692,7 +711,8 @@ __m128 acos4(__m128 x)
     p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(1.5707963050f));
     const __m128 r = _mm_mul_ps(_mm_sqrt_ps(_mm_sub_ps(_mm_set1_ps(1.0f), ax)), p);
     const __m128 negative = _mm_cmplt_ps(x, _mm_setzero_ps());
-    return _mm_or_ps(_mm_and_ps(negative, _mm_sub_ps(_mm_set1_ps(kPi), r)), _mm_andnot_ps(negative, r));
+    return _mm_or_ps(_mm_and_ps(negative, _mm_sub_ps(_mm_set1_ps(kPi), r)),
+                     _mm_andnot_ps(negative, r));
 }
 
 __m128 dot4(__m128 x, __m128 y, __m128 z, const glm::vec3 &v)
@@ -709,7 +729,8 @@ __m128 saturate4(__m128 x)
 }  // namespace
 #endif
 
-void SkyView::radiance_n(const float *x, const float *y, const float *z, int n, glm::vec3 *out) const
+void SkyView::radiance_n(
+    const float *x, const float *y, const float *z, int n, glm::vec3 *out) const
 {
     int i = 0;
 #if defined(__SSE2__)
@@ -722,22 +743,24 @@ void SkyView::radiance_n(const float *x, const float *y, const float *z, int n, 
         const __m128 h2 = _mm_add_ps(_mm_mul_ps(along, along), _mm_mul_ps(side, side));
         const __m128 tiny = _mm_cmple_ps(h2, _mm_set1_ps(1e-24f));
         const __m128 cos_az = _mm_or_ps(
-            _mm_andnot_ps(tiny, _mm_div_ps(along, _mm_sqrt_ps(_mm_max_ps(h2, _mm_set1_ps(1e-24f))))),
+            _mm_andnot_ps(tiny,
+                          _mm_div_ps(along, _mm_sqrt_ps(_mm_max_ps(h2, _mm_set1_ps(1e-24f))))),
             _mm_and_ps(tiny, _mm_set1_ps(1.0f)));
         const __m128 u = _mm_sqrt_ps(
             _mm_max_ps(_mm_sub_ps(_mm_set1_ps(0.5f), _mm_mul_ps(_mm_set1_ps(0.5f), cos_az)),
                        _mm_setzero_ps()));
         const __m128 theta = acos4(mu);
-        const __m128 s_above = _mm_sub_ps(
-            _mm_set1_ps(1.0f),
-            _mm_sqrt_ps(saturate4(
-                _mm_sub_ps(_mm_set1_ps(1.0f), _mm_mul_ps(theta, _mm_set1_ps(inv_theta_above_))))));
+        const __m128 s_above =
+            _mm_sub_ps(_mm_set1_ps(1.0f),
+                       _mm_sqrt_ps(saturate4(_mm_sub_ps(
+                           _mm_set1_ps(1.0f), _mm_mul_ps(theta, _mm_set1_ps(inv_theta_above_))))));
         const __m128 s_below = _mm_sqrt_ps(saturate4(_mm_mul_ps(
             _mm_sub_ps(theta, _mm_set1_ps(theta_horizon_)), _mm_set1_ps(inv_theta_below_))));
         const __m128 below_mask = _mm_cmplt_ps(mu, _mm_set1_ps(mu_horizon_));  // NaN: above
         const int below = _mm_movemask_ps(below_mask);
         _mm_store_ps(u4, u);
-        _mm_store_ps(s4, _mm_or_ps(_mm_and_ps(below_mask, s_below), _mm_andnot_ps(below_mask, s_above)));
+        _mm_store_ps(
+            s4, _mm_or_ps(_mm_and_ps(below_mask, s_below), _mm_andnot_ps(below_mask, s_above)));
         for (int k = 0; k < 4; ++k) {
             out[i + k] = lookup(u4[k], s4[k], !(below & (1 << k)));
         }

@@ -5,8 +5,8 @@
 // sky-view LUT with a non-linear latitude mapping and an aerial-perspective froxel volume.
 //
 // Geometry: the scene sits on the planet surface. World y is up, the planet centre is at
-// (0, -(bottom_radius + ground_altitude + camera_offset), 0) in metres, so world y = 0 is at altitude
-// ground_altitude + camera_offset. Scene units convert to metres with `metres_per_unit`.
+// (0, -(bottom_radius + ground_altitude + camera_offset), 0) in metres, so world y = 0 is at
+// altitude ground_altitude + camera_offset. Scene units convert to metres with `metres_per_unit`.
 //
 // Units: radiances are per unit sun illuminance. With sun_illuminance = (1, 1, 1) (the default)
 // the outputs are unitless radiance scales (sr^-1); set it in lux to get luminance-like values in
@@ -20,12 +20,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <vector>
-
 #include <glm/geometric.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "core/image.h"
 #include "shading/camera_rays.h"
@@ -35,14 +34,14 @@ namespace posthaste::shading {
 
 /// The planet, its atmosphere, the sun and the LUT sizes. Defaults: Earth, from the paper.
 struct AtmosphereParams {
-    float bottom_radius_m = 6360e3f;  ///< planet radius, metres
-    float top_radius_m = 6460e3f;     ///< atmosphere top, metres
+    float bottom_radius_m = 6360e3f;                                 ///< planet radius, metres
+    float top_radius_m = 6460e3f;                                    ///< atmosphere top, metres
     glm::vec3 rayleigh_scattering{5.802e-6f, 13.558e-6f, 33.1e-6f};  ///< per metre, at sea level
     float rayleigh_scale_height_m = 8000.0f;
     glm::vec3 mie_scattering{3.996e-6f};  ///< per metre, at sea level
     glm::vec3 mie_extinction{4.440e-6f};  ///< per metre (scattering + absorption), at sea level
     float mie_scale_height_m = 1200.0f;
-    float mie_g = 0.8f;  ///< Cornette-Shanks asymmetry
+    float mie_g = 0.8f;                                           ///< Cornette-Shanks asymmetry
     glm::vec3 ozone_absorption{0.650e-6f, 1.881e-6f, 0.085e-6f};  ///< per metre, at the peak
     float ozone_center_m = 25000.0f;  ///< tent profile: 1 at the centre, 0 at +-width/2
     float ozone_width_m = 30000.0f;
@@ -55,7 +54,7 @@ struct AtmosphereParams {
     float ground_altitude_m = 0.0f;  ///< altitude of the scene's ground (world y = 0), metres
     float camera_offset_m = 1.0f;    ///< lifts the scene so y = 0 is not exactly on the planet
     float metres_per_unit = 1.0f;    ///< scene units to metres
-    float sky_view_y = 1.7f;  ///< world y (scene units) of the cached sky-view LUT's camera
+    float sky_view_y = 1.7f;         ///< world y (scene units) of the cached sky-view LUT's camera
 
     int transmittance_width = 256;
     int transmittance_height = 64;
@@ -91,7 +90,7 @@ inline float saturate(float x)
 
 /// An RGB table with bilinear lookups. Sizes are >= 2 on both axes.
 class Lut2D {
-  public:
+   public:
     Lut2D() = default;
     /// A zero-filled width x height table.
     Lut2D(int width, int height)
@@ -125,7 +124,7 @@ class Lut2D {
     /// Bilinear lookup over the whole table (see sample_rows).
     glm::vec3 sample(float u, float v) const { return sample_rows(u, v, 0, height_); }
 
-  private:
+   private:
     int width_ = 0, height_ = 0;
     std::vector<glm::vec3> texels_;
 };
@@ -142,7 +141,7 @@ class Atmosphere;
 /// The sky-view LUT for one camera altitude and sun: in-scattered radiance of the whole ray (to
 /// the atmosphere top or the ground) by view direction. Immutable; cheap to look up.
 class SkyView {
-  public:
+   public:
     /// An empty view; build one with Atmosphere::make_sky_view.
     SkyView() = default;
     /// Sky radiance (no sun disc) for a unit world-space view direction; NaN gives finite output.
@@ -178,7 +177,7 @@ class SkyView {
     /// Cosine of the horizon's zenith angle at the LUT's camera (rays below hit the ground).
     float mu_horizon() const { return mu_horizon_; }
 
-  private:
+   private:
     friend class Atmosphere;
     Lut2D lut_;
     glm::vec3 up_{0.0f, 1.0f, 0.0f}, sun_tangent_{1.0f, 0.0f, 0.0f}, sun_side_{0.0f, 0.0f, 1.0f};
@@ -200,7 +199,7 @@ struct AerialPerspectiveSettings {
 /// Aerial perspective for one camera: a froxel volume of in-scatter and transmittance from the
 /// camera to each slice, over the camera frustum (NDC xy, distance along the ray).
 class AerialPerspective {
-  public:
+   public:
     /// An empty volume; use the other constructor.
     AerialPerspective() = default;
     /// Build for the camera given by worldToCamera and worldToNDC (core/camera.h conventions).
@@ -225,7 +224,8 @@ class AerialPerspective {
     }
     /// sample() for n points of one pixel row: NDC (u[i], v) at distance[i]; the row's vertical
     /// weights are computed once and the distance mapping four at a time (SSE2 where available).
-    void sample_n(const float *u, float v, const float *distance, int n, ScatteringResult *out) const;
+    void sample_n(
+        const float *u, float v, const float *distance, int n, ScatteringResult *out) const;
     /// Distance along the ray of the pixel at NDC uv whose depth pass (camera-space z) is `depth`.
     float distance_from_depth(glm::vec2 uv, float depth) const
     {
@@ -238,7 +238,7 @@ class AerialPerspective {
     /// Distance (scene units) of slice k's centre.
     float slice_distance(int k) const;
 
-  private:
+   private:
     // Trilinear fetch at column (cx + tx, cy + ty) and w = sqrt(distance / max_distance).
     ScatteringResult fetch(int cx, int cy, float tx, float ty, float w) const
     {
@@ -286,7 +286,8 @@ class AerialPerspective {
     {
         for (int c = 0; c < 4; ++c) {
             out.inscatter[c] = a.inscatter[c] + t * (b.inscatter[c] - a.inscatter[c]);
-            out.transmittance[c] = a.transmittance[c] + t * (b.transmittance[c] - a.transmittance[c]);
+            out.transmittance[c] =
+                a.transmittance[c] + t * (b.transmittance[c] - a.transmittance[c]);
         }
     }
     Froxel bilinear(int z, int x0, int y0, float tx, float ty) const
@@ -312,7 +313,7 @@ class AerialPerspective {
 /// The atmosphere for one parameter set: LUTs built in the constructor (in parallel), immutable
 /// and thread-safe afterwards.
 class Atmosphere {
-  public:
+   public:
     /// Validate (throws Error, exit code 2, naming the parameter) and build every LUT.
     explicit Atmosphere(const AtmosphereParams &params);
 
@@ -371,7 +372,7 @@ class Atmosphere {
     /// Planet-centric position (metres, double) of a world point.
     glm::dvec3 planet_position(const glm::vec3 &world) const;
 
-  private:
+   private:
     friend class AerialPerspective;
     struct Ray;
     struct Medium {

@@ -12,7 +12,7 @@ namespace posthaste::shading {
 /// The camera position and, for every NDC point (u, v), the world-space vector from the camera to
 /// the point at camera depth 1 on that pixel's ray (camera-space z = 1), which is affine in (u, v).
 class CameraRays {
-  public:
+   public:
     CameraRays() = default;
     /// From worldToCamera and worldToNDC (both as in core/camera.h). Any projective pinhole
     /// projection works; an orthographic one does not (rays must meet at the camera).
@@ -26,7 +26,7 @@ class CameraRays {
     /// Unit world-space view direction through NDC (u, v).
     glm::vec3 direction(float u, float v) const;
 
-  private:
+   private:
     glm::vec3 position_{0.0f};
     glm::vec3 origin_{0.0f, 0.0f, 1.0f}, du_{0.0f}, dv_{0.0f};
 };

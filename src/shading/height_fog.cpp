@@ -59,13 +59,13 @@ int fog4(const HeightFogCamera &c,
     const __m128 x = _mm_mul_ps(_mm_set1_ps(c.fog.falloff), _mm_mul_ps(ry, depth));
     const __m128 series = _mm_sub_ps(
         _mm_set1_ps(1.0f),
-        _mm_mul_ps(
-            x,
-            _mm_sub_ps(_mm_set1_ps(0.5f),
-                       _mm_mul_ps(x,
-                                  _mm_sub_ps(_mm_set1_ps(1.0f / 6.0f),
-                                             _mm_mul_ps(x, _mm_set1_ps(1.0f / 24.0f)))))));
-    const __m128 safe_x = _mm_or_ps(x, _mm_and_ps(_mm_cmpeq_ps(x, _mm_setzero_ps()), _mm_set1_ps(1.0f)));
+        _mm_mul_ps(x,
+                   _mm_sub_ps(_mm_set1_ps(0.5f),
+                              _mm_mul_ps(x,
+                                         _mm_sub_ps(_mm_set1_ps(1.0f / 6.0f),
+                                                    _mm_mul_ps(x, _mm_set1_ps(1.0f / 24.0f)))))));
+    const __m128 safe_x =
+        _mm_or_ps(x, _mm_and_ps(_mm_cmpeq_ps(x, _mm_setzero_ps()), _mm_set1_ps(1.0f)));
     const __m128 direct =
         _mm_div_ps(_mm_sub_ps(_mm_set1_ps(1.0f), exp4(_mm_sub_ps(_mm_setzero_ps(), x))), safe_x);
     const __m128 abs_x = _mm_andnot_ps(_mm_set1_ps(-0.0f), x);
@@ -73,12 +73,14 @@ int fog4(const HeightFogCamera &c,
     const __m128 g = _mm_or_ps(_mm_and_ps(small, series), _mm_andnot_ps(small, direct));
     const __m128 a = _mm_set1_ps(c.density_at_camera);
     const __m128 inf = _mm_set1_ps(std::numeric_limits<float>::infinity());
-    const __m128 finite = _mm_and_ps(_mm_cmpgt_ps(depth, _mm_setzero_ps()), _mm_cmplt_ps(depth, inf));
+    const __m128 finite =
+        _mm_and_ps(_mm_cmpgt_ps(depth, _mm_setzero_ps()), _mm_cmplt_ps(depth, inf));
     // Infinite depth: a / k looking up (k = b * ray_y / len > 0), everything absorbed otherwise.
     const __m128 k = _mm_div_ps(_mm_mul_ps(_mm_set1_ps(c.fog.falloff), ry), len);
     const __m128 up = _mm_cmpgt_ps(k, _mm_setzero_ps());
-    const __m128 tau_inf = _mm_or_ps(_mm_and_ps(up, _mm_div_ps(a, _mm_max_ps(k, _mm_set1_ps(1e-30f)))),
-                                     _mm_andnot_ps(up, _mm_set1_ps(1e30f)));
+    const __m128 tau_inf =
+        _mm_or_ps(_mm_and_ps(up, _mm_div_ps(a, _mm_max_ps(k, _mm_set1_ps(1e-30f)))),
+                  _mm_andnot_ps(up, _mm_set1_ps(1e30f)));
     const __m128 tau_finite = _mm_mul_ps(_mm_mul_ps(a, dist), g);
     const __m128 is_inf = _mm_cmpeq_ps(depth, inf);
     // Depth <= 0 or NaN: no fog (tau = 0).
@@ -106,7 +108,10 @@ int fog4(const HeightFogCamera &c,
 
 }  // namespace
 
-void apply_height_fog(const HeightFog &fog, const CameraRays &rays, const Image &depth, Image &color)
+void apply_height_fog(const HeightFog &fog,
+                      const CameraRays &rays,
+                      const Image &depth,
+                      Image &color)
 {
     assert(color.channels() >= 3 && depth.channels() == 1);
     assert(color.width() == depth.width() && color.height() == depth.height());
@@ -127,7 +132,8 @@ void apply_height_fog(const HeightFog &fog, const CameraRays &rays, const Image 
             const auto scalar = [&](int x) {
                 const glm::vec3 ray = rays.depth_ray((float(x) + 0.5f) * inv_w, v);
                 const float len = glm::length(ray);
-                composite(row + std::size_t(x) * channels, height_fog(c, ray * (1.0f / len), z[x] * len));
+                composite(row + std::size_t(x) * channels,
+                          height_fog(c, ray * (1.0f / len), z[x] * len));
             };
             int x = tile.x0;
 #if defined(__SSE2__)
@@ -137,7 +143,8 @@ void apply_height_fog(const HeightFog &fog, const CameraRays &rays, const Image 
                 alignas(16) float t4[4], l4[4];
                 const __m128 rgb_mask = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
                 const __m128 alpha_one = _mm_setr_ps(0.0f, 0.0f, 0.0f, 1.0f);
-                const __m128 fog_rgb = _mm_setr_ps(c.fog.color.x, c.fog.color.y, c.fog.color.z, 0.0f);
+                const __m128 fog_rgb =
+                    _mm_setr_ps(c.fog.color.x, c.fog.color.y, c.fog.color.z, 0.0f);
                 const __m128 sun_rgb =
                     _mm_setr_ps(c.lobe_scale.x, c.lobe_scale.y, c.lobe_scale.z, 0.0f);
                 for (; x + 4 <= tile.x1; x += 4) {
@@ -150,20 +157,27 @@ void apply_height_fog(const HeightFog &fog, const CameraRays &rays, const Image 
                         // RGBA: pixel = pixel * (T, T, T, 1) + (1 - T) * (colour + lobe * sun).
                         const __m128 one_minus_t = _mm_sub_ps(_mm_set1_ps(1.0f), t);
                         float *p = row + std::size_t(x) * 4;
-                        const __m128 lanes[4] = {_mm_shuffle_ps(t, t, 0x00), _mm_shuffle_ps(t, t, 0x55),
-                                                 _mm_shuffle_ps(t, t, 0xaa), _mm_shuffle_ps(t, t, 0xff)};
+                        const __m128 lanes[4] = {_mm_shuffle_ps(t, t, 0x00),
+                                                 _mm_shuffle_ps(t, t, 0x55),
+                                                 _mm_shuffle_ps(t, t, 0xaa),
+                                                 _mm_shuffle_ps(t, t, 0xff)};
                         const __m128 omt[4] = {_mm_shuffle_ps(one_minus_t, one_minus_t, 0x00),
                                                _mm_shuffle_ps(one_minus_t, one_minus_t, 0x55),
                                                _mm_shuffle_ps(one_minus_t, one_minus_t, 0xaa),
                                                _mm_shuffle_ps(one_minus_t, one_minus_t, 0xff)};
-                        const __m128 lobes[4] = {_mm_shuffle_ps(l, l, 0x00), _mm_shuffle_ps(l, l, 0x55),
-                                                 _mm_shuffle_ps(l, l, 0xaa), _mm_shuffle_ps(l, l, 0xff)};
+                        const __m128 lobes[4] = {_mm_shuffle_ps(l, l, 0x00),
+                                                 _mm_shuffle_ps(l, l, 0x55),
+                                                 _mm_shuffle_ps(l, l, 0xaa),
+                                                 _mm_shuffle_ps(l, l, 0xff)};
                         for (int i = 0; i < 4; ++i) {
-                            const __m128 factor = _mm_or_ps(_mm_and_ps(rgb_mask, lanes[i]), alpha_one);
-                            const __m128 radiance = _mm_add_ps(fog_rgb, _mm_mul_ps(lobes[i], sun_rgb));
+                            const __m128 factor =
+                                _mm_or_ps(_mm_and_ps(rgb_mask, lanes[i]), alpha_one);
+                            const __m128 radiance =
+                                _mm_add_ps(fog_rgb, _mm_mul_ps(lobes[i], sun_rgb));
                             const __m128 px = _mm_loadu_ps(p + 4 * i);
-                            _mm_storeu_ps(p + 4 * i,
-                                          _mm_add_ps(_mm_mul_ps(px, factor), _mm_mul_ps(omt[i], radiance)));
+                            _mm_storeu_ps(
+                                p + 4 * i,
+                                _mm_add_ps(_mm_mul_ps(px, factor), _mm_mul_ps(omt[i], radiance)));
                         }
                         continue;
                     }

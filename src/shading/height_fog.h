@@ -12,7 +12,6 @@
 
 #include <algorithm>
 #include <cmath>
-
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
@@ -24,9 +23,9 @@ namespace posthaste::shading {
 
 /// Parameters of exponential height fog. Every length is in scene units.
 struct HeightFog {
-    float density = 0.02f;      ///< extinction coefficient at base_height, per scene unit (>= 0).
-    float falloff = 0.1f;       ///< b: density scales by exp(-b) per unit of height (>= 0).
-    float base_height = 0.0f;   ///< h0: world y where the density equals `density`.
+    float density = 0.02f;        ///< extinction coefficient at base_height, per scene unit (>= 0).
+    float falloff = 0.1f;         ///< b: density scales by exp(-b) per unit of height (>= 0).
+    float base_height = 0.0f;     ///< h0: world y where the density equals `density`.
     float start_distance = 0.0f;  ///< no fog closer than this to the camera (along the ray, >= 0).
     glm::vec3 color{0.5f, 0.6f, 0.7f};  ///< fog radiance (scene-linear RGB), isotropic part.
     glm::vec3 sun_color{0.0f};          ///< sun lobe radiance scale; 0 disables the lobe.
@@ -72,7 +71,7 @@ struct HeightFogCamera {
     glm::vec3 lobe_scale{0.0f};          ///< sun_color * (1 - g^2): 4 pi HG = this / d^1.5
     float lobe_a = 1.0f, lobe_b = 0.0f;  ///< d = lobe_a - lobe_b * cos_theta = 1 + g^2 - 2 g cos
     bool has_lobe = false;
-    bool empty = true;                   ///< density == 0 (or NaN parameters): no fog at all
+    bool empty = true;  ///< density == 0 (or NaN parameters): no fog at all
 };
 
 /// Precompute the constants for a camera at `camera` (world position, scene units). Parameters
@@ -85,8 +84,8 @@ inline HeightFogCamera prepare_height_fog(const HeightFog &fog, const glm::vec3 
     c.empty = !(fog.density > 0.0f) || !(fog.falloff >= 0.0f) || !std::isfinite(fog.density) ||
               !std::isfinite(fog.falloff) || !std::isfinite(fog.base_height) ||
               !std::isfinite(camera.y);
-    c.fog.start_distance = std::isfinite(fog.start_distance) ? std::max(fog.start_distance, 0.0f)
-                                                             : 0.0f;
+    c.fog.start_distance =
+        std::isfinite(fog.start_distance) ? std::max(fog.start_distance, 0.0f) : 0.0f;
     c.log_density_at_camera =
         c.empty ? 0.0f : std::log(fog.density) - fog.falloff * (camera.y - fog.base_height);
     c.density_at_camera = c.empty ? 0.0f : std::exp(c.log_density_at_camera);
@@ -102,11 +101,14 @@ inline HeightFogCamera prepare_height_fog(const HeightFog &fog, const glm::vec3 
 /// [start_distance, distance], where `dir` is a unit vector (its y component is what matters).
 ///   tau = a exp(-b (c_y - h0)) * exp(-k t0) * (1 - exp(-k L)) / k,   k = b d_y, L = distance - t0,
 /// evaluated as L * (1 - exp(-kL)) / (kL) with a series near kL = 0 (one_minus_exp_over_x) so
-/// horizontal rays (k = 0) and b -> 0 are exact. Works with the camera inside, below or above the fog base. Contract: returns 0 when
-/// the density is 0 or distance <= start_distance; +inf distance integrates to infinity (finite
-/// when looking up with b > 0, +inf otherwise); a NaN distance or direction counts as 0 (no fog).
-/// Overflow (looking far down into dense fog) returns +inf, i.e. transmittance 0.
-inline float height_fog_optical_depth(const HeightFogCamera &c, const glm::vec3 &dir, float distance)
+/// horizontal rays (k = 0) and b -> 0 are exact. Works with the camera inside, below or above
+/// the fog base. Contract: returns 0 when the density is 0 or distance <= start_distance; +inf
+/// distance integrates to infinity (finite when looking up with b > 0, +inf otherwise); a NaN
+/// distance or direction counts as 0 (no fog). Overflow (looking far down into dense fog)
+/// returns +inf, i.e. transmittance 0. Accuracy: <= 1e-5 relative (tests/unit/height_fog_test).
+inline float height_fog_optical_depth(const HeightFogCamera &c,
+                                      const glm::vec3 &dir,
+                                      float distance)
 {
     const float t0 = c.fog.start_distance;
     if (c.empty || !(distance > t0) || !(std::fabs(dir.y) <= 1.0f)) {
@@ -200,6 +202,9 @@ inline float exp2_fog_factor(float distance, float density)
 /// RGB = RGB * T + inscatter (alpha untouched). `color` has >= 3 channels, `depth` 1 channel of
 /// camera-space z (scene units, +inf for the sky, which gets the fog of an infinite ray) and both
 /// have the same size. Parallel over tiles; results do not depend on the thread count.
-void apply_height_fog(const HeightFog &fog, const CameraRays &rays, const Image &depth, Image &color);
+void apply_height_fog(const HeightFog &fog,
+                      const CameraRays &rays,
+                      const Image &depth,
+                      Image &color);
 
 }  // namespace posthaste::shading

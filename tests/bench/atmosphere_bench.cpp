@@ -1,9 +1,9 @@
 // Atmosphere and height fog costs: LUT builds, and per-frame application at 1920x1080 given a
 // depth buffer (node targets: height fog <= 10 ms, aerial perspective <= 30 ms on 2 cores).
 
-#include <cmath>
-
 #include <benchmark/benchmark.h>
+
+#include <cmath>
 #include <glm/trigonometric.hpp>
 
 #include "core/camera.h"
@@ -130,7 +130,11 @@ void BM_AerialPerspectiveFrame1080p(benchmark::State &state)
         benchmark::ClobberMemory();
     }
 }
-BENCHMARK(BM_AerialPerspectiveFrame1080p)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
+BENCHMARK(BM_AerialPerspectiveFrame1080p)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Arg(1)
+    ->Arg(2);
 
 // Per frame: build the froxels, then aerial perspective on geometry plus the sky-view LUT (and
 // sun disc) on sky pixels, via apply_atmosphere.

@@ -1,14 +1,14 @@
 #include "shading/atmosphere.h"
 
+#include <gtest/gtest.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <limits>
-#include <random>
-
 #include <glm/geometric.hpp>
 #include <glm/trigonometric.hpp>
-#include <gtest/gtest.h>
+#include <limits>
+#include <random>
 
 #include "core/camera.h"
 #include "core/error.h"
@@ -101,10 +101,11 @@ TEST(Atmosphere, TransmittanceLutMatchesNumericOpticalDepth)
             }
         }
     }
-    std::printf("[ measured ] transmittance LUT vs 20k-step optical depth: max rel %.3g (T > 1e-3), "
-                "max abs %.3g\n",
-                max_rel,
-                max_abs);
+    std::printf(
+        "[ measured ] transmittance LUT vs 20k-step optical depth: max rel %.3g (T > 1e-3), "
+        "max abs %.3g\n",
+        max_rel,
+        max_abs);
 }
 
 TEST(Atmosphere, SkyViewLutMatchesRayMarch)
@@ -136,12 +137,13 @@ TEST(Atmosphere, SkyViewLutMatchesRayMarch)
             }
         }
         const double rel_rmse = std::sqrt(sum_sq / sum_ref_sq);
-        std::printf("[ measured ] sky-view LUT vs 2000-step ray march, sun %.0f deg: %d dirs, "
-                    "relative RMSE %.3g, max rel %.3g\n",
-                    elevation,
-                    n,
-                    rel_rmse,
-                    max_rel);
+        std::printf(
+            "[ measured ] sky-view LUT vs 2000-step ray march, sun %.0f deg: %d dirs, "
+            "relative RMSE %.3g, max rel %.3g\n",
+            elevation,
+            n,
+            rel_rmse,
+            max_rel);
         EXPECT_LE(rel_rmse, 0.005);
         EXPECT_LE(max_rel, 0.03);
     }
@@ -177,17 +179,19 @@ TEST(Atmosphere, AerialPerspectiveMatchesRayMarch)
             sum_sq += e * e;
             sum_ref_sq += double(ref.inscatter[c]) * ref.inscatter[c];
             max_rel_l = std::max(max_rel_l, std::fabs(e) / std::max(ref.inscatter[c], 1e-5f));
-            max_abs_t = std::max(max_abs_t, double(std::fabs(got.transmittance[c] - ref.transmittance[c])));
+            max_abs_t =
+                std::max(max_abs_t, double(std::fabs(got.transmittance[c] - ref.transmittance[c])));
         }
         ++n;
     }
     const double rel_rmse = std::sqrt(sum_sq / sum_ref_sq);
-    std::printf("[ measured ] aerial perspective (32^3 froxels) vs 1000-step ray march: %d points, "
-                "in-scatter relative RMSE %.3g, max rel %.3g; transmittance max abs %.3g\n",
-                n,
-                rel_rmse,
-                max_rel_l,
-                max_abs_t);
+    std::printf(
+        "[ measured ] aerial perspective (32^3 froxels) vs 1000-step ray march: %d points, "
+        "in-scatter relative RMSE %.3g, max rel %.3g; transmittance max abs %.3g\n",
+        n,
+        rel_rmse,
+        max_rel_l,
+        max_abs_t);
     EXPECT_GT(n, 100);
     EXPECT_LE(rel_rmse, 0.01);
     EXPECT_LE(max_rel_l, 0.05);
@@ -211,7 +215,8 @@ TEST(Atmosphere, NumericSunTransmittanceAgreesWithLut)
             max_rel = std::max(max_rel, double(std::fabs(lut[c] - num[c]) / num[c]));
         }
     }
-    std::printf("[ measured ] ray march, LUT vs numeric sun transmittance: max rel %.3g\n", max_rel);
+    std::printf("[ measured ] ray march, LUT vs numeric sun transmittance: max rel %.3g\n",
+                max_rel);
     EXPECT_LE(max_rel, 0.01);
 }
 
@@ -248,12 +253,13 @@ TEST(Atmosphere, SunsetReddens)
     // Sky near the sun.
     const glm::vec3 sky_noon = noon.sky_radiance(sun_at_elevation(70.0f), camera, false);
     const glm::vec3 sky_set = sunset.sky_radiance(sun_at_elevation(5.0f), camera, false);
-    std::printf("[ measured ] sun T R/B noon %.3f sunset %.3f; sky near sun R/B noon %.3f sunset "
-                "%.3f\n",
-                t_noon.x / t_noon.z,
-                t_set.x / t_set.z,
-                sky_noon.x / sky_noon.z,
-                sky_set.x / sky_set.z);
+    std::printf(
+        "[ measured ] sun T R/B noon %.3f sunset %.3f; sky near sun R/B noon %.3f sunset "
+        "%.3f\n",
+        t_noon.x / t_noon.z,
+        t_set.x / t_set.z,
+        sky_noon.x / sky_noon.z,
+        sky_set.x / sky_set.z);
     EXPECT_GT(sky_set.x / sky_set.z, sky_noon.x / sky_noon.z);
 }
 
@@ -310,7 +316,8 @@ TEST(Atmosphere, NanInputsGiveFiniteOutput)
     for (int i = 0; i < 9; ++i) {
         const ScatteringResult one = ap.sample(glm::vec2(us[i], 0.4f), ds[i]);
         for (int c = 0; c < 3; ++c) {
-            EXPECT_NEAR(batch[i].inscatter[c], one.inscatter[c], 1e-6f * one.inscatter[c] + 1e-9f) << i;
+            EXPECT_NEAR(batch[i].inscatter[c], one.inscatter[c], 1e-6f * one.inscatter[c] + 1e-9f)
+                << i;
             EXPECT_NEAR(batch[i].transmittance[c], one.transmittance[c], 1e-6f) << i;
         }
     }
@@ -319,7 +326,8 @@ TEST(Atmosphere, NanInputsGiveFiniteOutput)
 TEST(Atmosphere, LutsAreFiniteAndMultipleScatteringAddsLight)
 {
     const Atmosphere &atmo = atmosphere_with_sun(30.0f);
-    for (const Lut2D *lut : {&atmo.transmittance_table(), &atmo.multi_scattering_table(),
+    for (const Lut2D *lut : {&atmo.transmittance_table(),
+                             &atmo.multi_scattering_table(),
                              &atmo.cached_sky_view().lut()}) {
         for (int y = 0; y < lut->height(); ++y) {
             for (int x = 0; x < lut->width(); ++x) {
@@ -394,7 +402,8 @@ TEST(Atmosphere, ApplyToFrameMatchesPerPixel)
                 expected = glm::vec3(0.1f, 0.2f, 0.3f) * s.transmittance + s.inscatter;
             }
             for (int c = 0; c < 3; ++c) {
-                EXPECT_NEAR(out.at(x, y, c), expected[c], 1e-5f * expected[c] + 1e-8f) << x << " " << y;
+                EXPECT_NEAR(out.at(x, y, c), expected[c], 1e-5f * expected[c] + 1e-8f)
+                    << x << " " << y;
             }
             EXPECT_EQ(out.at(x, y, 3), 0.4f);
         }
@@ -430,9 +439,10 @@ TEST(Atmosphere, SameBitsForOneAndTwoThreads)
     set_thread_count(0);
     std::printf("[ measured ] LUT build, 1 thread: %.1f ms\n",
                 std::chrono::duration<double, std::milli>(t1 - t0).count());
-    for (const auto &[la, lb] : {std::pair(&a.transmittance_table(), &b.transmittance_table()),
-                                 std::pair(&a.multi_scattering_table(), &b.multi_scattering_table()),
-                                 std::pair(&a.cached_sky_view().lut(), &b.cached_sky_view().lut())}) {
+    for (const auto &[la, lb] :
+         {std::pair(&a.transmittance_table(), &b.transmittance_table()),
+          std::pair(&a.multi_scattering_table(), &b.multi_scattering_table()),
+          std::pair(&a.cached_sky_view().lut(), &b.cached_sky_view().lut())}) {
         for (int y = 0; y < la->height(); ++y) {
             for (int x = 0; x < la->width(); ++x) {
                 ASSERT_EQ(la->at(x, y), lb->at(x, y));
@@ -453,11 +463,17 @@ TEST(Atmosphere, SameBitsForOneAndTwoThreads)
     }
     Image out1 = color, out2 = color;
     set_thread_count(1);
-    apply_atmosphere(a, a.cached_sky_view(), AerialPerspective(a, m.world_to_camera, m.world_to_ndc),
-                     depth, out1);
+    apply_atmosphere(a,
+                     a.cached_sky_view(),
+                     AerialPerspective(a, m.world_to_camera, m.world_to_ndc),
+                     depth,
+                     out1);
     set_thread_count(2);
-    apply_atmosphere(a, a.cached_sky_view(), AerialPerspective(a, m.world_to_camera, m.world_to_ndc),
-                     depth, out2);
+    apply_atmosphere(a,
+                     a.cached_sky_view(),
+                     AerialPerspective(a, m.world_to_camera, m.world_to_ndc),
+                     depth,
+                     out2);
     set_thread_count(0);
     EXPECT_TRUE(out1.bit_equal(out2));
 }

@@ -1,11 +1,11 @@
 #include "shading/height_fog.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
-#include <limits>
-
 #include <glm/geometric.hpp>
-#include <gtest/gtest.h>
+#include <limits>
 
 #include "core/camera.h"
 #include "core/parallel.h"
@@ -16,11 +16,8 @@ namespace {
 // Brute force: midpoint rule in double over [t0, distance] with `steps` steps. When the
 // density decays along the ray (k > 0) the interval is cut where exp(-k t) < exp(-50), which drops
 // a relative 2e-22 of the integral and keeps the step size small against 1 / k.
-double numeric_optical_depth(const HeightFog &fog,
-                             const glm::dvec3 &c,
-                             const glm::dvec3 &d,
-                             double distance,
-                             int steps)
+double numeric_optical_depth(
+    const HeightFog &fog, const glm::dvec3 &c, const glm::dvec3 &d, double distance, int steps)
 {
     const double t0 = fog.start_distance;
     double t1 = distance;
@@ -80,8 +77,8 @@ TEST(HeightFog, AnalyticMatchesNumericIntegration)
                             max_rel = std::max(max_rel, rel);
                             ++compared;
                             EXPECT_LE(rel, 1e-5) << "b " << b << " h0 " << h0 << " cy " << cy
-                                                 << " dy " << dy << " s " << s << " start "
-                                                 << start << " ref " << ref << " got " << got;
+                                                 << " dy " << dy << " s " << s << " start " << start
+                                                 << " ref " << ref << " got " << got;
                         }
                     }
                 }
@@ -182,7 +179,8 @@ TEST(HeightFog, NonFiniteInputsGiveFiniteOutput)
     HeightFog dense;
     dense.density = 1.0f;
     dense.falloff = 1.0f;
-    const FogResult r = height_fog(prepare_height_fog(dense, glm::vec3(0.0f)), glm::vec3(0, -1, 0), 1e6f);
+    const FogResult r =
+        height_fog(prepare_height_fog(dense, glm::vec3(0.0f)), glm::vec3(0, -1, 0), 1e6f);
     EXPECT_EQ(r.transmittance, 0.0f);
 }
 
@@ -207,7 +205,8 @@ TEST(HeightFog, SunLobeIsHenyeyGreenstein)
     const FogResult away = height_fog(c, glm::vec3(-1, 0, 0), 10.0f);
     EXPECT_GT(towards.inscatter.x, 10.0f * away.inscatter.x);
     fog.sun_g = 0.0f;
-    const FogResult iso = height_fog(prepare_height_fog(fog, glm::vec3(0.0f)), glm::vec3(0, 0, 1), 10.0f);
+    const FogResult iso =
+        height_fog(prepare_height_fog(fog, glm::vec3(0.0f)), glm::vec3(0, 0, 1), 10.0f);
     EXPECT_NEAR(iso.inscatter.x, 1.0f - iso.transmittance, 1e-6f);
 }
 
@@ -264,7 +263,8 @@ TEST(HeightFog, ApplyToFrameMatchesPerPixel)
             const glm::vec3 p((u - 0.5f) / sx, -(v - 0.5f) / sy, 1.0f);
             const float dist = depth.at(x, y, 0) * glm::length(p);
             const FogResult f = height_fog(c, glm::normalize(p), dist);
-            EXPECT_NEAR(out.at(x, y, 1), color.at(x, y, 1) * f.transmittance + f.inscatter.y, 1e-5f);
+            EXPECT_NEAR(
+                out.at(x, y, 1), color.at(x, y, 1) * f.transmittance + f.inscatter.y, 1e-5f);
             EXPECT_EQ(out.at(x, y, 3), color.at(x, y, 3));
         }
     }
