@@ -110,9 +110,19 @@ TEST(Atmosphere, TransmittanceLutMatchesNumericOpticalDepth)
 
 TEST(Atmosphere, SkyViewLutMatchesRayMarch)
 {
-    for (float elevation : {45.0f, 5.0f}) {
+    // The cached LUT (camera at sky_view_y) for a high and a low sun, and a LUT built for a
+    // camera 8 km up, whose horizon lies 2.9 degrees below the horizontal.
+    struct Case {
+        float sun_elevation, camera_y;
+    };
+    for (const Case k : {Case{45.0f, -1.0f}, Case{5.0f, -1.0f}, Case{20.0f, 8000.0f}}) {
+        const float elevation = k.sun_elevation;
         const Atmosphere &atmo = atmosphere_with_sun(elevation);
-        const glm::vec3 camera(0.0f, atmo.params().sky_view_y, 0.0f);
+        const glm::vec3 camera(
+            0.0f, k.camera_y < 0.0f ? atmo.params().sky_view_y : k.camera_y, 0.0f);
+        const SkyView own = atmo.make_sky_view(camera);
+        const SkyView &sky = k.camera_y < 0.0f ? atmo.cached_sky_view() : own;
+        const float horizon_deg = glm::degrees(std::asin(sky.mu_horizon()));
         double sum_sq = 0.0, sum_ref_sq = 0.0, max_rel = 0.0;
         int n = 0;
         for (int i = 0; i < 24; ++i) {
@@ -121,11 +131,11 @@ TEST(Atmosphere, SkyViewLutMatchesRayMarch)
                 // Elevations from -60 to 85 degrees, denser near the horizon.
                 const float s = -1.0f + 2.0f * (j + 0.5f) / 16.0f;
                 const float view_elevation = s >= 0.0f ? 85.0f * s * s : 60.0f * -s * s;
-                if (std::fabs(view_elevation) < 0.5f) {
+                if (std::fabs(view_elevation - horizon_deg) < 0.5f) {
                     continue;  // the horizon itself is a discontinuity in the LUT's data
                 }
                 const glm::vec3 dir = sun_at_elevation(view_elevation, azimuth);
-                const glm::vec3 got = atmo.sky_radiance(dir, camera, false);
+                const glm::vec3 got = sky.radiance(dir);
                 const glm::vec3 ref = atmo.ray_march(camera, dir, INFINITY, 2000).inscatter;
                 for (int c = 0; c < 3; ++c) {
                     const double e = got[c] - ref[c];
@@ -138,9 +148,10 @@ TEST(Atmosphere, SkyViewLutMatchesRayMarch)
         }
         const double rel_rmse = std::sqrt(sum_sq / sum_ref_sq);
         std::printf(
-            "[ measured ] sky-view LUT vs 2000-step ray march, sun %.0f deg: %d dirs, "
-            "relative RMSE %.3g, max rel %.3g\n",
+            "[ measured ] sky-view LUT vs 2000-step ray march, sun %.0f deg, camera y %.0f m: %d "
+            "dirs, relative RMSE %.3g, max rel %.3g\n",
             elevation,
+            camera.y,
             n,
             rel_rmse,
             max_rel);
