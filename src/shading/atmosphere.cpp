@@ -667,32 +667,6 @@ float AerialPerspective::slice_distance(int k) const
     return settings_.max_distance * w * w;
 }
 
-void apply_aerial_perspective(const AerialPerspective &ap, const Image &depth, Image &color)
-{
-    assert(color.channels() >= 3 && depth.channels() == 1);
-    assert(color.width() == depth.width() && color.height() == depth.height());
-    const float inv_w = 1.0f / float(color.width());
-    const float inv_h = 1.0f / float(color.height());
-    const int channels = color.channels();
-    parallel_for_tiles(color.bounds(), [&](const Rect &tile) {
-        for (int y = tile.y0; y < tile.y1; ++y) {
-            const float v = (float(y) + 0.5f) * inv_h;
-            float *px = color.pixel(tile.x0, y);
-            const float *z = depth.pixel(tile.x0, y);
-            for (int x = tile.x0; x < tile.x1; ++x, px += channels, ++z) {
-                if (!(*z < std::numeric_limits<float>::infinity())) {
-                    continue;  // sky or NaN: leave for the sky
-                }
-                const glm::vec2 uv((float(x) + 0.5f) * inv_w, v);
-                const ScatteringResult s = ap.sample(uv, ap.distance_from_depth(uv, *z));
-                px[0] = px[0] * s.transmittance.x + s.inscatter.x;
-                px[1] = px[1] * s.transmittance.y + s.inscatter.y;
-                px[2] = px[2] * s.transmittance.z + s.inscatter.z;
-            }
-        }
-    });
-}
-
 #if defined(__SSE2__)
 namespace {
 
@@ -771,12 +745,15 @@ void SkyView::radiance_n(
     }
 }
 
-void apply_atmosphere(const Atmosphere &atmosphere,
-                      const SkyView &sky,
-                      const AerialPerspective &ap,
-                      const Image &depth,
-                      Image &color,
-                      bool sun_disc)
+namespace {
+
+// Aerial perspective on finite depths; with `atmosphere` and `sky`, the sky on infinite ones.
+void apply_frame(const Atmosphere *atmosphere,
+                 const SkyView *sky,
+                 const AerialPerspective &ap,
+                 const Image &depth,
+                 Image &color,
+                 bool sun_disc)
 {
     assert(color.channels() >= 3 && depth.channels() == 1);
     assert(color.width() == depth.width() && color.height() == depth.height());
@@ -784,8 +761,8 @@ void apply_atmosphere(const Atmosphere &atmosphere,
     const float inv_h = 1.0f / float(color.height());
     const int channels = color.channels();
     const CameraRays &rays = ap.rays();
-    const glm::vec3 sun = atmosphere.sun_direction();
-    const float cos_sun = std::cos(atmosphere.params().sun_angular_radius_rad);
+    const glm::vec3 sun = atmosphere ? atmosphere->sun_direction() : glm::vec3(0.0f);
+    const float cos_sun = atmosphere ? std::cos(atmosphere->params().sun_angular_radius_rad) : 2.0f;
     parallel_for_tiles(color.bounds(), [&](const Rect &tile) {
         // Sky pixels of one tile row are gathered and looked up in a batch.
         float dx[kDefaultTileSize], dy[kDefaultTileSize], dz[kDefaultTileSize];
@@ -813,7 +790,7 @@ void apply_atmosphere(const Atmosphere &atmosphere,
                         ap_d[m] = d * len;
                         ap_x[m++] = x;
                     }
-                } else if (n < kDefaultTileSize) {
+                } else if (sky && n < kDefaultTileSize) {
                     const float inv_len = 1.0f / len;
                     dx[n] = ray.x * inv_len;
                     dy[n] = ray.y * inv_len;
@@ -829,12 +806,14 @@ void apply_atmosphere(const Atmosphere &atmosphere,
                 px[1] = px[1] * s.transmittance.y + s.inscatter.y;
                 px[2] = px[2] * s.transmittance.z + s.inscatter.z;
             }
-            sky.radiance_n(dx, dy, dz, n, sky_l);
+            if (n > 0) {
+                sky->radiance_n(dx, dy, dz, n, sky_l);
+            }
             for (int i = 0; i < n; ++i) {
                 glm::vec3 l = sky_l[i];
                 const glm::vec3 dir(dx[i], dy[i], dz[i]);
                 if (sun_disc && glm::dot(dir, sun) >= cos_sun) {
-                    l += atmosphere.sun_disc_radiance(dir, rays.position());
+                    l += atmosphere->sun_disc_radiance(dir, rays.position());
                 }
                 float *px = row + std::size_t(sky_x[i]) * channels;
                 px[0] = l.x;
@@ -843,6 +822,23 @@ void apply_atmosphere(const Atmosphere &atmosphere,
             }
         }
     });
+}
+
+}  // namespace
+
+void apply_atmosphere(const Atmosphere &atmosphere,
+                      const SkyView &sky,
+                      const AerialPerspective &ap,
+                      const Image &depth,
+                      Image &color,
+                      bool sun_disc)
+{
+    apply_frame(&atmosphere, &sky, ap, depth, color, sun_disc);
+}
+
+void apply_aerial_perspective(const AerialPerspective &ap, const Image &depth, Image &color)
+{
+    apply_frame(nullptr, nullptr, ap, depth, color, false);
 }
 
 }  // namespace posthaste::shading

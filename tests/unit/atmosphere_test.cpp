@@ -399,6 +399,17 @@ TEST(Atmosphere, ApplyToFrameMatchesPerPixel)
     depth.at(3, 20, 0) = std::numeric_limits<float>::quiet_NaN();
     Image out = color;
     apply_atmosphere(atmo, atmo.cached_sky_view(), ap, depth, out);
+    // Aerial perspective alone: the same on geometry, the sky pixels untouched.
+    Image ap_only = color;
+    apply_aerial_perspective(ap, depth, ap_only);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const bool sky = !(depth.at(x, y, 0) < INFINITY);
+            for (int c = 0; c < 4; ++c) {
+                EXPECT_EQ(ap_only.at(x, y, c), sky ? color.at(x, y, c) : out.at(x, y, c));
+            }
+        }
+    }
     for (int y = 0; y < h; ++y) {
         for (int x = 0; x < w; ++x) {
             const glm::vec2 uv((x + 0.5f) / w, (y + 0.5f) / h);
