@@ -104,18 +104,3 @@ BENCHMARK(BM_RasterTruthMotion256)->Unit(benchmark::kMillisecond)->UseRealTime()
 
 }  // namespace
 }  // namespace posthaste::raster
-
-int main(int argc, char **argv)
-{
-    if (const char *keep = std::getenv("POSTHASTE_BENCH_KEEP_HEAP"); keep && keep[0] == '1') {
-        mallopt(M_MMAP_MAX, 0);
-        mallopt(M_TRIM_THRESHOLD, 1 << 30);
-    }
-    benchmark::Initialize(&argc, argv);
-    if (benchmark::ReportUnrecognizedArguments(argc, argv)) {
-        return 1;
-    }
-    benchmark::RunSpecifiedBenchmarks();
-    benchmark::Shutdown();
-    return 0;
-}
