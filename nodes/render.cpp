@@ -49,9 +49,24 @@ const raster::Scene &scene_of(NodeContext &ctx)
         [&] { return raster::load_scene(ctx.get_string(kScene)); });
 }
 
+/// The scene's sun in the header, for nodes downstream (fog, relight) to default to.
+void add_sun_attributes(const raster::Scene &scene, Frame &frame)
+{
+    const glm::vec3 d = scene.sun.direction;
+    const glm::vec3 e = scene.sun.color * scene.sun.illuminance;
+    frame.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
+    frame.attributes.push_back(
+        OIIO::ParamValue("posthaste:sunIlluminance", OIIO::TypeVector, 1, &e));
+}
+
 void execute(NodeContext &ctx)
 {
     const raster::Scene &scene = scene_of(ctx);
+    struct SunOnExit {
+        const raster::Scene &scene;
+        NodeContext &ctx;
+        ~SunOnExit() { add_sun_attributes(scene, ctx.output()); }
+    } sun_on_exit{scene, ctx};
     raster::RenderOptions options = render_options(ctx.params(), ctx.requested());
     const int truth = ctx.get_choice(kTruth);
     try {

@@ -1,0 +1,327 @@
+// nodes/fog.cpp: fog and atmosphere over a frame, from depth and the camera matrices.
+// Models: linear (start, end), exp and exp2 (density), exponential height fog with the exact
+// line integral (src/shading/height_fog.h), and a physically based atmosphere after Hillaire
+// 2020 (src/shading/atmosphere.h: transmittance, multi-scattering and sky-view LUTs, an aerial
+// perspective froxel volume), plus `atmosphere_raymarch`, the per-pixel reference it is judged by.
+// Composite: RGB = RGB * T + inscatter; alpha untouched. Sky pixels (depth +inf) get the fog
+// color (linear, exp, exp2, height with sky=fog) or the sky radiance (atmosphere).
+// Departure: NaN depths are left untouched and negative depths count as 0.
+
+#include <cmath>
+#include <limits>
+#include <array>
+#include <mutex>
+
+#include <OpenImageIO/paramlist.h>
+
+#include "nodes/node.h"
+#include "shading/atmosphere.h"
+#include "shading/camera_rays.h"
+#include "shading/height_fog.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kModel =
+    ParamSpec::choice("model", "linear|exp|exp2|height|atmosphere|atmosphere_raymarch", "height")
+        .doc("Fog model; atmosphere_raymarch is the slow per-pixel reference of atmosphere.");
+constexpr ParamSpec kColor = ParamSpec::vec3("color", 0.6, 0.7, 0.8).at_least(0.0).doc(
+    "Fog radiance, scene-linear (linear, exp, exp2, height).");
+constexpr ParamSpec kStart = ParamSpec::real("start", 0.0).at_least(0.0).units("scene units").doc(
+    "Linear: distance where fog begins; height: no fog closer than this.");
+constexpr ParamSpec kEnd = ParamSpec::real("end", 200.0).at_least(0.0).units("scene units").doc(
+    "Linear: distance of full fog.");
+constexpr ParamSpec kDensity = ParamSpec::real("density", 0.01).at_least(0.0).units("1/unit").doc(
+    "exp, exp2: density; height: extinction at base_height. 0 leaves the frame untouched.");
+constexpr ParamSpec kFalloff = ParamSpec::real("falloff", 0.1).at_least(0.0).units("1/unit").doc(
+    "Height: density falls by exp(-falloff) per unit of height above base_height.");
+constexpr ParamSpec kBaseHeight = ParamSpec::real("base_height", 0.0).units("scene units").doc(
+    "Height: world y where the density equals `density`.");
+constexpr ParamSpec kSky = ParamSpec::choice("sky", "fog|ray", "fog").doc(
+    "Height: sky pixels get the fog color (fog) or the fog of the infinite ray (ray).");
+constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3).doc(
+    "World direction towards the sun; default: the header's posthaste:sunDirection if present.");
+constexpr ParamSpec kSunColor = ParamSpec::vec3("sun_color", 0.0, 0.0, 0.0).at_least(0.0).doc(
+    "Height: radiance scale of the sun in-scatter lobe (0: no lobe).");
+constexpr ParamSpec kSunG = ParamSpec::real("sun_g", 0.7).range(-0.99, 0.99).doc(
+    "Height: Henyey-Greenstein asymmetry of the sun lobe.");
+constexpr ParamSpec kIlluminance = ParamSpec::vec3("sun_illuminance", 1.0, 1.0, 1.0).at_least(0.0)
+                                       .doc("Atmosphere: sun illuminance; default: the header's "
+                                            "posthaste:sunIlluminance if present.");
+constexpr ParamSpec kMetresPerUnit = ParamSpec::real("metres_per_unit", 1.0).range(1e-6, 1e6).doc(
+    "Atmosphere: scene units to metres.");
+constexpr ParamSpec kGroundAltitude = ParamSpec::real("ground_altitude", 0.0).range(0.0, 90000.0)
+                                          .units("m")
+                                          .doc("Atmosphere: altitude of world y = 0.");
+constexpr ParamSpec kFroxels = ParamSpec::integer("froxels", 32).range(2, 256).doc(
+    "Atmosphere: aerial-perspective volume resolution across the screen (per axis).");
+constexpr ParamSpec kSlices = ParamSpec::integer("slices", 32).range(2, 256).doc(
+    "Atmosphere: aerial-perspective depth slices.");
+constexpr ParamSpec kMaxDistance = ParamSpec::real("max_distance", 32000.0).range(1.0, 1e9).units(
+    "scene units").doc("Atmosphere: depth range of the aerial-perspective volume.");
+constexpr ParamSpec kSunDisc = ParamSpec::boolean("sun_disc", true).doc(
+    "Atmosphere: draw the sun disc in the sky.");
+constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64).range(1, 4096).doc(
+    "atmosphere_raymarch: integration steps per pixel.");
+constexpr ParamSpec kParams[] = {kModel, kColor, kStart, kEnd, kDensity, kFalloff, kBaseHeight,
+                                 kSky, kSunDirection, kSunColor, kSunG, kIlluminance,
+                                 kMetresPerUnit, kGroundAltitude, kFroxels, kSlices, kMaxDistance,
+                                 kSunDisc, kSteps};
+constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."}};
+
+enum Model { Linear, Exp, Exp2, Height, Atmo, AtmoRayMarch };
+
+glm::vec3 vec3_of(const std::vector<double> &v)
+{
+    return glm::vec3(float(v[0]), float(v[1]), float(v[2]));
+}
+
+/// A float3 header attribute, if present.
+std::optional<glm::vec3> header_vec3(const Frame &f, const char *name)
+{
+    const OIIO::ParamValue *p = f.attributes.find_pv(name);
+    if (!p || p->type().basetype != OIIO::TypeDesc::FLOAT || p->type().basevalues() != 3) {
+        return std::nullopt;
+    }
+    const float *v = static_cast<const float *>(p->data());
+    return glm::vec3(v[0], v[1], v[2]);
+}
+
+/// Atmospheres built so far, keyed by sun direction and illuminance (LUTs are computed once per
+/// parameter set and reused across frames).
+struct AtmosphereCache {
+    std::unique_ptr<std::mutex> mutex = std::make_unique<std::mutex>();
+    mutable std::vector<std::pair<std::array<float, 6>, std::shared_ptr<const shading::Atmosphere>>>
+        built;
+};
+
+std::shared_ptr<const shading::Atmosphere> atmosphere_for(NodeContext &ctx,
+                                                          const glm::vec3 &sun_dir,
+                                                          const glm::vec3 &illuminance)
+{
+    const AtmosphereCache &cache =
+        ctx.state().get_or_create<AtmosphereCache>([] { return AtmosphereCache{}; });
+    const std::array<float, 6> key = {sun_dir.x, sun_dir.y, sun_dir.z,
+                                      illuminance.x, illuminance.y, illuminance.z};
+    std::lock_guard lock(*cache.mutex);
+    for (const auto &[k, a] : cache.built) {
+        if (k == key) {
+            return a;
+        }
+    }
+    shading::AtmosphereParams p;
+    p.sun_direction = sun_dir;
+    p.sun_illuminance = illuminance;
+    p.metres_per_unit = ctx.get_float(kMetresPerUnit);
+    p.ground_altitude_m = ctx.get_float(kGroundAltitude);
+    auto a = std::make_shared<const shading::Atmosphere>(p);
+    if (cache.built.size() >= 8) {
+        cache.built.erase(cache.built.begin());
+    }
+    cache.built.emplace_back(key, a);
+    return a;
+}
+
+/// linear / exp / exp2: transmittance from the distance along the ray.
+void apply_classic(Model model,
+                   const NodeContext &ctx,
+                   const shading::CameraRays &rays,
+                   const Image &depth,
+                   Image &color)
+{
+    const glm::vec3 fog = vec3_of(ctx.get_vec(kColor));
+    const float start = ctx.get_float(kStart), end = ctx.get_float(kEnd);
+    const float density = ctx.get_float(kDensity);
+    const int nch = color.channels();
+    const float inv_w = 1.0f / float(color.width()), inv_h = 1.0f / float(color.height());
+    parallel_for_tiles(color.bounds(), [&](const Rect &t) {
+        for (int y = t.y0; y < t.y1; ++y) {
+            for (int x = t.x0; x < t.x1; ++x) {
+                const float z = depth.at(x, y, 0);
+                if (std::isnan(z)) {
+                    continue;
+                }
+                float transmittance = 0.0f;
+                if (!std::isinf(z)) {
+                    const glm::vec3 r = rays.depth_ray((x + 0.5f) * inv_w, (y + 0.5f) * inv_h);
+                    const float d = std::max(z, 0.0f) * glm::length(r);
+                    transmittance = model == Linear ? shading::linear_fog_factor(d, start, end)
+                                    : model == Exp  ? shading::exp_fog_factor(d, density)
+                                                    : shading::exp2_fog_factor(d, density);
+                }
+                float *p = color.pixel(x, y);
+                for (int c = 0; c < std::min(nch, 3); ++c) {
+                    p[c] = p[c] * transmittance + (1.0f - transmittance) * fog[c];
+                }
+            }
+        }
+    });
+}
+
+void execute(NodeContext &ctx)
+{
+    const Frame &in = ctx.input("image");
+    const Pass &color_pass = in.pass(pass::kColor, ctx.where());
+    const Image &depth_in = in.image(pass::kDepth, ctx.where());
+    const Model model = Model(ctx.get_choice(kModel));
+    const float density = ctx.get_float(kDensity);
+    if ((model == Exp || model == Exp2 || model == Height) && density == 0.0f) {
+        return;  // no fog: the output shares the input's color, bit for bit
+    }
+    if (model == Linear && ctx.get_float(kEnd) <= ctx.get_float(kStart) &&
+        ctx.get_float(kStart) >= std::numeric_limits<float>::max()) {
+        return;
+    }
+    if (color_pass.image->channels() < 3) {
+        throw_runtime(ctx.where(), ": color pass has ", color_pass.image->channels(),
+                      " channels; fog needs RGB");
+    }
+    const std::string who = ctx.where();
+    const glm::mat4 &w2c = in.camera.require_world_to_camera(who);
+    const glm::mat4 &w2ndc = in.camera.require_world_to_ndc(who);
+    const shading::CameraRays rays(w2c, w2ndc);
+
+    // Negative depths count as 0 (a copy is made only when there are some).
+    const Image *depth = &depth_in;
+    Image sanitized;
+    for (std::size_t i = 0; i < depth_in.value_count(); ++i) {
+        if (depth_in.data()[i] < 0.0f) {
+            sanitized = depth_in;
+            for (std::size_t j = 0; j < sanitized.value_count(); ++j) {
+                sanitized.data()[j] = std::max(sanitized.data()[j], 0.0f);  // NaN stays NaN
+            }
+            depth = &sanitized;
+            break;
+        }
+    }
+
+    glm::vec3 sun_dir = vec3_of(ctx.get_vec(kSunDirection));
+    if (!ctx.params().given(kSunDirection)) {
+        sun_dir = header_vec3(in, "posthaste:sunDirection").value_or(sun_dir);
+    }
+    if (!(glm::length(sun_dir) > 0.0f) || !std::isfinite(glm::length(sun_dir))) {
+        throw_runtime(who, ": sun direction must be a non-zero finite vector");
+    }
+    sun_dir = glm::normalize(sun_dir);
+
+    Image out = *color_pass.image;
+    switch (model) {
+        case Linear:
+        case Exp:
+        case Exp2:
+            apply_classic(model, ctx, rays, *depth, out);
+            break;
+        case Height: {
+            shading::HeightFog fog;
+            fog.density = density;
+            fog.falloff = ctx.get_float(kFalloff);
+            fog.base_height = ctx.get_float(kBaseHeight);
+            fog.start_distance = ctx.get_float(kStart);
+            fog.color = vec3_of(ctx.get_vec(kColor));
+            fog.sun_color = vec3_of(ctx.get_vec(kSunColor));
+            fog.sun_direction = sun_dir;
+            fog.sun_g = ctx.get_float(kSunG);
+            shading::apply_height_fog(fog, rays, *depth, out);
+            if (ctx.get_choice(kSky) == 0) {
+                const int nch = out.channels();
+                const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
+                const bool lobe = glm::length(fog.sun_color) > 0.0f;
+                parallel_for_tiles(out.bounds(), [&](const Rect &t) {
+                    for (int y = t.y0; y < t.y1; ++y) {
+                        for (int x = t.x0; x < t.x1; ++x) {
+                            const float z = depth->at(x, y, 0);
+                            if (!(std::isinf(z) && z > 0.0f)) {
+                                continue;
+                            }
+                            glm::vec3 c = fog.color;
+                            if (lobe) {
+                                const glm::vec3 d =
+                                    rays.direction((x + 0.5f) * inv_w, (y + 0.5f) * inv_h);
+                                c += fog.sun_color * (4.0f * 3.14159265f) *
+                                     shading::henyey_greenstein_phase(glm::dot(d, sun_dir),
+                                                                      fog.sun_g);
+                            }
+                            float *p = out.pixel(x, y);
+                            for (int k = 0; k < std::min(nch, 3); ++k) {
+                                p[k] = c[k];
+                            }
+                        }
+                    }
+                });
+            }
+            break;
+        }
+        case Atmo:
+        case AtmoRayMarch: {
+            glm::vec3 illuminance = vec3_of(ctx.get_vec(kIlluminance));
+            if (!ctx.params().given(kIlluminance)) {
+                illuminance = header_vec3(in, "posthaste:sunIlluminance").value_or(illuminance);
+            }
+            const auto atmosphere = atmosphere_for(ctx, sun_dir, illuminance);
+            const bool disc = ctx.get_bool(kSunDisc);
+            if (model == Atmo) {
+                shading::AerialPerspectiveSettings s;
+                s.width = s.height = ctx.get_int(kFroxels);
+                s.slices = ctx.get_int(kSlices);
+                s.max_distance = ctx.get_float(kMaxDistance);
+                const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s);
+                shading::apply_atmosphere(*atmosphere, atmosphere->cached_sky_view(), ap, *depth,
+                                          out, disc);
+                break;
+            }
+            const int steps = ctx.get_int(kSteps);
+            const int nch = out.channels();
+            const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
+            parallel_for_tiles(out.bounds(), [&](const Rect &t) {
+                for (int y = t.y0; y < t.y1; ++y) {
+                    for (int x = t.x0; x < t.x1; ++x) {
+                        const float z = depth->at(x, y, 0);
+                        if (std::isnan(z)) {
+                            continue;
+                        }
+                        const float u = (x + 0.5f) * inv_w, v = (y + 0.5f) * inv_h;
+                        const glm::vec3 dir = rays.direction(u, v);
+                        float *p = out.pixel(x, y);
+                        if (std::isinf(z)) {
+                            const glm::vec3 sky =
+                                atmosphere->sky_radiance(dir, rays.position(), disc);
+                            for (int k = 0; k < std::min(nch, 3); ++k) {
+                                p[k] = sky[k];
+                            }
+                            continue;
+                        }
+                        const float dist = z * glm::length(rays.depth_ray(u, v));
+                        const shading::ScatteringResult r =
+                            atmosphere->ray_march(rays.position(), dir, dist, steps);
+                        for (int k = 0; k < std::min(nch, 3); ++k) {
+                            p[k] = p[k] * r.transmittance[k] + r.inscatter[k];
+                        }
+                    }
+                }
+            });
+            break;
+        }
+    }
+    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)),
+                     color_pass.channels, color_pass.storage);
+}
+
+void check(CheckContext &ctx)
+{
+    const Model model = Model(ctx.params.get_choice(kModel));
+    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
+    if (model == Linear && ctx.params.get_real(kEnd) < ctx.params.get_real(kStart)) {
+        throw_usage(where, ": param \"end\" (", ctx.params.get_real(kEnd),
+                    ") is before param \"start\" (", ctx.params.get_real(kStart), ")");
+    }
+}
+
+}  // namespace
+
+extern const NodeType kFog{{"fog", "Fog: linear, exp, exp2, exact height fog, or a physically "
+                            "based atmosphere (Hillaire 2020).", kInputs, kParams, ""},
+                           &execute,
+                           nullptr,
+                           &check};
+
+}  // namespace posthaste::nodes

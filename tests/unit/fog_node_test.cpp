@@ -1,0 +1,206 @@
+// The fog node: each analytic model against a brute-force numeric integral along the view rays
+// it computes from depth and the camera; density 0 gives the input back bit for bit; stability
+// cases (horizontal rays, camera at the fog base, 1e7 m, NaN/negative depth, sky, sun below the
+// horizon); same bits for 1 and N threads.
+
+#include <cmath>
+#include <limits>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "graph/graph.h"
+#include "graph/node_registry.h"
+#include "shading/camera_rays.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+/// A frame with color 0 (so the output is the fog's in-scatter alone), given depths and a camera
+/// at `cam` looking along +Z (pitch by `pitch_deg`).
+Frame fog_frame(int w, int h, glm::vec3 cam, float pitch_deg, float depth_value)
+{
+    Frame f;
+    Image color(w, h, 4), depth(w, h, 1);
+    depth.fill(depth_value);
+    for (std::size_t i = 0; i < color.pixel_count(); ++i) {
+        color.data()[i * 4 + 3] = 1.0f;
+    }
+    f.set("color", std::move(color));
+    f.set("depth", std::move(depth));
+    glm::mat4 cam_to_world = glm::translate(glm::mat4(1.0f), cam);
+    cam_to_world = glm::rotate(cam_to_world, glm::radians(-pitch_deg), glm::vec3(1, 0, 0));
+    const CameraMatrices m = make_camera_matrices(cam_to_world, 35.0f, 36.0f, float(w) / h, 0.1f);
+    f.camera.world_to_camera = m.world_to_camera;
+    f.camera.world_to_ndc = m.world_to_ndc;
+    return f;
+}
+
+/// Evaluate the fog node alone on `in` with the given params JSON.
+Frame run_fog(const Frame &in, const std::string &params)
+{
+    const NodeType *type = find_node_type("fog");
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
+        {"id": "fog", "type": "fog", "inputs": {"image": "src"}, "params": )" + params + R"(},
+        {"id": "out", "type": "write", "inputs": {"image": "fog"}, "params": {"path": "x.exr"}}]})",
+                           "fog_test");
+    const GraphNode &gn = g.nodes()[std::size_t(g.find("fog"))];
+    NodeContext ctx(gn.identity, gn.params, {std::make_shared<const Frame>(in)}, {"image"},
+                    gn.requested, 1, *gn.state);
+    type->execute(ctx);
+    return ctx.take_output();
+}
+
+/// Height fog optical depth along the ray by a midpoint sum.
+double brute_optical_depth(glm::dvec3 o, glm::dvec3 d, double dist, double a, double b, double h0,
+                           double start)
+{
+    const int n = 200000;
+    const double ds = (dist - start) / n;
+    double tau = 0.0;
+    for (int i = 0; i < n; ++i) {
+        const double s = start + (i + 0.5) * ds;
+        tau += a * std::exp(-b * (o.y + d.y * s - h0)) * ds;
+    }
+    return tau;
+}
+
+TEST(FogNode, HeightFogMatchesNumericIntegration)
+{
+    for (float pitch : {0.0f, 10.0f, -25.0f, 60.0f}) {
+        for (float cam_y : {0.0f, 5.0f, 40.0f}) {
+            const Frame in = fog_frame(16, 12, {0.0f, cam_y, 0.0f}, pitch, 150.0f);
+            const Frame out = run_fog(in, R"({"model": "height", "density": 0.02,
+                "falloff": 0.08, "base_height": 5, "start": 3, "color": [1, 1, 1]})");
+            const shading::CameraRays rays(*in.camera.world_to_camera, *in.camera.world_to_ndc);
+            for (int y = 0; y < 12; y += 5) {
+                for (int x = 0; x < 16; x += 7) {
+                    const float u = (x + 0.5f) / 16.0f, v = (y + 0.5f) / 12.0f;
+                    const double dist = 150.0 * glm::length(rays.depth_ray(u, v));
+                    const glm::dvec3 dir = glm::dvec3(rays.direction(u, v));
+                    const double tau = brute_optical_depth(glm::dvec3(rays.position()), dir, dist,
+                                                           0.02, 0.08, 5.0, 3.0);
+                    const double want = 1.0 - std::exp(-tau);  // in-scatter with color 1
+                    const double got = out.image("color").at(x, y, 1);
+                    EXPECT_NEAR(got, want, 1e-5 * std::max(1.0, want))
+                        << "pitch " << pitch << " cam_y " << cam_y << " pixel " << x << "," << y;
+                    EXPECT_EQ(out.image("color").at(x, y, 3), 1.0f);  // alpha untouched
+                }
+            }
+        }
+    }
+}
+
+TEST(FogNode, ClassicModelsFollowTheirFormulas)
+{
+    const Frame in = fog_frame(8, 6, {0, 1, 0}, 0.0f, 40.0f);
+    const shading::CameraRays rays(*in.camera.world_to_camera, *in.camera.world_to_ndc);
+    const double d = 40.0 * glm::length(rays.depth_ray(0.5f / 8, 0.5f / 6));
+    const Frame lin = run_fog(in, R"({"model": "linear", "start": 10, "end": 90, "color": [1,1,1]})");
+    EXPECT_NEAR(lin.image("color").at(0, 0, 0), 1.0 - (90.0 - d) / 80.0, 1e-6);
+    const Frame ex = run_fog(in, R"({"model": "exp", "density": 0.03, "color": [1,1,1]})");
+    EXPECT_NEAR(ex.image("color").at(0, 0, 0), 1.0 - std::exp(-0.03 * d), 1e-6);
+    const Frame ex2 = run_fog(in, R"({"model": "exp2", "density": 0.03, "color": [1,1,1]})");
+    EXPECT_NEAR(ex2.image("color").at(0, 0, 0), 1.0 - std::exp(-(0.03 * d) * (0.03 * d)), 1e-6);
+}
+
+TEST(FogNode, HorizontalRaysAndCameraAtTheBase)
+{
+    // Camera exactly at the fog base, looking level: the centre row is a horizontal ray with
+    // constant density a, so T = exp(-a d) exactly.
+    const Frame in = fog_frame(9, 9, {0, 5, 0}, 0.0f, 100.0f);
+    const Frame out = run_fog(in, R"({"model": "height", "density": 0.01, "falloff": 0.5,
+        "base_height": 5, "color": [1, 1, 1]})");
+    const shading::CameraRays rays(*in.camera.world_to_camera, *in.camera.world_to_ndc);
+    const float d = 100.0f * glm::length(rays.depth_ray(4.5f / 9, 4.5f / 9));
+    const double want = 1.0 - std::exp(-0.01 * d);
+    EXPECT_NEAR(out.image("color").at(4, 4, 0), want, 1e-5 * want);  // the issue's bound
+}
+
+TEST(FogNode, DensityZeroIsTheInputBitForBit)
+{
+    const Frame in = test::make_sample_frame(32, 16, 1);
+    for (const char *model : {"exp", "exp2", "height"}) {
+        const Frame out = run_fog(in, std::string(R"({"model": ")") + model + R"(", "density": 0})");
+        EXPECT_EQ(out.pass("color").image, in.pass("color").image) << model;  // shared, not copied
+    }
+}
+
+TEST(FogNode, StabilityCasesStayFiniteAndBounded)
+{
+    Frame in = fog_frame(16, 8, {0, 3, 0}, -5.0f, 20.0f);
+    Image depth = in.image("depth");
+    depth.at(0, 0, 0) = std::numeric_limits<float>::quiet_NaN();
+    depth.at(1, 0, 0) = -5.0f;
+    depth.at(2, 0, 0) = std::numeric_limits<float>::infinity();
+    depth.at(3, 0, 0) = 1e7f;
+    depth.at(4, 0, 0) = 0.0f;
+    in.set("depth", std::move(depth));
+    Image color = in.image("color");
+    color.fill(0.25f);
+    in.set("color", std::move(color));
+    for (const char *params :
+         {R"({"model": "height", "density": 0.05, "falloff": 0.0, "color": [0.5, 0.6, 0.7]})",
+          R"({"model": "height", "density": 1e3, "falloff": 50, "color": [0.5, 0.6, 0.7]})",
+          R"({"model": "height", "density": 0.05, "sun_color": [2, 2, 2], "sun_direction": [0, -1, 0.2]})",
+          R"({"model": "exp", "density": 0.05})", R"({"model": "exp2", "density": 10})",
+          R"({"model": "linear", "start": 0, "end": 0})",
+          R"({"model": "atmosphere", "sun_direction": [0.3, -0.2, 0.9]})",
+          R"({"model": "atmosphere", "sun_direction": [0.0, 1.0, 0.0], "metres_per_unit": 1000})"}) {
+        SCOPED_TRACE(params);
+        const Frame out = run_fog(in, params);
+        const Image &c = out.image("color");
+        for (int y = 0; y < c.height(); ++y) {
+            for (int x = 0; x < c.width(); ++x) {
+                for (int k = 0; k < 4; ++k) {
+                    ASSERT_TRUE(std::isfinite(c.at(x, y, k))) << x << "," << y << "," << k;
+                    ASSERT_GE(c.at(x, y, k), 0.0f);
+                    ASSERT_LE(c.at(x, y, k), 100.0f);
+                }
+            }
+        }
+        EXPECT_EQ(c.at(0, 0, 0), 0.25f);  // NaN depth: untouched
+        if (std::string(params).find("atmosphere") == std::string::npos) {
+            EXPECT_NEAR(c.at(1, 0, 0), 0.25f, 1e-6f);  // negative depth counts as 0
+        }
+    }
+    // Sky pixels get the fog color under the analytic models.
+    const Frame sky = run_fog(in, R"({"model": "height", "density": 0.05, "color": [0.5, 0.6, 0.7]})");
+    EXPECT_FLOAT_EQ(sky.image("color").at(2, 0, 1), 0.6f);
+}
+
+TEST(FogNode, SameBitsForOneAndManyThreads)
+{
+    const Frame in = test::make_sample_frame(96, 64, 1);
+    for (const char *params : {R"({"model": "height", "density": 0.05, "sun_color": [1, 1, 1]})",
+                               R"({"model": "atmosphere"})", R"({"model": "exp2"})"}) {
+        set_thread_count(1);
+        const Frame a = run_fog(in, params);
+        set_thread_count(3);
+        const Frame b = run_fog(in, params);
+        set_thread_count(0);
+        EXPECT_TRUE(a.image("color").bit_equal(b.image("color"))) << params;
+    }
+}
+
+TEST(FogNode, MissingCameraIsNamed)
+{
+    Frame in = fog_frame(4, 4, {0, 1, 0}, 0.0f, 5.0f);
+    in.camera.world_to_ndc.reset();
+    try {
+        run_fog(in, R"({"model": "exp"})");
+        FAIL();
+    }
+    catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("camera attribute \"worldToNDC\" is missing"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace posthaste
