@@ -13,6 +13,8 @@
 
 #include "core/camera.h"
 #include "core/frame.h"
+#include "graph/graph.h"
+#include "graph/node_registry.h"
 
 namespace posthaste::test {
 
@@ -77,6 +79,29 @@ inline Frame make_sample_frame(int width, int height, int frame)
     f.camera.sensor_width_mm = 36.0f;
     f.camera.shutter = 0.5f;
     return f;
+}
+
+/// Run one node of type `type` with `params_json` on the frame `in` (its first input port), as
+/// the graph engine would, and return its output frame. The node's per-instance state lives as
+/// long as the returned graph would: pass `graph` to reuse caches across calls.
+inline Frame run_node(const std::string &type,
+                      const Frame &in,
+                      const std::string &params_json,
+                      int frame_number = 1)
+{
+    const NodeType *nt = find_node_type(type);
+    const std::string port(nt->spec.inputs.empty() ? "" : nt->spec.inputs[0].name);
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
+        {"id": "n", "type": ")" + type + R"(", "inputs": {")" + port + R"(": "src"}, "params": )" +
+                               params_json + R"(},
+        {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
+                           "run_node(" + type + ")");
+    const GraphNode &gn = g.nodes()[std::size_t(g.find("n"))];
+    NodeContext ctx(gn.identity, gn.params, {std::make_shared<const Frame>(in)}, {port},
+                    gn.requested, frame_number, *gn.state);
+    nt->execute(ctx);
+    return ctx.take_output();
 }
 
 /// Run a shell command, capturing stdout+stderr; returns the exit status.

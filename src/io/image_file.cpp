@@ -67,16 +67,41 @@ bool is_integer_type(OIIO::TypeDesc t)
            t.basetype == OIIO::TypeDesc::INT8 || t.basetype == OIIO::TypeDesc::INT16;
 }
 
+// The camera's header attributes, each once: read and write walk the same tables.
+struct MatrixAttribute {
+    const char *name;
+    std::optional<glm::mat4> Camera::*member;
+};
+struct ScalarAttribute {
+    const char *name;
+    std::optional<float> Camera::*member;
+};
+constexpr MatrixAttribute kMatrixAttributes[] = {
+    {attr::kWorldToCamera, &Camera::world_to_camera},
+    {attr::kWorldToNDC, &Camera::world_to_ndc},
+    {attr::kPrevWorldToCamera, &Camera::prev_world_to_camera},
+    {attr::kPrevWorldToNDC, &Camera::prev_world_to_ndc},
+};
+constexpr ScalarAttribute kScalarAttributes[] = {
+    {attr::kAperture, &Camera::fstop},
+    {attr::kFocus, &Camera::focus_distance},
+    {attr::kFocalLength, &Camera::focal_length_mm},
+    {attr::kSensorWidth, &Camera::sensor_width_mm},
+    {attr::kSensorHeight, &Camera::sensor_height_mm},
+    {attr::kShutter, &Camera::shutter},
+    {attr::kNearClip, &Camera::near_clip},
+    {attr::kFarClip, &Camera::far_clip},
+};
+
 void read_camera(const OIIO::ImageSpec &spec, Camera &cam)
 {
-    auto matrix = [&](const char *name, std::optional<glm::mat4> &out) {
-        const OIIO::ParamValue *p = spec.find_attribute(name, OIIO::TypeMatrix44);
-        if (p) {
+    for (const MatrixAttribute &a : kMatrixAttributes) {
+        if (const OIIO::ParamValue *p = spec.find_attribute(a.name, OIIO::TypeMatrix44)) {
             glm::mat4 m;
             std::memcpy(&m, p->data(), sizeof(m));  // Imath and GLM share the layout
-            out = m;
+            cam.*a.member = m;
         }
-    };
+    }
     auto scalar = [&](const char *name, std::optional<float> &out) {
         const OIIO::ParamValue *p = spec.find_attribute(name);
         if (p && (p->type() == OIIO::TypeFloat || p->type() == OIIO::TypeInt ||
@@ -84,47 +109,26 @@ void read_camera(const OIIO::ImageSpec &spec, Camera &cam)
             out = p->get_float();
         }
     };
-    matrix(attr::kWorldToCamera, cam.world_to_camera);
-    matrix(attr::kWorldToNDC, cam.world_to_ndc);
-    matrix(attr::kPrevWorldToCamera, cam.prev_world_to_camera);
-    matrix(attr::kPrevWorldToNDC, cam.prev_world_to_ndc);
-    scalar(attr::kAperture, cam.fstop);
+    for (const ScalarAttribute &a : kScalarAttributes) {
+        scalar(a.name, cam.*a.member);
+    }
     if (!cam.fstop) {
         scalar("FNumber", cam.fstop);  // OIIO reads EXR's standard "aperture" as Exif FNumber
     }
-    scalar(attr::kFocus, cam.focus_distance);
-    scalar(attr::kFocalLength, cam.focal_length_mm);
-    scalar(attr::kSensorWidth, cam.sensor_width_mm);
-    scalar(attr::kSensorHeight, cam.sensor_height_mm);
-    scalar(attr::kShutter, cam.shutter);
-    scalar(attr::kNearClip, cam.near_clip);
-    scalar(attr::kFarClip, cam.far_clip);
 }
 
 void write_camera(const Camera &cam, OIIO::ImageSpec &spec)
 {
-    auto matrix = [&](const char *name, const std::optional<glm::mat4> &m) {
-        if (m) {
-            spec.attribute(name, OIIO::TypeMatrix44, &*m);
+    for (const MatrixAttribute &a : kMatrixAttributes) {
+        if (const auto &m = cam.*a.member) {
+            spec.attribute(a.name, OIIO::TypeMatrix44, &*m);
         }
-    };
-    auto scalar = [&](const char *name, const std::optional<float> &v) {
-        if (v) {
-            spec.attribute(name, *v);
+    }
+    for (const ScalarAttribute &a : kScalarAttributes) {
+        if (const auto &v = cam.*a.member) {
+            spec.attribute(a.name, *v);
         }
-    };
-    matrix(attr::kWorldToCamera, cam.world_to_camera);
-    matrix(attr::kWorldToNDC, cam.world_to_ndc);
-    matrix(attr::kPrevWorldToCamera, cam.prev_world_to_camera);
-    matrix(attr::kPrevWorldToNDC, cam.prev_world_to_ndc);
-    scalar(attr::kAperture, cam.fstop);
-    scalar(attr::kFocus, cam.focus_distance);
-    scalar(attr::kFocalLength, cam.focal_length_mm);
-    scalar(attr::kSensorWidth, cam.sensor_width_mm);
-    scalar(attr::kSensorHeight, cam.sensor_height_mm);
-    scalar(attr::kShutter, cam.shutter);
-    scalar(attr::kNearClip, cam.near_clip);
-    scalar(attr::kFarClip, cam.far_clip);
+    }
 }
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)

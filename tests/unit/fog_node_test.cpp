@@ -39,20 +39,9 @@ Frame fog_frame(int w, int h, glm::vec3 cam, float pitch_deg, float depth_value)
     return f;
 }
 
-/// Evaluate the fog node alone on `in` with the given params JSON.
 Frame run_fog(const Frame &in, const std::string &params)
 {
-    const NodeType *type = find_node_type("fog");
-    Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
-        {"id": "fog", "type": "fog", "inputs": {"image": "src"}, "params": )" + params + R"(},
-        {"id": "out", "type": "write", "inputs": {"image": "fog"}, "params": {"path": "x.exr"}}]})",
-                           "fog_test");
-    const GraphNode &gn = g.nodes()[std::size_t(g.find("fog"))];
-    NodeContext ctx(gn.identity, gn.params, {std::make_shared<const Frame>(in)}, {"image"},
-                    gn.requested, 1, *gn.state);
-    type->execute(ctx);
-    return ctx.take_output();
+    return test::run_node("fog", in, params);
 }
 
 /// Height fog optical depth along the ray by a midpoint sum.
