@@ -462,9 +462,11 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                     double(*times.nanoseconds[std::size_t(graphs[s].node)]) * 1e-6 / frames);
             }
         }
-        say(str_cat(run < spec.warmup ? "warm-up " : "run ",
-                    run < spec.warmup ? run + 1 : run - spec.warmup + 1, "/",
-                    run < spec.warmup ? spec.warmup : spec.runs, " done"));
+        if (run + 1 == spec.warmup || run + 1 == spec.warmup + spec.runs) {
+            say(run < spec.warmup ? str_cat(spec.warmup, " warm-up run(s) done")
+                                  : str_cat(spec.runs, " timed run(s) of ", count,
+                                            " setting(s) done"));
+        }
     }
 
     for (std::size_t s = 0; s < count; ++s) {

@@ -403,3 +403,29 @@ TEST(BenchReadySpecs, RunFromTheRepositoryRoot)
 
 }  // namespace
 }  // namespace posthaste::bench
+
+#include "bench/stability_chart.h"
+
+namespace posthaste::bench {
+namespace {
+
+TEST(BenchStabilityChart, GridHasOneCellPerCaseColoredByStatus)
+{
+    const std::string record = R"({"cases": [
+        {"node": "merge", "params": "defaults", "frame": "plain", "status": "ok", "message": ""},
+        {"node": "merge", "params": "defaults", "frame": "nan<>", "status": "unstable",
+         "message": "3 non-finite", "spread": 3, "max_abs": 1.0, "ms": 0.1},
+        {"node": "ocio", "params": "to_linear", "frame": "plain", "status": "known_failure",
+         "message": "why"}]})";
+    const std::string svg = stability_svg(record, "s.json");
+    EXPECT_EQ(count_of(svg, "<rect class="), 3u);
+    EXPECT_EQ(count_of(svg, "class=\"unstable\""), 1u);
+    EXPECT_NE(svg.find("nan&lt;&gt;"), std::string::npos);
+    EXPECT_NE(svg.find("merge / defaults"), std::string::npos);
+    const std::string html = stability_html(record, "s.json");
+    EXPECT_NE(html.find("3 case(s): 1 known_failure; 1 ok; 1 unstable;"), std::string::npos);
+    EXPECT_THROW(stability_svg("[1]", "s.json"), Error);
+}
+
+}  // namespace
+}  // namespace posthaste::bench
