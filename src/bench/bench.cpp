@@ -7,9 +7,8 @@
 #include <filesystem>
 #include <fstream>
 #include <memory>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "bench/chart.h"
 #include "core/error.h"
@@ -28,20 +27,25 @@ namespace fs = std::filesystem;
 
 // --- Spec ----------------------------------------------------------------------------------
 
-void check_keys(const json &obj,
-                const std::vector<std::string> &allowed,
-                const std::string &where)
+void check_keys(const json &obj, const std::vector<std::string> &allowed, const std::string &where)
 {
     for (auto it = obj.begin(); it != obj.end(); ++it) {
         if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end()) {
-            throw_usage(where, where.back() == ':' ? "/" : "", ": unknown key ", quoted(it.key()), did_you_mean(it.key(), allowed),
-                        " (expected: ", [&] {
-                            std::string s;
-                            for (const std::string &a : allowed) {
-                                s += (s.empty() ? "" : ", ") + a;
-                            }
-                            return s;
-                        }(), ")");
+            throw_usage(
+                where,
+                where.back() == ':' ? "/" : "",
+                ": unknown key ",
+                quoted(it.key()),
+                did_you_mean(it.key(), allowed),
+                " (expected: ",
+                [&] {
+                    std::string s;
+                    for (const std::string &a : allowed) {
+                        s += (s.empty() ? "" : ", ") + a;
+                    }
+                    return s;
+                }(),
+                ")");
         }
     }
 }
@@ -74,8 +78,7 @@ int get_int(const json &obj, const std::string &key, int lo, int hi, const std::
 {
     const json &v = obj.at(key);
     if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi) {
-        throw_usage(where, "/", key, ": expected an integer in ", lo, "..", hi, ", got ",
-                    v.dump());
+        throw_usage(where, "/", key, ": expected an integer in ", lo, "..", hi, ", got ", v.dump());
     }
     return v.get<int>();
 }
@@ -92,8 +95,7 @@ std::string resolve(const std::string &path, const std::string &base_dir)
 
 double ms_since(std::chrono::steady_clock::time_point t0)
 {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-        .count();
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 const Image &measured_pass(const Frame &frame, const std::string &pass, const std::string &who)
@@ -140,8 +142,7 @@ Prepared prepare(const std::string &path,
     Prepared p;
     try {
         p.graph = std::make_unique<Graph>(Graph::load(path, overrides));
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         throw Error(e.code(), origin + ": " + e.what());
     }
     p.graph->set_capture(node);
@@ -202,13 +203,14 @@ std::string join(const std::vector<std::string> &items, const char *sep)
 
 }  // namespace
 
-BenchSpec parse_spec(const std::string &text, const std::string &origin, const std::string &base_dir)
+BenchSpec parse_spec(const std::string &text,
+                     const std::string &origin,
+                     const std::string &base_dir)
 {
     json j;
     try {
         j = json::parse(text);
-    }
-    catch (const json::parse_error &e) {
+    } catch (const json::parse_error &e) {
         throw_usage(origin, ": invalid JSON: ", e.what());
     }
     if (!j.is_object()) {
@@ -216,8 +218,20 @@ BenchSpec parse_spec(const std::string &text, const std::string &origin, const s
     }
     const std::string w = origin + ":";
     check_keys(j,
-               {"description", "graph", "node", "frames", "pass", "truth", "settings", "baseline",
-                "metrics", "chart", "warmup", "runs", "threads", "diff_scale"},
+               {"description",
+                "graph",
+                "node",
+                "frames",
+                "pass",
+                "truth",
+                "settings",
+                "baseline",
+                "metrics",
+                "chart",
+                "warmup",
+                "runs",
+                "threads",
+                "diff_scale"},
                w);
     BenchSpec s;
     s.origin = origin;
@@ -243,7 +257,8 @@ BenchSpec parse_spec(const std::string &text, const std::string &origin, const s
     const json &truth = j["truth"];
     const std::string tw = w + "/truth";
     if (!truth.is_object()) {
-        throw_usage(tw, ": expected an object {\"pattern\": ...} or {\"graph\": ..., \"node\": ...}");
+        throw_usage(tw,
+                    ": expected an object {\"pattern\": ...} or {\"graph\": ..., \"node\": ...}");
     }
     check_keys(truth, {"pattern", "graph", "node", "set"}, tw);
     if (truth.contains("pattern") == truth.contains("graph")) {
@@ -254,8 +269,7 @@ BenchSpec parse_spec(const std::string &text, const std::string &origin, const s
             throw_usage(tw, ": \"node\" and \"set\" only go with \"graph\"");
         }
         s.truth_pattern = resolve(get_string(truth, "pattern", tw), base_dir);
-    }
-    else {
+    } else {
         s.truth_graph = resolve(get_string(truth, "graph", tw), base_dir);
         if (!truth.contains("node")) {
             throw_usage(tw, ": missing key \"node\" (the truth graph's node to capture)");
@@ -295,8 +309,7 @@ BenchSpec parse_spec(const std::string &text, const std::string &origin, const s
             }
             s.settings.push_back(std::move(setting));
         }
-    }
-    else {
+    } else {
         s.settings.push_back({"default", {}});
     }
     std::vector<std::string> names;
@@ -306,17 +319,23 @@ BenchSpec parse_spec(const std::string &text, const std::string &origin, const s
     if (j.contains("baseline")) {
         s.baseline = get_string(j, "baseline", w);
         if (std::find(names.begin(), names.end(), s.baseline) == names.end()) {
-            throw_usage(w, "/baseline: no setting ", quoted(s.baseline),
-                        did_you_mean(s.baseline, names), " (have: ", join(names, ", "), ")");
+            throw_usage(w,
+                        "/baseline: no setting ",
+                        quoted(s.baseline),
+                        did_you_mean(s.baseline, names),
+                        " (have: ",
+                        join(names, ", "),
+                        ")");
         }
     }
     if (j.contains("metrics")) {
         for (const std::string &m : get_strings(j["metrics"], w + "/metrics")) {
             if (m == "flip") {
                 s.flip = true;
-            }
-            else if (m != "rmse" && m != "psnr") {
-                throw_usage(w, "/metrics: unknown metric ", quoted(m),
+            } else if (m != "rmse" && m != "psnr") {
+                throw_usage(w,
+                            "/metrics: unknown metric ",
+                            quoted(m),
                             did_you_mean(m, {"rmse", "psnr", "flip"}),
                             " (expected rmse, psnr, flip)");
             }
@@ -332,8 +351,8 @@ BenchSpec parse_spec(const std::string &text, const std::string &origin, const s
         if (c.contains("metric")) {
             s.chart_metric = get_string(c, "metric", cw);
             if (s.chart_metric != "rmse" && s.chart_metric != "psnr" && s.chart_metric != "flip") {
-                throw_usage(cw, "/metric: expected rmse, psnr or flip, got ",
-                            quoted(s.chart_metric));
+                throw_usage(
+                    cw, "/metric: expected rmse, psnr or flip, got ", quoted(s.chart_metric));
             }
             s.flip = s.flip || s.chart_metric == "flip";
         }
@@ -415,7 +434,9 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
     // Load and check everything before any timing.
     std::vector<Prepared> graphs;
     for (const BenchSetting &s : spec.settings) {
-        graphs.push_back(prepare(spec.graph, spec.node, s.overrides,
+        graphs.push_back(prepare(spec.graph,
+                                 spec.node,
+                                 s.overrides,
                                  str_cat(spec.origin, ": setting ", quoted(s.name))));
     }
     result.frames = spec.frames.empty() ? graphs.front().graph->default_frames()
@@ -424,8 +445,11 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         p.graph->check(result.frames);
     }
 
-    say(str_cat("truth: ", spec.truth_pattern.empty() ? spec.truth_graph : spec.truth_pattern,
-                " (", result.frames.size(), " frame(s))"));
+    say(str_cat("truth: ",
+                spec.truth_pattern.empty() ? spec.truth_graph : spec.truth_pattern,
+                " (",
+                result.frames.size(),
+                " frame(s))"));
     std::vector<ImagePtr> truth;
     if (!spec.truth_pattern.empty()) {
         const std::set<std::string> wanted{spec.pass};
@@ -433,10 +457,9 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
             const Frame fr = read_frame(expand_frame_pattern(spec.truth_pattern, f), &wanted, f);
             truth.push_back(fr.pass(spec.pass).image);
         }
-    }
-    else {
-        Prepared t = prepare(spec.truth_graph, spec.truth_node, spec.truth_overrides,
-                             spec.origin + ": truth");
+    } else {
+        Prepared t = prepare(
+            spec.truth_graph, spec.truth_node, spec.truth_overrides, spec.origin + ": truth");
         t.graph->check(result.frames);
         for (int f : result.frames) {
             const Frame fr = t.graph->evaluate(f);
@@ -458,14 +481,14 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
             const double wall = ms_since(t0);
             if (run >= spec.warmup) {
                 graph_ms[s].push_back(wall / frames);
-                node_ms[s].push_back(
-                    double(*times.nanoseconds[std::size_t(graphs[s].node)]) * 1e-6 / frames);
+                node_ms[s].push_back(double(*times.nanoseconds[std::size_t(graphs[s].node)]) *
+                                     1e-6 / frames);
             }
         }
         if (run + 1 == spec.warmup || run + 1 == spec.warmup + spec.runs) {
-            say(run < spec.warmup ? str_cat(spec.warmup, " warm-up run(s) done")
-                                  : str_cat(spec.runs, " timed run(s) of ", count,
-                                            " setting(s) done"));
+            say(run < spec.warmup
+                    ? str_cat(spec.warmup, " warm-up run(s) done")
+                    : str_cat(spec.runs, " timed run(s) of ", count, " setting(s) done"));
         }
     }
 
@@ -478,15 +501,28 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         for (std::size_t i = 0; i < result.frames.size(); ++i) {
             const int f = result.frames[i];
             const Frame out = graphs[s].graph->evaluate(f);
-            const std::string who = str_cat("setting ", quoted(r.setting.name), ", node ",
-                                            quoted(spec.node), ", frame ", f);
+            const std::string who = str_cat(
+                "setting ", quoted(r.setting.name), ", node ", quoted(spec.node), ", frame ", f);
             const Image &test = measured_pass(out, spec.pass, who);
             const Image &ref = *truth[i];
             if (test.width() != ref.width() || test.height() != ref.height() ||
                 test.channels() != ref.channels()) {
-                throw_runtime(spec.origin, ": ", who, ": pass ", quoted(spec.pass), " is ",
-                              test.width(), "x", test.height(), "x", test.channels(),
-                              " but the truth is ", ref.width(), "x", ref.height(), "x",
+                throw_runtime(spec.origin,
+                              ": ",
+                              who,
+                              ": pass ",
+                              quoted(spec.pass),
+                              " is ",
+                              test.width(),
+                              "x",
+                              test.height(),
+                              "x",
+                              test.channels(),
+                              " but the truth is ",
+                              ref.width(),
+                              "x",
+                              ref.height(),
+                              "x",
                               ref.channels());
             }
             const metrics::CompareStats stats = metrics::compare(ref, test);
@@ -507,16 +543,19 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         result.settings.push_back(std::move(r));
     }
 
-    const auto base = std::find_if(result.settings.begin(), result.settings.end(),
-                                   [&](const SettingResult &r) {
-                                       return r.setting.name == spec.baseline;
-                                   });
+    const auto base =
+        std::find_if(result.settings.begin(), result.settings.end(), [&](const SettingResult &r) {
+            return r.setting.name == spec.baseline;
+        });
     std::vector<ChartPoint> points;
     for (SettingResult &r : result.settings) {
         if (base != result.settings.end()) {
             r.speed_ratio = base->node.median_ms / r.node.median_ms;
         }
-        points.push_back({r.setting.name, r.node.median_ms, r.node.min_ms, r.node.max_ms,
+        points.push_back({r.setting.name,
+                          r.node.median_ms,
+                          r.node.min_ms,
+                          r.node.max_ms,
                           chart_value(r, spec.chart_metric)});
     }
     for (std::size_t i : pareto_front(points, spec.chart_metric == "psnr")) {
@@ -533,8 +572,14 @@ std::string results_csv(const BenchResult &result)
           "threads,frames,overrides\n";
     for (const SettingResult &r : result.settings) {
         os << csv_field(r.setting.name);
-        for (double v : {r.node.median_ms, r.node.p10_ms, r.node.p90_ms, r.node.min_ms,
-                         r.node.max_ms, r.graph.median_ms, r.graph.min_ms, r.graph.max_ms}) {
+        for (double v : {r.node.median_ms,
+                         r.node.p10_ms,
+                         r.node.p90_ms,
+                         r.node.min_ms,
+                         r.node.max_ms,
+                         r.graph.median_ms,
+                         r.graph.min_ms,
+                         r.graph.max_ms}) {
             os << "," << number_text(v);
         }
         os << "," << (std::isnan(r.speed_ratio) ? "" : number_text(r.speed_ratio));
@@ -552,14 +597,25 @@ std::string results_svg(const BenchResult &result)
     const BenchSpec &spec = result.spec;
     std::vector<ChartPoint> points;
     for (const SettingResult &r : result.settings) {
-        points.push_back({r.setting.name, r.node.median_ms, r.node.min_ms, r.node.max_ms,
+        points.push_back({r.setting.name,
+                          r.node.median_ms,
+                          r.node.min_ms,
+                          r.node.max_ms,
                           chart_value(r, spec.chart_metric)});
     }
     ChartOptions o;
-    o.title = str_cat(spec.node, ": ", spec.chart_metric, " vs time (", result.frames.size(),
-                      " frame(s), ", result.threads, " thread(s), median of ", spec.runs, ")");
+    o.title = str_cat(spec.node,
+                      ": ",
+                      spec.chart_metric,
+                      " vs time (",
+                      result.frames.size(),
+                      " frame(s), ",
+                      result.threads,
+                      " thread(s), median of ",
+                      spec.runs,
+                      ")");
     o.x_label = str_cat("node \"", spec.node, "\" time per frame (ms; bar: min..max)");
-    o.y_label = spec.chart_metric == "psnr" ? "PSNR (dB, higher is better)"
+    o.y_label = spec.chart_metric == "psnr"   ? "PSNR (dB, higher is better)"
                 : spec.chart_metric == "flip" ? "mean FLIP"
                                               : "RMSE vs truth";
     o.log_y = spec.log_y && spec.chart_metric != "psnr";
@@ -591,8 +647,7 @@ std::string results_html(const BenchResult &result)
     os << results_svg(result);
     os << "<table>\n<tr><th>setting</th><th>node median ms</th><th>min..max ms</th>"
        << "<th>graph median ms</th><th>speed ratio</th><th>RMSE</th><th>PSNR</th><th>FLIP</th>"
-       << "<th>output</th><th>|output - truth| x" << number_text(spec.diff_scale)
-       << "</th></tr>\n";
+       << "<th>output</th><th>|output - truth| x" << number_text(spec.diff_scale) << "</th></tr>\n";
     for (std::size_t i = 0; i < result.settings.size(); ++i) {
         const SettingResult &r = result.settings[i];
         os << "<tr" << (r.pareto ? " class=\"pareto\"" : "") << "><td>"
@@ -637,8 +692,8 @@ void write_results(const BenchResult &result, const std::string &dir)
                             {"flip", json_number(r.flip)},
                             {"pareto", r.pareto}});
         write_preview(r.thumbnail, (d / "thumbs" / (std::to_string(i) + ".png")).string(), false);
-        write_preview(r.difference, (d / "thumbs" / (std::to_string(i) + "_diff.png")).string(),
-                      false);
+        write_preview(
+            r.difference, (d / "thumbs" / (std::to_string(i) + "_diff.png")).string(), false);
     }
     j["settings"] = settings;
     write_text((d / "results.json").string(), j.dump(2) + "\n");

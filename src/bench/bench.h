@@ -35,7 +35,7 @@ struct BenchSetting {
 struct BenchSpec {
     std::string origin;  ///< The spec file, for messages.
     std::string description;
-    std::string graph;   ///< Resolved path.
+    std::string graph;  ///< Resolved path.
     std::string node;
     std::string frames;  ///< Empty: the graph's default frames.
     std::string pass = "color";
@@ -57,7 +57,9 @@ struct BenchSpec {
 /// Read and validate a spec file. Throws a usage Error naming the file and JSON path.
 BenchSpec load_spec(const std::string &path);
 /// As load_spec, from text; relative paths resolve against `base_dir`.
-BenchSpec parse_spec(const std::string &text, const std::string &origin, const std::string &base_dir);
+BenchSpec parse_spec(const std::string &text,
+                     const std::string &origin,
+                     const std::string &base_dir);
 
 /// Median, min, max, and 10th / 90th percentiles (nearest rank) of a set of times.
 struct Timing {
@@ -71,11 +73,11 @@ inline constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 struct SettingResult {
     BenchSetting setting;
-    Timing node;   ///< The measured node's time per frame, per run.
-    Timing graph;  ///< Whole-graph time per frame, per run.
-    double rmse = kNaN;  ///< Mean over frames of the RMS error over the pass's channels.
-    double psnr = kNaN;  ///< Mean over frames of the PSNR (peak max(1, |value|), as idiff).
-    double flip = kNaN;  ///< Mean over frames of mean HDR-FLIP on RGB; NaN when not asked.
+    Timing node;                ///< The measured node's time per frame, per run.
+    Timing graph;               ///< Whole-graph time per frame, per run.
+    double rmse = kNaN;         ///< Mean over frames of the RMS error over the pass's channels.
+    double psnr = kNaN;         ///< Mean over frames of the PSNR (peak max(1, |value|), as idiff).
+    double flip = kNaN;         ///< Mean over frames of mean HDR-FLIP on RGB; NaN when not asked.
     double speed_ratio = kNaN;  ///< Baseline median node time / this one (> 1: faster).
     bool pareto = false;        ///< On the front of (node median time, chart metric).
     Image thumbnail;            ///< First frame's pass, display-encoded RGB, small.

@@ -119,12 +119,23 @@ std::string xml_escape(const std::string &text)
     std::string out;
     for (char c : text) {
         switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            case '\'': out += "&#39;"; break;
-            default: out += c;
+            case '&':
+                out += "&amp;";
+                break;
+            case '<':
+                out += "&lt;";
+                break;
+            case '>':
+                out += "&gt;";
+                break;
+            case '"':
+                out += "&quot;";
+                break;
+            case '\'':
+                out += "&#39;";
+                break;
+            default:
+                out += c;
         }
     }
     return out;
@@ -173,16 +184,15 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
         const std::string x = num(px(t));
         s << "<line x1=\"" << x << "\" y1=\"" << num(top) << "\" x2=\"" << x << "\" y2=\""
           << num(top + ph) << "\" stroke=\"#ddd\"/>\n";
-        s << "<text x=\"" << x << "\" y=\"" << num(top + ph + 16)
-          << "\" text-anchor=\"middle\">" << tick_label(t) << "</text>\n";
+        s << "<text x=\"" << x << "\" y=\"" << num(top + ph + 16) << "\" text-anchor=\"middle\">"
+          << tick_label(t) << "</text>\n";
     }
     for (double t : ay.ticks) {
         const std::string y = num(py(t));
         s << "<line x1=\"" << num(left) << "\" y1=\"" << y << "\" x2=\"" << num(left + pw)
           << "\" y2=\"" << y << "\" stroke=\"#ddd\"/>\n";
         s << "<text x=\"" << num(left - 6) << "\" y=\"" << y
-          << "\" text-anchor=\"end\" dominant-baseline=\"middle\">" << tick_label(t)
-          << "</text>\n";
+          << "\" text-anchor=\"end\" dominant-baseline=\"middle\">" << tick_label(t) << "</text>\n";
     }
     s << "<rect x=\"" << num(left) << "\" y=\"" << num(top) << "\" width=\"" << num(pw)
       << "\" height=\"" << num(ph) << "\" fill=\"none\" stroke=\"black\"/>\n";

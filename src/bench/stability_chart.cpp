@@ -2,10 +2,9 @@
 
 #include <algorithm>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "bench/chart.h"
 #include "core/error.h"
@@ -25,8 +24,7 @@ std::vector<Case> parse_cases(const std::string &text, const std::string &origin
     nlohmann::json j;
     try {
         j = nlohmann::json::parse(text);
-    }
-    catch (const nlohmann::json::parse_error &e) {
+    } catch (const nlohmann::json::parse_error &e) {
         throw_usage(origin, ": invalid JSON: ", e.what());
     }
     if (!j.is_object() || !j.contains("cases") || !j["cases"].is_array()) {
@@ -71,7 +69,8 @@ const char *status_color(const std::string &status)
                                        : "#7f0000";
 }
 
-template<typename T> void add_unique(std::vector<T> &list, const T &v)
+template <typename T>
+void add_unique(std::vector<T> &list, const T &v)
 {
     if (std::find(list.begin(), list.end(), v) == list.end()) {
         list.push_back(v);
@@ -96,8 +95,8 @@ std::string stability_svg(const std::string &json_text, const std::string &origi
       << "\" font-family=\"sans-serif\" font-size=\"11\">\n"
       << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n";
     for (std::size_t c = 0; c < cols.size(); ++c) {
-        s << "<text transform=\"translate(" << left + cell * int(c) + cell / 2 + 4 << ","
-          << top - 6 << ") rotate(-60)\">" << xml_escape(cols[c]) << "</text>\n";
+        s << "<text transform=\"translate(" << left + cell * int(c) + cell / 2 + 4 << "," << top - 6
+          << ") rotate(-60)\">" << xml_escape(cols[c]) << "</text>\n";
     }
     for (std::size_t r = 0; r < rows.size(); ++r) {
         s << "<text x=\"" << left - 6 << "\" y=\"" << top + cell * int(r) + cell / 2 + 4
@@ -115,8 +114,8 @@ std::string stability_svg(const std::string &json_text, const std::string &origi
     const int y = top + cell * int(rows.size()) + 20;
     for (const char *status : {"ok", "rejected", "known_failure", "unstable", "crashed"}) {
         s << "<rect x=\"" << x << "\" y=\"" << y - 10 << "\" width=\"12\" height=\"12\" fill=\""
-          << status_color(status) << "\"/><text x=\"" << x + 16 << "\" y=\"" << y << "\">"
-          << status << "</text>\n";
+          << status_color(status) << "\"/><text x=\"" << x + 16 << "\" y=\"" << y << "\">" << status
+          << "</text>\n";
         x += 110;
     }
     s << "</svg>\n";

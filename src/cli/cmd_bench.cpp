@@ -74,9 +74,8 @@ int run(const BenchCliOptions &o)
     if (o.threads >= 0) {
         spec.threads = o.threads;
     }
-    const std::string out = o.out.empty()
-                                ? "bench_out/" + std::filesystem::path(o.spec).stem().string()
-                                : o.out;
+    const std::string out =
+        o.out.empty() ? "bench_out/" + std::filesystem::path(o.spec).stem().string() : o.out;
     const bench::BenchResult result = bench::run_bench(spec, [&](const std::string &line) {
         if (!o.quiet) {
             std::fprintf(stderr, "%s\n", line.c_str());
@@ -87,12 +86,25 @@ int run(const BenchCliOptions &o)
         chart_stability(o.stability, out, o.quiet);
     }
     if (!o.quiet) {
-        std::printf("%-20s %12s %12s %10s %12s %10s %10s %s\n", "setting", "node ms", "graph ms",
-                    "ratio", "rmse", "psnr", "flip", "pareto");
+        std::printf("%-20s %12s %12s %10s %12s %10s %10s %s\n",
+                    "setting",
+                    "node ms",
+                    "graph ms",
+                    "ratio",
+                    "rmse",
+                    "psnr",
+                    "flip",
+                    "pareto");
         for (const bench::SettingResult &r : result.settings) {
             std::printf("%-20s %12.4f %12.4f %10.3f %12.6g %10.4g %10.4g %s\n",
-                        r.setting.name.c_str(), r.node.median_ms, r.graph.median_ms,
-                        r.speed_ratio, r.rmse, r.psnr, r.flip, r.pareto ? "*" : "");
+                        r.setting.name.c_str(),
+                        r.node.median_ms,
+                        r.graph.median_ms,
+                        r.speed_ratio,
+                        r.rmse,
+                        r.psnr,
+                        r.flip,
+                        r.pareto ? "*" : "");
         }
         std::printf("wrote %s/{results.csv,chart.svg,index.html,results.json,thumbs/}\n",
                     out.c_str());
@@ -113,10 +125,12 @@ void add_bench_command(CLI::App &app, int &exit_code)
         ->check(CLI::Range(1, 100000));
     cmd->add_option("--warmup", o->warmup, "Warm-up runs per setting (default: the spec's)")
         ->check(CLI::Range(0, 1000));
-    cmd->add_option("--threads,-t", o->threads,
+    cmd->add_option("--threads,-t",
+                    o->threads,
                     "Worker threads, fixed for every run (default: the spec's; 0: all cores)")
         ->check(CLI::Range(0, 1024));
-    cmd->add_option("--stability", o->stability,
+    cmd->add_option("--stability",
+                    o->stability,
                     "Also chart a stability record (build/stability.json from the tests)");
     cmd->add_flag("--quiet,-q", o->quiet, "No progress and no table");
     cmd->callback([o, &exit_code] { exit_code = run(*o); });

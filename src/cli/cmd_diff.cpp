@@ -6,9 +6,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
-#include <set>
-
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "cli/commands.h"
 #include "core/error.h"
@@ -48,8 +47,9 @@ std::vector<int> frames_to_compare(const DiffCliOptions &o)
     std::vector<int> frames = find_frames_on_disk(o.a);
     if (frames.empty()) {
         throw Error(ExitCode(metrics::exit_code(metrics::Verdict::FileError)),
-                    str_cat(o.a, ": no files match this pattern (give --frames to compare a "
-                                 "range and report the missing ones)"));
+                    str_cat(o.a,
+                            ": no files match this pattern (give --frames to compare a "
+                            "range and report the missing ones)"));
     }
     return frames;
 }
@@ -57,7 +57,9 @@ std::vector<int> frames_to_compare(const DiffCliOptions &o)
 void check_output_pattern(const std::string &pattern, const char *option, std::size_t frames)
 {
     if (!pattern.empty() && frames > 1 && !has_frame_placeholder(pattern)) {
-        throw_usage(option, " ", quoted(pattern),
+        throw_usage(option,
+                    " ",
+                    quoted(pattern),
                     ": comparing several frames needs a frame placeholder (#### or %04d)");
     }
 }
@@ -92,7 +94,9 @@ Frame read_for_diff(const std::string &path,
         }
         std::vector<std::string> names(pass.channels.begin(),
                                        pass.channels.begin() + std::ptrdiff_t(stored));
-        frame.set(ps.pass, std::make_shared<const Image>(std::move(trimmed)), std::move(names),
+        frame.set(ps.pass,
+                  std::make_shared<const Image>(std::move(trimmed)),
+                  std::move(names),
                   pass.storage);
     }
     return frame;
@@ -107,7 +111,9 @@ Frame difference_frame(const metrics::DiffReport &report, const Frame &a)
     f.height = report.height;
     for (const metrics::PassDiff &d : report.passes) {
         if (d.compared && !d.difference.empty()) {
-            f.set(d.name, std::make_shared<const Image>(d.difference), a.pass(d.name).channels,
+            f.set(d.name,
+                  std::make_shared<const Image>(d.difference),
+                  a.pass(d.name).channels,
                   PixelStorage::Float);
         }
     }
@@ -121,13 +127,16 @@ void write_flip_map(const metrics::FlipDiff &flip, const std::string &path, int 
         f.number = frame_number;
         f.width = flip.heatmap.width();
         f.height = flip.heatmap.height();
-        f.set(pass::kColor, std::make_shared<const Image>(flip.heatmap), {"R", "G", "B"},
+        f.set(pass::kColor,
+              std::make_shared<const Image>(flip.heatmap),
+              {"R", "G", "B"},
               PixelStorage::Half);
-        f.set("flip", std::make_shared<const Image>(flip.result.error_map), {"Y"},
+        f.set("flip",
+              std::make_shared<const Image>(flip.result.error_map),
+              {"Y"},
               PixelStorage::Float);
         write_exr(f, path, WriteOptions{});
-    }
-    else {
+    } else {
         write_preview(metrics::flip_heatmap(flip.result.error_map, false), path, false);
     }
 }
@@ -169,8 +178,7 @@ int run(const DiffCliOptions &o)
         for (const auto &[path, target] : {std::pair{&path_a, &fa}, std::pair{&path_b, &fb}}) {
             try {
                 *target = read_for_diff(*path, wanted, frame, read_options);
-            }
-            catch (const Error &e) {
+            } catch (const Error &e) {
                 file_error = e.what();
                 break;
             }
@@ -180,8 +188,7 @@ int run(const DiffCliOptions &o)
             ++counts[int(Verdict::FileError)];
             if (sequence) {
                 std::fprintf(stderr, "frame %d: FILE ERROR: %s\n", frame, file_error.c_str());
-            }
-            else {
+            } else {
                 std::fprintf(stderr, "error: %s\n", file_error.c_str());
             }
             frames_json.push_back({{"frame", frame},
@@ -234,10 +241,16 @@ int run(const DiffCliOptions &o)
         });
     }
     if (!o.quiet && frames.size() > 1) {
-        std::printf("%zu frames: %d pass, %d warning, %d failure, %d size mismatch, %d file "
-                    "error; %s\n",
-                    frames.size(), counts[0], counts[1], counts[2], counts[3], counts[4],
-                    metrics::verdict_name(worst));
+        std::printf(
+            "%zu frames: %d pass, %d warning, %d failure, %d size mismatch, %d file "
+            "error; %s\n",
+            frames.size(),
+            counts[0],
+            counts[1],
+            counts[2],
+            counts[3],
+            counts[4],
+            metrics::verdict_name(worst));
     }
     return metrics::exit_code(worst);
 }
@@ -253,38 +266,46 @@ void add_diff_command(CLI::App &app, int &exit_code)
         "1 warning, 2 failure, 3 size mismatch, 4 file error)");
     cmd->add_option("a", o->a, "Reference: file or frame pattern (#### or %04d)")->required();
     cmd->add_option("b", o->b, "Test: file or frame pattern")->required();
-    cmd->add_option("--frames,-f", o->frames, "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the "
-                                              "frames of A found on disk)");
-    cmd->add_option("--pass,-p", o->passes,
-                    "Passes to compare, comma-separated (default: every pass in both)");
+    cmd->add_option("--frames,-f",
+                    o->frames,
+                    "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the "
+                    "frames of A found on disk)");
+    cmd->add_option("--pass,-p",
+                    o->passes,
+                    "Passes to compare, comma-separated (default: every pass in both)")
+        ->allow_extra_args(false);
     metrics::Thresholds &t = o->thresholds;
     cmd->add_option("--fail", t.fail, "Failure threshold on |a - b|")->capture_default_str();
-    cmd->add_option("--failrelative", t.fail_relative,
-                    "Relative failure threshold (of mean |a|, |b|)");
+    cmd->add_option(
+        "--failrelative", t.fail_relative, "Relative failure threshold (of mean |a|, |b|)");
     cmd->add_option("--failpercent", t.fail_percent, "Percent of pixels allowed over --fail")
         ->capture_default_str();
     cmd->add_option("--hardfail", t.hard_fail, "Fail if any error is above this");
-    cmd->add_option("--allowfailures", t.allow_failures,
-                    "Pass outright when at most this many pixels fail")
+    cmd->add_option(
+           "--allowfailures", t.allow_failures, "Pass outright when at most this many pixels fail")
         ->check(CLI::NonNegativeNumber);
     cmd->add_option("--warn", t.warn, "Warning threshold on |a - b|")->capture_default_str();
     cmd->add_option("--warnrelative", t.warn_relative, "Relative warning threshold");
     cmd->add_option("--warnpercent", t.warn_percent, "Percent of pixels allowed over --warn")
         ->capture_default_str();
     cmd->add_option("--hardwarn", t.hard_warn, "Warn if any error is above this");
-    cmd->add_option("--flip", o->flip, "FLIP on the color pass: hdr (scene-linear), ldr "
-                                       "(sRGB in [0,1]) or off; reported, never a verdict")
+    cmd->add_option("--flip",
+                    o->flip,
+                    "FLIP on the color pass: hdr (scene-linear), ldr "
+                    "(sRGB in [0,1]) or off; reported, never a verdict")
         ->check(CLI::IsMember({"hdr", "ldr", "off"}))
         ->capture_default_str();
     cmd->add_option("--ppd", o->ppd, "FLIP pixels per degree")
         ->check(CLI::PositiveNumber)
         ->capture_default_str();
-    cmd->add_option("--diff-image", o->diff_image,
+    cmd->add_option("--diff-image",
+                    o->diff_image,
                     "Write |a - b| * --diff-scale per pass to this EXR (pattern)");
     cmd->add_option("--diff-scale", o->diff_scale, "Scale of the difference images")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
-    cmd->add_option("--flip-map", o->flip_map,
+    cmd->add_option("--flip-map",
+                    o->flip_map,
                     "Write the FLIP heat map here (PNG: display-encoded; EXR: linear + error)");
     cmd->add_option("--json", o->json, "Write a JSON report of every frame");
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")

@@ -6,9 +6,8 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
-#include <stdexcept>
-
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -21,7 +20,8 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 /// Apply fn(pass name, channel, x, y, value&) to every value of every pass.
-template<typename Fn> Frame edited(const Frame &src, Fn &&fn)
+template <typename Fn>
+Frame edited(const Frame &src, Fn &&fn)
 {
     Frame out = src;
     for (const auto &[name, pass] : src.passes()) {
@@ -129,29 +129,23 @@ Frame plain_frame(int w, int h, int number)
                     p[1] = a * 0.5f;
                     p[2] = a * (1.0f - v);
                     p[3] = a;
-                }
-                else if (name == pass::kDepth) {
+                } else if (name == pass::kDepth) {
                     p[0] = 1.0f + 49.0f * u;
-                }
-                else if (name == pass::kNormal || name == pass::kTangent) {
+                } else if (name == pass::kNormal || name == pass::kTangent) {
                     const float z = 2.0f * u - 1.0f, r = std::sqrt(1.0f - z * z);
                     p[0] = r * std::cos(6.2831853f * v);
                     p[1] = r * std::sin(6.2831853f * v);
                     p[2] = z;
-                }
-                else if (name == pass::kMotion || name == pass::kMotionNext) {
+                } else if (name == pass::kMotion || name == pass::kMotionNext) {
                     p[0] = 8.0f * (u - 0.5f);
                     p[1] = 8.0f * (v - 0.5f);
-                }
-                else if (name == pass::kId) {
+                } else if (name == pass::kId) {
                     p[0] = float(int(u * 8.0f));
-                }
-                else if (name == pass::kPosition) {
+                } else if (name == pass::kPosition) {
                     for (int c = 0; c < channels; ++c) {
                         p[c] = 20.0f * (hash_unit(x, y, c, 5) - 0.5f);
                     }
-                }
-                else {
+                } else {
                     for (int c = 0; c < channels; ++c) {
                         p[c] = hash_unit(x, y, c, 23);  // albedo, material: [0, 1]
                     }
@@ -168,47 +162,50 @@ std::vector<HostileFrame> hostile_frames()
     std::vector<HostileFrame> out;
     const Frame base = plain_frame(16, 16);
     out.push_back({"plain", "ordinary finite values (the control)", base});
-    out.push_back({"nan_everywhere", "NaN in every pass, one channel at every 5th pixel",
+    out.push_back({"nan_everywhere",
+                   "NaN in every pass, one channel at every 5th pixel",
                    edited(base, [](const std::string &, int c, int x, int y, float &v) {
                        v = (x + y) % 5 == 0 && c == x % 4 ? kNaN : v;
                    })});
-    out.push_back({"inf_everywhere", "+Inf and -Inf in every pass at every 7th pixel",
+    out.push_back({"inf_everywhere",
+                   "+Inf and -Inf in every pass at every 7th pixel",
                    edited(base, [](const std::string &, int, int x, int y, float &v) {
                        v = (3 * x + y) % 7 == 0 ? ((x & 1) ? kInf : -kInf) : v;
                    })});
-    out.push_back({"sky_depth_inf", "top half is sky: depth +inf, zero normals and color",
+    out.push_back({"sky_depth_inf",
+                   "top half is sky: depth +inf, zero normals and color",
                    edited(base, [](const std::string &name, int, int, int y, float &v) {
                        if (y < 8) {
-                           v = name == pass::kDepth ? kInf
-                               : name == pass::kPosition ? 0.0f
+                           v = name == pass::kDepth                            ? kInf
+                               : name == pass::kPosition                       ? 0.0f
                                : name == pass::kNormal || name == pass::kColor ? 0.0f
-                                                                                  : v;
+                                                                               : v;
                        }
                    })});
     out.push_back({"one_by_one", "a 1x1 frame", plain_frame(1, 1)});
     out.push_back({"one_row", "a 37x1 frame", plain_frame(37, 1)});
-    out.push_back({"huge_values", "sun-like color 1e6, depth 1e9, motion 4096 px, position 1e7",
+    out.push_back({"huge_values",
+                   "sun-like color 1e6, depth 1e9, motion 4096 px, position 1e7",
                    edited(base, [](const std::string &name, int c, int x, int y, float &v) {
                        if (name == pass::kColor && c < 3) {
                            v = (x + y) % 3 == 0 ? 1e6f : v;
-                       }
-                       else if (name == pass::kDepth) {
+                       } else if (name == pass::kDepth) {
                            v = 1e9f;
-                       }
-                       else if (name == pass::kMotion || name == pass::kMotionNext) {
+                       } else if (name == pass::kMotion || name == pass::kMotionNext) {
                            v = (c ? -4096.0f : 4096.0f);
-                       }
-                       else if (name == pass::kPosition) {
+                       } else if (name == pass::kPosition) {
                            v *= 1e6f;
                        }
                    })});
-    out.push_back({"zero_alpha", "color with alpha 0 and 1e-30 under nonzero RGB (bad premult)",
+    out.push_back({"zero_alpha",
+                   "color with alpha 0 and 1e-30 under nonzero RGB (bad premult)",
                    edited(base, [](const std::string &name, int c, int x, int, float &v) {
                        if (name == pass::kColor && c == 3) {
                            v = x % 2 ? 0.0f : 1e-30f;
                        }
                    })});
-    out.push_back({"negative", "negative color, depth and material values",
+    out.push_back({"negative",
+                   "negative color, depth and material values",
                    edited(base, [](const std::string &name, int, int, int, float &v) {
                        if (name == pass::kColor || name == pass::kDepth ||
                            name == pass::kMaterial || name == pass::kAlbedo) {
@@ -258,19 +255,16 @@ StabilityResult run_case(const NodeType &type,
     const auto t0 = std::chrono::steady_clock::now();
     try {
         type.execute(ctx);
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         r.status = "rejected";
         r.message = e.what();
         return r;
-    }
-    catch (const std::exception &e) {
+    } catch (const std::exception &e) {
         r.status = "crashed";
         r.message = e.what();
         return r;
     }
-    r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-               .count();
+    r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
     const Frame &out = ctx.output();
     for (const auto &[name, pass] : out.passes()) {
@@ -295,10 +289,13 @@ StabilityResult run_case(const NodeType &type,
     }
     if (r.spread > 0 || r.max_abs > bound) {
         r.status = "unstable";
-        r.message = str_cat(r.spread, " non-finite value(s) where the input was finite; max |v| ",
-                            r.max_abs, " (bound ", bound, ")");
-    }
-    else {
+        r.message = str_cat(r.spread,
+                            " non-finite value(s) where the input was finite; max |v| ",
+                            r.max_abs,
+                            " (bound ",
+                            bound,
+                            ")");
+    } else {
         r.status = "ok";
     }
     return r;

@@ -62,8 +62,8 @@ struct StabilityResult {
     std::string message;
     long long nonfinite_in = 0;  ///< Input values that were NaN or Inf.
     long long nonfinite_out = 0;
-    long long spread = 0;        ///< Non-finite output values at pixels whose inputs were finite.
-    double max_abs = 0.0;        ///< Largest finite |output value|.
+    long long spread = 0;  ///< Non-finite output values at pixels whose inputs were finite.
+    double max_abs = 0.0;  ///< Largest finite |output value|.
     double ms = 0.0;
 };
 

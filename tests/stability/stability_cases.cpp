@@ -14,8 +14,7 @@ NodeCases node_cases(const std::string &type)
         }
         c.param_sets.push_back({"half_mix", {"mix=0.5"}});
         c.param_sets.push_back({"luminance_mask", {"mask_channel=luminance"}});
-    }
-    else if (type == "ocio") {
+    } else if (type == "ocio") {
         c.param_sets.push_back({"display", {"mode=display"}});
         c.param_sets.push_back({"keep_premultiplied", {"unpremultiply=false"}});
         c.param_sets.push_back({"to_linear", {"from=srgb", "to=lin_rec709"}});
@@ -26,12 +25,11 @@ NodeCases node_cases(const std::string &type)
             "finding: unpremultiplying by alpha 1e-30 gives RGB ~1e29, the sRGB decode overflows "
             "to Inf and the re-premultiply makes Inf/NaN from finite input; io/color.cpp should "
             "leave pixels with alpha below a threshold (or 0) unpremultiplied";
-    }
-    else if (type == "channels") {
-        c.param_sets.push_back(
-            {"copy_rename_remove",
-             {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",
-              R"(rename={"motion": "mv"})", "remove=albedo"}});
+    } else if (type == "channels") {
+        c.param_sets.push_back({"copy_rename_remove",
+                                {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",
+                                 R"(rename={"motion": "mv"})",
+                                 "remove=albedo"}});
         c.param_sets.push_back({"keep_color", {"keep=color"}});
     }
     return c;

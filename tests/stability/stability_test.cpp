@@ -2,13 +2,14 @@
 // with its defaults and its own parameter sets (stability_cases.cpp). Results go to
 // stability.json in the working directory (build/ under ctest).
 
+#include "stability/stability.h"
+
 #include <gtest/gtest.h>
 
 #include <limits>
 
 #include "core/error.h"
 #include "graph/node_registry.h"
-#include "stability/stability.h"
 
 namespace posthaste::stability {
 namespace {
@@ -73,7 +74,8 @@ TEST(StabilityHarness, DetectsSpreadingAndUnboundedOutput)
     // huge value; the harness must flag it as unstable.
     static constexpr PortSpec kInputs[] = {{"image", "", false, ""}};
     static const NodeType kBad{{"bad", "", kInputs, {}, ""}, [](NodeContext &ctx) {
-                                   Image img(ctx.input("image").width, ctx.input("image").height, 1);
+                                   Image img(
+                                       ctx.input("image").width, ctx.input("image").height, 1);
                                    img.fill(std::numeric_limits<float>::quiet_NaN());
                                    img.at(0, 0, 0) = 1e30f;
                                    ctx.output().set("junk", std::move(img));

@@ -4,6 +4,8 @@
 
 #include "bench/bench.h"
 
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -14,10 +16,8 @@
 #include <regex>
 #include <sstream>
 
-#include <OpenImageIO/imageio.h>
-#include <gtest/gtest.h>
-
 #include "bench/chart.h"
+#include "bench/stability_chart.h"
 #include "core/error.h"
 
 namespace posthaste::bench {
@@ -45,14 +45,20 @@ TEST(BenchPareto, HandMadePointsGiveTheFrontInTimeOrder)
     //   2 |             d
     //     +--------------- time
     const std::vector<ChartPoint> points = {
-        {"a", 1, 1, 1, 8}, {"b", 2, 2, 2, 6}, {"c", 3, 3, 3, 4}, {"d", 5, 5, 5, 2},
-        {"e", 5, 5, 5, 6}, {"f", 4, 4, 4, 4},
+        {"a", 1, 1, 1, 8},
+        {"b", 2, 2, 2, 6},
+        {"c", 3, 3, 3, 4},
+        {"d", 5, 5, 5, 2},
+        {"e", 5, 5, 5, 6},
+        {"f", 4, 4, 4, 4},
     };
     EXPECT_EQ(pareto_front(points), (std::vector<std::size_t>{0, 1, 2, 3}));
     // PSNR-like: higher y is better, so the front flips.
     EXPECT_EQ(pareto_front(points, true), (std::vector<std::size_t>{0}));
-    const std::vector<ChartPoint> up = {{"slow good", 9, 9, 9, 40}, {"fast bad", 1, 1, 1, 20},
-                                        {"mid", 5, 5, 5, 30}, {"mid worse", 6, 6, 6, 25}};
+    const std::vector<ChartPoint> up = {{"slow good", 9, 9, 9, 40},
+                                        {"fast bad", 1, 1, 1, 20},
+                                        {"mid", 5, 5, 5, 30},
+                                        {"mid worse", 6, 6, 6, 25}};
     EXPECT_EQ(pareto_front(up, true), (std::vector<std::size_t>{1, 2, 0}));
 }
 
@@ -61,9 +67,10 @@ TEST(BenchPareto, TiesNonFiniteAndEmpty)
     const double nan = std::nan("");
     const double inf = std::numeric_limits<double>::infinity();
     const std::vector<ChartPoint> points = {
-        {"twin1", 2, 2, 2, 3}, {"twin2", 2, 2, 2, 3},  // identical: both stay
-        {"same time worse", 2, 2, 2, 4},               // dominated by the twins
-        {"nan error", 0.5, 0.5, 0.5, nan},             // never on the front, dominates nothing
+        {"twin1", 2, 2, 2, 3},
+        {"twin2", 2, 2, 2, 3},              // identical: both stay
+        {"same time worse", 2, 2, 2, 4},    // dominated by the twins
+        {"nan error", 0.5, 0.5, 0.5, nan},  // never on the front, dominates nothing
         {"inf time", inf, inf, inf, 0},
         {"zero error slow", 10, 10, 10, 0},
     };
@@ -75,8 +82,11 @@ TEST(BenchPareto, TiesNonFiniteAndEmpty)
 TEST(BenchChart, SvgMarksAndConnectsTheFront)
 {
     const std::vector<ChartPoint> points = {
-        {"a<1>", 1, 0.8, 1.3, 8}, {"b", 2, 2, 2, 6}, {"c", 3, 3, 3, 4},
-        {"e", 5, 5, 5, 6},        {"n", 1, 1, 1, std::nan("")},
+        {"a<1>", 1, 0.8, 1.3, 8},
+        {"b", 2, 2, 2, 6},
+        {"c", 3, 3, 3, 4},
+        {"e", 5, 5, 5, 6},
+        {"n", 1, 1, 1, std::nan("")},
     };
     ChartOptions o;
     o.title = "t & t";
@@ -84,7 +94,7 @@ TEST(BenchChart, SvgMarksAndConnectsTheFront)
     const std::string svg = svg_chart(points, o);
     EXPECT_EQ(svg.rfind("<svg", 0), 0u);
     EXPECT_NE(svg.find("</svg>"), std::string::npos);
-    EXPECT_EQ(count_of(svg, "<circle"), 4u);              // the NaN point is listed, not drawn
+    EXPECT_EQ(count_of(svg, "<circle"), 4u);  // the NaN point is listed, not drawn
     EXPECT_EQ(count_of(svg, "class=\"point pareto\""), 3u);
     EXPECT_EQ(count_of(svg, "<polyline class=\"pareto\""), 1u);
     // The polyline joins three points, in time order.
@@ -165,8 +175,9 @@ TEST(BenchCsv, OneLinePerSettingWithRatiosAndFlags)
               "graph_median_ms,graph_min_ms,graph_max_ms,speed_ratio,rmse,psnr,flip,pareto,runs,"
               "threads,frames,overrides");
     EXPECT_EQ(l1, "ref,11,10,12,10,12,21,20,22,1,0.01,40,,1,3,2,3,blur.samples=64");
-    EXPECT_EQ(l2, "\"fast, \"\"cheap\"\"\",2.5,2,3,2,3,12.5,12,13,4.4,0.05,inf,,0,3,2,3,"
-                  "blur.samples=8 blur.mode=fast");
+    EXPECT_EQ(l2,
+              "\"fast, \"\"cheap\"\"\",2.5,2,3,2,3,12.5,12,13,4.4,0.05,inf,,0,3,2,3,"
+              "blur.samples=8 blur.mode=fast");
 }
 
 // --- Spec ----------------------------------------------------------------------------------
@@ -177,7 +188,8 @@ TEST(BenchSpecFile, ParsesResolvesAndDefaults)
         R"({"graph": "g.json", "node": "n", "truth": {"pattern": "t/####.exr"},
             "settings": [{"name": "a", "set": ["n.x=1"]}, {"name": "b"}], "baseline": "b",
             "metrics": ["rmse", "flip"], "runs": 3, "frames": "1-4"})",
-        "spec.json", "/base");
+        "spec.json",
+        "/base");
     EXPECT_EQ(s.graph, "/base/g.json");
     EXPECT_EQ(s.truth_pattern, "/base/t/####.exr");
     ASSERT_EQ(s.settings.size(), 2u);
@@ -188,7 +200,8 @@ TEST(BenchSpecFile, ParsesResolvesAndDefaults)
     EXPECT_EQ(s.pass, "color");
     const BenchSpec d = parse_spec(R"({"graph": "/g.json", "node": "n",
                                        "truth": {"graph": "t.json", "node": "m"}})",
-                                   "s", "/x");
+                                   "s",
+                                   "/x");
     EXPECT_EQ(d.graph, "/g.json");
     EXPECT_EQ(d.truth_graph, "/x/t.json");
     ASSERT_EQ(d.settings.size(), 1u);
@@ -200,8 +213,7 @@ TEST(BenchSpecFile, ErrorsNameThePlace)
     auto message = [](const std::string &text) {
         try {
             parse_spec(text, "s.json", "");
-        }
-        catch (const Error &e) {
+        } catch (const Error &e) {
             EXPECT_EQ(e.exit_code(), 2);
             return std::string(e.what());
         }
@@ -213,9 +225,9 @@ TEST(BenchSpecFile, ErrorsNameThePlace)
               std::string::npos);
     EXPECT_NE(message(R"({"graph": "g", "node": "n"})").find("missing key \"truth\""),
               std::string::npos);
-    EXPECT_NE(message("{" + ok_head + R"("truth": {"pattern": "p", "graph": "g"}})")
-                  .find("exactly one"),
-              std::string::npos);
+    EXPECT_NE(
+        message("{" + ok_head + R"("truth": {"pattern": "p", "graph": "g"}})").find("exactly one"),
+        std::string::npos);
     EXPECT_NE(message("{" + ok_head +
                       R"("truth": {"pattern": "p"}, "settings": [{"name": "a"}], "baseline": "b"})")
                   .find("s.json:/baseline: no setting \"b\""),
@@ -253,7 +265,7 @@ void write_exr(const std::string &path, int w, int h, float base)
 }
 
 class BenchEndToEnd : public ::testing::Test {
-  protected:
+   protected:
     void SetUp() override
     {
         dir_ = fs::temp_directory_path() /
@@ -266,11 +278,14 @@ class BenchEndToEnd : public ::testing::Test {
             write_exr(path("truth.000" + std::to_string(f) + ".exr"), 24, 16, 0.4f);
         }
         std::ofstream(path("g.json")) << R"({"frames": "1-2", "nodes": [
-            {"id": "fg", "type": "read", "params": {"path": ")" << path("fg.####.exr") << R"("}},
-            {"id": "bg", "type": "read", "params": {"path": ")" << path("bg.####.exr") << R"("}},
+            {"id": "fg", "type": "read", "params": {"path": ")"
+                                      << path("fg.####.exr") << R"("}},
+            {"id": "bg", "type": "read", "params": {"path": ")"
+                                      << path("bg.####.exr") << R"("}},
             {"id": "m", "type": "merge", "inputs": {"a": "fg", "b": "bg"}},
             {"id": "w", "type": "write", "inputs": {"image": "m"},
-             "params": {"path": ")" << path("out/w.####.exr") << R"("}}]})";
+             "params": {"path": ")" << path("out/w.####.exr")
+                                      << R"("}}]})";
     }
     void TearDown() override { fs::remove_all(dir_); }
     std::string path(const std::string &name) const { return (dir_ / name).string(); }
@@ -310,8 +325,13 @@ TEST_F(BenchEndToEnd, TwoSettingsTwoRunsAgainstATruthGraph)
     EXPECT_TRUE(r.settings[0].pareto);
 
     write_results(r, path("res"));
-    for (const char *f : {"results.csv", "chart.svg", "index.html", "results.json",
-                          "thumbs/0.png", "thumbs/0_diff.png", "thumbs/1.png",
+    for (const char *f : {"results.csv",
+                          "chart.svg",
+                          "index.html",
+                          "results.json",
+                          "thumbs/0.png",
+                          "thumbs/0_diff.png",
+                          "thumbs/1.png",
                           "thumbs/1_diff.png"}) {
         EXPECT_TRUE(fs::exists(path("res/") + f)) << f;
     }
@@ -332,8 +352,9 @@ TEST_F(BenchEndToEnd, CommandLineWithTruthFiles)
         "settings": [{"name": "add", "set": ["m.operation=add"]},
                      {"name": "max", "set": ["m.operation=max"]}],
         "warmup": 1, "runs": 5})";
-    const std::string cmd = std::string(POSTHASTE_BINARY) + " bench -q --runs 2 --threads 1 --out " +
-                            path("cli") + " " + path("spec.json") + " 2>&1";
+    const std::string cmd = std::string(POSTHASTE_BINARY) +
+                            " bench -q --runs 2 --threads 1 --out " + path("cli") + " " +
+                            path("spec.json") + " 2>&1";
     FILE *pipe = popen(cmd.c_str(), "r");
     ASSERT_TRUE(pipe);
     std::string output;
@@ -367,18 +388,14 @@ TEST_F(BenchEndToEnd, CommandLineWithTruthFiles)
     EXPECT_TRUE(fs::exists(path("cli/thumbs/1_diff.png")));
 }
 
-}  // namespace
-}  // namespace posthaste::bench
-
-namespace posthaste::bench {
-namespace {
-
 // The ready specs under graphs/bench/ run (one quick run each, from the repository root, where
 // their graphs' relative paths point).
 TEST(BenchReadySpecs, RunFromTheRepositoryRoot)
 {
-    const fs::path out = fs::temp_directory_path() / ("posthaste_ready_" + std::to_string(::getpid()));
-    for (const auto &entry : fs::directory_iterator(fs::path(POSTHASTE_SOURCE_DIR) / "graphs/bench")) {
+    const fs::path out =
+        fs::temp_directory_path() / ("posthaste_ready_" + std::to_string(::getpid()));
+    for (const auto &entry :
+         fs::directory_iterator(fs::path(POSTHASTE_SOURCE_DIR) / "graphs/bench")) {
         const std::string name = entry.path().filename().string();
         if (entry.path().extension() != ".json" || name == "merge.json") {
             continue;  // merge.json is a graph, not a spec
@@ -403,8 +420,6 @@ TEST(BenchReadySpecs, RunFromTheRepositoryRoot)
 
 }  // namespace
 }  // namespace posthaste::bench
-
-#include "bench/stability_chart.h"
 
 namespace posthaste::bench {
 namespace {

@@ -2,6 +2,8 @@
 // OpenImageIO's idiff for several threshold sets, JSON numbers equal metrics::compare, frame
 // sequences with a missing frame, size mismatch, unreadable files, and the images it writes.
 
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -10,11 +12,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
-
-#include <OpenImageIO/imageio.h>
-#include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "core/hash.h"
 #include "metrics/metrics.h"
@@ -120,7 +119,7 @@ nlohmann::json read_json(const fs::path &path)
 }
 
 class DiffCli : public ::testing::Test {
-  protected:
+   protected:
     void SetUp() override
     {
         dir_ = fs::temp_directory_path() /
@@ -160,7 +159,9 @@ TEST_F(DiffCli, ExitCodesAgreeWithIdiffAndJsonMatchesCompare)
         {"small", base, perturbed(base, 0.002f, 7)},
         {"large", base, perturbed(base, 0.05f, 9)},
         {"spike", base, spike},
-        {"rgb", noise(9, 31, 3, 4, 0.0f, 4.0f), perturbed(noise(9, 31, 3, 4, 0.0f, 4.0f), 0.01f, 5)},
+        {"rgb",
+         noise(9, 31, 3, 4, 0.0f, 4.0f),
+         perturbed(noise(9, 31, 3, 4, 0.0f, 4.0f), 0.01f, 5)},
     };
     struct Set {
         std::string args;
@@ -218,8 +219,7 @@ TEST_F(DiffCli, ExitCodesAgreeWithIdiffAndJsonMatchesCompare)
             EXPECT_DOUBLE_EQ(st["rms_error"].get<double>(), stats.all.rms_error);
             if (std::isfinite(stats.all.psnr)) {
                 EXPECT_DOUBLE_EQ(st["psnr"].get<double>(), stats.all.psnr);
-            }
-            else {
+            } else {
                 EXPECT_EQ(st["psnr"], "inf");
             }
             EXPECT_DOUBLE_EQ(st["max_error"].get<double>(), stats.all.max_error);
@@ -341,8 +341,8 @@ TEST_F(DiffCli, WritesValidDifferenceImagesFlipMapsAndJson)
     }
     const std::string args = " --diff-image " + path("out/d.####.exr") + " --diff-scale 16" +
                              " --flip-map " + path("out/f.####.png") + " --json " +
-                             path("out/r.json") + " --fail 1 --warn 1 " + path("a.%d.exr") +
-                             " " + path("b.%d.exr");
+                             path("out/r.json") + " --fail 1 --warn 1 " + path("a.%d.exr") + " " +
+                             path("b.%d.exr");
     const Process p = run_process(std::string(POSTHASTE_BINARY) + " diff --flip hdr" + args);
     EXPECT_EQ(p.exit_code, 0) << p.output;
     for (int f = 1; f <= 2; ++f) {
@@ -371,8 +371,8 @@ TEST_F(DiffCli, WritesValidDifferenceImagesFlipMapsAndJson)
         EXPECT_EQ(e.path().string().find(".tmp"), std::string::npos) << e.path();
     }
     // Several frames into one file name is refused before any work.
-    const Process clash = diff("--diff-image " + path("one.exr") + " " + path("a.%d.exr") + " " +
-                               path("b.%d.exr"));
+    const Process clash =
+        diff("--diff-image " + path("one.exr") + " " + path("a.%d.exr") + " " + path("b.%d.exr"));
     EXPECT_EQ(clash.exit_code, 2) << clash.output;
     EXPECT_NE(clash.output.find("placeholder"), std::string::npos) << clash.output;
 }
