@@ -140,7 +140,10 @@ class DiffCli : public ::testing::Test {
 
 // --- Agreement with idiff ----------------------------------------------------------------
 
-TEST_F(DiffCli, ExitCodesAgreeWithIdiffAndJsonMatchesCompare)
+/// Its own suite (one ctest entry) because it starts ~50 processes.
+class DiffCliIdiff : public DiffCli {};
+
+TEST_F(DiffCliIdiff, ExitCodesAndJsonMatchCompare)
 {
     const std::string idiff = find_on_path("idiff");
     if (idiff.empty()) {
