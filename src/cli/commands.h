@@ -31,6 +31,8 @@ void add_render_command(CLI::App &app, int &exit_code);
 void add_run_command(CLI::App &app, int &exit_code);
 void add_info_command(CLI::App &app, int &exit_code);
 void add_nodes_command(CLI::App &app, int &exit_code);
+void add_diff_command(CLI::App &app, int &exit_code);
+void add_bench_command(CLI::App &app, int &exit_code);
 
 /// True when stderr is a terminal (progress bars) and NO_COLOR-style plain output is not forced.
 bool stderr_is_terminal();

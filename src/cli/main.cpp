@@ -24,13 +24,16 @@ int main(int argc, char **argv)
     CLI::App app{"posthaste: a node-graph compositor for multi-layer OpenEXR frame sequences"};
     app.set_version_flag("--version", std::string("posthaste ") + POSTHASTE_VERSION);
     app.require_subcommand(1);
-    app.footer("Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph error.\n"
+    app.footer("Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph error\n"
+               "(diff: idiff's 0 ok, 1 warning, 2 failure, 3 size mismatch, 4 file error).\n"
                "Run 'posthaste COMMAND --help' for a command's options.");
     int exit_code = 0;
     cli::add_run_command(app, exit_code);
     cli::add_render_command(app, exit_code);
     cli::add_info_command(app, exit_code);
     cli::add_nodes_command(app, exit_code);
+    cli::add_diff_command(app, exit_code);
+    cli::add_bench_command(app, exit_code);
     std::string command_line;
     for (int i = 0; i < argc; ++i) {
         command_line += (i ? " " : "") + std::string(argv[i]);

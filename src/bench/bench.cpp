@@ -1,0 +1,702 @@
+#include "bench/bench.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "bench/chart.h"
+#include "core/error.h"
+#include "core/parallel.h"
+#include "graph/graph.h"
+#include "io/image_file.h"
+#include "io/sequence.h"
+#include "metrics/flip.h"
+#include "metrics/metrics.h"
+
+namespace posthaste::bench {
+namespace {
+
+using json = nlohmann::json;
+namespace fs = std::filesystem;
+
+// --- Spec ----------------------------------------------------------------------------------
+
+void check_keys(const json &obj, const std::vector<std::string> &allowed, const std::string &where)
+{
+    for (auto it = obj.begin(); it != obj.end(); ++it) {
+        if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end()) {
+            throw_usage(
+                where,
+                where.back() == ':' ? "/" : "",
+                ": unknown key ",
+                quoted(it.key()),
+                did_you_mean(it.key(), allowed),
+                " (expected: ",
+                [&] {
+                    std::string s;
+                    for (const std::string &a : allowed) {
+                        s += (s.empty() ? "" : ", ") + a;
+                    }
+                    return s;
+                }(),
+                ")");
+        }
+    }
+}
+
+std::string get_string(const json &obj, const std::string &key, const std::string &where)
+{
+    const json &v = obj.at(key);
+    if (!v.is_string()) {
+        throw_usage(where, "/", key, ": expected a string, got ", v.dump());
+    }
+    return v.get<std::string>();
+}
+
+std::vector<std::string> get_strings(const json &v, const std::string &where)
+{
+    if (!v.is_array()) {
+        throw_usage(where, ": expected a list of strings, got ", v.dump());
+    }
+    std::vector<std::string> out;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        if (!v[i].is_string()) {
+            throw_usage(where, "/", i, ": expected a string, got ", v[i].dump());
+        }
+        out.push_back(v[i].get<std::string>());
+    }
+    return out;
+}
+
+int get_int(const json &obj, const std::string &key, int lo, int hi, const std::string &where)
+{
+    const json &v = obj.at(key);
+    if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi) {
+        throw_usage(where, "/", key, ": expected an integer in ", lo, "..", hi, ", got ", v.dump());
+    }
+    return v.get<int>();
+}
+
+std::string resolve(const std::string &path, const std::string &base_dir)
+{
+    if (path.empty() || fs::path(path).is_absolute() || base_dir.empty()) {
+        return path;
+    }
+    return (fs::path(base_dir) / path).lexically_normal().string();
+}
+
+// --- Running -------------------------------------------------------------------------------
+
+double ms_since(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+const Image &measured_pass(const Frame &frame, const std::string &pass, const std::string &who)
+{
+    return frame.image(pass, who);
+}
+
+/// First three channels, sRGB-encoded, clamped, box-downscaled so the longer side is <= max_side.
+Image display_thumbnail(const Image &img, float scale, int max_side = 160)
+{
+    const int step = std::max(1, (std::max(img.width(), img.height()) + max_side - 1) / max_side);
+    const int w = std::max(1, img.width() / step), h = std::max(1, img.height() / step);
+    Image out(w, h, 3);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                double sum = 0.0;
+                int n = 0;
+                for (int yy = y * step; yy < std::min(img.height(), (y + 1) * step); ++yy) {
+                    for (int xx = x * step; xx < std::min(img.width(), (x + 1) * step); ++xx) {
+                        const float v = img.at(xx, yy, std::min(c, img.channels() - 1));
+                        sum += std::isfinite(v) ? double(v) : 0.0;
+                        ++n;
+                    }
+                }
+                const float v = float(sum / std::max(n, 1)) * scale;
+                out.at(x, y, c) = metrics::flip::linear_to_srgb(std::clamp(v, 0.0f, 1.0f));
+            }
+        }
+    }
+    return out;
+}
+
+struct Prepared {
+    std::unique_ptr<Graph> graph;
+    int node = -1;
+};
+
+Prepared prepare(const std::string &path,
+                 const std::string &node,
+                 const std::vector<std::string> &overrides,
+                 const std::string &origin)
+{
+    Prepared p;
+    try {
+        p.graph = std::make_unique<Graph>(Graph::load(path, overrides));
+    } catch (const Error &e) {
+        throw Error(e.code(), origin + ": " + e.what());
+    }
+    p.graph->set_capture(node);
+    p.node = p.graph->find(node);
+    return p;
+}
+
+std::string number_text(double v)
+{
+    if (std::isnan(v)) {
+        return "nan";
+    }
+    if (std::isinf(v)) {
+        return v > 0 ? "inf" : "-inf";
+    }
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.6g", v);
+    return buf;
+}
+
+std::string csv_field(const std::string &s)
+{
+    if (s.find_first_of(",\"\n") == std::string::npos) {
+        return s;
+    }
+    std::string out = "\"";
+    for (char c : s) {
+        out += c == '"' ? std::string("\"\"") : std::string(1, c);
+    }
+    return out + "\"";
+}
+
+json json_number(double v)
+{
+    return std::isfinite(v) ? json(v) : json(number_text(v));
+}
+
+void write_text(const std::string &path, const std::string &text)
+{
+    atomic_write(path, [&](const std::string &tmp) {
+        std::ofstream out(tmp, std::ios::binary);
+        out << text;
+        out.close();
+        if (!out) {
+            throw_runtime(path, ": cannot write");
+        }
+    });
+}
+
+std::string join(const std::vector<std::string> &items, const char *sep)
+{
+    std::string s;
+    for (const std::string &i : items) {
+        s += (s.empty() ? "" : sep) + i;
+    }
+    return s;
+}
+
+}  // namespace
+
+BenchSpec parse_spec(const std::string &text,
+                     const std::string &origin,
+                     const std::string &base_dir)
+{
+    json j;
+    try {
+        j = json::parse(text);
+    } catch (const json::parse_error &e) {
+        throw_usage(origin, ": invalid JSON: ", e.what());
+    }
+    if (!j.is_object()) {
+        throw_usage(origin, ": expected a JSON object");
+    }
+    const std::string w = origin + ":";
+    check_keys(j,
+               {"description",
+                "graph",
+                "node",
+                "frames",
+                "pass",
+                "truth",
+                "settings",
+                "baseline",
+                "metrics",
+                "chart",
+                "warmup",
+                "runs",
+                "threads",
+                "diff_scale"},
+               w);
+    BenchSpec s;
+    s.origin = origin;
+    for (const char *key : {"graph", "node", "truth"}) {
+        if (!j.contains(key)) {
+            throw_usage(w, " missing key ", quoted(key));
+        }
+    }
+    s.graph = resolve(get_string(j, "graph", w), base_dir);
+    s.node = get_string(j, "node", w);
+    if (j.contains("description")) {
+        s.description = get_string(j, "description", w);
+    }
+    if (j.contains("frames")) {
+        s.frames = j["frames"].is_number_integer() ? std::to_string(j["frames"].get<int>())
+                                                   : get_string(j, "frames", w);
+        parse_frame_list(s.frames, w + "/frames");
+    }
+    if (j.contains("pass")) {
+        s.pass = get_string(j, "pass", w);
+    }
+
+    const json &truth = j["truth"];
+    const std::string tw = w + "/truth";
+    if (!truth.is_object()) {
+        throw_usage(tw,
+                    ": expected an object {\"pattern\": ...} or {\"graph\": ..., \"node\": ...}");
+    }
+    check_keys(truth, {"pattern", "graph", "node", "set"}, tw);
+    if (truth.contains("pattern") == truth.contains("graph")) {
+        throw_usage(tw, ": give exactly one of \"pattern\" (files) or \"graph\" (a truth graph)");
+    }
+    if (truth.contains("pattern")) {
+        if (truth.contains("node") || truth.contains("set")) {
+            throw_usage(tw, ": \"node\" and \"set\" only go with \"graph\"");
+        }
+        s.truth_pattern = resolve(get_string(truth, "pattern", tw), base_dir);
+    } else {
+        s.truth_graph = resolve(get_string(truth, "graph", tw), base_dir);
+        if (!truth.contains("node")) {
+            throw_usage(tw, ": missing key \"node\" (the truth graph's node to capture)");
+        }
+        s.truth_node = get_string(truth, "node", tw);
+        if (truth.contains("set")) {
+            s.truth_overrides = get_strings(truth["set"], tw + "/set");
+        }
+    }
+
+    if (j.contains("settings")) {
+        const json &list = j["settings"];
+        if (!list.is_array() || list.empty()) {
+            throw_usage(w, "/settings: expected a non-empty list of {\"name\", \"set\"}");
+        }
+        for (std::size_t i = 0; i < list.size(); ++i) {
+            const std::string sw = str_cat(w, "/settings/", i);
+            if (!list[i].is_object()) {
+                throw_usage(sw, ": expected an object {\"name\": ..., \"set\": [...]}");
+            }
+            check_keys(list[i], {"name", "set"}, sw);
+            if (!list[i].contains("name")) {
+                throw_usage(sw, ": missing key \"name\"");
+            }
+            BenchSetting setting;
+            setting.name = get_string(list[i], "name", sw);
+            if (setting.name.empty()) {
+                throw_usage(sw, "/name: must not be empty");
+            }
+            for (const BenchSetting &other : s.settings) {
+                if (other.name == setting.name) {
+                    throw_usage(sw, "/name: duplicate setting ", quoted(setting.name));
+                }
+            }
+            if (list[i].contains("set")) {
+                setting.overrides = get_strings(list[i]["set"], sw + "/set");
+            }
+            s.settings.push_back(std::move(setting));
+        }
+    } else {
+        s.settings.push_back({"default", {}});
+    }
+    std::vector<std::string> names;
+    for (const BenchSetting &b : s.settings) {
+        names.push_back(b.name);
+    }
+    if (j.contains("baseline")) {
+        s.baseline = get_string(j, "baseline", w);
+        if (std::find(names.begin(), names.end(), s.baseline) == names.end()) {
+            throw_usage(w,
+                        "/baseline: no setting ",
+                        quoted(s.baseline),
+                        did_you_mean(s.baseline, names),
+                        " (have: ",
+                        join(names, ", "),
+                        ")");
+        }
+    }
+    if (j.contains("metrics")) {
+        for (const std::string &m : get_strings(j["metrics"], w + "/metrics")) {
+            if (m == "flip") {
+                s.flip = true;
+            } else if (m != "rmse" && m != "psnr") {
+                throw_usage(w,
+                            "/metrics: unknown metric ",
+                            quoted(m),
+                            did_you_mean(m, {"rmse", "psnr", "flip"}),
+                            " (expected rmse, psnr, flip)");
+            }
+        }
+    }
+    if (j.contains("chart")) {
+        const json &c = j["chart"];
+        const std::string cw = w + "/chart";
+        if (!c.is_object()) {
+            throw_usage(cw, ": expected an object {\"metric\": ..., \"log_y\": ...}");
+        }
+        check_keys(c, {"metric", "log_y"}, cw);
+        if (c.contains("metric")) {
+            s.chart_metric = get_string(c, "metric", cw);
+            if (s.chart_metric != "rmse" && s.chart_metric != "psnr" && s.chart_metric != "flip") {
+                throw_usage(
+                    cw, "/metric: expected rmse, psnr or flip, got ", quoted(s.chart_metric));
+            }
+            s.flip = s.flip || s.chart_metric == "flip";
+        }
+        if (c.contains("log_y")) {
+            if (!c["log_y"].is_boolean()) {
+                throw_usage(cw, "/log_y: expected true or false, got ", c["log_y"].dump());
+            }
+            s.log_y = c["log_y"].get<bool>();
+        }
+    }
+    if (j.contains("warmup")) {
+        s.warmup = get_int(j, "warmup", 0, 1000, w);
+    }
+    if (j.contains("runs")) {
+        s.runs = get_int(j, "runs", 1, 100000, w);
+    }
+    if (j.contains("threads")) {
+        s.threads = get_int(j, "threads", 0, 1024, w);
+    }
+    if (j.contains("diff_scale")) {
+        if (!j["diff_scale"].is_number() || !(j["diff_scale"].get<double>() >= 0.0)) {
+            throw_usage(w, "/diff_scale: expected a number >= 0, got ", j["diff_scale"].dump());
+        }
+        s.diff_scale = j["diff_scale"].get<float>();
+    }
+    return s;
+}
+
+BenchSpec load_spec(const std::string &path)
+{
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        throw_usage(path, ": cannot read the bench spec");
+    }
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return parse_spec(ss.str(), path, fs::path(path).parent_path().string());
+}
+
+Timing summarize(std::vector<double> runs_ms)
+{
+    Timing t;
+    t.runs_ms = runs_ms;
+    if (runs_ms.empty()) {
+        t.median_ms = t.min_ms = t.max_ms = t.p10_ms = t.p90_ms = kNaN;
+        return t;
+    }
+    std::sort(runs_ms.begin(), runs_ms.end());
+    const std::size_t n = runs_ms.size();
+    t.min_ms = runs_ms.front();
+    t.max_ms = runs_ms.back();
+    t.median_ms = n % 2 ? runs_ms[n / 2] : 0.5 * (runs_ms[n / 2 - 1] + runs_ms[n / 2]);
+    auto rank = [&](double q) {
+        const std::size_t r = std::size_t(std::ceil(q * double(n)));
+        return runs_ms[std::clamp<std::size_t>(r, 1, n) - 1];
+    };
+    t.p10_ms = rank(0.10);
+    t.p90_ms = rank(0.90);
+    return t;
+}
+
+double chart_value(const SettingResult &r, const std::string &metric)
+{
+    return metric == "psnr" ? r.psnr : metric == "flip" ? r.flip : r.rmse;
+}
+
+BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std::string &)> &log)
+{
+    auto say = [&](const std::string &line) {
+        if (log) {
+            log(line);
+        }
+    };
+    set_thread_count(spec.threads);
+    BenchResult result;
+    result.spec = spec;
+    result.threads = thread_count();
+
+    // Load and check everything before any timing.
+    std::vector<Prepared> graphs;
+    for (const BenchSetting &s : spec.settings) {
+        graphs.push_back(prepare(spec.graph,
+                                 spec.node,
+                                 s.overrides,
+                                 str_cat(spec.origin, ": setting ", quoted(s.name))));
+    }
+    result.frames = spec.frames.empty() ? graphs.front().graph->default_frames()
+                                        : parse_frame_list(spec.frames, spec.origin + ":/frames");
+    for (Prepared &p : graphs) {
+        p.graph->check(result.frames);
+    }
+
+    say(str_cat("truth: ",
+                spec.truth_pattern.empty() ? spec.truth_graph : spec.truth_pattern,
+                " (",
+                result.frames.size(),
+                " frame(s))"));
+    std::vector<ImagePtr> truth;
+    if (!spec.truth_pattern.empty()) {
+        const std::set<std::string> wanted{spec.pass};
+        for (int f : result.frames) {
+            const Frame fr = read_frame(expand_frame_pattern(spec.truth_pattern, f), &wanted, f);
+            truth.push_back(fr.pass(spec.pass).image);
+        }
+    } else {
+        Prepared t = prepare(
+            spec.truth_graph, spec.truth_node, spec.truth_overrides, spec.origin + ": truth");
+        t.graph->check(result.frames);
+        for (int f : result.frames) {
+            const Frame fr = t.graph->evaluate(f);
+            truth.push_back(fr.pass(spec.pass, "truth node " + quoted(spec.truth_node)).image);
+        }
+    }
+
+    const std::size_t count = spec.settings.size();
+    std::vector<std::vector<double>> node_ms(count), graph_ms(count);
+    const double frames = double(result.frames.size());
+    for (int run = 0; run < spec.warmup + spec.runs; ++run) {
+        for (std::size_t s = 0; s < count; ++s) {
+            const Graph &g = *graphs[s].graph;
+            NodeTimes times = g.make_times();
+            const auto t0 = std::chrono::steady_clock::now();
+            for (int f : result.frames) {
+                g.evaluate(f, &times);
+            }
+            const double wall = ms_since(t0);
+            if (run >= spec.warmup) {
+                graph_ms[s].push_back(wall / frames);
+                node_ms[s].push_back(double(*times.nanoseconds[std::size_t(graphs[s].node)]) *
+                                     1e-6 / frames);
+            }
+        }
+        if (run + 1 == spec.warmup || run + 1 == spec.warmup + spec.runs) {
+            say(run < spec.warmup
+                    ? str_cat(spec.warmup, " warm-up run(s) done")
+                    : str_cat(spec.runs, " timed run(s) of ", count, " setting(s) done"));
+        }
+    }
+
+    for (std::size_t s = 0; s < count; ++s) {
+        SettingResult r;
+        r.setting = spec.settings[s];
+        r.node = summarize(node_ms[s]);
+        r.graph = summarize(graph_ms[s]);
+        double rmse = 0.0, psnr = 0.0, flip = 0.0;
+        for (std::size_t i = 0; i < result.frames.size(); ++i) {
+            const int f = result.frames[i];
+            const Frame out = graphs[s].graph->evaluate(f);
+            const std::string who = str_cat(
+                "setting ", quoted(r.setting.name), ", node ", quoted(spec.node), ", frame ", f);
+            const Image &test = measured_pass(out, spec.pass, who);
+            const Image &ref = *truth[i];
+            if (test.width() != ref.width() || test.height() != ref.height() ||
+                test.channels() != ref.channels()) {
+                throw_runtime(spec.origin,
+                              ": ",
+                              who,
+                              ": pass ",
+                              quoted(spec.pass),
+                              " is ",
+                              test.width(),
+                              "x",
+                              test.height(),
+                              "x",
+                              test.channels(),
+                              " but the truth is ",
+                              ref.width(),
+                              "x",
+                              ref.height(),
+                              "x",
+                              ref.channels());
+            }
+            const metrics::CompareStats stats = metrics::compare(ref, test);
+            rmse += stats.all.rms_error;
+            psnr += stats.all.psnr;
+            if (spec.flip && ref.channels() >= 3) {
+                flip += metrics::flip_hdr(ref, test).mean;
+            }
+            if (i == 0) {
+                r.thumbnail = display_thumbnail(test, 1.0f);
+                r.difference =
+                    display_thumbnail(metrics::difference_image(ref, test, 1.0f), spec.diff_scale);
+            }
+        }
+        r.rmse = rmse / frames;
+        r.psnr = psnr / frames;
+        r.flip = spec.flip && truth.front()->channels() >= 3 ? flip / frames : kNaN;
+        result.settings.push_back(std::move(r));
+    }
+
+    const auto base =
+        std::find_if(result.settings.begin(), result.settings.end(), [&](const SettingResult &r) {
+            return r.setting.name == spec.baseline;
+        });
+    std::vector<ChartPoint> points;
+    for (SettingResult &r : result.settings) {
+        if (base != result.settings.end()) {
+            r.speed_ratio = base->node.median_ms / r.node.median_ms;
+        }
+        points.push_back({r.setting.name,
+                          r.node.median_ms,
+                          r.node.min_ms,
+                          r.node.max_ms,
+                          chart_value(r, spec.chart_metric)});
+    }
+    for (std::size_t i : pareto_front(points, spec.chart_metric == "psnr")) {
+        result.settings[i].pareto = true;
+    }
+    return result;
+}
+
+std::string results_csv(const BenchResult &result)
+{
+    std::ostringstream os;
+    os << "setting,node_median_ms,node_p10_ms,node_p90_ms,node_min_ms,node_max_ms,"
+          "graph_median_ms,graph_min_ms,graph_max_ms,speed_ratio,rmse,psnr,flip,pareto,runs,"
+          "threads,frames,overrides\n";
+    for (const SettingResult &r : result.settings) {
+        os << csv_field(r.setting.name);
+        for (double v : {r.node.median_ms,
+                         r.node.p10_ms,
+                         r.node.p90_ms,
+                         r.node.min_ms,
+                         r.node.max_ms,
+                         r.graph.median_ms,
+                         r.graph.min_ms,
+                         r.graph.max_ms}) {
+            os << "," << number_text(v);
+        }
+        os << "," << (std::isnan(r.speed_ratio) ? "" : number_text(r.speed_ratio));
+        os << "," << number_text(r.rmse) << "," << number_text(r.psnr) << ","
+           << (std::isnan(r.flip) ? "" : number_text(r.flip));
+        os << "," << (r.pareto ? 1 : 0) << "," << r.node.runs_ms.size() << "," << result.threads
+           << "," << result.frames.size() << "," << csv_field(join(r.setting.overrides, " "))
+           << "\n";
+    }
+    return os.str();
+}
+
+std::string results_svg(const BenchResult &result)
+{
+    const BenchSpec &spec = result.spec;
+    std::vector<ChartPoint> points;
+    for (const SettingResult &r : result.settings) {
+        points.push_back({r.setting.name,
+                          r.node.median_ms,
+                          r.node.min_ms,
+                          r.node.max_ms,
+                          chart_value(r, spec.chart_metric)});
+    }
+    ChartOptions o;
+    o.title = str_cat(spec.node,
+                      ": ",
+                      spec.chart_metric,
+                      " vs time (",
+                      result.frames.size(),
+                      " frame(s), ",
+                      result.threads,
+                      " thread(s), median of ",
+                      spec.runs,
+                      ")");
+    o.x_label = str_cat("node \"", spec.node, "\" time per frame (ms; bar: min..max)");
+    o.y_label = spec.chart_metric == "psnr"   ? "PSNR (dB, higher is better)"
+                : spec.chart_metric == "flip" ? "mean FLIP"
+                                              : "RMSE vs truth";
+    o.log_y = spec.log_y && spec.chart_metric != "psnr";
+    o.higher_y_is_better = spec.chart_metric == "psnr";
+    return svg_chart(points, o);
+}
+
+std::string results_html(const BenchResult &result)
+{
+    const BenchSpec &spec = result.spec;
+    std::ostringstream os;
+    os << "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>posthaste bench: "
+       << xml_escape(spec.origin) << "</title>\n<style>body{font-family:sans-serif;margin:2em}"
+       << "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:4px 8px;"
+       << "text-align:right}td:first-child{text-align:left}.pareto{background:#fde}"
+       << "img{image-rendering:pixelated;width:160px}</style></head><body>\n";
+    os << "<h1>" << xml_escape(spec.origin) << "</h1>\n";
+    if (!spec.description.empty()) {
+        os << "<p>" << xml_escape(spec.description) << "</p>\n";
+    }
+    os << "<p>graph <code>" << xml_escape(spec.graph) << "</code>, node <code>"
+       << xml_escape(spec.node) << "</code>, pass <code>" << xml_escape(spec.pass)
+       << "</code>, truth <code>"
+       << xml_escape(spec.truth_pattern.empty()
+                         ? spec.truth_graph + " (node " + spec.truth_node + ")"
+                         : spec.truth_pattern)
+       << "</code>; " << result.frames.size() << " frame(s), " << spec.warmup << " warm-up, "
+       << spec.runs << " timed run(s), " << result.threads << " thread(s).</p>\n";
+    os << results_svg(result);
+    os << "<table>\n<tr><th>setting</th><th>node median ms</th><th>min..max ms</th>"
+       << "<th>graph median ms</th><th>speed ratio</th><th>RMSE</th><th>PSNR</th><th>FLIP</th>"
+       << "<th>output</th><th>|output - truth| x" << number_text(spec.diff_scale) << "</th></tr>\n";
+    for (std::size_t i = 0; i < result.settings.size(); ++i) {
+        const SettingResult &r = result.settings[i];
+        os << "<tr" << (r.pareto ? " class=\"pareto\"" : "") << "><td>"
+           << xml_escape(r.setting.name) << (r.setting.name == spec.baseline ? " (baseline)" : "")
+           << "<br><small>" << xml_escape(join(r.setting.overrides, " ")) << "</small></td><td>"
+           << number_text(r.node.median_ms) << "</td><td>" << number_text(r.node.min_ms) << ".."
+           << number_text(r.node.max_ms) << "</td><td>" << number_text(r.graph.median_ms)
+           << "</td><td>" << (std::isnan(r.speed_ratio) ? "" : number_text(r.speed_ratio))
+           << "</td><td>" << number_text(r.rmse) << "</td><td>" << number_text(r.psnr)
+           << "</td><td>" << (std::isnan(r.flip) ? "" : number_text(r.flip)) << "</td>"
+           << "<td><img src=\"thumbs/" << i << ".png\" alt=\"output\"></td>"
+           << "<td><img src=\"thumbs/" << i << "_diff.png\" alt=\"difference\"></td></tr>\n";
+    }
+    os << "</table>\n<p>Pareto-optimal settings (no other setting is both faster and more "
+       << "accurate) are highlighted and joined in red on the chart.</p>\n</body></html>\n";
+    return os.str();
+}
+
+void write_results(const BenchResult &result, const std::string &dir)
+{
+    const fs::path d(dir);
+    write_text((d / "results.csv").string(), results_csv(result));
+    write_text((d / "chart.svg").string(), results_svg(result));
+    write_text((d / "index.html").string(), results_html(result));
+    json j = {{"spec", result.spec.origin},
+              {"node", result.spec.node},
+              {"frames", result.frames},
+              {"threads", result.threads},
+              {"baseline", result.spec.baseline}};
+    json settings = json::array();
+    for (std::size_t i = 0; i < result.settings.size(); ++i) {
+        const SettingResult &r = result.settings[i];
+        settings.push_back({{"name", r.setting.name},
+                            {"set", r.setting.overrides},
+                            {"node_ms", r.node.runs_ms},
+                            {"graph_ms", r.graph.runs_ms},
+                            {"node_median_ms", json_number(r.node.median_ms)},
+                            {"graph_median_ms", json_number(r.graph.median_ms)},
+                            {"speed_ratio", json_number(r.speed_ratio)},
+                            {"rmse", json_number(r.rmse)},
+                            {"psnr", json_number(r.psnr)},
+                            {"flip", json_number(r.flip)},
+                            {"pareto", r.pareto}});
+        write_preview(r.thumbnail, (d / "thumbs" / (std::to_string(i) + ".png")).string(), false);
+        write_preview(
+            r.difference, (d / "thumbs" / (std::to_string(i) + "_diff.png")).string(), false);
+    }
+    j["settings"] = settings;
+    write_text((d / "results.json").string(), j.dump(2) + "\n");
+}
+
+}  // namespace posthaste::bench

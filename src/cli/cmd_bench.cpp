@@ -1,0 +1,139 @@
+// posthaste bench SPEC.json: time one node over a sweep of settings and measure its error
+// against a ground truth (files or another graph); writes results.csv, chart.svg (error against
+// time, Pareto front marked), index.html with thumbnails, and results.json (src/bench/bench.h).
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "bench/bench.h"
+#include "bench/stability_chart.h"
+#include "cli/commands.h"
+#include "core/error.h"
+#include "io/image_file.h"
+
+namespace posthaste::cli {
+namespace {
+
+struct BenchCliOptions {
+    std::string spec;
+    std::string out;
+    std::string stability;
+    int runs = 0;
+    int warmup = -1;
+    int threads = -1;
+    bool quiet = false;
+};
+
+void write_text(const std::string &path, const std::string &text)
+{
+    atomic_write(path, [&](const std::string &tmp) {
+        std::ofstream out(tmp, std::ios::binary);
+        out << text;
+        out.close();
+        if (!out) {
+            throw_runtime(path, ": cannot write");
+        }
+    });
+}
+
+/// Chart a stability record (tests/stability writes build/stability.json).
+void chart_stability(const std::string &record, const std::string &out, bool quiet)
+{
+    std::ifstream in(record, std::ios::binary);
+    if (!in) {
+        throw_runtime(record, ": cannot read the stability record");
+    }
+    std::stringstream text;
+    text << in.rdbuf();
+    const std::filesystem::path dir(out);
+    write_text((dir / "stability.svg").string(), bench::stability_svg(text.str(), record));
+    write_text((dir / "stability.html").string(), bench::stability_html(text.str(), record));
+    if (!quiet) {
+        std::printf("wrote %s/{stability.svg,stability.html}\n", out.c_str());
+    }
+}
+
+int run(const BenchCliOptions &o)
+{
+    if (o.spec.empty() && o.stability.empty()) {
+        throw_usage("bench: give a spec file, or --stability RECORD.json");
+    }
+    if (o.spec.empty()) {
+        chart_stability(o.stability, o.out.empty() ? "bench_out/stability" : o.out, o.quiet);
+        return 0;
+    }
+    bench::BenchSpec spec = bench::load_spec(o.spec);
+    if (o.runs > 0) {
+        spec.runs = o.runs;
+    }
+    if (o.warmup >= 0) {
+        spec.warmup = o.warmup;
+    }
+    if (o.threads >= 0) {
+        spec.threads = o.threads;
+    }
+    const std::string out =
+        o.out.empty() ? "bench_out/" + std::filesystem::path(o.spec).stem().string() : o.out;
+    const bench::BenchResult result = bench::run_bench(spec, [&](const std::string &line) {
+        if (!o.quiet) {
+            std::fprintf(stderr, "%s\n", line.c_str());
+        }
+    });
+    bench::write_results(result, out);
+    if (!o.stability.empty()) {
+        chart_stability(o.stability, out, o.quiet);
+    }
+    if (!o.quiet) {
+        std::printf("%-20s %12s %12s %10s %12s %10s %10s %s\n",
+                    "setting",
+                    "node ms",
+                    "graph ms",
+                    "ratio",
+                    "rmse",
+                    "psnr",
+                    "flip",
+                    "pareto");
+        for (const bench::SettingResult &r : result.settings) {
+            std::printf("%-20s %12.4f %12.4f %10.3f %12.6g %10.4g %10.4g %s\n",
+                        r.setting.name.c_str(),
+                        r.node.median_ms,
+                        r.graph.median_ms,
+                        r.speed_ratio,
+                        r.rmse,
+                        r.psnr,
+                        r.flip,
+                        r.pareto ? "*" : "");
+        }
+        std::printf("wrote %s/{results.csv,chart.svg,index.html,results.json,thumbs/}\n",
+                    out.c_str());
+    }
+    return 0;
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App &app, int &exit_code)
+{
+    auto o = std::make_shared<BenchCliOptions>();
+    CLI::App *cmd = app.add_subcommand(
+        "bench", "Time a node over a sweep of settings against a ground truth: CSV, SVG, HTML");
+    cmd->add_option("spec", o->spec, "Bench spec (JSON; see docs/DIFF.md)");
+    cmd->add_option("--out,-o", o->out, "Output folder (default: bench_out/<spec name>)");
+    cmd->add_option("--runs,-n", o->runs, "Timed runs per setting (default: the spec's)")
+        ->check(CLI::Range(1, 100000));
+    cmd->add_option("--warmup", o->warmup, "Warm-up runs per setting (default: the spec's)")
+        ->check(CLI::Range(0, 1000));
+    cmd->add_option("--threads,-t",
+                    o->threads,
+                    "Worker threads, fixed for every run (default: the spec's; 0: all cores)")
+        ->check(CLI::Range(0, 1024));
+    cmd->add_option("--stability",
+                    o->stability,
+                    "Also chart a stability record (build/stability.json from the tests)");
+    cmd->add_flag("--quiet,-q", o->quiet, "No progress and no table");
+    cmd->callback([o, &exit_code] { exit_code = run(*o); });
+}
+
+}  // namespace posthaste::cli

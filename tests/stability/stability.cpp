@@ -1,0 +1,335 @@
+#include "stability/stability.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "core/error.h"
+#include "core/hash.h"
+#include "core/passes.h"
+
+namespace posthaste::stability {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+/// Apply fn(pass name, channel, x, y, value&) to every value of every pass.
+template <typename Fn>
+Frame edited(const Frame &src, Fn &&fn)
+{
+    Frame out = src;
+    for (const auto &[name, pass] : src.passes()) {
+        Image img = *pass.image;
+        for (int y = 0; y < img.height(); ++y) {
+            for (int x = 0; x < img.width(); ++x) {
+                for (int c = 0; c < img.channels(); ++c) {
+                    fn(name, c, x, y, img.at(x, y, c));
+                }
+            }
+        }
+        out.set(name, std::make_shared<const Image>(std::move(img)), pass.channels, pass.storage);
+    }
+    return out;
+}
+
+ParamValue parse_value(const ParamSpec &spec, const std::string &text)
+{
+    ParamValue v;
+    v.given = true;
+    switch (spec.type) {
+        case ParamType::Int:
+        case ParamType::Real:
+            v.number = std::stod(text);
+            break;
+        case ParamType::Bool:
+            if (text != "true" && text != "false") {
+                throw std::invalid_argument("bool parameter needs true or false: " + text);
+            }
+            v.number = text == "true" ? 1.0 : 0.0;
+            break;
+        case ParamType::Choice: {
+            const std::vector<std::string> words = split_choices(spec.choices);
+            if (std::find(words.begin(), words.end(), text) == words.end()) {
+                throw std::invalid_argument("not a choice of " + std::string(spec.name) + ": " +
+                                            text);
+            }
+            v.text = text;
+            break;
+        }
+        case ParamType::String:
+        case ParamType::Json:
+            v.text = text;
+            break;
+        case ParamType::Vec:
+            throw std::invalid_argument("vector parameters are not supported here yet");
+    }
+    return v;
+}
+
+NodeParams make_params(const NodeType &type, const std::vector<std::string> &overrides)
+{
+    std::map<std::string, ParamValue> values;
+    for (const ParamSpec &spec : type.spec.params) {
+        ParamValue v;
+        v.number = spec.default_number;
+        v.text = std::string(spec.default_text);
+        for (int i = 0; i < spec.vec_size; ++i) {
+            v.vec.push_back(spec.default_vec[std::size_t(i)]);
+        }
+        values[std::string(spec.name)] = v;
+    }
+    for (const std::string &o : overrides) {
+        const std::size_t eq = o.find('=');
+        const std::string name = o.substr(0, eq);
+        const ParamSpec *spec = nullptr;
+        for (const ParamSpec &s : type.spec.params) {
+            spec = s.name == name ? &s : spec;
+        }
+        if (eq == std::string::npos || !spec) {
+            throw std::invalid_argument("bad override for " + std::string(type.spec.type) + ": " +
+                                        o);
+        }
+        values[name] = parse_value(*spec, o.substr(eq + 1));
+    }
+    return NodeParams(&type, std::move(values));
+}
+
+std::mutex g_mutex;
+std::vector<StabilityResult> g_records;
+
+struct WriteAtExit {
+    ~WriteAtExit() { write_records(); }
+} g_write_at_exit;
+
+}  // namespace
+
+Frame plain_frame(int w, int h, int number)
+{
+    Frame f;
+    f.number = number;
+    f.width = w;
+    f.height = h;
+    for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
+        const int channels = int(cp.channels.size());
+        Image img(w, h, channels);
+        const std::string name(cp.name);
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                float *p = img.pixel(x, y);
+                const float u = hash_unit(x, y, 0, 17), v = hash_unit(x, y, 1, 17);
+                if (name == pass::kColor) {
+                    const float a = 0.25f + 0.75f * u;
+                    p[0] = a * v;
+                    p[1] = a * 0.5f;
+                    p[2] = a * (1.0f - v);
+                    p[3] = a;
+                } else if (name == pass::kDepth) {
+                    p[0] = 1.0f + 49.0f * u;
+                } else if (name == pass::kNormal || name == pass::kTangent) {
+                    const float z = 2.0f * u - 1.0f, r = std::sqrt(1.0f - z * z);
+                    p[0] = r * std::cos(6.2831853f * v);
+                    p[1] = r * std::sin(6.2831853f * v);
+                    p[2] = z;
+                } else if (name == pass::kMotion || name == pass::kMotionNext) {
+                    p[0] = 8.0f * (u - 0.5f);
+                    p[1] = 8.0f * (v - 0.5f);
+                } else if (name == pass::kId) {
+                    p[0] = float(int(u * 8.0f));
+                } else if (name == pass::kPosition) {
+                    for (int c = 0; c < channels; ++c) {
+                        p[c] = 20.0f * (hash_unit(x, y, c, 5) - 0.5f);
+                    }
+                } else {
+                    for (int c = 0; c < channels; ++c) {
+                        p[c] = hash_unit(x, y, c, 23);  // albedo, material: [0, 1]
+                    }
+                }
+            }
+        }
+        f.set(name, std::move(img));
+    }
+    return f;
+}
+
+std::vector<HostileFrame> hostile_frames()
+{
+    std::vector<HostileFrame> out;
+    const Frame base = plain_frame(16, 16);
+    out.push_back({"plain", "ordinary finite values (the control)", base});
+    out.push_back({"nan_everywhere",
+                   "NaN in every pass, one channel at every 5th pixel",
+                   edited(base, [](const std::string &, int c, int x, int y, float &v) {
+                       v = (x + y) % 5 == 0 && c == x % 4 ? kNaN : v;
+                   })});
+    out.push_back({"inf_everywhere",
+                   "+Inf and -Inf in every pass at every 7th pixel",
+                   edited(base, [](const std::string &, int, int x, int y, float &v) {
+                       v = (3 * x + y) % 7 == 0 ? ((x & 1) ? kInf : -kInf) : v;
+                   })});
+    out.push_back({"sky_depth_inf",
+                   "top half is sky: depth +inf, zero normals and color",
+                   edited(base, [](const std::string &name, int, int, int y, float &v) {
+                       if (y < 8) {
+                           v = name == pass::kDepth                            ? kInf
+                               : name == pass::kPosition                       ? 0.0f
+                               : name == pass::kNormal || name == pass::kColor ? 0.0f
+                                                                               : v;
+                       }
+                   })});
+    out.push_back({"one_by_one", "a 1x1 frame", plain_frame(1, 1)});
+    out.push_back({"one_row", "a 37x1 frame", plain_frame(37, 1)});
+    out.push_back({"huge_values",
+                   "sun-like color 1e6, depth 1e9, motion 4096 px, position 1e7",
+                   edited(base, [](const std::string &name, int c, int x, int y, float &v) {
+                       if (name == pass::kColor && c < 3) {
+                           v = (x + y) % 3 == 0 ? 1e6f : v;
+                       } else if (name == pass::kDepth) {
+                           v = 1e9f;
+                       } else if (name == pass::kMotion || name == pass::kMotionNext) {
+                           v = (c ? -4096.0f : 4096.0f);
+                       } else if (name == pass::kPosition) {
+                           v *= 1e6f;
+                       }
+                   })});
+    out.push_back({"zero_alpha",
+                   "color with alpha 0 and 1e-30 under nonzero RGB (bad premult)",
+                   edited(base, [](const std::string &name, int c, int x, int, float &v) {
+                       if (name == pass::kColor && c == 3) {
+                           v = x % 2 ? 0.0f : 1e-30f;
+                       }
+                   })});
+    out.push_back({"negative",
+                   "negative color, depth and material values",
+                   edited(base, [](const std::string &name, int, int, int, float &v) {
+                       if (name == pass::kColor || name == pass::kDepth ||
+                           name == pass::kMaterial || name == pass::kAlbedo) {
+                           v = -v;
+                       }
+                   })});
+    return out;
+}
+
+StabilityResult run_case(const NodeType &type,
+                         const std::vector<std::string> &overrides,
+                         const Frame &input,
+                         double bound)
+{
+    StabilityResult r;
+    r.node = std::string(type.spec.type);
+    const NodeIdentity identity{"under_test", r.node, "stability"};
+    const NodeParams params = make_params(type, overrides);
+    auto in = std::make_shared<const Frame>(input);
+    std::vector<std::shared_ptr<const Frame>> inputs;
+    std::vector<std::string> ports;
+    for (const PortSpec &p : type.spec.inputs) {
+        inputs.push_back(in);
+        ports.emplace_back(p.name);
+    }
+    PassSet requested;
+    requested.all = true;
+    NodeState state;
+    NodeContext ctx(identity, params, inputs, ports, requested, input.number, state);
+
+    // Where the input is non-finite: a pixel mask over the frame.
+    std::vector<char> bad_in(std::size_t(input.width) * std::size_t(input.height), 0);
+    for (const auto &[name, pass] : input.passes()) {
+        const Image &img = *pass.image;
+        for (int y = 0; y < img.height(); ++y) {
+            for (int x = 0; x < img.width(); ++x) {
+                for (int c = 0; c < img.channels(); ++c) {
+                    if (!std::isfinite(img.at(x, y, c))) {
+                        ++r.nonfinite_in;
+                        bad_in[std::size_t(y) * std::size_t(input.width) + std::size_t(x)] = 1;
+                    }
+                }
+            }
+        }
+    }
+
+    const auto t0 = std::chrono::steady_clock::now();
+    try {
+        type.execute(ctx);
+    } catch (const Error &e) {
+        r.status = "rejected";
+        r.message = e.what();
+        return r;
+    } catch (const std::exception &e) {
+        r.status = "crashed";
+        r.message = e.what();
+        return r;
+    }
+    r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+
+    const Frame &out = ctx.output();
+    for (const auto &[name, pass] : out.passes()) {
+        const Image &img = *pass.image;
+        const bool same_size = img.width() == input.width && img.height() == input.height;
+        for (int y = 0; y < img.height(); ++y) {
+            for (int x = 0; x < img.width(); ++x) {
+                for (int c = 0; c < img.channels(); ++c) {
+                    const float v = img.at(x, y, c);
+                    if (std::isfinite(v)) {
+                        r.max_abs = std::max(r.max_abs, double(std::fabs(v)));
+                        continue;
+                    }
+                    ++r.nonfinite_out;
+                    if (!same_size ||
+                        !bad_in[std::size_t(y) * std::size_t(input.width) + std::size_t(x)]) {
+                        ++r.spread;
+                    }
+                }
+            }
+        }
+    }
+    if (r.spread > 0 || r.max_abs > bound) {
+        r.status = "unstable";
+        r.message = str_cat(r.spread,
+                            " non-finite value(s) where the input was finite; max |v| ",
+                            r.max_abs,
+                            " (bound ",
+                            bound,
+                            ")");
+    } else {
+        r.status = "ok";
+    }
+    return r;
+}
+
+void record(const StabilityResult &result)
+{
+    std::lock_guard lock(g_mutex);
+    g_records.push_back(result);
+}
+
+std::string write_records()
+{
+    std::lock_guard lock(g_mutex);
+    if (g_records.empty()) {
+        return {};
+    }
+    const char *env = std::getenv("POSTHASTE_STABILITY_JSON");
+    const std::string path = env && *env ? env : "stability.json";
+    nlohmann::json cases = nlohmann::json::array();
+    for (const StabilityResult &r : g_records) {
+        cases.push_back({{"node", r.node},
+                         {"params", r.params},
+                         {"frame", r.frame},
+                         {"status", r.status},
+                         {"message", r.message},
+                         {"nonfinite_in", r.nonfinite_in},
+                         {"nonfinite_out", r.nonfinite_out},
+                         {"spread", r.spread},
+                         {"max_abs", r.max_abs},
+                         {"ms", r.ms}});
+    }
+    std::ofstream(path) << nlohmann::json{{"cases", cases}}.dump(2) << "\n";
+    return path;
+}
+
+}  // namespace posthaste::stability
