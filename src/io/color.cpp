@@ -178,6 +178,9 @@ void ColorProcessor::apply(Image &image, bool unpremultiply) const
     }
     const int nch = image.channels();
     const bool unpremult = unpremultiply && nch >= 4;
+    // Below this alpha a pixel is left premultiplied: dividing by a near-zero alpha turns any
+    // color into huge values that a non-linear transform overflows (found by the stability suite).
+    constexpr float kMinAlpha = 1e-6f;
     parallel_for_tiles(image.bounds(), [&](const Rect &tile) {
         for (int y = tile.y0; y < tile.y1; ++y) {
             float *row = image.pixel(tile.x0, y);
@@ -185,7 +188,7 @@ void ColorProcessor::apply(Image &image, bool unpremultiply) const
             if (unpremult) {
                 for (int x = 0; x < w; ++x) {
                     float *p = row + std::size_t(x) * std::size_t(nch);
-                    if (p[3] > 0.0f) {
+                    if (p[3] > kMinAlpha) {
                         p[0] /= p[3];
                         p[1] /= p[3];
                         p[2] /= p[3];
@@ -201,7 +204,7 @@ void ColorProcessor::apply(Image &image, bool unpremultiply) const
             if (unpremult) {
                 for (int x = 0; x < w; ++x) {
                     float *p = row + std::size_t(x) * std::size_t(nch);
-                    if (p[3] > 0.0f) {
+                    if (p[3] > kMinAlpha) {
                         p[0] *= p[3];
                         p[1] *= p[3];
                         p[2] *= p[3];

@@ -1,5 +1,7 @@
 #include "stability/stability.h"
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -154,6 +156,26 @@ Frame plain_frame(int w, int h, int number)
         }
         f.set(name, std::move(img));
     }
+    // A full camera header (this frame, the previous one moved 0.2 units and turned 2 degrees,
+    // lens and shutter), so nodes that project or defocus run rather than refuse.
+    const glm::mat4 now = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 2.0f, -10.0f));
+    const glm::mat4 prev = glm::rotate(glm::translate(now, glm::vec3(-0.2f, 0.0f, 0.0f)),
+                                       glm::radians(2.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+    const float aspect = float(w) / float(h);
+    const CameraMatrices m = make_camera_matrices(now, 35.0f, 36.0f, aspect, 0.1f);
+    const CameraMatrices pm = make_camera_matrices(prev, 35.0f, 36.0f, aspect, 0.1f);
+    f.camera.world_to_camera = m.world_to_camera;
+    f.camera.world_to_ndc = m.world_to_ndc;
+    f.camera.prev_world_to_camera = pm.world_to_camera;
+    f.camera.prev_world_to_ndc = pm.world_to_ndc;
+    f.camera.fstop = 2.8f;
+    f.camera.focus_distance = 10.0f;
+    f.camera.focal_length_mm = 35.0f;
+    f.camera.sensor_width_mm = 36.0f;
+    f.camera.sensor_height_mm = 36.0f / aspect;
+    f.camera.shutter = 0.5f;
+    f.camera.near_clip = 0.1f;
+    f.camera.far_clip = 1000.0f;
     return f;
 }
 

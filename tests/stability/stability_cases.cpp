@@ -21,10 +21,12 @@ NodeCases node_cases(const std::string &type)
         c.known_failures["to_linear/huge_values"] =
             "decoding sRGB-encoded 1e6 gives ~1.5e15 (a power of 2.4); such input is not "
             "display-referred, so the bound does not apply";
-        c.known_failures["to_linear/zero_alpha"] =
-            "finding: unpremultiplying by alpha 1e-30 gives RGB ~1e29, the sRGB decode overflows "
-            "to Inf and the re-premultiply makes Inf/NaN from finite input; io/color.cpp should "
-            "leave pixels with alpha below a threshold (or 0) unpremultiplied";
+    } else if (type == "fog") {
+        // Hostile frames carry no camera: each model must refuse them with a clear error or
+        // stay finite; frames with a camera are covered in tests/unit/fog_node_test.cpp.
+        for (const char *model : {"linear", "exp", "exp2", "atmosphere"}) {
+            c.param_sets.push_back({model, {std::string("model=") + model}});
+        }
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",
@@ -40,6 +42,7 @@ const std::map<std::string, std::string> &skipped_types()
     static const std::map<std::string, std::string> kSkipped = {
         {"read", "a source: reads files (its bad_pixels option is tested with the reader)"},
         {"write", "a sink: writes files"},
+        {"render", "a source: renders a scene (its passes are checked in tests/unit/raster_test)"},
     };
     return kSkipped;
 }
