@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <string>
 
+#include <malloc.h>
 #include <unistd.h>
 
 #include "cli/commands.h"
@@ -21,6 +22,11 @@ bool stderr_is_terminal()
 int main(int argc, char **argv)
 {
     using namespace posthaste;
+    // Pass images are large (8 MB per channel at 1080p) and made anew every frame. glibc serves
+    // blocks this size with mmap and unmaps them on free, so each frame would page-fault its
+    // images in again; keep freed memory in the heap for the next frame instead.
+    mallopt(M_MMAP_THRESHOLD, 1 << 30);
+    mallopt(M_TRIM_THRESHOLD, 1 << 30);
     CLI::App app{"posthaste: a node-graph compositor for multi-layer OpenEXR frame sequences"};
     app.set_version_flag("--version", std::string("posthaste ") + POSTHASTE_VERSION);
     app.require_subcommand(1);
