@@ -5,6 +5,7 @@
 #include "io/image_file.h"
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -445,6 +446,47 @@ TEST(IoSequence, PatternsExpandAndScan)
         std::ofstream(dir + "/" + n) << "x";
     }
     EXPECT_EQ(find_frames_on_disk(dir + "/s.####.exr"), (std::vector<int>{1, 2, 10}));
+}
+
+}  // namespace
+}  // namespace posthaste
+
+namespace posthaste {
+namespace {
+
+TEST(IoWrite, HalfConversionRoundsLikeImath)
+{
+    // Ties, denormals, the largest half, overflow to inf, negative zero, NaN-free extremes.
+    const float values[] = {0.0f, -0.0f, 1.0f, 1.0f + 1.0f / 2048.0f, 1.0f + 3.0f / 2048.0f,
+                            0.1f, 1e-5f, 6e-8f, 3e-8f, 65504.0f, 65519.0f, 65520.0f, 1e6f,
+                            -1e6f, -0.333333f, 2.5e-4f, 1234.5678f};
+    const int n = int(sizeof(values) / sizeof(values[0]));
+    Frame f;
+    Image color(n, 1, 4);
+    for (int i = 0; i < n; ++i) {
+        for (int c = 0; c < 4; ++c) {
+            color.at(i, 0, c) = values[(i + c) % n];
+        }
+    }
+    f.set("color", color);
+    Image albedo(n, 1, 3);  // three channels: the non-vector conversion path
+    for (int i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c) {
+            albedo.at(i, 0, c) = values[(i + 2 * c) % n];
+        }
+    }
+    f.set("albedo", albedo);
+    const std::string dir = scratch_dir("half_round");
+    write_exr(f, dir + "/h.exr", {});
+    const Frame g = read_frame(dir + "/h.exr", nullptr, 1);
+    for (const char *pass : {"color", "albedo"}) {
+        const Image &a = f.image(pass), &b = g.image(pass);
+        for (std::size_t i = 0; i < a.value_count(); ++i) {
+            const float want = float(Imath::half(a.data()[i]));
+            EXPECT_EQ(std::memcmp(&want, &b.data()[i], 4), 0)
+                << pass << " value " << a.data()[i] << " -> " << b.data()[i] << " want " << want;
+        }
+    }
 }
 
 }  // namespace
