@@ -210,6 +210,38 @@ void floats_to_halves(const float *src,
     floats_to_halves_portable(src, channels, count, dst, dst_stride);
 }
 
+/// Copy `count` pixels of `channels` floats to dst + i * dst_stride. The per-pixel copy has a
+/// size known at compile time so it inlines (a libc memmove per pixel dominated the write).
+template<int N>
+void scatter_floats_n(const float *src, int count, unsigned char *dst, std::size_t dst_stride)
+{
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += N) {
+        std::memcpy(dst, src, N * sizeof(float));
+    }
+}
+
+void scatter_floats(const float *src,
+                    int channels,
+                    int count,
+                    unsigned char *dst,
+                    std::size_t dst_stride)
+{
+    switch (channels) {
+        case 1:
+            return scatter_floats_n<1>(src, count, dst, dst_stride);
+        case 2:
+            return scatter_floats_n<2>(src, count, dst, dst_stride);
+        case 3:
+            return scatter_floats_n<3>(src, count, dst, dst_stride);
+        case 4:
+            return scatter_floats_n<4>(src, count, dst, dst_stride);
+        default:
+            for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+                std::memcpy(dst, src, std::size_t(channels) * sizeof(float));
+            }
+    }
+}
+
 float srgb_to_linear(float v)
 {
     return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
@@ -752,10 +784,7 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
                         floats_to_halves(src, lc, frame.width, dst, pixel_bytes);
                         return;
                     }
-                    const std::size_t bytes = std::size_t(lc) * sizeof(float);
-                    for (int x = 0; x < frame.width; ++x, dst += pixel_bytes) {
-                        std::memcpy(dst, src + std::size_t(x) * std::size_t(lc), bytes);
-                    }
+                    scatter_floats(src, lc, frame.width, dst, pixel_bytes);
                 });
                 offset += std::size_t(lc) * l->type.size();
             }
