@@ -8,6 +8,7 @@
 // each light. Background pixels (no surface) keep their input color.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
@@ -106,6 +107,7 @@ struct Light {
 struct Setup {
     std::vector<Light> lights;
     std::set<int> toon_ids;
+    std::array<bool, 256> is_toon{};  // by material id
 };
 
 // Lights and toon ids, validated. `where` is "<file>:/nodes/<i>/params", `who` the node.
@@ -227,6 +229,7 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
                         "\"");
         }
         s.toon_ids.insert(int(v));
+        s.is_toon[std::size_t(v)] = true;
     }
     return s;
 }
@@ -266,22 +269,29 @@ struct ScreenShadows {
         const glm::vec3 &p, const glm::vec3 &n, const glm::vec3 &l, float max_t, int x, int y, int k)
         const
     {
+        // Clip coordinates and camera z are linear along the segment: project its ends once.
         const glm::vec3 start = p + n * bias;
         const float dist = std::min(distance, max_t);
+        const glm::vec3 end = start + l * dist;
+        const glm::vec4 c0 = world_to_ndc * glm::vec4(start, 1.0f);
+        const glm::vec4 dc = world_to_ndc * glm::vec4(end, 1.0f) - c0;
+        const float z0 = glm::dot(z_row, glm::vec4(start, 1.0f));
+        const float dz = glm::dot(z_row, glm::vec4(end, 1.0f)) - z0;
         const float jitter = hash_unit(x, y, k, 0x5eedu);
         const float w = float(depth->width()), h = float(depth->height());
         for (int i = 0; i < steps; ++i) {
-            const glm::vec3 q = start + l * (dist * (float(i) + jitter) / float(steps));
-            const glm::vec4 c = world_to_ndc * glm::vec4(q, 1.0f);
+            const float t = (float(i) + jitter) / float(steps);
+            const glm::vec4 c = c0 + dc * t;
             if (!(c.w > 0.0f)) {
                 break;
             }
-            const float px = c.x / c.w * w, py = c.y / c.w * h;
+            const float inv_w = 1.0f / c.w;
+            const float px = c.x * inv_w * w, py = c.y * inv_w * h;
             if (!(px >= 0.0f && py >= 0.0f && px < w && py < h)) {
                 break;
             }
             const float zb = depth->at(int(px), int(py), 0);
-            const float zr = glm::dot(z_row, glm::vec4(q, 1.0f));
+            const float zr = z0 + dz * t;
             if (std::isfinite(zb) && zb < zr - bias && zr - zb < thickness) {
                 return 0.0f;
             }
@@ -376,12 +386,15 @@ struct Row {
         vy[i] = pr.v.y;
         vz[i] = pr.v.z;
         nv[i] = glm::dot(pr.n, pr.v);
-        const float alpha = shading::roughness_to_alpha(pr.surf.roughness);
+        // Inline forms of roughness_to_alpha, specular_f0 and diffuse_albedo (brdf.cpp).
+        const float rough = std::clamp(pr.surf.roughness, shading::kMinRoughness, 1.0f);
+        const float alpha = rough * rough;
         a2[i] = alpha * alpha;
         const float c = std::max(nv[i], shading::kMinCosine);
         sv[i] = std::sqrt(c * c * (1.0f - a2[i]) + a2[i]);
-        const glm::vec3 f0 = shading::specular_f0(pr.surf);
-        const glm::vec3 kd = shading::diffuse_albedo(pr.surf) * (1.0f / shading::kPi);
+        const float metal = pr.surf.metallic;
+        const glm::vec3 f0 = glm::mix(glm::vec3(0.04f), pr.surf.albedo, metal);
+        const glm::vec3 kd = pr.surf.albedo * ((1.0f - metal) * (1.0f / shading::kPi));
         f0r[i] = f0.x;
         f0g[i] = f0.y;
         f0b[i] = f0.z;
@@ -392,6 +405,20 @@ struct Row {
 };
 
 #if defined(__SSE2__)
+// 1 / x and 1 / sqrt(x) from the hardware estimates plus one Newton step (relative error about
+// 5e-7 instead of 0.5 ulp; the accuracy test bounds the effect on the image).
+inline __m128 rcp_nr(__m128 x)
+{
+    const __m128 r = _mm_rcp_ps(x);
+    return _mm_mul_ps(r, _mm_sub_ps(_mm_set1_ps(2.0f), _mm_mul_ps(x, r)));
+}
+inline __m128 rsqrt_nr(__m128 x)
+{
+    const __m128 r = _mm_rsqrt_ps(x);
+    const __m128 hx = _mm_mul_ps(_mm_set1_ps(0.5f), x);
+    return _mm_mul_ps(r, _mm_sub_ps(_mm_set1_ps(1.5f), _mm_mul_ps(hx, _mm_mul_ps(r, r))));
+}
+
 // shading::evaluate (Lambert + GGX, height-correlated Smith, Schlick), 4 lanes at once, summed
 // over the lights into row.r/g/b. Same formulas as brdf.cpp; float results differ from the
 // scalar path by rounding only (a few ulp).
@@ -432,22 +459,20 @@ void shade_lanes(Row &row, int count, const std::vector<Light> &lights, float cl
                 const __m128 dz = _mm_sub_ps(_mm_set1_ps(light.position.z), pz);
                 const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
                                              _mm_mul_ps(dz, dz));
-                const __m128 dist = _mm_sqrt_ps(d2);
-                // At the light (dist 0) the lane gets l = 0, so n.l = 0 and no light.
-                const __m128 inv = _mm_and_ps(_mm_cmpgt_ps(dist, zero), _mm_div_ps(one, dist));
+                // At the light (d2 = 0) the lane gets l = 0, so n.l = 0 and no light.
+                const __m128 inv = _mm_and_ps(_mm_cmpgt_ps(d2, zero), rsqrt_nr(d2));
                 lx = _mm_mul_ps(dx, inv);
                 ly = _mm_mul_ps(dy, inv);
                 lz = _mm_mul_ps(dz, inv);
-                __m128 falloff =
-                    _mm_div_ps(one, _mm_max_ps(d2, _mm_set1_ps(light.radius * light.radius)));
+                __m128 falloff = rcp_nr(_mm_max_ps(d2, _mm_set1_ps(light.radius * light.radius)));
                 if (light.type == LightType::Spot) {
                     const __m128 cs = _mm_sub_ps(
                         zero,
                         _mm_add_ps(_mm_add_ps(_mm_mul_ps(lx, _mm_set1_ps(light.direction.x)),
                                               _mm_mul_ps(ly, _mm_set1_ps(light.direction.y))),
                                    _mm_mul_ps(lz, _mm_set1_ps(light.direction.z))));
-                    __m128 t = _mm_div_ps(_mm_sub_ps(cs, _mm_set1_ps(light.cos_outer)),
-                                          _mm_set1_ps(light.cos_inner - light.cos_outer));
+                    __m128 t = _mm_mul_ps(_mm_sub_ps(cs, _mm_set1_ps(light.cos_outer)),
+                                          _mm_set1_ps(1.0f / (light.cos_inner - light.cos_outer)));
                     t = _mm_min_ps(_mm_max_ps(t, zero), one);
                     falloff = _mm_mul_ps(
                         falloff,
@@ -465,11 +490,11 @@ void shade_lanes(Row &row, int count, const std::vector<Light> &lights, float cl
             }
             // h = (v + l) / |v + l|; n.h and v.h from dot products.
             const __m128 hx = _mm_add_ps(vx, lx), hy = _mm_add_ps(vy, ly), hz = _mm_add_ps(vz, lz);
-            const __m128 hlen = _mm_sqrt_ps(
-                _mm_add_ps(_mm_add_ps(_mm_mul_ps(hx, hx), _mm_mul_ps(hy, hy)), _mm_mul_ps(hz, hz)));
-            const __m128 hok = _mm_cmpgt_ps(hlen, _mm_set1_ps(1e-8f));
-            const __m128 inv_h = _mm_div_ps(one, _mm_or_ps(_mm_and_ps(hok, hlen),
-                                                           _mm_andnot_ps(hok, one)));
+            const __m128 hlen2 =
+                _mm_add_ps(_mm_add_ps(_mm_mul_ps(hx, hx), _mm_mul_ps(hy, hy)), _mm_mul_ps(hz, hz));
+            const __m128 hok = _mm_cmpgt_ps(hlen2, _mm_set1_ps(1e-16f));
+            const __m128 inv_h =
+                rsqrt_nr(_mm_or_ps(_mm_and_ps(hok, hlen2), _mm_andnot_ps(hok, one)));
             // Degenerate h (v = -l) falls back to h = n, as evaluate(): n.h = 1, v.h = n.v.
             const __m128 nh = _mm_max_ps(
                 _mm_or_ps(_mm_and_ps(hok, _mm_mul_ps(_mm_add_ps(nv_raw, nl), inv_h)),
@@ -483,13 +508,13 @@ void shade_lanes(Row &row, int count, const std::vector<Light> &lights, float cl
                 zero);
             // D = a2 / (pi d^2), d = (n.h)^2 (a2 - 1) + 1.
             const __m128 dd = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(nh, nh), _mm_sub_ps(a2, one)), one);
-            const __m128 d = _mm_div_ps(_mm_mul_ps(a2, inv_pi), _mm_mul_ps(dd, dd));
+            const __m128 d = _mm_mul_ps(_mm_mul_ps(a2, inv_pi), rcp_nr(_mm_mul_ps(dd, dd)));
             // V = 0.5 / (n.l sv + n.v sqrt(n.l^2 (1 - a2) + a2)), cosines clamped.
             const __m128 nlc = _mm_max_ps(nl, min_cos);
-            const __m128 sl =
-                _mm_sqrt_ps(_mm_add_ps(_mm_mul_ps(_mm_mul_ps(nlc, nlc), one_minus_a2), a2));
+            const __m128 sl2 = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(nlc, nlc), one_minus_a2), a2);
+            const __m128 sl = _mm_mul_ps(sl2, rsqrt_nr(sl2));  // sl2 >= a2 > 0
             const __m128 vis =
-                _mm_div_ps(half, _mm_add_ps(_mm_mul_ps(nlc, sv), _mm_mul_ps(nv, sl)));
+                _mm_mul_ps(half, rcp_nr(_mm_add_ps(_mm_mul_ps(nlc, sv), _mm_mul_ps(nv, sl))));
             const __m128 dv = _mm_mul_ps(d, vis);
             // Schlick: F = f0 + (1 - f0) m^5, m = 1 - clamp(v.h, 0, 1).
             const __m128 m = _mm_sub_ps(one, _mm_min_ps(vh, one));
@@ -593,13 +618,13 @@ void execute(NodeContext &ctx)
         for (int y = tile.y0; y < tile.y1; ++y) {
             // Stage 1: per-pixel surface setup; unusable pixels keep their input color.
             const int n_px = tile.x1 - tile.x0;
+            std::copy(color.pixel(tile.x0, y), color.pixel(tile.x0, y) + n_px * nc,
+                      out.pixel(tile.x0, y));
             for (int i = 0; i < n_px; ++i) {
                 const int x = tile.x0 + i;
                 Prepared &pr = row.px[i];
                 pr.valid = false;
                 row.clear_lane(i);
-                const float *src = color.pixel(x, y);
-                std::copy(src, src + nc, out.pixel(x, y));
                 // World position of the pixel's surface, or a background pixel.
                 glm::vec3 p;
                 if (from_depth) {
@@ -631,13 +656,13 @@ void execute(NodeContext &ctx)
                     (depth && !std::isfinite(depth->at(x, y, 0)))) {
                     continue;  // background, or no usable normal
                 }
-                n /= nlen;
+                n *= 1.0f / nlen;
                 const glm::vec3 to_eye = eye - p;
                 const float elen = glm::length(to_eye);
                 if (!(elen > 0.0f)) {
                     continue;
                 }
-                const glm::vec3 v = to_eye / elen;
+                const glm::vec3 v = to_eye * (1.0f / elen);
                 if (glm::dot(n, v) < 0.0f) {
                     n = -n;  // seen from behind: shade the side we see (as the rasterizer)
                 }
@@ -659,8 +684,11 @@ void execute(NodeContext &ctx)
                 if (!finite3(surf.albedo)) {
                     surf.albedo = glm::vec3(0.0f);
                 }
-                const bool is_toon =
-                    id && setup.toon_ids.count(int(std::lround(id->at(x, y, 0)))) != 0;
+                bool is_toon = false;
+                if (id) {
+                    const float m = id->at(x, y, 0);
+                    is_toon = m >= 0.5f && m < 255.5f && setup.is_toon[std::size_t(m + 0.5f)];
+                }
                 pr.opts = is_toon ? &toon : &base;
                 pr.p = p;
                 pr.n = n;

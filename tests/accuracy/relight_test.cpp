@@ -287,6 +287,7 @@ double furnace(float roughness, float mu, shading::Geometry g, bool compensate)
 
 TEST(RelightFurnace, EnergyCompensationIntegratesToOne)
 {
+    double worst = 0.0;
     for (shading::Geometry g :
          {shading::Geometry::SmithCorrelated, shading::Geometry::SmithSeparable}) {
         for (float r = 0.0f; r <= 1.0001f; r += 0.125f) {
@@ -294,9 +295,11 @@ TEST(RelightFurnace, EnergyCompensationIntegratesToOne)
                 const double with = furnace(r, mu, g, true);
                 EXPECT_NEAR(with, 1.0, 0.01) << "roughness " << r << " mu " << mu << " geometry "
                                              << int(g);
+                worst = std::max(worst, std::abs(with - 1.0));
             }
         }
     }
+    std::printf("white furnace with compensation: worst |albedo - 1| %.4f\n", worst);
 }
 
 TEST(RelightFurnace, LossWithoutCompensationMatchesTable)
@@ -310,7 +313,7 @@ TEST(RelightFurnace, LossWithoutCompensationMatchesTable)
             for (float mu : {0.1f, 0.3f, 0.5f, 0.8f, 1.0f}) {
                 const double without = furnace(r, mu, g, false);
                 const double table = t.lookup_e(r, mu);
-                EXPECT_NEAR(without, table, 0.01) << "roughness " << r << " mu " << mu;
+                EXPECT_NEAR(without, table, 0.005) << "roughness " << r << " mu " << mu;
                 worst = std::max(worst, std::abs(without - table));
                 largest_loss = std::max(largest_loss, 1.0 - without);
             }
