@@ -31,44 +31,64 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kMode = ParamSpec::choice("mode", "add|replace", "add").doc(
-    "add: the lights' contribution is added to the input color; replace: surfaces are shaded "
-    "from albedo alone (lights plus `ambient`), background keeps the input color.");
-constexpr ParamSpec kLights = ParamSpec::json("lights", "[]").doc(
-    "Array of lights: {\"type\": \"directional\", \"direction\": [x, y, z] (toward the light), "
-    "\"color\": [r, g, b], \"intensity\": irradiance}, {\"type\": \"point\", \"position\", "
-    "\"color\", \"intensity\": intensity (irradiance at 1 m), \"radius\": m (0.05)}, or "
-    "{\"type\": \"spot\", point keys plus \"direction\" (where it points), \"inner_deg\" (20), "
-    "\"outer_deg\" (30)}. World space, metres.");
-constexpr ParamSpec kAmbient = ParamSpec::real("ambient", 0.0).range(0.0, 1000.0).doc(
-    "Scale of the rasterizer's sky light (hemispherical diffuse plus specular sky stand-in) "
-    "added to surfaces; the scene's sky_ambient reproduces its beauty in mode replace. The sky's "
-    "sun glow follows the first directional light.");
-constexpr ParamSpec kPositionFrom = ParamSpec::choice("position_from", "position|depth",
-                                                      "position")
-                                        .doc("World positions from the position pass, or "
-                                             "reconstructed from depth and the camera matrices.");
+constexpr ParamSpec kMode =
+    ParamSpec::choice("mode", "add|replace", "add")
+        .doc(
+            "add: the lights' contribution is added to the input color; replace: surfaces are "
+            "shaded "
+            "from albedo alone (lights plus `ambient`), background keeps the input color.");
+constexpr ParamSpec kLights =
+    ParamSpec::json("lights", "[]")
+        .doc(
+            "Array of lights: {\"type\": \"directional\", \"direction\": [x, y, z] (toward the "
+            "light), "
+            "\"color\": [r, g, b], \"intensity\": irradiance}, {\"type\": \"point\", \"position\", "
+            "\"color\", \"intensity\": intensity (irradiance at 1 m), \"radius\": m (0.05)}, or "
+            "{\"type\": \"spot\", point keys plus \"direction\" (where it points), \"inner_deg\" "
+            "(20), "
+            "\"outer_deg\" (30)}. World space, metres.");
+constexpr ParamSpec kAmbient = ParamSpec::real("ambient", 0.0)
+                                   .range(0.0, 1000.0)
+                                   .doc(
+                                       "Scale of the rasterizer's sky light (hemispherical diffuse "
+                                       "plus specular sky stand-in) "
+                                       "added to surfaces; the scene's sky_ambient reproduces its "
+                                       "beauty in mode replace. The sky's "
+                                       "sun glow follows the first directional light.");
+constexpr ParamSpec kPositionFrom = ParamSpec::choice("position_from", "position|depth", "position")
+                                        .doc(
+                                            "World positions from the position pass, or "
+                                            "reconstructed from depth and the camera matrices.");
 constexpr ParamSpec kDiffuse =
     ParamSpec::choice("diffuse", "lambert|burley", "lambert").doc("Diffuse lobe.");
 constexpr ParamSpec kGeometry =
-    ParamSpec::choice("geometry", "smith_correlated|smith_separable|cook_torrance",
-                      "smith_correlated")
-        .doc("Specular masking-shadowing term (cook_torrance: min(1, 2 n.h n.v / v.h, "
-             "2 n.h n.l / v.h), isotropic only).");
-constexpr ParamSpec kEnergy = ParamSpec::boolean("energy_compensation", false).doc(
-    "Kulla-Conty multiple-scattering lobe (restores the energy rough GGX loses).");
-constexpr ParamSpec kAnisotropic = ParamSpec::boolean("anisotropic", true).doc(
-    "Use material anisotropy with the tangent pass (read only when true).");
-constexpr ParamSpec kToonIds = ParamSpec::string("toon_ids", "").doc(
-    "Material ids (id pass) shaded as toon, comma list (Minecrappy's scene: 6, leaves).");
-constexpr ParamSpec kToonBands = ParamSpec::integer("toon_bands", 3).range(1, 64).doc(
-    "Diffuse bands of toon materials (the rasterizer uses 3).");
+    ParamSpec::choice(
+        "geometry", "smith_correlated|smith_separable|cook_torrance", "smith_correlated")
+        .doc(
+            "Specular masking-shadowing term (cook_torrance: min(1, 2 n.h n.v / v.h, "
+            "2 n.h n.l / v.h), isotropic only).");
+constexpr ParamSpec kEnergy =
+    ParamSpec::boolean("energy_compensation", false)
+        .doc("Kulla-Conty multiple-scattering lobe (restores the energy rough GGX loses).");
+constexpr ParamSpec kAnisotropic =
+    ParamSpec::boolean("anisotropic", true)
+        .doc("Use material anisotropy with the tangent pass (read only when true).");
+constexpr ParamSpec kToonIds =
+    ParamSpec::string("toon_ids", "")
+        .doc("Material ids (id pass) shaded as toon, comma list (Minecrappy's scene: 6, leaves).");
+constexpr ParamSpec kToonBands =
+    ParamSpec::integer("toon_bands", 3)
+        .range(1, 64)
+        .doc("Diffuse bands of toon materials (the rasterizer uses 3).");
 constexpr ParamSpec kToonSpecularSteps = ParamSpec::integer("toon_specular_steps", 0)
                                              .range(0, 64)
-                                             .doc("Quantise toon highlights to this many steps "
-                                                  "of the GGX lobe; 0: continuous (rasterizer).");
-constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", false).doc(
-    "Screen-space shadows: march the depth buffer toward each light (needs the depth pass).");
+                                             .doc(
+                                                 "Quantise toon highlights to this many steps "
+                                                 "of the GGX lobe; 0: continuous (rasterizer).");
+constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", false)
+                                   .doc(
+                                       "Screen-space shadows: march the depth buffer toward each "
+                                       "light (needs the depth pass).");
 constexpr ParamSpec kShadowSteps =
     ParamSpec::integer("shadow_steps", 16).range(1, 256).doc("Ray-march steps per light.");
 constexpr ParamSpec kShadowDistance = ParamSpec::real("shadow_distance", 2.0)
@@ -79,17 +99,35 @@ constexpr ParamSpec kShadowThickness = ParamSpec::real("shadow_thickness", 0.5)
                                            .range(0.0, 1e6)
                                            .units("m")
                                            .doc("Assumed depth of every surface in the buffer.");
-constexpr ParamSpec kShadowBias = ParamSpec::real("shadow_bias", 0.02).range(0.0, 1e6).units("m").doc(
-    "Start offset along the normal and depth tolerance.");
-constexpr ParamSpec kClamp = ParamSpec::real("clamp", 0.0).range(0.0, 1e30).doc(
-    "Largest radiance a light may add per channel (firefly clamp); 0: no clamp.");
-constexpr ParamSpec kParams[] = {kMode,         kLights,          kAmbient,       kPositionFrom,
-                                 kDiffuse,      kGeometry,        kEnergy,        kAnisotropic,
-                                 kToonIds,      kToonBands,       kToonSpecularSteps,
-                                 kShadows,      kShadowSteps,     kShadowDistance,
-                                 kShadowThickness, kShadowBias,   kClamp};
+constexpr ParamSpec kShadowBias = ParamSpec::real("shadow_bias", 0.02)
+                                      .range(0.0, 1e6)
+                                      .units("m")
+                                      .doc("Start offset along the normal and depth tolerance.");
+constexpr ParamSpec kClamp =
+    ParamSpec::real("clamp", 0.0)
+        .range(0.0, 1e30)
+        .doc("Largest radiance a light may add per channel (firefly clamp); 0: no clamp.");
+constexpr ParamSpec kParams[] = {kMode,
+                                 kLights,
+                                 kAmbient,
+                                 kPositionFrom,
+                                 kDiffuse,
+                                 kGeometry,
+                                 kEnergy,
+                                 kAnisotropic,
+                                 kToonIds,
+                                 kToonBands,
+                                 kToonSpecularSteps,
+                                 kShadows,
+                                 kShadowSteps,
+                                 kShadowDistance,
+                                 kShadowThickness,
+                                 kShadowBias,
+                                 kClamp};
 constexpr PortSpec kInputs[] = {
-    {"image", "color,normal,albedo,material", false,
+    {"image",
+     "color,normal,albedo,material",
+     false,
      "Frame with color and its G-buffer; other passes pass through."},
 };
 
@@ -129,7 +167,9 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
         Light l;
         const json type = e.value("type", json());
         if (!type.is_string()) {
-            throw_usage(li, "/type: ", who,
+            throw_usage(li,
+                        "/type: ",
+                        who,
                         ": expected \"directional\", \"point\" or \"spot\", got ",
                         type.is_null() ? std::string("nothing") : type.dump());
         }
@@ -141,8 +181,11 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
         } else if (t == "spot") {
             l.type = LightType::Spot;
         } else {
-            throw_usage(li, "/type: ", who,
-                        ": expected \"directional\", \"point\" or \"spot\", got ", type.dump());
+            throw_usage(li,
+                        "/type: ",
+                        who,
+                        ": expected \"directional\", \"point\" or \"spot\", got ",
+                        type.dump());
         }
         std::set<std::string> allowed = {"type", "color", "intensity"};
         if (l.type == LightType::Directional) {
@@ -159,8 +202,16 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
                 for (const std::string &k : allowed) {
                     keys += (keys.empty() ? "" : ", ") + k;
                 }
-                throw_usage(li, "/", it.key(), ": ", who, ": unknown key for a ", t,
-                            " light (have: ", keys, ")");
+                throw_usage(li,
+                            "/",
+                            it.key(),
+                            ": ",
+                            who,
+                            ": unknown key for a ",
+                            t,
+                            " light (have: ",
+                            keys,
+                            ")");
             }
         }
         auto vec3 = [&](const char *key, glm::vec3 def, bool required) {
@@ -176,7 +227,8 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
                 ok = v[k].is_number() && std::isfinite(v[k].get<double>());
             }
             if (!ok) {
-                throw_usage(li, "/", key, ": ", who, ": expected [x, y, z] numbers, got ", v.dump());
+                throw_usage(
+                    li, "/", key, ": ", who, ": expected [x, y, z] numbers, got ", v.dump());
             }
             return glm::vec3(v[0].get<float>(), v[1].get<float>(), v[2].get<float>());
         };
@@ -186,21 +238,33 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
             }
             const json &v = e[key];
             if (!v.is_number() || !(v.get<double>() >= lo && v.get<double>() <= hi)) {
-                throw_usage(li, "/", key, ": ", who, ": expected a number in [", lo, ", ", hi,
-                            "], got ", v.dump());
+                throw_usage(li,
+                            "/",
+                            key,
+                            ": ",
+                            who,
+                            ": expected a number in [",
+                            lo,
+                            ", ",
+                            hi,
+                            "], got ",
+                            v.dump());
             }
             return v.get<float>();
         };
         const glm::vec3 color = vec3("color", glm::vec3(1.0f), false);
         if (color.x < 0.0f || color.y < 0.0f || color.z < 0.0f) {
-            throw_usage(li, "/color: ", who, ": expected non-negative numbers, got ",
-                        e["color"].dump());
+            throw_usage(
+                li, "/color: ", who, ": expected non-negative numbers, got ", e["color"].dump());
         }
         l.power = color * number("intensity", 1.0, 0.0, 1e12);
         if (l.type != LightType::Point) {
             const glm::vec3 d = vec3("direction", glm::vec3(0.0f), true);
             if (!(glm::length(d) > 1e-12f)) {
-                throw_usage(li, "/direction: ", who, ": expected a non-zero vector, got ",
+                throw_usage(li,
+                            "/direction: ",
+                            who,
+                            ": expected a non-zero vector, got ",
                             e["direction"].dump());
             }
             l.direction = glm::normalize(d);
@@ -213,8 +277,13 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
             const float inner = number("inner_deg", 20.0, 0.0, 90.0);
             const float outer = number("outer_deg", 30.0, 0.0, 90.0);
             if (!(outer > inner)) {
-                throw_usage(li, "/outer_deg: ", who, ": expected more than inner_deg (", inner,
-                            "), got ", outer);
+                throw_usage(li,
+                            "/outer_deg: ",
+                            who,
+                            ": expected more than inner_deg (",
+                            inner,
+                            "), got ",
+                            outer);
             }
             l.cos_inner = std::cos(inner * shading::kPi / 180.0f);
             l.cos_outer = std::cos(outer * shading::kPi / 180.0f);
@@ -225,8 +294,8 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
         char *end = nullptr;
         const long v = std::strtol(w.c_str(), &end, 10);
         if (end == w.c_str() || *end != '\0' || v < 1 || v > 255) {
-            throw_usage(where, "/toon_ids: ", who, ": expected material ids 1..255, got \"", w,
-                        "\"");
+            throw_usage(
+                where, "/toon_ids: ", who, ": expected material ids 1..255, got \"", w, "\"");
         }
         s.toon_ids.insert(int(v));
         s.is_toon[std::size_t(v)] = true;
@@ -265,9 +334,13 @@ struct ScreenShadows {
 
     // 1 lit, 0 occluded: marches from p (pushed off along n) toward the light, up to
     // min(distance, max_t) metres, with a per-pixel hashed start offset.
-    float visibility(
-        const glm::vec3 &p, const glm::vec3 &n, const glm::vec3 &l, float max_t, int x, int y, int k)
-        const
+    float visibility(const glm::vec3 &p,
+                     const glm::vec3 &n,
+                     const glm::vec3 &l,
+                     float max_t,
+                     int x,
+                     int y,
+                     int k) const
     {
         // Clip coordinates and camera z are linear along the segment: project its ends once.
         const glm::vec3 start = p + n * bias;
@@ -351,11 +424,11 @@ struct Prepared {
 struct Row {
     static constexpr int kMax = kDefaultTileSize;
     Prepared px[kMax];
-    alignas(16) float x[kMax], y[kMax], z[kMax];      // position
-    alignas(16) float nx[kMax], ny[kMax], nz[kMax];   // normal (facing the viewer)
-    alignas(16) float vx[kMax], vy[kMax], vz[kMax];   // toward the viewer
-    alignas(16) float nv[kMax];                       // raw n.v
-    alignas(16) float a2[kMax], sv[kMax];             // alpha^2, sqrt(nv^2 (1 - a2) + a2)
+    alignas(16) float x[kMax], y[kMax], z[kMax];     // position
+    alignas(16) float nx[kMax], ny[kMax], nz[kMax];  // normal (facing the viewer)
+    alignas(16) float vx[kMax], vy[kMax], vz[kMax];  // toward the viewer
+    alignas(16) float nv[kMax];                      // raw n.v
+    alignas(16) float a2[kMax], sv[kMax];            // alpha^2, sqrt(nv^2 (1 - a2) + a2)
     alignas(16) float f0r[kMax], f0g[kMax], f0b[kMax];
     alignas(16) float kdr[kMax], kdg[kMax], kdb[kMax];  // diffuse albedo / pi
     alignas(16) float r[kMax], g[kMax], b[kMax];
@@ -428,110 +501,121 @@ void shade_lanes(Row &row, int count, const std::vector<Light> &lights, float cl
     const __m128 min_cos = _mm_set1_ps(shading::kMinCosine);
     const __m128 inv_pi = _mm_set1_ps(1.0f / shading::kPi);
     const __m128 clamp_v = _mm_set1_ps(clamp > 0.0f ? clamp : std::numeric_limits<float>::max());
-    for (int i = 0; i < count; i += 4) {
-        const __m128 px = _mm_load_ps(row.x + i), py = _mm_load_ps(row.y + i),
-                     pz = _mm_load_ps(row.z + i);
-        const __m128 nx = _mm_load_ps(row.nx + i), ny = _mm_load_ps(row.ny + i),
-                     nz = _mm_load_ps(row.nz + i);
-        const __m128 vx = _mm_load_ps(row.vx + i), vy = _mm_load_ps(row.vy + i),
-                     vz = _mm_load_ps(row.vz + i);
-        const __m128 nv_raw = _mm_load_ps(row.nv + i);
-        const __m128 nv = _mm_max_ps(nv_raw, min_cos);
-        const __m128 a2 = _mm_load_ps(row.a2 + i), sv = _mm_load_ps(row.sv + i);
-        const __m128 one_minus_a2 = _mm_sub_ps(one, a2);
-        const __m128 f0r = _mm_load_ps(row.f0r + i), f0g = _mm_load_ps(row.f0g + i),
-                     f0b = _mm_load_ps(row.f0b + i);
-        const __m128 kdr = _mm_load_ps(row.kdr + i), kdg = _mm_load_ps(row.kdg + i),
-                     kdb = _mm_load_ps(row.kdb + i);
-        __m128 ar = zero, ag = zero, ab = zero;
-        for (const Light &light : lights) {
-            __m128 lx, ly, lz, er, eg, eb;
-            if (light.type == LightType::Directional) {
-                lx = _mm_set1_ps(light.direction.x);
-                ly = _mm_set1_ps(light.direction.y);
-                lz = _mm_set1_ps(light.direction.z);
-                er = _mm_set1_ps(light.power.x);
-                eg = _mm_set1_ps(light.power.y);
-                eb = _mm_set1_ps(light.power.z);
-            } else {
-                const __m128 dx = _mm_sub_ps(_mm_set1_ps(light.position.x), px);
-                const __m128 dy = _mm_sub_ps(_mm_set1_ps(light.position.y), py);
-                const __m128 dz = _mm_sub_ps(_mm_set1_ps(light.position.z), pz);
-                const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
-                                             _mm_mul_ps(dz, dz));
-                // At the light (d2 = 0) the lane gets l = 0, so n.l = 0 and no light.
-                const __m128 inv = _mm_and_ps(_mm_cmpgt_ps(d2, zero), rsqrt_nr(d2));
-                lx = _mm_mul_ps(dx, inv);
-                ly = _mm_mul_ps(dy, inv);
-                lz = _mm_mul_ps(dz, inv);
-                __m128 falloff = rcp_nr(_mm_max_ps(d2, _mm_set1_ps(light.radius * light.radius)));
-                if (light.type == LightType::Spot) {
-                    const __m128 cs = _mm_sub_ps(
-                        zero,
-                        _mm_add_ps(_mm_add_ps(_mm_mul_ps(lx, _mm_set1_ps(light.direction.x)),
-                                              _mm_mul_ps(ly, _mm_set1_ps(light.direction.y))),
-                                   _mm_mul_ps(lz, _mm_set1_ps(light.direction.z))));
-                    __m128 t = _mm_mul_ps(_mm_sub_ps(cs, _mm_set1_ps(light.cos_outer)),
-                                          _mm_set1_ps(1.0f / (light.cos_inner - light.cos_outer)));
-                    t = _mm_min_ps(_mm_max_ps(t, zero), one);
-                    falloff = _mm_mul_ps(
-                        falloff,
-                        _mm_mul_ps(_mm_mul_ps(t, t), _mm_sub_ps(_mm_set1_ps(3.0f), _mm_add_ps(t, t))));
+    // Lights outside, pixel groups inside: consecutive groups are independent, so the core
+    // overlaps their long sqrt/rcp chains.
+    for (const Light &light : lights) {
+        for (int i = 0; i < count; i += 4) {
+            const __m128 px = _mm_load_ps(row.x + i), py = _mm_load_ps(row.y + i),
+                         pz = _mm_load_ps(row.z + i);
+            const __m128 nx = _mm_load_ps(row.nx + i), ny = _mm_load_ps(row.ny + i),
+                         nz = _mm_load_ps(row.nz + i);
+            const __m128 vx = _mm_load_ps(row.vx + i), vy = _mm_load_ps(row.vy + i),
+                         vz = _mm_load_ps(row.vz + i);
+            const __m128 nv_raw = _mm_load_ps(row.nv + i);
+            const __m128 nv = _mm_max_ps(nv_raw, min_cos);
+            const __m128 a2 = _mm_load_ps(row.a2 + i), sv = _mm_load_ps(row.sv + i);
+            const __m128 one_minus_a2 = _mm_sub_ps(one, a2);
+            const __m128 f0r = _mm_load_ps(row.f0r + i), f0g = _mm_load_ps(row.f0g + i),
+                         f0b = _mm_load_ps(row.f0b + i);
+            const __m128 kdr = _mm_load_ps(row.kdr + i), kdg = _mm_load_ps(row.kdg + i),
+                         kdb = _mm_load_ps(row.kdb + i);
+            __m128 ar = _mm_load_ps(row.r + i), ag = _mm_load_ps(row.g + i),
+                   ab = _mm_load_ps(row.b + i);
+            {
+                __m128 lx, ly, lz, er, eg, eb;
+                if (light.type == LightType::Directional) {
+                    lx = _mm_set1_ps(light.direction.x);
+                    ly = _mm_set1_ps(light.direction.y);
+                    lz = _mm_set1_ps(light.direction.z);
+                    er = _mm_set1_ps(light.power.x);
+                    eg = _mm_set1_ps(light.power.y);
+                    eb = _mm_set1_ps(light.power.z);
+                } else {
+                    const __m128 dx = _mm_sub_ps(_mm_set1_ps(light.position.x), px);
+                    const __m128 dy = _mm_sub_ps(_mm_set1_ps(light.position.y), py);
+                    const __m128 dz = _mm_sub_ps(_mm_set1_ps(light.position.z), pz);
+                    const __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+                                                 _mm_mul_ps(dz, dz));
+                    // At the light (d2 = 0) the lane gets l = 0, so n.l = 0 and no light.
+                    const __m128 inv = _mm_and_ps(_mm_cmpgt_ps(d2, zero), rsqrt_nr(d2));
+                    lx = _mm_mul_ps(dx, inv);
+                    ly = _mm_mul_ps(dy, inv);
+                    lz = _mm_mul_ps(dz, inv);
+                    __m128 falloff =
+                        rcp_nr(_mm_max_ps(d2, _mm_set1_ps(light.radius * light.radius)));
+                    if (light.type == LightType::Spot) {
+                        const __m128 cs = _mm_sub_ps(
+                            zero,
+                            _mm_add_ps(_mm_add_ps(_mm_mul_ps(lx, _mm_set1_ps(light.direction.x)),
+                                                  _mm_mul_ps(ly, _mm_set1_ps(light.direction.y))),
+                                       _mm_mul_ps(lz, _mm_set1_ps(light.direction.z))));
+                        __m128 t =
+                            _mm_mul_ps(_mm_sub_ps(cs, _mm_set1_ps(light.cos_outer)),
+                                       _mm_set1_ps(1.0f / (light.cos_inner - light.cos_outer)));
+                        t = _mm_min_ps(_mm_max_ps(t, zero), one);
+                        falloff =
+                            _mm_mul_ps(falloff,
+                                       _mm_mul_ps(_mm_mul_ps(t, t),
+                                                  _mm_sub_ps(_mm_set1_ps(3.0f), _mm_add_ps(t, t))));
+                    }
+                    er = _mm_mul_ps(_mm_set1_ps(light.power.x), falloff);
+                    eg = _mm_mul_ps(_mm_set1_ps(light.power.y), falloff);
+                    eb = _mm_mul_ps(_mm_set1_ps(light.power.z), falloff);
                 }
-                er = _mm_mul_ps(_mm_set1_ps(light.power.x), falloff);
-                eg = _mm_mul_ps(_mm_set1_ps(light.power.y), falloff);
-                eb = _mm_mul_ps(_mm_set1_ps(light.power.z), falloff);
+                const __m128 nl = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, lx), _mm_mul_ps(ny, ly)),
+                                             _mm_mul_ps(nz, lz));
+                const __m128 lit = _mm_cmpgt_ps(nl, zero);
+                if (_mm_movemask_ps(lit) == 0) {
+                    continue;
+                }
+                // h = (v + l) / |v + l|; n.h and v.h from dot products.
+                const __m128 hx = _mm_add_ps(vx, lx), hy = _mm_add_ps(vy, ly),
+                             hz = _mm_add_ps(vz, lz);
+                const __m128 hlen2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(hx, hx), _mm_mul_ps(hy, hy)),
+                                                _mm_mul_ps(hz, hz));
+                const __m128 hok = _mm_cmpgt_ps(hlen2, _mm_set1_ps(1e-16f));
+                const __m128 inv_h =
+                    rsqrt_nr(_mm_or_ps(_mm_and_ps(hok, hlen2), _mm_andnot_ps(hok, one)));
+                // Degenerate h (v = -l) falls back to h = n, as evaluate(): n.h = 1, v.h = n.v.
+                const __m128 nh =
+                    _mm_max_ps(_mm_or_ps(_mm_and_ps(hok, _mm_mul_ps(_mm_add_ps(nv_raw, nl), inv_h)),
+                                         _mm_andnot_ps(hok, one)),
+                               zero);
+                const __m128 vl = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, lx), _mm_mul_ps(vy, ly)),
+                                             _mm_mul_ps(vz, lz));
+                const __m128 vh =
+                    _mm_max_ps(_mm_or_ps(_mm_and_ps(hok, _mm_mul_ps(_mm_add_ps(one, vl), inv_h)),
+                                         _mm_andnot_ps(hok, nv_raw)),
+                               zero);
+                // D = a2 / (pi d^2), d = (n.h)^2 (a2 - 1) + 1.
+                const __m128 dd =
+                    _mm_add_ps(_mm_mul_ps(_mm_mul_ps(nh, nh), _mm_sub_ps(a2, one)), one);
+                const __m128 d = _mm_mul_ps(_mm_mul_ps(a2, inv_pi), rcp_nr(_mm_mul_ps(dd, dd)));
+                // V = 0.5 / (n.l sv + n.v sqrt(n.l^2 (1 - a2) + a2)), cosines clamped.
+                const __m128 nlc = _mm_max_ps(nl, min_cos);
+                const __m128 sl2 = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(nlc, nlc), one_minus_a2), a2);
+                const __m128 sl = _mm_mul_ps(sl2, rsqrt_nr(sl2));  // sl2 >= a2 > 0
+                const __m128 vis =
+                    _mm_mul_ps(half, rcp_nr(_mm_add_ps(_mm_mul_ps(nlc, sv), _mm_mul_ps(nv, sl))));
+                const __m128 dv = _mm_mul_ps(d, vis);
+                // Schlick: F = f0 + (1 - f0) m^5, m = 1 - clamp(v.h, 0, 1).
+                const __m128 m = _mm_sub_ps(one, _mm_min_ps(vh, one));
+                const __m128 m2 = _mm_mul_ps(m, m);
+                const __m128 m5 = _mm_mul_ps(_mm_mul_ps(m2, m2), m);
+                auto channel = [&](__m128 f0, __m128 kd, __m128 e) {
+                    const __m128 f = _mm_add_ps(f0, _mm_mul_ps(_mm_sub_ps(one, f0), m5));
+                    const __m128 c =
+                        _mm_mul_ps(_mm_mul_ps(_mm_add_ps(kd, _mm_mul_ps(f, dv)), nl), e);
+                    return _mm_and_ps(lit, _mm_min_ps(c, clamp_v));
+                };
+                ar = _mm_add_ps(ar, channel(f0r, kdr, er));
+                ag = _mm_add_ps(ag, channel(f0g, kdg, eg));
+                ab = _mm_add_ps(ab, channel(f0b, kdb, eb));
             }
-            const __m128 nl = _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, lx), _mm_mul_ps(ny, ly)),
-                                         _mm_mul_ps(nz, lz));
-            const __m128 lit = _mm_cmpgt_ps(nl, zero);
-            if (_mm_movemask_ps(lit) == 0) {
-                continue;
-            }
-            // h = (v + l) / |v + l|; n.h and v.h from dot products.
-            const __m128 hx = _mm_add_ps(vx, lx), hy = _mm_add_ps(vy, ly), hz = _mm_add_ps(vz, lz);
-            const __m128 hlen2 =
-                _mm_add_ps(_mm_add_ps(_mm_mul_ps(hx, hx), _mm_mul_ps(hy, hy)), _mm_mul_ps(hz, hz));
-            const __m128 hok = _mm_cmpgt_ps(hlen2, _mm_set1_ps(1e-16f));
-            const __m128 inv_h =
-                rsqrt_nr(_mm_or_ps(_mm_and_ps(hok, hlen2), _mm_andnot_ps(hok, one)));
-            // Degenerate h (v = -l) falls back to h = n, as evaluate(): n.h = 1, v.h = n.v.
-            const __m128 nh = _mm_max_ps(
-                _mm_or_ps(_mm_and_ps(hok, _mm_mul_ps(_mm_add_ps(nv_raw, nl), inv_h)),
-                          _mm_andnot_ps(hok, one)),
-                zero);
-            const __m128 vl = _mm_add_ps(_mm_add_ps(_mm_mul_ps(vx, lx), _mm_mul_ps(vy, ly)),
-                                         _mm_mul_ps(vz, lz));
-            const __m128 vh = _mm_max_ps(
-                _mm_or_ps(_mm_and_ps(hok, _mm_mul_ps(_mm_add_ps(one, vl), inv_h)),
-                          _mm_andnot_ps(hok, nv_raw)),
-                zero);
-            // D = a2 / (pi d^2), d = (n.h)^2 (a2 - 1) + 1.
-            const __m128 dd = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(nh, nh), _mm_sub_ps(a2, one)), one);
-            const __m128 d = _mm_mul_ps(_mm_mul_ps(a2, inv_pi), rcp_nr(_mm_mul_ps(dd, dd)));
-            // V = 0.5 / (n.l sv + n.v sqrt(n.l^2 (1 - a2) + a2)), cosines clamped.
-            const __m128 nlc = _mm_max_ps(nl, min_cos);
-            const __m128 sl2 = _mm_add_ps(_mm_mul_ps(_mm_mul_ps(nlc, nlc), one_minus_a2), a2);
-            const __m128 sl = _mm_mul_ps(sl2, rsqrt_nr(sl2));  // sl2 >= a2 > 0
-            const __m128 vis =
-                _mm_mul_ps(half, rcp_nr(_mm_add_ps(_mm_mul_ps(nlc, sv), _mm_mul_ps(nv, sl))));
-            const __m128 dv = _mm_mul_ps(d, vis);
-            // Schlick: F = f0 + (1 - f0) m^5, m = 1 - clamp(v.h, 0, 1).
-            const __m128 m = _mm_sub_ps(one, _mm_min_ps(vh, one));
-            const __m128 m2 = _mm_mul_ps(m, m);
-            const __m128 m5 = _mm_mul_ps(_mm_mul_ps(m2, m2), m);
-            auto channel = [&](__m128 f0, __m128 kd, __m128 e) {
-                const __m128 f = _mm_add_ps(f0, _mm_mul_ps(_mm_sub_ps(one, f0), m5));
-                const __m128 c = _mm_mul_ps(_mm_mul_ps(_mm_add_ps(kd, _mm_mul_ps(f, dv)), nl), e);
-                return _mm_and_ps(lit, _mm_min_ps(c, clamp_v));
-            };
-            ar = _mm_add_ps(ar, channel(f0r, kdr, er));
-            ag = _mm_add_ps(ag, channel(f0g, kdg, eg));
-            ab = _mm_add_ps(ab, channel(f0b, kdb, eb));
+            _mm_store_ps(row.r + i, ar);
+            _mm_store_ps(row.g + i, ag);
+            _mm_store_ps(row.b + i, ab);
         }
-        _mm_store_ps(row.r + i, ar);
-        _mm_store_ps(row.g + i, ag);
-        _mm_store_ps(row.b + i, ab);
     }
 }
 #else
@@ -563,8 +647,9 @@ void execute(NodeContext &ctx)
     if (color.channels() < 3 || normal.channels() < 3 || albedo.channels() < 3 ||
         material.channels() < 3 || (position && position->channels() < 3) ||
         (tangent && tangent->channels() < 3)) {
-        throw_runtime(ctx.where(), ": color, normal, position, albedo, material and tangent "
-                                   "need 3 channels");
+        throw_runtime(ctx.where(),
+                      ": color, normal, position, albedo, material and tangent "
+                      "need 3 channels");
     }
     const Frame &in = ctx.input("image");
     const glm::mat4 w2c = in.camera.require_world_to_camera(ctx.where());
@@ -618,7 +703,8 @@ void execute(NodeContext &ctx)
         for (int y = tile.y0; y < tile.y1; ++y) {
             // Stage 1: per-pixel surface setup; unusable pixels keep their input color.
             const int n_px = tile.x1 - tile.x0;
-            std::copy(color.pixel(tile.x0, y), color.pixel(tile.x0, y) + n_px * nc,
+            std::copy(color.pixel(tile.x0, y),
+                      color.pixel(tile.x0, y) + n_px * nc,
                       out.pixel(tile.x0, y));
             for (int i = 0; i < n_px; ++i) {
                 const int x = tile.x0 + i;
@@ -644,8 +730,8 @@ void execute(NodeContext &ctx)
                     if (det == 0.0f) {
                         continue;
                     }
-                    const glm::vec4 q((b0 * a11 - a01 * b1) / det, (a00 * b1 - a10 * b0) / det,
-                                      z, 1.0f);
+                    const glm::vec4 q(
+                        (b0 * a11 - a01 * b1) / det, (a00 * b1 - a10 * b0) / det, z, 1.0f);
                     p = glm::vec3(c2w * q);
                 } else {
                     p = load3(*position, x, y);
@@ -720,8 +806,7 @@ void execute(NodeContext &ctx)
                             glm::dot(pr.n, l) <= 0.0f) {
                             continue;
                         }
-                        if (shadows &&
-                            ss.visibility(pr.p, pr.n, l, max_t, x, y, int(k)) == 0.0f) {
+                        if (shadows && ss.visibility(pr.p, pr.n, l, max_t, x, y, int(k)) == 0.0f) {
                             continue;
                         }
                         glm::vec3 add =
@@ -746,16 +831,16 @@ void execute(NodeContext &ctx)
         }
     });
     const Pass &cp = in.pass(pass::kColor, ctx.where());
-    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels,
-                     cp.storage);
+    ctx.output().set(
+        pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels, cp.storage);
 }
 
 }  // namespace
 
-extern const NodeType kRelight{{"relight", "Add or replace lights from the G-buffer (GGX BRDF).",
-                                kInputs, kParams, "color"},
-                               &execute,
-                               &plan,
-                               &check};
+extern const NodeType kRelight{
+    {"relight", "Add or replace lights from the G-buffer (GGX BRDF).", kInputs, kParams, "color"},
+    &execute,
+    &plan,
+    &check};
 
 }  // namespace posthaste::nodes

@@ -1,10 +1,11 @@
 #include "shading/brdf.h"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <mutex>
-#include <tbb/task_arena.h>
 
 #include "core/parallel.h"
 
@@ -202,11 +203,8 @@ glm::vec3 evaluate(
     return (lambert(diffuse_albedo(s)) + f * dv) * nl;
 }
 
-glm::vec3 burley(const glm::vec3 &albedo,
-                 float roughness,
-                 float n_dot_v,
-                 float n_dot_l,
-                 float l_dot_h)
+glm::vec3 burley(
+    const glm::vec3 &albedo, float roughness, float n_dot_v, float n_dot_l, float l_dot_h)
 {
     auto p5 = [](float c) {
         const float m = 1.0f - std::clamp(c, 0.0f, 1.0f);
@@ -263,9 +261,10 @@ float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
         const float r = std::sqrt(u1), phi = 2.0f * kPi * u2;
         const float p1 = r * std::cos(phi);
         const float sh = 0.5f * (1.0f + vh_dir.z);
-        const float p2 = (1.0f - sh) * std::sqrt(std::max(0.0f, 1.0f - p1 * p1)) + sh * r * std::sin(phi);
-        const glm::vec3 nh = p1 * t1 + p2 * t2 +
-                             std::sqrt(std::max(0.0f, 1.0f - p1 * p1 - p2 * p2)) * vh_dir;
+        const float p2 =
+            (1.0f - sh) * std::sqrt(std::max(0.0f, 1.0f - p1 * p1)) + sh * r * std::sin(phi);
+        const glm::vec3 nh =
+            p1 * t1 + p2 * t2 + std::sqrt(std::max(0.0f, 1.0f - p1 * p1 - p2 * p2)) * vh_dir;
         const glm::vec3 h =
             glm::normalize(glm::vec3(alpha * nh.x, alpha * nh.y, std::max(0.0f, nh.z)));
         const float vh = glm::dot(v, h);
@@ -324,8 +323,8 @@ const EnergyTable &energy_table(Geometry geometry)
                 double avg = 0.0;
                 for (int i = 0; i < nm; ++i) {
                     const float mu = (float(i) + 0.5f) / float(nm);
-                    const float e = std::min(
-                        specular_albedo(r, mu, geometry, EnergyTable::kSamples), 1.0f);
+                    const float e =
+                        std::min(specular_albedo(r, mu, geometry, EnergyTable::kSamples), 1.0f);
                     t.e[std::size_t(j * nm + i)] = e;
                     avg += 2.0 * double(e) * double(mu) / double(nm);
                 }
@@ -350,8 +349,7 @@ glm::vec3 multiscatter(const Surface &s, float n_dot_v, float n_dot_l, Geometry 
     const float el = t.lookup_e(s.roughness, std::min(n_dot_l, 1.0f));
     const float fms = (1.0f - ev) * (1.0f - el) / (kPi * (1.0f - e_avg));
     const glm::vec3 f_avg = (20.0f * specular_f0(s) + glm::vec3(1.0f)) / 21.0f;
-    const glm::vec3 colour =
-        f_avg * f_avg * e_avg / (glm::vec3(1.0f) - f_avg * (1.0f - e_avg));
+    const glm::vec3 colour = f_avg * f_avg * e_avg / (glm::vec3(1.0f) - f_avg * (1.0f - e_avg));
     return colour * (fms * n_dot_l);
 }
 

@@ -103,7 +103,8 @@ glm::vec3 evaluate(const Surface &s,
 /// Burley 2012 diffuse BRDF value:
 /// albedo / pi (1 + (F90 - 1)(1 - n.l)^5)(1 + (F90 - 1)(1 - n.v)^5), F90 = 0.5 + 2 r (l.h)^2.
 /// Cosines are clamped to [0, 1].
-glm::vec3 burley(const glm::vec3 &albedo, float roughness, float n_dot_v, float n_dot_l, float l_dot_h);
+glm::vec3 burley(
+    const glm::vec3 &albedo, float roughness, float n_dot_v, float n_dot_l, float l_dot_h);
 
 /// Toon diffuse band: ceil(n.l * bands) / bands for n.l > 0, else 0 (the rasterizer uses 3).
 float toon_band(float n_dot_l, int bands);
@@ -118,7 +119,7 @@ float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
 /// E_avg(roughness) = 2 integral E(mu) mu dmu. Lookups interpolate bilinearly and clamp.
 struct EnergyTable {
     static constexpr int kMu = 64, kRoughness = 32;
-    static constexpr int kSamples = 1024;  ///< Visible-normal samples per entry.
+    static constexpr int kSamples = 1024;     ///< Visible-normal samples per entry.
     std::array<float, kMu * kRoughness> e{};  ///< e[j * kMu + i]: roughness j, mu i.
     std::array<float, kRoughness> e_avg{};
     float lookup_e(float roughness, float mu) const;

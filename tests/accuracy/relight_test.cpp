@@ -43,7 +43,8 @@ std::string scene_json(const std::string &sun)
   "balls": [
     {"center": [18, 5.5, 17], "radius": 1.5, "material": 3, "segments": 64},
     {"center": [22.5, 5.5, 17], "radius": 1.5, "material": 4, "segments": 64}],
-  "sun": )" + sun + R"(,
+  "sun": )" +
+           sun + R"(,
   "camera": [{"frame": 1, "position": [20, 9, 8], "pitch_deg": -20, "focal_length_mm": 30}]})";
 }
 
@@ -62,13 +63,15 @@ std::string render_block(const std::string &id, const std::string &scene, int w,
 }
 
 // Graph: render -> relight (params) -> write (a sink; the capture is the relight node).
-Frame relight(const std::string &scene, int w, int h, const std::string &params,
-              const std::string &dir)
+Frame relight(
+    const std::string &scene, int w, int h, const std::string &params, const std::string &dir)
 {
     const std::string graph = R"({"nodes": [)" + render_block("r", scene, w, h) + R"(,
-        {"id": "l", "type": "relight", "inputs": {"image": "r"}, "params": )" + params + R"(},
+        {"id": "l", "type": "relight", "inputs": {"image": "r"}, "params": )" +
+                              params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "l"},
-         "params": {"path": ")" + dir + R"(/o.exr", "passes": "color"}}]})";
+         "params": {"path": ")" +
+                              dir + R"(/o.exr", "passes": "color"}}]})";
     Graph g = Graph::parse(graph, "relight.json");
     g.set_capture("l");
     return g.evaluate(1);
@@ -78,7 +81,8 @@ Frame beauty(const std::string &scene, int w, int h, const std::string &dir)
 {
     const std::string graph = R"({"nodes": [)" + render_block("r", scene, w, h) + R"(,
         {"id": "o", "type": "write", "inputs": {"image": "r"},
-         "params": {"path": ")" + dir + R"(/b.exr", "passes": "color"}}]})";
+         "params": {"path": ")" +
+                              dir + R"(/b.exr", "passes": "color"}}]})";
     Graph g = Graph::parse(graph, "beauty.json");
     g.set_capture("r");
     return g.evaluate(1);
@@ -112,13 +116,16 @@ TEST(RelightAccuracy, ReplaceWithNewSunMatchesRasterizerBeauty)
     const int w = 320, h = 180;
     const Frame ref = beauty(b, w, h, dir);
     const std::string params = R"({"mode": "replace", "ambient": 0.7, "toon_ids": "5",
-                                   "lights": [)" + std::string(kLightB) + "]}";
+                                   "lights": [)" +
+                               std::string(kLightB) + "]}";
     const Frame lit = relight(a, w, h, params, dir);
     const Frame before = beauty(a, w, h, dir);
     const double err = rmse_rgb(lit.image("color"), ref.image("color"));
     const double moved = rmse_rgb(before.image("color"), ref.image("color"));
-    std::printf("relight replace: RMSE %.3g vs the beauty with the new sun (the old beauty: %.3g)\n",
-                err, moved);
+    std::printf(
+        "relight replace: RMSE %.3g vs the beauty with the new sun (the old beauty: %.3g)\n",
+        err,
+        moved);
     EXPECT_LE(err, 1e-4);
     EXPECT_GT(moved, 0.02);  // the sun change is large: the test can fail
     // Alpha and the other passes pass through.
@@ -126,17 +133,19 @@ TEST(RelightAccuracy, ReplaceWithNewSunMatchesRasterizerBeauty)
     EXPECT_TRUE(lit.has("normal"));
 
     // Positions reconstructed from depth and the camera matrices: same image to float precision.
-    const Frame from_depth =
-        relight(a, w, h, params.substr(0, params.size() - 1) + R"(, "position_from": "depth"})",
-                dir);
+    const Frame from_depth = relight(
+        a, w, h, params.substr(0, params.size() - 1) + R"(, "position_from": "depth"})", dir);
     const double err_depth = rmse_rgb(from_depth.image("color"), ref.image("color"));
     std::printf("relight replace from depth: RMSE %.3g\n", err_depth);
     EXPECT_LE(err_depth, 1e-3);
 
     // Without the toon ids the toon block is shaded smoothly: the test sees toon banding.
     const Frame no_toon =
-        relight(a, w, h, R"({"mode": "replace", "ambient": 0.7, "lights": [)" +
-                             std::string(kLightB) + "]}", dir);
+        relight(a,
+                w,
+                h,
+                R"({"mode": "replace", "ambient": 0.7, "lights": [)" + std::string(kLightB) + "]}",
+                dir);
     EXPECT_GT(rmse_rgb(no_toon.image("color"), ref.image("color")), 1e-3);
 }
 
@@ -182,13 +191,18 @@ TEST(RelightAccuracy, PointAndSpotIrradianceByHand)
     const std::string a = write_scene(dir, "a", kSunA);
     const int w = 64, h = 36;
     const glm::vec3 pp(20, 8, 14), sp(20, 12, 12), sd = glm::normalize(glm::vec3(0, -1, 0.5f));
-    const Frame f = relight(a, w, h, R"({"mode": "replace", "anisotropic": false, "lights": [
+    const Frame f = relight(a,
+                            w,
+                            h,
+                            R"({"mode": "replace", "anisotropic": false, "lights": [
         {"type": "point", "position": [20, 8, 14], "intensity": 30, "color": [1, 0.5, 0.25]},
         {"type": "spot", "position": [20, 12, 12], "direction": [0, -1, 0.5], "intensity": 80,
-         "inner_deg": 10, "outer_deg": 25}]})", dir);
+         "inner_deg": 10, "outer_deg": 25}]})",
+                            dir);
     const glm::mat4 c2w = glm::inverse(*f.camera.world_to_camera);
     const glm::vec3 eye(c2w[3]);
-    const float ci = std::cos(10.0f * shading::kPi / 180), co = std::cos(25.0f * shading::kPi / 180);
+    const float ci = std::cos(10.0f * shading::kPi / 180),
+                co = std::cos(25.0f * shading::kPi / 180);
     int checked = 0, in_cone = 0;
     for (int y = 0; y < h; ++y) {
         for (int x = 0; x < w; ++x) {
@@ -209,8 +223,8 @@ TEST(RelightAccuracy, PointAndSpotIrradianceByHand)
             s.metallic = M.at(x, y, 1);
             glm::vec3 want(0.0f);
             const glm::vec3 dp = pp - p;
-            want += shading::direct_response(s, n, v, glm::normalize(dp)) * glm::vec3(1, 0.5f, 0.25f) *
-                    (30.0f / glm::dot(dp, dp));
+            want += shading::direct_response(s, n, v, glm::normalize(dp)) *
+                    glm::vec3(1, 0.5f, 0.25f) * (30.0f / glm::dot(dp, dp));
             const glm::vec3 ds = sp - p;
             const float cs = glm::dot(-glm::normalize(ds), sd);
             const float t = std::clamp((cs - co) / (ci - co), 0.0f, 1.0f);
@@ -293,8 +307,8 @@ TEST(RelightFurnace, EnergyCompensationIntegratesToOne)
         for (float r = 0.0f; r <= 1.0001f; r += 0.125f) {
             for (float mu : {0.1f, 0.3f, 0.5f, 0.8f, 1.0f}) {
                 const double with = furnace(r, mu, g, true);
-                EXPECT_NEAR(with, 1.0, 0.01) << "roughness " << r << " mu " << mu << " geometry "
-                                             << int(g);
+                EXPECT_NEAR(with, 1.0, 0.01)
+                    << "roughness " << r << " mu " << mu << " geometry " << int(g);
                 worst = std::max(worst, std::abs(with - 1.0));
             }
         }
@@ -320,7 +334,8 @@ TEST(RelightFurnace, LossWithoutCompensationMatchesTable)
         }
     }
     std::printf("E(mu) table vs independent integral: worst |diff| %.4f; largest loss %.3f\n",
-                worst, largest_loss);
+                worst,
+                largest_loss);
     EXPECT_GT(largest_loss, 0.2);  // rough GGX really loses energy: the test can fail
 }
 
@@ -338,8 +353,8 @@ TEST(RelightFurnace, CookTorranceIsTheSeedsFormula)
         for (float tl : {0.2f, 0.9f, 1.5f}) {
             for (float phi : {0.0f, 1.0f, 2.5f}) {
                 const glm::vec3 v(std::sin(tv), 0, std::cos(tv));
-                const glm::vec3 l(std::sin(tl) * std::cos(phi), std::sin(tl) * std::sin(phi),
-                                  std::cos(tl));
+                const glm::vec3 l(
+                    std::sin(tl) * std::cos(phi), std::sin(tl) * std::sin(phi), std::cos(tl));
                 DirectOptions o;
                 o.geometry = Geometry::CookTorrance;
                 const glm::vec3 got = direct_response(s, n, v, l, o);

@@ -55,7 +55,8 @@ void run_node(benchmark::State &state, const std::string &options)
     const Graph g = Graph::parse(R"({"nodes": [
         {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
         {"id": "l", "type": "relight", "inputs": {"image": "src"},
-         "params": {"mode": "add", "toon_ids": "6", )" + std::string(kLights) + options + R"(}},
+         "params": {"mode": "add", "toon_ids": "6", )" +
+                                     std::string(kLights) + options + R"(}},
         {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
                                  "bench.json");
     const GraphNode &gn = g.nodes()[1];
@@ -81,7 +82,8 @@ void BM_RelightBaselineCopy(benchmark::State &state)
         Image out = Image::uninitialized(c.width(), c.height(), c.channels());
         parallel_for_tiles(out.bounds(), [&](const Rect &t) {
             for (int y = t.y0; y < t.y1; ++y) {
-                std::copy(c.pixel(t.x0, y), c.pixel(t.x1 - 1, y) + c.channels(), out.pixel(t.x0, y));
+                std::copy(
+                    c.pixel(t.x0, y), c.pixel(t.x1 - 1, y) + c.channels(), out.pixel(t.x0, y));
             }
         });
         benchmark::DoNotOptimize(out.data());

@@ -26,12 +26,18 @@ Frame run_relight(const Frame &in, const std::string &params)
 {
     const Graph g = Graph::parse(R"({"nodes": [
         {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
-        {"id": "l", "type": "relight", "inputs": {"image": "src"}, "params": )" + params + R"(},
+        {"id": "l", "type": "relight", "inputs": {"image": "src"}, "params": )" +
+                                     params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
                                  "stability.json");
     const GraphNode &gn = g.nodes()[1];
-    NodeContext ctx(gn.identity, gn.params, {std::make_shared<const Frame>(in)}, {"image"},
-                    gn.requested, in.number, *gn.state);
+    NodeContext ctx(gn.identity,
+                    gn.params,
+                    {std::make_shared<const Frame>(in)},
+                    {"image"},
+                    gn.requested,
+                    in.number,
+                    *gn.state);
     gn.type->execute(ctx);
     return ctx.take_output();
 }
@@ -48,8 +54,8 @@ Frame degenerate_frame(int w, int h)
     f.number = 1;
     f.width = w;
     f.height = h;
-    const CameraMatrices cm = make_camera_matrices(glm::mat4(1.0f), 35.0f, 36.0f,
-                                                   float(w) / float(h), 0.05f);
+    const CameraMatrices cm =
+        make_camera_matrices(glm::mat4(1.0f), 35.0f, 36.0f, float(w) / float(h), 0.05f);
     f.camera.world_to_camera = cm.world_to_camera;
     f.camera.world_to_ndc = cm.world_to_ndc;
     Image color(w, h, 4), normal(w, h, 3), position(w, h, 3), albedo(w, h, 3), material(w, h, 3);
@@ -75,11 +81,10 @@ Frame degenerate_frame(int w, int h)
                     break;
                 }
                 case 1:  // random sphere direction
-                    n = glm::vec3(std::sqrt(1 - (2 * r1 - 1) * (2 * r1 - 1)) *
-                                      std::cos(6.2831853f * r2),
-                                  2 * r1 - 1,
-                                  std::sqrt(1 - (2 * r1 - 1) * (2 * r1 - 1)) *
-                                      std::sin(6.2831853f * r2));
+                    n = glm::vec3(
+                        std::sqrt(1 - (2 * r1 - 1) * (2 * r1 - 1)) * std::cos(6.2831853f * r2),
+                        2 * r1 - 1,
+                        std::sqrt(1 - (2 * r1 - 1) * (2 * r1 - 1)) * std::sin(6.2831853f * r2));
                     break;
                 case 2:  // mirror configuration for the sun: h = n
                     n = glm::normalize(view + glm::normalize(glm::vec3(0.3f, 0.8f, -0.5f)));
@@ -93,13 +98,27 @@ Frame degenerate_frame(int w, int h)
             glm::vec3 t = glm::normalize(glm::cross(n, glm::vec3(0.3f, 0.4f, 0.5f)));
             bool nan_position = false;
             switch ((x / 4) % 7) {
-                case 0: t = glm::vec3(0.0f); break;  // degenerate tangents
-                case 1: t = glm::vec3(kNaN); break;
-                case 2: t = n; break;
-                case 3: n = glm::vec3(kNaN, 0, 0); break;  // NaN normal
-                case 4: rough = kNaN; aniso = kNaN; break;  // NaN material
-                case 5: nan_position = true; break;
-                default: break;
+                case 0:
+                    t = glm::vec3(0.0f);
+                    break;  // degenerate tangents
+                case 1:
+                    t = glm::vec3(kNaN);
+                    break;
+                case 2:
+                    t = n;
+                    break;
+                case 3:
+                    n = glm::vec3(kNaN, 0, 0);
+                    break;  // NaN normal
+                case 4:
+                    rough = kNaN;
+                    aniso = kNaN;
+                    break;  // NaN material
+                case 5:
+                    nan_position = true;
+                    break;
+                default:
+                    break;
             }
             float z = pc.z;
             if ((x + 3 * y) % 11 == 0) {  // background: as the rasterizer writes its sky
@@ -162,10 +181,11 @@ TEST(RelightStability, DegenerateInputsStayFiniteAndBounded)
             for (int y = 0; y < h; ++y) {
                 for (int x = 0; x < w; ++x) {
                     const Image &n = in.image("normal");
-                    const bool usable = std::isfinite(n.at(x, y, 0)) && n.at(x, y, 0) * n.at(x, y, 0) +
-                                                                             n.at(x, y, 1) * n.at(x, y, 1) +
-                                                                             n.at(x, y, 2) * n.at(x, y, 2) >
-                                                                         0.25f;
+                    const bool usable =
+                        std::isfinite(n.at(x, y, 0)) && n.at(x, y, 0) * n.at(x, y, 0) +
+                                                                n.at(x, y, 1) * n.at(x, y, 1) +
+                                                                n.at(x, y, 2) * n.at(x, y, 2) >
+                                                            0.25f;
                     for (int ch = 0; ch < 4; ++ch) {
                         ASSERT_TRUE(std::isfinite(c.at(x, y, ch)))
                             << options << " " << mode << " at " << x << "," << y;
@@ -181,8 +201,12 @@ TEST(RelightStability, DegenerateInputsStayFiniteAndBounded)
                     }
                 }
             }
-            std::printf("%-70s %-7s peak %.4g (bound %.3g), %d pixels kept\n", options.c_str(),
-                        mode, peak, bound, kept);
+            std::printf("%-70s %-7s peak %.4g (bound %.3g), %d pixels kept\n",
+                        options.c_str(),
+                        mode,
+                        peak,
+                        bound,
+                        kept);
             EXPECT_LE(peak, bound);
             EXPECT_GT(kept, w * h / 12);
         }
@@ -197,7 +221,8 @@ TEST(RelightStability, ClampBoundsEveryLight)
     for (int y = 0; y < h; ++y) {
         for (int x = 0; x < w; ++x) {
             for (int ch = 0; ch < 3; ++ch) {
-                const float added = out.image("color").at(x, y, ch) - in.image("color").at(x, y, ch);
+                const float added =
+                    out.image("color").at(x, y, ch) - in.image("color").at(x, y, ch);
                 EXPECT_LE(added, 4 * 2.0f + 1e-5f);
                 EXPECT_GE(added, 0.0f);
             }
@@ -209,8 +234,8 @@ TEST(RelightStability, SameBitsForAnyThreadCount)
 {
     const int w = 200, h = 90;
     const Frame in = degenerate_frame(w, h);
-    const std::string p = "{\"mode\": \"add\", \"shadows\": true, \"energy_compensation\": true, " +
-                          kLights + "}";
+    const std::string p =
+        "{\"mode\": \"add\", \"shadows\": true, \"energy_compensation\": true, " + kLights + "}";
     set_thread_count(1);
     const Frame one = run_relight(in, p);
     set_thread_count(0);
