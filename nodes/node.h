@@ -19,5 +19,6 @@ extern const NodeType kMerge;
 extern const NodeType kChannels;
 extern const NodeType kRender;
 extern const NodeType kFog;
+extern const NodeType kRelight;
 
 }  // namespace posthaste::nodes

@@ -16,6 +16,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kMerge,
         &nodes::kChannels,
         &nodes::kFog,
+        &nodes::kRelight,
     };
     return kAllNodes;
 }

@@ -21,6 +21,7 @@
 #include "raster/raster.h"
 #include "raster/sky.h"
 #include "shading/brdf.h"
+#include "shading/lighting.h"
 
 namespace posthaste::raster {
 
@@ -518,33 +519,12 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
     const glm::vec3 e_sun = s.sun.color * s.sun.illuminance * vis;
     glm::vec3 c(0.0f);
     if (vis > 0.0f) {
-        if (mat.toon) {
-            // Banded diffuse: n.l quantised to thirds, plus the specular lobe.
-            const float nl = glm::dot(n, l);
-            const float band = std::ceil(nl * 3.0f) / 3.0f;
-            shading::Surface spec = surf;
-            spec.albedo = glm::vec3(0.0f);
-            spec.metallic = 0.0f;
-            c = (shading::diffuse_albedo(surf) / shading::kPi * band +
-                 shading::evaluate(spec, n, v, l)) *
-                e_sun;
-        } else {
-            c = shading::evaluate(surf, n, v, l) * e_sun;
-        }
+        // Toon materials: n.l quantised to thirds, plus the specular lobe (shading/lighting.h).
+        shading::DirectOptions direct;
+        direct.toon_bands = mat.toon ? 3 : 0;
+        c = shading::direct_response(surf, n, v, l, direct) * e_sun;
     }
-    // Sky light: hemispherical diffuse plus the sky seen in the mirror direction, weighted by
-    // Schlick Fresnel and faded with roughness (a split-sum stand-in).
-    const glm::vec3 amb = sky_ambient_radiance(n, l) * s.sky_ambient;
-    c += shading::diffuse_albedo(surf) * amb;
-    const float nv = std::max(glm::dot(n, v), 0.0f);
-    const glm::vec3 r = glm::reflect(-v, n);  // only used by glossy materials
-    const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
-    // Rough materials (gloss < 0.05, roughness > 0.78) reflect the ambient term alone: the sky
-    // lookup would change them by less than 5% of a small term.
-    const glm::vec3 env =
-        gloss < 0.05f ? amb : glm::mix(amb, sky_radiance(r, l) * s.sky_ambient, gloss);
-    c += shading::fresnel_schlick(shading::specular_f0(surf), nv) * env;
-    return c;
+    return shading::add_sky_light(c, surf, n, v, l, s.sky_ambient);
 }
 
 // Visibility buffer of a view.

@@ -1,8 +1,13 @@
 #include "shading/brdf.h"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <mutex>
+
+#include "core/parallel.h"
 
 namespace posthaste::shading {
 namespace {
@@ -196,6 +201,156 @@ glm::vec3 evaluate(
     }
     const glm::vec3 f = fresnel_schlick(specular_f0(s), vh);
     return (lambert(diffuse_albedo(s)) + f * dv) * nl;
+}
+
+glm::vec3 burley(
+    const glm::vec3 &albedo, float roughness, float n_dot_v, float n_dot_l, float l_dot_h)
+{
+    auto p5 = [](float c) {
+        const float m = 1.0f - std::clamp(c, 0.0f, 1.0f);
+        return (m * m) * (m * m) * m;
+    };
+    const float lh = std::clamp(l_dot_h, 0.0f, 1.0f);
+    const float f90 = 0.5f + 2.0f * std::clamp(roughness, 0.0f, 1.0f) * lh * lh;
+    const float k = (1.0f + (f90 - 1.0f) * p5(n_dot_l)) * (1.0f + (f90 - 1.0f) * p5(n_dot_v));
+    return albedo * (k / kPi);
+}
+
+float toon_band(float n_dot_l, int bands)
+{
+    return n_dot_l > 0.0f ? std::ceil(n_dot_l * float(bands)) / float(bands) : 0.0f;
+}
+
+namespace {
+
+float radical_inverse_base2(std::uint32_t i)
+{
+    i = (i << 16u) | (i >> 16u);
+    i = ((i & 0x55555555u) << 1u) | ((i & 0xAAAAAAAAu) >> 1u);
+    i = ((i & 0x33333333u) << 2u) | ((i & 0xCCCCCCCCu) >> 2u);
+    i = ((i & 0x0F0F0F0Fu) << 4u) | ((i & 0xF0F0F0F0u) >> 4u);
+    i = ((i & 0x00FF00FFu) << 8u) | ((i & 0xFF00FF00u) >> 8u);
+    return float(i >> 8) * (1.0f / 16777216.0f);
+}
+
+}  // namespace
+
+float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
+{
+    // Local frame n = z, v in the xz plane. h is drawn from the distribution of visible normals
+    // (Heitz 2018, "Sampling the GGX Distribution of Visible Normals"), l = reflect(v, h), so
+    // pdf(l) = G1(v) D(h) / (4 n.v). D is evaluated at the h that evaluate() rebuilds from v + l,
+    // so that its float rounding cancels (it matters for alpha ~ 0.002).
+    const float nv = std::clamp(mu, kMinCosine, 1.0f);
+    const glm::vec3 n(0, 0, 1), v(std::sqrt(1.0f - nv * nv), 0.0f, nv);
+    Surface s;
+    s.albedo = glm::vec3(1.0f);
+    s.metallic = 1.0f;  // F0 = 1: F = 1 exactly, no diffuse
+    s.roughness = roughness;
+    const float alpha = roughness_to_alpha(roughness);
+    const glm::vec3 vh_dir = glm::normalize(glm::vec3(alpha * v.x, alpha * v.y, v.z));
+    const float lensq = vh_dir.x * vh_dir.x + vh_dir.y * vh_dir.y;
+    const glm::vec3 t1 =
+        lensq > 0.0f ? glm::vec3(-vh_dir.y, vh_dir.x, 0.0f) / std::sqrt(lensq) : glm::vec3(1, 0, 0);
+    const glm::vec3 t2 = glm::cross(vh_dir, t1);
+    const float g1v = g1_smith_ggx(nv, alpha);
+    double sum = 0.0;
+    for (int i = 0; i < samples; ++i) {
+        const float u1 = (float(i) + 0.5f) / float(samples);
+        const float u2 = radical_inverse_base2(std::uint32_t(i));
+        const float r = std::sqrt(u1), phi = 2.0f * kPi * u2;
+        const float p1 = r * std::cos(phi);
+        const float sh = 0.5f * (1.0f + vh_dir.z);
+        const float p2 =
+            (1.0f - sh) * std::sqrt(std::max(0.0f, 1.0f - p1 * p1)) + sh * r * std::sin(phi);
+        const glm::vec3 nh =
+            p1 * t1 + p2 * t2 + std::sqrt(std::max(0.0f, 1.0f - p1 * p1 - p2 * p2)) * vh_dir;
+        const glm::vec3 h =
+            glm::normalize(glm::vec3(alpha * nh.x, alpha * nh.y, std::max(0.0f, nh.z)));
+        const float vh = glm::dot(v, h);
+        if (vh <= 0.0f) {
+            continue;
+        }
+        const glm::vec3 l = 2.0f * vh * h - v;
+        if (l.z <= 0.0f) {
+            continue;
+        }
+        glm::vec3 he = v + l;  // exactly as evaluate() rebuilds h
+        he = he / glm::length(he);
+        const float d = d_ggx(std::max(glm::dot(n, he), 0.0f), alpha);
+        const float pdf = g1v * d / (4.0f * nv);
+        if (pdf > 0.0f) {
+            sum += double(evaluate(s, n, v, l, geometry).x / pdf);
+        }
+    }
+    return float(sum / double(samples));
+}
+
+float EnergyTable::lookup_e(float roughness, float mu) const
+{
+    const float fr = std::clamp(roughness, 0.0f, 1.0f) * float(kRoughness - 1);
+    const float fm = std::clamp(mu * float(kMu) - 0.5f, 0.0f, float(kMu - 1));
+    const int j0 = std::min(int(fr), kRoughness - 2), i0 = std::min(int(fm), kMu - 2);
+    const float tr = fr - float(j0), tm = fm - float(i0);
+    const float *r0 = &e[std::size_t(j0 * kMu)];
+    const float *r1 = r0 + kMu;
+    const float a = r0[i0] + (r0[i0 + 1] - r0[i0]) * tm;
+    const float b = r1[i0] + (r1[i0 + 1] - r1[i0]) * tm;
+    return a + (b - a) * tr;
+}
+
+float EnergyTable::lookup_e_avg(float roughness) const
+{
+    const float fr = std::clamp(roughness, 0.0f, 1.0f) * float(kRoughness - 1);
+    const int j0 = std::min(int(fr), kRoughness - 2);
+    const float tr = fr - float(j0);
+    return e_avg[std::size_t(j0)] + (e_avg[std::size_t(j0 + 1)] - e_avg[std::size_t(j0)]) * tr;
+}
+
+const EnergyTable &energy_table(Geometry geometry)
+{
+    static std::once_flag once[3];
+    static EnergyTable tables[3];
+    const int g = int(geometry);
+    std::call_once(once[g], [&] {
+        EnergyTable &t = tables[g];
+        constexpr int nm = EnergyTable::kMu, nr = EnergyTable::kRoughness;
+        // Isolated: a thread waiting inside this loop must not pick up a task that blocks on
+        // this call_once.
+        tbb::this_task_arena::isolate([&] {
+            parallel_for(0, nr, [&](int j) {
+                const float r = float(j) / float(nr - 1);
+                double avg = 0.0;
+                for (int i = 0; i < nm; ++i) {
+                    const float mu = (float(i) + 0.5f) / float(nm);
+                    const float e =
+                        std::min(specular_albedo(r, mu, geometry, EnergyTable::kSamples), 1.0f);
+                    t.e[std::size_t(j * nm + i)] = e;
+                    avg += 2.0 * double(e) * double(mu) / double(nm);
+                }
+                t.e_avg[std::size_t(j)] = float(avg);
+            });
+        });
+    });
+    return tables[g];
+}
+
+glm::vec3 multiscatter(const Surface &s, float n_dot_v, float n_dot_l, Geometry geometry)
+{
+    if (n_dot_l <= 0.0f) {
+        return glm::vec3(0.0f);
+    }
+    const EnergyTable &t = energy_table(geometry);
+    const float e_avg = t.lookup_e_avg(s.roughness);
+    if (e_avg > 1.0f - 1e-6f) {
+        return glm::vec3(0.0f);
+    }
+    const float ev = t.lookup_e(s.roughness, std::clamp(n_dot_v, kMinCosine, 1.0f));
+    const float el = t.lookup_e(s.roughness, std::min(n_dot_l, 1.0f));
+    const float fms = (1.0f - ev) * (1.0f - el) / (kPi * (1.0f - e_avg));
+    const glm::vec3 f_avg = (20.0f * specular_f0(s) + glm::vec3(1.0f)) / 21.0f;
+    const glm::vec3 colour = f_avg * f_avg * e_avg / (glm::vec3(1.0f) - f_avg * (1.0f - e_avg));
+    return colour * (fms * n_dot_l);
 }
 
 }  // namespace posthaste::shading

@@ -10,6 +10,7 @@
 // to the viewer, l points to the light, h = normalize(v + l). Cosines are clamped to
 // kMinCosine so that every function stays finite at grazing angles and for roughness 0.
 
+#include <array>
 #include <glm/vec3.hpp>
 
 namespace posthaste::shading {
@@ -98,5 +99,42 @@ glm::vec3 evaluate(const Surface &s,
                    const glm::vec3 &v,
                    const glm::vec3 &l,
                    Geometry geometry = Geometry::SmithCorrelated);
+
+/// Burley 2012 diffuse BRDF value:
+/// albedo / pi (1 + (F90 - 1)(1 - n.l)^5)(1 + (F90 - 1)(1 - n.v)^5), F90 = 0.5 + 2 r (l.h)^2.
+/// Cosines are clamped to [0, 1].
+glm::vec3 burley(
+    const glm::vec3 &albedo, float roughness, float n_dot_v, float n_dot_l, float l_dot_h);
+
+/// Toon diffuse band: ceil(n.l * bands) / bands for n.l > 0, else 0 (the rasterizer uses 3).
+float toon_band(float n_dot_l, int bands);
+
+/// Directional albedo of the specular lobe alone with F = 1 (the Kulla-Conty E(mu)): the
+/// integral over l of evaluate() for a metal of albedo 1, view cosine mu = n.v, computed by GGX
+/// visible-normal sampling of h with `samples` Hammersley points. Deterministic.
+float specular_albedo(float roughness, float mu, Geometry geometry, int samples);
+
+/// Kulla & Conty 2017 energy tables for one masking term: E(mu, roughness) on a kMu x kRoughness
+/// grid (mu at cell centres (i + 0.5) / kMu, roughness at j / (kRoughness - 1)) and
+/// E_avg(roughness) = 2 integral E(mu) mu dmu. Lookups interpolate bilinearly and clamp.
+struct EnergyTable {
+    static constexpr int kMu = 64, kRoughness = 32;
+    static constexpr int kSamples = 1024;     ///< Visible-normal samples per entry.
+    std::array<float, kMu * kRoughness> e{};  ///< e[j * kMu + i]: roughness j, mu i.
+    std::array<float, kRoughness> e_avg{};
+    float lookup_e(float roughness, float mu) const;
+    float lookup_e_avg(float roughness) const;
+};
+
+/// The table of `geometry`, integrated on first use (2M BRDF evaluations, in parallel) and
+/// cached for the process; thread-safe.
+const EnergyTable &energy_table(Geometry geometry);
+
+/// Kulla-Conty multiple-scattering lobe times n.l for one light of unit irradiance:
+/// (1 - E(n.v))(1 - E(n.l)) / (pi (1 - E_avg)) * F_ms * n.l, with the coloured term
+/// F_ms = F_avg^2 E_avg / (1 - F_avg (1 - E_avg)) and Schlick's F_avg = (20 F0 + 1) / 21.
+/// Zero for n.l <= 0 and when E_avg is within 1e-6 of 1. Anisotropic surfaces use the isotropic
+/// table at their base roughness.
+glm::vec3 multiscatter(const Surface &s, float n_dot_v, float n_dot_l, Geometry geometry);
 
 }  // namespace posthaste::shading

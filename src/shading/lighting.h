@@ -1,0 +1,48 @@
+#pragma once
+// How Minecrappy lights a surface, shared by the rasterizer's beauty (raster/render.cpp) and the
+// relight node, so that relighting a G-buffer reproduces the beauty: the response to one light
+// (metallic-workflow BRDF, toon bands, optional Burley diffuse and Kulla-Conty compensation) and
+// the sky light (hemispherical diffuse plus a specular sky stand-in).
+//
+// Conventions as shading/brdf.h: unit vectors, n faces the viewer, v toward the viewer, l toward
+// the light.
+
+#include <glm/vec3.hpp>
+
+#include "shading/brdf.h"
+
+namespace posthaste::shading {
+
+/// Options of direct_response. The defaults are exactly the rasterizer's non-toon shading.
+struct DirectOptions {
+    Geometry geometry = Geometry::SmithCorrelated;
+    bool burley = false;               ///< Burley diffuse instead of Lambert.
+    bool energy_compensation = false;  ///< Add the Kulla-Conty multiple-scattering lobe.
+    int toon_bands = 0;                ///< > 0: toon material, n.l quantised to this many bands.
+    /// > 0 (toon only): the specular lobe's shape D(h)/D(n) quantised to this many steps
+    /// (crisp highlight rings). 0: continuous specular, as the rasterizer.
+    int toon_specular_steps = 0;
+};
+
+/// Reflected radiance toward v per unit irradiance (at normal incidence) from a light in
+/// direction l: (diffuse + specular) * n.l, zero when n.l <= 0. With default options it is
+/// evaluate(s, n, v, l). Toon: diffuse_albedo / pi * toon_band(n.l) plus the specular of a
+/// black dielectric (the rasterizer's toon look).
+glm::vec3 direct_response(const Surface &s,
+                          const glm::vec3 &n,
+                          const glm::vec3 &v,
+                          const glm::vec3 &l,
+                          const DirectOptions &options = {});
+
+/// Add the rasterizer's sky light to c and return it: diffuse_albedo * the hemispherical sky
+/// ambient, plus Schlick F(n.v) times the sky radiance in the mirror direction blended toward
+/// the ambient by roughness (a split-sum stand-in). `sun_dir` only moves the sky's sun glow
+/// (zero vector: no glow); `scale` is the scene's sky_ambient.
+glm::vec3 add_sky_light(glm::vec3 c,
+                        const Surface &s,
+                        const glm::vec3 &n,
+                        const glm::vec3 &v,
+                        const glm::vec3 &sun_dir,
+                        float scale);
+
+}  // namespace posthaste::shading
