@@ -147,14 +147,14 @@ struct Gather {
                                   nmax.width() - 1);
         const int ty = std::clamp(int(std::floor((float(y) + 0.5f + jy) / float(tile))), 0,
                                   nmax.height() - 1);
-        const float nvx = nmax.at(tx, ty, 0), nvy = nmax.at(tx, ty, 1);
-        const float L = std::sqrt(nvx * nvx + nvy * nvy);
+        float nvx = nmax.at(tx, ty, 0), nvy = nmax.at(tx, ty, 1);
+        float L = std::sqrt(nvx * nvx + nvy * nvy);
         if (L < 0.5f) {
             copy_pixel(out, x, y);
             return;
         }
         const Px &c = px(x, y);
-        const float dnx = nvx / L, dny = nvy / L;
+        float dnx = nvx / L, dny = nvy / L;
         const float u = hash_unit(x, y, 0, o.seed);
 
         float fg[4] = {0, 0, 0, 0}, bg[4] = {0, 0, 0, 0};
@@ -167,6 +167,21 @@ struct Gather {
         const float dcx = own_path ? c.vx / c.len : 0.0f, dcy = own_path ? c.vy / c.len : 0.0f;
         const bool shared = own_path && std::abs(dcx * dnx + dcy * dny) > 0.9f && c.len >= 0.5f * L;
         const float inv_own = own_path ? 1.0f / (2.0f * c.len) : 0.0f;
+        if (shared) {
+            // Departure: sample along the pixel's own direction (over the neighbourhood's
+            // length). Where everything moves alike (camera turns) the neighbour-max direction
+            // is an arbitrary one of many near-equal vectors, degrees off this pixel's path.
+            dnx = dcx;
+            dny = dcy;
+            nvx = dcx * L;
+            nvy = dcy * L;
+            if (c.len > 0.8f * L) {
+                // Nearly the longest around: the pixel's own path, sampled densely.
+                nvx = c.vx;
+                nvy = c.vy;
+                L = c.len;
+            }
+        }
 
         const int n = sample_count(L, o.samples);
         const float delta = 2.0f * L / float(n);  // path length each sample stands for
@@ -223,8 +238,9 @@ struct Gather {
             }
             return;
         }
-        // The pixel itself joins its own path's mean as one more level-depth sample.
-        const float wc = own_path ? 0.5f * own_delta * inv_own : 1.0f;
+        // The pixel itself, so that B > 0. Where the pixel has a path of its own, the samples
+        // already cover its centre: a full weight here would sharpen, so it only breaks ties.
+        const float wc = own_path ? 1e-3f * own_delta * inv_own : 1.0f;
         B += wc;
         for (int k = 0; k < nc; ++k) {
             bg[k] += wc * cx[k];
