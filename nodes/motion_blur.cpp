@@ -63,6 +63,9 @@ void execute(NodeContext &ctx)
         reprojected = shading::camera_motion(depth, in.camera, ctx.where());
         motion = &reprojected;
     }
+    if (color.channels() > 4) {
+        throw_runtime(ctx.where(), ": color has ", color.channels(), " channels, expected 1-4");
+    }
     for (const Image *p : {&depth, motion}) {
         if (p->width() != color.width() || p->height() != color.height()) {
             throw_runtime(ctx.where(), ": passes differ in size: color is ", color.width(), "x",

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <ctime>
 #include <limits>
 #include <vector>
 
@@ -23,10 +24,18 @@
 namespace posthaste::shading {
 namespace {
 
-/// Per-pixel data read by every sample, packed: blur half-extent (px), depth, its length.
+/// Everything a sample reads, in one 32-byte record (two per cache line): color (up to four
+/// channels, zero-padded); the blur half-extent scaled to a coverage density, v / (2 |v|^2), so
+/// that |dot(wv, d)| = (how far the motion runs along d) / (2 |v|) with no division per
+/// sample (zero below half a pixel of motion); log depth (kSkyLogZ for sky); |v|.
 struct Px {
-    float vx, vy, z, len;
+    float c[4];
+    float wx, wy, lz, len;
 };
+static_assert(sizeof(Px) == 8 * sizeof(float));
+
+/// Log depth of sky: far beyond any finite depth, finite so that sky - sky = 0.
+constexpr float kSkyLogZ = 1e30f;
 
 double ms_since(std::chrono::steady_clock::time_point t0)
 {
@@ -34,31 +43,37 @@ double ms_since(std::chrono::steady_clock::time_point t0)
         .count();
 }
 
-/// Weight of "Y is in front of X": 1 in front, 0 behind, 0.5 at equal depth, a linear ramp
-/// over soft_z x depth between. Sky (+inf) is behind everything finite and level with sky.
-inline float front(float zy, float zx, float soft_z)
+double process_cpu_ms()
 {
-    if (zy == zx) {
-        return 0.5f;  // includes sky against sky
-    }
-    const float zmin = std::min(zx, zy);
-    if (std::isinf(zx) || std::isinf(zy)) {
-        return zy < zx ? 1.0f : 0.0f;
-    }
-    return std::clamp(0.5f + (zx - zy) / (soft_z * zmin), 0.0f, 1.0f);
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+/// Weight of "Y is in front of X": 1 in front, 0 behind, 0.5 at equal depth, a linear ramp in
+/// log depth (relative depth difference) of width soft_z between. Sky is behind everything
+/// finite and level with sky.
+inline float front(float lzy, float lzx, float inv_soft)
+{
+    return std::min(std::max(0.5f + (lzx - lzy) * inv_soft, 0.0f), 1.0f);  // minss/maxss, no branch
 }
 
 /// 1 while the distance t is within the reach `len`, fading to 0 over the next pixel.
 inline float reach(float t, float len)
 {
-    return std::clamp(len + 0.5f - t, 0.0f, 1.0f);
+    return std::min(std::max(len + 0.5f - t, 0.0f), 1.0f);
 }
 
-/// Channels: blur half-extent x, y (pixels), depth (+inf for sky), half-extent length.
-Image pack(const Image &motion, const Image &depth, const MotionBlurOptions &o)
+/// The records (see Px) and the clamped half-extent vectors (2 channels, for the tile max).
+struct Packed {
+    std::vector<Px> px;
+    Image velocity;
+};
+
+Packed pack(const Image &color, const Image &motion, const Image &depth, const MotionBlurOptions &o)
 {
-    const int w = motion.width(), h = motion.height();
-    Image buf = Image::uninitialized(w, h, 4);
+    const int w = motion.width(), h = motion.height(), nc = std::min(color.channels(), 4);
+    Packed out{std::vector<Px>(std::size_t(w) * std::size_t(h)), Image::uninitialized(w, h, 2)};
     const float scale = 0.5f * o.shutter;
     const float max_r = std::max(o.max_radius, 0.0f);
     parallel_for(0, h, [&](int y) {
@@ -78,28 +93,36 @@ Image pack(const Image &motion, const Image &depth, const MotionBlurOptions &o)
                 vy *= k;
                 len = max_r;
             }
-            float z = depth.empty() ? 1.0f : depth.at(x, y, 0);
-            if (std::isnan(z) || z <= 0.0f) {
-                z = std::numeric_limits<float>::infinity();
+            const float z = depth.empty() ? 1.0f : depth.at(x, y, 0);
+            // NaN, zero or negative depth is treated as sky.
+            const float lz = (z > 0.0f && std::isfinite(z)) ? std::log(z) : kSkyLogZ;
+            Px &p = out.px[std::size_t(y) * std::size_t(w) + std::size_t(x)];
+            const float *c = color.pixel(x, y);
+            for (int k = 0; k < 4; ++k) {
+                p.c[k] = k < nc ? c[k] : 0.0f;
             }
-            float *p = buf.pixel(x, y);
-            p[0] = vx;
-            p[1] = vy;
-            p[2] = z;
-            p[3] = len;
+            const float density = len >= 0.5f ? 1.0f / (2.0f * len * len) : 0.0f;
+            p.wx = vx * density;
+            p.wy = vy * density;
+            p.lz = lz;
+            p.len = len;
+            out.velocity.at(x, y, 0) = vx;
+            out.velocity.at(x, y, 1) = vy;
         }
     });
-    return buf;
+    return out;
 }
 
 struct Gather {
     const Image &color;
-    const Image &buf;
+    const Px *px_;
+    const Image &velocity;
     const Image &nmax;
     const MotionBlurOptions &o;
     int w, h, nc;
+    float inv_soft, inv_tile;
 
-    const Px &px(int x, int y) const { return *reinterpret_cast<const Px *>(buf.pixel(x, y)); }
+    const Px &px(int x, int y) const { return px_[std::size_t(y) * std::size_t(w) + std::size_t(x)]; }
 
     void copy_pixel(Image &out, int x, int y) const
     {
@@ -111,6 +134,16 @@ struct Gather {
         return std::max(1, std::min(most, std::max(2, int(std::ceil(2.0f * len)))));
     }
 
+    /// The record at x + 0.5 + t * (vx, vy), clamped to the frame (edge pixels extend).
+    const Px &at(int x, int y, float t, float vx, float vy) const
+    {
+        // Clamp in float (branch-free minss/maxss), then truncate: the value is >= 0.
+        const float fx = std::min(std::max(float(x) + 0.5f + t * vx, 0.0f), float(w) - 0.5f);
+        const float fy = std::min(std::max(float(y) + 0.5f + t * vy, 0.0f), float(h) - 0.5f);
+        const int sx = int(fx), sy = int(fy);
+        return px(sx, sy);
+    }
+
     void uniform(Image &out, int x, int y) const
     {
         const Px &c = px(x, y);
@@ -118,16 +151,15 @@ struct Gather {
             copy_pixel(out, x, y);
             return;
         }
+        const float vx = velocity.at(x, y, 0), vy = velocity.at(x, y, 1);
         const int n = sample_count(c.len, o.samples);
+        const float step = 2.0f / float(n);
         const float u = hash_unit(x, y, 0, o.seed);
         float acc[4] = {0, 0, 0, 0};
         for (int i = 0; i < n; ++i) {
-            const float t = -1.0f + 2.0f * (float(i) + u) / float(n);
-            const int sx = std::clamp(int(std::floor(float(x) + 0.5f + t * c.vx)), 0, w - 1);
-            const int sy = std::clamp(int(std::floor(float(y) + 0.5f + t * c.vy)), 0, h - 1);
-            const float *p = color.pixel(sx, sy);
-            for (int k = 0; k < nc; ++k) {
-                acc[k] += p[k];
+            const Px &s = at(x, y, -1.0f + (float(i) + u) * step, vx, vy);
+            for (int k = 0; k < 4; ++k) {
+                acc[k] += s.c[k];
             }
         }
         float *po = out.pixel(x, y);
@@ -138,15 +170,16 @@ struct Gather {
 
     void reconstruct(Image &out, int x, int y) const
     {
-        const int tile = o.tile;
+        const float tile = float(o.tile);
         // Jittered neighbour-max lookup: pixels near a tile border sometimes read the next
         // tile's neighbourhood, which turns seams into noise (Guertin 2014).
-        const float jx = (hash_unit(x, y, 1, o.seed) - 0.5f) * 2.0f * o.tile_jitter * tile;
-        const float jy = (hash_unit(x, y, 2, o.seed) - 0.5f) * 2.0f * o.tile_jitter * tile;
-        const int tx = std::clamp(int(std::floor((float(x) + 0.5f + jx) / float(tile))), 0,
-                                  nmax.width() - 1);
-        const int ty = std::clamp(int(std::floor((float(y) + 0.5f + jy) / float(tile))), 0,
-                                  nmax.height() - 1);
+        const std::uint32_t hj = hash4(std::uint32_t(x), std::uint32_t(y), 1u, o.seed);
+        const float jx = (hash_to_unit(hj) - 0.5f) * 2.0f * o.tile_jitter * tile;
+        const float jy = (hash_to_unit(pcg_hash(hj)) - 0.5f) * 2.0f * o.tile_jitter * tile;
+        const int tx = std::min(int(std::max(float(x) + 0.5f + jx, 0.0f) * inv_tile),
+                                nmax.width() - 1);
+        const int ty = std::min(int(std::max(float(y) + 0.5f + jy, 0.0f) * inv_tile),
+                                nmax.height() - 1);
         float nvx = nmax.at(tx, ty, 0), nvy = nmax.at(tx, ty, 1);
         float L = std::sqrt(nvx * nvx + nvy * nvy);
         if (L < 0.5f) {
@@ -154,17 +187,18 @@ struct Gather {
             return;
         }
         const Px &c = px(x, y);
+        const float cvx = velocity.at(x, y, 0), cvy = velocity.at(x, y, 1);
         float dnx = nvx / L, dny = nvy / L;
-        const float u = hash_unit(x, y, 0, o.seed);
+        const std::uint32_t hu = hash4(std::uint32_t(x), std::uint32_t(y), 0u, o.seed);
+        const float u = hash_to_unit(hu), u2 = hash_to_unit(pcg_hash(hu));
 
         float fg[4] = {0, 0, 0, 0}, bg[4] = {0, 0, 0, 0};
         float F = 0.0f, B = 0.0f;
-        const float *cx = color.pixel(x, y);
 
         // Does the pixel's own path share the neighbour-max samples? Only if it is aligned
         // with them and long enough for their spacing; else it gets samples of its own.
         const bool own_path = c.len >= 0.5f;
-        const float dcx = own_path ? c.vx / c.len : 0.0f, dcy = own_path ? c.vy / c.len : 0.0f;
+        const float dcx = own_path ? cvx / c.len : 0.0f, dcy = own_path ? cvy / c.len : 0.0f;
         const bool shared = own_path && std::abs(dcx * dnx + dcy * dny) > 0.9f && c.len >= 0.5f * L;
         const float inv_own = own_path ? 1.0f / (2.0f * c.len) : 0.0f;
         if (shared) {
@@ -177,37 +211,31 @@ struct Gather {
             nvy = dcy * L;
             if (c.len > 0.8f * L) {
                 // Nearly the longest around: the pixel's own path, sampled densely.
-                nvx = c.vx;
-                nvy = c.vy;
+                nvx = cvx;
+                nvy = cvy;
                 L = c.len;
             }
         }
 
         const int n = sample_count(L, o.samples);
-        const float delta = 2.0f * L / float(n);  // path length each sample stands for
+        const float step = 2.0f / float(n);
+        const float delta = L * step;  // path length each sample stands for
+        const float own_w = shared ? delta * inv_own : 0.0f;
         for (int i = 0; i < n; ++i) {
-            const float t = -1.0f + 2.0f * (float(i) + u) / float(n);
-            const int sx = std::clamp(int(std::floor(float(x) + 0.5f + t * nvx)), 0, w - 1);
-            const int sy = std::clamp(int(std::floor(float(y) + 0.5f + t * nvy)), 0, h - 1);
-            const Px &s = px(sx, sy);
+            const float t = -1.0f + (float(i) + u) * step;
+            const Px &s = at(x, y, t, nvx, nvy);
             const float T = std::abs(t) * L;
-            const float f = front(s.z, c.z, o.soft_z);
-            const float *cs = color.pixel(sx, sy);
-            // Coverage of X by Y: Y's reach along the sampled line, time density 1 / (2 |vY|).
-            if (f > 0.0f && s.len >= 0.5f) {
-                const float along = std::abs(s.vx * dnx + s.vy * dny) / s.len;
-                const float wf = f * reach(T, s.len) * along * delta / (2.0f * s.len);
-                F += wf;
-                for (int k = 0; k < nc; ++k) {
-                    fg[k] += wf * cs[k];
-                }
-            }
-            if (shared) {
-                const float wb = (1.0f - f) * reach(T, c.len) * delta * inv_own;
-                B += wb;
-                for (int k = 0; k < nc; ++k) {
-                    bg[k] += wb * cs[k];
-                }
+            const float f = front(s.lz, c.lz, inv_soft);
+            // Coverage of X by Y: Y's reach along the sampled line, time density along the
+            // line |dot(vY, d)| / |vY| / (2 |vY|) (zero for Y slower than half a pixel).
+            const float wf = f * reach(T, s.len) * std::abs(s.wx * dnx + s.wy * dny) * delta;
+            // X's own surface along its own path (shared samples).
+            const float wb = (1.0f - f) * reach(T, c.len) * own_w;
+            F += wf;
+            B += wb;
+            for (int k = 0; k < 4; ++k) {
+                fg[k] += wf * s.c[k];
+                bg[k] += wb * s.c[k];
             }
         }
         // Path length per sample of the pixel's own path (its own samples or the shared ones).
@@ -215,19 +243,15 @@ struct Gather {
         if (own_path && !shared) {
             // Guertin 2014's second direction: the pixel's own motion, for its own surface.
             const int m = std::max(2, std::min(sample_count(c.len, o.samples), (n + 1) / 2));
-            const float dm = 2.0f * c.len / float(m);
-            own_delta = dm;
-            const float u2 = hash_unit(x, y, 3, o.seed);
+            const float mstep = 2.0f / float(m);
+            own_delta = c.len * mstep;
+            const float wm = own_delta * inv_own;
             for (int i = 0; i < m; ++i) {
-                const float t = -1.0f + 2.0f * (float(i) + u2) / float(m);
-                const int sx = std::clamp(int(std::floor(float(x) + 0.5f + t * c.vx)), 0, w - 1);
-                const int sy = std::clamp(int(std::floor(float(y) + 0.5f + t * c.vy)), 0, h - 1);
-                const Px &s = px(sx, sy);
-                const float wb = (1.0f - front(s.z, c.z, o.soft_z)) * dm * inv_own;
-                const float *cs = color.pixel(sx, sy);
+                const Px &s = at(x, y, -1.0f + (float(i) + u2) * mstep, cvx, cvy);
+                const float wb = (1.0f - front(s.lz, c.lz, inv_soft)) * wm;
                 B += wb;
-                for (int k = 0; k < nc; ++k) {
-                    bg[k] += wb * cs[k];
+                for (int k = 0; k < 4; ++k) {
+                    bg[k] += wb * s.c[k];
                 }
             }
         }
@@ -242,12 +266,9 @@ struct Gather {
         // already cover its centre: a full weight here would sharpen, so it only breaks ties.
         const float wc = own_path ? 1e-3f * own_delta * inv_own : 1.0f;
         B += wc;
-        for (int k = 0; k < nc; ++k) {
-            bg[k] += wc * cx[k];
-        }
         const float rest = (1.0f - F) / B;
         for (int k = 0; k < nc; ++k) {
-            po[k] = fg[k] + rest * bg[k];
+            po[k] = fg[k] + rest * (bg[k] + wc * c.c[k]);
         }
     }
 };
@@ -267,14 +288,19 @@ Image motion_blur(const Image &color,
     const int w = color.width(), h = color.height();
     MotionBlurStats st;
     auto t0 = std::chrono::steady_clock::now();
-    const Image buf = pack(motion, depth, o);
+    double c0 = process_cpu_ms();
+    const Packed packed = pack(color, motion, depth, o);
     st.pack_ms = ms_since(t0);
+    st.pack_cpu_ms = process_cpu_ms() - c0;
 
     t0 = std::chrono::steady_clock::now();
-    const Image tiles = tile_max(buf, o.tile);
+    c0 = process_cpu_ms();
+    const Image tiles = tile_max(packed.velocity, o.tile);
     st.tile_max_ms = ms_since(t0);
+    st.tile_max_cpu_ms = process_cpu_ms() - c0;
 
     t0 = std::chrono::steady_clock::now();
+    c0 = process_cpu_ms();
     float longest = 0.0f;
     for (int ty = 0; ty < tiles.height(); ++ty) {
         for (int tx = 0; tx < tiles.width(); ++tx) {
@@ -285,10 +311,13 @@ Image motion_blur(const Image &color,
     const int radius = int(std::ceil(longest / float(o.tile))) + (o.tile_jitter > 0.0f ? 1 : 0);
     const Image nmax = neighbour_max(tiles, std::max(radius, 1));
     st.neighbour_max_ms = ms_since(t0);
+    st.neighbour_max_cpu_ms = process_cpu_ms() - c0;
 
     t0 = std::chrono::steady_clock::now();
+    c0 = process_cpu_ms();
     Image out = Image::uninitialized(w, h, color.channels());
-    const Gather g{color, buf, nmax, o, w, h, color.channels()};
+    const Gather g{color,        packed.px.data(), packed.velocity, nmax, o, w, h,
+                   std::min(color.channels(), 4), 1.0f / o.soft_z, 1.0f / float(o.tile)};
     const int nt_x = nmax.width(), nt_y = nmax.height();
     std::vector<unsigned char> copied(std::size_t(nt_x) * std::size_t(nt_y), 0);
     parallel_for_tiles(
@@ -332,6 +361,7 @@ Image motion_blur(const Image &color,
         },
         o.tile);
     st.gather_ms = ms_since(t0);
+    st.gather_cpu_ms = process_cpu_ms() - c0;
     st.tiles_total = nt_x * nt_y;
     for (unsigned char c : copied) {
         st.tiles_copied += c;

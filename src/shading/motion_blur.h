@@ -28,9 +28,12 @@ struct MotionBlurOptions {
     std::uint32_t seed = 0;
 };
 
-/// Milliseconds per stage of the last call.
+/// Milliseconds per stage of the last call: wall time, and CPU time of the whole process (all
+/// threads; on a shared machine the wall time also counts waiting for a core).
 struct MotionBlurStats {
     double pack_ms = 0.0, tile_max_ms = 0.0, neighbour_max_ms = 0.0, gather_ms = 0.0;
+    double pack_cpu_ms = 0.0, tile_max_cpu_ms = 0.0, neighbour_max_cpu_ms = 0.0,
+           gather_cpu_ms = 0.0;
     int tiles_copied = 0, tiles_total = 0;
 };
 

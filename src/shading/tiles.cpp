@@ -7,7 +7,7 @@
 
 namespace posthaste::shading {
 
-Image tile_max(const Image &field, int tile)
+Image tile_max(const Image &field, int tile, int first)
 {
     const int tw = (field.width() + tile - 1) / tile, th = (field.height() + tile - 1) / tile;
     Image out(tw, th, 2);
@@ -17,7 +17,7 @@ Image tile_max(const Image &field, int tile)
             const int x0 = tx * tile, x1 = std::min(field.width(), x0 + tile);
             float best = 0.0f, bx = 0.0f, by = 0.0f;
             for (int y = y0; y < y1; ++y) {
-                const float *p = field.pixel(x0, y);
+                const float *p = field.pixel(x0, y) + first;
                 for (int x = x0; x < x1; ++x, p += field.channels()) {
                     const float l = p[0] * p[0] + p[1] * p[1];
                     if (l > best && std::isfinite(l)) {

@@ -8,10 +8,10 @@
 
 namespace posthaste::shading {
 
-/// The longest vector of each tile x tile block of `field` (channels 0 and 1; other channels
-/// are ignored). Vectors that are not finite count as zero. Ties keep the first in scan order,
-/// so the result does not depend on the thread count.
-Image tile_max(const Image &field, int tile);
+/// The longest vector of each tile x tile block of `field` (channels `first` and `first` + 1;
+/// other channels are ignored). Vectors that are not finite count as zero. Ties keep the first
+/// in scan order, so the result does not depend on the thread count.
+Image tile_max(const Image &field, int tile, int first = 0);
 
 /// For each tile, the longest vector among the tiles within `radius` tiles (a (2 radius + 1)^2
 /// window, clamped at the borders): everything that can reach into the tile when no vector is
