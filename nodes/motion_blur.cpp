@@ -28,6 +28,9 @@ constexpr ParamSpec kSoftZ = ParamSpec::real("soft_z", 0.05).range(1e-4, 10.0).d
     "Depth ramp of the in-front test, as a fraction of depth.");
 constexpr ParamSpec kTileJitter = ParamSpec::real("tile_jitter", 0.25).range(0.0, 1.0).doc(
     "Jitter of the neighbour-max lookup, in tiles (hides tile seams as noise).");
+constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.05).range(0.0, 1.0).doc(
+    "Tiles whose reachable motion vectors differ by at most this fraction of the longest take "
+    "the cheaper uniform path (0: never).");
 constexpr ParamSpec kMotionPass = ParamSpec::string("motion_pass", "motion").doc(
     "Pass holding the motion (pixels from the previous frame to this one, x right, y down).");
 constexpr ParamSpec kSource = ParamSpec::choice("source", "motion|camera", "motion").doc(
@@ -39,7 +42,7 @@ constexpr ParamSpec kMethod = ParamSpec::choice("method", "reconstruct|uniform",
 constexpr ParamSpec kSeed = ParamSpec::integer("seed", 0).range(0, 2147483647).doc(
     "Seed of the per-pixel jitter.");
 constexpr ParamSpec kParams[] = {kShutter, kSamples, kMaxRadius, kTileSize, kSoftZ,
-                                 kTileJitter, kMotionPass, kSource, kMethod, kSeed};
+                                 kTileJitter, kCoherence, kMotionPass, kSource, kMethod, kSeed};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
 };
@@ -84,6 +87,7 @@ void execute(NodeContext &ctx)
     o.tile = ctx.get_int(kTileSize);
     o.soft_z = ctx.get_float(kSoftZ);
     o.tile_jitter = ctx.get_float(kTileJitter);
+    o.coherence = ctx.get_float(kCoherence);
     o.seed = std::uint32_t(ctx.get_int(kSeed));
     Image out = shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());

@@ -310,6 +310,10 @@ Image motion_blur(const Image &color,
     // Reach in tiles of the longest vector, plus one for the jittered lookup.
     const int radius = int(std::ceil(longest / float(o.tile))) + (o.tile_jitter > 0.0f ? 1 : 0);
     const Image nmax = neighbour_max(tiles, std::max(radius, 1));
+    const Image nbounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
+                              ? neighbour_bounds(tile_bounds(packed.velocity, o.tile),
+                                                 std::max(radius, 1))
+                              : Image();
     st.neighbour_max_ms = ms_since(t0);
     st.neighbour_max_cpu_ms = process_cpu_ms() - c0;
 
@@ -319,7 +323,8 @@ Image motion_blur(const Image &color,
     const Gather g{color,        packed.px.data(), packed.velocity, nmax, o, w, h,
                    std::min(color.channels(), 4), 1.0f / o.soft_z, 1.0f / float(o.tile)};
     const int nt_x = nmax.width(), nt_y = nmax.height();
-    std::vector<unsigned char> copied(std::size_t(nt_x) * std::size_t(nt_y), 0);
+    // Per tile: 1 copied, 2 coherent (uniform path), 0 reconstructed.
+    std::vector<unsigned char> kind(std::size_t(nt_x) * std::size_t(nt_y), 0);
     parallel_for_tiles(
         out.bounds(),
         [&](const Rect &r) {
@@ -345,12 +350,25 @@ Image motion_blur(const Image &color,
                     std::memcpy(out.pixel(r.x0, y), color.pixel(r.x0, y),
                                 sizeof(float) * std::size_t(r.width() * color.channels()));
                 }
-                copied[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)] = 1;
+                kind[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)] = 1;
                 return;
+            }
+            // Coherent tiles: every vector that can reach the tile is within `coherence` x the
+            // longest of every other, so depth order cannot change what covers what, and the
+            // reconstruction reduces to the average along the pixel's own path (Guertin 2014's
+            // fast path; 3x cheaper per sample).
+            bool coherent = false;
+            if (!nbounds.empty()) {
+                const float *b = nbounds.pixel(tx, ty);
+                const float extent = std::max(b[2] - b[0], b[3] - b[1]);
+                coherent = extent <= o.coherence * std::hypot(nmax.at(tx, ty, 0), nmax.at(tx, ty, 1));
+            }
+            if (coherent) {
+                kind[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)] = 2;
             }
             for (int y = r.y0; y < r.y1; ++y) {
                 for (int x = r.x0; x < r.x1; ++x) {
-                    if (o.method == BlurMethod::Uniform) {
+                    if (o.method == BlurMethod::Uniform || coherent) {
                         g.uniform(out, x, y);
                     }
                     else {
@@ -363,8 +381,9 @@ Image motion_blur(const Image &color,
     st.gather_ms = ms_since(t0);
     st.gather_cpu_ms = process_cpu_ms() - c0;
     st.tiles_total = nt_x * nt_y;
-    for (unsigned char c : copied) {
-        st.tiles_copied += c;
+    for (unsigned char k : kind) {
+        st.tiles_copied += k == 1;
+        st.tiles_coherent += k == 2;
     }
     if (stats) {
         *stats = st;

@@ -25,6 +25,9 @@ struct MotionBlurOptions {
     int tile = 16;               ///< Tile size of the tile-max reduction, pixels.
     float soft_z = 0.05f;        ///< Depth ramp of the front/back test, relative to depth.
     float tile_jitter = 0.25f;   ///< Jitter of the neighbour-max lookup, in tiles (hides seams).
+    /// Tiles whose reachable vectors all lie within coherence x the longest of each other take
+    /// the uniform path (0: never).
+    float coherence = 0.05f;
     std::uint32_t seed = 0;
 };
 
@@ -34,7 +37,7 @@ struct MotionBlurStats {
     double pack_ms = 0.0, tile_max_ms = 0.0, neighbour_max_ms = 0.0, gather_ms = 0.0;
     double pack_cpu_ms = 0.0, tile_max_cpu_ms = 0.0, neighbour_max_cpu_ms = 0.0,
            gather_cpu_ms = 0.0;
-    int tiles_copied = 0, tiles_total = 0;
+    int tiles_copied = 0, tiles_coherent = 0, tiles_total = 0;
 };
 
 /// Blur `color` (1-4 channels) along `motion` (>= 2 channels, pixels from the previous frame to

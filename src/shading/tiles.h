@@ -19,3 +19,15 @@ Image tile_max(const Image &field, int tile, int first = 0);
 Image neighbour_max(const Image &tiles, int radius);
 
 }  // namespace posthaste::shading
+
+namespace posthaste::shading {
+
+/// The bounding box of each tile's vectors (channels `first`, `first` + 1 of `field`): 4
+/// channels, min x, min y, max x, max y. Non-finite vectors count as zero.
+Image tile_bounds(const Image &field, int tile, int first = 0);
+
+/// For each tile, the union of the boxes of the tiles within `radius` tiles: how far apart the
+/// vectors that can reach into the tile are (a tile whose box is small moves coherently).
+Image neighbour_bounds(const Image &bounds, int radius);
+
+}  // namespace posthaste::shading

@@ -345,7 +345,8 @@ struct AccuracyCase {
     const char *label;
     const char *scene;
     int frame;
-    double max_node_over_none;  ///< asserted ceiling of RMSE(node) / RMSE(nothing)
+    double max_node_over_none;    ///< asserted ceiling of RMSE(node) / RMSE(nothing)
+    double max_node_over_simple;  ///< asserted ceiling of RMSE(node) / RMSE(simple method)
 };
 
 constexpr int kAccW = 960, kAccH = 540, kTruthSamples = 64;
@@ -374,11 +375,16 @@ void run_accuracy(const AccuracyCase &c)
     const metrics::CompareStats simple_st = metrics::compare(simple, truth2);
     const double conv = rmse(truth, truth2);
     const double removed = 1.0 - node_st.all.rms_error / none_st.all.rms_error;
-    std::printf("| %s | %.5f (%.2f dB) | %.5f (%.2f dB) | %.5f (%.2f dB) | %.0f %% | %.5f |\n",
-                c.label, none_st.all.rms_error, none_st.all.psnr, simple_st.all.rms_error,
-                simple_st.all.psnr, node_st.all.rms_error, node_st.all.psnr, 100.0 * removed,
-                conv);
-    EXPECT_LT(node_st.all.rms_error, simple_st.all.rms_error) << c.label;
+    // PSNR with peak 1 (idiff's peak is max(1, largest value), which differs per pair on HDR
+    // frames and would make the columns incomparable).
+    auto psnr = [](double rms) { return 20.0 * std::log10(1.0 / rms); };
+    std::printf("| %s | %.5f (%.2f dB) | %.5f (%.2f dB) | %.5f (%.2f dB) | %.0f %% | %.3f | "
+                "%.5f |\n",
+                c.label, none_st.all.rms_error, psnr(none_st.all.rms_error),
+                simple_st.all.rms_error, psnr(simple_st.all.rms_error), node_st.all.rms_error,
+                psnr(node_st.all.rms_error), 100.0 * removed,
+                node_st.all.rms_error / simple_st.all.rms_error, conv);
+    EXPECT_LT(node_st.all.rms_error, c.max_node_over_simple * simple_st.all.rms_error) << c.label;
     EXPECT_LT(node_st.all.rms_error, c.max_node_over_none * none_st.all.rms_error) << c.label;
     EXPECT_LT(conv, 0.5 * node_st.all.rms_error) << c.label << ": truth not converged";
     expect_bounded(in.image("color"), node, c.label);
@@ -386,22 +392,24 @@ void run_accuracy(const AccuracyCase &c)
 
 TEST(MotionBlurAccuracySlow, DefaultSceneFastTranslation)
 {
-    run_accuracy({"minecrappy f6 translation", "minecrappy.json", 6, 0.5});
+    run_accuracy({"minecrappy f6 translation", "minecrappy.json", 6, 0.40, 0.90});
 }
 
 TEST(MotionBlurAccuracySlow, DefaultSceneFastTurn)
 {
-    run_accuracy({"minecrappy f20 turn", "minecrappy.json", 20, 0.5});
+    // A pure camera turn over a static world: the uniform blur along camera motion is already
+    // the right answer there, so the node can only tie it (measured 0.995).
+    run_accuracy({"minecrappy f20 turn", "minecrappy.json", 20, 0.25, 1.02});
 }
 
 TEST(MotionBlurAccuracySlow, FastCrossing)
 {
-    run_accuracy({"fast_crossing f4", "fast_crossing.json", 4, 0.9});
+    run_accuracy({"fast_crossing f4", "fast_crossing.json", 4, 0.35, 0.35});
 }
 
 TEST(MotionBlurAccuracySlow, ThinSky)
 {
-    run_accuracy({"thin_sky f4", "thin_sky.json", 4, 0.9});
+    run_accuracy({"thin_sky f4", "thin_sky.json", 4, 0.30, 0.70});
 }
 
 }  // namespace
