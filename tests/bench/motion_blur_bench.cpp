@@ -1,8 +1,9 @@
 // Benchmarks of the motion_blur filter at 1920x1080 on the default scene's fast-translation
 // frame (6: every pixel moves) and fast-turn frame (20), beside baselines in the same run:
 // copying the color pass, and the uniform blur along each pixel's motion (the seeds' method).
-// Counters: per-stage milliseconds of the last iteration (pack, tile max, neighbour max,
-// gather), tiles copied, and process CPU ms per iteration (all threads; the machine is shared).
+// Counters: per-stage wall and process-CPU milliseconds of the last iteration (pack, tile max,
+// neighbour max, gather), tiles copied / coherent, and process CPU ms per iteration (all
+// threads; on a shared machine wall time also counts waiting for a core).
 //   build/tests/posthaste_benchmarks --benchmark_filter=MotionBlur
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
@@ -69,7 +70,12 @@ void run_blur(benchmark::State &state, BlurMethod method)
     state.counters["tile_max_ms"] = st.tile_max_ms;
     state.counters["neighbour_max_ms"] = st.neighbour_max_ms;
     state.counters["gather_ms"] = st.gather_ms;
+    state.counters["pack_cpu_ms"] = st.pack_cpu_ms;
+    state.counters["tile_max_cpu_ms"] = st.tile_max_cpu_ms;
+    state.counters["neighbour_max_cpu_ms"] = st.neighbour_max_cpu_ms;
+    state.counters["gather_cpu_ms"] = st.gather_cpu_ms;
     state.counters["tiles_copied"] = st.tiles_copied;
+    state.counters["tiles_coherent"] = st.tiles_coherent;
     state.counters["tiles"] = st.tiles_total;
 }
 
@@ -91,6 +97,27 @@ void BM_MotionBlurCameraMotion(benchmark::State &state)
 BENCHMARK(BM_MotionBlurCopy)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_MotionBlurUniform)->Arg(6)->Arg(20)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_MotionBlurReconstruct)->Arg(6)->Arg(20)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Quality sweep on frame 6: samples 4, 8, 16 (default), 32.
+void BM_MotionBlurReconstructSamples(benchmark::State &state)
+{
+    const Frame &f = input_frame(6);
+    MotionBlurOptions o;
+    o.shutter = f.camera.shutter.value_or(0.5f);
+    o.samples = int(state.range(0));
+    const double cpu0 = process_cpu_ms();
+    for (auto _ : state) {
+        Image out = motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o);
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
+}
+BENCHMARK(BM_MotionBlurReconstructSamples)
+    ->Arg(4)
+    ->Arg(8)
+    ->Arg(32)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(BM_MotionBlurCameraMotion)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
