@@ -60,10 +60,6 @@ Image neighbour_max(const Image &tiles, int radius)
     return out;
 }
 
-}  // namespace posthaste::shading
-
-namespace posthaste::shading {
-
 Image tile_bounds(const Image &field, int tile, int first)
 {
     const int tw = (field.width() + tile - 1) / tile, th = (field.height() + tile - 1) / tile;

@@ -18,10 +18,6 @@ Image tile_max(const Image &field, int tile, int first = 0);
 /// longer than radius * tile pixels. Ties keep the first in scan order.
 Image neighbour_max(const Image &tiles, int radius);
 
-}  // namespace posthaste::shading
-
-namespace posthaste::shading {
-
 /// The bounding box of each tile's vectors (channels `first`, `first` + 1 of `field`): 4
 /// channels, min x, min y, max x, max y. Non-finite vectors count as zero.
 Image tile_bounds(const Image &field, int tile, int first = 0);
