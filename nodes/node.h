@@ -20,5 +20,6 @@ extern const NodeType kChannels;
 extern const NodeType kRender;
 extern const NodeType kFog;
 extern const NodeType kRelight;
+extern const NodeType kMotionBlur;
 
 }  // namespace posthaste::nodes

@@ -17,6 +17,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kChannels,
         &nodes::kFog,
         &nodes::kRelight,
+        &nodes::kMotionBlur,
     };
     return kAllNodes;
 }

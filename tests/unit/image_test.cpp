@@ -118,3 +118,30 @@ TEST(Hash, UnitRangeAndDeterminism)
 
 }  // namespace
 }  // namespace posthaste
+
+#include "core/sanitize.h"
+
+namespace posthaste {
+namespace {
+
+TEST(Sanitize, FiniteViewCopiesOnlyWhenNeeded)
+{
+    Image clean(3, 2, 2);
+    clean.at(1, 1, 1) = 5.0f;
+    Image storage;
+    EXPECT_EQ(&finite_view(clean, 0.0f, storage), &clean);  // no copy
+    Image depth(2, 1, 1);
+    depth.at(0, 0, 0) = std::numeric_limits<float>::infinity();
+    EXPECT_EQ(&finite_view(depth, 1.0f, storage, true), &depth);  // +inf allowed for depth
+    depth.at(1, 0, 0) = std::numeric_limits<float>::quiet_NaN();
+    const Image &fixed = finite_view(depth, -1.0f, storage, true);
+    EXPECT_EQ(&fixed, &storage);
+    EXPECT_TRUE(std::isinf(fixed.at(0, 0, 0)));
+    EXPECT_EQ(fixed.at(1, 0, 0), -1.0f);
+    clean.at(2, 0, 0) = -std::numeric_limits<float>::infinity();
+    EXPECT_EQ(finite_view(clean, 7.0f, storage).at(2, 0, 0), 7.0f);
+    EXPECT_EQ(finite_view(clean, 7.0f, storage).at(1, 1, 1), 5.0f);
+}
+
+}  // namespace
+}  // namespace posthaste

@@ -1,0 +1,54 @@
+#pragma once
+// Motion blur as a gather filter over one frame's color, depth and screen motion: the
+// reconstruction filter of the motion_blur node (nodes/motion_blur.cpp), and the uniform blur
+// along each pixel's own velocity that it is compared against. Free functions so benchmarks
+// and tests can time and call the stages directly.
+
+#include <cstdint>
+
+#include "core/image.h"
+
+namespace posthaste::shading {
+
+enum class BlurMethod {
+    Reconstruct,  ///< Tile-max / neighbour-max reconstruction (McGuire 2012, Guertin 2014).
+    Uniform,      ///< Average along the pixel's own motion, no depth (the seeds' method).
+};
+
+struct MotionBlurOptions {
+    BlurMethod method = BlurMethod::Reconstruct;
+    /// Fraction of the frame interval the shutter is open, centred on the frame: a pixel blurs
+    /// over +-shutter/2 x motion.
+    float shutter = 0.5f;
+    int samples = 16;            ///< Most samples per pixel (fewer for short motion).
+    float max_radius = 64.0f;    ///< Longest blur half-extent, pixels.
+    int tile = 16;               ///< Tile size of the tile-max reduction, pixels.
+    float soft_z = 0.05f;        ///< Depth ramp of the front/back test, relative to depth.
+    float tile_jitter = 0.25f;   ///< Jitter of the neighbour-max lookup, in tiles (hides seams).
+    /// Tiles whose reachable vectors all lie within coherence x the longest of each other take
+    /// the uniform path (0: never).
+    float coherence = 0.05f;
+    std::uint32_t seed = 0;
+};
+
+/// Milliseconds per stage of the last call: wall time, and CPU time of the whole process (all
+/// threads; on a shared machine the wall time also counts waiting for a core).
+struct MotionBlurStats {
+    double pack_ms = 0.0, tile_max_ms = 0.0, neighbour_max_ms = 0.0, gather_ms = 0.0;
+    double pack_cpu_ms = 0.0, tile_max_cpu_ms = 0.0, neighbour_max_cpu_ms = 0.0,
+           gather_cpu_ms = 0.0;
+    int tiles_copied = 0, tiles_coherent = 0, tiles_total = 0;
+};
+
+/// Blur `color` (1-4 channels) along `motion` (>= 2 channels, pixels from the previous frame to
+/// this one, x right, y down) with `depth` (1 channel, camera-space z, +inf for sky; only read by
+/// Reconstruct, may be empty for Uniform). Non-finite motion counts as zero, non-finite depth as
+/// sky. Zero motion returns `color` bit for bit; the output does not depend on the thread count.
+/// Sizes must match (checked by the caller).
+Image motion_blur(const Image &color,
+                  const Image &motion,
+                  const Image &depth,
+                  const MotionBlurOptions &options,
+                  MotionBlurStats *stats = nullptr);
+
+}  // namespace posthaste::shading

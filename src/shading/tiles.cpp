@@ -1,0 +1,120 @@
+#include "shading/tiles.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/parallel.h"
+
+namespace posthaste::shading {
+
+Image tile_max(const Image &field, int tile, int first)
+{
+    const int tw = (field.width() + tile - 1) / tile, th = (field.height() + tile - 1) / tile;
+    Image out(tw, th, 2);
+    parallel_for(0, th, [&](int ty) {
+        const int y0 = ty * tile, y1 = std::min(field.height(), y0 + tile);
+        for (int tx = 0; tx < tw; ++tx) {
+            const int x0 = tx * tile, x1 = std::min(field.width(), x0 + tile);
+            float best = 0.0f, bx = 0.0f, by = 0.0f;
+            for (int y = y0; y < y1; ++y) {
+                const float *p = field.pixel(x0, y) + first;
+                for (int x = x0; x < x1; ++x, p += field.channels()) {
+                    const float l = p[0] * p[0] + p[1] * p[1];
+                    if (l > best && std::isfinite(l)) {
+                        best = l;
+                        bx = p[0];
+                        by = p[1];
+                    }
+                }
+            }
+            out.at(tx, ty, 0) = bx;
+            out.at(tx, ty, 1) = by;
+        }
+    });
+    return out;
+}
+
+Image neighbour_max(const Image &tiles, int radius)
+{
+    const int tw = tiles.width(), th = tiles.height();
+    Image out(tw, th, 2);
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float best = 0.0f, bx = 0.0f, by = 0.0f;
+            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
+                    const float vx = tiles.at(x, y, 0), vy = tiles.at(x, y, 1);
+                    const float l = vx * vx + vy * vy;
+                    if (l > best) {
+                        best = l;
+                        bx = vx;
+                        by = vy;
+                    }
+                }
+            }
+            out.at(tx, ty, 0) = bx;
+            out.at(tx, ty, 1) = by;
+        }
+    });
+    return out;
+}
+
+Image tile_bounds(const Image &field, int tile, int first)
+{
+    const int tw = (field.width() + tile - 1) / tile, th = (field.height() + tile - 1) / tile;
+    Image out(tw, th, 4);
+    parallel_for(0, th, [&](int ty) {
+        const int y0 = ty * tile, y1 = std::min(field.height(), y0 + tile);
+        for (int tx = 0; tx < tw; ++tx) {
+            const int x0 = tx * tile, x1 = std::min(field.width(), x0 + tile);
+            float lo[2] = {std::numeric_limits<float>::infinity(),
+                           std::numeric_limits<float>::infinity()};
+            float hi[2] = {-lo[0], -lo[1]};
+            for (int y = y0; y < y1; ++y) {
+                const float *p = field.pixel(x0, y) + first;
+                for (int x = x0; x < x1; ++x, p += field.channels()) {
+                    const bool ok = std::isfinite(p[0]) && std::isfinite(p[1]);
+                    for (int c = 0; c < 2; ++c) {
+                        const float v = ok ? p[c] : 0.0f;
+                        lo[c] = std::min(lo[c], v);
+                        hi[c] = std::max(hi[c], v);
+                    }
+                }
+            }
+            float *o = out.pixel(tx, ty);
+            o[0] = lo[0];
+            o[1] = lo[1];
+            o[2] = hi[0];
+            o[3] = hi[1];
+        }
+    });
+    return out;
+}
+
+Image neighbour_bounds(const Image &bounds, int radius)
+{
+    const int tw = bounds.width(), th = bounds.height();
+    Image out(tw, th, 4);
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float b[4] = {std::numeric_limits<float>::infinity(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity()};
+            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
+                    const float *p = bounds.pixel(x, y);
+                    b[0] = std::min(b[0], p[0]);
+                    b[1] = std::min(b[1], p[1]);
+                    b[2] = std::max(b[2], p[2]);
+                    b[3] = std::max(b[3], p[3]);
+                }
+            }
+            std::copy(b, b + 4, out.pixel(tx, ty));
+        }
+    });
+    return out;
+}
+
+}  // namespace posthaste::shading

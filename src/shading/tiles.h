@@ -1,0 +1,29 @@
+#pragma once
+// Tile reductions of a per-pixel 2D vector field, for gather filters whose reach follows the
+// field (motion blur: McGuire et al. 2012 "A reconstruction filter for plausible motion blur",
+// TileMax / NeighborMax; defocus can reuse them with a circle-of-confusion field). A tile image
+// has one pixel per tile (ceil(W / tile) x ceil(H / tile)), 2 channels: the longest vector.
+
+#include "core/image.h"
+
+namespace posthaste::shading {
+
+/// The longest vector of each tile x tile block of `field` (channels `first` and `first` + 1;
+/// other channels are ignored). Vectors that are not finite count as zero. Ties keep the first
+/// in scan order, so the result does not depend on the thread count.
+Image tile_max(const Image &field, int tile, int first = 0);
+
+/// For each tile, the longest vector among the tiles within `radius` tiles (a (2 radius + 1)^2
+/// window, clamped at the borders): everything that can reach into the tile when no vector is
+/// longer than radius * tile pixels. Ties keep the first in scan order.
+Image neighbour_max(const Image &tiles, int radius);
+
+/// The bounding box of each tile's vectors (channels `first`, `first` + 1 of `field`): 4
+/// channels, min x, min y, max x, max y. Non-finite vectors count as zero.
+Image tile_bounds(const Image &field, int tile, int first = 0);
+
+/// For each tile, the union of the boxes of the tiles within `radius` tiles: how far apart the
+/// vectors that can reach into the tile are (a tile whose box is small moves coherently).
+Image neighbour_bounds(const Image &bounds, int radius);
+
+}  // namespace posthaste::shading
