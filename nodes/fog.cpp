@@ -18,6 +18,7 @@
 #include "shading/atmosphere.h"
 #include "shading/camera_rays.h"
 #include "shading/height_fog.h"
+#include "shading/scene_sky.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -91,11 +92,15 @@ std::optional<glm::vec3> header_vec3(const Frame &f, const char *name)
 /// parameter set and reused across frames).
 struct AtmosphereCache {
     std::unique_ptr<std::mutex> mutex = std::make_unique<std::mutex>();
-    mutable std::vector<std::pair<std::array<float, 6>, std::shared_ptr<const shading::Atmosphere>>>
-        built;
+    struct Built {
+        std::array<float, 6> key;
+        std::shared_ptr<const shading::Atmosphere> atmosphere;
+        std::shared_ptr<const shading::SceneSky> sky;  // the lit ground below the horizon
+    };
+    mutable std::vector<Built> built;
 };
 
-std::shared_ptr<const shading::Atmosphere> atmosphere_for(NodeContext &ctx,
+AtmosphereCache::Built atmosphere_for(NodeContext &ctx,
                                                           const glm::vec3 &sun_dir,
                                                           const glm::vec3 &illuminance)
 {
@@ -104,9 +109,9 @@ std::shared_ptr<const shading::Atmosphere> atmosphere_for(NodeContext &ctx,
     const std::array<float, 6> key = {sun_dir.x, sun_dir.y, sun_dir.z,
                                       illuminance.x, illuminance.y, illuminance.z};
     std::lock_guard lock(*cache.mutex);
-    for (const auto &[k, a] : cache.built) {
-        if (k == key) {
-            return a;
+    for (const AtmosphereCache::Built &b : cache.built) {
+        if (b.key == key) {
+            return b;
         }
     }
     shading::AtmosphereParams p;
@@ -114,12 +119,15 @@ std::shared_ptr<const shading::Atmosphere> atmosphere_for(NodeContext &ctx,
     p.sun_illuminance = illuminance;
     p.metres_per_unit = ctx.get_float(kMetresPerUnit);
     p.ground_altitude_m = ctx.get_float(kGroundAltitude);
-    auto a = std::make_shared<const shading::Atmosphere>(p);
+    AtmosphereCache::Built b;
+    b.key = key;
+    b.atmosphere = std::make_shared<const shading::Atmosphere>(p);
+    b.sky = std::make_shared<const shading::SceneSky>(*b.atmosphere);
     if (cache.built.size() >= 8) {
         cache.built.erase(cache.built.begin());
     }
-    cache.built.emplace_back(key, a);
-    return a;
+    cache.built.push_back(b);
+    return b;
 }
 
 /// linear / exp / exp2: transmittance from the distance along the ray.
@@ -257,7 +265,8 @@ void execute(NodeContext &ctx)
             if (!ctx.params().given(kIlluminance)) {
                 illuminance = header_vec3(in, "posthaste:sunIlluminance").value_or(illuminance);
             }
-            const auto atmosphere = atmosphere_for(ctx, sun_dir, illuminance);
+            const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
+            const auto &atmosphere = built.atmosphere;
             const bool disc = ctx.get_bool(kSunDisc);
             if (model == Atmo) {
                 shading::AerialPerspectiveSettings s;
@@ -267,6 +276,29 @@ void execute(NodeContext &ctx)
                 const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s);
                 shading::apply_atmosphere(*atmosphere, atmosphere->cached_sky_view(), ap, *depth,
                                           out, disc);
+                // Sky pixels below the horizon see the lit ground (as the rasterizer draws it).
+                const int nch = out.channels();
+                const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
+                parallel_for_tiles(out.bounds(), [&](const Rect &t) {
+                    for (int y = t.y0; y < t.y1; ++y) {
+                        for (int x = t.x0; x < t.x1; ++x) {
+                            const float z = depth->at(x, y, 0);
+                            if (!(std::isinf(z) && z > 0.0f)) {
+                                continue;
+                            }
+                            const glm::vec3 dir =
+                                rays.direction((x + 0.5f) * inv_w, (y + 0.5f) * inv_h);
+                            if (dir.y >= 0.0f) {
+                                continue;
+                            }
+                            const glm::vec3 g = built.sky->ground(dir, rays.position());
+                            float *p = out.pixel(x, y);
+                            for (int k = 0; k < std::min(nch, 3); ++k) {
+                                p[k] += g[k];
+                            }
+                        }
+                    }
+                });
                 break;
             }
             const int steps = ctx.get_int(kSteps);
@@ -283,8 +315,7 @@ void execute(NodeContext &ctx)
                         const glm::vec3 dir = rays.direction(u, v);
                         float *p = out.pixel(x, y);
                         if (std::isinf(z)) {
-                            const glm::vec3 sky =
-                                atmosphere->sky_radiance(dir, rays.position(), disc);
+                            const glm::vec3 sky = built.sky->radiance(dir, rays.position(), disc);
                             for (int k = 0; k < std::min(nch, 3); ++k) {
                                 p[k] = sky[k];
                             }

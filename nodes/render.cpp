@@ -4,6 +4,7 @@
 
 #include "nodes/node.h"
 #include "raster/render.h"
+#include "raster/sky.h"
 #include "raster/scene.h"
 
 namespace posthaste::nodes {
@@ -53,7 +54,9 @@ const raster::Scene &scene_of(NodeContext &ctx)
 void add_sun_attributes(const raster::Scene &scene, Frame &frame)
 {
     const glm::vec3 d = scene.sun.direction;
-    const glm::vec3 e = scene.sun.color * scene.sun.illuminance;
+    // The sky is computed for this illuminance (raster/sky.h): the fog node's atmosphere, which
+    // defaults to it, then draws the same sky.
+    const glm::vec3 e(raster::kSkyIlluminance);
     frame.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
     frame.attributes.push_back(
         OIIO::ParamValue("posthaste:sunIlluminance", OIIO::TypeVector, 1, &e));

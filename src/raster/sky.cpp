@@ -1,41 +1,72 @@
 #include "raster/sky.h"
 
-#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "shading/atmosphere.h"
+#include "shading/scene_sky.h"
 
 namespace posthaste::raster {
 namespace {
 
-const glm::vec3 kZenith(0.25f, 0.45f, 0.95f);
-const glm::vec3 kHorizon(0.75f, 0.85f, 1.0f);
-const glm::vec3 kGround(0.25f, 0.23f, 0.2f);
+struct Entry {
+    glm::vec3 sun;
+    std::unique_ptr<shading::Atmosphere> atmosphere;
+    std::unique_ptr<shading::SceneSky> sky;
+};
+
+std::mutex g_mutex;
+std::vector<std::unique_ptr<Entry>> g_entries;  // never erased: references stay valid
 
 }  // namespace
 
-glm::vec3 sky_radiance(const glm::vec3 &dir, const glm::vec3 &sun_dir)
+const shading::SceneSky &scene_sky(const glm::vec3 &sun_dir_in)
 {
-    const float y = dir.y;
-    glm::vec3 c;
-    if (y >= 0.0f) {
-        const float m = 1.0f - std::min(y, 1.0f);
-        const float t = m * m * m;
-        c = glm::mix(kZenith, kHorizon, t);
-    } else {
-        c = glm::mix(kHorizon, kGround, std::min(1.0f, -y * 4.0f));
+    // Per-pixel callers hit the same sun again and again: a per-thread memo avoids the lock.
+    thread_local glm::vec3 last_sun(std::numeric_limits<float>::quiet_NaN());
+    thread_local const shading::SceneSky *last_sky = nullptr;
+    if (last_sky && sun_dir_in == last_sun) {
+        return *last_sky;
     }
-    const float cs = std::max(glm::dot(dir, sun_dir), 0.0f);
-    const float c2 = cs * cs, c4 = c2 * c2, c16 = (c4 * c4) * (c4 * c4);
-    const float glow = 0.6f * (c16 * c16) * (c16 * c16) + 0.15f * c4;
-    return c + glow * glm::vec3(1.0f, 0.9f, 0.7f);
+    glm::vec3 sun = sun_dir_in;
+    if (!(glm::length(sun) > 0.0f) || !std::isfinite(glm::length(sun))) {
+        sun = glm::vec3(0.4f, 0.75f, 0.3f);
+    }
+    sun = glm::normalize(sun);
+    std::lock_guard lock(g_mutex);
+    for (const auto &e : g_entries) {
+        if (e->sun == sun) {
+            last_sun = sun_dir_in;
+            last_sky = e->sky.get();
+            return *last_sky;
+        }
+    }
+    auto e = std::make_unique<Entry>();
+    e->sun = sun;
+    shading::AtmosphereParams p;
+    p.sun_direction = sun;
+    p.sun_illuminance = glm::vec3(kSkyIlluminance);
+    p.sky_view_y = kSkyCameraY;
+    e->atmosphere = std::make_unique<shading::Atmosphere>(p);
+    e->sky = std::make_unique<shading::SceneSky>(*e->atmosphere);
+    g_entries.push_back(std::move(e));
+    last_sun = sun_dir_in;
+    last_sky = g_entries.back()->sky.get();
+    return *last_sky;
 }
 
-glm::vec3 sky_ambient_radiance(const glm::vec3 &n, const glm::vec3 &)
+glm::vec3 sky_radiance(const glm::vec3 &dir, const glm::vec3 &sun_dir)
 {
-    // Irradiance / pi of a sky that is kZenith-ish above and kGround below: blend on n.y.
-    const float up = 0.5f + 0.5f * std::clamp(n.y, -1.0f, 1.0f);
-    const glm::vec3 sky = 0.6f * kZenith + 0.4f * kHorizon;
-    return glm::mix(kGround * 0.5f, sky, up);
+    return scene_sky(sun_dir).radiance(dir, glm::vec3(0.0f, kSkyCameraY, 0.0f), false);
+}
+
+glm::vec3 sky_ambient_radiance(const glm::vec3 &n, const glm::vec3 &sun_dir)
+{
+    return scene_sky(sun_dir).ambient(n);
 }
 
 }  // namespace posthaste::raster

@@ -1,20 +1,33 @@
 #pragma once
-// The sky seen by the rasterizer: background radiance and the source of ambient light. A simple
-// analytic gradient for now; it is the one place the Hillaire atmosphere (shading/atmosphere)
-// plugs in later.
+// The sky seen by the rasterizer, its background and the source of its ambient light: the
+// Hillaire 2020 atmosphere (shading/atmosphere.h) with the lit ground below the horizon
+// (shading/scene_sky.h), for a sun of illuminance kSkyIlluminance. The relight node lights with
+// the same functions, and the render node writes that illuminance into the header
+// (posthaste:sunIlluminance) so the fog node's atmosphere draws the same sky.
 
 #include <glm/vec3.hpp>
 
+namespace posthaste::shading {
+class SceneSky;
+}
+
 namespace posthaste::raster {
 
-/// Scene-linear radiance of the sky in unit direction `dir` (world, y up) with the sun toward
-/// unit `sun_dir`: a zenith-to-horizon gradient, a darker ground below the horizon, and a soft
-/// glow around the sun (the sun disc itself is not drawn). Finite for every unit input.
+/// Sun illuminance (per channel) the scene sky is computed for; a brightness choice that keeps
+/// the sky's exposure near the surfaces lit by the scene's sun.
+inline constexpr float kSkyIlluminance = 10.0f;
+/// World y (scene units) of the camera the sky is computed for.
+inline constexpr float kSkyCameraY = 1.7f;
+
+/// The scene sky for a sun toward unit `sun_dir` (a zero vector: the default sun
+/// (0.4, 0.75, 0.3)), built once per direction and kept for the process. Thread-safe.
+const shading::SceneSky &scene_sky(const glm::vec3 &sun_dir);
+
+/// Scene-linear radiance of the sky in unit direction `dir` (world, y up), without the sun disc.
 glm::vec3 sky_radiance(const glm::vec3 &dir, const glm::vec3 &sun_dir);
 
-/// Cosine-weighted irradiance from the sky onto a surface with unit normal n, divided by pi
-/// (so that albedo * sky_ambient_radiance(n) is the reflected diffuse radiance). Approximated by
-/// a hemispherical blend of the zenith, horizon and ground radiances.
+/// Cosine-weighted irradiance from the sky and ground onto a surface with unit normal n, divided
+/// by pi (so that albedo * sky_ambient_radiance(n) is the reflected diffuse radiance).
 glm::vec3 sky_ambient_radiance(const glm::vec3 &n, const glm::vec3 &sun_dir);
 
 }  // namespace posthaste::raster
