@@ -1,0 +1,286 @@
+#include "shading/hatch.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+
+#include <glm/geometric.hpp>
+
+#include "core/parallel.h"
+
+namespace posthaste::shading {
+namespace {
+
+constexpr float kPiF = 3.14159265358979323846f;
+
+bool finite3(const float *v)
+{
+    return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+/// Per-pixel surface facts read from the passes.
+struct Sample {
+    bool hit = false;     ///< Finite positive depth and finite position.
+    bool normal = false;  ///< hit and a usable (finite, non-zero) normal.
+    float z = 0.0f;
+    glm::vec3 p{0.0f}, n{0.0f};
+};
+
+Sample read_sample(const HatchInputs &in, int x, int y)
+{
+    Sample s;
+    const float z = in.depth->at(x, y, 0);
+    const float *p = in.position->pixel(x, y);
+    if (!(std::isfinite(z) && z > 0.0f && finite3(p))) {
+        return s;
+    }
+    s.hit = true;
+    s.z = z;
+    s.p = {p[0], p[1], p[2]};
+    const float *n = in.normal->pixel(x, y);
+    if (finite3(n)) {
+        const glm::vec3 nv{n[0], n[1], n[2]};
+        const float len2 = glm::dot(nv, nv);
+        if (len2 > 1e-4f) {
+            s.normal = true;
+            s.n = nv / std::sqrt(len2);
+        }
+    }
+    return s;
+}
+
+/// Whether pixel p carries an outline against neighbour q (one side only, so lines stay thin).
+bool is_edge(const Sample &p, const Sample &q, bool q_after, float depth_thr, float cos_thr)
+{
+    if (!p.hit) {
+        return false;
+    }
+    if (!q.hit) {
+        return true;  // silhouette against the sky
+    }
+    const float gap = p.normal ? std::abs(glm::dot(p.n, q.p - p.p)) : std::abs(q.z - p.z);
+    if (gap > depth_thr * p.z) {
+        return p.z <= q.z;  // the nearer side draws the line
+    }
+    return q_after && p.normal && q.normal && glm::dot(p.n, q.n) < cos_thr;
+}
+
+/// World-space step to a neighbour usable for footprints: on the same smooth surface.
+bool neighbour_step(const Sample &c, const Sample &q, glm::vec3 &step)
+{
+    if (!q.hit || !q.normal || glm::dot(c.n, q.n) < 0.7f) {
+        return false;
+    }
+    step = q.p - c.p;
+    return true;
+}
+
+/// The smaller of the forward and backward steps that are usable (central pixel c).
+bool pick_step(const Sample &c, const Sample &a, const Sample &b, glm::vec3 &step)
+{
+    glm::vec3 sa, sb;
+    const bool ha = neighbour_step(c, a, sa), hb = neighbour_step(c, b, sb);
+    if (ha && hb) {
+        step = glm::dot(sa, sa) <= glm::dot(sb, sb) ? sa : sb;
+    }
+    else if (ha || hb) {
+        step = ha ? sa : sb;
+    }
+    return ha || hb;
+}
+
+/// Ink of the 7-level ramp (paper plus 6 tones) at darkness d in [0, 1], continuous in d.
+template<typename Lookup> float ramp_ink(float darkness, Lookup &&lookup)
+{
+    const float s = std::clamp(darkness, 0.0f, 1.0f) * float(kTamTones);
+    const int k = std::min(int(s), kTamTones - 1);  // blend level k (0: paper) with k + 1
+    const float f = s - float(k);
+    const float lo = k == 0 ? 0.0f : lookup(k - 1);
+    return f > 0.0f ? lo + f * (lookup(k) - lo) : lo;
+}
+
+}  // namespace
+
+float hatch_tone(const float *rgba, int channels, const HatchSettings &s)
+{
+    const float alpha = channels >= 4 ? rgba[3] : 1.0f;
+    float lum = 0.2126f * rgba[0] + 0.7152f * rgba[1] + 0.0722f * rgba[2];
+    if (alpha > 1e-6f && alpha < 1.0f) {
+        lum /= alpha;  // tone of the surface, not of its coverage
+    }
+    lum *= s.exposure;
+    if (std::isnan(lum)) {
+        return 1.0f;
+    }
+    return std::pow(std::clamp(lum, 0.0f, 1.0f), 1.0f / s.gamma);
+}
+
+Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
+{
+    const Image &color = *in.color;
+    const int w = color.width(), h = color.height(), nc = color.channels();
+    assert(in.depth && in.normal && in.position);
+    assert(in.depth->width() == w && in.normal->width() == w && in.position->width() == w);
+    assert(s.ids.empty() || in.id);
+
+    // Pass 1: one byte per pixel, 1 where an outline passes.
+    std::vector<std::uint8_t> edges;
+    const bool outlines = s.outline_width > 0.0f;
+    if (outlines) {
+        edges.assign(std::size_t(w) * std::size_t(h), 0);
+        const float cos_thr = std::cos(s.normal_threshold_deg * kPiF / 180.0f);
+        parallel_for_tiles(color.bounds(), [&](const Rect &t) {
+            for (int y = t.y0; y < t.y1; ++y) {
+                for (int x = t.x0; x < t.x1; ++x) {
+                    const Sample c = read_sample(in, x, y);
+                    bool e = false;
+                    const int nx[4] = {x - 1, x + 1, x, x};
+                    const int ny[4] = {y, y, y - 1, y + 1};
+                    for (int k = 0; k < 4 && !e; ++k) {
+                        if (nx[k] < 0 || ny[k] < 0 || nx[k] >= w || ny[k] >= h) {
+                            continue;
+                        }
+                        e = is_edge(c, read_sample(in, nx[k], ny[k]), k == 1 || k == 3,
+                                    s.depth_threshold, cos_thr);
+                    }
+                    edges[std::size_t(y) * std::size_t(w) + std::size_t(x)] = e ? 1 : 0;
+                }
+            }
+        });
+    }
+    const float line_r = 0.5f * (s.outline_width - 1.0f);  // coverage = clamp(r + 1 - dist)
+    const int line_reach = std::max(0, int(std::ceil(line_r)));
+
+    const glm::vec3 light = glm::normalize(s.light_dir);
+    const float finest = float(tam.size());
+    const float flat_lod = float(tam.levels() - 1);
+    const float inv_scale = 1.0f / s.scale;
+
+    Image out = Image::uninitialized(w, h, nc);
+    parallel_for_tiles(color.bounds(), [&](const Rect &t) {
+        for (int y = t.y0; y < t.y1; ++y) {
+            for (int x = t.x0; x < t.x1; ++x) {
+                const float *src = color.pixel(x, y);
+                float *dst = out.pixel(x, y);
+                bool masked_in = true;
+                if (!s.ids.empty()) {
+                    const float id = in.id->at(x, y, 0);
+                    masked_in = std::find(s.ids.begin(), s.ids.end(),
+                                          std::isfinite(id) ? int(std::lround(id)) : -1) !=
+                                s.ids.end();
+                }
+                if (!masked_in || s.mix <= 0.0f) {
+                    std::copy_n(src, nc, dst);
+                    continue;
+                }
+                const Sample c = read_sample(in, x, y);
+                float tone;
+                if (s.tone_from_light) {
+                    const float ndl = c.normal ? std::max(0.0f, glm::dot(c.n, light)) : 1.0f;
+                    const float lin = (s.ambient + (1.0f - s.ambient) * ndl) * s.exposure;
+                    tone = std::pow(std::clamp(lin, 0.0f, 1.0f), 1.0f / s.gamma);
+                }
+                else {
+                    tone = hatch_tone(src, nc, s);
+                }
+                const float darkness = 1.0f - tone;
+
+                float ink = 0.0f;
+                if (s.screen_space) {
+                    const float u = (float(x) + 0.5f) / finest, v = (float(y) + 0.5f) / finest;
+                    ink = ramp_ink(darkness, [&](int k) { return tam.sample(k, u, v, 0.0f); });
+                }
+                else if (c.hit && !c.normal) {
+                    // No usable normal: the flat mean tone (coarsest level), no strokes.
+                    ink = ramp_ink(darkness, [&](int k) { return tam.sample(k, 0, 0, flat_lod); });
+                }
+                else if (c.hit) {
+                    glm::vec3 dpx, dpy;
+                    const bool hx = pick_step(c, read_sample(in, std::min(x + 1, w - 1), y),
+                                              read_sample(in, std::max(x - 1, 0), y), dpx);
+                    const bool hy = pick_step(c, read_sample(in, x, std::min(y + 1, h - 1)),
+                                              read_sample(in, x, std::max(y - 1, 0)), dpy);
+                    if (!hx && hy) {
+                        dpx = dpy;
+                    }
+                    if (!hy && hx) {
+                        dpy = dpx;
+                    }
+                    const bool footprint = hx || hy;
+                    // Planes: 0 = (z, y) for x-facing, 1 = (x, z) for y-facing, 2 = (x, y).
+                    const glm::vec3 an = glm::abs(c.n);
+                    float weight[3] = {0.0f, 0.0f, 0.0f};
+                    if (s.triplanar) {
+                        float sum = 0.0f;
+                        for (int a = 0; a < 3; ++a) {
+                            weight[a] = std::pow(std::max(an[a] - 0.2f, 0.0f),
+                                                 s.triplanar_sharpness);
+                            sum += weight[a];
+                        }
+                        for (float &wa : weight) {
+                            wa /= sum;  // sum > 0: the largest |n| of a unit vector is >= 0.577
+                        }
+                    }
+                    else {
+                        weight[an.x >= an.y && an.x >= an.z ? 0 : (an.y >= an.z ? 1 : 2)] = 1.0f;
+                    }
+                    static constexpr int kU[3] = {2, 0, 0}, kV[3] = {1, 2, 1};
+                    for (int a = 0; a < 3; ++a) {
+                        if (weight[a] <= 0.0f) {
+                            continue;
+                        }
+                        const float u = c.p[kU[a]] * inv_scale, v = c.p[kV[a]] * inv_scale;
+                        float lod = flat_lod;
+                        if (footprint) {
+                            const float ux = dpx[kU[a]], vx = dpx[kV[a]];
+                            const float uy = dpy[kU[a]], vy = dpy[kV[a]];
+                            const float len2 = std::max(ux * ux + vx * vx, uy * uy + vy * vy);
+                            const float texels = std::sqrt(len2) * inv_scale * finest;
+                            lod = texels > 0.0f ? std::log2(texels) : 0.0f;
+                        }
+                        ink += weight[a] * ramp_ink(darkness, [&](int k) {
+                                   return tam.sample(k, u, v, lod);
+                               });
+                    }
+                }
+
+                float line = 0.0f;
+                if (outlines) {
+                    for (int dy = -line_reach; dy <= line_reach && line < 1.0f; ++dy) {
+                        const int yy = y + dy;
+                        if (yy < 0 || yy >= h) {
+                            continue;
+                        }
+                        const std::uint8_t *row = edges.data() + std::size_t(yy) * std::size_t(w);
+                        for (int dx = -line_reach; dx <= line_reach; ++dx) {
+                            const int xx = x + dx;
+                            if (xx >= 0 && xx < w && row[xx]) {
+                                const float dist = std::sqrt(float(dx * dx + dy * dy));
+                                line = std::max(line, std::clamp(line_r + 1.0f - dist, 0.0f, 1.0f));
+                            }
+                        }
+                    }
+                }
+
+                const float alpha = nc >= 4 ? (std::isfinite(src[3]) ? src[3] : 1.0f) : 1.0f;
+                for (int ch = 0; ch < 3; ++ch) {
+                    float v = s.paper[ch] + ink * (s.ink[ch] - s.paper[ch]);
+                    v += line * (s.outline[ch] - v);
+                    v *= alpha;
+                    const float base = std::isfinite(src[ch]) ? src[ch] : v;
+                    dst[ch] = s.mix >= 1.0f ? v : base + s.mix * (v - base);
+                }
+                if (nc >= 4) {
+                    dst[3] = alpha;
+                    for (int ch = 4; ch < nc; ++ch) {
+                        dst[ch] = src[ch];
+                    }
+                }
+            }
+        }
+    });
+    return out;
+}
+
+}  // namespace posthaste::shading

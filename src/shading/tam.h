@@ -1,0 +1,115 @@
+#pragma once
+// Tonal art maps (Praun, Hoppe, Webb, Finkelstein 2001, "Real-Time Hatching", section 4): a set
+// of hatching textures, one per tone, each with a mip chain, built so that every stroke of a
+// lighter tone appears in every darker tone, and every stroke of a coarse level appears in every
+// finer level of its tone (the nesting property). Strokes keep their width in texels on every
+// level, so a renderer that picks the level from the pixel footprint draws strokes of constant
+// screen width; their length is a fraction of the tile, so they stay attached to the surface.
+//
+// Textures tile (wrap) in both directions. Values are ink coverage in [0, 1] (0: paper).
+// Level 0 is the finest (size x size); levels 0 .. stroke_levels - 1 hold drawn strokes; the
+// levels below them are 2x2 box averages down to 1 x 1, so distant surfaces fade to a flat tone.
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace posthaste::shading {
+
+inline constexpr int kTamTones = 6;
+
+/// Parameters of a tonal art map. Equal parameters give the same bits.
+struct TamParams {
+    int size = 256;           ///< Finest level side, a power of two in 16..1024.
+    int stroke_levels = 4;    ///< Levels with drawn strokes (256, 128, 64, 32), 1..log2(size)-2.
+    float width = 1.5f;       ///< Stroke width in texels of whichever level it is drawn into.
+    float length = 0.3f;      ///< Stroke length, fraction of the tile side (0.02..0.9).
+    float jitter = 0.3f;      ///< 0..1: random spread of angle (+-jitter*12 deg), length, bend.
+    float angle_deg = 45.0f;  ///< Main stroke direction, degrees counter-clockwise from +u.
+    float cross_angle_deg = -45.0f;  ///< Direction of the cross-hatching strokes.
+    int cross_tones = 2;      ///< The darkest this many tones add cross strokes (0..6).
+    int candidates = 8;       ///< Random candidates per stroke; the best one is kept.
+    float darkest = 0.9f;     ///< Mean ink coverage of the darkest tone (tone k: darkest k / 6).
+    std::uint32_t seed = 1;
+};
+
+/// One stroke: centre in tile units [0, 1)^2, unit direction, length in tile units, perpendicular
+/// bend in tile units at the middle; `tone` and `level` say where it was first added.
+struct TamStroke {
+    float cx = 0, cy = 0, dx = 1, dy = 0, length = 0, bend = 0;
+    int tone = 0, level = 0;
+};
+
+class Tam {
+  public:
+    Tam() = default;
+    int size() const { return size_; }
+    /// All levels, stroke levels first then the filtered ones (down to 1 x 1).
+    int levels() const { return int(level_offset_.size()); }
+    int stroke_levels() const { return stroke_levels_; }
+    /// Side of level l.
+    int level_size(int l) const { return size_ >> l; }
+    /// Coverage texels of tone t (0: lightest), level l, row-major.
+    const float *texels(int tone, int level) const
+    {
+        return data_.data() + std::size_t(tone) * tone_stride_ + level_offset_[std::size_t(level)];
+    }
+    /// Mean coverage of tone t at level l.
+    float mean(int tone, int level) const;
+    /// Every stroke in the order added.
+    const std::vector<TamStroke> &strokes() const { return strokes_; }
+    /// Coverage of tone t at (u, v) in tile units (wrapping), trilinear between the two levels
+    /// around `lod` (0: finest; clamped to the chain).
+    float sample(int tone, float u, float v, float lod) const
+    {
+        lod = std::clamp(lod, 0.0f, float(levels() - 1));
+        const int l0 = int(lod);
+        const float f = lod - float(l0);
+        u -= std::floor(u);
+        v -= std::floor(v);
+        const float c0 = sample_level(tone, l0, u, v);
+        return f > 0.0f ? c0 + f * (sample_level(tone, l0 + 1, u, v) - c0) : c0;
+    }
+    /// Milliseconds build_tam took.
+    double build_ms() const { return build_ms_; }
+
+  private:
+    friend Tam build_tam(const TamParams &p);
+    /// Bilinear, wrapping; u, v in [0, 1).
+    float sample_level(int tone, int level, float u, float v) const
+    {
+        const int s = size_ >> level, mask = s - 1;
+        const float x = u * float(s) - 0.5f, y = v * float(s) - 0.5f;
+        const float fx0 = std::floor(x), fy0 = std::floor(y);
+        const float fx = x - fx0, fy = y - fy0;
+        const int x0 = int(fx0) & mask, y0 = int(fy0) & mask;
+        const int x1 = (x0 + 1) & mask, y1 = (y0 + 1) & mask;
+        const float *t = texels(tone, level);
+        const float *r0 = t + std::size_t(y0) * std::size_t(s);
+        const float *r1 = t + std::size_t(y1) * std::size_t(s);
+        const float a = r0[x0] + fx * (r0[x1] - r0[x0]);
+        const float b = r1[x0] + fx * (r1[x1] - r1[x0]);
+        return a + fy * (b - a);
+    }
+
+    int size_ = 0, stroke_levels_ = 0;
+    std::size_t tone_stride_ = 0;
+    std::vector<std::size_t> level_offset_;
+    std::vector<float> data_;
+    std::vector<TamStroke> strokes_;
+    double build_ms_ = 0;
+};
+
+/// Throws Error (usage) naming the bad field when params are out of range.
+void validate(const TamParams &p);
+
+/// Build the map: tone by tone (lightest first), level by level (coarsest first), add strokes
+/// until the level's mean coverage reaches the tone's target; each stroke is the best of
+/// `candidates` random strokes by the paper's goodness (new ink over ink drawn, summed over the
+/// levels it enters), and is drawn into its level, every finer level, and (by construction)
+/// every darker tone. Single-threaded and hash-seeded: deterministic.
+Tam build_tam(const TamParams &p);
+
+}  // namespace posthaste::shading
