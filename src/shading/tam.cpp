@@ -2,12 +2,20 @@
 
 #include <chrono>
 #include <cmath>
+#include <ctime>
 
 #include "core/error.h"
 #include "core/hash.h"
 
 namespace posthaste::shading {
 namespace {
+
+double thread_cpu_ms()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
 
 constexpr float kPiF = 3.14159265358979323846f;
 /// Safety stop per (tone, level): never reached with valid parameters (coverage tends to 1).
@@ -133,6 +141,7 @@ Tam build_tam(const TamParams &p)
 {
     validate(p);
     const auto t0 = std::chrono::steady_clock::now();
+    const double cpu0 = thread_cpu_ms();
     Tam tam;
     tam.size_ = p.size;
     tam.stroke_levels_ = p.stroke_levels;
@@ -226,6 +235,7 @@ Tam build_tam(const TamParams &p)
             }
         }
     }
+    tam.build_cpu_ms_ = thread_cpu_ms() - cpu0;
     tam.build_ms_ =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     return tam;

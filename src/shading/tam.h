@@ -72,8 +72,9 @@ class Tam {
         const float c0 = sample_level(tone, l0, u, v);
         return f > 0.0f ? c0 + f * (sample_level(tone, l0 + 1, u, v) - c0) : c0;
     }
-    /// Milliseconds build_tam took.
+    /// Milliseconds build_tam took: wall clock, and CPU time of its (single) thread.
     double build_ms() const { return build_ms_; }
+    double build_cpu_ms() const { return build_cpu_ms_; }
 
   private:
     friend Tam build_tam(const TamParams &p);
@@ -99,7 +100,7 @@ class Tam {
     std::vector<std::size_t> level_offset_;
     std::vector<float> data_;
     std::vector<TamStroke> strokes_;
-    double build_ms_ = 0;
+    double build_ms_ = 0, build_cpu_ms_ = 0;
 };
 
 /// Throws Error (usage) naming the bad field when params are out of range.

@@ -1,8 +1,8 @@
 // Benchmarks of the hatching kernel at 1920x1080 on one rendered Minecrappy frame (frame 20,
 // rendered once): surface-anchored (dominant-axis and triplanar), the screen-space baseline, and a
 // plain copy of the color pass; plus the TAM build at start-up.
-//   build/tests/posthaste_benchmarks --benchmark_filter=Hatching --benchmark_repetitions=5 \
-//       --benchmark_report_aggregates_only=true
+//   build/tests/posthaste_benchmarks --benchmark_filter=Hatching --benchmark_repetitions=5
+//       --benchmark_report_aggregates_only=true  (one command line)
 #include <benchmark/benchmark.h>
 
 #include <ctime>

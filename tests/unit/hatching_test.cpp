@@ -70,7 +70,7 @@ TEST(HatchingTam, NestingAcrossTonesAndLevels)
         EXPECT_GE(st.level, 0);
         EXPECT_LT(st.level, tam.stroke_levels());
     }
-    EXPECT_GT(checked, 1000);
+    EXPECT_GT(checked, 500);
     // Tones reach their targets at every stroke level and get darker tone by tone.
     for (int l = 0; l < tam.stroke_levels(); ++l) {
         for (int t = 0; t < kTamTones; ++t) {
@@ -88,7 +88,8 @@ TEST(HatchingTam, DeterministicFromSeedAndFast)
     TamParams p;  // the node's default: 256, 4 stroke levels
     const Tam a = build_tam(p);
     const Tam b = build_tam(p);
-    std::printf("TAM 256 build: %.1f ms, %zu strokes\n", a.build_ms(), a.strokes().size());
+    std::printf("TAM 256 build: %.1f ms wall, %.1f ms CPU, %zu strokes\n", a.build_ms(),
+                a.build_cpu_ms(), a.strokes().size());
     ASSERT_EQ(a.strokes().size(), b.strokes().size());
     bool same = true;
     for (int t = 0; t < kTamTones; ++t) {
@@ -102,7 +103,7 @@ TEST(HatchingTam, DeterministicFromSeedAndFast)
     const Tam c = build_tam(p);
     EXPECT_FALSE(std::equal(a.texels(0, 0), a.texels(0, 0) + 256 * 256, c.texels(0, 0)));
     // Start-up cost: tens of milliseconds on an idle core; loose bound for a loaded machine.
-    EXPECT_LT(a.build_ms(), 2000.0);
+    EXPECT_LT(a.build_cpu_ms(), 1000.0);
 }
 
 TEST(HatchingTam, RejectsBadParams)
@@ -220,9 +221,11 @@ TEST(HatchingRobust, SkyNanNormalsGrazingAndBadColor)
             // Sky away from the horizon is blank paper.
             EXPECT_FLOAT_EQ(out.at(5, 3, 0), s.paper.x);
             EXPECT_FLOAT_EQ(out.at(5, 3, 2), s.paper.z);
-            // NaN normals: the flat tone of 0.5 (between tones 3 and 4), no strokes.
-            const float flat = 0.5f * (tam.texels(2, tam.levels() - 1)[0] +
-                                       tam.texels(3, tam.levels() - 1)[0]);
+            // NaN normals: the flat (1 x 1 level) tone of the 7-level ramp, no strokes.
+            const float level = (1.0f - hatch_tone(f.color.pixel(10, 18), 4, s)) * kTamTones;
+            const int k = std::min(int(level), kTamTones - 1);
+            auto flat_of = [&](int j) { return j == 0 ? 0.0f : tam.texels(j - 1, tam.levels() - 1)[0]; };
+            const float flat = flat_of(k) + (level - float(k)) * (flat_of(k + 1) - flat_of(k));
             const float expect = s.paper.x + flat * (s.ink.x - s.paper.x);
             EXPECT_NEAR(out.at(10, 18, 0), expect, 1e-4f);
             // Grazing: the footprint spans many tiles, so the tone is flat as well.
@@ -280,7 +283,8 @@ TEST(HatchingRobust, SameBitsForAnyThreadCount)
 TEST(HatchingNode, RenderHatchGraph)
 {
     Graph g = Graph::parse(R"({"nodes": [
-        {"id": "scene", "type": "render", "params": {"width": 96, "height": 54}},
+        {"id": "scene", "type": "render", "params": {"width": 96, "height": 54,
+         "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) + R"(/samples/scenes/minecrappy.json"}},
         {"id": "ink", "type": "hatching", "inputs": {"image": "scene"},
          "params": {"ids": "1, 2,3", "tam_size": "128"}},
         {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": "x.exr"}}]})",
@@ -296,7 +300,8 @@ TEST(HatchingNode, RenderHatchGraph)
     }
     try {
         Graph bad = Graph::parse(R"({"nodes": [
-            {"id": "scene", "type": "render", "params": {"width": 8, "height": 8}},
+            {"id": "scene", "type": "render", "params": {"width": 8, "height": 8,
+             "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) + R"(/samples/scenes/cube.json"}},
             {"id": "ink", "type": "hatching", "inputs": {"image": "scene"},
              "params": {"ids": "1,x"}},
             {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": "x.exr"}}]})",
