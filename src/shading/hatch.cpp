@@ -73,7 +73,7 @@ bool neighbour_step(const Sample &c, const Sample &q, glm::vec3 &step)
         return false;
     }
     step = q.p - c.p;
-    return true;
+    return glm::dot(step, step) > 0.0f;  // at image borders at() returns the pixel itself
 }
 
 /// The smaller of the forward and backward steps that are usable (central pixel c).
@@ -88,16 +88,6 @@ bool pick_step(const Sample &c, const Sample &a, const Sample &b, glm::vec3 &ste
         step = ha ? sa : sb;
     }
     return ha || hb;
-}
-
-/// Ink of the 7-level ramp (paper plus 6 tones) at darkness d in [0, 1], continuous in d.
-template<typename Lookup> float ramp_ink(float darkness, Lookup &&lookup)
-{
-    const float s = std::clamp(darkness, 0.0f, 1.0f) * float(kTamTones);
-    const int k = std::min(int(s), kTamTones - 1);  // blend level k (0: paper) with k + 1
-    const float f = s - float(k);
-    const float lo = k == 0 ? 0.0f : lookup(k - 1);
-    return f > 0.0f ? lo + f * (lookup(k) - lo) : lo;
 }
 
 }  // namespace
@@ -124,41 +114,55 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     assert(in.depth->width() == w && in.normal->width() == w && in.position->width() == w);
     assert(s.ids.empty() || in.id);
 
-    // Pass 1: one byte per pixel, 1 where an outline passes.
-    std::vector<std::uint8_t> edges;
     const bool outlines = s.outline_width > 0.0f;
-    if (outlines) {
-        edges.assign(std::size_t(w) * std::size_t(h), 0);
-        const float cos_thr = std::cos(s.normal_threshold_deg * kPiF / 180.0f);
-        parallel_for_tiles(color.bounds(), [&](const Rect &t) {
-            for (int y = t.y0; y < t.y1; ++y) {
-                for (int x = t.x0; x < t.x1; ++x) {
-                    const Sample c = read_sample(in, x, y);
-                    bool e = false;
-                    const int nx[4] = {x - 1, x + 1, x, x};
-                    const int ny[4] = {y, y, y - 1, y + 1};
-                    for (int k = 0; k < 4 && !e; ++k) {
-                        if (nx[k] < 0 || ny[k] < 0 || nx[k] >= w || ny[k] >= h) {
-                            continue;
-                        }
-                        e = is_edge(c, read_sample(in, nx[k], ny[k]), k == 1 || k == 3,
-                                    s.depth_threshold, cos_thr);
-                    }
-                    edges[std::size_t(y) * std::size_t(w) + std::size_t(x)] = e ? 1 : 0;
-                }
-            }
-        });
-    }
+    const float cos_thr = std::cos(s.normal_threshold_deg * kPiF / 180.0f);
     const float line_r = 0.5f * (s.outline_width - 1.0f);  // coverage = clamp(r + 1 - dist)
-    const int line_reach = std::max(0, int(std::ceil(line_r)));
-
+    const int line_reach = outlines ? std::max(0, int(std::ceil(line_r))) : 0;
     const glm::vec3 light = glm::normalize(s.light_dir);
     const float finest = float(tam.size());
     const float flat_lod = float(tam.levels() - 1);
     const float inv_scale = 1.0f / s.scale;
+    const float lod_offset = std::log2(inv_scale * finest);  // log2 of texels per metre
+    const Rect bounds = color.bounds();
 
     Image out = Image::uninitialized(w, h, nc);
-    parallel_for_tiles(color.bounds(), [&](const Rect &t) {
+    parallel_for_tiles(bounds, [&](const Rect &t) {
+        // Tile-local copies: samples on the tile plus the outline reach plus one pixel (edges and
+        // footprints look at 4-neighbours), edge flags on the tile plus the outline reach.
+        const Rect re = t.expand(line_reach).intersect(bounds);
+        const Rect rs = re.expand(1).intersect(bounds);
+        const int sw = rs.width(), ew = re.width();
+        std::vector<Sample> smp(std::size_t(sw) * std::size_t(rs.height()));
+        for (int y = rs.y0; y < rs.y1; ++y) {
+            for (int x = rs.x0; x < rs.x1; ++x) {
+                smp[std::size_t(y - rs.y0) * std::size_t(sw) + std::size_t(x - rs.x0)] =
+                    read_sample(in, x, y);
+            }
+        }
+        auto at = [&](int x, int y) -> const Sample & {
+            x = std::clamp(x, rs.x0, rs.x1 - 1);  // image borders: the pixel itself
+            y = std::clamp(y, rs.y0, rs.y1 - 1);
+            return smp[std::size_t(y - rs.y0) * std::size_t(sw) + std::size_t(x - rs.x0)];
+        };
+        std::vector<std::uint8_t> edges;
+        if (outlines) {
+            edges.assign(std::size_t(ew) * std::size_t(re.height()), 0);
+            for (int y = re.y0; y < re.y1; ++y) {
+                for (int x = re.x0; x < re.x1; ++x) {
+                    const Sample &c = at(x, y);
+                    if (!c.hit) {
+                        continue;
+                    }
+                    const bool e =
+                        (x > 0 && is_edge(c, at(x - 1, y), false, s.depth_threshold, cos_thr)) ||
+                        (x + 1 < w && is_edge(c, at(x + 1, y), true, s.depth_threshold, cos_thr)) ||
+                        (y > 0 && is_edge(c, at(x, y - 1), false, s.depth_threshold, cos_thr)) ||
+                        (y + 1 < h && is_edge(c, at(x, y + 1), true, s.depth_threshold, cos_thr));
+                    edges[std::size_t(y - re.y0) * std::size_t(ew) + std::size_t(x - re.x0)] =
+                        e ? 1 : 0;
+                }
+            }
+        }
         for (int y = t.y0; y < t.y1; ++y) {
             for (int x = t.x0; x < t.x1; ++x) {
                 const float *src = color.pixel(x, y);
@@ -174,7 +178,7 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                     std::copy_n(src, nc, dst);
                     continue;
                 }
-                const Sample c = read_sample(in, x, y);
+                const Sample &c = at(x, y);
                 float tone;
                 if (s.tone_from_light) {
                     const float ndl = c.normal ? std::max(0.0f, glm::dot(c.n, light)) : 1.0f;
@@ -188,19 +192,16 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
 
                 float ink = 0.0f;
                 if (s.screen_space) {
-                    const float u = (float(x) + 0.5f) / finest, v = (float(y) + 0.5f) / finest;
-                    ink = ramp_ink(darkness, [&](int k) { return tam.sample(k, u, v, 0.0f); });
+                    ink = tam.ramp(darkness, (float(x) + 0.5f) / finest, (float(y) + 0.5f) / finest,
+                                   0.0f);
                 }
                 else if (c.hit && !c.normal) {
-                    // No usable normal: the flat mean tone (coarsest level), no strokes.
-                    ink = ramp_ink(darkness, [&](int k) { return tam.sample(k, 0, 0, flat_lod); });
+                    ink = tam.ramp(darkness, 0.0f, 0.0f, flat_lod);  // flat mean tone, no strokes
                 }
-                else if (c.hit) {
+                else if (c.hit && darkness > 0.0f) {
                     glm::vec3 dpx, dpy;
-                    const bool hx = pick_step(c, read_sample(in, std::min(x + 1, w - 1), y),
-                                              read_sample(in, std::max(x - 1, 0), y), dpx);
-                    const bool hy = pick_step(c, read_sample(in, x, std::min(y + 1, h - 1)),
-                                              read_sample(in, x, std::max(y - 1, 0)), dpy);
+                    const bool hx = pick_step(c, at(x + 1, y), at(x - 1, y), dpx);
+                    const bool hy = pick_step(c, at(x, y + 1), at(x, y - 1), dpy);
                     if (!hx && hy) {
                         dpx = dpy;
                     }
@@ -236,26 +237,25 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                             const float ux = dpx[kU[a]], vx = dpx[kV[a]];
                             const float uy = dpy[kU[a]], vy = dpy[kV[a]];
                             const float len2 = std::max(ux * ux + vx * vx, uy * uy + vy * vy);
-                            const float texels = std::sqrt(len2) * inv_scale * finest;
-                            lod = texels > 0.0f ? std::log2(texels) : 0.0f;
+                            // log2(sqrt(len2) * texels per metre)
+                            lod = 0.5f * std::log2(std::max(len2, 1e-30f)) + lod_offset;
                         }
-                        ink += weight[a] * ramp_ink(darkness, [&](int k) {
-                                   return tam.sample(k, u, v, lod);
-                               });
+                        ink += weight[a] * tam.ramp(darkness, u, v, lod);
                     }
                 }
 
                 float line = 0.0f;
                 if (outlines) {
-                    for (int dy = -line_reach; dy <= line_reach && line < 1.0f; ++dy) {
+                    for (int dy = -line_reach; dy <= line_reach; ++dy) {
                         const int yy = y + dy;
-                        if (yy < 0 || yy >= h) {
+                        if (yy < re.y0 || yy >= re.y1) {
                             continue;
                         }
-                        const std::uint8_t *row = edges.data() + std::size_t(yy) * std::size_t(w);
+                        const std::uint8_t *row =
+                            edges.data() + std::size_t(yy - re.y0) * std::size_t(ew);
                         for (int dx = -line_reach; dx <= line_reach; ++dx) {
                             const int xx = x + dx;
-                            if (xx >= 0 && xx < w && row[xx]) {
+                            if (xx >= re.x0 && xx < re.x1 && row[xx - re.x0]) {
                                 const float dist = std::sqrt(float(dx * dx + dy * dy));
                                 line = std::max(line, std::clamp(line_r + 1.0f - dist, 0.0f, 1.0f));
                             }

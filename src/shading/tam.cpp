@@ -235,6 +235,15 @@ Tam build_tam(const TamParams &p)
             }
         }
     }
+    // Texel-major copy for sampling: [0, tone 0 .. tone 5, tone 5] per texel.
+    tam.packed_.assign(offset * Tam::kPacked, 0.0f);
+    for (std::size_t i = 0; i < offset; ++i) {
+        float *dst = tam.packed_.data() + i * Tam::kPacked;
+        for (int t = 0; t < kTamTones; ++t) {
+            dst[t + 1] = tam.data_[std::size_t(t) * offset + i];
+        }
+        dst[kTamTones + 1] = dst[kTamTones];
+    }
     tam.build_cpu_ms_ = thread_cpu_ms() - cpu0;
     tam.build_ms_ =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

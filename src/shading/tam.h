@@ -64,13 +64,19 @@ class Tam {
     /// around `lod` (0: finest; clamped to the chain).
     float sample(int tone, float u, float v, float lod) const
     {
-        lod = std::clamp(lod, 0.0f, float(levels() - 1));
-        const int l0 = int(lod);
-        const float f = lod - float(l0);
-        u -= std::floor(u);
-        v -= std::floor(v);
-        const float c0 = sample_level(tone, l0, u, v);
-        return f > 0.0f ? c0 + f * (sample_level(tone, l0 + 1, u, v) - c0) : c0;
+        return ramp_at(tone + 1, 0.0f, u, v, lod);
+    }
+    /// Ink of the 7-level ramp (paper, then tones 0..5) at darkness d in [0, 1]: with
+    /// s = 6 d, k = floor(s), the blend (1 - (s - k)) C(k) + (s - k) C(k + 1), C(0) = 0 (paper),
+    /// C(j) = tone j - 1; continuous in d. Trilinear like sample(); NaN d reads as paper.
+    float ramp(float darkness, float u, float v, float lod) const
+    {
+        if (!(darkness > 0.0f)) {
+            return 0.0f;
+        }
+        const float s = std::min(darkness, 1.0f) * float(kTamTones);
+        const int k = std::min(int(s), kTamTones - 1);
+        return ramp_at(k, s - float(k), u, v, lod);
     }
     /// Milliseconds build_tam took: wall clock, and CPU time of its (single) thread.
     double build_ms() const { return build_ms_; }
@@ -78,8 +84,20 @@ class Tam {
 
   private:
     friend Tam build_tam(const TamParams &p);
-    /// Bilinear, wrapping; u, v in [0, 1).
-    float sample_level(int tone, int level, float u, float v) const
+    /// Trilinear blend of ramp entries k and k + 1 (weight f) of the packed texels.
+    float ramp_at(int k, float f, float u, float v, float lod) const
+    {
+        lod = std::clamp(lod, 0.0f, float(levels() - 1));  // NaN lod: clamp keeps NaN
+        const int l0 = lod >= 0.0f ? int(lod) : levels() - 1;
+        const float fl = lod >= 0.0f ? lod - float(l0) : 0.0f;
+        u -= std::floor(u);
+        v -= std::floor(v);
+        const float c0 = ramp_level(k, f, l0, u, v);
+        return fl > 0.0f ? c0 + fl * (ramp_level(k, f, l0 + 1, u, v) - c0) : c0;
+    }
+    /// Bilinear, wrapping; u, v in [0, 1). Packed texels hold 8 floats: paper 0, tones 0..5,
+    /// tone 5 again, so entries k and k + 1 share a cache line.
+    float ramp_level(int k, float f, int level, float u, float v) const
     {
         const int s = size_ >> level, mask = s - 1;
         const float x = u * float(s) - 0.5f, y = v * float(s) - 0.5f;
@@ -87,18 +105,22 @@ class Tam {
         const float fx = x - fx0, fy = y - fy0;
         const int x0 = int(fx0) & mask, y0 = int(fy0) & mask;
         const int x1 = (x0 + 1) & mask, y1 = (y0 + 1) & mask;
-        const float *t = texels(tone, level);
-        const float *r0 = t + std::size_t(y0) * std::size_t(s);
-        const float *r1 = t + std::size_t(y1) * std::size_t(s);
-        const float a = r0[x0] + fx * (r0[x1] - r0[x0]);
-        const float b = r1[x0] + fx * (r1[x1] - r1[x0]);
+        const float *base = packed_.data() + level_offset_[std::size_t(level)] * kPacked + std::size_t(k);
+        auto tap = [&](int xx, int yy) {
+            const float *t = base + (std::size_t(yy) * std::size_t(s) + std::size_t(xx)) * kPacked;
+            return t[0] + f * (t[1] - t[0]);
+        };
+        const float a = tap(x0, y0) + fx * (tap(x1, y0) - tap(x0, y0));
+        const float b = tap(x0, y1) + fx * (tap(x1, y1) - tap(x0, y1));
         return a + fy * (b - a);
     }
+    static constexpr std::size_t kPacked = 8;
 
     int size_ = 0, stroke_levels_ = 0;
     std::size_t tone_stride_ = 0;
     std::vector<std::size_t> level_offset_;
-    std::vector<float> data_;
+    std::vector<float> data_;    ///< Tone-major planes (building, tests).
+    std::vector<float> packed_;  ///< Texel-major, kPacked floats per texel (sampling).
     std::vector<TamStroke> strokes_;
     double build_ms_ = 0, build_cpu_ms_ = 0;
 };
