@@ -4,6 +4,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 
 #include <glm/geometric.hpp>
 
@@ -17,6 +18,20 @@ constexpr float kPiF = 3.14159265358979323846f;
 bool finite3(const float *v)
 {
     return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
+}
+
+/// log2(x) for x > 0 within 0.005, continuous and increasing: exponent plus a quadratic on the
+/// mantissa (exact at powers of two). For mip levels, where libm's log2f was a hot spot.
+inline float fast_log2(float x)
+{
+    std::uint32_t bits;
+    std::memcpy(&bits, &x, 4);
+    const float e = float(int((bits >> 23) & 0xffu) - 127);
+    bits = (bits & 0x007fffffu) | 0x3f800000u;  // mantissa in [1, 2)
+    float m;
+    std::memcpy(&m, &bits, 4);
+    const float t = m - 1.0f;
+    return e + t * (1.3466f - 0.3466f * t);
 }
 
 /// Per-pixel surface facts read from the passes.
@@ -44,14 +59,14 @@ Sample read_sample(const HatchInputs &in, int x, int y)
         const float len2 = glm::dot(nv, nv);
         if (len2 > 1e-4f) {
             s.normal = true;
-            s.n = nv / std::sqrt(len2);
+            s.n = std::abs(len2 - 1.0f) < 1e-4f ? nv : nv / std::sqrt(len2);
         }
     }
     return s;
 }
 
 /// Whether pixel p carries an outline against neighbour q (one side only, so lines stay thin).
-bool is_edge(const Sample &p, const Sample &q, bool q_after, float depth_thr, float cos_thr)
+inline bool is_edge(const Sample &p, const Sample &q, bool q_after, float depth_thr, float cos_thr)
 {
     if (!p.hit) {
         return false;
@@ -92,18 +107,16 @@ bool pick_step(const Sample &c, const Sample &a, const Sample &b, glm::vec3 &ste
 
 }  // namespace
 
+ToneCurve::ToneCurve(float gamma)
+{
+    for (int i = 0; i <= kSegments; ++i) {
+        table_[std::size_t(i)] = std::pow(float(i) / float(kSegments), 2.0f / gamma);
+    }
+}
+
 float hatch_tone(const float *rgba, int channels, const HatchSettings &s)
 {
-    const float alpha = channels >= 4 ? rgba[3] : 1.0f;
-    float lum = 0.2126f * rgba[0] + 0.7152f * rgba[1] + 0.0722f * rgba[2];
-    if (alpha > 1e-6f && alpha < 1.0f) {
-        lum /= alpha;  // tone of the surface, not of its coverage
-    }
-    lum *= s.exposure;
-    if (std::isnan(lum)) {
-        return 1.0f;
-    }
-    return std::pow(std::clamp(lum, 0.0f, 1.0f), 1.0f / s.gamma);
+    return ToneCurve(s.gamma).tone(rgba, channels, s.exposure);
 }
 
 Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
@@ -119,11 +132,14 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     const float line_r = 0.5f * (s.outline_width - 1.0f);  // coverage = clamp(r + 1 - dist)
     const int line_reach = outlines ? std::max(0, int(std::ceil(line_r))) : 0;
     const glm::vec3 light = glm::normalize(s.light_dir);
+    const ToneCurve curve(s.gamma);
     const float finest = float(tam.size());
     const float flat_lod = float(tam.levels() - 1);
     const float inv_scale = 1.0f / s.scale;
     const float lod_offset = std::log2(inv_scale * finest);  // log2 of texels per metre
     const Rect bounds = color.bounds();
+    // Screen mode without outlines or light reads no geometry (sky and surfaces alike).
+    const bool needs_samples = !s.screen_space || outlines || s.tone_from_light;
 
     Image out = Image::uninitialized(w, h, nc);
     parallel_for_tiles(bounds, [&](const Rect &t) {
@@ -132,11 +148,15 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
         const Rect re = t.expand(line_reach).intersect(bounds);
         const Rect rs = re.expand(1).intersect(bounds);
         const int sw = rs.width(), ew = re.width();
-        std::vector<Sample> smp(std::size_t(sw) * std::size_t(rs.height()));
-        for (int y = rs.y0; y < rs.y1; ++y) {
-            for (int x = rs.x0; x < rs.x1; ++x) {
-                smp[std::size_t(y - rs.y0) * std::size_t(sw) + std::size_t(x - rs.x0)] =
-                    read_sample(in, x, y);
+        thread_local std::vector<Sample> tls_samples;  // reused: no allocation per tile
+        tls_samples.resize(std::size_t(sw) * std::size_t(rs.height()));
+        Sample *const smp = tls_samples.data();
+        if (needs_samples) {
+            for (int y = rs.y0; y < rs.y1; ++y) {
+                Sample *row = smp + std::size_t(y - rs.y0) * std::size_t(sw);
+                for (int x = rs.x0; x < rs.x1; ++x) {
+                    row[x - rs.x0] = read_sample(in, x, y);
+                }
             }
         }
         auto at = [&](int x, int y) -> const Sample & {
@@ -144,7 +164,8 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
             y = std::clamp(y, rs.y0, rs.y1 - 1);
             return smp[std::size_t(y - rs.y0) * std::size_t(sw) + std::size_t(x - rs.x0)];
         };
-        std::vector<std::uint8_t> edges;
+        thread_local std::vector<std::uint8_t> tls_edges;
+        std::vector<std::uint8_t> &edges = tls_edges;
         if (outlines) {
             edges.assign(std::size_t(ew) * std::size_t(re.height()), 0);
             for (int y = re.y0; y < re.y1; ++y) {
@@ -179,17 +200,17 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                     continue;
                 }
                 const Sample &c = at(x, y);
-                float tone;
-                if (s.tone_from_light) {
-                    const float ndl = c.normal ? std::max(0.0f, glm::dot(c.n, light)) : 1.0f;
-                    const float lin = (s.ambient + (1.0f - s.ambient) * ndl) * s.exposure;
-                    tone = std::pow(std::clamp(lin, 0.0f, 1.0f), 1.0f / s.gamma);
+                float darkness = 0.0f;
+                if (s.screen_space || c.hit) {  // surface mode: the sky is blank paper
+                    const float tone =
+                        s.tone_from_light
+                            ? curve((s.ambient +
+                                     (1.0f - s.ambient) *
+                                         (c.normal ? std::max(0.0f, glm::dot(c.n, light)) : 1.0f)) *
+                                    s.exposure)
+                            : curve.tone(src, nc, s.exposure);
+                    darkness = 1.0f - tone;
                 }
-                else {
-                    tone = hatch_tone(src, nc, s);
-                }
-                const float darkness = 1.0f - tone;
-
                 float ink = 0.0f;
                 if (s.screen_space) {
                     ink = tam.ramp(darkness, (float(x) + 0.5f) / finest, (float(y) + 0.5f) / finest,
@@ -238,7 +259,7 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                             const float uy = dpy[kU[a]], vy = dpy[kV[a]];
                             const float len2 = std::max(ux * ux + vx * vx, uy * uy + vy * vy);
                             // log2(sqrt(len2) * texels per metre)
-                            lod = 0.5f * std::log2(std::max(len2, 1e-30f)) + lod_offset;
+                            lod = 0.5f * fast_log2(std::max(len2, 1e-30f)) + lod_offset;
                         }
                         ink += weight[a] * tam.ramp(darkness, u, v, lod);
                     }

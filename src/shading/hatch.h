@@ -9,6 +9,9 @@
 // Inputs follow docs/CONVENTIONS.md: color RGBA premultiplied scene-linear, depth camera-space z
 // (+inf on sky), world normal and position (0 on sky), optional integer id.
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -50,6 +53,39 @@ struct HatchInputs {
 /// finite for any input, including NaN/Inf normals, positions and colors. Same bits for any
 /// thread count. Sizes must match (asserted; callers check and report).
 Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam);
+
+/// The tone curve t(L) = clamp(L, 0, 1)^(1 / gamma), tabulated over sqrt(L) in 256 linear
+/// segments: increasing, continuous, within 3e-4 of the exact curve for gamma 2.2, and no
+/// pow() per pixel.
+class ToneCurve {
+  public:
+    explicit ToneCurve(float gamma);
+    /// Tone of a linear value; NaN reads as 1 (paper).
+    float operator()(float linear) const
+    {
+        if (std::isnan(linear)) {
+            return 1.0f;
+        }
+        const float q = std::sqrt(std::clamp(linear, 0.0f, 1.0f)) * float(kSegments);
+        const int i = std::min(int(q), kSegments - 1);
+        const float f = q - float(i);
+        return table_[std::size_t(i)] + f * (table_[std::size_t(i) + 1] - table_[std::size_t(i)]);
+    }
+    /// Tone of an RGBA (or RGB) pixel: Rec.709 luminance, un-premultiplied, times exposure.
+    float tone(const float *rgba, int channels, float exposure) const
+    {
+        const float alpha = channels >= 4 ? rgba[3] : 1.0f;
+        float lum = 0.2126f * rgba[0] + 0.7152f * rgba[1] + 0.0722f * rgba[2];
+        if (alpha > 1e-6f && alpha < 1.0f) {
+            lum /= alpha;  // tone of the surface, not of its coverage
+        }
+        return (*this)(lum * exposure);
+    }
+
+  private:
+    static constexpr int kSegments = 256;
+    std::array<float, kSegments + 1> table_{};
+};
 
 /// Tone in [0, 1] (1: paper white) of a color, as hatch() computes it in luminance mode.
 float hatch_tone(const float *rgba, int channels, const HatchSettings &s);

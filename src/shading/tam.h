@@ -60,8 +60,8 @@ class Tam {
     float mean(int tone, int level) const;
     /// Every stroke in the order added.
     const std::vector<TamStroke> &strokes() const { return strokes_; }
-    /// Coverage of tone t at (u, v) in tile units (wrapping), trilinear between the two levels
-    /// around `lod` (0: finest; clamped to the chain).
+    /// Coverage of tone t at (u, v) in tile units (wrapping), filtered between the two levels
+    /// around `lod` (0: finest; clamped to the chain; see ramp_at).
     float sample(int tone, float u, float v, float lod) const
     {
         return ramp_at(tone + 1, 0.0f, u, v, lod);
@@ -92,8 +92,18 @@ class Tam {
         const float fl = lod >= 0.0f ? lod - float(l0) : 0.0f;
         u -= std::floor(u);
         v -= std::floor(v);
+        // Departure from plain trilinear: the blend between levels runs over the middle half of
+        // each lod step only ("brilinear"), still continuous in lod, and half the pixels read a
+        // single level.
+        const float b = std::clamp(2.0f * fl - 0.5f, 0.0f, 1.0f);
+        if (b <= 0.0f) {
+            return ramp_level(k, f, l0, u, v);
+        }
+        if (b >= 1.0f) {
+            return ramp_level(k, f, l0 + 1, u, v);
+        }
         const float c0 = ramp_level(k, f, l0, u, v);
-        return fl > 0.0f ? c0 + fl * (ramp_level(k, f, l0 + 1, u, v) - c0) : c0;
+        return c0 + b * (ramp_level(k, f, l0 + 1, u, v) - c0);
     }
     /// Bilinear, wrapping; u, v in [0, 1). Packed texels hold 8 floats: paper 0, tones 0..5,
     /// tone 5 again, so entries k and k + 1 share a cache line.

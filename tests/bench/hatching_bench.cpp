@@ -76,6 +76,23 @@ void BM_HatchingScreenBaseline1080p(benchmark::State &state)
 }
 BENCHMARK(BM_HatchingScreenBaseline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+void BM_HatchingSurfaceNoOutline1080p(benchmark::State &state)
+{
+    HatchSettings s;
+    s.outline_width = 0.0f;
+    hatch_bench(state, s);
+}
+BENCHMARK(BM_HatchingSurfaceNoOutline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingScreenNoOutline1080p(benchmark::State &state)
+{
+    HatchSettings s;
+    s.screen_space = true;
+    s.outline_width = 0.0f;
+    hatch_bench(state, s);
+}
+BENCHMARK(BM_HatchingScreenNoOutline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_HatchingCopyBaseline1080p(benchmark::State &state)
 {
     const Image &color = frame_1080p().image("color");
