@@ -131,6 +131,21 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     const float cos_thr = std::cos(s.normal_threshold_deg * kPiF / 180.0f);
     const float line_r = 0.5f * (s.outline_width - 1.0f);  // coverage = clamp(r + 1 - dist)
     const int line_reach = outlines ? std::max(0, int(std::ceil(line_r))) : 0;
+    // Outline pen: coverage clamp(r + 1 - dist, 0, 1) of an edge pixel at each offset, kept
+    // where positive.
+    struct LineTap {
+        int dx, dy;
+        float coverage;
+    };
+    std::vector<LineTap> line_taps;
+    for (int dy = -line_reach; outlines && dy <= line_reach; ++dy) {
+        for (int dx = -line_reach; dx <= line_reach; ++dx) {
+            const float c = std::clamp(line_r + 1.0f - std::sqrt(float(dx * dx + dy * dy)), 0.0f, 1.0f);
+            if (c > 0.0f) {
+                line_taps.push_back({dx, dy, c});
+            }
+        }
+    }
     const glm::vec3 light = glm::normalize(s.light_dir);
     const ToneCurve curve(s.gamma);
     const float finest = float(tam.size());
@@ -266,21 +281,11 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                 }
 
                 float line = 0.0f;
-                if (outlines) {
-                    for (int dy = -line_reach; dy <= line_reach; ++dy) {
-                        const int yy = y + dy;
-                        if (yy < re.y0 || yy >= re.y1) {
-                            continue;
-                        }
-                        const std::uint8_t *row =
-                            edges.data() + std::size_t(yy - re.y0) * std::size_t(ew);
-                        for (int dx = -line_reach; dx <= line_reach; ++dx) {
-                            const int xx = x + dx;
-                            if (xx >= re.x0 && xx < re.x1 && row[xx - re.x0]) {
-                                const float dist = std::sqrt(float(dx * dx + dy * dy));
-                                line = std::max(line, std::clamp(line_r + 1.0f - dist, 0.0f, 1.0f));
-                            }
-                        }
+                for (const LineTap &tap : line_taps) {
+                    const int xx = x + tap.dx, yy = y + tap.dy;
+                    if (xx >= re.x0 && xx < re.x1 && yy >= re.y0 && yy < re.y1 &&
+                        edges[std::size_t(yy - re.y0) * std::size_t(ew) + std::size_t(xx - re.x0)]) {
+                        line = std::max(line, tap.coverage);
                     }
                 }
 

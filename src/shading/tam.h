@@ -110,10 +110,12 @@ class Tam {
     float ramp_level(int k, float f, int level, float u, float v) const
     {
         const int s = size_ >> level, mask = s - 1;
-        const float x = u * float(s) - 0.5f, y = v * float(s) - 0.5f;
-        const float fx0 = std::floor(x), fy0 = std::floor(y);
-        const float fx = x - fx0, fy = y - fy0;
-        const int x0 = int(fx0) & mask, y0 = int(fy0) & mask;
+        const float x = u * float(s) - 0.5f, y = v * float(s) - 0.5f;  // in [-0.5, s)
+        int ix = int(x), iy = int(y);  // truncation, then floor for the negative half texel
+        ix -= x < float(ix) ? 1 : 0;
+        iy -= y < float(iy) ? 1 : 0;
+        const float fx = x - float(ix), fy = y - float(iy);
+        const int x0 = ix & mask, y0 = iy & mask;
         const int x1 = (x0 + 1) & mask, y1 = (y0 + 1) & mask;
         const float *base = packed_.data() + level_offset_[std::size_t(level)] * kPacked + std::size_t(k);
         auto tap = [&](int xx, int yy) {
