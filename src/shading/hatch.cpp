@@ -15,11 +15,6 @@ namespace {
 
 constexpr float kPiF = 3.14159265358979323846f;
 
-bool finite3(const float *v)
-{
-    return std::isfinite(v[0]) && std::isfinite(v[1]) && std::isfinite(v[2]);
-}
-
 /// log2(x) for x > 0 within 0.005, continuous and increasing: exponent plus a quadratic on the
 /// mantissa (exact at powers of two). For mip levels, where libm's log2f was a hot spot.
 inline float fast_log2(float x)
@@ -42,25 +37,27 @@ struct Sample {
     glm::vec3 p{0.0f}, n{0.0f};
 };
 
-Sample read_sample(const HatchInputs &in, int x, int y)
+/// x is finite (not NaN, not +-inf); cheaper than std::isfinite on three values.
+inline bool finite_f(float x)
+{
+    return x - x == 0.0f;
+}
+
+Sample read_sample(const float *z_px, const float *p_px, const float *n_px)
 {
     Sample s;
-    const float z = in.depth->at(x, y, 0);
-    const float *p = in.position->pixel(x, y);
-    if (!(std::isfinite(z) && z > 0.0f && finite3(p))) {
-        return s;
+    const float z = *z_px;
+    if (!(z > 0.0f && finite_f(z) && finite_f(p_px[0] + p_px[1] + p_px[2]))) {
+        return s;  // sky, or unusable geometry
     }
     s.hit = true;
     s.z = z;
-    s.p = {p[0], p[1], p[2]};
-    const float *n = in.normal->pixel(x, y);
-    if (finite3(n)) {
-        const glm::vec3 nv{n[0], n[1], n[2]};
-        const float len2 = glm::dot(nv, nv);
-        if (len2 > 1e-4f) {
-            s.normal = true;
-            s.n = std::abs(len2 - 1.0f) < 1e-4f ? nv : nv / std::sqrt(len2);
-        }
+    s.p = {p_px[0], p_px[1], p_px[2]};
+    const glm::vec3 nv{n_px[0], n_px[1], n_px[2]};
+    const float len2 = glm::dot(nv, nv);
+    if (len2 > 1e-4f && finite_f(len2)) {
+        s.normal = true;
+        s.n = std::abs(len2 - 1.0f) < 1e-4f ? nv : nv / std::sqrt(len2);
     }
     return s;
 }
@@ -88,7 +85,7 @@ bool neighbour_step(const Sample &c, const Sample &q, glm::vec3 &step)
         return false;
     }
     step = q.p - c.p;
-    return glm::dot(step, step) > 0.0f;  // at image borders at() returns the pixel itself
+    return glm::dot(step, step) > 0.0f;  // at image borders the pixel stands in for q
 }
 
 /// The smaller of the forward and backward steps that are usable (central pixel c).
@@ -153,6 +150,10 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     const float inv_scale = 1.0f / s.scale;
     const float lod_offset = std::log2(inv_scale * finest);  // log2 of texels per metre
     const Rect bounds = color.bounds();
+    // Locals, not reads through `s`: stores to the output could alias them otherwise.
+    const glm::vec3 paper = s.paper, ink_minus_paper = s.ink - s.paper, outline_color = s.outline;
+    const float mix = s.mix, exposure = s.exposure;
+    const bool partial_mix = s.mix < 1.0f, screen_space = s.screen_space;
     // Screen mode without outlines or light reads no geometry (sky and surfaces alike).
     const bool needs_samples = !s.screen_space || outlines || s.tone_from_light;
 
@@ -169,15 +170,27 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
         if (needs_samples) {
             for (int y = rs.y0; y < rs.y1; ++y) {
                 Sample *row = smp + std::size_t(y - rs.y0) * std::size_t(sw);
-                for (int x = rs.x0; x < rs.x1; ++x) {
-                    row[x - rs.x0] = read_sample(in, x, y);
+                const float *zr = in.depth->pixel(rs.x0, y), *pr = in.position->pixel(rs.x0, y);
+                const float *nr = in.normal->pixel(rs.x0, y);
+                const int zs = in.depth->channels(), ps = in.position->channels();
+                const int ns = in.normal->channels();
+                for (int i = 0; i < sw; ++i) {
+                    row[i] = read_sample(zr + i * zs, pr + i * ps, nr + i * ns);
                 }
             }
         }
-        auto at = [&](int x, int y) -> const Sample & {
-            x = std::clamp(x, rs.x0, rs.x1 - 1);  // image borders: the pixel itself
-            y = std::clamp(y, rs.y0, rs.y1 - 1);
-            return smp[std::size_t(y - rs.y0) * std::size_t(sw) + std::size_t(x - rs.x0)];
+        // Neighbours by index; at the image border the pixel stands in for the missing one
+        // (never an edge with itself, and a zero step is no footprint).
+        auto index = [&](int x, int y) {
+            return std::size_t(y - rs.y0) * std::size_t(sw) + std::size_t(x - rs.x0);
+        };
+        struct Around {
+            std::size_t c, l, r, u, d;
+        };
+        auto around = [&](int x, int y) {
+            const std::size_t c = index(x, y);
+            return Around{c, x > rs.x0 ? c - 1 : c, x + 1 < rs.x1 ? c + 1 : c,
+                          y > rs.y0 ? c - std::size_t(sw) : c, y + 1 < rs.y1 ? c + std::size_t(sw) : c};
         };
         thread_local std::vector<std::uint8_t> tls_edges;
         std::vector<std::uint8_t> &edges = tls_edges;
@@ -185,15 +198,16 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
             edges.assign(std::size_t(ew) * std::size_t(re.height()), 0);
             for (int y = re.y0; y < re.y1; ++y) {
                 for (int x = re.x0; x < re.x1; ++x) {
-                    const Sample &c = at(x, y);
+                    const Around a = around(x, y);
+                    const Sample &c = smp[a.c];
                     if (!c.hit) {
                         continue;
                     }
-                    const bool e =
-                        (x > 0 && is_edge(c, at(x - 1, y), false, s.depth_threshold, cos_thr)) ||
-                        (x + 1 < w && is_edge(c, at(x + 1, y), true, s.depth_threshold, cos_thr)) ||
-                        (y > 0 && is_edge(c, at(x, y - 1), false, s.depth_threshold, cos_thr)) ||
-                        (y + 1 < h && is_edge(c, at(x, y + 1), true, s.depth_threshold, cos_thr));
+                    const float dt = s.depth_threshold;
+                    const bool e = is_edge(c, smp[a.l], false, dt, cos_thr) ||
+                                   is_edge(c, smp[a.r], true, dt, cos_thr) ||
+                                   is_edge(c, smp[a.u], false, dt, cos_thr) ||
+                                   is_edge(c, smp[a.d], true, dt, cos_thr);
                     edges[std::size_t(y - re.y0) * std::size_t(ew) + std::size_t(x - re.x0)] =
                         e ? 1 : 0;
                 }
@@ -210,24 +224,25 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                                           std::isfinite(id) ? int(std::lround(id)) : -1) !=
                                 s.ids.end();
                 }
-                if (!masked_in || s.mix <= 0.0f) {
+                if (!masked_in || mix <= 0.0f) {
                     std::copy_n(src, nc, dst);
                     continue;
                 }
-                const Sample &c = at(x, y);
+                const Around a = around(x, y);
+                const Sample &c = smp[a.c];
                 float darkness = 0.0f;
-                if (s.screen_space || c.hit) {  // surface mode: the sky is blank paper
+                if (screen_space || c.hit) {  // surface mode: the sky is blank paper
                     const float tone =
                         s.tone_from_light
                             ? curve((s.ambient +
                                      (1.0f - s.ambient) *
                                          (c.normal ? std::max(0.0f, glm::dot(c.n, light)) : 1.0f)) *
                                     s.exposure)
-                            : curve.tone(src, nc, s.exposure);
+                            : curve.tone(src, nc, exposure);
                     darkness = 1.0f - tone;
                 }
                 float ink = 0.0f;
-                if (s.screen_space) {
+                if (screen_space) {
                     ink = tam.ramp(darkness, (float(x) + 0.5f) / finest, (float(y) + 0.5f) / finest,
                                    0.0f);
                 }
@@ -236,8 +251,8 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                 }
                 else if (c.hit && darkness > 0.0f) {
                     glm::vec3 dpx, dpy;
-                    const bool hx = pick_step(c, at(x + 1, y), at(x - 1, y), dpx);
-                    const bool hy = pick_step(c, at(x, y + 1), at(x, y - 1), dpy);
+                    const bool hx = pick_step(c, smp[a.r], smp[a.l], dpx);
+                    const bool hy = pick_step(c, smp[a.d], smp[a.u], dpy);
                     if (!hx && hy) {
                         dpx = dpy;
                     }
@@ -289,13 +304,16 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                     }
                 }
 
-                const float alpha = nc >= 4 ? (std::isfinite(src[3]) ? src[3] : 1.0f) : 1.0f;
+                const float alpha = nc >= 4 ? (finite_f(src[3]) ? src[3] : 1.0f) : 1.0f;
                 for (int ch = 0; ch < 3; ++ch) {
-                    float v = s.paper[ch] + ink * (s.ink[ch] - s.paper[ch]);
-                    v += line * (s.outline[ch] - v);
+                    float v = paper[ch] + ink * (ink_minus_paper[ch]);
+                    v += line * (outline_color[ch] - v);
                     v *= alpha;
-                    const float base = std::isfinite(src[ch]) ? src[ch] : v;
-                    dst[ch] = s.mix >= 1.0f ? v : base + s.mix * (v - base);
+                    if (partial_mix) {
+                        const float base = finite_f(src[ch]) ? src[ch] : v;
+                        v = base + mix * (v - base);
+                    }
+                    dst[ch] = v;
                 }
                 if (nc >= 4) {
                     dst[3] = alpha;

@@ -152,6 +152,7 @@ Tam build_tam(const TamParams &p)
         offset += std::size_t(p.size >> l) * std::size_t(p.size >> l);
     }
     tam.tone_stride_ = offset;
+    tam.levels_ = all_levels;
     tam.data_.assign(offset * kTamTones, 0.0f);
 
     std::uint32_t counter = 0;

@@ -47,7 +47,7 @@ class Tam {
     Tam() = default;
     int size() const { return size_; }
     /// All levels, stroke levels first then the filtered ones (down to 1 x 1).
-    int levels() const { return int(level_offset_.size()); }
+    int levels() const { return levels_; }
     int stroke_levels() const { return stroke_levels_; }
     /// Side of level l.
     int level_size(int l) const { return size_ >> l; }
@@ -84,51 +84,57 @@ class Tam {
 
   private:
     friend Tam build_tam(const TamParams &p);
-    /// Trilinear blend of ramp entries k and k + 1 (weight f) of the packed texels.
+    /// Filtered blend of ramp entries k and k + 1 (weight f) of the packed texels.
     float ramp_at(int k, float f, float u, float v, float lod) const
     {
-        lod = std::clamp(lod, 0.0f, float(levels() - 1));  // NaN lod: clamp keeps NaN
-        const int l0 = lod >= 0.0f ? int(lod) : levels() - 1;
+        lod = std::clamp(lod, 0.0f, float(levels_ - 1));  // NaN lod: clamp keeps NaN
+        const int l0 = lod >= 0.0f ? int(lod) : levels_ - 1;
         const float fl = lod >= 0.0f ? lod - float(l0) : 0.0f;
+        // Fixed point with 16 fraction bits at the finest level, wrapped to the tile; coarser
+        // levels shift it right. finite u, v only (the caller's positions are finite).
         u -= std::floor(u);
         v -= std::floor(v);
+        const float one = float(size_) * 65536.0f;
+        const std::int32_t fu = std::int32_t(u * one), fv = std::int32_t(v * one);
         // Departure from plain trilinear: the blend between levels runs over the middle half of
         // each lod step only ("brilinear"), still continuous in lod, and half the pixels read a
         // single level.
         const float b = std::clamp(2.0f * fl - 0.5f, 0.0f, 1.0f);
         if (b <= 0.0f) {
-            return ramp_level(k, f, l0, u, v);
+            return ramp_level(k, f, l0, fu, fv);
         }
         if (b >= 1.0f) {
-            return ramp_level(k, f, l0 + 1, u, v);
+            return ramp_level(k, f, l0 + 1, fu, fv);
         }
-        const float c0 = ramp_level(k, f, l0, u, v);
-        return c0 + b * (ramp_level(k, f, l0 + 1, u, v) - c0);
+        const float c0 = ramp_level(k, f, l0, fu, fv);
+        return c0 + b * (ramp_level(k, f, l0 + 1, fu, fv) - c0);
     }
-    /// Bilinear, wrapping; u, v in [0, 1). Packed texels hold 8 floats: paper 0, tones 0..5,
-    /// tone 5 again, so entries k and k + 1 share a cache line.
-    float ramp_level(int k, float f, int level, float u, float v) const
+    /// Bilinear, wrapping, at fixed-point finest-level coordinates (16 fraction bits). Packed
+    /// texels hold 8 floats: paper 0, tones 0..5, tone 5 again, so entries k and k + 1 share a
+    /// cache line.
+    float ramp_level(int k, float f, int level, std::int32_t fu, std::int32_t fv) const
     {
         const int s = size_ >> level, mask = s - 1;
-        const float x = u * float(s) - 0.5f, y = v * float(s) - 0.5f;  // in [-0.5, s)
-        int ix = int(x), iy = int(y);  // truncation, then floor for the negative half texel
-        ix -= x < float(ix) ? 1 : 0;
-        iy -= y < float(iy) ? 1 : 0;
-        const float fx = x - float(ix), fy = y - float(iy);
-        const int x0 = ix & mask, y0 = iy & mask;
-        const int x1 = (x0 + 1) & mask, y1 = (y0 + 1) & mask;
+        const std::int32_t x = (fu >> level) - 32768, y = (fv >> level) - 32768;  // - half texel
+        const int x0 = (x >> 16) & mask, y0 = (y >> 16) & mask;  // arithmetic shift: floor
+        const float fx = float(x & 0xffff) * (1.0f / 65536.0f);
+        const float fy = float(y & 0xffff) * (1.0f / 65536.0f);
+        const int x1 = (x0 + 1) & mask;
         const float *base = packed_.data() + level_offset_[std::size_t(level)] * kPacked + std::size_t(k);
-        auto tap = [&](int xx, int yy) {
-            const float *t = base + (std::size_t(yy) * std::size_t(s) + std::size_t(xx)) * kPacked;
-            return t[0] + f * (t[1] - t[0]);
-        };
-        const float a = tap(x0, y0) + fx * (tap(x1, y0) - tap(x0, y0));
-        const float b = tap(x0, y1) + fx * (tap(x1, y1) - tap(x0, y1));
-        return a + fy * (b - a);
+        const float *r0 = base + std::size_t(y0) * std::size_t(s) * kPacked;
+        const float *r1 = base + std::size_t((y0 + 1) & mask) * std::size_t(s) * kPacked;
+        const std::size_t o0 = std::size_t(x0) * kPacked, o1 = std::size_t(x1) * kPacked;
+        const float t00 = r0[o0] + f * (r0[o0 + 1] - r0[o0]);
+        const float t10 = r0[o1] + f * (r0[o1 + 1] - r0[o1]);
+        const float t01 = r1[o0] + f * (r1[o0 + 1] - r1[o0]);
+        const float t11 = r1[o1] + f * (r1[o1 + 1] - r1[o1]);
+        const float a = t00 + fx * (t10 - t00);
+        const float c = t01 + fx * (t11 - t01);
+        return a + fy * (c - a);
     }
     static constexpr std::size_t kPacked = 8;
 
-    int size_ = 0, stroke_levels_ = 0;
+    int size_ = 0, stroke_levels_ = 0, levels_ = 0;
     std::size_t tone_stride_ = 0;
     std::vector<std::size_t> level_offset_;
     std::vector<float> data_;    ///< Tone-major planes (building, tests).
