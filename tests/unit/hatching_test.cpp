@@ -16,6 +16,7 @@
 #include "graph/graph.h"
 #include "raster/render.h"
 #include "shading/tam.h"
+#include "test_util.h"
 
 namespace posthaste::shading {
 namespace {
@@ -282,12 +283,14 @@ TEST(HatchingRobust, SameBitsForAnyThreadCount)
 
 TEST(HatchingNode, RenderHatchGraph)
 {
+    const std::string out = test::scratch_dir("hatching_node") + "/x.exr";
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "scene", "type": "render", "params": {"width": 96, "height": 54,
          "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) + R"(/samples/scenes/minecrappy.json"}},
         {"id": "ink", "type": "hatching", "inputs": {"image": "scene"},
          "params": {"ids": "1, 2,3", "tam_size": "128"}},
-        {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": "x.exr"}}]})",
+        {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" + out +
+                               R"("}}]})",
                            "g.json");
     g.set_capture("ink");
     const Frame f = g.evaluate(3);
@@ -304,7 +307,8 @@ TEST(HatchingNode, RenderHatchGraph)
              "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) + R"(/samples/scenes/cube.json"}},
             {"id": "ink", "type": "hatching", "inputs": {"image": "scene"},
              "params": {"ids": "1,x"}},
-            {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": "x.exr"}}]})",
+            {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" +
+                                     out + R"("}}]})",
                                  "g.json");
         bad.check({1});
         ADD_FAILURE() << "bad ids accepted";
