@@ -21,5 +21,6 @@ extern const NodeType kRender;
 extern const NodeType kFog;
 extern const NodeType kRelight;
 extern const NodeType kMotionBlur;
+extern const NodeType kHatching;
 
 }  // namespace posthaste::nodes

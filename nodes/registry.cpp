@@ -11,6 +11,7 @@ std::span<const NodeType *const> all_node_types()
     static const NodeType *const kAllNodes[] = {
         &nodes::kRead,
         &nodes::kRender,
+        &nodes::kHatching,
         &nodes::kWrite,
         &nodes::kOcio,
         &nodes::kMerge,

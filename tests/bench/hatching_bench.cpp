@@ -1,0 +1,118 @@
+// Benchmarks of the hatching kernel at 1920x1080 on one rendered Minecrappy frame (frame 20,
+// rendered once): surface-anchored (dominant-axis and triplanar), the screen-space baseline, and a
+// plain copy of the color pass; plus the TAM build at start-up.
+//   build/tests/posthaste_benchmarks --benchmark_filter=Hatching --benchmark_repetitions=5
+//       --benchmark_report_aggregates_only=true  (one command line)
+#include <benchmark/benchmark.h>
+
+#include <ctime>
+#include <string>
+
+#include "raster/render.h"
+#include "shading/hatch.h"
+#include "shading/tam.h"
+
+namespace posthaste::shading {
+namespace {
+
+double process_cpu_ms()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+const Frame &frame_1080p()
+{
+    static const Frame f = [] {
+        const raster::Scene scene = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
+                                                       "/samples/scenes/minecrappy.json");
+        raster::RenderOptions o;
+        o.passes = {"color", "depth", "normal", "position"};
+        return raster::render_frame(scene, 20, o);
+    }();
+    return f;
+}
+
+const Tam &default_tam()
+{
+    static const Tam t = build_tam(TamParams{});
+    return t;
+}
+
+void hatch_bench(benchmark::State &state, HatchSettings s)
+{
+    const Frame &f = frame_1080p();
+    const HatchInputs in{&f.image("color"), &f.image("depth"), &f.image("normal"),
+                         &f.image("position")};
+    const Tam &tam = default_tam();
+    const double cpu0 = process_cpu_ms();
+    for (auto _ : state) {
+        Image out = hatch(in, s, tam);
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["process_cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
+}
+
+void BM_HatchingSurface1080p(benchmark::State &state)
+{
+    hatch_bench(state, HatchSettings{});
+}
+BENCHMARK(BM_HatchingSurface1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingSurfaceTriplanar1080p(benchmark::State &state)
+{
+    HatchSettings s;
+    s.triplanar = true;
+    hatch_bench(state, s);
+}
+BENCHMARK(BM_HatchingSurfaceTriplanar1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingScreenBaseline1080p(benchmark::State &state)
+{
+    HatchSettings s;
+    s.screen_space = true;
+    hatch_bench(state, s);
+}
+BENCHMARK(BM_HatchingScreenBaseline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingSurfaceNoOutline1080p(benchmark::State &state)
+{
+    HatchSettings s;
+    s.outline_width = 0.0f;
+    hatch_bench(state, s);
+}
+BENCHMARK(BM_HatchingSurfaceNoOutline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingScreenNoOutline1080p(benchmark::State &state)
+{
+    HatchSettings s;
+    s.screen_space = true;
+    s.outline_width = 0.0f;
+    hatch_bench(state, s);
+}
+BENCHMARK(BM_HatchingScreenNoOutline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingCopyBaseline1080p(benchmark::State &state)
+{
+    const Image &color = frame_1080p().image("color");
+    const double cpu0 = process_cpu_ms();
+    for (auto _ : state) {
+        Image out(color);
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["process_cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
+}
+BENCHMARK(BM_HatchingCopyBaseline1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_HatchingTamBuild256(benchmark::State &state)
+{
+    for (auto _ : state) {
+        Tam t = build_tam(TamParams{});
+        benchmark::DoNotOptimize(t.texels(0, 0));
+    }
+}
+BENCHMARK(BM_HatchingTamBuild256)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+}  // namespace posthaste::shading
