@@ -18,5 +18,6 @@ extern const NodeType kOcio;
 extern const NodeType kMerge;
 extern const NodeType kChannels;
 extern const NodeType kRender;
+extern const NodeType kDof;
 
 }  // namespace posthaste::nodes

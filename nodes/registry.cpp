@@ -15,6 +15,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kOcio,
         &nodes::kMerge,
         &nodes::kChannels,
+        &nodes::kDof,
     };
     return kAllNodes;
 }
