@@ -1,5 +1,5 @@
 // nodes/dof.cpp: depth of field from color + depth: thin-lens circle of confusion (signed, px),
-// tile max CoC with dilation, then a near/far separated gather (src/post/dof_gather.h; Jimenez
+// tile max CoC with dilation, then a near/far separated gather (src/shading/dof_gather.h; Jimenez
 // 2014, Abadie 2018). Lens values come from the frame header (aperture, focus, focalLength,
 // sensorWidth) unless a parameter overrides them. Jitter is hashed from (x, y): the output does
 // not depend on the thread count. When no pixel's CoC reaches half a pixel the color pass is
@@ -9,7 +9,7 @@
 #include <cmath>
 
 #include "nodes/node.h"
-#include "post/dof_gather.h"
+#include "shading/dof_gather.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -40,10 +40,10 @@ constexpr ParamSpec kParams[] = {kFstop, kFocus, kFocal, kSensor, kMaxCoc, kSamp
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}};
 
-post::DofLens lens_of(NodeContext &ctx, const Camera &cam)
+shading::DofLens lens_of(NodeContext &ctx, const Camera &cam)
 {
     const std::string who = ctx.where();
-    post::DofLens l;
+    shading::DofLens l;
     const double fstop = ctx.get_real(kFstop), focus = ctx.get_real(kFocus);
     const double focal = ctx.get_real(kFocal), sensor = ctx.get_real(kSensor);
     l.fstop = fstop > 0.0 ? float(fstop) : cam.require_fstop(who);
@@ -69,16 +69,16 @@ void execute(NodeContext &ctx)
         throw_runtime(ctx.where(), ": depth is ", depth.width(), "x", depth.height(),
                       " but color is ", color.width(), "x", color.height());
     }
-    const post::DofLens lens = lens_of(ctx, in.camera);
-    post::DofSettings s;
+    const shading::DofLens lens = lens_of(ctx, in.camera);
+    shading::DofSettings s;
     s.max_coc_px = ctx.get_float(kMaxCoc);
     s.samples = ctx.get_int(kSamples);
     s.blades = ctx.get_int(kBlades);
     s.rotation_deg = ctx.get_float(kRotation);
-    s.method = ctx.get_choice(kMethod) == 0 ? post::DofMethod::Gather : post::DofMethod::Simple;
+    s.method = ctx.get_choice(kMethod) == 0 ? shading::DofMethod::Gather : shading::DofMethod::Simple;
     s.half_res = ctx.get_choice(kResolution) == 0;
     Image out;
-    if (!post::apply_dof(color, depth, lens, s, out)) {
+    if (!shading::apply_dof(color, depth, lens, s, out)) {
         return;  // everything in focus: the output frame already shares the input's color
     }
     const Pass &cp = in.pass(pass::kColor, ctx.where());

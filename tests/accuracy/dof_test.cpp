@@ -15,7 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "metrics/metrics.h"
-#include "post/dof_gather.h"
+#include "shading/dof_gather.h"
 #include "raster/render.h"
 #include "raster/scene.h"
 
@@ -53,7 +53,7 @@ double psnr(const Image &a, const Image &b)
     return metrics::compare(rgb(a), rgb(b)).all.psnr;
 }
 
-post::DofLens lens_of(const Camera &c)
+shading::DofLens lens_of(const Camera &c)
 {
     return {*c.fstop, *c.focus_distance, *c.focal_length_mm, *c.sensor_width_mm};
 }
@@ -119,20 +119,20 @@ struct Errors {
     float max_coc_px;
 };
 
-Errors measure(const Rendered &r, const post::DofSettings &settings, const std::string &name)
+Errors measure(const Rendered &r, const shading::DofSettings &settings, const std::string &name)
 {
     const Image &color = r.frame.image("color");
     const Image &depth = r.frame.image("depth");
-    const post::DofLens lens = lens_of(r.frame.camera);
+    const shading::DofLens lens = lens_of(r.frame.camera);
     Errors e{};
-    post::DofSettings simple = settings;
-    simple.method = post::DofMethod::Simple;
+    shading::DofSettings simple = settings;
+    simple.method = shading::DofMethod::Simple;
     Image out_node, out_simple;
-    post::DofTimes tn;
-    if (!post::apply_dof(color, depth, lens, settings, out_node, &tn)) {
+    shading::DofTimes tn;
+    if (!shading::apply_dof(color, depth, lens, settings, out_node, &tn)) {
         out_node = color;
     }
-    if (!post::apply_dof(color, depth, lens, simple, out_simple)) {
+    if (!shading::apply_dof(color, depth, lens, simple, out_simple)) {
         out_simple = color;
     }
     expect_finite_bounded(out_node, color, name);
@@ -143,7 +143,7 @@ Errors measure(const Rendered &r, const post::DofSettings &settings, const std::
     e.simple_psnr = psnr(out_simple, r.truth);
     e.node_psnr = psnr(out_node, r.truth);
     e.truth_conv = r.truth2.empty() ? -1.0 : rmse(r.truth, r.truth2);
-    const post::CocField f = post::compute_coc(depth, lens, 0.5f * settings.max_coc_px);
+    const shading::CocField f = shading::compute_coc(depth, lens, 0.5f * settings.max_coc_px);
     float mx = 0.0f;
     for (float v : f.radius) {
         mx = std::max(mx, std::fabs(v));

@@ -10,7 +10,7 @@
 #include <ctime>
 #include <string>
 
-#include "post/dof_gather.h"
+#include "shading/dof_gather.h"
 #include "raster/render.h"
 
 namespace posthaste {
@@ -37,7 +37,7 @@ double process_cpu_ms()
     return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
-post::DofLens lens_of(const Camera &c)
+shading::DofLens lens_of(const Camera &c)
 {
     return {*c.fstop, *c.focus_distance, *c.focal_length_mm, *c.sensor_width_mm};
 }
@@ -53,17 +53,17 @@ void BM_DofCopy(benchmark::State &state)
     state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
 }
 
-void dof_bench(benchmark::State &state, post::DofMethod method)
+void dof_bench(benchmark::State &state, shading::DofMethod method)
 {
     const Frame &f = closeup_frame();
-    post::DofSettings s;
+    shading::DofSettings s;
     s.method = method;
     s.samples = int(state.range(0));
-    post::DofTimes t;
+    shading::DofTimes t;
     const double cpu0 = process_cpu_ms();
     for (auto _ : state) {
         Image out;
-        post::apply_dof(f.image("color"), f.image("depth"), lens_of(f.camera), s, out, &t);
+        shading::apply_dof(f.image("color"), f.image("depth"), lens_of(f.camera), s, out, &t);
         benchmark::DoNotOptimize(out.data());
     }
     state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
@@ -76,12 +76,12 @@ void dof_bench(benchmark::State &state, post::DofMethod method)
 
 void BM_DofSimple(benchmark::State &state)
 {
-    dof_bench(state, post::DofMethod::Simple);
+    dof_bench(state, shading::DofMethod::Simple);
 }
 
 void BM_DofGather(benchmark::State &state)
 {
-    dof_bench(state, post::DofMethod::Gather);
+    dof_bench(state, shading::DofMethod::Gather);
 }
 
 BENCHMARK(BM_DofCopy)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -1,4 +1,4 @@
-// The dof node and its helpers (src/post/dof_*): the thin-lens CoC on hand-computed values,
+// The dof node and its helpers (src/shading/dof_*): the thin-lens CoC on hand-computed values,
 // tile dilation, the in-focus pass-through (same bits), thread-count independence, the near
 // field spreading over a sharp background but the far field not over a sharp foreground, and
 // finite, bounded output for NaN / Inf / extreme parameters.
@@ -12,8 +12,8 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
-#include "post/dof_coc.h"
-#include "post/dof_gather.h"
+#include "shading/dof_coc.h"
+#include "shading/dof_gather.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -22,34 +22,34 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-post::DofLens lens_50mm_f2()
+shading::DofLens lens_50mm_f2()
 {
     return {2.0f, 5.0f, 50.0f, 36.0f};
 }
 
 TEST(Dof, CocFormulaHandValues)
 {
-    const post::DofLens l = lens_50mm_f2();
+    const shading::DofLens l = lens_50mm_f2();
     // A = 25 mm, f = 50 mm, s = 5000 mm, 1000 px over 36 mm.
     // z = 10 m: 25 * 50 * 5000 / (10000 * 4950) mm = 0.126263 mm = 3.50730 px.
-    EXPECT_NEAR(post::coc_diameter_px(l, 10.0f, 1000), 3.50730f, 1e-4f);
+    EXPECT_NEAR(shading::coc_diameter_px(l, 10.0f, 1000), 3.50730f, 1e-4f);
     // z = 2.5 m: -25 * 50 * 2500 / (2500 * 4950) mm = -0.252525 mm = -7.01459 px.
-    EXPECT_NEAR(post::coc_diameter_px(l, 2.5f, 1000), -7.01459f, 1e-4f);
-    EXPECT_NEAR(post::coc_diameter_px(l, kInf, 1000), 7.01459f, 1e-4f);
-    EXPECT_EQ(post::coc_diameter_px(l, 5.0f, 1000), 0.0f);
+    EXPECT_NEAR(shading::coc_diameter_px(l, 2.5f, 1000), -7.01459f, 1e-4f);
+    EXPECT_NEAR(shading::coc_diameter_px(l, kInf, 1000), 7.01459f, 1e-4f);
+    EXPECT_EQ(shading::coc_diameter_px(l, 5.0f, 1000), 0.0f);
     // Scales with the image width and the square of the focal length over N.
-    EXPECT_NEAR(post::coc_diameter_px(l, 10.0f, 2000), 2.0f * 3.50730f, 2e-4f);
+    EXPECT_NEAR(shading::coc_diameter_px(l, 10.0f, 2000), 2.0f * 3.50730f, 2e-4f);
 }
 
 TEST(Dof, CocFieldMatchesFormulaAndClamps)
 {
-    const post::DofLens l = lens_50mm_f2();
+    const shading::DofLens l = lens_50mm_f2();
     Image depth(4, 1, 1);
     depth.at(0, 0, 0) = 10.0f;
     depth.at(1, 0, 0) = kInf;
     depth.at(2, 0, 0) = kNaN;
     depth.at(3, 0, 0) = -1.0f;
-    post::CocField c = post::compute_coc(depth, l, 3.0f);
+    shading::CocField c = shading::compute_coc(depth, l, 3.0f);
     EXPECT_NEAR(c.radius[0], 0.5f * 3.50730f, 1e-4f);
     EXPECT_NEAR(c.radius[1], 3.0f, 0.0f);   // far limit 3.5 px, clamped to 3
     EXPECT_EQ(c.radius[2], 0.0f);           // NaN depth: left sharp
@@ -58,20 +58,20 @@ TEST(Dof, CocFieldMatchesFormulaAndClamps)
 
 TEST(Dof, TileDilationReachesNeighbours)
 {
-    post::CocField c;
+    shading::CocField c;
     c.width = 64;
     c.height = 16;
     c.tiles_x = 4;
     c.tiles_y = 1;
     c.radius.assign(64 * 16, 0.0f);
     c.radius[20] = -20.0f;  // tile 1 holds a 20 px near radius
-    post::reduce_tiles(c);
+    shading::reduce_tiles(c);
     EXPECT_EQ(c.tile_max[1], 20.0f);
     EXPECT_EQ(c.gather[0], 20.0f);
     EXPECT_EQ(c.gather[2], 20.0f);
     EXPECT_EQ(c.gather[3], 20.0f);  // one tile between: 20 >= 16
     c.radius[20] = -10.0f;
-    post::reduce_tiles(c);
+    shading::reduce_tiles(c);
     EXPECT_EQ(c.gather[2], 10.0f);
     EXPECT_EQ(c.gather[3], 0.0f);  // 10 px cannot cross a whole 16 px tile
 }
@@ -97,15 +97,15 @@ TEST(Dof, NearFieldSpreadsOverSharpBackground)
 {
     Image color, depth, out;
     two_walls(256, 48, color, depth);
-    post::DofLens l = lens_50mm_f2();
+    shading::DofLens l = lens_50mm_f2();
     l.fstop = 1.0f;
     l.focus_m = 20.0f;  // background sharp, near wall blurred
-    const float r = 0.5f * std::fabs(post::coc_diameter_px(l, 2.0f, 256));
+    const float r = 0.5f * std::fabs(shading::coc_diameter_px(l, 2.0f, 256));
     ASSERT_GT(r, 3.5f);
     for (bool half : {true, false}) {
-        post::DofSettings s;
+        shading::DofSettings s;
         s.half_res = half;
-        ASSERT_TRUE(post::apply_dof(color, depth, l, s, out));
+        ASSERT_TRUE(shading::apply_dof(color, depth, l, s, out));
         // 1.5 px right of the edge the red near wall covers ~27 % of the lens (disc segment).
         float red = 0.0f;
         for (int y = 0; y < 48; ++y) {
@@ -122,13 +122,13 @@ TEST(Dof, FarFieldDoesNotBleedOverSharpForeground)
 {
     Image color, depth, out;
     two_walls(256, 48, color, depth);
-    post::DofLens l = lens_50mm_f2();
+    shading::DofLens l = lens_50mm_f2();
     l.fstop = 1.0f;
     l.focus_m = 2.0f;  // near wall sharp, background blurred
     for (bool half : {true, false}) {
-        post::DofSettings s;
+        shading::DofSettings s;
         s.half_res = half;
-        ASSERT_TRUE(post::apply_dof(color, depth, l, s, out));
+        ASSERT_TRUE(shading::apply_dof(color, depth, l, s, out));
         for (int y = 0; y < 48; ++y) {
             for (int x = 0; x < 128; ++x) {
                 ASSERT_FLOAT_EQ(out.at(x, y, 0), 1.0f) << x << "," << y << " half " << half;
@@ -144,17 +144,17 @@ TEST(Dof, ThreadCountIndependent)
 {
     Image color, depth, a, b;
     two_walls(200, 90, color, depth);
-    post::DofLens l = lens_50mm_f2();
+    shading::DofLens l = lens_50mm_f2();
     l.focus_m = 6.0f;
     for (int blades : {0, 6, -1}) {
-        post::DofSettings s;
+        shading::DofSettings s;
         s.blades = std::max(blades, 0);
         s.half_res = blades >= 0;
         s.rotation_deg = 15.0f;
         set_thread_count(1);
-        ASSERT_TRUE(post::apply_dof(color, depth, l, s, a));
+        ASSERT_TRUE(shading::apply_dof(color, depth, l, s, a));
         set_thread_count(2);
-        ASSERT_TRUE(post::apply_dof(color, depth, l, s, b));
+        ASSERT_TRUE(shading::apply_dof(color, depth, l, s, b));
         set_thread_count(0);
         EXPECT_TRUE(a.bit_equal(b)) << "blades " << blades;
     }
@@ -174,10 +174,10 @@ TEST(Dof, FlatFieldStaysFlatAndConservesEnergy)
         }
     }
     color.at(48, 48, 0) = 1000.0f;
-    post::DofLens l{1.0f, 1.0f, 50.0f, 36.0f};  // 7 px CoC at 96 px
-    post::DofSettings s;
+    shading::DofLens l{1.0f, 1.0f, 50.0f, 36.0f};  // 7 px CoC at 96 px
+    shading::DofSettings s;
     s.half_res = false;
-    ASSERT_TRUE(post::apply_dof(color, depth, l, s, out));
+    ASSERT_TRUE(shading::apply_dof(color, depth, l, s, out));
     double sum = 0.0;
     for (int y = 0; y < h; ++y) {
         for (int x = 0; x < w; ++x) {
@@ -244,11 +244,11 @@ TEST(Dof, ExtremeInputsStayFiniteAndBounded)
     for (const Case &c : {Case{0.5f, 5.0f, 64.0f, 64}, Case{1e6f, 5.0f, 64.0f, 64},
                           Case{2.0f, 0.05f, 64.0f, 64}, Case{2.0f, 5.0f, 0.0f, 64},
                           Case{2.0f, 5.0f, 4096.0f, 16}, Case{2.0f, 5.0f, 64.0f, 1}}) {
-        post::DofLens l{c.fstop, c.focus, 50.0f, 36.0f};
-        post::DofSettings s;
+        shading::DofLens l{c.fstop, c.focus, 50.0f, 36.0f};
+        shading::DofSettings s;
         s.max_coc_px = c.max_coc;
         s.samples = c.samples;
-        if (!post::apply_dof(color, depth, l, s, out)) {
+        if (!shading::apply_dof(color, depth, l, s, out)) {
             continue;  // pass-through of the input
         }
         for (std::size_t i = 0; i < out.value_count(); ++i) {

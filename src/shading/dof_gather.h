@@ -10,9 +10,9 @@
 #include <cstdint>
 
 #include "core/image.h"
-#include "post/dof_coc.h"
+#include "shading/dof_coc.h"
 
-namespace posthaste::post {
+namespace posthaste::shading {
 
 enum class DofMethod {
     Gather,  ///< Near/far separated gather (the node's default).
@@ -51,4 +51,4 @@ bool apply_dof(const Image &color,
                Image &out,
                DofTimes *times = nullptr);
 
-}  // namespace posthaste::post
+}  // namespace posthaste::shading

@@ -1,4 +1,4 @@
-#include "post/dof_coc.h"
+#include "shading/dof_coc.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 
 #include "core/parallel.h"
 
-namespace posthaste::post {
+namespace posthaste::shading {
 
 float coc_diameter_px(const DofLens &lens, float z_m, int width_px)
 {
@@ -113,4 +113,4 @@ void reduce_tiles(CocField &c)
     });
 }
 
-}  // namespace posthaste::post
+}  // namespace posthaste::shading

@@ -11,7 +11,7 @@
 
 #include "core/image.h"
 
-namespace posthaste::post {
+namespace posthaste::shading {
 
 /// Thin-lens parameters, in the units of the EXR header.
 struct DofLens {
@@ -49,4 +49,4 @@ CocField compute_coc(const Image &depth, const DofLens &lens, float max_radius_p
 /// max radius reaches t (|radius| >= the distance from t' to the nearest pixel of t).
 void reduce_tiles(CocField &field);
 
-}  // namespace posthaste::post
+}  // namespace posthaste::shading

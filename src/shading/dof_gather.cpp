@@ -1,4 +1,4 @@
-#include "post/dof_gather.h"
+#include "shading/dof_gather.h"
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 
-namespace posthaste::post {
+namespace posthaste::shading {
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -408,4 +408,4 @@ bool apply_dof(const Image &color,
     return true;
 }
 
-}  // namespace posthaste::post
+}  // namespace posthaste::shading
