@@ -94,13 +94,14 @@ struct Spiral {
         const glm::vec2 d0 = cx.dirs[std::size_t(i)];
         const float dx = d0.x * cj - d0.y * sj, dy = d0.x * sj + d0.y * cj;
         const float dist = radius * std::sqrt((float(i) + u) * inv_n);
-        float rr = dist;
+        float shape = 1.0f;
         if (cx.settings->blades >= 3) {
-            rr *= polygon_boundary(std::atan2(dy, dx) - cx.rotation, cx.settings->blades);
+            shape = polygon_boundary(std::atan2(dy, dx) - cx.rotation, cx.settings->blades);
         }
-        ox = int(std::lrint(rr * dx));
-        oy = int(std::lrint(rr * dy));
-        return dist;
+        ox = int(std::lrint(dist * shape * dx));
+        oy = int(std::lrint(dist * shape * dy));
+        // The distance of the pixel actually read (rounding moves it), shape-normalised.
+        return std::sqrt(float(ox * ox + oy * oy)) / shape;
     }
 };
 

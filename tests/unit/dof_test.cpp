@@ -49,11 +49,12 @@ TEST(Dof, CocFieldMatchesFormulaAndClamps)
     depth.at(1, 0, 0) = kInf;
     depth.at(2, 0, 0) = kNaN;
     depth.at(3, 0, 0) = -1.0f;
-    shading::CocField c = shading::compute_coc(depth, l, 3.0f);
-    EXPECT_NEAR(c.radius[0], 0.5f * 3.50730f, 1e-4f);
-    EXPECT_NEAR(c.radius[1], 3.0f, 0.0f);   // far limit 3.5 px, clamped to 3
-    EXPECT_EQ(c.radius[2], 0.0f);           // NaN depth: left sharp
-    EXPECT_EQ(c.radius[3], -3.0f);          // behind the lens: nearest possible
+    // 4 px wide: the z = 10 m radius is 3.5073 / 250 / 2 = 0.0070146 px, the far limit 0.014029.
+    shading::CocField c = shading::compute_coc(depth, l, 0.01f);
+    EXPECT_NEAR(c.radius[0], 0.5f * 3.50730f / 250.0f, 1e-6f);
+    EXPECT_EQ(c.radius[1], 0.01f);  // far limit, clamped
+    EXPECT_EQ(c.radius[2], 0.0f);   // NaN depth: left sharp
+    EXPECT_EQ(c.radius[3], -0.01f); // behind the lens: nearest possible
 }
 
 TEST(Dof, TileDilationReachesNeighbours)
@@ -208,7 +209,7 @@ TEST(Dof, NodeLargeFstopGivesInputBack)
     const Frame out = g.evaluate(1);
     EXPECT_TRUE(out.image("color").bit_equal(in.image("color")));
     // A wide aperture on the same frame does change it.
-    Graph open = Graph::parse(render_dof_graph(R"({"fstop": 1, "focus_distance": 3})"), "g.json");
+    Graph open = Graph::parse(render_dof_graph(R"({"fstop": 1, "focus_distance": 3, "focal_length_mm": 200})"), "g.json");
     open.set_capture("d");
     EXPECT_FALSE(open.evaluate(1).image("color").bit_equal(in.image("color")));
 }
