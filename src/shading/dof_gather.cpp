@@ -58,7 +58,7 @@ struct Context {
     const DofSettings *settings = nullptr;
     std::vector<glm::vec2> dirs;  // unit golden-angle directions, one per sample index
     float rotation = 0.0f;        // blade rotation, radians
-    float density = 1.5f;         // samples per square pixel of R^2
+    float density = 3.0f;         // samples per R^2
 };
 
 // The two layers at one pixel: the near field in front of it (average colour and coverage
@@ -71,9 +71,11 @@ struct Layers {
     glm::vec4 composite() const { return back * (1.0f - alpha) + front * alpha; }
 };
 
+// How much of a pixel at `distance` a CoC of `radius` covers: a one-pixel ramp centred on the
+// rim, so a CoC under half a pixel reaches no neighbour.
 inline float coverage(float radius, float distance)
 {
-    return std::clamp(radius - distance + 1.0f, 0.0f, 1.0f);
+    return std::clamp(radius - distance + 0.5f, 0.0f, 1.0f);
 }
 
 int sample_count(const Context &cx, float radius)
@@ -277,6 +279,7 @@ bool apply_dof(const Image &color,
 
     Context cx;
     cx.settings = &settings;
+    cx.density = settings.density;
     cx.rotation = settings.rotation_deg * (kTwoPi / 360.0f);
     cx.dirs.resize(std::size_t(std::max(settings.samples, 1)));
     for (std::size_t i = 0; i < cx.dirs.size(); ++i) {

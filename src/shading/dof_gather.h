@@ -22,6 +22,7 @@ enum class DofMethod {
 struct DofSettings {
     float max_coc_px = 64.0f;  ///< Largest CoC diameter, px.
     int samples = 64;          ///< Most samples per pixel; fewer where the CoC is small.
+    float density = 8.0f;      ///< Samples per R^2 (R: gather radius, px): ~2.5 per disc pixel.
     int blades = 0;            ///< 0: disc; >= 3: regular polygon.
     float rotation_deg = 0.0f;
     DofMethod method = DofMethod::Gather;
@@ -29,7 +30,7 @@ struct DofSettings {
     /// (full-resolution px), then composite at full resolution; smaller blurs stay full-res.
     bool half_res = true;
     float half_min_radius = 3.0f;
-    float half_density = 3.0f;  ///< Samples per R^2 (half-res px) at half resolution.
+    float half_density = 8.0f;  ///< Samples per R^2 (half-res px) at half resolution.
     std::uint32_t seed = 0;
 };
 

@@ -8,12 +8,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <functional>
 #include <limits>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "io/image_file.h"
 #include "metrics/metrics.h"
 #include "shading/dof_gather.h"
 #include "raster/render.h"
@@ -119,8 +121,33 @@ struct Errors {
     float max_coc_px;
 };
 
-Errors measure(const Rendered &r, const shading::DofSettings &settings, const std::string &name)
+// POSTHASTE_DOF_DUMP=dir: write PNG previews (clamped, gamma 2.2) of each case's images there.
+void dump(const std::string &name, const std::string &what, const Image &img)
 {
+    const char *dir = std::getenv("POSTHASTE_DOF_DUMP");
+    if (!dir) {
+        return;
+    }
+    Image d(img.width(), img.height(), 3);
+    for (int y = 0; y < img.height(); ++y) {
+        for (int x = 0; x < img.width(); ++x) {
+            for (int k = 0; k < 3; ++k) {
+                d.at(x, y, k) = std::pow(std::clamp(img.at(x, y, k), 0.0f, 1.0f), 1.0f / 2.2f);
+            }
+        }
+    }
+    std::string file = name;
+    std::replace(file.begin(), file.end(), ' ', '_');
+    std::replace(file.begin(), file.end(), ',', '_');
+    write_preview(d, std::string(dir) + "/" + file + "_" + what + ".png", false);
+}
+
+Errors measure(const Rendered &r, shading::DofSettings settings, const std::string &name)
+{
+    if (std::getenv("XDOF_FULL")) settings.half_res = false;
+    if (std::getenv("XDOF_SAMPLES")) settings.samples = std::atoi(std::getenv("XDOF_SAMPLES"));
+    if (std::getenv("XDOF_D")) settings.density = std::atof(std::getenv("XDOF_D"));
+    if (std::getenv("XDOF_HD")) settings.half_density = std::atof(std::getenv("XDOF_HD"));
     const Image &color = r.frame.image("color");
     const Image &depth = r.frame.image("depth");
     const shading::DofLens lens = lens_of(r.frame.camera);
@@ -136,6 +163,29 @@ Errors measure(const Rendered &r, const shading::DofSettings &settings, const st
         out_simple = color;
     }
     expect_finite_bounded(out_node, color, name);
+    dump(name, "node", out_node);
+    dump(name, "simple", out_simple);
+    dump(name, "truth", r.truth);
+    dump(name, "none", color);
+    if (std::getenv("POSTHASTE_DOF_DUMP")) {
+        Image err(color.width(), color.height(), 3);
+        double sum_sq = 0.0, sum_sq_hot = 0.0;
+        for (int y = 0; y < color.height(); ++y) {
+            for (int x = 0; x < color.width(); ++x) {
+                for (int k = 0; k < 3; ++k) {
+                    const float d = out_node.at(x, y, k) - r.truth.at(x, y, k);
+                    err.at(x, y, k) = std::fabs(d) * 8.0f;
+                    sum_sq += double(d) * d;
+                    if (r.truth.at(x, y, k) > 2.0f || color.at(x, y, k) > 2.0f) {
+                        sum_sq_hot += double(d) * d;
+                    }
+                }
+            }
+        }
+        std::printf("  %s: share of squared error at values > 2: %.1f %%\n", name.c_str(),
+                    100.0 * sum_sq_hot / sum_sq);
+        dump(name, "err8", err);
+    }
     e.none = rmse(color, r.truth);
     e.simple = rmse(out_simple, r.truth);
     e.node = rmse(out_node, r.truth);
@@ -164,7 +214,10 @@ void print_header()
                 "node removes | truth N vs 2N |\n");
 }
 
-constexpr int kW = 960, kH = 540;
+// 960x540; POSTHASTE_DOF_WIDTH overrides the width (16:9) for quick local runs.
+const int kW = std::getenv("POSTHASTE_DOF_WIDTH") ? std::atoi(std::getenv("POSTHASTE_DOF_WIDTH"))
+                                                  : 960;
+const int kH = kW * 9 / 16;
 
 // The default scene's close-up (frames 36-48: 50-55 mm, f/1.8-f/1.4, focus 6-6.5 m).
 TEST(DofAccuracySlow, DefaultSceneCloseUp)
