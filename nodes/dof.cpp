@@ -32,9 +32,9 @@ constexpr ParamSpec kRotation = ParamSpec::real("rotation_deg", 0.0).range(-360.
     "deg").doc("Rotation of the polygonal aperture.");
 constexpr ParamSpec kMethod = ParamSpec::choice("method", "gather|simple", "gather").doc(
     "gather: near/far separated gather; simple: baseline disc blur of each pixel's own CoC.");
-constexpr ParamSpec kResolution = ParamSpec::choice("resolution", "half|full", "half").doc(
-    "half: gather blurs of 3 px radius and more at half resolution, composite at full; full: "
-    "gather every pixel at full resolution (slower, a little sharper).");
+constexpr ParamSpec kResolution = ParamSpec::choice("resolution", "full|half", "full").doc(
+    "full: gather every pixel at full resolution; half: gather blurs of 3 px radius and more at "
+    "half resolution and composite at full (faster, noisier highlights).");
 constexpr ParamSpec kParams[] = {kFstop, kFocus, kFocal, kSensor, kMaxCoc, kSamples,
                                  kBlades, kRotation, kMethod, kResolution};
 constexpr PortSpec kInputs[] = {
@@ -76,7 +76,7 @@ void execute(NodeContext &ctx)
     s.blades = ctx.get_int(kBlades);
     s.rotation_deg = ctx.get_float(kRotation);
     s.method = ctx.get_choice(kMethod) == 0 ? shading::DofMethod::Gather : shading::DofMethod::Simple;
-    s.half_res = ctx.get_choice(kResolution) == 0;
+    s.half_res = ctx.get_choice(kResolution) == 1;
     Image out;
     if (!shading::apply_dof(color, depth, lens, s, out)) {
         return;  // everything in focus: the output frame already shares the input's color

@@ -64,19 +64,23 @@ void reduce_tiles(CocField &c)
     c.tile_max.assign(std::size_t(nt), 0.0f);
     c.tile_min.assign(std::size_t(nt), 0.0f);
     c.gather.assign(std::size_t(nt), 0.0f);
+    c.near_gather.assign(std::size_t(nt), 0.0f);
+    std::vector<float> near_max(std::size_t(nt), 0.0f);
     parallel_for(0, nt, [&](int i) {
         const int tx = i % c.tiles_x, ty = i / c.tiles_x;
         const int x0 = tx * c.tile, y0 = ty * c.tile;
         const int x1 = std::min(x0 + c.tile, c.width), y1 = std::min(y0 + c.tile, c.height);
-        float mx = 0.0f, mn = std::numeric_limits<float>::infinity();
+        float mx = 0.0f, mn = std::numeric_limits<float>::infinity(), nmx = 0.0f;
         for (int y = y0; y < y1; ++y) {
             const float *row = c.radius.data() + std::size_t(y) * std::size_t(c.width);
             for (int x = x0; x < x1; ++x) {
                 const float a = std::fabs(row[x]);
                 mx = std::max(mx, a);
                 mn = std::min(mn, a);
+                nmx = std::max(nmx, -row[x]);
             }
         }
+        near_max[std::size_t(i)] = nmx;
         c.tile_max[std::size_t(i)] = mx;
         c.tile_min[std::size_t(i)] = mn;
     });
@@ -91,7 +95,7 @@ void reduce_tiles(CocField &c)
                                std::max(c.tiles_x, c.tiles_y));
     parallel_for(0, nt, [&](int i) {
         const int tx = i % c.tiles_x, ty = i / c.tiles_x;
-        float g = c.tile_max[std::size_t(i)];
+        float g = c.tile_max[std::size_t(i)], gn = near_max[std::size_t(i)];
         for (int dy = -reach; dy <= reach; ++dy) {
             const int uy = ty + dy;
             if (uy < 0 || uy >= c.tiles_y) {
@@ -103,13 +107,19 @@ void reduce_tiles(CocField &c)
                     continue;
                 }
                 const float r = c.tile_max[std::size_t(uy * c.tiles_x + ux)];
-                const int k = std::max(std::abs(dx), std::abs(dy));
-                if (r > g && r >= float(std::max(k - 1, 0) * c.tile)) {
+                const float rn = near_max[std::size_t(uy * c.tiles_x + ux)];
+                const float gap = float(std::max(std::max(std::abs(dx), std::abs(dy)) - 1, 0) *
+                                        c.tile);
+                if (r > g && r >= gap) {
                     g = r;
+                }
+                if (rn > gn && rn >= gap) {
+                    gn = rn;
                 }
             }
         }
         c.gather[std::size_t(i)] = g;
+        c.near_gather[std::size_t(i)] = gn;
     });
 }
 

@@ -36,6 +36,7 @@ struct CocField {
     std::vector<float> tile_max;   ///< Max |radius| in the tile.
     std::vector<float> tile_min;   ///< Min |radius| in the tile.
     std::vector<float> gather;     ///< Dilated: the largest |radius| of any tile that can reach it.
+    std::vector<float> near_gather;  ///< Dilated like gather, over near-field (negative) radii only.
     float max_radius = 0.0f;       ///< Largest |radius| in the image.
 };
 
@@ -45,8 +46,9 @@ struct CocField {
 /// empty: call reduce_tiles next.
 CocField compute_coc(const Image &depth, const DofLens &lens, float max_radius_px);
 
-/// Fill tile_max / tile_min and the dilated gather radius: gather(t) = max over tiles t' whose
-/// max radius reaches t (|radius| >= the distance from t' to the nearest pixel of t).
+/// Fill tile_max / tile_min and the dilated gather radii: gather(t) = max over tiles t' whose
+/// max radius reaches t (|radius| >= the distance from t' to the nearest pixel of t); near_gather
+/// the same over the near field's radii (-radius where radius < 0).
 void reduce_tiles(CocField &field);
 
 }  // namespace posthaste::shading

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include <glm/vec2.hpp>
@@ -22,16 +24,23 @@ double ms_since(Clock::time_point t0)
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+// CPU time of the whole process (every thread), ms: on a shared machine the wall time of a pass
+// depends on other load, its CPU time much less.
+double process_cpu_ms()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
 constexpr float kGoldenAngle = 2.39996323f;
 constexpr float kTwoPi = 6.28318531f;
 constexpr float kHalfMax = 65504.0f;  // largest half: what an EXR can hold anyway
 
-float sanitize(float v)
+inline float sanitize(float v)
 {
-    if (std::isnan(v)) {
-        return 0.0f;
-    }
-    return std::clamp(v, -kHalfMax, kHalfMax);
+    // NaN fails both comparisons of a clamp: test it first (v != v for NaN).
+    return v == v ? std::min(std::max(v, -kHalfMax), kHalfMax) : 0.0f;
 }
 
 // A regular n-gon inscribed in the unit circle: its boundary's distance from the centre in
@@ -54,12 +63,93 @@ struct Level {
     int width = 0, height = 0;
 };
 
+// Sample patterns, precomputed per quantised gather radius: kVariants rotated and radially
+// jittered golden-angle spirals of n = clamp(density R^2) taps (disc, or polygon by the blade
+// shape), each tap an integer pixel offset and the shape-normalised distance of the pixel it
+// reads. A pixel picks its variant by hash(x, y), so the noise is the same for any thread count.
+constexpr int kVariants = 16;
+
+struct Tap {
+    std::int16_t dx, dy;
+    float dist;
+};
+
+class Patterns {
+  public:
+    void build(float max_radius, const DofSettings &st, float density)
+    {
+        radii_.clear();
+        for (float r = 0.25f;; r += std::max(0.25f, r / 32.0f)) {
+            radii_.push_back(r);
+            if (r >= max_radius) {
+                break;
+            }
+        }
+        const int cap = std::max(st.samples, 1);
+        n_.resize(radii_.size());
+        start_.resize(radii_.size());
+        std::size_t total = 0;
+        for (std::size_t k = 0; k < radii_.size(); ++k) {
+            const float r = radii_[k];
+            const float n = std::min(std::ceil(density * r * r), 1e6f);
+            n_[k] = std::clamp(int(n), std::min(6, cap), cap);
+            start_[k] = total;
+            total += std::size_t(n_[k]) * kVariants;
+        }
+        taps_.resize(total);
+        const float rotation = st.rotation_deg * (kTwoPi / 360.0f);
+        parallel_for(0, int(radii_.size()), [&](int k) {
+            const float r = radii_[std::size_t(k)];
+            const int n = n_[std::size_t(k)];
+            for (int v = 0; v < kVariants; ++v) {
+                const float u = (float(v) + 0.5f) / float(kVariants);
+                const float phi = kTwoPi * std::fmod(float(v) * 0.618034f, 1.0f);
+                Tap *t = taps_.data() + start_[std::size_t(k)] + std::size_t(v * n);
+                for (int i = 0; i < n; ++i) {
+                    const float a = kGoldenAngle * float(i) + phi;
+                    const float dx = std::cos(a), dy = std::sin(a);
+                    const float dist = r * std::sqrt((float(i) + u) / float(n));
+                    const float shape = st.blades >= 3
+                                            ? polygon_boundary(a - rotation, st.blades)
+                                            : 1.0f;
+                    const int ox = int(std::lrint(dist * shape * dx));
+                    const int oy = int(std::lrint(dist * shape * dy));
+                    t[i].dx = std::int16_t(std::clamp(ox, -32767, 32767));
+                    t[i].dy = std::int16_t(std::clamp(oy, -32767, 32767));
+                    t[i].dist = std::sqrt(float(ox * ox + oy * oy)) / shape;
+                }
+            }
+        });
+    }
+    /// The smallest quantised radius >= r (or the largest there is).
+    int level(float r) const
+    {
+        const auto it = std::lower_bound(radii_.begin(), radii_.end(), r);
+        return it == radii_.end() ? int(radii_.size()) - 1 : int(it - radii_.begin());
+    }
+    float radius(int k) const { return radii_[std::size_t(k)]; }
+    int count(int k) const { return n_[std::size_t(k)]; }
+    const Tap *taps(int k, int variant) const
+    {
+        return taps_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
+    }
+
+  private:
+    std::vector<float> radii_;
+    std::vector<int> n_;
+    std::vector<std::size_t> start_;
+    std::vector<Tap> taps_;
+};
+
 struct Context {
     const DofSettings *settings = nullptr;
-    std::vector<glm::vec2> dirs;  // unit golden-angle directions, one per sample index
-    float rotation = 0.0f;        // blade rotation, radians
-    float density = 3.0f;         // samples per R^2
+    Patterns patterns;
 };
+
+inline int variant_of(const Context &cx, int x, int y, std::uint32_t which)
+{
+    return int(hash4(std::uint32_t(x), std::uint32_t(y), which, cx.settings->seed) >> 28);
+}
 
 // The two layers at one pixel: the near field in front of it (average colour and coverage
 // alpha) and what lies behind (average colour). Composite: back (1 - alpha) + front alpha.
@@ -78,42 +168,6 @@ inline float coverage(float radius, float distance)
     return std::clamp(radius - distance + 0.5f, 0.0f, 1.0f);
 }
 
-int sample_count(const Context &cx, float radius)
-{
-    const int max_samples = cx.settings->samples;
-    const float n = std::ceil(cx.density * radius * radius);
-    return std::clamp(int(std::min(n, 1e6f)), std::min(6, max_samples), max_samples);
-}
-
-// Sample i of n on the jittered spiral: pixel offset (ox, oy) and its shape-normalised
-// distance from the centre (the CoC radius a point needs to reach the centre).
-struct Spiral {
-    const Context &cx;
-    float radius, u, cj, sj, inv_n;
-
-    float offset(int i, int &ox, int &oy) const
-    {
-        const glm::vec2 d0 = cx.dirs[std::size_t(i)];
-        const float dx = d0.x * cj - d0.y * sj, dy = d0.x * sj + d0.y * cj;
-        const float dist = radius * std::sqrt((float(i) + u) * inv_n);
-        float shape = 1.0f;
-        if (cx.settings->blades >= 3) {
-            shape = polygon_boundary(std::atan2(dy, dx) - cx.rotation, cx.settings->blades);
-        }
-        ox = int(std::lrint(dist * shape * dx));
-        oy = int(std::lrint(dist * shape * dy));
-        // The distance of the pixel actually read (rounding moves it), shape-normalised.
-        return std::sqrt(float(ox * ox + oy * oy)) / shape;
-    }
-};
-
-Spiral make_spiral(const Context &cx, int x, int y, float radius, int n)
-{
-    const std::uint32_t seed = cx.settings->seed;
-    const float phi = kTwoPi * hash_unit(x, y, 1, seed);
-    return {cx, radius, hash_unit(x, y, 0, seed), std::cos(phi), std::sin(phi), 1.0f / float(n)};
-}
-
 // Baseline: a uniform disc (or polygon) of the pixel's own CoC, no depth test.
 glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
 {
@@ -122,29 +176,31 @@ glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
     if (radius < 0.5f) {
         return lv.color[ip];
     }
-    const int n = sample_count(cx, radius);
-    const Spiral sp = make_spiral(cx, x, y, radius, n);
+    const int k = cx.patterns.level(radius);
+    const int n = cx.patterns.count(k);
+    const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
     glm::vec4 sum = lv.color[ip];
     for (int i = 0; i < n; ++i) {
-        int ox, oy;
-        sp.offset(i, ox, oy);
-        const int qx = std::clamp(x + ox, 0, lv.width - 1);
-        const int qy = std::clamp(y + oy, 0, lv.height - 1);
+        const int qx = std::clamp(x + taps[i].dx, 0, lv.width - 1);
+        const int qy = std::clamp(y + taps[i].dy, 0, lv.height - 1);
         sum += lv.color[std::size_t(qy) * std::size_t(lv.width) + std::size_t(qx)];
     }
     return sum / float(n + 1);
 }
 
-Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float radius)
+// Near/far gather at one pixel. The background (everything not in front of p in the near
+// field) only reaches p within p's own CoC (weights use min(|c_q|, |c_p|) behind p, and
+// |c_q| < |c_p| in front), so it is gathered over |c_p|; the near field can reach from as far
+// as the tile neighbourhood's largest near CoC, `near_radius`, and is gathered over that.
+Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float near_radius)
 {
     const int w = lv.width, h = lv.height;
     const std::size_t ip = std::size_t(y) * std::size_t(w) + std::size_t(x);
     const float cp = lv.coc[ip];
     const float acp = std::fabs(cp);
-    const int n = sample_count(cx, radius);
-    const Spiral sp = make_spiral(cx, x, y, radius, n);
-
     const bool p_near = cp < -0.5f;
+    const auto in_front = [cp](float cq) { return cq < -0.5f && cq <= cp + 1.0f; };
+
     // The pixel itself: part of the near layer when it is in the near field.
     const float w_self = 1.0f / std::max(cp * cp, 1.0f);
     glm::vec4 front(0.0f), back(0.0f);
@@ -157,32 +213,49 @@ Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float rad
         back = lv.color[ip] * w_self;
         back_w = w_self;
     }
-    // Each sample stands for R^2 / n of the kernel's area (in units of the unit shape's area),
-    // a near sample's footprint is |c_q|^2 of them: alpha = sum cov * (R^2 / n) / c_q^2.
-    const float sample_area = radius * radius * sp.inv_n;
-    for (int i = 0; i < n; ++i) {
-        int ox, oy;
-        const float dist = sp.offset(i, ox, oy);
-        const int qx = std::clamp(x + ox, 0, w - 1);
-        const int qy = std::clamp(y + oy, 0, h - 1);
-        const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
-        const float cq = lv.coc[iq];
-        const float acq = std::fabs(cq);
-        if (cq < -0.5f && cq <= cp + 1.0f) {
+    if (acp >= 0.5f) {
+        const int k = cx.patterns.level(acp);
+        const int n = cx.patterns.count(k);
+        const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
+        for (int i = 0; i < n; ++i) {
+            const int qx = std::clamp(x + taps[i].dx, 0, w - 1);
+            const int qy = std::clamp(y + taps[i].dy, 0, h - 1);
+            const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
+            const float cq = lv.coc[iq];
+            if (in_front(cq)) {
+                continue;  // the near loop below
+            }
+            // Behind p: limited by p's own CoC (a far field never bleeds over a sharper
+            // foreground); seen through a near-field p, the background within p's disc shows.
+            const float acq = std::fabs(cq);
+            const float r_eff = cq > cp ? (p_near ? acp : std::min(acq, acp)) : acq;
+            const float wgt = coverage(r_eff, taps[i].dist) / std::max(r_eff * r_eff, 1.0f);
+            back += lv.color[iq] * wgt;
+            back_w += wgt;
+        }
+    }
+    if (near_radius >= 0.5f) {
+        const int k = cx.patterns.level(near_radius);
+        const int n = cx.patterns.count(k);
+        const float r = cx.patterns.radius(k);
+        const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 1));
+        // Each sample stands for R^2 / n of the kernel's area (in units of the unit shape's
+        // area), a near sample's footprint is |c_q|^2 of them: alpha = sum cov (R^2 / n) / c_q^2.
+        const float sample_area = r * r / float(n);
+        for (int i = 0; i < n; ++i) {
+            const int qx = std::clamp(x + taps[i].dx, 0, w - 1);
+            const int qy = std::clamp(y + taps[i].dy, 0, h - 1);
+            const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
+            const float cq = lv.coc[iq];
+            if (!in_front(cq)) {
+                continue;
+            }
             // Near field in front of p: spreads with its own CoC over whatever is behind.
-            const float cov = coverage(acq, dist);
-            const float inv_area = 1.0f / (acq * acq);
+            const float cov = coverage(-cq, taps[i].dist);
+            const float inv_area = 1.0f / (cq * cq);
             front += lv.color[iq] * (cov * inv_area);
             front_w += cov * inv_area;
             alpha += cov * inv_area * sample_area;
-        }
-        else {
-            // Behind p: limited by p's own CoC (a far field never bleeds over a sharper
-            // foreground); seen through a near-field p, the background within p's disc shows.
-            const float r_eff = cq > cp ? (p_near ? acp : std::min(acq, acp)) : acq;
-            const float wgt = coverage(r_eff, dist) / std::max(r_eff * r_eff, 1.0f);
-            back += lv.color[iq] * wgt;
-            back_w += wgt;
         }
     }
     Layers l;
@@ -247,12 +320,16 @@ bool apply_dof(const Image &color,
 {
     DofTimes tm;
     auto t0 = Clock::now();
+    double c0 = process_cpu_ms();
     const float max_radius = 0.5f * std::max(settings.max_coc_px, 0.0f);
     CocField field = compute_coc(depth, lens, max_radius);
     tm.coc_ms = ms_since(t0);
+    tm.coc_cpu_ms = process_cpu_ms() - c0;
     t0 = Clock::now();
+    c0 = process_cpu_ms();
     reduce_tiles(field);
     tm.tiles_ms = ms_since(t0);
+    tm.tiles_cpu_ms = process_cpu_ms() - c0;
     if (field.max_radius < 0.5f) {
         if (times) {
             *times = tm;
@@ -261,36 +338,37 @@ bool apply_dof(const Image &color,
     }
 
     t0 = Clock::now();
+    c0 = process_cpu_ms();
     const int w = color.width(), h = color.height(), nc = color.channels();
-    std::vector<glm::vec4> col(color.pixel_count());
+    std::unique_ptr<glm::vec4[]> col(new glm::vec4[color.pixel_count()]);  // all written
     parallel_for_tiles(color.bounds(), [&](const Rect &t) {
         for (int y = t.y0; y < t.y1; ++y) {
             for (int x = t.x0; x < t.x1; ++x) {
                 const float *p = color.pixel(x, y);
                 glm::vec4 v(0.0f);
-                for (int k = 0; k < std::min(nc, 4); ++k) {
-                    v[k] = sanitize(p[k]);
+                if (nc >= 4) {
+                    v = glm::vec4(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]), sanitize(p[3]));
+                }
+                else {
+                    for (int k = 0; k < nc; ++k) {
+                        v[k] = sanitize(p[k]);
+                    }
                 }
                 col[std::size_t(y) * std::size_t(w) + std::size_t(x)] = v;
             }
         }
     });
-    tm.coc_ms += ms_since(t0);
 
     Context cx;
     cx.settings = &settings;
-    cx.density = settings.density;
-    cx.rotation = settings.rotation_deg * (kTwoPi / 360.0f);
-    cx.dirs.resize(std::size_t(std::max(settings.samples, 1)));
-    for (std::size_t i = 0; i < cx.dirs.size(); ++i) {
-        const float a = kGoldenAngle * float(i);
-        cx.dirs[i] = {std::cos(a), std::sin(a)};
-    }
-    const Level full{col.data(), field.radius.data(), w, h};
+    cx.patterns.build(field.max_radius, settings, settings.density);
+    tm.coc_ms += ms_since(t0);
+    tm.coc_cpu_ms += process_cpu_ms() - c0;
+    const Level full{col.get(), field.radius.data(), w, h};
     const bool simple = settings.method == DofMethod::Simple;
     const bool half = settings.half_res && !simple;
-    const auto tile_radius = [&](int x, int y) {
-        return field.gather[std::size_t((y / field.tile) * field.tiles_x + x / field.tile)];
+    const auto tile_of = [&](int x, int y) {
+        return std::size_t((y / field.tile) * field.tiles_x + x / field.tile);
     };
 
     // Half resolution: each 2x2 block keeps its nearest CoC (halved) and the mean colour of the
@@ -301,6 +379,7 @@ bool apply_dof(const Image &color,
     std::vector<float> coc2, alpha2;
     if (half) {
         t0 = Clock::now();
+        c0 = process_cpu_ms();
         col2.resize(std::size_t(w2) * std::size_t(h2));
         coc2.resize(col2.size());
         parallel_for_tiles(Rect{0, 0, w2, h2}, [&](const Rect &t) {
@@ -332,18 +411,22 @@ bool apply_dof(const Image &color,
             }
         });
         tm.coc_ms += ms_since(t0);
+        tm.coc_cpu_ms += process_cpu_ms() - c0;
 
         t0 = Clock::now();
+        c0 = process_cpu_ms();
         const Level lv{col2.data(), coc2.data(), w2, h2};
         back2.resize(col2.size());
         front2.resize(col2.size());
         alpha2.resize(col2.size());
-        Context cx2 = cx;
-        cx2.density = settings.half_density;
+        Context cx2;
+        cx2.settings = &settings;
+        cx2.patterns.build(0.5f * field.max_radius, settings, settings.half_density);
         parallel_for_tiles(
             Rect{0, 0, w2, h2},
             [&](const Rect &t) {
-                const float radius = 0.5f * tile_radius(2 * t.x0, 2 * t.y0);
+                const float radius = 0.5f * field.gather[tile_of(2 * t.x0, 2 * t.y0)];
+                const float near_radius = 0.5f * field.near_gather[tile_of(2 * t.x0, 2 * t.y0)];
                 for (int y = t.y0; y < t.y1; ++y) {
                     for (int x = t.x0; x < t.x1; ++x) {
                         const std::size_t o = std::size_t(y) * w2 + x;
@@ -352,7 +435,7 @@ bool apply_dof(const Image &color,
                             l.back = col2[o];
                         }
                         else {
-                            l = gather_layers(cx2, lv, x, y, std::max(radius, 0.5f));
+                            l = gather_layers(cx2, lv, x, y, near_radius);
                         }
                         back2[o] = l.back;
                         front2[o] = l.front * l.alpha;
@@ -362,11 +445,13 @@ bool apply_dof(const Image &color,
             },
             field.tile / 2);
         tm.gather_ms += ms_since(t0);
+        tm.gather_cpu_ms += process_cpu_ms() - c0;
     }
 
     // Full resolution: copy in-focus tiles, gather small-CoC tiles here, and composite the
     // half-resolution layers elsewhere.
     t0 = Clock::now();
+    c0 = process_cpu_ms();
     out = Image::uninitialized(w, h, nc);
     std::vector<std::uint8_t> gathered(std::size_t(field.tiles_x * field.tiles_y), 0);
     parallel_for_tiles(
@@ -374,6 +459,7 @@ bool apply_dof(const Image &color,
         [&](const Rect &t) {
             const int ti = (t.y0 / field.tile) * field.tiles_x + t.x0 / field.tile;
             const float radius = field.gather[std::size_t(ti)];
+            const float near_radius = field.near_gather[std::size_t(ti)];
             const bool copy = radius < 0.5f && !simple;
             const bool use_half = half && radius >= settings.half_min_radius;
             gathered[std::size_t(ti)] = copy ? 0 : 1;
@@ -391,7 +477,7 @@ bool apply_dof(const Image &color,
                         v = composite_half(full, x, y, w2, h2, coc2, back2, front2, alpha2);
                     }
                     else {
-                        v = gather_layers(cx, full, x, y, radius).composite();
+                        v = gather_layers(cx, full, x, y, near_radius).composite();
                     }
                     float *o = out.pixel(x, y);
                     for (int k = 0; k < nc; ++k) {
@@ -403,6 +489,7 @@ bool apply_dof(const Image &color,
         },
         field.tile);
     tm.composite_ms = ms_since(t0);
+    tm.composite_cpu_ms = process_cpu_ms() - c0;
     for (std::uint8_t g : gathered) {
         (g ? tm.tiles_gathered : tm.tiles_copied) += 1;
     }

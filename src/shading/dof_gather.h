@@ -28,15 +28,19 @@ struct DofSettings {
     DofMethod method = DofMethod::Gather;
     /// Gather at half resolution where the tile's gather radius is at least half_min_radius
     /// (full-resolution px), then composite at full resolution; smaller blurs stay full-res.
-    bool half_res = true;
+    bool half_res = false;
     float half_min_radius = 3.0f;
     float half_density = 8.0f;  ///< Samples per R^2 (half-res px) at half resolution.
     std::uint32_t seed = 0;
 };
 
-/// Milliseconds per pass of the last call.
+/// Milliseconds per pass of the last call: wall time, and process CPU time (all threads).
+/// coc: CoC, colour sanitising and the half-resolution downsample; tiles: tile max/min and
+/// dilation; gather: the half-resolution near/far gather; composite: the full-resolution pass
+/// (copies in-focus tiles, gathers small-CoC tiles, composites the half-resolution layers).
 struct DofTimes {
     double coc_ms = 0, tiles_ms = 0, gather_ms = 0, composite_ms = 0;
+    double coc_cpu_ms = 0, tiles_cpu_ms = 0, gather_cpu_ms = 0, composite_cpu_ms = 0;
     int tiles_copied = 0, tiles_gathered = 0;  ///< 16 x 16 px tiles.
 };
 

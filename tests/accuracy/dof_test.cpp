@@ -142,12 +142,8 @@ void dump(const std::string &name, const std::string &what, const Image &img)
     write_preview(d, std::string(dir) + "/" + file + "_" + what + ".png", false);
 }
 
-Errors measure(const Rendered &r, shading::DofSettings settings, const std::string &name)
+Errors measure(const Rendered &r, const shading::DofSettings &settings, const std::string &name)
 {
-    if (std::getenv("XDOF_FULL")) settings.half_res = false;
-    if (std::getenv("XDOF_SAMPLES")) settings.samples = std::atoi(std::getenv("XDOF_SAMPLES"));
-    if (std::getenv("XDOF_D")) settings.density = std::atof(std::getenv("XDOF_D"));
-    if (std::getenv("XDOF_HD")) settings.half_density = std::atof(std::getenv("XDOF_HD"));
     const Image &color = r.frame.image("color");
     const Image &depth = r.frame.image("depth");
     const shading::DofLens lens = lens_of(r.frame.camera);
@@ -280,11 +276,119 @@ TEST(DofAccuracySlow, AnalyticScenes)
     };
     for (const Case &c : cases) {
         const Scene s = scene_with_lens(c.file, c.edit);
-        const Rendered r = render_case(s, 1, kW, kH, 64, true);
+        const Rendered r = render_case(s, 1, kW, kH, 256, true);
         const Errors e = measure(r, {}, c.name);
         EXPECT_LT(e.truth_conv, 0.25 * e.node) << c.name;
         EXPECT_LT(e.node, e.simple) << c.name;
         EXPECT_LT(e.node, c.max_ratio * e.none) << c.name;
+    }
+}
+
+// Failure cases at 480x270 (64 truth samples): each asserts finite output within the input's
+// range and records the error beside doing nothing.
+struct FailureCase {
+    const char *name, *file;
+    std::function<void(CameraKey &)> edit;
+    std::function<void(shading::DofSettings &)> settings;
+    bool corrupt = false;  // NaN / Inf written into color and depth
+};
+
+void near_over_sharp(CameraKey &k)
+{
+    k.position.z = 17.0f;
+    k.focal_length_mm = 50.0f;
+    k.fstop = 1.4f;
+    k.focus_distance = 23.0f;
+}
+
+TEST(DofFailureSlow, FiniteBoundedAndRecorded)
+{
+    const float inf = std::numeric_limits<float>::infinity();
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const auto keep = [](shading::DofSettings &) {};
+    const FailureCase cases[] = {
+        {"near field over sharp bg", "two_planes.json", near_over_sharp, keep},
+        {"depth edge: sharp cube, sky", "cube.json",
+         [](CameraKey &k) {
+             k.focal_length_mm = 50.0f;
+             k.fstop = 0.7f;
+             k.focus_distance = 10.0f;
+         },
+         keep},
+        {"sky (Z = +inf), thin pillars", "thin_sky.json",
+         [](CameraKey &k) {
+             k.focal_length_mm = 50.0f;
+             k.fstop = 1.0f;
+             k.focus_distance = 6.0f;
+         },
+         keep},
+        {"NaN/Inf in color and depth", "two_planes.json", near_over_sharp, keep, true},
+        {"focus at the near plane", "two_planes.json",
+         [](CameraKey &k) { k.focus_distance = 0.05f; }, keep},
+        {"f/0.5", "two_planes.json",
+         [](CameraKey &k) {
+             near_over_sharp(k);
+             k.fstop = 0.5f;
+         },
+         keep},
+        {"f/1e6", "two_planes.json",
+         [](CameraKey &k) {
+             near_over_sharp(k);
+             k.fstop = 1e6f;
+         },
+         keep},
+        {"max CoC 0", "two_planes.json", near_over_sharp,
+         [](shading::DofSettings &s) { s.max_coc_px = 0.0f; }},
+        {"max CoC 4096 at f/0.5", "two_planes.json",
+         [](CameraKey &k) {
+             near_over_sharp(k);
+             k.fstop = 0.5f;
+         },
+         [](shading::DofSettings &s) { s.max_coc_px = 4096.0f; }},
+    };
+    std::printf("| case | max CoC px | none RMSE | dof node RMSE | node removes |\n");
+    for (const FailureCase &c : cases) {
+        const Scene s = scene_with_lens(c.file, c.edit);
+        Rendered r = render_case(s, 1, 480, 270, 64, false);
+        Image color = r.frame.image("color");
+        Image depth = r.frame.image("depth");
+        if (c.corrupt) {
+            color.at(100, 100, 0) = nan;
+            color.at(300, 50, 1) = inf;
+            color.at(301, 50, 2) = -inf;
+            depth.at(240, 135, 0) = nan;
+            depth.at(200, 200, 0) = -inf;
+            depth.at(201, 200, 0) = 0.0f;
+            depth.at(400, 100, 0) = inf;
+        }
+        shading::DofSettings settings;
+        c.settings(settings);
+        const shading::DofLens lens = lens_of(r.frame.camera);
+        Image out;
+        const bool changed = shading::apply_dof(color, depth, lens, settings, out);
+        if (!changed) {
+            out = color;  // the node passes its input on
+        }
+        expect_finite_bounded(out, color, c.name);
+        const shading::CocField f = shading::compute_coc(depth, lens, 0.5f * settings.max_coc_px);
+        float mx = 0.0f;
+        for (float v : f.radius) {
+            mx = std::max(mx, std::fabs(v));
+        }
+        Image clean = color;  // the error of doing nothing, with the corrupt values zeroed
+        for (std::size_t i = 0; i < clean.value_count(); ++i) {
+            if (!std::isfinite(clean.data()[i])) {
+                clean.data()[i] = 0.0f;
+            }
+        }
+        const double none = rmse(clean, r.truth), node = rmse(out, r.truth);
+        std::printf("| %-30s | %6.1f | %.5f | %.5f | %6.1f %% |\n", c.name, 2.0f * mx, none, node,
+                    100.0 * (1.0 - node / none));
+        std::fflush(stdout);
+        EXPECT_TRUE(std::isfinite(node)) << c.name;
+        if (std::string(c.name) == "f/1e6" || std::string(c.name) == "max CoC 0") {
+            EXPECT_FALSE(changed) << c.name;  // the input comes back bit for bit
+        }
     }
 }
 

@@ -196,7 +196,8 @@ std::string render_dof_graph(const std::string &dof_params)
         {"id": "src", "type": "render", "params": {"scene": ")") + POSTHASTE_TEST_DIR +
            R"(/../samples/scenes/cube.json", "width": 64, "height": 36}},
         {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": )" + dof_params + R"(},
-        {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": "o.exr"}}]})";
+        {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" +
+           test::scratch_dir("dof_node") + R"(/o.exr"}}]})";
 }
 
 TEST(Dof, NodeLargeFstopGivesInputBack)
