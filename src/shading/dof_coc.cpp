@@ -41,11 +41,8 @@ CocField compute_coc(const Image &depth, const DofLens &lens, float max_radius_p
             for (int x = t.x0; x < t.x1; ++x) {
                 const float z = depth.at(x, y, 0);
                 float r;
-                if (std::isnan(z)) {
-                    r = 0.0f;  // unknown depth: leave it sharp
-                }
-                else if (z <= 0.0f) {
-                    r = -rmax;
+                if (!(z > 0.0f)) {
+                    r = 0.0f;  // NaN, zero or negative depth is not a depth: leave it sharp
                 }
                 else {
                     r = k0f - k1f / z;  // z = +inf gives k0 exactly

@@ -40,8 +40,8 @@ struct CocField {
     float max_radius = 0.0f;       ///< Largest |radius| in the image.
 };
 
-/// CoC radii of a depth image (1st channel, metres). NaN depth counts as in focus; z <= 0 as the
-/// nearest possible (the near limit, clamped); +inf as the far limit. max_radius_px >= 0.
+/// CoC radii of a depth image (1st channel, metres). NaN, zero or negative depth (not a depth)
+/// counts as in focus; +inf as the far limit. max_radius_px >= 0.
 /// Parallel over tiles; the result does not depend on the thread count. Leaves the tile vectors
 /// empty: call reduce_tiles next.
 CocField compute_coc(const Image &depth, const DofLens &lens, float max_radius_px);

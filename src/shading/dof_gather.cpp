@@ -35,12 +35,12 @@ double process_cpu_ms()
 
 constexpr float kGoldenAngle = 2.39996323f;
 constexpr float kTwoPi = 6.28318531f;
-constexpr float kHalfMax = 65504.0f;  // largest half: what an EXR can hold anyway
 
+// Non-finite colour (NaN, +-Inf) reads as 0: spreading an Inf, or even the largest half, over
+// a disc would turn one bad pixel into a bright blot.
 inline float sanitize(float v)
 {
-    // NaN fails both comparisons of a clamp: test it first (v != v for NaN).
-    return v == v ? std::min(std::max(v, -kHalfMax), kHalfMax) : 0.0f;
+    return std::fabs(v) <= std::numeric_limits<float>::max() ? v : 0.0f;
 }
 
 // A regular n-gon inscribed in the unit circle: its boundary's distance from the centre in

@@ -47,7 +47,7 @@ struct DofTimes {
 /// Blur `color` (1-4 channels, premultiplied) by the thin-lens CoC of `depth` (metres). Returns
 /// false, leaving `out` untouched, when every pixel's CoC radius is under half a pixel (the
 /// caller keeps its input: bit for bit). Otherwise `out` is a new image of color's shape;
-/// non-finite colour values are read as 0 (NaN) or +-65504 (Inf) so the output stays finite.
+/// non-finite colour values (NaN, +-Inf) are read as 0 so the output stays finite.
 /// Same bits for any thread count (jitter hashed from (x, y)).
 bool apply_dof(const Image &color,
                const Image &depth,
