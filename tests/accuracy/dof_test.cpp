@@ -181,6 +181,14 @@ Errors measure(const Rendered &r, const shading::DofSettings &settings, const st
         std::printf("  %s: share of squared error at values > 2: %.1f %%\n", name.c_str(),
                     100.0 * sum_sq_hot / sum_sq);
         dump(name, "err8", err);
+        for (int y = 0; y < color.height(); ++y) {
+            for (int x = 0; x < color.width(); ++x) {
+                for (int k = 0; k < 3; ++k) {
+                    err.at(x, y, k) = std::fabs(out_simple.at(x, y, k) - r.truth.at(x, y, k)) * 8.0f;
+                }
+            }
+        }
+        dump(name, "err8_simple", err);
     }
     e.none = rmse(color, r.truth);
     e.simple = rmse(out_simple, r.truth);

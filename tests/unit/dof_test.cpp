@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
+#include "io/image_file.h"
 #include "shading/dof_coc.h"
 #include "shading/dof_gather.h"
 #include "test_util.h"
@@ -215,17 +216,35 @@ TEST(Dof, NodeLargeFstopGivesInputBack)
     EXPECT_FALSE(open.evaluate(1).image("color").bit_equal(in.image("color")));
 }
 
-TEST(Dof, NodeReportsMissingLensAttribute)
+TEST(Dof, NodeReportsMissingLensAttributeAndUsesOverride)
 {
-    Frame f = test::make_sample_frame(16, 8, 1);
+    // A frame whose header lacks focalLength: the node names the attribute; giving the
+    // parameter instead makes it run.
+    const std::string dir = test::scratch_dir("dof_missing");
+    Frame f = test::make_sample_frame(32, 16, 1);
     f.camera.focal_length_mm.reset();
+    write_exr(f, dir + "/in.1.exr", WriteOptions{});
+    const auto graph = [&](const std::string &params) {
+        return R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+            {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": )" + params + R"(},
+            {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" + dir +
+               R"(/o.exr"}}]})";
+    };
+    Graph g = Graph::parse(graph("{}"), "g.json");
+    g.set_capture("d");
     try {
-        f.camera.require_focal_length_mm("node \"d\" (dof)");
-        FAIL();
+        g.evaluate(1);
+        FAIL() << "expected an error";
     }
     catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("focalLength"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("dof"), std::string::npos) << e.what();
     }
+    Graph ok = Graph::parse(graph(R"({"focal_length_mm": 35})"), "g.json");
+    ok.set_capture("d");
+    const Frame out = ok.evaluate(1);
+    EXPECT_EQ(out.image("color").width(), 32);
 }
 
 TEST(Dof, ExtremeInputsStayFiniteAndBounded)
