@@ -213,27 +213,6 @@ Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float nea
         back = lv.color[ip] * w_self;
         back_w = w_self;
     }
-    if (acp >= 0.5f) {
-        const int k = cx.patterns.level(acp);
-        const int n = cx.patterns.count(k);
-        const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
-        for (int i = 0; i < n; ++i) {
-            const int qx = std::clamp(x + taps[i].dx, 0, w - 1);
-            const int qy = std::clamp(y + taps[i].dy, 0, h - 1);
-            const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
-            const float cq = lv.coc[iq];
-            if (in_front(cq)) {
-                continue;  // the near loop below
-            }
-            // Behind p: limited by p's own CoC (a far field never bleeds over a sharper
-            // foreground); seen through a near-field p, the background within p's disc shows.
-            const float acq = std::fabs(cq);
-            const float r_eff = cq > cp ? (p_near ? acp : std::min(acq, acp)) : acq;
-            const float wgt = coverage(r_eff, taps[i].dist) / std::max(r_eff * r_eff, 1.0f);
-            back += lv.color[iq] * wgt;
-            back_w += wgt;
-        }
-    }
     if (near_radius >= 0.5f) {
         const int k = cx.patterns.level(near_radius);
         const int n = cx.patterns.count(k);
@@ -256,6 +235,29 @@ Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float nea
             front += lv.color[iq] * (cov * inv_area);
             front_w += cov * inv_area;
             alpha += cov * inv_area * sample_area;
+        }
+    }
+    // Once the near field covers the whole lens (alpha >= 1) the background is hidden: skip it
+    // (the composite would weigh it by 1 - alpha = 0, so the result is the same bits).
+    if (acp >= 0.5f && alpha < 1.0f) {
+        const int k = cx.patterns.level(acp);
+        const int n = cx.patterns.count(k);
+        const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
+        for (int i = 0; i < n; ++i) {
+            const int qx = std::clamp(x + taps[i].dx, 0, w - 1);
+            const int qy = std::clamp(y + taps[i].dy, 0, h - 1);
+            const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
+            const float cq = lv.coc[iq];
+            if (in_front(cq)) {
+                continue;  // the near loop below
+            }
+            // Behind p: limited by p's own CoC (a far field never bleeds over a sharper
+            // foreground); seen through a near-field p, the background within p's disc shows.
+            const float acq = std::fabs(cq);
+            const float r_eff = cq > cp ? (p_near ? acp : std::min(acq, acp)) : acq;
+            const float wgt = coverage(r_eff, taps[i].dist) / std::max(r_eff * r_eff, 1.0f);
+            back += lv.color[iq] * wgt;
+            back_w += wgt;
         }
     }
     Layers l;
