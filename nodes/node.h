@@ -22,5 +22,6 @@ extern const NodeType kFog;
 extern const NodeType kRelight;
 extern const NodeType kMotionBlur;
 extern const NodeType kHatching;
+extern const NodeType kDof;
 
 }  // namespace posthaste::nodes

@@ -19,6 +19,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kFog,
         &nodes::kRelight,
         &nodes::kMotionBlur,
+        &nodes::kDof,
     };
     return kAllNodes;
 }
