@@ -3,7 +3,7 @@
 #   ./posthaste.sh demo    install dependencies, build, render the bundled sequence and run the
 #                          demo graph into out/
 #   ./posthaste.sh test    install dependencies, build, run every test (ctest, all labels)
-#   ./posthaste.sh deps | build | bench
+#   ./posthaste.sh deps | build | bench | accuracy (re-measure the charts in docs/accuracy/)
 # Idempotent: packages are installed only when missing, and the build is incremental.
 set -euo pipefail
 cd "$(dirname "$0")"
@@ -60,11 +60,25 @@ bench() {
         --benchmark_report_aggregates_only=true
 }
 
+# Re-run the ready node specs (graphs/bench) and keep their charts and tables in
+# docs/accuracy/<spec>/ (chart.svg, results.csv), the figures behind docs/ACCURACY.md.
+accuracy() {
+    deps
+    build
+    for spec in motion_blur dof fog full_stack; do
+        "$BUILD_DIR"/posthaste bench "graphs/bench/$spec.json" --out "out/bench/$spec" -q
+        mkdir -p "docs/accuracy/$spec"
+        cp "out/bench/$spec/chart.svg" "out/bench/$spec/results.csv" "docs/accuracy/$spec/"
+    done
+    echo "posthaste.sh: charts in docs/accuracy/"
+}
+
 case "${1:-}" in
     deps) deps ;;
     build) deps; build ;;
     demo) demo ;;
     test) test_all ;;
     bench) bench ;;
-    *) echo "usage: $0 demo|test|deps|build|bench" >&2; exit 2 ;;
+    accuracy) accuracy ;;
+    *) echo "usage: $0 demo|test|deps|build|bench|accuracy" >&2; exit 2 ;;
 esac
