@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <map>
-
 #include <nlohmann/json.hpp>
 
 #include "nodes/node.h"
@@ -14,13 +13,15 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kCopy = ParamSpec::json("copy", "{}").doc(
-    "New passes from channels: {\"name\": [\"pass.channel\" or a number, ...]} or "
-    "{\"name\": \"pass\"}.");
+constexpr ParamSpec kCopy =
+    ParamSpec::json("copy", "{}")
+        .doc(
+            "New passes from channels: {\"name\": [\"pass.channel\" or a number, ...]} or "
+            "{\"name\": \"pass\"}.");
 constexpr ParamSpec kRename = ParamSpec::json("rename", "{}").doc("Renames: {\"old\": \"new\"}.");
 constexpr ParamSpec kRemove = ParamSpec::string("remove", "").doc("Passes to drop (comma list).");
-constexpr ParamSpec kKeep = ParamSpec::string("keep", "*").doc(
-    "Passes to keep (comma list), * for all.");
+constexpr ParamSpec kKeep =
+    ParamSpec::string("keep", "*").doc("Passes to keep (comma list), * for all.");
 constexpr ParamSpec kParams[] = {kCopy, kRename, kRemove, kKeep};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to reshape."}};
 
@@ -57,14 +58,12 @@ Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
         const std::string w = where + "/copy/" + it.key() + ": " + node.describe();
         if (it.value().is_string()) {
             c.whole_pass = it.value().get<std::string>();
-        }
-        else if (it.value().is_array() && !it.value().empty() && it.value().size() <= 4) {
+        } else if (it.value().is_array() && !it.value().empty() && it.value().size() <= 4) {
             for (const json &e : it.value()) {
                 ChannelRef r;
                 if (e.is_number()) {
                     r.constant = e.get<float>();
-                }
-                else if (e.is_string()) {
+                } else if (e.is_string()) {
                     const std::string s = e.get<std::string>();
                     const auto dot = s.rfind('.');
                     if (dot == std::string::npos || dot == 0 || dot + 1 == s.size()) {
@@ -72,14 +71,12 @@ Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
                     }
                     r.pass = s.substr(0, dot);
                     r.suffix = s.substr(dot + 1);
-                }
-                else {
+                } else {
                     throw_usage(w, ": expected \"pass.channel\" strings or numbers");
                 }
                 c.channels.push_back(r);
             }
-        }
-        else {
+        } else {
             throw_usage(w, ": expected a pass name or an array of 1 to 4 channels");
         }
         ops.copies.push_back(std::move(c));
@@ -90,8 +87,8 @@ Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
     }
     for (auto it = rename.begin(); it != rename.end(); ++it) {
         if (!it.value().is_string() || it.value().get<std::string>().empty()) {
-            throw_usage(where, "/rename/", it.key(), ": ", node.describe(),
-                        ": expected a new pass name");
+            throw_usage(
+                where, "/rename/", it.key(), ": ", node.describe(), ": expected a new pass name");
         }
         ops.renames.emplace_back(it.key(), it.value().get<std::string>());
     }
@@ -134,14 +131,20 @@ void execute(NodeContext &ctx)
                 for (const std::string &s : p.channels) {
                     have += (have.empty() ? "" : ", ") + s;
                 }
-                throw_runtime(ctx.where(), ": pass \"", r.pass, "\" has no channel \"", r.suffix,
-                              "\" (have: ", have, ")");
+                throw_runtime(ctx.where(),
+                              ": pass \"",
+                              r.pass,
+                              "\" has no channel \"",
+                              r.suffix,
+                              "\" (have: ",
+                              have,
+                              ")");
             }
             const int src = int(found - p.channels.begin());
             const int sn = p.image->channels();
             for (std::size_t i = 0; i < img.pixel_count(); ++i) {
-                img.data()[i * std::size_t(nch) + k] = p.image->data()[i * std::size_t(sn) +
-                                                                       std::size_t(src)];
+                img.data()[i * std::size_t(nch) + k] =
+                    p.image->data()[i * std::size_t(sn) + std::size_t(src)];
             }
             names.push_back(r.suffix);
         }
@@ -163,7 +166,9 @@ void execute(NodeContext &ctx)
     for (const auto &[from, to] : ops.renames) {
         const Pass p = out.pass(from, ctx.where());
         out.erase(from);
-        out.set(to, p.image, pass::find_canonical(to) ? std::vector<std::string>{} : p.channels,
+        out.set(to,
+                p.image,
+                pass::find_canonical(to) ? std::vector<std::string>{} : p.channels,
                 p.storage);
     }
     for (const std::string &r : ops.removes) {
@@ -231,10 +236,10 @@ void check(CheckContext &ctx)
 
 }  // namespace
 
-extern const NodeType kChannels{{"channels", "Select, rename and shuffle passes.", kInputs, kParams,
-                                 ""},
-                                &execute,
-                                &plan,
-                                &check};
+extern const NodeType kChannels{
+    {"channels", "Select, rename and shuffle passes.", kInputs, kParams, ""},
+    &execute,
+    &plan,
+    &check};
 
 }  // namespace posthaste::nodes

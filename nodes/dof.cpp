@@ -14,29 +14,52 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kFstop = ParamSpec::real("fstop", 0.0).at_least(0.0).doc(
-    "f-number N (aperture diameter = focal length / N). 0: the header's `aperture`.");
-constexpr ParamSpec kFocus = ParamSpec::real("focus_distance", 0.0).at_least(0.0).units("m").doc(
-    "Distance of the plane in focus. 0: the header's `focus`.");
-constexpr ParamSpec kFocal = ParamSpec::real("focal_length_mm", 0.0).at_least(0.0).units("mm").doc(
-    "Focal length. 0: the header's `focalLength`.");
-constexpr ParamSpec kSensor = ParamSpec::real("sensor_width_mm", 0.0).at_least(0.0).units("mm").doc(
-    "Sensor width (maps to the image width). 0: the header's `sensorWidth`.");
-constexpr ParamSpec kMaxCoc = ParamSpec::real("max_coc", 64.0).range(0.0, 4096.0).units("px").doc(
-    "Largest circle of confusion (diameter); larger ones are clamped. 0: no blur.");
-constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64).range(1, 1024).doc(
-    "Most samples per pixel (quality); pixels with a smaller CoC take fewer.");
-constexpr ParamSpec kBlades = ParamSpec::integer("blades", 0).range(0, 16).doc(
-    "Aperture blades: 0 for a round disc, 3..16 for a regular polygon.");
-constexpr ParamSpec kRotation = ParamSpec::real("rotation_deg", 0.0).range(-360.0, 360.0).units(
-    "deg").doc("Rotation of the polygonal aperture.");
-constexpr ParamSpec kMethod = ParamSpec::choice("method", "gather|simple", "gather").doc(
-    "gather: near/far separated gather; simple: baseline disc blur of each pixel's own CoC.");
-constexpr ParamSpec kResolution = ParamSpec::choice("resolution", "full|half", "full").doc(
-    "full: gather every pixel at full resolution; half: gather blurs of 3 px radius and more at "
-    "half resolution and composite at full (faster, noisier highlights).");
-constexpr ParamSpec kParams[] = {kFstop, kFocus, kFocal, kSensor, kMaxCoc, kSamples,
-                                 kBlades, kRotation, kMethod, kResolution};
+constexpr ParamSpec kFstop =
+    ParamSpec::real("fstop", 0.0)
+        .at_least(0.0)
+        .doc("f-number N (aperture diameter = focal length / N). 0: the header's `aperture`.");
+constexpr ParamSpec kFocus = ParamSpec::real("focus_distance", 0.0)
+                                 .at_least(0.0)
+                                 .units("m")
+                                 .doc("Distance of the plane in focus. 0: the header's `focus`.");
+constexpr ParamSpec kFocal = ParamSpec::real("focal_length_mm", 0.0)
+                                 .at_least(0.0)
+                                 .units("mm")
+                                 .doc("Focal length. 0: the header's `focalLength`.");
+constexpr ParamSpec kSensor =
+    ParamSpec::real("sensor_width_mm", 0.0)
+        .at_least(0.0)
+        .units("mm")
+        .doc("Sensor width (maps to the image width). 0: the header's `sensorWidth`.");
+constexpr ParamSpec kMaxCoc =
+    ParamSpec::real("max_coc", 64.0)
+        .range(0.0, 4096.0)
+        .units("px")
+        .doc("Largest circle of confusion (diameter); larger ones are clamped. 0: no blur.");
+constexpr ParamSpec kSamples =
+    ParamSpec::integer("samples", 64)
+        .range(1, 1024)
+        .doc("Most samples per pixel (quality); pixels with a smaller CoC take fewer.");
+constexpr ParamSpec kBlades =
+    ParamSpec::integer("blades", 0)
+        .range(0, 16)
+        .doc("Aperture blades: 0 for a round disc, 3..16 for a regular polygon.");
+constexpr ParamSpec kRotation = ParamSpec::real("rotation_deg", 0.0)
+                                    .range(-360.0, 360.0)
+                                    .units("deg")
+                                    .doc("Rotation of the polygonal aperture.");
+constexpr ParamSpec kMethod = ParamSpec::choice("method", "gather|simple", "gather")
+                                  .doc(
+                                      "gather: near/far separated gather; simple: baseline disc "
+                                      "blur of each pixel's own CoC.");
+constexpr ParamSpec kResolution =
+    ParamSpec::choice("resolution", "full|half", "full")
+        .doc(
+            "full: gather every pixel at full resolution; half: gather blurs of 3 px radius and "
+            "more at "
+            "half resolution and composite at full (faster, noisier highlights).");
+constexpr ParamSpec kParams[] = {
+    kFstop, kFocus, kFocal, kSensor, kMaxCoc, kSamples, kBlades, kRotation, kMethod, kResolution};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}};
 
@@ -50,12 +73,18 @@ shading::DofLens lens_of(NodeContext &ctx, const Camera &cam)
     l.focus_m = focus > 0.0 ? float(focus) : cam.require_focus_distance(who);
     l.focal_mm = focal > 0.0 ? float(focal) : cam.require_focal_length_mm(who);
     l.sensor_mm = sensor > 0.0 ? float(sensor) : cam.require_sensor_width_mm(who);
-    if (!(l.fstop > 0.0f) || !(l.focus_m > 0.0f) || !(l.focal_mm > 0.0f) ||
-        !(l.sensor_mm > 0.0f) || !std::isfinite(l.fstop) || !std::isfinite(l.focus_m) ||
-        !std::isfinite(l.focal_mm) || !std::isfinite(l.sensor_mm)) {
-        throw_runtime(who, ": lens values must be finite and > 0, got fstop ", l.fstop,
-                      ", focus_distance ", l.focus_m, " m, focal_length_mm ", l.focal_mm,
-                      ", sensor_width_mm ", l.sensor_mm);
+    if (!(l.fstop > 0.0f) || !(l.focus_m > 0.0f) || !(l.focal_mm > 0.0f) || !(l.sensor_mm > 0.0f) ||
+        !std::isfinite(l.fstop) || !std::isfinite(l.focus_m) || !std::isfinite(l.focal_mm) ||
+        !std::isfinite(l.sensor_mm)) {
+        throw_runtime(who,
+                      ": lens values must be finite and > 0, got fstop ",
+                      l.fstop,
+                      ", focus_distance ",
+                      l.focus_m,
+                      " m, focal_length_mm ",
+                      l.focal_mm,
+                      ", sensor_width_mm ",
+                      l.sensor_mm);
     }
     return l;
 }
@@ -66,8 +95,15 @@ void execute(NodeContext &ctx)
     const Image &color = ctx.input_pass("image", pass::kColor);
     const Image &depth = ctx.input_pass("image", pass::kDepth);
     if (depth.width() != color.width() || depth.height() != color.height()) {
-        throw_runtime(ctx.where(), ": depth is ", depth.width(), "x", depth.height(),
-                      " but color is ", color.width(), "x", color.height());
+        throw_runtime(ctx.where(),
+                      ": depth is ",
+                      depth.width(),
+                      "x",
+                      depth.height(),
+                      " but color is ",
+                      color.width(),
+                      "x",
+                      color.height());
     }
     const shading::DofLens lens = lens_of(ctx, in.camera);
     shading::DofSettings s;
@@ -75,30 +111,37 @@ void execute(NodeContext &ctx)
     s.samples = ctx.get_int(kSamples);
     s.blades = ctx.get_int(kBlades);
     s.rotation_deg = ctx.get_float(kRotation);
-    s.method = ctx.get_choice(kMethod) == 0 ? shading::DofMethod::Gather : shading::DofMethod::Simple;
+    s.method =
+        ctx.get_choice(kMethod) == 0 ? shading::DofMethod::Gather : shading::DofMethod::Simple;
     s.half_res = ctx.get_choice(kResolution) == 1;
     Image out;
     if (!shading::apply_dof(color, depth, lens, s, out)) {
         return;  // everything in focus: the output frame already shares the input's color
     }
     const Pass &cp = in.pass(pass::kColor, ctx.where());
-    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels,
-                     cp.storage);
+    ctx.output().set(
+        pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels, cp.storage);
 }
 
 void check(CheckContext &ctx)
 {
     const int blades = ctx.params.get_int(kBlades);
     if (blades == 1 || blades == 2) {
-        throw_usage(ctx.node.json_path, "/params/blades: ", ctx.node.describe(),
-                    ": param \"blades\": expected 0 or 3..16, got ", blades);
+        throw_usage(ctx.node.json_path,
+                    "/params/blades: ",
+                    ctx.node.describe(),
+                    ": param \"blades\": expected 0 or 3..16, got ",
+                    blades);
     }
 }
 
 }  // namespace
 
-extern const NodeType kDof{{"dof", "Depth of field: thin-lens CoC, near/far gather with bokeh.",
-                            kInputs, kParams, "color"},
+extern const NodeType kDof{{"dof",
+                            "Depth of field: thin-lens CoC, near/far gather with bokeh.",
+                            kInputs,
+                            kParams,
+                            "color"},
                            &execute,
                            nullptr,
                            &check};

@@ -7,12 +7,12 @@
 // color (linear, exp, exp2, height with sky=fog) or the sky radiance (atmosphere).
 // Departure: NaN depths are left untouched and negative depths count as 0.
 
+#include <OpenImageIO/paramlist.h>
+
+#include <array>
 #include <cmath>
 #include <limits>
-#include <array>
 #include <mutex>
-
-#include <OpenImageIO/paramlist.h>
 
 #include "nodes/node.h"
 #include "shading/atmosphere.h"
@@ -26,48 +26,94 @@ namespace {
 constexpr ParamSpec kModel =
     ParamSpec::choice("model", "linear|exp|exp2|height|atmosphere|atmosphere_raymarch", "height")
         .doc("Fog model; atmosphere_raymarch is the slow per-pixel reference of atmosphere.");
-constexpr ParamSpec kColor = ParamSpec::vec3("color", 0.6, 0.7, 0.8).at_least(0.0).doc(
-    "Fog radiance, scene-linear (linear, exp, exp2, height).");
-constexpr ParamSpec kStart = ParamSpec::real("start", 0.0).at_least(0.0).units("scene units").doc(
-    "Linear: distance where fog begins; height: no fog closer than this.");
-constexpr ParamSpec kEnd = ParamSpec::real("end", 200.0).at_least(0.0).units("scene units").doc(
-    "Linear: distance of full fog.");
-constexpr ParamSpec kDensity = ParamSpec::real("density", 0.01).at_least(0.0).units("1/unit").doc(
-    "exp, exp2: density; height: extinction at base_height. 0 leaves the frame untouched.");
-constexpr ParamSpec kFalloff = ParamSpec::real("falloff", 0.1).at_least(0.0).units("1/unit").doc(
-    "Height: density falls by exp(-falloff) per unit of height above base_height.");
-constexpr ParamSpec kBaseHeight = ParamSpec::real("base_height", 0.0).units("scene units").doc(
-    "Height: world y where the density equals `density`.");
-constexpr ParamSpec kSky = ParamSpec::choice("sky", "fog|ray", "fog").doc(
-    "Height: sky pixels get the fog color (fog) or the fog of the infinite ray (ray).");
-constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3).doc(
-    "World direction towards the sun; default: the header's posthaste:sunDirection if present.");
-constexpr ParamSpec kSunColor = ParamSpec::vec3("sun_color", 0.0, 0.0, 0.0).at_least(0.0).doc(
-    "Height: radiance scale of the sun in-scatter lobe (0: no lobe).");
-constexpr ParamSpec kSunG = ParamSpec::real("sun_g", 0.7).range(-0.99, 0.99).doc(
-    "Height: Henyey-Greenstein asymmetry of the sun lobe.");
-constexpr ParamSpec kIlluminance = ParamSpec::vec3("sun_illuminance", 1.0, 1.0, 1.0).at_least(0.0)
-                                       .doc("Atmosphere: sun illuminance; default: the header's "
-                                            "posthaste:sunIlluminance if present.");
-constexpr ParamSpec kMetresPerUnit = ParamSpec::real("metres_per_unit", 1.0).range(1e-6, 1e6).doc(
-    "Atmosphere: scene units to metres.");
-constexpr ParamSpec kGroundAltitude = ParamSpec::real("ground_altitude", 0.0).range(0.0, 90000.0)
+constexpr ParamSpec kColor = ParamSpec::vec3("color", 0.6, 0.7, 0.8)
+                                 .at_least(0.0)
+                                 .doc("Fog radiance, scene-linear (linear, exp, exp2, height).");
+constexpr ParamSpec kStart =
+    ParamSpec::real("start", 0.0)
+        .at_least(0.0)
+        .units("scene units")
+        .doc("Linear: distance where fog begins; height: no fog closer than this.");
+constexpr ParamSpec kEnd = ParamSpec::real("end", 200.0)
+                               .at_least(0.0)
+                               .units("scene units")
+                               .doc("Linear: distance of full fog.");
+constexpr ParamSpec kDensity =
+    ParamSpec::real("density", 0.01)
+        .at_least(0.0)
+        .units("1/unit")
+        .doc(
+            "exp, exp2: density; height: extinction at base_height. 0 leaves the frame untouched.");
+constexpr ParamSpec kFalloff =
+    ParamSpec::real("falloff", 0.1)
+        .at_least(0.0)
+        .units("1/unit")
+        .doc("Height: density falls by exp(-falloff) per unit of height above base_height.");
+constexpr ParamSpec kBaseHeight = ParamSpec::real("base_height", 0.0)
+                                      .units("scene units")
+                                      .doc("Height: world y where the density equals `density`.");
+constexpr ParamSpec kSky =
+    ParamSpec::choice("sky", "fog|ray", "fog")
+        .doc("Height: sky pixels get the fog color (fog) or the fog of the infinite ray (ray).");
+constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
+                                        .doc(
+                                            "World direction towards the sun; default: the "
+                                            "header's posthaste:sunDirection if present.");
+constexpr ParamSpec kSunColor =
+    ParamSpec::vec3("sun_color", 0.0, 0.0, 0.0)
+        .at_least(0.0)
+        .doc("Height: radiance scale of the sun in-scatter lobe (0: no lobe).");
+constexpr ParamSpec kSunG = ParamSpec::real("sun_g", 0.7)
+                                .range(-0.99, 0.99)
+                                .doc("Height: Henyey-Greenstein asymmetry of the sun lobe.");
+constexpr ParamSpec kIlluminance = ParamSpec::vec3("sun_illuminance", 1.0, 1.0, 1.0)
+                                       .at_least(0.0)
+                                       .doc(
+                                           "Atmosphere: sun illuminance; default: the header's "
+                                           "posthaste:sunIlluminance if present.");
+constexpr ParamSpec kMetresPerUnit = ParamSpec::real("metres_per_unit", 1.0)
+                                         .range(1e-6, 1e6)
+                                         .doc("Atmosphere: scene units to metres.");
+constexpr ParamSpec kGroundAltitude = ParamSpec::real("ground_altitude", 0.0)
+                                          .range(0.0, 90000.0)
                                           .units("m")
                                           .doc("Atmosphere: altitude of world y = 0.");
-constexpr ParamSpec kFroxels = ParamSpec::integer("froxels", 32).range(2, 256).doc(
-    "Atmosphere: aerial-perspective volume resolution across the screen (per axis).");
-constexpr ParamSpec kSlices = ParamSpec::integer("slices", 32).range(2, 256).doc(
-    "Atmosphere: aerial-perspective depth slices.");
-constexpr ParamSpec kMaxDistance = ParamSpec::real("max_distance", 32000.0).range(1.0, 1e9).units(
-    "scene units").doc("Atmosphere: depth range of the aerial-perspective volume.");
-constexpr ParamSpec kSunDisc = ParamSpec::boolean("sun_disc", true).doc(
-    "Atmosphere: draw the sun disc in the sky.");
-constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64).range(1, 4096).doc(
-    "atmosphere_raymarch: integration steps per pixel.");
-constexpr ParamSpec kParams[] = {kModel, kColor, kStart, kEnd, kDensity, kFalloff, kBaseHeight,
-                                 kSky, kSunDirection, kSunColor, kSunG, kIlluminance,
-                                 kMetresPerUnit, kGroundAltitude, kFroxels, kSlices, kMaxDistance,
-                                 kSunDisc, kSteps};
+constexpr ParamSpec kFroxels =
+    ParamSpec::integer("froxels", 32)
+        .range(2, 256)
+        .doc("Atmosphere: aerial-perspective volume resolution across the screen (per axis).");
+constexpr ParamSpec kSlices = ParamSpec::integer("slices", 32)
+                                  .range(2, 256)
+                                  .doc("Atmosphere: aerial-perspective depth slices.");
+constexpr ParamSpec kMaxDistance =
+    ParamSpec::real("max_distance", 32000.0)
+        .range(1.0, 1e9)
+        .units("scene units")
+        .doc("Atmosphere: depth range of the aerial-perspective volume.");
+constexpr ParamSpec kSunDisc =
+    ParamSpec::boolean("sun_disc", true).doc("Atmosphere: draw the sun disc in the sky.");
+constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64)
+                                 .range(1, 4096)
+                                 .doc("atmosphere_raymarch: integration steps per pixel.");
+constexpr ParamSpec kParams[] = {kModel,
+                                 kColor,
+                                 kStart,
+                                 kEnd,
+                                 kDensity,
+                                 kFalloff,
+                                 kBaseHeight,
+                                 kSky,
+                                 kSunDirection,
+                                 kSunColor,
+                                 kSunG,
+                                 kIlluminance,
+                                 kMetresPerUnit,
+                                 kGroundAltitude,
+                                 kFroxels,
+                                 kSlices,
+                                 kMaxDistance,
+                                 kSunDisc,
+                                 kSteps};
 constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."}};
 
 enum Model { Linear, Exp, Exp2, Height, Atmo, AtmoRayMarch };
@@ -101,13 +147,13 @@ struct AtmosphereCache {
 };
 
 AtmosphereCache::Built atmosphere_for(NodeContext &ctx,
-                                                          const glm::vec3 &sun_dir,
-                                                          const glm::vec3 &illuminance)
+                                      const glm::vec3 &sun_dir,
+                                      const glm::vec3 &illuminance)
 {
     const AtmosphereCache &cache =
         ctx.state().get_or_create<AtmosphereCache>([] { return AtmosphereCache{}; });
-    const std::array<float, 6> key = {sun_dir.x, sun_dir.y, sun_dir.z,
-                                      illuminance.x, illuminance.y, illuminance.z};
+    const std::array<float, 6> key = {
+        sun_dir.x, sun_dir.y, sun_dir.z, illuminance.x, illuminance.y, illuminance.z};
     std::lock_guard lock(*cache.mutex);
     for (const AtmosphereCache::Built &b : cache.built) {
         if (b.key == key) {
@@ -181,7 +227,9 @@ void execute(NodeContext &ctx)
         return;
     }
     if (color_pass.image->channels() < 3) {
-        throw_runtime(ctx.where(), ": color pass has ", color_pass.image->channels(),
+        throw_runtime(ctx.where(),
+                      ": color pass has ",
+                      color_pass.image->channels(),
                       " channels; fog needs RGB");
     }
     const std::string who = ctx.where();
@@ -274,8 +322,8 @@ void execute(NodeContext &ctx)
                 s.slices = ctx.get_int(kSlices);
                 s.max_distance = ctx.get_float(kMaxDistance);
                 const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s);
-                shading::apply_atmosphere(*atmosphere, atmosphere->cached_sky_view(), ap, *depth,
-                                          out, disc);
+                shading::apply_atmosphere(
+                    *atmosphere, atmosphere->cached_sky_view(), ap, *depth, out, disc);
                 // Sky pixels below the horizon see the lit ground (as the rasterizer draws it).
                 const int nch = out.channels();
                 const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
@@ -333,8 +381,10 @@ void execute(NodeContext &ctx)
             break;
         }
     }
-    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)),
-                     color_pass.channels, color_pass.storage);
+    ctx.output().set(pass::kColor,
+                     std::make_shared<const Image>(std::move(out)),
+                     color_pass.channels,
+                     color_pass.storage);
 }
 
 void check(CheckContext &ctx)
@@ -342,15 +392,23 @@ void check(CheckContext &ctx)
     const Model model = Model(ctx.params.get_choice(kModel));
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     if (model == Linear && ctx.params.get_real(kEnd) < ctx.params.get_real(kStart)) {
-        throw_usage(where, ": param \"end\" (", ctx.params.get_real(kEnd),
-                    ") is before param \"start\" (", ctx.params.get_real(kStart), ")");
+        throw_usage(where,
+                    ": param \"end\" (",
+                    ctx.params.get_real(kEnd),
+                    ") is before param \"start\" (",
+                    ctx.params.get_real(kStart),
+                    ")");
     }
 }
 
 }  // namespace
 
-extern const NodeType kFog{{"fog", "Fog: linear, exp, exp2, exact height fog, or a physically "
-                            "based atmosphere (Hillaire 2020).", kInputs, kParams, ""},
+extern const NodeType kFog{{"fog",
+                            "Fog: linear, exp, exp2, exact height fog, or a physically "
+                            "based atmosphere (Hillaire 2020).",
+                            kInputs,
+                            kParams,
+                            ""},
                            &execute,
                            nullptr,
                            &check};

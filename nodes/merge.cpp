@@ -15,13 +15,13 @@ namespace {
 constexpr ParamSpec kOperation =
     ParamSpec::choice("operation", "over|under|add|subtract|multiply|max|min|mix", "over")
         .doc("How A combines with B.");
-constexpr ParamSpec kMix = ParamSpec::real("mix", 1.0).range(0.0, 1.0).doc(
-    "Fade between B (0) and the full result (1).");
-constexpr ParamSpec kMaskPass = ParamSpec::string("mask_pass", "color").doc(
-    "Pass of the mask input that holds the mask.");
+constexpr ParamSpec kMix =
+    ParamSpec::real("mix", 1.0).range(0.0, 1.0).doc("Fade between B (0) and the full result (1).");
+constexpr ParamSpec kMaskPass =
+    ParamSpec::string("mask_pass", "color").doc("Pass of the mask input that holds the mask.");
 constexpr ParamSpec kMaskChannel =
-    ParamSpec::choice("mask_channel", "r|g|b|a|luminance", "a").doc(
-        "Channel of mask_pass used as the mask (luminance: Rec.709 weights).");
+    ParamSpec::choice("mask_channel", "r|g|b|a|luminance", "a")
+        .doc("Channel of mask_pass used as the mask (luminance: Rec.709 weights).");
 constexpr ParamSpec kParams[] = {kOperation, kMix, kMaskPass, kMaskChannel};
 constexpr PortSpec kInputs[] = {
     {"b", "color", false, "Background; its other passes pass through."},
@@ -59,27 +59,48 @@ void execute(NodeContext &ctx)
     const Image &b = ctx.input_pass("b", pass::kColor);
     const Image &a = ctx.input_pass("a", pass::kColor);
     if (a.width() != b.width() || a.height() != b.height()) {
-        throw_runtime(ctx.where(), ": input \"a\" is ", a.width(), "x", a.height(),
-                      " but input \"b\" is ", b.width(), "x", b.height());
+        throw_runtime(ctx.where(),
+                      ": input \"a\" is ",
+                      a.width(),
+                      "x",
+                      a.height(),
+                      " but input \"b\" is ",
+                      b.width(),
+                      "x",
+                      b.height());
     }
     const Image *mask = nullptr;
     if (ctx.has_input("mask")) {
         mask = &ctx.input_pass("mask", ctx.get_string(kMaskPass));
         if (mask->width() != b.width() || mask->height() != b.height()) {
-            throw_runtime(ctx.where(), ": input \"mask\" is ", mask->width(), "x",
-                          mask->height(), " but input \"b\" is ", b.width(), "x", b.height());
+            throw_runtime(ctx.where(),
+                          ": input \"mask\" is ",
+                          mask->width(),
+                          "x",
+                          mask->height(),
+                          " but input \"b\" is ",
+                          b.width(),
+                          "x",
+                          b.height());
         }
     }
     const Op op = Op(ctx.get_choice(kOperation));
     const float mix = ctx.get_float(kMix);
     const int mask_channel = ctx.get_choice(kMaskChannel);
     if (mask && mask_channel < 4 && mask_channel >= mask->channels()) {
-        throw_runtime(ctx.where(), ": mask pass \"", ctx.get_string(kMaskPass), "\" has ",
-                      mask->channels(), " channels, no channel ", "rgba"[mask_channel]);
+        throw_runtime(ctx.where(),
+                      ": mask pass \"",
+                      ctx.get_string(kMaskPass),
+                      "\" has ",
+                      mask->channels(),
+                      " channels, no channel ",
+                      "rgba"[mask_channel]);
     }
     if (mask && mask_channel == 4 && mask->channels() < 3) {
-        throw_runtime(ctx.where(), ": mask luminance needs 3 channels in pass \"",
-                      ctx.get_string(kMaskPass), "\"");
+        throw_runtime(ctx.where(),
+                      ": mask luminance needs 3 channels in pass \"",
+                      ctx.get_string(kMaskPass),
+                      "\"");
     }
     const int nb = b.channels(), na = a.channels();
     Image out = Image::uninitialized(b.width(), b.height(), nb);
@@ -106,8 +127,8 @@ void execute(NodeContext &ctx)
         }
     });
     const Pass &bp = ctx.input("b").pass(pass::kColor, ctx.where());
-    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)), bp.channels,
-                     bp.storage);
+    ctx.output().set(
+        pass::kColor, std::make_shared<const Image>(std::move(out)), bp.channels, bp.storage);
 }
 
 void plan(PlanContext &ctx)
@@ -119,9 +140,9 @@ void plan(PlanContext &ctx)
 
 }  // namespace
 
-extern const NodeType kMerge{{"merge", "Combine two frames' color: over, add, multiply, mix...",
-                              kInputs, kParams, "color"},
-                             &execute,
-                             &plan};
+extern const NodeType kMerge{
+    {"merge", "Combine two frames' color: over, add, multiply, mix...", kInputs, kParams, "color"},
+    &execute,
+    &plan};
 
 }  // namespace posthaste::nodes

@@ -6,46 +6,77 @@
 // blurs over +-shutter/2 x motion. Jitter is hashed from (x, y): the output is thread-count
 // independent, and zero motion returns the input bit for bit.
 
+#include "shading/motion_blur.h"
+
 #include <limits>
 
 #include "core/sanitize.h"
 #include "nodes/node.h"
-#include "shading/motion_blur.h"
 #include "shading/reproject.h"
 
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kShutter = ParamSpec::real("shutter", 0.5).range(0.0, 2.0).doc(
-    "Shutter open time as a fraction of the frame interval, centred on the frame. When not "
-    "given: the header's shutter, else this default.");
-constexpr ParamSpec kSamples = ParamSpec::integer("samples", 16).range(1, 256).doc(
-    "Most samples along the neighbourhood's motion per pixel (fewer for short motion; about "
-    "half as many more along a pixel's own motion where it differs).");
-constexpr ParamSpec kMaxRadius = ParamSpec::real("max_radius", 64.0).range(0.0, 4096.0)
+constexpr ParamSpec kShutter =
+    ParamSpec::real("shutter", 0.5)
+        .range(0.0, 2.0)
+        .doc(
+            "Shutter open time as a fraction of the frame interval, centred on the frame. When not "
+            "given: the header's shutter, else this default.");
+constexpr ParamSpec kSamples =
+    ParamSpec::integer("samples", 16)
+        .range(1, 256)
+        .doc(
+            "Most samples along the neighbourhood's motion per pixel (fewer for short motion; "
+            "about "
+            "half as many more along a pixel's own motion where it differs).");
+constexpr ParamSpec kMaxRadius = ParamSpec::real("max_radius", 64.0)
+                                     .range(0.0, 4096.0)
                                      .units("px")
                                      .doc("Longest blur half-extent; longer motion is clamped.");
-constexpr ParamSpec kTileSize = ParamSpec::integer("tile_size", 16).range(2, 256).units("px").doc(
-    "Tile of the tile-max / neighbour-max reduction.");
-constexpr ParamSpec kSoftZ = ParamSpec::real("soft_z", 0.05).range(1e-4, 10.0).doc(
-    "Depth ramp of the in-front test, as a fraction of depth.");
-constexpr ParamSpec kTileJitter = ParamSpec::real("tile_jitter", 0.25).range(0.0, 1.0).doc(
-    "Jitter of the neighbour-max lookup, in tiles (hides tile seams as noise).");
-constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.05).range(0.0, 1.0).doc(
-    "Tiles whose reachable motion vectors differ by at most this fraction of the longest take "
-    "the cheaper uniform path (0: never).");
-constexpr ParamSpec kMotionPass = ParamSpec::string("motion_pass", "motion").doc(
-    "Pass holding the motion (pixels from the previous frame to this one, x right, y down).");
-constexpr ParamSpec kSource = ParamSpec::choice("source", "motion|camera", "motion").doc(
-    "motion: the motion pass (falls back to camera when the input has none); camera: "
-    "reproject depth through the previous frame's camera (static world).");
+constexpr ParamSpec kTileSize = ParamSpec::integer("tile_size", 16)
+                                    .range(2, 256)
+                                    .units("px")
+                                    .doc("Tile of the tile-max / neighbour-max reduction.");
+constexpr ParamSpec kSoftZ = ParamSpec::real("soft_z", 0.05)
+                                 .range(1e-4, 10.0)
+                                 .doc("Depth ramp of the in-front test, as a fraction of depth.");
+constexpr ParamSpec kTileJitter =
+    ParamSpec::real("tile_jitter", 0.25)
+        .range(0.0, 1.0)
+        .doc("Jitter of the neighbour-max lookup, in tiles (hides tile seams as noise).");
+constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.05)
+                                     .range(0.0, 1.0)
+                                     .doc(
+                                         "Tiles whose reachable motion vectors differ by at most "
+                                         "this fraction of the longest take "
+                                         "the cheaper uniform path (0: never).");
+constexpr ParamSpec kMotionPass = ParamSpec::string("motion_pass", "motion")
+                                      .doc(
+                                          "Pass holding the motion (pixels from the previous frame "
+                                          "to this one, x right, y down).");
+constexpr ParamSpec kSource =
+    ParamSpec::choice("source", "motion|camera", "motion")
+        .doc(
+            "motion: the motion pass (falls back to camera when the input has none); camera: "
+            "reproject depth through the previous frame's camera (static world).");
 constexpr ParamSpec kMethod = ParamSpec::choice("method", "reconstruct|uniform", "reconstruct")
-                                  .doc("reconstruct: tile-max reconstruction with depth; "
-                                       "uniform: average along each pixel's own motion.");
-constexpr ParamSpec kSeed = ParamSpec::integer("seed", 0).range(0, 2147483647).doc(
-    "Seed of the per-pixel jitter.");
-constexpr ParamSpec kParams[] = {kShutter, kSamples, kMaxRadius, kTileSize, kSoftZ,
-                                 kTileJitter, kCoherence, kMotionPass, kSource, kMethod, kSeed};
+                                  .doc(
+                                      "reconstruct: tile-max reconstruction with depth; "
+                                      "uniform: average along each pixel's own motion.");
+constexpr ParamSpec kSeed =
+    ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Seed of the per-pixel jitter.");
+constexpr ParamSpec kParams[] = {kShutter,
+                                 kSamples,
+                                 kMaxRadius,
+                                 kTileSize,
+                                 kSoftZ,
+                                 kTileJitter,
+                                 kCoherence,
+                                 kMotionPass,
+                                 kSource,
+                                 kMethod,
+                                 kSeed};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
 };
@@ -56,10 +87,10 @@ void execute(NodeContext &ctx)
     // NaN or Inf in a gathered input would spread over its blur footprint: read finite views
     // (no copy unless such values exist). NaN depth reads as the sky, bad motion as still.
     Image color_storage, depth_storage, motion_storage;
-    const Image &color =
-        finite_view(ctx.input_pass("image", pass::kColor), 0.0f, color_storage);
+    const Image &color = finite_view(ctx.input_pass("image", pass::kColor), 0.0f, color_storage);
     const Image &depth = finite_view(ctx.input_pass("image", pass::kDepth),
-                                     std::numeric_limits<float>::infinity(), depth_storage,
+                                     std::numeric_limits<float>::infinity(),
+                                     depth_storage,
                                      /*allow_positive_inf=*/true);
     const std::string &motion_pass = ctx.get_string(kMotionPass);
     Image reprojected;
@@ -67,11 +98,14 @@ void execute(NodeContext &ctx)
     if (ctx.get_choice(kSource) == 0 && in.has(motion_pass)) {
         motion = &finite_view(ctx.input_pass("image", motion_pass), 0.0f, motion_storage);
         if (motion->channels() < 2) {
-            throw_runtime(ctx.where(), ": motion pass \"", motion_pass, "\" has ",
-                          motion->channels(), " channel(s), expected 2");
+            throw_runtime(ctx.where(),
+                          ": motion pass \"",
+                          motion_pass,
+                          "\" has ",
+                          motion->channels(),
+                          " channel(s), expected 2");
         }
-    }
-    else {
+    } else {
         reprojected = shading::camera_motion(depth, in.camera, ctx.where());
         motion = &reprojected;
     }
@@ -80,8 +114,15 @@ void execute(NodeContext &ctx)
     }
     for (const Image *p : {&depth, motion}) {
         if (p->width() != color.width() || p->height() != color.height()) {
-            throw_runtime(ctx.where(), ": passes differ in size: color is ", color.width(), "x",
-                          color.height(), ", another is ", p->width(), "x", p->height());
+            throw_runtime(ctx.where(),
+                          ": passes differ in size: color is ",
+                          color.width(),
+                          "x",
+                          color.height(),
+                          ", another is ",
+                          p->width(),
+                          "x",
+                          p->height());
         }
     }
     shading::MotionBlurOptions o;
@@ -100,8 +141,8 @@ void execute(NodeContext &ctx)
     o.seed = std::uint32_t(ctx.get_int(kSeed));
     Image out = shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());
-    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels,
-                     cp.storage);
+    ctx.output().set(
+        pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels, cp.storage);
 }
 
 void plan(PlanContext &ctx)
@@ -113,8 +154,11 @@ void plan(PlanContext &ctx)
 
 }  // namespace
 
-extern const NodeType kMotionBlur{{"motion_blur", "Blur color along screen motion (tile-max "
-                                   "reconstruction, or camera-only from depth).", kInputs, kParams,
+extern const NodeType kMotionBlur{{"motion_blur",
+                                   "Blur color along screen motion (tile-max "
+                                   "reconstruction, or camera-only from depth).",
+                                   kInputs,
+                                   kParams,
                                    "color"},
                                   &execute,
                                   &plan};

@@ -8,14 +8,17 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kMode = ParamSpec::choice("mode", "colorspace|display", "colorspace").doc(
-    "Convert between color spaces, or apply a display + view transform.");
+constexpr ParamSpec kMode =
+    ParamSpec::choice("mode", "colorspace|display", "colorspace")
+        .doc("Convert between color spaces, or apply a display + view transform.");
 constexpr ParamSpec kFrom = ParamSpec::string("from", "lin_rec709").doc("Input color space.");
-constexpr ParamSpec kTo = ParamSpec::string("to", "srgb").doc("Output color space (colorspace mode).");
+constexpr ParamSpec kTo =
+    ParamSpec::string("to", "srgb").doc("Output color space (colorspace mode).");
 constexpr ParamSpec kDisplay = ParamSpec::string("display", "sRGB").doc("Display (display mode).");
 constexpr ParamSpec kView = ParamSpec::string("view", "Standard").doc("View (display mode).");
-constexpr ParamSpec kUnpremultiply = ParamSpec::boolean("unpremultiply", true).doc(
-    "Divide color by alpha before the transform and multiply after.");
+constexpr ParamSpec kUnpremultiply =
+    ParamSpec::boolean("unpremultiply", true)
+        .doc("Divide color by alpha before the transform and multiply after.");
 constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to transform.");
 constexpr ParamSpec kParams[] = {kMode, kFrom, kTo, kDisplay, kView, kUnpremultiply, kPass};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to transform."}};
@@ -26,8 +29,8 @@ ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node
     if (params.get_choice(kMode) == 0) {
         return ColorProcessor::between(params.get_string(kFrom), params.get_string(kTo), where);
     }
-    return ColorProcessor::display_view(params.get_string(kFrom), params.get_string(kDisplay),
-                                        params.get_string(kView), where);
+    return ColorProcessor::display_view(
+        params.get_string(kFrom), params.get_string(kDisplay), params.get_string(kView), where);
 }
 
 void execute(NodeContext &ctx)
@@ -40,7 +43,11 @@ void execute(NodeContext &ctx)
         return;  // output already shares the input pass
     }
     if (in.image->channels() < 3) {
-        throw_runtime(ctx.where(), ": pass \"", name, "\" has ", in.image->channels(),
+        throw_runtime(ctx.where(),
+                      ": pass \"",
+                      name,
+                      "\" has ",
+                      in.image->channels(),
                       " channels; a color transform needs 3 or 4");
     }
     Image out = *in.image;
@@ -60,10 +67,10 @@ void check(CheckContext &ctx)
 
 }  // namespace
 
-extern const NodeType kOcio{{"ocio", "OpenColorIO color space or display transform.", kInputs,
-                             kParams, ""},
-                            &execute,
-                            &plan,
-                            &check};
+extern const NodeType kOcio{
+    {"ocio", "OpenColorIO color space or display transform.", kInputs, kParams, ""},
+    &execute,
+    &plan,
+    &check};
 
 }  // namespace posthaste::nodes

@@ -11,16 +11,23 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kPath = ParamSpec::string("path", "").mandatory().doc(
-    "File or frame pattern: '#' or '@' is one digit (shot.####.exr), or %04d.");
-constexpr ParamSpec kFrameOffset = ParamSpec::integer("frame_offset", 0).doc(
-    "Added to the frame number before the pattern is expanded.");
-constexpr ParamSpec kBadPixels = ParamSpec::choice("bad_pixels", "keep|zero|error", "keep").doc(
-    "NaN or infinite values (other than +inf depth): keep them, replace with 0, or fail.");
-constexpr ParamSpec kLinearize = ParamSpec::boolean("linearize", true).doc(
-    "Decode sRGB-encoded 8/16-bit files (PNG, JPEG, TIFF) to scene-linear.");
-constexpr ParamSpec kAliases = ParamSpec::json("aliases", "[]").doc(
-    "Extra channel alias rules [{pass, channels, scale, offset, infinite_above}], tried first.");
+constexpr ParamSpec kPath =
+    ParamSpec::string("path", "")
+        .mandatory()
+        .doc("File or frame pattern: '#' or '@' is one digit (shot.####.exr), or %04d.");
+constexpr ParamSpec kFrameOffset =
+    ParamSpec::integer("frame_offset", 0)
+        .doc("Added to the frame number before the pattern is expanded.");
+constexpr ParamSpec kBadPixels =
+    ParamSpec::choice("bad_pixels", "keep|zero|error", "keep")
+        .doc("NaN or infinite values (other than +inf depth): keep them, replace with 0, or fail.");
+constexpr ParamSpec kLinearize =
+    ParamSpec::boolean("linearize", true)
+        .doc("Decode sRGB-encoded 8/16-bit files (PNG, JPEG, TIFF) to scene-linear.");
+constexpr ParamSpec kAliases = ParamSpec::json("aliases", "[]")
+                                   .doc(
+                                       "Extra channel alias rules [{pass, channels, scale, offset, "
+                                       "infinite_above}], tried first.");
 constexpr ParamSpec kParams[] = {kPath, kFrameOffset, kBadPixels, kLinearize, kAliases};
 
 ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
@@ -37,14 +44,13 @@ void execute(NodeContext &ctx)
 {
     const ReadOptions &options = ctx.state().get_or_create<ReadOptions>(
         [&] { return read_options(ctx.params(), ctx.node()); });
-    const std::string path = expand_frame_pattern(ctx.get_string(kPath),
-                                                  ctx.frame_number() + ctx.get_int(kFrameOffset));
+    const std::string path =
+        expand_frame_pattern(ctx.get_string(kPath), ctx.frame_number() + ctx.get_int(kFrameOffset));
     const PassSet &wanted = ctx.requested();
     try {
-        ctx.output() = read_frame(path, wanted.all ? nullptr : &wanted.names, ctx.frame_number(),
-                                  options);
-    }
-    catch (const Error &e) {
+        ctx.output() =
+            read_frame(path, wanted.all ? nullptr : &wanted.names, ctx.frame_number(), options);
+    } catch (const Error &e) {
         throw Error(e.code(), ctx.where() + ": " + e.what());
     }
 }
@@ -79,14 +85,20 @@ void check(CheckContext &ctx)
                         for (const PassSource &ps : info.passes) {
                             have += (have.empty() ? "" : ", ") + ps.pass;
                         }
-                        throw_usage(ctx.node.json_path, ": ", ctx.node.describe(), ": ", path,
-                                    ": no pass \"", name, "\" (have: ", have,
+                        throw_usage(ctx.node.json_path,
+                                    ": ",
+                                    ctx.node.describe(),
+                                    ": ",
+                                    path,
+                                    ": no pass \"",
+                                    name,
+                                    "\" (have: ",
+                                    have,
                                     "); a node downstream reads it");
                     }
                 }
             }
-        }
-        catch (const Error &e) {
+        } catch (const Error &e) {
             if (e.code() == ExitCode::Usage) {
                 throw;
             }
@@ -94,8 +106,10 @@ void check(CheckContext &ctx)
         }
         return;
     }
-    throw_runtime(ctx.node.describe(), ": no input file for any requested frame (first: ",
-                  first_missing, ")");
+    throw_runtime(ctx.node.describe(),
+                  ": no input file for any requested frame (first: ",
+                  first_missing,
+                  ")");
 }
 
 std::vector<int> discover(const NodeParams &params)
@@ -109,11 +123,11 @@ std::vector<int> discover(const NodeParams &params)
 
 }  // namespace
 
-extern const NodeType kRead{{"read", "Read a frame sequence of EXR (or PNG/TIFF/JPEG) files.", {},
-                             kParams, "*"},
-                            &execute,
-                            nullptr,
-                            &check,
-                            &discover};
+extern const NodeType kRead{
+    {"read", "Read a frame sequence of EXR (or PNG/TIFF/JPEG) files.", {}, kParams, "*"},
+    &execute,
+    nullptr,
+    &check,
+    &discover};
 
 }  // namespace posthaste::nodes

@@ -2,31 +2,36 @@
 // with exactly the passes nodes downstream read (src/raster/render.h), or, with `truth`, the
 // ground-truth color by accumulation over the shutter and/or the lens aperture.
 
-#include "nodes/node.h"
 #include "raster/render.h"
-#include "raster/sky.h"
+
+#include "nodes/node.h"
 #include "raster/scene.h"
+#include "raster/sky.h"
 
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kScene = ParamSpec::string("scene", "samples/scenes/minecrappy.json").doc(
-    "Scene file (JSON, samples/scenes/README.md).");
-constexpr ParamSpec kWidth = ParamSpec::integer("width", 1920).range(1, 16384).units("px").doc(
-    "Image width.");
-constexpr ParamSpec kHeight = ParamSpec::integer("height", 1080).range(1, 16384).units("px").doc(
-    "Image height.");
-constexpr ParamSpec kSupersample = ParamSpec::integer("supersample", 1).range(1, 4).doc(
-    "Beauty supersampling per axis: 1, 2 or 4 (data passes stay one sample per pixel).");
+constexpr ParamSpec kScene = ParamSpec::string("scene", "samples/scenes/minecrappy.json")
+                                 .doc("Scene file (JSON, samples/scenes/README.md).");
+constexpr ParamSpec kWidth =
+    ParamSpec::integer("width", 1920).range(1, 16384).units("px").doc("Image width.");
+constexpr ParamSpec kHeight =
+    ParamSpec::integer("height", 1080).range(1, 16384).units("px").doc("Image height.");
+constexpr ParamSpec kSupersample =
+    ParamSpec::integer("supersample", 1)
+        .range(1, 4)
+        .doc("Beauty supersampling per axis: 1, 2 or 4 (data passes stay one sample per pixel).");
 constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", true).doc("Sun shadow map.");
-constexpr ParamSpec kTruth = ParamSpec::choice("truth", "none|motion|dof|motion_dof", "none").doc(
-    "Replace color by ground truth: accumulated over the shutter, the aperture, or both.");
-constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64).range(1, 65536).doc(
-    "Renders accumulated for the ground truth.");
-constexpr ParamSpec kSeed = ParamSpec::integer("seed", 0).range(0, 2147483647).doc(
-    "Jitter seed for the ground truth.");
-constexpr ParamSpec kParams[] = {kScene, kWidth, kHeight, kSupersample, kShadows, kTruth,
-                                 kSamples, kSeed};
+constexpr ParamSpec kTruth =
+    ParamSpec::choice("truth", "none|motion|dof|motion_dof", "none")
+        .doc("Replace color by ground truth: accumulated over the shutter, the aperture, or both.");
+constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
+                                   .range(1, 65536)
+                                   .doc("Renders accumulated for the ground truth.");
+constexpr ParamSpec kSeed =
+    ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Jitter seed for the ground truth.");
+constexpr ParamSpec kParams[] = {
+    kScene, kWidth, kHeight, kSupersample, kShadows, kTruth, kSamples, kSeed};
 
 raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
 {
@@ -90,8 +95,7 @@ void execute(NodeContext &ctx)
             truth_frame = std::move(f);
         }
         ctx.output() = std::move(truth_frame);
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         throw Error(e.code(), ctx.where() + ": " + e.what());
     }
 }
@@ -106,7 +110,11 @@ void check(CheckContext &ctx)
                 for (const std::string &n : raster::render_pass_names()) {
                     have += (have.empty() ? "" : ", ") + n;
                 }
-                throw_usage(where, ": the renderer makes no pass \"", p, "\" (it makes: ", have,
+                throw_usage(where,
+                            ": the renderer makes no pass \"",
+                            p,
+                            "\" (it makes: ",
+                            have,
                             "); a node downstream reads it");
             }
         }
@@ -117,8 +125,7 @@ void check(CheckContext &ctx)
     }
     try {
         raster::load_scene(ctx.params.get_string(kScene));
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         throw Error(ExitCode::Usage, where + ": " + e.what());
     }
 }
@@ -135,8 +142,12 @@ std::vector<int> discover(const NodeParams &params)
 
 }  // namespace
 
-extern const NodeType kRender{{"render", "Render a Minecrappy scene (bundled rasterizer), or its "
-                               "ground truth.", {}, kParams, "*"},
+extern const NodeType kRender{{"render",
+                               "Render a Minecrappy scene (bundled rasterizer), or its "
+                               "ground truth.",
+                               {},
+                               kParams,
+                               "*"},
                               &execute,
                               nullptr,
                               &check,

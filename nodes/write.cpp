@@ -12,27 +12,44 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kPath = ParamSpec::string("path", "").mandatory().doc(
-    "Output file or frame pattern; .exr writes passes, other extensions write a preview.");
-constexpr ParamSpec kPasses = ParamSpec::string("passes", "*").doc(
-    "EXR: comma-separated passes to write, or * for every pass the frame has.");
-constexpr ParamSpec kCompression = ParamSpec::string("compression", "piz").doc(
-    "EXR compression: none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab (dwaa:45 sets a "
-    "level).");
-constexpr ParamSpec kLayout = ParamSpec::choice("layout", "single|multipart", "single").doc(
-    "EXR: one part with every channel, or one part per pass.");
-constexpr ParamSpec kStorage = ParamSpec::choice("storage", "auto|half|float", "auto").doc(
-    "EXR pixel type: auto is half for color and albedo, float for data passes.");
-constexpr ParamSpec kAllowLossyData = ParamSpec::boolean("allow_lossy_data", false).doc(
-    "Permit lossy compression (dwaa, dwab, pxr24) on data passes (depth, motion, normals...).");
-constexpr ParamSpec kColorSpace = ParamSpec::string("input_colorspace", "lin_rec709").doc(
-    "Preview: color space of the color pass.");
+constexpr ParamSpec kPath =
+    ParamSpec::string("path", "")
+        .mandatory()
+        .doc("Output file or frame pattern; .exr writes passes, other extensions write a preview.");
+constexpr ParamSpec kPasses =
+    ParamSpec::string("passes", "*")
+        .doc("EXR: comma-separated passes to write, or * for every pass the frame has.");
+constexpr ParamSpec kCompression = ParamSpec::string("compression", "piz")
+                                       .doc(
+                                           "EXR compression: none, rle, zips, zip, piz, pxr24, "
+                                           "b44, b44a, dwaa, dwab (dwaa:45 sets a "
+                                           "level).");
+constexpr ParamSpec kLayout = ParamSpec::choice("layout", "single|multipart", "single")
+                                  .doc("EXR: one part with every channel, or one part per pass.");
+constexpr ParamSpec kStorage =
+    ParamSpec::choice("storage", "auto|half|float", "auto")
+        .doc("EXR pixel type: auto is half for color and albedo, float for data passes.");
+constexpr ParamSpec kAllowLossyData = ParamSpec::boolean("allow_lossy_data", false)
+                                          .doc(
+                                              "Permit lossy compression (dwaa, dwab, pxr24) on "
+                                              "data passes (depth, motion, normals...).");
+constexpr ParamSpec kColorSpace = ParamSpec::string("input_colorspace", "lin_rec709")
+                                      .doc("Preview: color space of the color pass.");
 constexpr ParamSpec kDisplay = ParamSpec::string("display", "sRGB").doc("Preview: OCIO display.");
 constexpr ParamSpec kView = ParamSpec::string("view", "Standard").doc("Preview: OCIO view.");
-constexpr ParamSpec kAlpha = ParamSpec::boolean("alpha", false).doc(
-    "Preview: write alpha (unpremultiplied) as a fourth channel.");
-constexpr ParamSpec kParams[] = {kPath,  kPasses, kCompression, kLayout, kStorage, kAllowLossyData,
-                                 kColorSpace, kDisplay, kView, kAlpha};
+constexpr ParamSpec kAlpha =
+    ParamSpec::boolean("alpha", false)
+        .doc("Preview: write alpha (unpremultiplied) as a fourth channel.");
+constexpr ParamSpec kParams[] = {kPath,
+                                 kPasses,
+                                 kCompression,
+                                 kLayout,
+                                 kStorage,
+                                 kAllowLossyData,
+                                 kColorSpace,
+                                 kDisplay,
+                                 kView,
+                                 kAlpha};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to write."}};
 
 bool is_preview(const NodeParams &params)
@@ -48,7 +65,8 @@ std::vector<std::string> listed_passes(const NodeParams &params)
 
 ColorProcessor make_display(const NodeParams &params, const NodeIdentity &node)
 {
-    return ColorProcessor::display_view(params.get_string(kColorSpace), params.get_string(kDisplay),
+    return ColorProcessor::display_view(params.get_string(kColorSpace),
+                                        params.get_string(kDisplay),
                                         params.get_string(kView),
                                         node.json_path + "/params: " + node.describe());
 }
@@ -79,8 +97,7 @@ void execute(NodeContext &ctx)
             }
         }
         write_exr(frame, path, options);
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         throw Error(e.code(), ctx.where() + ": " + e.what());
     }
 }
@@ -110,22 +127,32 @@ void check(CheckContext &ctx)
         make_display(ctx.params, ctx.node);
         auto out = OIIO::ImageOutput::create(path);
         if (!out) {
-            throw_usage(where, ": param \"path\": no image writer for \"", path,
+            throw_usage(where,
+                        ": param \"path\": no image writer for \"",
+                        path,
                         "\" (use .exr, .png, .jpg or .tif)");
         }
         return;
     }
     check_compression(ctx.params.get_string(kCompression), where + ": param \"compression\"");
     if (ctx.frames.size() > 1 && !has_frame_placeholder(path)) {
-        throw_usage(where, ": param \"path\": \"", path, "\" has no frame placeholder (####) but ",
-                    ctx.frames.size(), " frames would be written to it");
+        throw_usage(where,
+                    ": param \"path\": \"",
+                    path,
+                    "\" has no frame placeholder (####) but ",
+                    ctx.frames.size(),
+                    " frames would be written to it");
     }
 }
 
 }  // namespace
 
-extern const NodeType kWrite{{"write", "Write frames to EXR, or previews through an OCIO display.",
-                              kInputs, kParams, "", /*sink=*/true},
+extern const NodeType kWrite{{"write",
+                              "Write frames to EXR, or previews through an OCIO display.",
+                              kInputs,
+                              kParams,
+                              "",
+                              /*sink=*/true},
                              &execute,
                              &plan,
                              &check};

@@ -1,15 +1,15 @@
 #pragma once
 // Shared helpers for tests: scratch directories, analytic sample frames, running the CLI.
 
+#include <sys/wait.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
-#include <string>
-
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
-#include <sys/wait.h>
+#include <limits>
+#include <string>
 
 #include "core/camera.h"
 #include "core/frame.h"
@@ -45,8 +45,8 @@ inline Frame make_sample_frame(int width, int height, int frame)
             color.at(x, y, 1) = v;
             color.at(x, y, 2) = 0.25f + 0.01f * frame;
             color.at(x, y, 3) = 1.0f;
-            depth.at(x, y, 0) = y < height / 8 ? std::numeric_limits<float>::infinity()
-                                               : 2.0f + 10.0f * v;
+            depth.at(x, y, 0) =
+                y < height / 8 ? std::numeric_limits<float>::infinity() : 2.0f + 10.0f * v;
             normal.at(x, y, 1) = 1.0f;
             position.at(x, y, 0) = u;
             position.at(x, y, 1) = 0.0f;
@@ -69,8 +69,8 @@ inline Frame make_sample_frame(int width, int height, int frame)
     f.set("albedo", std::move(albedo));
     f.set("material", std::move(material));
     const glm::mat4 cam_to_world = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 1.5f, -5.0f));
-    const CameraMatrices m = make_camera_matrices(cam_to_world, 35.0f, 36.0f,
-                                                  float(width) / float(height), 0.1f);
+    const CameraMatrices m =
+        make_camera_matrices(cam_to_world, 35.0f, 36.0f, float(width) / float(height), 0.1f);
     f.camera.world_to_camera = m.world_to_camera;
     f.camera.world_to_ndc = m.world_to_ndc;
     f.camera.fstop = 2.8f;
@@ -93,13 +93,19 @@ inline Frame run_node(const std::string &type,
     const std::string port(nt->spec.inputs.empty() ? "" : nt->spec.inputs[0].name);
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
-        {"id": "n", "type": ")" + type + R"(", "inputs": {")" + port + R"(": "src"}, "params": )" +
+        {"id": "n", "type": ")" +
+                               type + R"(", "inputs": {")" + port + R"(": "src"}, "params": )" +
                                params_json + R"(},
         {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
                            "run_node(" + type + ")");
     const GraphNode &gn = g.nodes()[std::size_t(g.find("n"))];
-    NodeContext ctx(gn.identity, gn.params, {std::make_shared<const Frame>(in)}, {port},
-                    gn.requested, frame_number, *gn.state);
+    NodeContext ctx(gn.identity,
+                    gn.params,
+                    {std::make_shared<const Frame>(in)},
+                    {port},
+                    gn.requested,
+                    frame_number,
+                    *gn.state);
     nt->execute(ctx);
     return ctx.take_output();
 }

@@ -1,9 +1,9 @@
 // posthaste info FILE: layers, channels, pixel types, windows, camera, attributes, and where each
 // canonical pass comes from (or that it is absent).
 
-#include <cstdio>
-
 #include <OpenImageIO/imageio.h>
+
+#include <cstdio>
 
 #include "cli/commands.h"
 #include "core/passes.h"
@@ -21,7 +21,11 @@ void print_matrix(const char *name, const std::optional<glm::mat4> &m)
     const float *v = &(*m)[0][0];
     std::printf("  %-18s", name);
     for (int r = 0; r < 4; ++r) {
-        std::printf("%s[%g %g %g %g]", r ? " " : "", v[r * 4 + 0], v[r * 4 + 1], v[r * 4 + 2],
+        std::printf("%s[%g %g %g %g]",
+                    r ? " " : "",
+                    v[r * 4 + 0],
+                    v[r * 4 + 1],
+                    v[r * 4 + 2],
                     v[r * 4 + 3]);
     }
     std::printf("\n");
@@ -31,8 +35,7 @@ void print_scalar(const char *name, const std::optional<float> &v, const char *u
 {
     if (v) {
         std::printf("  %-18s %g%s\n", name, *v, unit);
-    }
-    else {
+    } else {
         std::printf("  %-18s absent\n", name);
     }
 }
@@ -42,19 +45,31 @@ int info(const std::vector<std::string> &files)
     for (const std::string &path : files) {
         const FileInfo fi = read_file_info(path);
         std::printf("%s\n", path.c_str());
-        std::printf("  format             %s, %zu part(s), %d x %d\n", fi.format.c_str(),
-                    fi.parts.size(), fi.width, fi.height);
+        std::printf("  format             %s, %zu part(s), %d x %d\n",
+                    fi.format.c_str(),
+                    fi.parts.size(),
+                    fi.width,
+                    fi.height);
         for (std::size_t p = 0; p < fi.parts.size(); ++p) {
             const FilePart &part = fi.parts[p];
-            std::printf("  part %zu%s%s%s: display (%d,%d)-(%d,%d), data (%d,%d)-(%d,%d) relative, %s"
-                        "%s%s\n",
-                        p, part.name.empty() ? "" : " \"", part.name.c_str(),
-                        part.name.empty() ? "" : "\"", part.display_window.x0,
-                        part.display_window.y0, part.display_window.x1 - 1,
-                        part.display_window.y1 - 1, part.data_window.x0, part.data_window.y0,
-                        part.data_window.x1 - 1, part.data_window.y1 - 1,
-                        part.tiled ? "tiled" : "scanline",
-                        part.compression.empty() ? "" : ", ", part.compression.c_str());
+            std::printf(
+                "  part %zu%s%s%s: display (%d,%d)-(%d,%d), data (%d,%d)-(%d,%d) relative, %s"
+                "%s%s\n",
+                p,
+                part.name.empty() ? "" : " \"",
+                part.name.c_str(),
+                part.name.empty() ? "" : "\"",
+                part.display_window.x0,
+                part.display_window.y0,
+                part.display_window.x1 - 1,
+                part.display_window.y1 - 1,
+                part.data_window.x0,
+                part.data_window.y0,
+                part.data_window.x1 - 1,
+                part.data_window.y1 - 1,
+                part.tiled ? "tiled" : "scanline",
+                part.compression.empty() ? "" : ", ",
+                part.compression.c_str());
             std::string line;
             for (const FileChannel &c : part.channels) {
                 line += (line.empty() ? "" : ", ") + c.name + " (" + c.type + ")";
@@ -76,8 +91,8 @@ int info(const std::vector<std::string> &files)
         print_scalar("farClip", fi.camera.far_clip, "");
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {
-            std::printf("  %-18s %s = %s\n", p.name().c_str(), p.type().c_str(),
-                        p.get_string(8).c_str());
+            std::printf(
+                "  %-18s %s = %s\n", p.name().c_str(), p.type().c_str(), p.get_string(8).c_str());
         }
         std::printf("passes\n");
         for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
@@ -99,7 +114,9 @@ int info(const std::vector<std::string> &files)
                 }
                 from += (from.empty() ? "" : ", ") + one;
             }
-            std::printf("  %-12s <- %s (%s)\n", std::string(cp.name).c_str(), from.c_str(),
+            std::printf("  %-12s <- %s (%s)\n",
+                        std::string(cp.name).c_str(),
+                        from.c_str(),
                         ps->origin.c_str());
         }
         for (const PassSource &s : fi.passes) {

@@ -18,20 +18,27 @@ void print_type(const NodeType &t)
         std::printf("  inputs: none (source)\n");
     }
     for (const PortSpec &p : s.inputs) {
-        std::printf("  input %-12s%s reads: %s%s%s\n", std::string(p.name).c_str(),
+        std::printf("  input %-12s%s reads: %s%s%s\n",
+                    std::string(p.name).c_str(),
                     p.optional ? " (optional)" : "",
                     p.passes.empty() ? "-" : std::string(p.passes).c_str(),
-                    p.help.empty() ? "" : "  ", std::string(p.help).c_str());
+                    p.help.empty() ? "" : "  ",
+                    std::string(p.help).c_str());
     }
     if (!s.makes.empty()) {
         std::printf("  makes: %s\n", std::string(s.makes).c_str());
     }
     for (const ParamSpec &p : s.params) {
         const std::string range = describe_range(p);
-        std::printf("  %-18s %-28s default %s%s%s%s%s\n      %s\n", std::string(p.name).c_str(),
-                    describe_type(p).c_str(), describe_default(p).c_str(),
-                    range.empty() ? "" : ", range ", range.c_str(), p.unit.empty() ? "" : ", ",
-                    std::string(p.unit).c_str(), std::string(p.help).c_str());
+        std::printf("  %-18s %-28s default %s%s%s%s%s\n      %s\n",
+                    std::string(p.name).c_str(),
+                    describe_type(p).c_str(),
+                    describe_default(p).c_str(),
+                    range.empty() ? "" : ", range ",
+                    range.c_str(),
+                    p.unit.empty() ? "" : ", ",
+                    std::string(p.unit).c_str(),
+                    std::string(p.help).c_str());
     }
 }
 
@@ -39,7 +46,8 @@ int nodes(const std::string &type)
 {
     if (type.empty()) {
         for (const NodeType *t : all_node_types()) {
-            std::printf("%-14s %s\n", std::string(t->spec.type).c_str(),
+            std::printf("%-14s %s\n",
+                        std::string(t->spec.type).c_str(),
                         std::string(t->spec.summary).c_str());
         }
         std::printf("\n'posthaste nodes TYPE' lists a node's inputs and parameters.\n");

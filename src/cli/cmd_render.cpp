@@ -60,11 +60,11 @@ int render(const RenderCommand &o)
                             {"truth", truth},
                             {"samples", o.samples},
                             {"seed", o.seed}}}});
-    g["nodes"].push_back({{"id", "write"},
-                          {"type", "write"},
-                          {"inputs", {{"image", "render"}}},
-                          {"params",
-                           {{"path", o.output}, {"passes", passes}, {"compression", o.compression}}}});
+    g["nodes"].push_back(
+        {{"id", "write"},
+         {"type", "write"},
+         {"inputs", {{"image", "render"}}},
+         {"params", {{"path", o.output}, {"passes", passes}, {"compression", o.compression}}}});
     if (passes == "*") {
         // "every pass the renderer makes": ask for them by name so the planner requests them.
         g["nodes"][1]["params"]["passes"] =
@@ -85,7 +85,8 @@ void add_render_command(CLI::App &app, int &exit_code)
     cmd->add_option("-o,--output", o->output, "Output EXR pattern, e.g. out/shot.####.exr")
         ->required();
     cmd->add_option("--frames,-f", o->frames, "Frames (default: the scene's range)");
-    cmd->add_option("--passes", o->passes,
+    cmd->add_option("--passes",
+                    o->passes,
                     "Comma-separated passes, or all (default: all; color only with --truth)");
     cmd->add_option("--size", o->size, "WIDTHxHEIGHT (default 1920x1080)");
     cmd->add_option("--supersample", o->supersample, "Beauty supersampling per axis: 1, 2 or 4")

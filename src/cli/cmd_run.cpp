@@ -1,14 +1,14 @@
 // posthaste run GRAPH: evaluate a graph over frames, several frames at once (--jobs), tiles in
 // parallel inside each node (--threads), with a progress bar on a terminal and a summary.
 
+#include <tbb/parallel_pipeline.h>
+
 #include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <map>
 #include <mutex>
-
-#include <tbb/parallel_pipeline.h>
 
 #include "cli/commands.h"
 #include "core/error.h"
@@ -28,8 +28,7 @@ std::string format_seconds(double s)
     char buf[32];
     if (s < 60.0) {
         std::snprintf(buf, sizeof(buf), "%.1fs", s);
-    }
-    else {
+    } else {
         std::snprintf(buf, sizeof(buf), "%dm%02ds", int(s) / 60, int(s) % 60);
     }
     return buf;
@@ -40,8 +39,8 @@ std::string format_seconds(double s)
 int run_graph(Graph &graph, const RunSettings &o)
 {
     set_thread_count(o.threads);
-    const std::vector<int> frames = o.frames.empty() ? graph.default_frames()
-                                                     : parse_frame_list(o.frames, "--frames");
+    const std::vector<int> frames =
+        o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
     graph.check(frames);
     if (o.dry_run) {
         if (!o.quiet) {
@@ -79,12 +78,10 @@ int run_graph(Graph &graph, const RunSettings &o)
                 int code = 0;
                 try {
                     graph.evaluate(frame, &times);
-                }
-                catch (const Error &e) {
+                } catch (const Error &e) {
                     error = e.what();
                     code = e.exit_code();
-                }
-                catch (const std::exception &e) {
+                } catch (const std::exception &e) {
                     error = e.what();
                     code = int(ExitCode::Runtime);
                 }
@@ -97,10 +94,12 @@ int run_graph(Graph &graph, const RunSettings &o)
                     failure_codes[frame] = code;
                     if (!o.skip_bad_frames) {
                         stop = true;
-                    }
-                    else {
-                        std::fprintf(stderr, "%swarning: frame %d skipped: %s\n",
-                                     terminal ? "\r\033[K" : "", frame, error.c_str());
+                    } else {
+                        std::fprintf(stderr,
+                                     "%swarning: frame %d skipped: %s\n",
+                                     terminal ? "\r\033[K" : "",
+                                     frame,
+                                     error.c_str());
                     }
                 }
                 if (o.quiet) {
@@ -112,14 +111,17 @@ int run_graph(Graph &graph, const RunSettings &o)
                 if (terminal) {
                     const int width = 30;
                     const int filled = int(width * double(n) / double(frames.size()));
-                    std::fprintf(stderr, "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s\033[K",
+                    std::fprintf(stderr,
+                                 "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s\033[K",
                                  std::string(std::size_t(filled), '#').c_str(),
-                                 std::string(std::size_t(width - filled), '-').c_str(), n,
-                                 frames.size(), fps, format_seconds(eta).c_str());
-                }
-                else if (error.empty()) {
-                    std::fprintf(stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n,
-                                 frames.size());
+                                 std::string(std::size_t(width - filled), '-').c_str(),
+                                 n,
+                                 frames.size(),
+                                 fps,
+                                 format_seconds(eta).c_str());
+                } else if (error.empty()) {
+                    std::fprintf(
+                        stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n, frames.size());
                 }
             }));
     if (terminal) {
@@ -132,17 +134,23 @@ int run_graph(Graph &graph, const RunSettings &o)
     }
     if (!o.quiet) {
         const int ok = done.load() - int(failures.size());
-        std::printf("%d frame(s) in %.3f s (%.2f frames/s, %d job(s), %d thread(s))%s\n", ok,
-                    wall, ok / std::max(wall, 1e-9), jobs, thread_count(),
-                    failures.empty()
-                        ? ""
-                        : (", " + std::to_string(failures.size()) + " skipped").c_str());
+        std::printf(
+            "%d frame(s) in %.3f s (%.2f frames/s, %d job(s), %d thread(s))%s\n",
+            ok,
+            wall,
+            ok / std::max(wall, 1e-9),
+            jobs,
+            thread_count(),
+            failures.empty() ? "" : (", " + std::to_string(failures.size()) + " skipped").c_str());
         std::printf("%-20s %-12s %12s %14s\n", "node", "type", "total s", "ms/frame");
         for (int i : graph.order()) {
             const GraphNode &gn = graph.nodes()[std::size_t(i)];
             const double s = double(*times.nanoseconds[std::size_t(i)]) * 1e-9;
-            std::printf("%-20s %-12s %12.3f %14.2f\n", gn.identity.id.c_str(),
-                        gn.identity.type.c_str(), s, 1000.0 * s / std::max(1, done.load()));
+            std::printf("%-20s %-12s %12.3f %14.2f\n",
+                        gn.identity.id.c_str(),
+                        gn.identity.type.c_str(),
+                        s,
+                        1000.0 * s / std::max(1, done.load()));
         }
     }
     return 0;
@@ -153,7 +161,8 @@ void add_run_command(CLI::App &app, int &exit_code)
     auto opts = std::make_shared<RunOptions>();
     CLI::App *cmd = app.add_subcommand("run", "Evaluate a graph over a range of frames");
     cmd->add_option("graph", opts->graph, "Graph file (JSON)")->required();
-    cmd->add_option("--frames,-f", opts->frames,
+    cmd->add_option("--frames,-f",
+                    opts->frames,
                     "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the graph's, else those on disk)");
     cmd->add_option("--set,-s", opts->sets, "Override a parameter: node.param=value")
         ->allow_extra_args(false);
@@ -162,7 +171,8 @@ void add_run_command(CLI::App &app, int &exit_code)
     cmd->add_option("--threads,-t", opts->threads, "Worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
     cmd->add_flag("--quiet,-q", opts->quiet, "No progress and no summary");
-    cmd->add_flag("--skip-bad-frames", opts->skip_bad_frames,
+    cmd->add_flag("--skip-bad-frames",
+                  opts->skip_bad_frames,
                   "Carry on past frames that fail (missing or unreadable input), with a warning");
     cmd->add_flag("--dry-run", opts->dry_run, "Validate the graph and its inputs, compute nothing");
     cmd->callback([opts, &exit_code] {

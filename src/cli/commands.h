@@ -2,10 +2,9 @@
 // Each subcommand adds itself to the CLI11 app; its callback throws posthaste::Error on failure
 // and stores its exit code in `exit_code` otherwise.
 
+#include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
-
-#include <CLI/CLI.hpp>
 
 namespace posthaste {
 class Graph;

@@ -1,11 +1,11 @@
 // posthaste: the command line. Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph
 // error (README.md "Exit codes"). Every error is one line on stderr.
 
-#include <cstdio>
-#include <string>
-
 #include <malloc.h>
 #include <unistd.h>
+
+#include <cstdio>
+#include <string>
 
 #include "cli/commands.h"
 #include "core/error.h"
@@ -30,9 +30,10 @@ int main(int argc, char **argv)
     CLI::App app{"posthaste: a node-graph compositor for multi-layer OpenEXR frame sequences"};
     app.set_version_flag("--version", std::string("posthaste ") + POSTHASTE_VERSION);
     app.require_subcommand(1);
-    app.footer("Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph error\n"
-               "(diff: idiff's 0 ok, 1 warning, 2 failure, 3 size mismatch, 4 file error).\n"
-               "Run 'posthaste COMMAND --help' for a command's options.");
+    app.footer(
+        "Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph error\n"
+        "(diff: idiff's 0 ok, 1 warning, 2 failure, 3 size mismatch, 4 file error).\n"
+        "Run 'posthaste COMMAND --help' for a command's options.");
     int exit_code = 0;
     cli::add_run_command(app, exit_code);
     cli::add_render_command(app, exit_code);
@@ -46,15 +47,13 @@ int main(int argc, char **argv)
     }
     try {
         app.parse(argc, argv);
-    }
-    catch (const CLI::ParseError &e) {
+    } catch (const CLI::ParseError &e) {
         if (e.get_exit_code() == 0) {
             return app.exit(e);  // --help, --version
         }
         std::fprintf(stderr, "error: %s (see --help)\n", e.what());
         return int(ExitCode::Usage);
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         std::string msg = e.what();
         for (char &c : msg) {
             c = c == '\n' ? ' ' : c;
@@ -64,8 +63,7 @@ int main(int argc, char **argv)
         }
         std::fprintf(stderr, "error: %s\n", msg.c_str());
         return e.exit_code();
-    }
-    catch (const std::exception &e) {
+    } catch (const std::exception &e) {
         std::fprintf(stderr, "error: %s\n", e.what());
         return int(ExitCode::Runtime);
     }

@@ -8,7 +8,7 @@
 namespace posthaste {
 namespace {
 
-template<typename T>
+template <typename T>
 const T &require(const std::optional<T> &v, const char *attribute, const std::string &who)
 {
     if (!v) {
@@ -75,11 +75,8 @@ CameraMatrices make_camera_matrices(const glm::mat4 &camera_to_world,
     return {world_to_camera, cam_to_ndc * world_to_camera};
 }
 
-bool world_to_pixel(const glm::mat4 &world_to_ndc,
-                    const glm::vec3 &p,
-                    int width,
-                    int height,
-                    glm::vec2 &pixel)
+bool world_to_pixel(
+    const glm::mat4 &world_to_ndc, const glm::vec3 &p, int width, int height, glm::vec2 &pixel)
 {
     const glm::vec4 h = world_to_ndc * glm::vec4(p, 1.0f);
     if (!(h.w > 0.0f)) {

@@ -7,12 +7,11 @@
 // is camera-space z. NDC maps the display window to [0,1]^2, (0,0) top-left, (1,1) bottom-right.
 // Scene units are metres.
 
-#include <optional>
-#include <string>
-
 #include <glm/mat4x4.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
+#include <optional>
+#include <string>
 
 namespace posthaste {
 
@@ -29,9 +28,9 @@ inline constexpr const char *kFocus = "focus";                          // float
 inline constexpr const char *kFocalLength = "focalLength";              // float, mm
 inline constexpr const char *kSensorWidth = "sensorWidth";              // float, mm
 inline constexpr const char *kSensorHeight = "sensorHeight";            // float, mm
-inline constexpr const char *kShutter = "shutter";       // float, fraction of the frame interval
-inline constexpr const char *kNearClip = "nearClip";     // float, scene units
-inline constexpr const char *kFarClip = "farClip";       // float, scene units
+inline constexpr const char *kShutter = "shutter";          // float, fraction of the frame interval
+inline constexpr const char *kNearClip = "nearClip";        // float, scene units
+inline constexpr const char *kFarClip = "farClip";          // float, scene units
 inline constexpr const char *kFrameNumber = "frameNumber";  // int
 }  // namespace attr
 
@@ -40,12 +39,12 @@ struct Camera {
     std::optional<glm::mat4> world_to_ndc;
     std::optional<glm::mat4> prev_world_to_camera;
     std::optional<glm::mat4> prev_world_to_ndc;
-    std::optional<float> fstop;            ///< f-number (EXR `aperture`).
-    std::optional<float> focus_distance;   ///< metres (EXR `focus`).
+    std::optional<float> fstop;           ///< f-number (EXR `aperture`).
+    std::optional<float> focus_distance;  ///< metres (EXR `focus`).
     std::optional<float> focal_length_mm;
     std::optional<float> sensor_width_mm;
     std::optional<float> sensor_height_mm;
-    std::optional<float> shutter;          ///< fraction of the frame interval the shutter is open.
+    std::optional<float> shutter;  ///< fraction of the frame interval the shutter is open.
     std::optional<float> near_clip;
     std::optional<float> far_clip;
 
@@ -76,10 +75,7 @@ CameraMatrices make_camera_matrices(const glm::mat4 &camera_to_world,
 
 /// Project a world point with a worldToNDC matrix to pixel coordinates of a width x height
 /// display window (pixel centres at +0.5). Returns false behind the camera (w <= 0).
-bool world_to_pixel(const glm::mat4 &world_to_ndc,
-                    const glm::vec3 &p,
-                    int width,
-                    int height,
-                    glm::vec2 &pixel);
+bool world_to_pixel(
+    const glm::mat4 &world_to_ndc, const glm::vec3 &p, int width, int height, glm::vec2 &pixel);
 
 }  // namespace posthaste

@@ -17,7 +17,8 @@ enum class ExitCode : int {
 };
 
 /// Concatenate anything that streams into one string: str_cat("frame ", 12, ": ", msg).
-template<typename... Args> std::string str_cat(Args &&...args)
+template <typename... Args>
+std::string str_cat(Args &&...args)
 {
     std::ostringstream os;
     (os << ... << std::forward<Args>(args));
@@ -26,26 +27,27 @@ template<typename... Args> std::string str_cat(Args &&...args)
 
 /// The one exception type of posthaste. The message is complete and printable as is.
 class Error : public std::runtime_error {
-  public:
-    Error(ExitCode code, std::string message)
-        : std::runtime_error(std::move(message)), code_(code)
+   public:
+    Error(ExitCode code, std::string message) : std::runtime_error(std::move(message)), code_(code)
     {
     }
     ExitCode code() const { return code_; }
     int exit_code() const { return static_cast<int>(code_); }
 
-  private:
+   private:
     ExitCode code_;
 };
 
 /// A usage or graph error (exit code 2).
-template<typename... Args> [[noreturn]] void throw_usage(Args &&...args)
+template <typename... Args>
+[[noreturn]] void throw_usage(Args &&...args)
 {
     throw Error(ExitCode::Usage, str_cat(std::forward<Args>(args)...));
 }
 
 /// An I/O or runtime error (exit code 1).
-template<typename... Args> [[noreturn]] void throw_runtime(Args &&...args)
+template <typename... Args>
+[[noreturn]] void throw_runtime(Args &&...args)
 {
     throw Error(ExitCode::Runtime, str_cat(std::forward<Args>(args)...));
 }

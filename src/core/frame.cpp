@@ -13,8 +13,14 @@ const Pass &Frame::pass(const std::string &name, const std::string &who) const
         for (const auto &[n, p] : passes_) {
             have += (have.empty() ? "" : ", ") + n;
         }
-        throw_runtime(who, ": frame ", number, " has no pass \"", name, "\" (have: ",
-                      have.empty() ? "none" : have, ")");
+        throw_runtime(who,
+                      ": frame ",
+                      number,
+                      " has no pass \"",
+                      name,
+                      "\" (have: ",
+                      have.empty() ? "none" : have,
+                      ")");
     }
     return it->second;
 }
@@ -32,8 +38,16 @@ void Frame::set(const std::string &name,
         height = image->height();
     }
     if (image->width() != width || image->height() != height) {
-        throw_runtime("pass \"", name, "\" is ", image->width(), "x", image->height(),
-                      " but the frame is ", width, "x", height);
+        throw_runtime("pass \"",
+                      name,
+                      "\" is ",
+                      image->width(),
+                      "x",
+                      image->height(),
+                      " but the frame is ",
+                      width,
+                      "x",
+                      height);
     }
     if (channels.empty()) {
         const pass::CanonicalPass *canonical = pass::find_canonical(name);
@@ -41,16 +55,20 @@ void Frame::set(const std::string &name,
             for (std::string_view c : canonical->channels) {
                 channels.emplace_back(c);
             }
-        }
-        else {
+        } else {
             for (int c = 0; c < image->channels(); ++c) {
                 channels.push_back(std::to_string(c));
             }
         }
     }
     if (int(channels.size()) != image->channels()) {
-        throw_runtime("pass \"", name, "\": ", channels.size(), " channel names for ",
-                      image->channels(), " channels");
+        throw_runtime("pass \"",
+                      name,
+                      "\": ",
+                      channels.size(),
+                      " channel names for ",
+                      image->channels(),
+                      " channels");
     }
     passes_[name] = Pass{std::move(image), std::move(channels), storage};
 }

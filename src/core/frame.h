@@ -3,12 +3,12 @@
 // header attribute, carried through untouched). Passes are shared, immutable Images: a node that
 // leaves a pass alone passes the same pointer on.
 
+#include <OpenImageIO/paramlist.h>
+
 #include <map>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <OpenImageIO/paramlist.h>
 
 #include "core/camera.h"
 #include "core/image.h"
@@ -26,9 +26,9 @@ struct Pass {
 };
 
 class Frame {
-  public:
+   public:
     int number = 0;
-    int width = 0;   ///< Display window width; every pass has this size.
+    int width = 0;  ///< Display window width; every pass has this size.
     int height = 0;
     Camera camera;
     /// Header attributes other than the camera ones, carried through to outputs.
@@ -56,7 +56,7 @@ class Frame {
     const std::map<std::string, Pass> &passes() const { return passes_; }
     std::vector<std::string> pass_names() const;
 
-  private:
+   private:
     std::map<std::string, Pass> passes_;
 };
 

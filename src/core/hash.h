@@ -28,8 +28,7 @@ constexpr float hash_to_unit(std::uint32_t h)
 /// Uniform float in [0, 1) for pixel (x, y), sample index and seed.
 constexpr float hash_unit(int x, int y, int sample, std::uint32_t seed)
 {
-    return hash_to_unit(
-        hash4(std::uint32_t(x), std::uint32_t(y), std::uint32_t(sample), seed));
+    return hash_to_unit(hash4(std::uint32_t(x), std::uint32_t(y), std::uint32_t(sample), seed));
 }
 
 }  // namespace posthaste

@@ -5,9 +5,8 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
-#include <memory>
-
 #include <glm/vec4.hpp>
+#include <memory>
 
 namespace posthaste {
 
@@ -35,7 +34,7 @@ inline constexpr int kMaxChannels = 64;
 inline constexpr std::size_t kMaxImageFloats = std::size_t(1) << 32;
 
 class Image {
-  public:
+   public:
     Image() = default;
     /// A zero-filled image. Throws Error for sizes outside [0, kMaxImageSide] or channel counts
     /// outside [1, kMaxChannels].
@@ -43,7 +42,10 @@ class Image {
     /// An image whose pixels are left uninitialised (every pixel must then be written).
     static Image uninitialized(int width, int height, int channels);
     /// Zero-filled, same size and channel count as `other`.
-    static Image like(const Image &other) { return Image(other.width_, other.height_, other.channels_); }
+    static Image like(const Image &other)
+    {
+        return Image(other.width_, other.height_, other.channels_);
+    }
 
     Image(const Image &other);
     Image &operator=(const Image &other);
@@ -84,7 +86,7 @@ class Image {
     /// True when both images have the same shape and the same bits (NaNs compare by bits).
     bool bit_equal(const Image &other) const;
 
-  private:
+   private:
     std::size_t index(int x, int y) const
     {
         return (std::size_t(y) * std::size_t(width_) + std::size_t(x)) * std::size_t(channels_);

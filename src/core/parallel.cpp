@@ -1,12 +1,12 @@
 #include "core/parallel.h"
 
-#include <memory>
-#include <mutex>
-#include <thread>
-
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+
+#include <memory>
+#include <mutex>
+#include <thread>
 
 namespace posthaste {
 namespace {
@@ -26,17 +26,17 @@ void parallel_for_tiles(const Rect &bounds,
     }
     const int tiles_x = (bounds.width() + tile_size - 1) / tile_size;
     const int tiles_y = (bounds.height() + tile_size - 1) / tile_size;
-    tbb::parallel_for(tbb::blocked_range<int>(0, tiles_x * tiles_y),
-                      [&](const tbb::blocked_range<int> &r) {
-                          for (int i = r.begin(); i != r.end(); ++i) {
-                              const int tx = i % tiles_x, ty = i / tiles_x;
-                              const Rect tile{bounds.x0 + tx * tile_size,
-                                              bounds.y0 + ty * tile_size,
-                                              std::min(bounds.x0 + (tx + 1) * tile_size, bounds.x1),
-                                              std::min(bounds.y0 + (ty + 1) * tile_size, bounds.y1)};
-                              fn(tile);
-                          }
-                      });
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, tiles_x * tiles_y), [&](const tbb::blocked_range<int> &r) {
+            for (int i = r.begin(); i != r.end(); ++i) {
+                const int tx = i % tiles_x, ty = i / tiles_x;
+                const Rect tile{bounds.x0 + tx * tile_size,
+                                bounds.y0 + ty * tile_size,
+                                std::min(bounds.x0 + (tx + 1) * tile_size, bounds.x1),
+                                std::min(bounds.y0 + (ty + 1) * tile_size, bounds.y1)};
+                fn(tile);
+            }
+        });
 }
 
 void parallel_for(int begin, int end, const std::function<void(int)> &fn)

@@ -9,22 +9,22 @@
 
 namespace posthaste::pass {
 
-inline constexpr const char *kColor = "color";        // R G B A: scene-linear Rec.709, premultiplied
-inline constexpr const char *kDepth = "depth";        // Z: camera-space z, +inf where nothing was hit
-inline constexpr const char *kNormal = "normal";      // N.X N.Y N.Z: world-space unit normal
+inline constexpr const char *kColor = "color";    // R G B A: scene-linear Rec.709, premultiplied
+inline constexpr const char *kDepth = "depth";    // Z: camera-space z, +inf where nothing was hit
+inline constexpr const char *kNormal = "normal";  // N.X N.Y N.Z: world-space unit normal
 inline constexpr const char *kPosition = "position";  // P.X P.Y P.Z: world-space position
-inline constexpr const char *kMotion = "motion";      // motion.X motion.Y: pixels, prev -> this, y down
+inline constexpr const char *kMotion = "motion";  // motion.X motion.Y: pixels, prev -> this, y down
 inline constexpr const char *kMotionNext = "motion_next";  // same convention, this -> next frame
-inline constexpr const char *kAlbedo = "albedo";      // albedo.R albedo.G albedo.B
+inline constexpr const char *kAlbedo = "albedo";           // albedo.R albedo.G albedo.B
 inline constexpr const char *kMaterial = "material";  // material.roughness .metallic .anisotropy
 inline constexpr const char *kTangent = "tangent";    // T.X T.Y T.Z: world-space tangent
 inline constexpr const char *kId = "id";              // id: integer id stored as float
 
 struct CanonicalPass {
     std::string_view name;
-    std::string_view layer;  ///< EXR layer prefix ("" for R G B A and Z).
+    std::string_view layer;                  ///< EXR layer prefix ("" for R G B A and Z).
     std::vector<std::string_view> channels;  ///< Channel suffixes, in order.
-    bool half_by_default;    ///< Written as half unless asked otherwise (color, albedo).
+    bool half_by_default;  ///< Written as half unless asked otherwise (color, albedo).
     std::string_view meaning;
 };
 

@@ -4,10 +4,9 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
-
-#include <nlohmann/json.hpp>
 
 #include "core/error.h"
 #include "graph/node_registry.h"
@@ -108,7 +107,12 @@ ParamValue convert_param(const ParamSpec &spec, const json &v, const std::string
             }
             out.text = v.get<std::string>();
             if (std::find(words.begin(), words.end(), out.text) == words.end()) {
-                throw_usage(where, ": expected one of ", spec.choices, ", got \"", out.text, "\"",
+                throw_usage(where,
+                            ": expected one of ",
+                            spec.choices,
+                            ", got \"",
+                            out.text,
+                            "\"",
                             did_you_mean(out.text, words));
             }
             break;
@@ -193,8 +197,7 @@ std::string line_column(const std::string &text, std::size_t offset)
         if (text[i] == '\n') {
             ++line;
             col = 1;
-        }
-        else {
+        } else {
             ++col;
         }
     }
@@ -241,7 +244,11 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
 {
     std::vector<int> frames;
     auto bad = [&](const std::string &why) {
-        throw_usage(what, ": invalid frame list \"", text, "\": ", why,
+        throw_usage(what,
+                    ": invalid frame list \"",
+                    text,
+                    "\": ",
+                    why,
                     " (expected e.g. 1-48, 1-48x2, 1,5,10-20)");
     };
     auto parse_int = [&](const std::string &s) -> long long {
@@ -252,8 +259,7 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
         long long v = 0;
         try {
             v = std::stoll(s, &pos);
-        }
-        catch (const std::exception &) {
+        } catch (const std::exception &) {
             bad("\"" + s + "\" is not a number");
         }
         if (pos != s.size()) {
@@ -308,27 +314,33 @@ Graph Graph::parse(const std::string &text,
     json doc;
     try {
         doc = json::parse(text);
-    }
-    catch (const json::parse_error &e) {
+    } catch (const json::parse_error &e) {
         // nlohmann's text repeats the position: keep only what went wrong.
         std::string what = e.what();
         if (auto p = what.find(": syntax error"); p != std::string::npos) {
             what = what.substr(p + 2);
-        }
-        else if (auto q = what.rfind("]"); q != std::string::npos) {
+        } else if (auto q = what.rfind("]"); q != std::string::npos) {
             what = what.substr(q + 2);
         }
-        throw_usage(origin, ": ", line_column(text, e.byte == 0 ? 0 : e.byte - 1),
-                    ": invalid JSON: ", what);
+        throw_usage(origin,
+                    ": ",
+                    line_column(text, e.byte == 0 ? 0 : e.byte - 1),
+                    ": invalid JSON: ",
+                    what);
     }
     if (!doc.is_object()) {
         throw_usage(origin, ": expected a JSON object with a \"nodes\" array");
     }
-    static const std::vector<std::string> kTopKeys = {"nodes", "frames", "aliases", "description",
-                                                      "comment"};
+    static const std::vector<std::string> kTopKeys = {
+        "nodes", "frames", "aliases", "description", "comment"};
     for (auto it = doc.begin(); it != doc.end(); ++it) {
         if (std::find(kTopKeys.begin(), kTopKeys.end(), it.key()) == kTopKeys.end()) {
-            throw_usage(origin, ":/", it.key(), ": unknown key \"", it.key(), "\"",
+            throw_usage(origin,
+                        ":/",
+                        it.key(),
+                        ": unknown key \"",
+                        it.key(),
+                        "\"",
                         did_you_mean(it.key(), kTopKeys));
         }
     }
@@ -339,20 +351,19 @@ Graph Graph::parse(const std::string &text,
         const json &f = doc["frames"];
         if (f.is_number_integer()) {
             g.frames_ = std::to_string(f.get<int>());
-        }
-        else if (f.is_string()) {
+        } else if (f.is_string()) {
             g.frames_ = f.get<std::string>();
-        }
-        else {
-            throw_usage(origin, ":/frames: expected a frame list string like \"1-48\", got ",
-                        json_kind(f));
+        } else {
+            throw_usage(
+                origin, ":/frames: expected a frame list string like \"1-48\", got ", json_kind(f));
         }
         parse_frame_list(g.frames_, origin + ":/frames");
     }
     json aliases = json::array();
     if (doc.contains("aliases")) {
         if (!doc["aliases"].is_array()) {
-            throw_usage(origin, ":/aliases: expected an array of alias rules, got ",
+            throw_usage(origin,
+                        ":/aliases: expected an array of alias rules, got ",
                         json_kind(doc["aliases"]));
         }
         aliases = doc["aliases"];
@@ -367,16 +378,22 @@ Graph Graph::parse(const std::string &text,
         if (!n.is_object()) {
             throw_usage(path, ": expected a node object, got ", json_kind(n));
         }
-        static const std::vector<std::string> kNodeKeys = {"id", "type", "inputs", "params",
-                                                           "comment"};
+        static const std::vector<std::string> kNodeKeys = {
+            "id", "type", "inputs", "params", "comment"};
         for (auto it = n.begin(); it != n.end(); ++it) {
             if (std::find(kNodeKeys.begin(), kNodeKeys.end(), it.key()) == kNodeKeys.end()) {
-                throw_usage(path, "/", it.key(), ": unknown key \"", it.key(), "\"",
+                throw_usage(path,
+                            "/",
+                            it.key(),
+                            ": unknown key \"",
+                            it.key(),
+                            "\"",
                             did_you_mean(it.key(), kNodeKeys));
             }
         }
         if (!n.contains("id") || !n["id"].is_string() || !valid_id(n["id"].get<std::string>())) {
-            throw_usage(path, "/id: expected a node id of letters, digits, '_' or '-', got ",
+            throw_usage(path,
+                        "/id: expected a node id of letters, digits, '_' or '-', got ",
                         n.contains("id") ? json_kind(n["id"]) : "nothing");
         }
         const std::string id = n["id"].get<std::string>();
@@ -394,7 +411,12 @@ Graph Graph::parse(const std::string &text,
             for (const NodeType *t : all_node_types()) {
                 known.emplace_back(t->spec.type);
             }
-            throw_usage(path, "/type: node \"", id, "\": unknown node type \"", type, "\"",
+            throw_usage(path,
+                        "/type: node \"",
+                        id,
+                        "\": unknown node type \"",
+                        type,
+                        "\"",
                         did_you_mean(type, known));
         }
         GraphNode gn;
@@ -418,41 +440,69 @@ Graph Graph::parse(const std::string &text,
         if (n.contains("inputs")) {
             const json &in = n["inputs"];
             if (!in.is_object()) {
-                throw_usage(path, "/inputs: ", who,
+                throw_usage(path,
+                            "/inputs: ",
+                            who,
                             ": expected an object mapping input ports to node ids, got ",
                             json_kind(in));
             }
             for (auto it = in.begin(); it != in.end(); ++it) {
                 const auto port = std::find(ports.begin(), ports.end(), it.key());
                 if (port == ports.end()) {
-                    throw_usage(path, "/inputs/", it.key(), ": ", who, ": unknown input \"",
-                                it.key(), "\"",
-                                ports.empty() ? std::string(" (this node takes no inputs)")
-                                              : did_you_mean(it.key(), ports) +
-                                                    " (inputs: " + [&] {
-                                                        std::string s;
-                                                        for (auto &p : ports) {
-                                                            s += (s.empty() ? "" : ", ") + p;
-                                                        }
-                                                        return s;
-                                                    }() + ")");
+                    throw_usage(
+                        path,
+                        "/inputs/",
+                        it.key(),
+                        ": ",
+                        who,
+                        ": unknown input \"",
+                        it.key(),
+                        "\"",
+                        ports.empty() ? std::string(" (this node takes no inputs)")
+                                      : did_you_mean(it.key(), ports) + " (inputs: " +
+                                            [&] {
+                                                std::string s;
+                                                for (auto &p : ports) {
+                                                    s += (s.empty() ? "" : ", ") + p;
+                                                }
+                                                return s;
+                                            }() +
+                                            ")");
                 }
                 if (!it.value().is_string()) {
-                    throw_usage(path, "/inputs/", it.key(), ": ", who,
-                                ": expected the id of another node, got ", json_kind(it.value()));
+                    throw_usage(path,
+                                "/inputs/",
+                                it.key(),
+                                ": ",
+                                who,
+                                ": expected the id of another node, got ",
+                                json_kind(it.value()));
                 }
                 const std::string src = it.value().get<std::string>();
                 const auto found = std::find(ids.begin(), ids.end(), src);
                 if (found == ids.end()) {
-                    throw_usage(path, "/inputs/", it.key(), ": ", who, ": input \"", it.key(),
-                                "\" names unknown node \"", src, "\"", did_you_mean(src, ids));
+                    throw_usage(path,
+                                "/inputs/",
+                                it.key(),
+                                ": ",
+                                who,
+                                ": input \"",
+                                it.key(),
+                                "\" names unknown node \"",
+                                src,
+                                "\"",
+                                did_you_mean(src, ids));
                 }
                 gn.inputs[std::size_t(port - ports.begin())] = int(found - ids.begin());
             }
         }
         for (std::size_t p = 0; p < spec.inputs.size(); ++p) {
             if (gn.inputs[p] < 0 && !spec.inputs[p].optional) {
-                throw_usage(path, "/inputs: ", who, ": required input \"", spec.inputs[p].name,
+                throw_usage(path,
+                            "/inputs: ",
+                            who,
+                            ": required input \"",
+                            spec.inputs[p].name,
                             "\" is not connected");
             }
         }
@@ -463,7 +513,10 @@ Graph Graph::parse(const std::string &text,
         }
         json params = n.contains("params") ? n["params"] : json::object();
         if (!params.is_object()) {
-            throw_usage(path, "/params: ", who, ": expected an object of parameters, got ",
+            throw_usage(path,
+                        "/params: ",
+                        who,
+                        ": expected an object of parameters, got ",
                         json_kind(params));
         }
         // Graph-wide aliases reach every node that declares an "aliases" parameter.
@@ -480,7 +533,12 @@ Graph Graph::parse(const std::string &text,
             const ParamSpec *ps = find_param(*gn.type, it.key());
             const std::string ppath = path + "/params/" + it.key();
             if (!ps) {
-                throw_usage(ppath, ": ", who, ": unknown param \"", it.key(), "\"",
+                throw_usage(ppath,
+                            ": ",
+                            who,
+                            ": unknown param \"",
+                            it.key(),
+                            "\"",
                             did_you_mean(it.key(), param_names(*gn.type)));
             }
             values[it.key()] =
@@ -507,23 +565,26 @@ Graph Graph::parse(const std::string &text,
         GraphNode &gn = g.nodes_[std::size_t(found - ids.begin())];
         const ParamSpec *ps = find_param(*gn.type, name);
         if (!ps) {
-            throw_usage(where, ": ", gn.identity.describe(), ": unknown param \"", name, "\"",
+            throw_usage(where,
+                        ": ",
+                        gn.identity.describe(),
+                        ": unknown param \"",
+                        name,
+                        "\"",
                         did_you_mean(name, param_names(*gn.type)));
         }
         json v;
         if (ps->type == ParamType::String || ps->type == ParamType::Choice) {
             v = text_value;
-        }
-        else {
+        } else {
             v = json::parse(text_value, nullptr, /*allow_exceptions=*/false);
             if (v.is_discarded()) {
                 v = text_value;
             }
         }
         std::map<std::string, ParamValue> values = gn.params.values();
-        values[name] = convert_param(*ps, v,
-                                     where + ": " + gn.identity.describe() + ": param \"" + name +
-                                         "\"");
+        values[name] = convert_param(
+            *ps, v, where + ": " + gn.identity.describe() + ": param \"" + name + "\"");
         gn.params = NodeParams(gn.type, std::move(values));
     }
 
@@ -531,8 +592,12 @@ Graph Graph::parse(const std::string &text,
     for (GraphNode &gn : g.nodes_) {
         for (const ParamSpec &p : gn.type->spec.params) {
             if (p.required && !gn.params.given(p)) {
-                throw_usage(gn.identity.json_path, "/params: ", gn.identity.describe(),
-                            ": required param \"", p.name, "\" is missing");
+                throw_usage(gn.identity.json_path,
+                            "/params: ",
+                            gn.identity.describe(),
+                            ": required param \"",
+                            p.name,
+                            "\" is missing");
             }
         }
     }
@@ -562,9 +627,11 @@ Graph Graph::parse(const std::string &text,
                     cycle += g.nodes_[std::size_t(*it)].identity.id + " <- ";
                 }
                 cycle += g.nodes_[std::size_t(src)].identity.id;
-                throw_usage(g.nodes_[std::size_t(src)].identity.json_path, "/inputs: node \"",
+                throw_usage(g.nodes_[std::size_t(src)].identity.json_path,
+                            "/inputs: node \"",
                             g.nodes_[std::size_t(src)].identity.id,
-                            "\" is in a cycle: ", cycle);
+                            "\" is in a cycle: ",
+                            cycle);
             }
             if (state[std::size_t(src)] == 0) {
                 visit(src);
@@ -584,8 +651,9 @@ Graph Graph::parse(const std::string &text,
         has_sink = has_sink || gn.type->spec.sink;
     }
     if (!has_sink) {
-        throw_usage(origin, ":/nodes: the graph has no sink (write) node, so it would produce "
-                            "nothing");
+        throw_usage(origin,
+                    ":/nodes: the graph has no sink (write) node, so it would produce "
+                    "nothing");
     }
     g.plan();
     return g;
@@ -724,16 +792,19 @@ Frame Graph::evaluate(int frame, NodeTimes *times) const
             inputs.push_back(gn.inputs[p] >= 0 ? results[std::size_t(gn.inputs[p])] : nullptr);
             ports.emplace_back(gn.type->spec.inputs[p].name);
         }
-        NodeContext ctx(gn.identity, gn.params, std::move(inputs), std::move(ports), gn.requested,
-                        frame, *gn.state);
+        NodeContext ctx(gn.identity,
+                        gn.params,
+                        std::move(inputs),
+                        std::move(ports),
+                        gn.requested,
+                        frame,
+                        *gn.state);
         const auto t0 = std::chrono::steady_clock::now();
         try {
             gn.type->execute(ctx);
-        }
-        catch (const Error &) {
+        } catch (const Error &) {
             throw;
-        }
-        catch (const std::exception &e) {
+        } catch (const std::exception &e) {
             throw_runtime(ctx.where(), ": ", e.what());
         }
         const auto t1 = std::chrono::steady_clock::now();

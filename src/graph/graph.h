@@ -35,7 +35,7 @@ struct NodeTimes {
 };
 
 class Graph {
-  public:
+   public:
     /// Read, parse and validate a graph file; `overrides` are "node.param=value" strings.
     /// Throws Error (exit code 2) naming the file, JSON path, node and parameter.
     static Graph load(const std::string &path, const std::vector<std::string> &overrides = {});
@@ -68,7 +68,7 @@ class Graph {
     /// A NodeTimes with one slot per node.
     NodeTimes make_times() const;
 
-  private:
+   private:
     Graph() = default;
     void plan();
 

@@ -47,8 +47,11 @@ const ParamValue &NodeParams::value(const ParamSpec &spec) const
     auto it = values_.find(std::string(spec.name));
     if (it == values_.end()) {
         // A node reading a parameter it did not declare is a programming error.
-        throw_runtime("internal: node type \"", type_ ? type_->spec.type : "?",
-                      "\" reads undeclared param \"", spec.name, "\"");
+        throw_runtime("internal: node type \"",
+                      type_ ? type_->spec.type : "?",
+                      "\" reads undeclared param \"",
+                      spec.name,
+                      "\"");
     }
     return it->second;
 }

@@ -38,8 +38,7 @@ struct PassSet {
         if (o.all) {
             all = true;
             names.clear();
-        }
-        else if (!all) {
+        } else if (!all) {
             names.insert(o.names.begin(), o.names.end());
         }
     }
@@ -84,7 +83,7 @@ struct NodeType {
 
 /// Parameters of one node instance, validated and defaulted.
 class NodeParams {
-  public:
+   public:
     NodeParams() = default;
     NodeParams(const NodeType *type, std::map<std::string, ParamValue> values)
         : type_(type), values_(std::move(values))
@@ -104,7 +103,7 @@ class NodeParams {
     bool given(const ParamSpec &spec) const { return value(spec).given; }
     const std::map<std::string, ParamValue> &values() const { return values_; }
 
-  private:
+   private:
     const ParamValue &value(const ParamSpec &spec) const;
     const NodeType *type_ = nullptr;
     std::map<std::string, ParamValue> values_;
@@ -121,8 +120,9 @@ struct NodeIdentity {
 /// Per-instance state that lives across frames (look-up tables, caches). Created once, on first
 /// use, under a lock; afterwards shared read-only by every frame.
 class NodeState {
-  public:
-    template<typename T, typename Make> const T &get_or_create(Make &&make)
+   public:
+    template <typename T, typename Make>
+    const T &get_or_create(Make &&make)
     {
         std::lock_guard lock(mutex_);
         if (!value_.has_value()) {
@@ -131,13 +131,13 @@ class NodeState {
         return *std::any_cast<std::shared_ptr<const T>>(value_);
     }
 
-  private:
+   private:
     std::mutex mutex_;
     std::any value_;
 };
 
 class PlanContext {
-  public:
+   public:
     const NodeParams &params;
     const NodeIdentity &node;
     const PassSet &downstream;     ///< What consumers read from this node's output.
@@ -146,7 +146,7 @@ class PlanContext {
 };
 
 class CheckContext {
-  public:
+   public:
     const NodeParams &params;
     const NodeIdentity &node;
     const PassSet &downstream;  ///< For sources: the passes to produce.
@@ -155,7 +155,7 @@ class CheckContext {
 };
 
 class NodeContext {
-  public:
+   public:
     NodeContext(const NodeIdentity &node,
                 const NodeParams &params,
                 std::vector<std::shared_ptr<const Frame>> inputs,
@@ -205,7 +205,7 @@ class NodeContext {
 
     NodeState &state() { return state_; }
 
-  private:
+   private:
     int port_index(std::string_view port) const;
 
     const NodeIdentity &node_;

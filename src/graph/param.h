@@ -68,7 +68,9 @@ struct ParamSpec {
         return p;
     }
     /// A choice among `options` ("over|add|multiply"); `def` must be one of them.
-    static constexpr ParamSpec choice(std::string_view n, std::string_view options, std::string_view def)
+    static constexpr ParamSpec choice(std::string_view n,
+                                      std::string_view options,
+                                      std::string_view def)
     {
         ParamSpec p;
         p.name = n;
@@ -141,10 +143,10 @@ struct ParamSpec {
 
 /// A validated parameter value. Which member is meaningful follows the spec's type.
 struct ParamValue {
-    double number = 0.0;             ///< Int, Real, Bool (0/1)
-    std::string text;                ///< String, Choice; JSON text for Json
-    std::vector<double> vec;         ///< Vec
-    bool given = false;              ///< set by the graph or --set (not the default)
+    double number = 0.0;      ///< Int, Real, Bool (0/1)
+    std::string text;         ///< String, Choice; JSON text for Json
+    std::vector<double> vec;  ///< Vec
+    bool given = false;       ///< set by the graph or --set (not the default)
 };
 
 /// The words of a Choice spec, in order.

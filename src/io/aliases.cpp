@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <map>
-#include <set>
-
 #include <nlohmann/json.hpp>
+#include <set>
 
 #include "core/error.h"
 #include "core/passes.h"
@@ -65,8 +64,8 @@ const std::vector<AliasRule> &builtin_alias_rules()
         }
         // Blender multilayer EXR (any view-layer name). Vector X,Y = previous minus current
         // position in pixels with y up, so motion = (-X, +Y); Z,W = current minus next.
-        r.push_back(rule("color", {"*.Combined.R", "*.Combined.G", "*.Combined.B", "*.Combined.A"},
-                         "Blender"));
+        r.push_back(rule(
+            "color", {"*.Combined.R", "*.Combined.G", "*.Combined.B", "*.Combined.A"}, "Blender"));
         r.push_back(rule("depth", {"*.Depth.Z"}, "Blender", {}, 1e10f));
         r.push_back(rule("normal", {"*.Normal.X", "*.Normal.Y", "*.Normal.Z"}, "Blender"));
         r.push_back(rule("position", {"*.Position.X", "*.Position.Y", "*.Position.Z"}, "Blender"));
@@ -108,11 +107,14 @@ std::vector<AliasRule> parse_alias_rules(const std::string &json_text, const std
             throw_usage(w, ": expected an object {\"pass\": ..., \"channels\": [...]}");
         }
         for (auto it = a.begin(); it != a.end(); ++it) {
-            static const std::vector<std::string> keys = {"pass", "channels", "scale", "offset",
-                                                          "infinite_above"};
+            static const std::vector<std::string> keys = {
+                "pass", "channels", "scale", "offset", "infinite_above"};
             if (std::find(keys.begin(), keys.end(), it.key()) == keys.end()) {
-                throw_usage(w, ": unknown key \"", it.key(), "\" (keys: pass, channels, scale, "
-                               "offset, infinite_above)");
+                throw_usage(w,
+                            ": unknown key \"",
+                            it.key(),
+                            "\" (keys: pass, channels, scale, "
+                            "offset, infinite_above)");
             }
         }
         if (!a.contains("pass") || !a["pass"].is_string() || a["pass"].get<std::string>().empty()) {
@@ -136,8 +138,8 @@ std::vector<AliasRule> parse_alias_rules(const std::string &json_text, const std
             }
             const json &v = a[key];
             if (!v.is_array() || v.size() != r.channels.size()) {
-                throw_usage(w, ": \"", key, "\" must be an array of ", r.channels.size(),
-                            " numbers");
+                throw_usage(
+                    w, ": \"", key, "\" must be an array of ", r.channels.size(), " numbers");
             }
             std::vector<float> &dst = std::string(key) == "scale" ? r.scale : r.offset;
             for (const json &x : v) {
@@ -209,13 +211,11 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
                     if (rule.pass == pass::kColor && k == 3) {
                         cs.scale = 0.0f;
                         cs.offset = 1.0f;
-                    }
-                    else {
+                    } else {
                         complete = false;
                         break;
                     }
-                }
-                else {
+                } else {
                     cs.part = r->part;
                     cs.channel = r->channel;
                     cs.name = r->name;
@@ -230,8 +230,7 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
         for (std::size_t k = 0; k < ps.sources.size(); ++k) {
             if (canonical && canonical->channels.size() == ps.sources.size()) {
                 ps.channel_suffixes.emplace_back(canonical->channels[k]);
-            }
-            else {
+            } else {
                 ps.channel_suffixes.push_back(suffix_of(rule.channels[k]));
             }
             if (!ps.sources[k].name.empty()) {
@@ -254,8 +253,7 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
             if (const Ref *a = find_channel("A")) {
                 ps.sources.push_back({a->part, a->channel, a->name, 1.0f, 0.0f});
                 used.insert(a->name);
-            }
-            else {
+            } else {
                 ps.sources.push_back({-1, -1, "", 0.0f, 1.0f});
             }
             ps.channel_suffixes = {"R", "G", "B", "A"};

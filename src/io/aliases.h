@@ -16,11 +16,11 @@ namespace posthaste {
 struct AliasRule {
     std::string pass;
     std::vector<std::string> channels;
-    std::vector<float> scale;   ///< Empty: all 1.
-    std::vector<float> offset;  ///< Empty: all 0.
+    std::vector<float> scale;     ///< Empty: all 1.
+    std::vector<float> offset;    ///< Empty: all 0.
     float infinite_above = 0.0f;  ///< 0: off.
-    std::string origin;         ///< "canonical", "Blender", "Nuke", "Arnold", "graph".
-    int priority = 0;           ///< Lower is tried first.
+    std::string origin;           ///< "canonical", "Blender", "Nuke", "Arnold", "graph".
+    int priority = 0;             ///< Lower is tried first.
 };
 
 /// The built-in rules, canonical names first.

@@ -1,10 +1,10 @@
 #include "io/color.h"
 
+#include <OpenColorIO/OpenColorIO.h>
+
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
-
-#include <OpenColorIO/OpenColorIO.h>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -31,16 +31,15 @@ const ConfigHolder &config_holder()
             if (env && *env) {
                 h.config = OCIO::Config::CreateFromFile(env);
                 h.source = std::string("$OCIO=") + env;
-            }
-            else {
+            } else {
                 std::istringstream is(kBuiltinOcioConfig);
                 h.config = OCIO::Config::CreateFromStream(is);
                 h.source = "built-in samples/ocio/config.ocio";
             }
-        }
-        catch (const OCIO::Exception &e) {
+        } catch (const OCIO::Exception &e) {
             throw_runtime(env ? std::string("$OCIO=") + env : std::string("built-in OCIO config"),
-                          ": cannot load OpenColorIO config: ", e.what());
+                          ": cannot load OpenColorIO config: ",
+                          e.what());
         }
         return h;
     }();
@@ -104,8 +103,14 @@ void require_space(const std::string &name, const std::string &where)
 {
     const auto &cfg = config_holder().config;
     if (!cfg->getColorSpace(name.c_str())) {
-        throw_usage(where, ": unknown color space \"", name, "\" in ", color_config_source(),
-                    " (have: ", joined(color_space_names()), ")");
+        throw_usage(where,
+                    ": unknown color space \"",
+                    name,
+                    "\" in ",
+                    color_config_source(),
+                    " (have: ",
+                    joined(color_space_names()),
+                    ")");
     }
 }
 
@@ -122,8 +127,7 @@ ColorProcessor ColorProcessor::between(const std::string &from,
         auto proc = config_holder().config->getProcessor(from.c_str(), to.c_str());
         impl->noop = proc->isNoOp();
         impl->cpu = proc->getDefaultCPUProcessor();
-    }
-    catch (const OCIO::Exception &e) {
+    } catch (const OCIO::Exception &e) {
         throw_usage(where, ": OpenColorIO: ", e.what());
     }
     ColorProcessor p;
@@ -143,8 +147,14 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
     }
     const std::vector<std::string> views = color_view_names(display);
     if (std::find(views.begin(), views.end(), view) == views.end()) {
-        throw_usage(where, ": unknown view \"", view, "\" for display \"", display,
-                    "\" (have: ", joined(views), ")");
+        throw_usage(where,
+                    ": unknown view \"",
+                    view,
+                    "\" for display \"",
+                    display,
+                    "\" (have: ",
+                    joined(views),
+                    ")");
     }
     auto impl = std::make_shared<Impl>();
     try {
@@ -152,8 +162,7 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
             from.c_str(), display.c_str(), view.c_str(), OCIO::TRANSFORM_DIR_FORWARD);
         impl->noop = proc->isNoOp();
         impl->cpu = proc->getDefaultCPUProcessor();
-    }
-    catch (const OCIO::Exception &e) {
+    } catch (const OCIO::Exception &e) {
         throw_usage(where, ": OpenColorIO: ", e.what());
     }
     ColorProcessor p;
@@ -196,8 +205,12 @@ void ColorProcessor::apply(Image &image, bool unpremultiply) const
                 }
             }
             // Channels beyond RGB (alpha, extra) are skipped through the strides.
-            OCIO::PackedImageDesc desc(row, w, 1, OCIO::CHANNEL_ORDERING_RGB,
-                                       OCIO::BIT_DEPTH_F32, sizeof(float),
+            OCIO::PackedImageDesc desc(row,
+                                       w,
+                                       1,
+                                       OCIO::CHANNEL_ORDERING_RGB,
+                                       OCIO::BIT_DEPTH_F32,
+                                       sizeof(float),
                                        std::ptrdiff_t(sizeof(float)) * nch,
                                        std::ptrdiff_t(sizeof(float)) * nch * w);
             impl_->cpu->apply(desc);

@@ -21,7 +21,7 @@ std::vector<std::string> color_view_names(const std::string &display);
 /// A CPU color processor over the RGB channels of an image (alpha untouched). Immutable and
 /// thread-safe once made.
 class ColorProcessor {
-  public:
+   public:
     /// From one color space to another. Throws a usage Error naming `where` and listing the
     /// config's spaces when a name is unknown.
     static ColorProcessor between(const std::string &from,
@@ -40,7 +40,7 @@ class ColorProcessor {
     void apply_rgb(float rgb[3]) const;
     bool is_noop() const;
 
-  private:
+   private:
     struct Impl;
     std::shared_ptr<const Impl> impl_;
 };

@@ -1,14 +1,14 @@
 #include "io/image_file.h"
 
+#include <Imath/half.h>
+
 #include <algorithm>
-#include <cstring>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <random>
-
-#include <Imath/half.h>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -27,26 +27,53 @@ namespace fs = std::filesystem;
 // Attributes that describe the file's structure rather than the picture: not carried over.
 bool is_structural_attribute(const std::string &name)
 {
-    static const std::set<std::string> kNames = {
-        "compression",       "channelformats",   "oiio:subimages",    "oiio:subimagename",
-        "name",              "type",             "view",              "openexr:chunkCount",
-        "openexr:lineOrder", "tiles",            "textureformat",     "oiio:ColorSpace",
-        "oiio:BitsPerSample", "oiio:UnassociatedAlpha", "openexr:roundingmode",
-        "openexr:levelmode", "openexr:dwaCompressionLevel", "Compression", "PixelAspectRatio",
-        "smpte:TimeCode",    "oiio:Movie",       "oiio:updirection",  "oiio:sampleborder",
-        "png:compressionLevel", "ImageDescription", "Software", "DateTime"};
-    return kNames.count(name) != 0 || name.rfind("oiio:", 0) == 0 ||
-           name.rfind("tiff:", 0) == 0 || name.rfind("png:", 0) == 0 ||
-           name.rfind("jpeg:", 0) == 0 || name.rfind("Exif:", 0) == 0;
+    static const std::set<std::string> kNames = {"compression",
+                                                 "channelformats",
+                                                 "oiio:subimages",
+                                                 "oiio:subimagename",
+                                                 "name",
+                                                 "type",
+                                                 "view",
+                                                 "openexr:chunkCount",
+                                                 "openexr:lineOrder",
+                                                 "tiles",
+                                                 "textureformat",
+                                                 "oiio:ColorSpace",
+                                                 "oiio:BitsPerSample",
+                                                 "oiio:UnassociatedAlpha",
+                                                 "openexr:roundingmode",
+                                                 "openexr:levelmode",
+                                                 "openexr:dwaCompressionLevel",
+                                                 "Compression",
+                                                 "PixelAspectRatio",
+                                                 "smpte:TimeCode",
+                                                 "oiio:Movie",
+                                                 "oiio:updirection",
+                                                 "oiio:sampleborder",
+                                                 "png:compressionLevel",
+                                                 "ImageDescription",
+                                                 "Software",
+                                                 "DateTime"};
+    return kNames.count(name) != 0 || name.rfind("oiio:", 0) == 0 || name.rfind("tiff:", 0) == 0 ||
+           name.rfind("png:", 0) == 0 || name.rfind("jpeg:", 0) == 0 || name.rfind("Exif:", 0) == 0;
 }
 
 bool is_camera_attribute(const std::string &name)
 {
-    static const std::set<std::string> kNames = {
-        attr::kWorldToCamera, attr::kWorldToNDC,   attr::kPrevWorldToCamera, attr::kPrevWorldToNDC,
-        attr::kAperture,      attr::kFocus,        attr::kFocalLength,       attr::kSensorWidth,
-        attr::kSensorHeight,  attr::kShutter,      attr::kNearClip,          attr::kFarClip,
-        attr::kFrameNumber,   "FNumber"};
+    static const std::set<std::string> kNames = {attr::kWorldToCamera,
+                                                 attr::kWorldToNDC,
+                                                 attr::kPrevWorldToCamera,
+                                                 attr::kPrevWorldToNDC,
+                                                 attr::kAperture,
+                                                 attr::kFocus,
+                                                 attr::kFocalLength,
+                                                 attr::kSensorWidth,
+                                                 attr::kSensorHeight,
+                                                 attr::kShutter,
+                                                 attr::kNearClip,
+                                                 attr::kFarClip,
+                                                 attr::kFrameNumber,
+                                                 "FNumber"};
     return kNames.count(name) != 0;
 }
 
@@ -157,11 +184,8 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
 
 /// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
 /// dst + i * dst_stride. Rounds to nearest even, like Imath::half.
-void floats_to_halves_portable(const float *src,
-                               int channels,
-                               int count,
-                               unsigned char *dst,
-                               std::size_t dst_stride)
+void floats_to_halves_portable(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
 {
     for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
         for (int c = 0; c < channels; ++c) {
@@ -172,11 +196,8 @@ void floats_to_halves_portable(const float *src,
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-__attribute__((target("f16c"))) void floats_to_halves_f16c(const float *src,
-                                                            int channels,
-                                                            int count,
-                                                            unsigned char *dst,
-                                                            std::size_t dst_stride)
+__attribute__((target("f16c"))) void floats_to_halves_f16c(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
 {
     for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
         if (channels == 4) {
@@ -194,11 +215,8 @@ __attribute__((target("f16c"))) void floats_to_halves_f16c(const float *src,
 
 /// floats_to_halves_portable, with the CPU's F16C instructions where it has them (the software
 /// conversion was a quarter of a 1080p all-pass write).
-void floats_to_halves(const float *src,
-                      int channels,
-                      int count,
-                      unsigned char *dst,
-                      std::size_t dst_stride)
+void floats_to_halves(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
 {
 #if defined(__x86_64__) && defined(__GNUC__)
     static const bool has_f16c = __builtin_cpu_supports("f16c");
@@ -212,7 +230,7 @@ void floats_to_halves(const float *src,
 
 /// Copy `count` pixels of `channels` floats to dst + i * dst_stride. The per-pixel copy has a
 /// size known at compile time so it inlines (a libc memmove per pixel dominated the write).
-template<int N>
+template <int N>
 void scatter_floats_n(const float *src, int count, unsigned char *dst, std::size_t dst_stride)
 {
     for (int x = 0; x < count; ++x, dst += dst_stride, src += N) {
@@ -220,11 +238,8 @@ void scatter_floats_n(const float *src, int count, unsigned char *dst, std::size
     }
 }
 
-void scatter_floats(const float *src,
-                    int channels,
-                    int count,
-                    unsigned char *dst,
-                    std::size_t dst_stride)
+void scatter_floats(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
 {
     switch (channels) {
         case 1:
@@ -252,9 +267,8 @@ float srgb_to_linear(float v)
 bool is_exr_path(const std::string &path)
 {
     std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) {
-        return char(std::tolower(c));
-    });
+    std::transform(
+        ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     return ext == ".exr" || ext == ".sxr" || ext == ".mxr";
 }
 
@@ -271,22 +285,37 @@ FileInfo info_from_input(OIIO::ImageInput &in, const std::string &path, const Re
         if (spec.deep) {
             throw_runtime(path, ": deep images are not supported (part ", sub, ")");
         }
-        if (spec.nchannels <= 0 || spec.width <= 0 || spec.height <= 0 ||
-            spec.full_width <= 0 || spec.full_height <= 0 || spec.full_width > kMaxImageSide ||
+        if (spec.nchannels <= 0 || spec.width <= 0 || spec.height <= 0 || spec.full_width <= 0 ||
+            spec.full_height <= 0 || spec.full_width > kMaxImageSide ||
             spec.full_height > kMaxImageSide || spec.width > kMaxImageSide ||
             spec.height > kMaxImageSide) {
-            throw_runtime(path, ": part ", sub, " has an unsupported size: data window ",
-                          spec.width, "x", spec.height, ", display window ", spec.full_width, "x",
-                          spec.full_height, " (limit ", kMaxImageSide, ")");
+            throw_runtime(path,
+                          ": part ",
+                          sub,
+                          " has an unsupported size: data window ",
+                          spec.width,
+                          "x",
+                          spec.height,
+                          ", display window ",
+                          spec.full_width,
+                          "x",
+                          spec.full_height,
+                          " (limit ",
+                          kMaxImageSide,
+                          ")");
         }
         FilePart part;
         part.name = spec.get_string_attribute("name");
         part.tiled = spec.tile_width > 0;
         part.compression = spec.get_string_attribute("compression");
-        part.display_window = {spec.full_x, spec.full_y, spec.full_x + spec.full_width,
+        part.display_window = {spec.full_x,
+                               spec.full_y,
+                               spec.full_x + spec.full_width,
                                spec.full_y + spec.full_height};
-        part.data_window = {spec.x - spec.full_x, spec.y - spec.full_y,
-                            spec.x - spec.full_x + spec.width, spec.y - spec.full_y + spec.height};
+        part.data_window = {spec.x - spec.full_x,
+                            spec.y - spec.full_y,
+                            spec.x - spec.full_x + spec.width,
+                            spec.y - spec.full_y + spec.height};
         PartChannels pc;
         pc.part_name = part.name;
         for (int c = 0; c < spec.nchannels; ++c) {
@@ -308,10 +337,18 @@ FileInfo info_from_input(OIIO::ImageInput &in, const std::string &path, const Re
                     info.attributes.push_back(p);
                 }
             }
-        }
-        else if (spec.full_width != info.width || spec.full_height != info.height) {
-            throw_runtime(path, ": part ", sub, " has display window ", spec.full_width, "x",
-                          spec.full_height, " but part 0 has ", info.width, "x", info.height);
+        } else if (spec.full_width != info.width || spec.full_height != info.height) {
+            throw_runtime(path,
+                          ": part ",
+                          sub,
+                          " has display window ",
+                          spec.full_width,
+                          "x",
+                          spec.full_height,
+                          " but part 0 has ",
+                          info.width,
+                          "x",
+                          info.height);
         }
         info.parts.push_back(std::move(part));
         parts.push_back(std::move(pc));
@@ -440,7 +477,8 @@ Frame read_frame(const std::string &path,
     std::vector<const PassSource *> selected;
     if (wanted) {
         for (const std::string &name : *wanted) {
-            auto it = std::find_if(info.passes.begin(), info.passes.end(),
+            auto it = std::find_if(info.passes.begin(),
+                                   info.passes.end(),
                                    [&](const PassSource &p) { return p.pass == name; });
             if (it == info.passes.end()) {
                 std::string have;
@@ -451,8 +489,7 @@ Frame read_frame(const std::string &path,
             }
             selected.push_back(&*it);
         }
-    }
-    else {
+    } else {
         for (const PassSource &p : info.passes) {
             selected.push_back(&p);
         }
@@ -490,8 +527,12 @@ Frame read_frame(const std::string &path,
         for (int c = pd.chbegin; c < pd.chend; ++c) {
             const OIIO::TypeDesc t = spec.channelformat(c);
             if (!supported_native(t)) {
-                throw_runtime(path, ": channel \"", spec.channel_name(c), "\" has pixel type ",
-                              t.c_str(), ", which is not supported");
+                throw_runtime(path,
+                              ": channel \"",
+                              spec.channel_name(c),
+                              "\" has pixel type ",
+                              t.c_str(),
+                              ", which is not supported");
             }
             pd.channels.push_back({pd.pixel_bytes, t});
             pd.pixel_bytes += t.size();
@@ -501,8 +542,8 @@ Frame read_frame(const std::string &path,
         if (!in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeUnknown, pd.data.get())) {
             std::string err = in->geterror();
             std::replace(err.begin(), err.end(), '\n', ' ');
-            throw_runtime(path, ": cannot read pixels of part ", p, " (truncated or corrupt?): ",
-                          err);
+            throw_runtime(
+                path, ": cannot read pixels of part ", p, " (truncated or corrupt?): ", err);
         }
         if (p == 0 && is_integer_type(spec.format) && options.linearize) {
             const std::string cs = spec.get_string_attribute("oiio:ColorSpace", "sRGB");
@@ -553,7 +594,10 @@ Frame read_frame(const std::string &path,
                 const std::size_t first =
                     std::size_t(y - dw.y0) * std::size_t(dw.width()) + std::size_t(x0 - dw.x0);
                 convert_channel(pd.data.get() + first * pd.pixel_bytes + nc.offset,
-                                pd.pixel_bytes, nc.type, out + std::size_t(x0) * step, step,
+                                pd.pixel_bytes,
+                                nc.type,
+                                out + std::size_t(x0) * step,
+                                step,
                                 x1 - x0);
                 const bool affine = cs.scale != 1.0f || cs.offset != 0.0f;
                 const bool lin = linearize && k < 3;
@@ -576,9 +620,8 @@ Frame read_frame(const std::string &path,
                     if (check_bad && !std::isfinite(v) && !(is_depth && v > 0.0f)) {
                         if (options.bad_pixels == BadPixels::Zero) {
                             v = 0.0f;
-                        }
-                        else if (bad[std::size_t(y)].first < 0 ||
-                                 std::make_pair(x, k) < bad[std::size_t(y)]) {
+                        } else if (bad[std::size_t(y)].first < 0 ||
+                                   std::make_pair(x, k) < bad[std::size_t(y)]) {
                             bad[std::size_t(y)] = {x, k};
                         }
                     }
@@ -588,9 +631,16 @@ Frame read_frame(const std::string &path,
         for (int y = 0; y < height; ++y) {
             if (bad[std::size_t(y)].first >= 0) {
                 const auto [x, k] = bad[std::size_t(y)];
-                throw_runtime(path, ": pass \"", ps->pass, "\" channel \"",
+                throw_runtime(path,
+                              ": pass \"",
+                              ps->pass,
+                              "\" channel \"",
                               ps->sources[std::size_t(k)].name,
-                              "\" has a NaN or infinite value at (", x, ", ", y, ")");
+                              "\" has a NaN or infinite value at (",
+                              x,
+                              ", ",
+                              y,
+                              ")");
             }
         }
         frame.set(ps->pass, std::make_shared<const Image>(std::move(img)), ps->channel_suffixes);
@@ -600,11 +650,13 @@ Frame read_frame(const std::string &path,
 
 void check_compression(const std::string &compression, const std::string &where)
 {
-    static const std::vector<std::string> kNames = {"none", "rle",  "zips", "zip",  "piz",
-                                                    "pxr24", "b44", "b44a", "dwaa", "dwab"};
+    static const std::vector<std::string> kNames = {
+        "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
     std::string base = compression.substr(0, compression.find(':'));
     if (std::find(kNames.begin(), kNames.end(), base) == kNames.end()) {
-        throw_usage(where, ": unknown EXR compression \"", compression,
+        throw_usage(where,
+                    ": unknown EXR compression \"",
+                    compression,
                     "\" (expected none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab)");
     }
     if (auto colon = compression.find(':'); colon != std::string::npos) {
@@ -627,21 +679,23 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
     if (target.has_parent_path()) {
         fs::create_directories(target.parent_path(), ec);
         if (ec) {
-            throw_runtime(path, ": cannot create directory ", target.parent_path().string(), ": ",
+            throw_runtime(path,
+                          ": cannot create directory ",
+                          target.parent_path().string(),
+                          ": ",
                           ec.message());
         }
     }
     // Keep the extension last: OIIO picks the writer from it.
     thread_local std::mt19937 rng(std::random_device{}());
-    const std::string tmp = (target.parent_path() / ("." + target.stem().string() + ".tmp" +
-                                                     std::to_string(::getpid()) + "-" +
-                                                     std::to_string(rng() % 100000)))
-                                .string() +
-                            target.extension().string();
+    const std::string tmp =
+        (target.parent_path() / ("." + target.stem().string() + ".tmp" +
+                                 std::to_string(::getpid()) + "-" + std::to_string(rng() % 100000)))
+            .string() +
+        target.extension().string();
     try {
         write(tmp);
-    }
-    catch (...) {
+    } catch (...) {
         fs::remove(tmp, ec);
         throw;
     }
@@ -659,19 +713,20 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
     if (names.empty()) {
         names = frame.pass_names();
         // Canonical passes first, in table order, then the rest alphabetically.
-        std::stable_sort(names.begin(), names.end(), [](const std::string &a, const std::string &b) {
-            auto rank = [](const std::string &n) {
-                int i = 0;
-                for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
-                    if (cp.name == n) {
-                        return i;
+        std::stable_sort(
+            names.begin(), names.end(), [](const std::string &a, const std::string &b) {
+                auto rank = [](const std::string &n) {
+                    int i = 0;
+                    for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
+                        if (cp.name == n) {
+                            return i;
+                        }
+                        ++i;
                     }
-                    ++i;
-                }
-                return 1000;
-            };
-            return rank(a) < rank(b);
-        });
+                    return 1000;
+                };
+                return rank(a) < rank(b);
+            });
     }
     if (names.empty()) {
         throw_runtime(path, ": nothing to write: the frame has no passes");
@@ -699,8 +754,11 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
         l.type = storage == PixelStorage::Half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
         const bool data_pass = !(name == pass::kColor || name == pass::kAlbedo);
         if (lossy_for_data && data_pass && !options.allow_lossy_data) {
-            throw_usage(path, ": compression \"", options.compression,
-                        "\" is lossy on data pass \"", name,
+            throw_usage(path,
+                        ": compression \"",
+                        options.compression,
+                        "\" is lossy on data pass \"",
+                        name,
                         "\"; choose a lossless compression or allow lossy data passes");
         }
         layers.push_back(std::move(l));
@@ -730,13 +788,13 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
                 specs.back().channelnames = l.channel_names;
                 specs.back().channelformats.assign(l.channel_names.size(), l.type);
                 const auto cp = pass::find_canonical(names[std::size_t(&l - layers.data())]);
-                specs.back().attribute("name", cp && cp->name == pass::kColor
-                                                   ? std::string("rgba")
-                                                   : names[std::size_t(&l - layers.data())]);
+                specs.back().attribute("name",
+                                       cp && cp->name == pass::kColor
+                                           ? std::string("rgba")
+                                           : names[std::size_t(&l - layers.data())]);
                 part_layers.push_back({&l});
             }
-        }
-        else {
+        } else {
             int total = 0;
             for (const Layer &l : layers) {
                 total += int(l.channel_names.size());
@@ -770,8 +828,8 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
                 pixel_bytes += l->channel_names.size() * l->type.size();
             }
             const std::size_t row_bytes = pixel_bytes * std::size_t(frame.width);
-            auto buf = std::make_unique_for_overwrite<unsigned char[]>(
-                row_bytes * std::size_t(frame.height));
+            auto buf = std::make_unique_for_overwrite<unsigned char[]>(row_bytes *
+                                                                       std::size_t(frame.height));
             std::size_t offset = 0;
             for (const Layer *l : part_layers[part]) {
                 const Image &img = *l->pass->image;
@@ -819,8 +877,8 @@ void write_preview(const Image &display_rgba, const std::string &path, bool with
         if (!out) {
             throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
         }
-        OIIO::ImageSpec spec(display_rgba.width(), display_rgba.height(), nch,
-                             OIIO::TypeDesc::UINT8);
+        OIIO::ImageSpec spec(
+            display_rgba.width(), display_rgba.height(), nch, OIIO::TypeDesc::UINT8);
         spec.attribute("oiio:ColorSpace", "sRGB");
         if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
             !out->close()) {

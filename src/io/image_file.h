@@ -59,10 +59,10 @@ Frame read_frame(const std::string &path,
 
 struct WriteOptions {
     std::string compression = "piz";
-    bool multipart = false;  ///< One part per pass instead of one part with every channel.
+    bool multipart = false;           ///< One part per pass instead of one part with every channel.
     std::vector<std::string> passes;  ///< Empty: every pass of the frame.
     std::map<std::string, PixelStorage> storage;  ///< Per pass; default half for color/albedo.
-    bool allow_lossy_data = false;  ///< Permit DWAA/DWAB/PXR24 on data passes.
+    bool allow_lossy_data = false;                ///< Permit DWAA/DWAB/PXR24 on data passes.
 };
 
 /// Validate an EXR compression name ("dwaa:45" allowed); throws a usage Error naming `where`.

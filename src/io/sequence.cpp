@@ -75,11 +75,12 @@ std::vector<int> find_frames_on_disk(const std::string &pattern)
     }
     namespace fs = std::filesystem;
     const fs::path full(pattern.substr(0, ph.begin));
-    const std::string prefix_dir = full.has_parent_path() || pattern.substr(0, ph.begin).ends_with('/')
-                                       ? fs::path(pattern.substr(0, ph.begin)).parent_path().string()
-                                       : std::string();
-    const std::string head = pattern.substr(0, ph.begin).substr(
-        prefix_dir.empty() ? 0 : prefix_dir.size() + 1);
+    const std::string prefix_dir =
+        full.has_parent_path() || pattern.substr(0, ph.begin).ends_with('/')
+            ? fs::path(pattern.substr(0, ph.begin)).parent_path().string()
+            : std::string();
+    const std::string head =
+        pattern.substr(0, ph.begin).substr(prefix_dir.empty() ? 0 : prefix_dir.size() + 1);
     const std::string tail = pattern.substr(ph.end);
     if (tail.find('/') != std::string::npos) {
         return frames;  // placeholder in a directory name: not scanned
@@ -95,8 +96,9 @@ std::vector<int> find_frames_on_disk(const std::string &pattern)
         const bool negative = !mid.empty() && mid[0] == '-';
         const std::string digits = negative ? mid.substr(1) : mid;
         if (digits.empty() || digits.size() > 9 ||
-            !std::all_of(digits.begin(), digits.end(),
-                         [](char c) { return std::isdigit(static_cast<unsigned char>(c)); })) {
+            !std::all_of(digits.begin(), digits.end(), [](char c) {
+                return std::isdigit(static_cast<unsigned char>(c));
+            })) {
             continue;
         }
         if (int(digits.size()) < ph.width) {

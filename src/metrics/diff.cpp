@@ -3,9 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
-#include <sstream>
-
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "core/error.h"
 
@@ -35,14 +34,31 @@ PassDiff diff_pass(const std::string &name, const Pass &pa, const Pass &pb, cons
     const Image &b = *pb.image;
     if (a.channels() != b.channels()) {
         d.verdict = Verdict::SizeMismatch;
-        d.note = str_cat("pass \"", name, "\": ", a.channels(), " channels (", join(pa.channels),
-                         ") vs ", b.channels(), " channels (", join(pb.channels), ")");
+        d.note = str_cat("pass \"",
+                         name,
+                         "\": ",
+                         a.channels(),
+                         " channels (",
+                         join(pa.channels),
+                         ") vs ",
+                         b.channels(),
+                         " channels (",
+                         join(pb.channels),
+                         ")");
         return d;
     }
     if (a.width() != b.width() || a.height() != b.height()) {
         d.verdict = Verdict::SizeMismatch;
-        d.note = str_cat("pass \"", name, "\": ", a.width(), "x", a.height(), " vs ", b.width(),
-                         "x", b.height());
+        d.note = str_cat("pass \"",
+                         name,
+                         "\": ",
+                         a.width(),
+                         "x",
+                         a.height(),
+                         " vs ",
+                         b.width(),
+                         "x",
+                         b.height());
         return d;
     }
     d.compared = true;
@@ -50,8 +66,13 @@ PassDiff diff_pass(const std::string &name, const Pass &pa, const Pass &pb, cons
     d.verdict = verdict(d.stats, o.thresholds);
     if (pa.channels != pb.channels) {
         d.verdict = worse(d.verdict, Verdict::Warning);
-        d.note = str_cat("pass \"", name, "\": channels differ in name (", join(pa.channels),
-                         " vs ", join(pb.channels), "); compared by position");
+        d.note = str_cat("pass \"",
+                         name,
+                         "\": channels differ in name (",
+                         join(pa.channels),
+                         " vs ",
+                         join(pb.channels),
+                         "); compared by position");
     }
     if (o.images) {
         d.difference = difference_image(a, b, o.difference_scale);
@@ -70,7 +91,8 @@ nlohmann::json number(double v)
     return v;
 }
 
-nlohmann::json stats_json(const ErrorStats &s, const std::vector<std::string> &channels,
+nlohmann::json stats_json(const ErrorStats &s,
+                          const std::vector<std::string> &channels,
                           std::uint64_t pixels)
 {
     const double n = double(std::max<std::uint64_t>(pixels, 1));
@@ -113,8 +135,8 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
     r.thresholds = options.thresholds;
     if (a.width != b.width || a.height != b.height) {
         r.verdict = Verdict::SizeMismatch;
-        r.messages.push_back(str_cat("frame ", a.number, ": size ", a.width, "x", a.height,
-                                     " vs ", b.width, "x", b.height));
+        r.messages.push_back(str_cat(
+            "frame ", a.number, ": size ", a.width, "x", a.height, " vs ", b.width, "x", b.height));
         return r;
     }
 
@@ -130,11 +152,12 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
         }
         if (!r.only_in_a.empty() || !r.only_in_b.empty()) {
             r.verdict = Verdict::Warning;
-            r.messages.push_back(str_cat("passes differ: only in a: ", join(r.only_in_a),
-                                         "; only in b: ", join(r.only_in_b)));
+            r.messages.push_back(str_cat("passes differ: only in a: ",
+                                         join(r.only_in_a),
+                                         "; only in b: ",
+                                         join(r.only_in_b)));
         }
-    }
-    else {
+    } else {
         for (const std::string &n : options.passes) {
             if (std::find(names.begin(), names.end(), n) != names.end()) {
                 continue;
@@ -142,8 +165,13 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
             for (const auto &[frame, label] : {std::pair{&a, "a"}, std::pair{&b, "b"}}) {
                 if (!frame->has(n)) {
                     r.verdict = Verdict::FileError;
-                    r.messages.push_back(str_cat("frame ", label, " has no pass \"", n,
-                                                 "\" (have: ", join(frame->pass_names()), ")"));
+                    r.messages.push_back(str_cat("frame ",
+                                                 label,
+                                                 " has no pass \"",
+                                                 n,
+                                                 "\" (have: ",
+                                                 join(frame->pass_names()),
+                                                 ")"));
                 }
             }
             if (a.has(n) && b.has(n)) {
@@ -171,15 +199,16 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
             return d.name == options.flip_pass;
         });
         if (it == r.passes.end() || !it->compared) {
-            r.messages.push_back(str_cat("flip: pass \"", options.flip_pass,
+            r.messages.push_back(str_cat("flip: pass \"",
+                                         options.flip_pass,
                                          "\" not compared in both frames; FLIP skipped"));
-        }
-        else if (a.image(options.flip_pass).channels() < 3) {
-            r.messages.push_back(str_cat("flip: pass \"", options.flip_pass, "\" has ",
+        } else if (a.image(options.flip_pass).channels() < 3) {
+            r.messages.push_back(str_cat("flip: pass \"",
+                                         options.flip_pass,
+                                         "\" has ",
                                          a.image(options.flip_pass).channels(),
                                          " channels, FLIP needs RGB; skipped"));
-        }
-        else {
+        } else {
             FlipDiff f;
             f.pass = options.flip_pass;
             f.hdr = options.flip == FlipMode::Hdr;
@@ -191,8 +220,7 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
             f.result = f.hdr ? flip_hdr(ia, ib, fo) : flip_ldr(ia, ib, fo);
             if (options.images) {
                 f.heatmap = flip_heatmap(f.result.error_map, true);
-            }
-            else {
+            } else {
                 f.result.error_map = Image();
             }
             r.flip = std::move(f);
@@ -263,8 +291,7 @@ std::string to_json(const DiffReport &r)
             fj["num_exposures"] = f.result.num_exposures;
         }
         j["flip"] = fj;
-    }
-    else {
+    } else {
         j["flip"] = nullptr;
     }
     return j.dump(2);

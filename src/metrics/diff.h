@@ -48,10 +48,10 @@ struct PassDiff {
     std::string name;
     std::vector<std::string> channels;  ///< Channel names of frame a's pass.
     bool compared = false;
-    CompareStats stats;                 ///< Valid when compared.
+    CompareStats stats;  ///< Valid when compared.
     Verdict verdict = Verdict::Pass;
-    std::string note;                   ///< Why not compared, or what else is off; may be empty.
-    Image difference;                   ///< Empty unless compared and DiffOptions::images.
+    std::string note;  ///< Why not compared, or what else is off; may be empty.
+    Image difference;  ///< Empty unless compared and DiffOptions::images.
 };
 
 struct FlipDiff {
@@ -66,7 +66,7 @@ struct DiffReport {
     int frame = 0;  ///< Frame a's number.
     int width = 0, height = 0;
     Thresholds thresholds;
-    std::vector<PassDiff> passes;       ///< In name order.
+    std::vector<PassDiff> passes;  ///< In name order.
     std::vector<std::string> only_in_a;
     std::vector<std::string> only_in_b;
     std::vector<std::string> messages;  ///< Every problem, one printable line each.

@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
-
 #include <glm/mat3x3.hpp>
+#include <numbers>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -186,13 +185,14 @@ FeatureKernels feature_kernels(float ppd)
 
 namespace {
 // ACES fit y = (k0 x^2 + k1 x) / (k3 x^2 + k4 x + k5), 0.6 pre-exposure folded in.
-constexpr float kAces[5] = {0.6f * 0.6f * 2.51f, 0.6f * 0.03f, 0.6f * 0.6f * 2.43f, 0.6f * 0.59f,
-                            0.14f};
+constexpr float kAces[5] = {
+    0.6f * 0.6f * 2.51f, 0.6f * 0.03f, 0.6f * 0.6f * 2.43f, 0.6f * 0.59f, 0.14f};
 }  // namespace
 
 float tone_map_aces(float x)
 {
-    const float y = (kAces[0] * x * x + kAces[1] * x) / (kAces[2] * x * x + kAces[3] * x + kAces[4]);
+    const float y =
+        (kAces[0] * x * x + kAces[1] * x) / (kAces[2] * x * x + kAces[3] * x + kAces[4]);
     return std::clamp(y, 0.0f, 1.0f);
 }
 
@@ -281,7 +281,8 @@ struct Kernels {
 
     explicit Kernels(float ppd)
         : csf{flip::csf_kernel(0, ppd), flip::csf_kernel(1, ppd), flip::csf_kernel(2, ppd)},
-          feature(flip::feature_kernels(ppd)), cmax(flip::max_color_distance())
+          feature(flip::feature_kernels(ppd)),
+          cmax(flip::max_color_distance())
     {
     }
 };
@@ -315,9 +316,8 @@ Prepared prepare(const Planes &ycxcz, const Kernels &k)
     parallel_for(0, h, [&](int y) {
         for (std::size_t i = std::size_t(y) * std::size_t(w), e = i + std::size_t(w); i < e; ++i) {
             const glm::vec3 o(filtered.c[0][i], filtered.c[1][i], filtered.c[2][i]);
-            const glm::vec3 rgb = glm::clamp(flip::xyz_to_linear_rgb(flip::ycxcz_to_xyz(o)),
-                                             glm::vec3(0.0f),
-                                             glm::vec3(1.0f));
+            const glm::vec3 rgb = glm::clamp(
+                flip::xyz_to_linear_rgb(flip::ycxcz_to_xyz(o)), glm::vec3(0.0f), glm::vec3(1.0f));
             const glm::vec3 lab = flip::hunt_adjust(flip::xyz_to_lab(flip::linear_rgb_to_xyz(rgb)));
             out.lab.c[0][i] = lab.x;
             out.lab.c[1][i] = lab.y;
@@ -360,8 +360,8 @@ void combine(const Prepared &ref, const Prepared &test, float cmax, Plane &error
         for (std::size_t i = std::size_t(y) * std::size_t(w), e = i + std::size_t(w); i < e; ++i) {
             const glm::vec3 a(ref.lab.c[0][i], ref.lab.c[1][i], ref.lab.c[2][i]);
             const glm::vec3 b(test.lab.c[0][i], test.lab.c[1][i], test.lab.c[2][i]);
-            const float color = flip::remap_color_difference(
-                std::pow(flip::hyab(a, b), flip::kQc), cmax);
+            const float color =
+                flip::remap_color_difference(std::pow(flip::hyab(a, b), flip::kQc), cmax);
             const float feature_raw = std::max(std::abs(ref.edge[i] - test.edge[i]),
                                                std::abs(ref.point[i] - test.point[i]));
             const float feature = std::pow(feature_raw * inv_sqrt2, flip::kQf);
@@ -373,12 +373,23 @@ void combine(const Prepared &ref, const Prepared &test, float cmax, Plane &error
 void check_inputs(const Image &reference, const Image &test, const char *who)
 {
     if (reference.width() != test.width() || reference.height() != test.height()) {
-        throw_runtime(who, ": images differ in size: ", reference.width(), "x",
-                      reference.height(), " vs ", test.width(), "x", test.height());
+        throw_runtime(who,
+                      ": images differ in size: ",
+                      reference.width(),
+                      "x",
+                      reference.height(),
+                      " vs ",
+                      test.width(),
+                      "x",
+                      test.height());
     }
     if (reference.channels() < 3 || test.channels() < 3) {
-        throw_runtime(who, ": expected RGB images (>= 3 channels), got ", reference.channels(),
-                      " and ", test.channels(), " channels");
+        throw_runtime(who,
+                      ": expected RGB images (>= 3 channels), got ",
+                      reference.channels(),
+                      " and ",
+                      test.channels(),
+                      " channels");
     }
 }
 
@@ -503,7 +514,9 @@ FlipResult flip_hdr(const Image &reference, const Image &test, const FlipOptions
     r.start_exposure = options.start_exposure.value_or(start);
     r.stop_exposure = options.stop_exposure.value_or(stop);
     if (r.stop_exposure < r.start_exposure) {
-        throw_runtime("hdr-flip: stop exposure ", r.stop_exposure, " is below start exposure ",
+        throw_runtime("hdr-flip: stop exposure ",
+                      r.stop_exposure,
+                      " is below start exposure ",
                       r.start_exposure);
     }
     r.num_exposures = options.num_exposures > 0

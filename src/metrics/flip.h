@@ -9,10 +9,9 @@
 // reference's max and median luminance, ACES-fit tone mapping per exposure, LDR-FLIP on each,
 // per-pixel max.
 
+#include <glm/vec3.hpp>
 #include <optional>
 #include <vector>
-
-#include <glm/vec3.hpp>
 
 #include "core/image.h"
 
@@ -32,8 +31,8 @@ struct FlipOptions {
 };
 
 struct FlipResult {
-    Image error_map;       ///< 1 channel, per-pixel FLIP in [0, 1].
-    double mean = 0.0;     ///< Mean of error_map (summed per row in double, rows in order).
+    Image error_map;    ///< 1 channel, per-pixel FLIP in [0, 1].
+    double mean = 0.0;  ///< Mean of error_map (summed per row in double, rows in order).
     float max = 0.0f;
     int max_x = 0, max_y = 0;  ///< First pixel in scan order holding the max.
     // HDR only (zero for LDR):
@@ -62,11 +61,11 @@ Image flip_heatmap(const Image &error_map, bool linear = true);
 /// The stages, exposed for tests. Colors are (R, G, B), (X, Y, Z), (Yy, Cx, Cz) or (L*, a*, b*).
 namespace flip {
 
-inline constexpr float kQc = 0.7f;   ///< Exponent on the HyAB distance.
-inline constexpr float kPc = 0.4f;   ///< Fraction of the max distance mapped to kPt...
-inline constexpr float kPt = 0.95f;  ///< ...onto this error.
-inline constexpr float kQf = 0.5f;   ///< Exponent on the feature difference.
-inline constexpr float kW = 0.082f;  ///< Edge detector peak-to-trough width in degrees.
+inline constexpr float kQc = 0.7f;           ///< Exponent on the HyAB distance.
+inline constexpr float kPc = 0.4f;           ///< Fraction of the max distance mapped to kPt...
+inline constexpr float kPt = 0.95f;          ///< ...onto this error.
+inline constexpr float kQf = 0.5f;           ///< Exponent on the feature difference.
+inline constexpr float kW = 0.082f;          ///< Edge detector peak-to-trough width in degrees.
 inline constexpr float kToneTarget = 0.85f;  ///< Tone-mapped value defining the exposures.
 
 float srgb_to_linear(float c);

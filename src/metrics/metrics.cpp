@@ -144,8 +144,18 @@ double CompareStats::fail_percent() const
 CompareStats compare(const Image &a, const Image &b, const Thresholds &thresholds)
 {
     if (a.width() != b.width() || a.height() != b.height() || a.channels() != b.channels()) {
-        throw_runtime("compare: images differ in shape: ", a.width(), "x", a.height(), "x",
-                      a.channels(), " vs ", b.width(), "x", b.height(), "x", b.channels());
+        throw_runtime("compare: images differ in shape: ",
+                      a.width(),
+                      "x",
+                      a.height(),
+                      "x",
+                      a.channels(),
+                      " vs ",
+                      b.width(),
+                      "x",
+                      b.height(),
+                      "x",
+                      b.channels());
     }
     const Rect bounds = a.bounds();
     const int tile = kDefaultTileSize;
@@ -155,23 +165,22 @@ CompareStats compare(const Image &a, const Image &b, const Thresholds &threshold
     parallel_for_tiles(
         bounds,
         [&](const Rect &r) {
-            const std::size_t index = std::size_t(r.y0 / tile) * std::size_t(tiles_x) +
-                                      std::size_t(r.x0 / tile);
+            const std::size_t index =
+                std::size_t(r.y0 / tile) * std::size_t(tiles_x) + std::size_t(r.x0 / tile);
             tiles[index] = compare_region(a, b, r, thresholds);
         },
         tile);
 
     RegionResult total;
-    const bool nonfinite = std::any_of(
-        tiles.begin(), tiles.end(), [](const RegionResult &t) { return t.nonfinite; });
+    const bool nonfinite =
+        std::any_of(tiles.begin(), tiles.end(), [](const RegionResult &t) { return t.nonfinite; });
     if (nonfinite || tiles.empty()) {
         // Non-finite values make the running max order dependent: replay idiff's single scan.
         total = compare_region(a, b, bounds, thresholds);
         if (tiles.empty()) {
             total.acc.resize(std::size_t(a.channels()) + 1);
         }
-    }
-    else {
+    } else {
         total = std::move(tiles[0]);
         for (std::size_t i = 1; i < tiles.size(); ++i) {
             for (std::size_t k = 0; k < total.acc.size(); ++k) {
@@ -209,16 +218,16 @@ Verdict verdict(const CompareStats &stats, const Thresholds &t)
 const char *verdict_name(Verdict v)
 {
     switch (v) {
-    case Verdict::Pass:
-        return "PASS";
-    case Verdict::Warning:
-        return "WARNING";
-    case Verdict::Failure:
-        return "FAILURE";
-    case Verdict::SizeMismatch:
-        return "SIZE MISMATCH";
-    case Verdict::FileError:
-        return "FILE ERROR";
+        case Verdict::Pass:
+            return "PASS";
+        case Verdict::Warning:
+            return "WARNING";
+        case Verdict::Failure:
+            return "FAILURE";
+        case Verdict::SizeMismatch:
+            return "SIZE MISMATCH";
+        case Verdict::FileError:
+            return "FILE ERROR";
     }
     return "UNKNOWN";
 }
@@ -226,8 +235,18 @@ const char *verdict_name(Verdict v)
 Image difference_image(const Image &a, const Image &b, float scale)
 {
     if (a.width() != b.width() || a.height() != b.height() || a.channels() != b.channels()) {
-        throw_runtime("difference_image: images differ in shape: ", a.width(), "x", a.height(),
-                      "x", a.channels(), " vs ", b.width(), "x", b.height(), "x", b.channels());
+        throw_runtime("difference_image: images differ in shape: ",
+                      a.width(),
+                      "x",
+                      a.height(),
+                      "x",
+                      a.channels(),
+                      " vs ",
+                      b.width(),
+                      "x",
+                      b.height(),
+                      "x",
+                      b.channels());
     }
     Image out = Image::uninitialized(a.width(), a.height(), a.channels());
     parallel_for_tiles(out.bounds(), [&](const Rect &r) {

@@ -40,11 +40,11 @@ struct ErrorStats {
 /// Thresholds with idiff's meaning and defaults (-fail, -failrelative, -failpercent, -hardfail,
 /// -allowfailures, -warn, -warnrelative, -warnpercent, -hardwarn).
 struct Thresholds {
-    float fail = 1e-6f;           ///< A value fails when its error is above this...
-    float fail_relative = 0.0f;   ///< ...and above this fraction of mean(|a|, |b|).
-    float fail_percent = 0.0f;    ///< Percent of pixels allowed to fail.
+    float fail = 1e-6f;          ///< A value fails when its error is above this...
+    float fail_relative = 0.0f;  ///< ...and above this fraction of mean(|a|, |b|).
+    float fail_percent = 0.0f;   ///< Percent of pixels allowed to fail.
     float hard_fail = std::numeric_limits<float>::infinity();  ///< Fail when max error is above.
-    int allow_failures = 0;       ///< Pass outright when at most this many pixels fail.
+    int allow_failures = 0;  ///< Pass outright when at most this many pixels fail.
     float warn = 1e-6f;
     float warn_relative = 0.0f;
     float warn_percent = 0.0f;
@@ -53,9 +53,9 @@ struct Thresholds {
 
 /// Whole-image and per-channel comparison results.
 struct CompareStats {
-    ErrorStats all;                     ///< Over every channel, as idiff prints it.
-    std::vector<ErrorStats> channels;   ///< channels[c]: as if channel c were compared alone.
-    std::uint64_t pixel_count = 0;      ///< width * height.
+    ErrorStats all;                    ///< Over every channel, as idiff prints it.
+    std::vector<ErrorStats> channels;  ///< channels[c]: as if channel c were compared alone.
+    std::uint64_t pixel_count = 0;     ///< width * height.
 
     /// Percent of pixels over the warn threshold (idiff's "N pixels (P%) over").
     double warn_percent() const;

@@ -10,13 +10,12 @@ namespace posthaste::shading {
 
 float coc_diameter_px(const DofLens &lens, float z_m, int width_px)
 {
-    const double f = double(lens.focal_mm) * 1e-3;          // metres
+    const double f = double(lens.focal_mm) * 1e-3;  // metres
     const double s = std::max(double(lens.focus_m), 1.001 * f);
-    const double aperture = f / double(lens.fstop);          // A = f / N, metres
+    const double aperture = f / double(lens.fstop);  // A = f / N, metres
     const double px_per_m = double(width_px) / (double(lens.sensor_mm) * 1e-3);
     // On the sensor: A f (z - s) / (z (s - f)); (z - s) / z -> 1 as z -> inf.
-    const double ratio = std::isinf(z_m) ? (z_m > 0 ? 1.0 : -1.0)
-                                         : (double(z_m) - s) / double(z_m);
+    const double ratio = std::isinf(z_m) ? (z_m > 0 ? 1.0 : -1.0) : (double(z_m) - s) / double(z_m);
     return float(aperture * f * ratio / (s - f) * px_per_m);
 }
 
@@ -43,8 +42,7 @@ CocField compute_coc(const Image &depth, const DofLens &lens, float max_radius_p
                 float r;
                 if (!(z > 0.0f)) {
                     r = 0.0f;  // NaN, zero or negative depth is not a depth: leave it sharp
-                }
-                else {
+                } else {
                     r = k0f - k1f / z;  // z = +inf gives k0 exactly
                 }
                 c.radius[std::size_t(y) * std::size_t(w) + std::size_t(x)] =
@@ -88,8 +86,8 @@ void reduce_tiles(CocField &c)
     c.max_radius = global;
     // Dilation: a tile t' at Chebyshev tile distance k can reach t only if its radius covers
     // the (k - 1) full tiles between them.
-    const int reach = std::min(int(std::ceil(global / float(c.tile))) + 1,
-                               std::max(c.tiles_x, c.tiles_y));
+    const int reach =
+        std::min(int(std::ceil(global / float(c.tile))) + 1, std::max(c.tiles_x, c.tiles_y));
     parallel_for(0, nt, [&](int i) {
         const int tx = i % c.tiles_x, ty = i / c.tiles_x;
         float g = c.tile_max[std::size_t(i)], gn = near_max[std::size_t(i)];
@@ -105,8 +103,8 @@ void reduce_tiles(CocField &c)
                 }
                 const float r = c.tile_max[std::size_t(uy * c.tiles_x + ux)];
                 const float rn = near_max[std::size_t(uy * c.tiles_x + ux)];
-                const float gap = float(std::max(std::max(std::abs(dx), std::abs(dy)) - 1, 0) *
-                                        c.tile);
+                const float gap =
+                    float(std::max(std::max(std::abs(dx), std::abs(dy)) - 1, 0) * c.tile);
                 if (r > g && r >= gap) {
                     g = r;
                 }

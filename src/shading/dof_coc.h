@@ -15,10 +15,10 @@ namespace posthaste::shading {
 
 /// Thin-lens parameters, in the units of the EXR header.
 struct DofLens {
-    float fstop = 8.0f;          ///< f-number N; aperture diameter A = f / N.
-    float focus_m = 10.0f;       ///< Focus distance s, metres.
-    float focal_mm = 35.0f;      ///< Focal length f, mm.
-    float sensor_mm = 36.0f;     ///< Sensor width, mm (maps to the image width).
+    float fstop = 8.0f;       ///< f-number N; aperture diameter A = f / N.
+    float focus_m = 10.0f;    ///< Focus distance s, metres.
+    float focal_mm = 35.0f;   ///< Focal length f, mm.
+    float sensor_mm = 36.0f;  ///< Sensor width, mm (maps to the image width).
 };
 
 /// Signed CoC diameter in pixels of a point at camera-space depth z (metres) on an image
@@ -33,11 +33,12 @@ struct CocField {
     std::vector<float> radius;  ///< Signed radius, px, clamped to +-max_radius; row-major.
     int tile = 16;              ///< Tile side, px.
     int tiles_x = 0, tiles_y = 0;
-    std::vector<float> tile_max;   ///< Max |radius| in the tile.
-    std::vector<float> tile_min;   ///< Min |radius| in the tile.
-    std::vector<float> gather;     ///< Dilated: the largest |radius| of any tile that can reach it.
-    std::vector<float> near_gather;  ///< Dilated like gather, over near-field (negative) radii only.
-    float max_radius = 0.0f;       ///< Largest |radius| in the image.
+    std::vector<float> tile_max;  ///< Max |radius| in the tile.
+    std::vector<float> tile_min;  ///< Min |radius| in the tile.
+    std::vector<float> gather;    ///< Dilated: the largest |radius| of any tile that can reach it.
+    std::vector<float>
+        near_gather;          ///< Dilated like gather, over near-field (negative) radii only.
+    float max_radius = 0.0f;  ///< Largest |radius| in the image.
 };
 
 /// CoC radii of a depth image (1st channel, metres). NaN, zero or negative depth (not a depth)

@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cmath>
+#include <ctime>
+#include <glm/vec2.hpp>
+#include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
 #include <vector>
-
-#include <glm/vec2.hpp>
-#include <glm/vec4.hpp>
 
 #include "core/hash.h"
 #include "core/parallel.h"
@@ -75,7 +74,7 @@ struct Tap {
 };
 
 class Patterns {
-  public:
+   public:
     void build(float max_radius, const DofSettings &st, float density)
     {
         radii_.clear();
@@ -109,9 +108,8 @@ class Patterns {
                     const float a = kGoldenAngle * float(i) + phi;
                     const float dx = std::cos(a), dy = std::sin(a);
                     const float dist = r * std::sqrt((float(i) + u) / float(n));
-                    const float shape = st.blades >= 3
-                                            ? polygon_boundary(a - rotation, st.blades)
-                                            : 1.0f;
+                    const float shape =
+                        st.blades >= 3 ? polygon_boundary(a - rotation, st.blades) : 1.0f;
                     const int ox = int(std::lrint(dist * shape * dx));
                     const int oy = int(std::lrint(dist * shape * dy));
                     t[i].dx = std::int16_t(std::clamp(ox, -32767, 32767));
@@ -134,7 +132,7 @@ class Patterns {
         return taps_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
     }
 
-  private:
+   private:
     std::vector<float> radii_;
     std::vector<int> n_;
     std::vector<std::size_t> start_;
@@ -208,8 +206,7 @@ Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float nea
     if (p_near) {
         front = lv.color[ip] * w_self;
         front_w = w_self;
-    }
-    else {
+    } else {
         back = lv.color[ip] * w_self;
         back_w = w_self;
     }
@@ -267,8 +264,7 @@ Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float nea
     }
     if (back_w > 0.0f) {
         l.back = back / back_w;
-    }
-    else {
+    } else {
         l.back = l.front;
         l.alpha = 1.0f;
     }
@@ -350,8 +346,7 @@ bool apply_dof(const Image &color,
                 glm::vec4 v(0.0f);
                 if (nc >= 4) {
                     v = glm::vec4(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]), sanitize(p[3]));
-                }
-                else {
+                } else {
                     for (int k = 0; k < nc; ++k) {
                         v[k] = sanitize(p[k]);
                     }
@@ -435,8 +430,7 @@ bool apply_dof(const Image &color,
                         Layers l;
                         if (radius < 0.5f) {
                             l.back = col2[o];
-                        }
-                        else {
+                        } else {
                             l = gather_layers(cx2, lv, x, y, near_radius);
                         }
                         back2[o] = l.back;
@@ -471,14 +465,11 @@ bool apply_dof(const Image &color,
                     glm::vec4 v;
                     if (copy) {
                         v = col[ip];
-                    }
-                    else if (simple) {
+                    } else if (simple) {
                         v = gather_simple(cx, full, x, y);
-                    }
-                    else if (use_half) {
+                    } else if (use_half) {
                         v = composite_half(full, x, y, w2, h2, coc2, back2, front2, alpha2);
-                    }
-                    else {
+                    } else {
                         v = gather_layers(cx, full, x, y, near_radius).composite();
                     }
                     float *o = out.pixel(x, y);

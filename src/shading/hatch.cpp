@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-
 #include <glm/geometric.hpp>
 
 #include "core/parallel.h"
@@ -95,8 +94,7 @@ bool pick_step(const Sample &c, const Sample &a, const Sample &b, glm::vec3 &ste
     const bool ha = neighbour_step(c, a, sa), hb = neighbour_step(c, b, sb);
     if (ha && hb) {
         step = glm::dot(sa, sa) <= glm::dot(sb, sb) ? sa : sb;
-    }
-    else if (ha || hb) {
+    } else if (ha || hb) {
         step = ha ? sa : sb;
     }
     return ha || hb;
@@ -137,7 +135,8 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     std::vector<LineTap> line_taps;
     for (int dy = -line_reach; outlines && dy <= line_reach; ++dy) {
         for (int dx = -line_reach; dx <= line_reach; ++dx) {
-            const float c = std::clamp(line_r + 1.0f - std::sqrt(float(dx * dx + dy * dy)), 0.0f, 1.0f);
+            const float c =
+                std::clamp(line_r + 1.0f - std::sqrt(float(dx * dx + dy * dy)), 0.0f, 1.0f);
             if (c > 0.0f) {
                 line_taps.push_back({dx, dy, c});
             }
@@ -189,8 +188,11 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
         };
         auto around = [&](int x, int y) {
             const std::size_t c = index(x, y);
-            return Around{c, x > rs.x0 ? c - 1 : c, x + 1 < rs.x1 ? c + 1 : c,
-                          y > rs.y0 ? c - std::size_t(sw) : c, y + 1 < rs.y1 ? c + std::size_t(sw) : c};
+            return Around{c,
+                          x > rs.x0 ? c - 1 : c,
+                          x + 1 < rs.x1 ? c + 1 : c,
+                          y > rs.y0 ? c - std::size_t(sw) : c,
+                          y + 1 < rs.y1 ? c + std::size_t(sw) : c};
         };
         thread_local std::vector<std::uint8_t> tls_edges;
         std::vector<std::uint8_t> &edges = tls_edges;
@@ -220,9 +222,10 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                 bool masked_in = true;
                 if (!s.ids.empty()) {
                     const float id = in.id->at(x, y, 0);
-                    masked_in = std::find(s.ids.begin(), s.ids.end(),
-                                          std::isfinite(id) ? int(std::lround(id)) : -1) !=
-                                s.ids.end();
+                    masked_in =
+                        std::find(s.ids.begin(),
+                                  s.ids.end(),
+                                  std::isfinite(id) ? int(std::lround(id)) : -1) != s.ids.end();
                 }
                 if (!masked_in || mix <= 0.0f) {
                     std::copy_n(src, nc, dst);
@@ -243,13 +246,11 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                 }
                 float ink = 0.0f;
                 if (screen_space) {
-                    ink = tam.ramp(darkness, (float(x) + 0.5f) / finest, (float(y) + 0.5f) / finest,
-                                   0.0f);
-                }
-                else if (c.hit && !c.normal) {
+                    ink = tam.ramp(
+                        darkness, (float(x) + 0.5f) / finest, (float(y) + 0.5f) / finest, 0.0f);
+                } else if (c.hit && !c.normal) {
                     ink = tam.ramp(darkness, 0.0f, 0.0f, flat_lod);  // flat mean tone, no strokes
-                }
-                else if (c.hit && darkness > 0.0f) {
+                } else if (c.hit && darkness > 0.0f) {
                     glm::vec3 dpx, dpy;
                     const bool hx = pick_step(c, smp[a.r], smp[a.l], dpx);
                     const bool hy = pick_step(c, smp[a.d], smp[a.u], dpy);
@@ -266,15 +267,14 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                     if (s.triplanar) {
                         float sum = 0.0f;
                         for (int a = 0; a < 3; ++a) {
-                            weight[a] = std::pow(std::max(an[a] - 0.2f, 0.0f),
-                                                 s.triplanar_sharpness);
+                            weight[a] =
+                                std::pow(std::max(an[a] - 0.2f, 0.0f), s.triplanar_sharpness);
                             sum += weight[a];
                         }
                         for (float &wa : weight) {
                             wa /= sum;  // sum > 0: the largest |n| of a unit vector is >= 0.577
                         }
-                    }
-                    else {
+                    } else {
                         weight[an.x >= an.y && an.x >= an.z ? 0 : (an.y >= an.z ? 1 : 2)] = 1.0f;
                     }
                     static constexpr int kU[3] = {2, 0, 0}, kV[3] = {1, 2, 1};
@@ -299,7 +299,8 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                 for (const LineTap &tap : line_taps) {
                     const int xx = x + tap.dx, yy = y + tap.dy;
                     if (xx >= re.x0 && xx < re.x1 && yy >= re.y0 && yy < re.y1 &&
-                        edges[std::size_t(yy - re.y0) * std::size_t(ew) + std::size_t(xx - re.x0)]) {
+                        edges[std::size_t(yy - re.y0) * std::size_t(ew) +
+                              std::size_t(xx - re.x0)]) {
                         line = std::max(line, tap.coverage);
                     }
                 }

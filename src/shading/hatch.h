@@ -12,9 +12,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <vector>
-
 #include <glm/vec3.hpp>
+#include <vector>
 
 #include "core/image.h"
 #include "shading/tam.h"
@@ -22,23 +21,23 @@
 namespace posthaste::shading {
 
 struct HatchSettings {
-    bool screen_space = false;   ///< Naive baseline: TAM at 1 texel per pixel of the screen.
-    bool triplanar = false;      ///< Blend three planes by |N|; false: dominant axis of N only.
+    bool screen_space = false;  ///< Naive baseline: TAM at 1 texel per pixel of the screen.
+    bool triplanar = false;     ///< Blend three planes by |N|; false: dominant axis of N only.
     float triplanar_sharpness = 4.0f;  ///< Exponent on the plane weights.
-    float scale = 1.0f;          ///< World metres per TAM tile (surface mode).
-    bool tone_from_light = false;  ///< Tone from n.l (light_dir, ambient) instead of luminance.
+    float scale = 1.0f;                ///< World metres per TAM tile (surface mode).
+    bool tone_from_light = false;      ///< Tone from n.l (light_dir, ambient) instead of luminance.
     glm::vec3 light_dir{0.4f, 1.0f, 0.3f};  ///< World direction towards the light (normalised).
-    float ambient = 0.15f;       ///< Tone floor with tone_from_light.
-    float exposure = 1.0f;       ///< Multiplies luminance (or n.l) before the tone curve.
-    float gamma = 2.2f;          ///< tone = clamp(exposure * L)^(1 / gamma).
-    float outline_width = 1.5f;  ///< Pixels; 0 turns outlines off.
-    float depth_threshold = 0.02f;      ///< Depth edge: plane distance > this x depth.
+    float ambient = 0.15f;                  ///< Tone floor with tone_from_light.
+    float exposure = 1.0f;               ///< Multiplies luminance (or n.l) before the tone curve.
+    float gamma = 2.2f;                  ///< tone = clamp(exposure * L)^(1 / gamma).
+    float outline_width = 1.5f;          ///< Pixels; 0 turns outlines off.
+    float depth_threshold = 0.02f;       ///< Depth edge: plane distance > this x depth.
     float normal_threshold_deg = 50.0f;  ///< Crease edge: normals differ by more than this.
     glm::vec3 paper{0.95f, 0.93f, 0.86f};
     glm::vec3 ink{0.04f, 0.04f, 0.06f};
     glm::vec3 outline{0.02f, 0.02f, 0.03f};
-    std::vector<int> ids;        ///< Hatch only these material ids (empty: everywhere).
-    float mix = 1.0f;            ///< 0: input color, 1: full drawing.
+    std::vector<int> ids;  ///< Hatch only these material ids (empty: everywhere).
+    float mix = 1.0f;      ///< 0: input color, 1: full drawing.
 };
 
 struct HatchInputs {
@@ -58,7 +57,7 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam);
 /// segments: increasing, continuous, within 3e-4 of the exact curve for gamma 2.2, and no
 /// pow() per pixel.
 class ToneCurve {
-  public:
+   public:
     explicit ToneCurve(float gamma);
     /// Tone of a linear value; NaN reads as 1 (paper).
     float operator()(float linear) const
@@ -82,7 +81,7 @@ class ToneCurve {
         return (*this)(lum * exposure);
     }
 
-  private:
+   private:
     static constexpr int kSegments = 256;
     std::array<float, kSegments + 1> table_{};
 };

@@ -39,8 +39,7 @@ constexpr float kSkyLogZ = 1e30f;
 
 double ms_since(std::chrono::steady_clock::time_point t0)
 {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-        .count();
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 double process_cpu_ms()
@@ -122,7 +121,10 @@ struct Gather {
     int w, h, nc;
     float inv_soft, inv_tile;
 
-    const Px &px(int x, int y) const { return px_[std::size_t(y) * std::size_t(w) + std::size_t(x)]; }
+    const Px &px(int x, int y) const
+    {
+        return px_[std::size_t(y) * std::size_t(w) + std::size_t(x)];
+    }
 
     void copy_pixel(Image &out, int x, int y) const
     {
@@ -176,10 +178,10 @@ struct Gather {
         const std::uint32_t hj = hash4(std::uint32_t(x), std::uint32_t(y), 1u, o.seed);
         const float jx = (hash_to_unit(hj) - 0.5f) * 2.0f * o.tile_jitter * tile;
         const float jy = (hash_to_unit(pcg_hash(hj)) - 0.5f) * 2.0f * o.tile_jitter * tile;
-        const int tx = std::min(int(std::max(float(x) + 0.5f + jx, 0.0f) * inv_tile),
-                                nmax.width() - 1);
-        const int ty = std::min(int(std::max(float(y) + 0.5f + jy, 0.0f) * inv_tile),
-                                nmax.height() - 1);
+        const int tx =
+            std::min(int(std::max(float(x) + 0.5f + jx, 0.0f) * inv_tile), nmax.width() - 1);
+        const int ty =
+            std::min(int(std::max(float(y) + 0.5f + jy, 0.0f) * inv_tile), nmax.height() - 1);
         float nvx = nmax.at(tx, ty, 0), nvy = nmax.at(tx, ty, 1);
         float L = std::sqrt(nvx * nvx + nvy * nvy);
         if (L < 0.5f) {
@@ -310,18 +312,26 @@ Image motion_blur(const Image &color,
     // Reach in tiles of the longest vector, plus one for the jittered lookup.
     const int radius = int(std::ceil(longest / float(o.tile))) + (o.tile_jitter > 0.0f ? 1 : 0);
     const Image nmax = neighbour_max(tiles, std::max(radius, 1));
-    const Image nbounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
-                              ? neighbour_bounds(tile_bounds(packed.velocity, o.tile),
-                                                 std::max(radius, 1))
-                              : Image();
+    const Image nbounds =
+        o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
+            ? neighbour_bounds(tile_bounds(packed.velocity, o.tile), std::max(radius, 1))
+            : Image();
     st.neighbour_max_ms = ms_since(t0);
     st.neighbour_max_cpu_ms = process_cpu_ms() - c0;
 
     t0 = std::chrono::steady_clock::now();
     c0 = process_cpu_ms();
     Image out = Image::uninitialized(w, h, color.channels());
-    const Gather g{color,        packed.px.data(), packed.velocity, nmax, o, w, h,
-                   std::min(color.channels(), 4), 1.0f / o.soft_z, 1.0f / float(o.tile)};
+    const Gather g{color,
+                   packed.px.data(),
+                   packed.velocity,
+                   nmax,
+                   o,
+                   w,
+                   h,
+                   std::min(color.channels(), 4),
+                   1.0f / o.soft_z,
+                   1.0f / float(o.tile)};
     const int nt_x = nmax.width(), nt_y = nmax.height();
     // Per tile: 1 copied, 2 coherent (uniform path), 0 reconstructed.
     std::vector<unsigned char> kind(std::size_t(nt_x) * std::size_t(nt_y), 0);
@@ -334,8 +344,7 @@ Image motion_blur(const Image &color,
             bool still = true;
             if (o.method == BlurMethod::Uniform) {
                 still = std::hypot(tiles.at(tx, ty, 0), tiles.at(tx, ty, 1)) < 0.5f;
-            }
-            else {
+            } else {
                 for (int y = std::max(0, ty - 1); y <= std::min(nt_y - 1, ty + 1) && still; ++y) {
                     for (int x = std::max(0, tx - 1); x <= std::min(nt_x - 1, tx + 1); ++x) {
                         if (std::hypot(nmax.at(x, y, 0), nmax.at(x, y, 1)) >= 0.5f) {
@@ -347,7 +356,8 @@ Image motion_blur(const Image &color,
             }
             if (still) {
                 for (int y = r.y0; y < r.y1; ++y) {
-                    std::memcpy(out.pixel(r.x0, y), color.pixel(r.x0, y),
+                    std::memcpy(out.pixel(r.x0, y),
+                                color.pixel(r.x0, y),
                                 sizeof(float) * std::size_t(r.width() * color.channels()));
                 }
                 kind[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)] = 1;
@@ -361,7 +371,8 @@ Image motion_blur(const Image &color,
             if (!nbounds.empty()) {
                 const float *b = nbounds.pixel(tx, ty);
                 const float extent = std::max(b[2] - b[0], b[3] - b[1]);
-                coherent = extent <= o.coherence * std::hypot(nmax.at(tx, ty, 0), nmax.at(tx, ty, 1));
+                coherent =
+                    extent <= o.coherence * std::hypot(nmax.at(tx, ty, 0), nmax.at(tx, ty, 1));
             }
             if (coherent) {
                 kind[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)] = 2;
@@ -370,8 +381,7 @@ Image motion_blur(const Image &color,
                 for (int x = r.x0; x < r.x1; ++x) {
                     if (o.method == BlurMethod::Uniform || coherent) {
                         g.uniform(out, x, y);
-                    }
-                    else {
+                    } else {
                         g.reconstruct(out, x, y);
                     }
                 }

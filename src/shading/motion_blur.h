@@ -20,11 +20,11 @@ struct MotionBlurOptions {
     /// Fraction of the frame interval the shutter is open, centred on the frame: a pixel blurs
     /// over +-shutter/2 x motion.
     float shutter = 0.5f;
-    int samples = 16;            ///< Most samples per pixel (fewer for short motion).
-    float max_radius = 64.0f;    ///< Longest blur half-extent, pixels.
-    int tile = 16;               ///< Tile size of the tile-max reduction, pixels.
-    float soft_z = 0.05f;        ///< Depth ramp of the front/back test, relative to depth.
-    float tile_jitter = 0.25f;   ///< Jitter of the neighbour-max lookup, in tiles (hides seams).
+    int samples = 16;           ///< Most samples per pixel (fewer for short motion).
+    float max_radius = 64.0f;   ///< Longest blur half-extent, pixels.
+    int tile = 16;              ///< Tile size of the tile-max reduction, pixels.
+    float soft_z = 0.05f;       ///< Depth ramp of the front/back test, relative to depth.
+    float tile_jitter = 0.25f;  ///< Jitter of the neighbour-max lookup, in tiles (hides seams).
     /// Tiles whose reachable vectors all lie within coherence x the longest of each other take
     /// the uniform path (0: never).
     float coherence = 0.05f;

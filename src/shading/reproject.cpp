@@ -1,7 +1,6 @@
 #include "shading/reproject.h"
 
 #include <cmath>
-
 #include <glm/glm.hpp>
 
 #include "core/parallel.h"

@@ -37,7 +37,8 @@ int log2_int(int v)
 
 /// Calls f(index, alpha) for each texel of a level of side s that the stroke touches (alpha > 0),
 /// wrapping around the tile. Coverage is a 1-texel box-filtered capsule around a parabolic arc.
-template<typename F> void for_stroke_texels(const TamStroke &st, float width, int s, F &&f)
+template <typename F>
+void for_stroke_texels(const TamStroke &st, float width, int s, F &&f)
 {
     const float sf = float(s);
     const float cx = st.cx * sf, cy = st.cy * sf;
@@ -53,8 +54,7 @@ template<typename F> void for_stroke_texels(const TamStroke &st, float width, in
         if (std::abs(a) <= half_len) {
             const float t = a / half_len;
             dist = std::abs(q - bend * (1.0f - t * t));
-        }
-        else {
+        } else {
             const float ea = a > 0.0f ? a - half_len : a + half_len;
             dist = std::sqrt(ea * ea + q * q);
         }
@@ -78,8 +78,7 @@ template<typename F> void for_stroke_texels(const TamStroke &st, float width, in
                 texel(x, y);
             }
         }
-    }
-    else {
+    } else {
         const int x0 = int(std::floor(cx - std::abs(dx) * ext)) - 1;
         const int x1 = int(std::ceil(cx + std::abs(dx) * ext)) + 1;
         for (int x = x0; x <= x1; ++x) {
@@ -114,8 +113,12 @@ void validate(const TamParams &p)
     }
     const int max_stroke_levels = log2_int(p.size) - 2;  // coarsest stroke level >= 4 x 4
     if (p.stroke_levels < 1 || p.stroke_levels > max_stroke_levels) {
-        throw_usage("tam: stroke_levels must be in 1..", max_stroke_levels, " for size ", p.size,
-                    ", got ", p.stroke_levels);
+        throw_usage("tam: stroke_levels must be in 1..",
+                    max_stroke_levels,
+                    " for size ",
+                    p.size,
+                    ", got ",
+                    p.stroke_levels);
     }
     if (!(p.width >= 0.25f && p.width <= 16.0f)) {
         throw_usage("tam: stroke width must be in 0.25..16 texels, got ", p.width);
@@ -175,7 +178,8 @@ Tam build_tam(const TamParams &p)
 
     for (int tone = 0; tone < kTamTones; ++tone) {
         if (tone > 0) {  // nesting across tones: start from the lighter tone's strokes
-            std::copy_n(tam.data_.begin() + std::ptrdiff_t((tone - 1) * offset), offset,
+            std::copy_n(tam.data_.begin() + std::ptrdiff_t((tone - 1) * offset),
+                        offset,
                         tam.data_.begin() + std::ptrdiff_t(tone * offset));
         }
         const double target = double(p.darkest) * double(tone + 1) / double(kTamTones);
@@ -224,11 +228,12 @@ Tam build_tam(const TamParams &p)
         for (int l = p.stroke_levels; l < all_levels; ++l) {
             const int s = p.size >> l;
             const float *src = tam.texels(tone, l - 1);
-            float *dst = tam.data_.data() + std::size_t(tone) * offset +
-                         tam.level_offset_[std::size_t(l)];
+            float *dst =
+                tam.data_.data() + std::size_t(tone) * offset + tam.level_offset_[std::size_t(l)];
             for (int y = 0; y < s; ++y) {
                 for (int x = 0; x < s; ++x) {
-                    const std::size_t i = std::size_t(2 * y) * std::size_t(2 * s) + std::size_t(2 * x);
+                    const std::size_t i =
+                        std::size_t(2 * y) * std::size_t(2 * s) + std::size_t(2 * x);
                     dst[std::size_t(y) * std::size_t(s) + std::size_t(x)] =
                         0.25f * (src[i] + src[i + 1] + src[i + std::size_t(2 * s)] +
                                  src[i + std::size_t(2 * s) + 1]);

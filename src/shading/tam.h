@@ -29,9 +29,9 @@ struct TamParams {
     float jitter = 0.3f;      ///< 0..1: random spread of angle (+-jitter*12 deg), length, bend.
     float angle_deg = 45.0f;  ///< Main stroke direction, degrees counter-clockwise from +u.
     float cross_angle_deg = -45.0f;  ///< Direction of the cross-hatching strokes.
-    int cross_tones = 2;      ///< The darkest this many tones add cross strokes (0..6).
-    int candidates = 8;       ///< Random candidates per stroke; the best one is kept.
-    float darkest = 0.9f;     ///< Mean ink coverage of the darkest tone (tone k: darkest k / 6).
+    int cross_tones = 2;             ///< The darkest this many tones add cross strokes (0..6).
+    int candidates = 8;              ///< Random candidates per stroke; the best one is kept.
+    float darkest = 0.9f;  ///< Mean ink coverage of the darkest tone (tone k: darkest k / 6).
     std::uint32_t seed = 1;
 };
 
@@ -43,7 +43,7 @@ struct TamStroke {
 };
 
 class Tam {
-  public:
+   public:
     Tam() = default;
     int size() const { return size_; }
     /// All levels, stroke levels first then the filtered ones (down to 1 x 1).
@@ -82,7 +82,7 @@ class Tam {
     double build_ms() const { return build_ms_; }
     double build_cpu_ms() const { return build_cpu_ms_; }
 
-  private:
+   private:
     friend Tam build_tam(const TamParams &p);
     /// Filtered blend of ramp entries k and k + 1 (weight f) of the packed texels.
     float ramp_at(int k, float f, float u, float v, float lod) const
@@ -120,7 +120,8 @@ class Tam {
         const float fx = float(x & 0xffff) * (1.0f / 65536.0f);
         const float fy = float(y & 0xffff) * (1.0f / 65536.0f);
         const int x1 = (x0 + 1) & mask;
-        const float *base = packed_.data() + level_offset_[std::size_t(level)] * kPacked + std::size_t(k);
+        const float *base =
+            packed_.data() + level_offset_[std::size_t(level)] * kPacked + std::size_t(k);
         const float *r0 = base + std::size_t(y0) * std::size_t(s) * kPacked;
         const float *r1 = base + std::size_t((y0 + 1) & mask) * std::size_t(s) * kPacked;
         const std::size_t o0 = std::size_t(x0) * kPacked, o1 = std::size_t(x1) * kPacked;

@@ -5,6 +5,8 @@
 // show it has converged well below the errors measured. Then the failure cases: each asserts
 // finite, bounded output and records its error. Numbers go to docs/nodes/dof.md.
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,13 +15,11 @@
 #include <limits>
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "io/image_file.h"
 #include "metrics/metrics.h"
-#include "shading/dof_gather.h"
 #include "raster/render.h"
 #include "raster/scene.h"
+#include "shading/dof_gather.h"
 
 namespace posthaste {
 namespace {
@@ -178,13 +178,15 @@ Errors measure(const Rendered &r, const shading::DofSettings &settings, const st
                 }
             }
         }
-        std::printf("  %s: share of squared error at values > 2: %.1f %%\n", name.c_str(),
+        std::printf("  %s: share of squared error at values > 2: %.1f %%\n",
+                    name.c_str(),
                     100.0 * sum_sq_hot / sum_sq);
         dump(name, "err8", err);
         for (int y = 0; y < color.height(); ++y) {
             for (int x = 0; x < color.width(); ++x) {
                 for (int k = 0; k < 3; ++k) {
-                    err.at(x, y, k) = std::fabs(out_simple.at(x, y, k) - r.truth.at(x, y, k)) * 8.0f;
+                    err.at(x, y, k) =
+                        std::fabs(out_simple.at(x, y, k) - r.truth.at(x, y, k)) * 8.0f;
                 }
             }
         }
@@ -203,24 +205,34 @@ Errors measure(const Rendered &r, const shading::DofSettings &settings, const st
         mx = std::max(mx, std::fabs(v));
     }
     e.max_coc_px = 2.0f * mx;
-    std::printf("| %-28s | %5.1f | %.5f (%5.2f dB) | %.5f (%5.2f dB) | %.5f (%5.2f dB) | %5.1f %% "
-                "| %5.1f %% | %.5f |\n",
-                name.c_str(), e.max_coc_px, e.none, e.none_psnr, e.simple, e.simple_psnr, e.node,
-                e.node_psnr, 100.0 * (1.0 - e.simple / e.none), 100.0 * (1.0 - e.node / e.none),
-                e.truth_conv);
+    std::printf(
+        "| %-28s | %5.1f | %.5f (%5.2f dB) | %.5f (%5.2f dB) | %.5f (%5.2f dB) | %5.1f %% "
+        "| %5.1f %% | %.5f |\n",
+        name.c_str(),
+        e.max_coc_px,
+        e.none,
+        e.none_psnr,
+        e.simple,
+        e.simple_psnr,
+        e.node,
+        e.node_psnr,
+        100.0 * (1.0 - e.simple / e.none),
+        100.0 * (1.0 - e.node / e.none),
+        e.truth_conv);
     std::fflush(stdout);
     return e;
 }
 
 void print_header()
 {
-    std::printf("| case | max CoC px | none RMSE (PSNR) | simple | dof node | simple removes | "
-                "node removes | truth N vs 2N |\n");
+    std::printf(
+        "| case | max CoC px | none RMSE (PSNR) | simple | dof node | simple removes | "
+        "node removes | truth N vs 2N |\n");
 }
 
 // 960x540; POSTHASTE_DOF_WIDTH overrides the width (16:9) for quick local runs.
-const int kW = std::getenv("POSTHASTE_DOF_WIDTH") ? std::atoi(std::getenv("POSTHASTE_DOF_WIDTH"))
-                                                  : 960;
+const int kW =
+    std::getenv("POSTHASTE_DOF_WIDTH") ? std::atoi(std::getenv("POSTHASTE_DOF_WIDTH")) : 960;
 const int kH = kW * 9 / 16;
 
 // The default scene's close-up (frames 36-48: 50-55 mm, f/1.8-f/1.4, focus 6-6.5 m).
@@ -277,7 +289,8 @@ TEST(DofAccuracyPlanesSlow, TwoPlanes)
     run_analytic({"two_planes near over sharp", "two_planes.json", near_over_sharp, 0.30});
     // Sharp near wall, far wall blurred: the far field must not bleed over it. The far wall is
     // nearly uniform, so blurring it changes little: the node matches doing nothing (0.0 %).
-    run_analytic({"two_planes far behind sharp", "two_planes.json",
+    run_analytic({"two_planes far behind sharp",
+                  "two_planes.json",
                   [](CameraKey &k) {
                       near_over_sharp(k);
                       k.focus_distance = 3.0f;
@@ -290,7 +303,8 @@ TEST(DofAccuracyEdgesSlow, CubeAndThinSky)
     print_header();
     // Cube in focus at 10 m against a sky that blurs to itself: both errors are tiny; the node
     // adds 0.00003 at the silhouette (the hidden sky behind the cube is unknown).
-    run_analytic({"cube sharp, sky blurred", "cube.json",
+    run_analytic({"cube sharp, sky blurred",
+                  "cube.json",
                   [](CameraKey &k) {
                       k.focal_length_mm = 50.0f;
                       k.fstop = 0.7f;
@@ -298,7 +312,8 @@ TEST(DofAccuracyEdgesSlow, CubeAndThinSky)
                   },
                   1.6});
     // Thin pillars, beam and fence blurred against the sky; ground in focus at 6 m: 88 %.
-    run_analytic({"thin_sky focus 6 m", "thin_sky.json",
+    run_analytic({"thin_sky focus 6 m",
+                  "thin_sky.json",
                   [](CameraKey &k) {
                       k.focal_length_mm = 50.0f;
                       k.fstop = 1.0f;
@@ -323,14 +338,16 @@ TEST(DofFailureSlow, FiniteBoundedAndRecorded)
     const auto keep = [](shading::DofSettings &) {};
     const FailureCase cases[] = {
         {"near field over sharp bg", "two_planes.json", near_over_sharp, keep},
-        {"depth edge: sharp cube, sky", "cube.json",
+        {"depth edge: sharp cube, sky",
+         "cube.json",
          [](CameraKey &k) {
              k.focal_length_mm = 50.0f;
              k.fstop = 0.7f;
              k.focus_distance = 10.0f;
          },
          keep},
-        {"sky (Z = +inf), thin pillars", "thin_sky.json",
+        {"sky (Z = +inf), thin pillars",
+         "thin_sky.json",
          [](CameraKey &k) {
              k.focal_length_mm = 50.0f;
              k.fstop = 1.0f;
@@ -338,23 +355,30 @@ TEST(DofFailureSlow, FiniteBoundedAndRecorded)
          },
          keep},
         {"NaN/Inf in color and depth", "two_planes.json", near_over_sharp, keep, true},
-        {"focus at the near plane", "two_planes.json",
-         [](CameraKey &k) { k.focus_distance = 0.05f; }, keep},
-        {"f/0.5", "two_planes.json",
+        {"focus at the near plane",
+         "two_planes.json",
+         [](CameraKey &k) { k.focus_distance = 0.05f; },
+         keep},
+        {"f/0.5",
+         "two_planes.json",
          [](CameraKey &k) {
              near_over_sharp(k);
              k.fstop = 0.5f;
          },
          keep},
-        {"f/1e6", "two_planes.json",
+        {"f/1e6",
+         "two_planes.json",
          [](CameraKey &k) {
              near_over_sharp(k);
              k.fstop = 1e6f;
          },
          keep},
-        {"max CoC 0", "two_planes.json", near_over_sharp,
+        {"max CoC 0",
+         "two_planes.json",
+         near_over_sharp,
          [](shading::DofSettings &s) { s.max_coc_px = 0.0f; }},
-        {"max CoC 4096 at f/0.5", "two_planes.json",
+        {"max CoC 4096 at f/0.5",
+         "two_planes.json",
          [](CameraKey &k) {
              near_over_sharp(k);
              k.fstop = 0.5f;
@@ -397,7 +421,11 @@ TEST(DofFailureSlow, FiniteBoundedAndRecorded)
             }
         }
         const double none = rmse(clean, r.truth), node = rmse(out, r.truth);
-        std::printf("| %-30s | %6.1f | %.5f | %.5f | %6.1f %% |\n", c.name, 2.0f * mx, none, node,
+        std::printf("| %-30s | %6.1f | %.5f | %.5f | %6.1f %% |\n",
+                    c.name,
+                    2.0f * mx,
+                    none,
+                    node,
                     100.0 * (1.0 - node / none));
         std::fflush(stdout);
         EXPECT_TRUE(std::isfinite(node)) << c.name;

@@ -4,12 +4,12 @@
 // (sky pixels come from the same sky-view LUT in both atmosphere modes, and are not a fog).
 // Writes fog_accuracy.json in the working directory.
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
-
-#include <gtest/gtest.h>
 
 #include "graph/graph.h"
 #include "graph/node_registry.h"
@@ -23,15 +23,21 @@ Frame run_fog(const Frame &in, const std::string &params, double *ms = nullptr)
 {
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
-        {"id": "fog", "type": "fog", "inputs": {"image": "src"}, "params": )" + params + R"(},
+        {"id": "fog", "type": "fog", "inputs": {"image": "src"}, "params": )" +
+                               params + R"(},
         {"id": "out", "type": "write", "inputs": {"image": "fog"}, "params": {"path": "x.exr"}}]})",
                            "fog_accuracy");
     const GraphNode &gn = g.nodes()[std::size_t(g.find("fog"))];
     Frame out;
     std::vector<double> times;
     for (int rep = 0; rep < (ms ? 3 : 1); ++rep) {
-        NodeContext ctx(gn.identity, gn.params, {std::make_shared<const Frame>(in)}, {"image"},
-                        gn.requested, 1, *gn.state);
+        NodeContext ctx(gn.identity,
+                        gn.params,
+                        {std::make_shared<const Frame>(in)},
+                        {"image"},
+                        gn.requested,
+                        1,
+                        *gn.state);
         const auto t0 = std::chrono::steady_clock::now();
         find_node_type("fog")->execute(ctx);
         times.push_back(
@@ -82,8 +88,8 @@ TEST(FogAccuracySlow, CheaperModelsAgainstTheRayMarchedAtmosphere)
     const Frame in = raster::render_frame(scene, 8, ro);
     const std::string common = R"("metres_per_unit": 20, "sun_disc": false)";
     double ref_ms = 0;
-    const Frame ref = run_fog(in, R"({"model": "atmosphere_raymarch", "steps": 128, )" + common + "}",
-                              &ref_ms);
+    const Frame ref =
+        run_fog(in, R"({"model": "atmosphere_raymarch", "steps": 128, )" + common + "}", &ref_ms);
     const Err none = geometry_error(in, ref);
 
     std::ofstream json("fog_accuracy.json");
@@ -103,8 +109,11 @@ TEST(FogAccuracySlow, CheaperModelsAgainstTheRayMarchedAtmosphere)
                                 &ms);
         const Err e = geometry_error(f, ref);
         froxel_rmse.push_back(e.rmse);
-        std::printf("atmosphere froxels %2d^3               %10.5f %10.5f %10.2f\n", res, e.rmse,
-                    e.max, ms);
+        std::printf("atmosphere froxels %2d^3               %10.5f %10.5f %10.2f\n",
+                    res,
+                    e.rmse,
+                    e.max,
+                    ms);
         json << ",\n  {\"model\": \"atmosphere\", \"froxels\": " << res << ", \"rmse\": " << e.rmse
              << ", \"max\": " << e.max << ", \"ms\": " << ms << "}";
     }
@@ -114,9 +123,9 @@ TEST(FogAccuracySlow, CheaperModelsAgainstTheRayMarchedAtmosphere)
         Err best{1e30, 0};
         std::string best_params;
         double best_ms = 0;
-        const std::vector<double> falloffs = model == "height" ? std::vector<double>{0.0, 0.01, 0.03,
-                                                                                     0.1}
-                                                               : std::vector<double>{0.0};
+        const std::vector<double> falloffs = model == "height"
+                                                 ? std::vector<double>{0.0, 0.01, 0.03, 0.1}
+                                                 : std::vector<double>{0.0};
         for (double falloff : falloffs) {
             for (int i = 0; i < 24; ++i) {
                 const double k = 1e-4 * std::pow(1e3, i / 23.0);  // density, or 1/end for linear
@@ -150,7 +159,9 @@ TEST(FogAccuracySlow, CheaperModelsAgainstTheRayMarchedAtmosphere)
                     }
                 }
                 char color[96];
-                std::snprintf(color, sizeof(color), R"("color": [%.6f, %.6f, %.6f])",
+                std::snprintf(color,
+                              sizeof(color),
+                              R"("color": [%.6f, %.6f, %.6f])",
                               std::max(0.0, fit[0] / std::max(den, 1e-12)),
                               std::max(0.0, fit[1] / std::max(den, 1e-12)),
                               std::max(0.0, fit[2] / std::max(den, 1e-12)));
@@ -165,8 +176,11 @@ TEST(FogAccuracySlow, CheaperModelsAgainstTheRayMarchedAtmosphere)
             }
         }
         run_fog(in, best_params, &best_ms);
-        std::printf("%-34s %10.5f %10.5f %10.2f\n", (model + " (best fit)").c_str(), best.rmse,
-                    best.max, best_ms);
+        std::printf("%-34s %10.5f %10.5f %10.2f\n",
+                    (model + " (best fit)").c_str(),
+                    best.rmse,
+                    best.max,
+                    best_ms);
         json << ",\n  {\"model\": \"" << model << "\", \"params\": " << best_params
              << ", \"rmse\": " << best.rmse << ", \"max\": " << best.max << ", \"ms\": " << best_ms
              << "}";

@@ -5,20 +5,20 @@
 
 #include "shading/motion_blur.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <string>
 
-#include <gtest/gtest.h>
-
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "metrics/metrics.h"
-#include "shading/reproject.h"
-#include "shading/tiles.h"
 #include "raster/render.h"
 #include "raster/scene.h"
+#include "shading/reproject.h"
+#include "shading/tiles.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -64,8 +64,7 @@ Image moving_block_truth(int w, int h, int bx0, int bx1, float speed, float shut
         double cov;
         if (L <= 0.0) {
             cov = (xc >= bx0 && xc < bx1) ? 1.0 : 0.0;
-        }
-        else {
+        } else {
             const double lo = std::max(-L, xc - bx1), hi = std::min(L, xc - bx0);
             cov = std::max(0.0, hi - lo) / (2.0 * L);
         }
@@ -167,8 +166,8 @@ TEST(MotionBlur, MovingEdgeOverStaticBackgroundMatchesTheExactAverage)
     o.method = shading::BlurMethod::Uniform;
     const Image uni = shading::motion_blur(s.color, s.motion, s.depth, o);
     const double e_none = rmse(s.color, truth), e_rec = rmse(rec, truth), e_uni = rmse(uni, truth);
-    std::printf("moving edge: rmse none %.4f uniform %.4f reconstruct %.4f\n", e_none, e_uni,
-                e_rec);
+    std::printf(
+        "moving edge: rmse none %.4f uniform %.4f reconstruct %.4f\n", e_none, e_uni, e_rec);
     EXPECT_LT(e_rec, 0.25 * e_none);
     EXPECT_LT(e_rec, 0.5 * e_uni);
     // Half coverage just outside either edge of the block at the frame time.
@@ -222,7 +221,8 @@ TEST(MotionBlur, NonFiniteMotionAndDepthGiveFiniteBoundedOutput)
         s.depth.at(10, y, 0) = kInf;
     }
     s.motion.at(5, 5, 0) = 1e30f;  // finite but absurd: clamped to max_radius
-    for (const shading::BlurMethod m : {shading::BlurMethod::Reconstruct, shading::BlurMethod::Uniform}) {
+    for (const shading::BlurMethod m :
+         {shading::BlurMethod::Reconstruct, shading::BlurMethod::Uniform}) {
         shading::MotionBlurOptions o;
         o.method = m;
         expect_bounded(s.color, shading::motion_blur(s.color, s.motion, s.depth, o), "non-finite");
@@ -240,9 +240,12 @@ TEST(MotionBlur, ExtremeParametersStayFiniteAndBounded)
         int tile;
         float shutter;
     };
-    const P cases[] = {{"samples 1", 1, 64, 16, 0.5f},      {"max radius huge", 16, 4096, 16, 0.5f},
-                       {"max radius 0", 16, 0, 16, 0.5f},    {"shutter 0", 16, 64, 16, 0.0f},
-                       {"tile 2", 16, 64, 2, 0.5f},          {"tile 256", 16, 64, 256, 0.5f},
+    const P cases[] = {{"samples 1", 1, 64, 16, 0.5f},
+                       {"max radius huge", 16, 4096, 16, 0.5f},
+                       {"max radius 0", 16, 0, 16, 0.5f},
+                       {"shutter 0", 16, 64, 16, 0.0f},
+                       {"tile 2", 16, 64, 2, 0.5f},
+                       {"tile 256", 16, 64, 256, 0.5f},
                        {"shutter 2", 256, 64, 16, 2.0f}};
     for (const P &p : cases) {
         shading::MotionBlurOptions o;
@@ -287,14 +290,16 @@ TEST(MotionBlur, CameraReprojectionMatchesTheRasterizerOnAStaticWorld)
     const Frame f = raster::render_frame(scene, 4, ro);
     const Image cam = shading::camera_motion(f.image("depth"), f.camera, "test");
     const metrics::CompareStats st = metrics::compare(cam, f.image("motion"));
-    std::printf("camera reprojection vs motion pass: rms %.3g max %.3g px\n", st.all.rms_error,
+    std::printf("camera reprojection vs motion pass: rms %.3g max %.3g px\n",
+                st.all.rms_error,
                 st.all.max_error);
     EXPECT_LT(st.all.max_error, 0.02);
     double longest = 0;
     for (int y = 0; y < 90; ++y) {
         for (int x = 0; x < 160; ++x) {
-            longest = std::max(longest, double(std::hypot(f.image("motion").at(x, y, 0),
-                                                          f.image("motion").at(x, y, 1))));
+            longest = std::max(
+                longest,
+                double(std::hypot(f.image("motion").at(x, y, 0), f.image("motion").at(x, y, 1))));
         }
     }
     EXPECT_GT(longest, 0.1);  // the test is not comparing zeros
@@ -304,13 +309,15 @@ Frame run_node(const std::string &scene, int frame, int w, int h, const std::str
 {
     const std::string dir = test::scratch_dir("motion_blur_node");
     const std::string graph = R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"scene": ")" + scene_path(scene) +
-                              R"(", "width": )" + std::to_string(w) + R"(, "height": )" +
-                              std::to_string(h) + R"(}},
-        {"id": "mb", "type": "motion_blur", "inputs": {"image": "src"}, "params": {)" + params +
+        {"id": "src", "type": "render", "params": {"scene": ")" +
+                              scene_path(scene) + R"(", "width": )" + std::to_string(w) +
+                              R"(, "height": )" + std::to_string(h) + R"(}},
+        {"id": "mb", "type": "motion_blur", "inputs": {"image": "src"}, "params": {)" +
+                              params +
                               R"(}},
         {"id": "o", "type": "write", "inputs": {"image": "mb"},
-         "params": {"path": ")" + dir + R"(/o.exr", "passes": "color"}}]})";
+         "params": {"path": ")" +
+                              dir + R"(/o.exr", "passes": "color"}}]})";
     Graph g = Graph::parse(graph, "g.json");
     g.set_capture("mb");
     return g.evaluate(frame);
@@ -322,8 +329,8 @@ TEST(MotionBlurNode, ZeroShutterAndThreadCountThroughTheGraph)
     ro.width = 96;
     ro.height = 54;
     ro.passes = {"color"};
-    const Frame in = raster::render_frame(raster::load_scene(scene_path("fast_crossing.json")), 3,
-                                          ro);
+    const Frame in =
+        raster::render_frame(raster::load_scene(scene_path("fast_crossing.json")), 3, ro);
     EXPECT_TRUE(run_node("fast_crossing.json", 3, 96, 54, R"("shutter": 0)")
                     .image("color")
                     .bit_equal(in.image("color")));
@@ -378,12 +385,19 @@ void run_accuracy(const AccuracyCase &c)
     // PSNR with peak 1 (idiff's peak is max(1, largest value), which differs per pair on HDR
     // frames and would make the columns incomparable).
     auto psnr = [](double rms) { return 20.0 * std::log10(1.0 / rms); };
-    std::printf("| %s | %.5f (%.2f dB) | %.5f (%.2f dB) | %.5f (%.2f dB) | %.0f %% | %.3f | "
-                "%.5f |\n",
-                c.label, none_st.all.rms_error, psnr(none_st.all.rms_error),
-                simple_st.all.rms_error, psnr(simple_st.all.rms_error), node_st.all.rms_error,
-                psnr(node_st.all.rms_error), 100.0 * removed,
-                node_st.all.rms_error / simple_st.all.rms_error, conv);
+    std::printf(
+        "| %s | %.5f (%.2f dB) | %.5f (%.2f dB) | %.5f (%.2f dB) | %.0f %% | %.3f | "
+        "%.5f |\n",
+        c.label,
+        none_st.all.rms_error,
+        psnr(none_st.all.rms_error),
+        simple_st.all.rms_error,
+        psnr(simple_st.all.rms_error),
+        node_st.all.rms_error,
+        psnr(node_st.all.rms_error),
+        100.0 * removed,
+        node_st.all.rms_error / simple_st.all.rms_error,
+        conv);
     EXPECT_LT(node_st.all.rms_error, c.max_node_over_simple * simple_st.all.rms_error) << c.label;
     EXPECT_LT(node_st.all.rms_error, c.max_node_over_none * none_st.all.rms_error) << c.label;
     EXPECT_LT(conv, 0.5 * node_st.all.rms_error) << c.label << ": truth not converged";

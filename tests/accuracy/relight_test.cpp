@@ -143,7 +143,8 @@ TEST(RelightAccuracy, ReplaceWithNewSunMatchesRasterizerBeauty)
     // Positions reconstructed from depth and the camera matrices: same image to float precision.
     const Frame from_depth = relight(
         a, w, h, params.substr(0, params.size() - 1) + R"(, "position_from": "depth"})", dir);
-    const double err_depth = rmse_rgb(from_depth.image("color"), ref.image("color"), ref.image("depth"));
+    const double err_depth =
+        rmse_rgb(from_depth.image("color"), ref.image("color"), ref.image("depth"));
     std::printf("relight replace from depth: RMSE %.3g\n", err_depth);
     EXPECT_LE(err_depth, 1e-3);
 

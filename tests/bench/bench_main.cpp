@@ -2,10 +2,10 @@
 // POSTHASTE_BENCH_KEEP_HEAP=1 keeps freed memory in the heap (no mmap, no trim), to separate the
 // cost of page faults on fresh pass images from the work itself.
 
-#include <cstdlib>
-
 #include <benchmark/benchmark.h>
 #include <malloc.h>
+
+#include <cstdlib>
 
 int main(int argc, char **argv)
 {

@@ -1,8 +1,9 @@
-// Benchmarks of depth of field at 1920x1080 (full resolution, the default, and half) on the default scene's close-up (frame 48: 55 mm,
-// f/1.4, focus 6 m; most of the frame is out of focus), beside baselines in the same run: a plain
-// copy of the color pass and the simple method (disc of each pixel's own CoC). Counters give the
-// per-pass split of the last iteration (CoC + colour prepare, tile max + dilation, gather with
-// the near-over-background composite fused in) and process CPU time per iteration.
+// Benchmarks of depth of field at 1920x1080 (full resolution, the default, and half) on the default
+// scene's close-up (frame 48: 55 mm, f/1.4, focus 6 m; most of the frame is out of focus), beside
+// baselines in the same run: a plain copy of the color pass and the simple method (disc of each
+// pixel's own CoC). Counters give the per-pass split of the last iteration (CoC + colour prepare,
+// tile max + dilation, gather with the near-over-background composite fused in) and process CPU
+// time per iteration.
 //   build/tests/posthaste_benchmarks --benchmark_filter=Dof --benchmark_repetitions=5
 //       --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
@@ -10,8 +11,8 @@
 #include <ctime>
 #include <string>
 
-#include "shading/dof_gather.h"
 #include "raster/render.h"
+#include "shading/dof_gather.h"
 
 namespace posthaste {
 namespace {

@@ -43,8 +43,8 @@ const Tam &default_tam()
 void hatch_bench(benchmark::State &state, HatchSettings s)
 {
     const Frame &f = frame_1080p();
-    const HatchInputs in{&f.image("color"), &f.image("depth"), &f.image("normal"),
-                         &f.image("position")};
+    const HatchInputs in{
+        &f.image("color"), &f.image("depth"), &f.image("normal"), &f.image("position")};
     const Tam &tam = default_tam();
     const double cpu0 = process_cpu_ms();
     for (auto _ : state) {

@@ -6,10 +6,10 @@
 //    the difference is the engine's overhead per frame.
 // Run: build/tests/posthaste_benchmarks --benchmark_filter=Io --benchmark_repetitions=5
 
-#include <filesystem>
-
 #include <OpenImageIO/imageio.h>
 #include <benchmark/benchmark.h>
+
+#include <filesystem>
 
 #include "core/parallel.h"
 #include "graph/graph.h"
@@ -182,18 +182,20 @@ void BM_IoEngineGraph100(benchmark::State &state)
 {
     const std::string &in = small_sequence();
     const std::string json = R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" + in + R"("}},
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                             in + R"("}},
         {"id": "out", "type": "write", "inputs": {"image": "src"},
-         "params": {"path": ")" + bench_dir() + R"(/small_out.####.exr"}}]})";
+         "params": {"path": ")" +
+                             bench_dir() + R"(/small_out.####.exr"}}]})";
     const Graph g = Graph::parse(json, "bench");
     for (auto _ : state) {
         for (int f = 1; f <= 100; ++f) {
             g.evaluate(f);
         }
     }
-    state.counters["ms_per_frame"] = benchmark::Counter(
-        100.0 * 1e-3 * double(state.iterations()), benchmark::Counter::kIsRate |
-                                                       benchmark::Counter::kInvert);
+    state.counters["ms_per_frame"] =
+        benchmark::Counter(100.0 * 1e-3 * double(state.iterations()),
+                           benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
 void BM_IoDirectCalls100(benchmark::State &state)
@@ -206,9 +208,9 @@ void BM_IoDirectCalls100(benchmark::State &state)
             write_exr(fr, expand_frame_pattern(out, f), {});
         }
     }
-    state.counters["ms_per_frame"] = benchmark::Counter(
-        100.0 * 1e-3 * double(state.iterations()), benchmark::Counter::kIsRate |
-                                                       benchmark::Counter::kInvert);
+    state.counters["ms_per_frame"] =
+        benchmark::Counter(100.0 * 1e-3 * double(state.iterations()),
+                           benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
 }
 
 BENCHMARK(BM_IoDirectCalls100)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -216,4 +218,3 @@ BENCHMARK(BM_IoEngineGraph100)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace posthaste
-

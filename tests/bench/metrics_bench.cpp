@@ -19,8 +19,8 @@ Image test_image(std::uint32_t seed, float scale)
     for (int y = 0; y < kHeight; ++y) {
         for (int x = 0; x < kWidth; ++x) {
             for (int c = 0; c < 3; ++c) {
-                img.at(x, y, c) = scale * hash_unit(x / 8, y / 8, c, 1) +
-                                  0.02f * hash_unit(x, y, c, seed);
+                img.at(x, y, c) =
+                    scale * hash_unit(x / 8, y / 8, c, 1) + 0.02f * hash_unit(x, y, c, seed);
             }
         }
     }
@@ -59,4 +59,3 @@ BENCHMARK(BM_MetricsFlipHdr)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace posthaste::metrics
-

@@ -12,9 +12,9 @@
 #include <map>
 #include <string>
 
+#include "raster/render.h"
 #include "shading/motion_blur.h"
 #include "shading/reproject.h"
-#include "raster/render.h"
 
 namespace posthaste::shading {
 namespace {
@@ -79,7 +79,10 @@ void run_blur(benchmark::State &state, BlurMethod method)
     state.counters["tiles"] = st.tiles_total;
 }
 
-void BM_MotionBlurUniform(benchmark::State &state) { run_blur(state, BlurMethod::Uniform); }
+void BM_MotionBlurUniform(benchmark::State &state)
+{
+    run_blur(state, BlurMethod::Uniform);
+}
 void BM_MotionBlurReconstruct(benchmark::State &state)
 {
     run_blur(state, BlurMethod::Reconstruct);

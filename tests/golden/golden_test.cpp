@@ -3,10 +3,10 @@
 // failpercent 0.02, hardfail 0.012). On failure, actual.exr and diff.exr (|a-b| x 16) are kept
 // in the scratch directory. POSTHASTE_UPDATE_GOLDEN=1 rewrites the references.
 
+#include <gtest/gtest.h>
+
 #include <cstdlib>
 #include <filesystem>
-
-#include <gtest/gtest.h>
 
 #include "graph/graph.h"
 #include "io/image_file.h"
@@ -38,9 +38,9 @@ TEST(Golden, EveryCaseMatchesItsReference)
                       expand_frame_pattern(dir + "/in.####.exr", f),
                       o);
         }
-        Graph g = Graph::load((entry.path() / "graph.json").string(),
-                              {"src.path=" + dir + "/in.####.exr",
-                               "out.path=" + dir + "/actual.####.exr"});
+        Graph g = Graph::load(
+            (entry.path() / "graph.json").string(),
+            {"src.path=" + dir + "/in.####.exr", "out.path=" + dir + "/actual.####.exr"});
         g.check({2});
         g.evaluate(2);
         const std::string actual = dir + "/actual.0002.exr";

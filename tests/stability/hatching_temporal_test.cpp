@@ -4,11 +4,11 @@
 // position disagrees). Surface-anchored strokes must leave at least 3x less residual than the
 // naive screen-space TAM.
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdio>
-
 #include <glm/geometric.hpp>
-#include <gtest/gtest.h>
 
 #include "raster/render.h"
 #include "shading/hatch.h"
@@ -24,8 +24,12 @@ struct Residual {
 };
 
 /// Adds the residual of `cur` against `prev_out` warped by cur's motion, over valid pixels.
-void accumulate_residual(const Frame &prev, const Image &prev_out, const Frame &cur,
-                         const Image &cur_out, Residual &r, std::size_t &valid)
+void accumulate_residual(const Frame &prev,
+                         const Image &prev_out,
+                         const Frame &cur,
+                         const Image &cur_out,
+                         Residual &r,
+                         std::size_t &valid)
 {
     const Image &motion = cur.image("motion");
     const Image &pos = cur.image("position"), &ppos = prev.image("position");
@@ -49,8 +53,7 @@ void accumulate_residual(const Frame &prev, const Image &prev_out, const Frame &
             for (int k = 0; k < 4 && ok; ++k) {
                 const int xx = x0 + (k & 1), yy = y0 + (k >> 1);
                 const glm::vec3 q{ppos.at(xx, yy, 0), ppos.at(xx, yy, 1), ppos.at(xx, yy, 2)};
-                ok = std::isfinite(pdepth.at(xx, yy, 0)) &&
-                     glm::length(q - p) < 0.02f * z + 0.05f;
+                ok = std::isfinite(pdepth.at(xx, yy, 0)) && glm::length(q - p) < 0.02f * z + 0.05f;
             }
             if (!ok) {
                 continue;
@@ -82,16 +85,22 @@ TEST(HatchingTemporal, SurfaceAnchoredBeatsScreenSpace3x)
     Residual rs, rn;
     std::size_t valid = 0, pixels = 0;
     Frame prev = raster::render_frame(scene, 2, o);
-    Image prev_s = hatch({&prev.image("color"), &prev.image("depth"), &prev.image("normal"),
+    Image prev_s = hatch({&prev.image("color"),
+                          &prev.image("depth"),
+                          &prev.image("normal"),
                           &prev.image("position")},
-                         surface, tam);
-    Image prev_n = hatch({&prev.image("color"), &prev.image("depth"), &prev.image("normal"),
+                         surface,
+                         tam);
+    Image prev_n = hatch({&prev.image("color"),
+                          &prev.image("depth"),
+                          &prev.image("normal"),
                           &prev.image("position")},
-                         screen, tam);
+                         screen,
+                         tam);
     for (int t = 3; t <= 12; ++t) {
         Frame cur = raster::render_frame(scene, t, o);
-        const HatchInputs in{&cur.image("color"), &cur.image("depth"), &cur.image("normal"),
-                             &cur.image("position")};
+        const HatchInputs in{
+            &cur.image("color"), &cur.image("depth"), &cur.image("normal"), &cur.image("position")};
         Image cur_s = hatch(in, surface, tam), cur_n = hatch(in, screen, tam);
         std::size_t v = 0, unused = 0;
         accumulate_residual(prev, prev_s, cur, cur_s, rs, v);
@@ -103,10 +112,15 @@ TEST(HatchingTemporal, SurfaceAnchoredBeatsScreenSpace3x)
         prev_n = std::move(cur_n);
     }
     const double ratio = rn.rmse() / std::max(rs.rmse(), 1e-12);
-    std::printf("warped residual RMSE over frames 3-12 at %dx%d (%.1f%% of pixels valid): "
-                "surface %.4f, screen %.4f, ratio %.2f\n",
-                o.width, o.height, 100.0 * double(valid) / double(pixels), rs.rmse(), rn.rmse(),
-                ratio);
+    std::printf(
+        "warped residual RMSE over frames 3-12 at %dx%d (%.1f%% of pixels valid): "
+        "surface %.4f, screen %.4f, ratio %.2f\n",
+        o.width,
+        o.height,
+        100.0 * double(valid) / double(pixels),
+        rs.rmse(),
+        rn.rmse(),
+        ratio);
     EXPECT_GT(double(valid) / double(pixels), 0.5);
     EXPECT_GE(ratio, 3.0);
 }

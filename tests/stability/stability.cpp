@@ -1,11 +1,10 @@
 #include "stability/stability.h"
 
-#include <glm/gtc/matrix_transform.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -160,7 +159,8 @@ Frame plain_frame(int w, int h, int number)
     // lens and shutter), so nodes that project or defocus run rather than refuse.
     const glm::mat4 now = glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, 2.0f, -10.0f));
     const glm::mat4 prev = glm::rotate(glm::translate(now, glm::vec3(-0.2f, 0.0f, 0.0f)),
-                                       glm::radians(2.0f), glm::vec3(0.0f, 1.0f, 0.0f));
+                                       glm::radians(2.0f),
+                                       glm::vec3(0.0f, 1.0f, 0.0f));
     const float aspect = float(w) / float(h);
     const CameraMatrices m = make_camera_matrices(now, 35.0f, 36.0f, aspect, 0.1f);
     const CameraMatrices pm = make_camera_matrices(prev, 35.0f, 36.0f, aspect, 0.1f);

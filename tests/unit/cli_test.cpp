@@ -1,11 +1,11 @@
 // The command line as a user meets it: exit codes, one-line errors, missing frames reported by
 // number, --skip-bad-frames, --set echoing the command line, info's pass mapping, nodes docs.
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
-
-#include <gtest/gtest.h>
 
 #include "io/image_file.h"
 #include "io/sequence.h"
@@ -28,20 +28,23 @@ std::string write_graph(const std::string &dir)
 {
     const std::string graph = dir + "/g.json";
     std::ofstream(graph) << R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" << dir << R"(/in.####.exr"}},
+        {"id": "src", "type": "read", "params": {"path": ")"
+                         << dir << R"(/in.####.exr"}},
         {"id": "cc", "type": "ocio", "inputs": {"image": "src"}},
         {"id": "out", "type": "write", "inputs": {"image": "cc"},
-         "params": {"path": ")" << dir << R"(/out/o.####.exr", "passes": "color"}},
+         "params": {"path": ")"
+                         << dir << R"(/out/o.####.exr", "passes": "color"}},
         {"id": "png", "type": "write", "inputs": {"image": "src"},
-         "params": {"path": ")" << dir << R"(/out/p.####.png"}}]})";
+         "params": {"path": ")"
+                         << dir << R"(/out/p.####.png"}}]})";
     return graph;
 }
 
 void write_inputs(const std::string &dir, std::initializer_list<int> frames)
 {
     for (int f : frames) {
-        write_exr(test::make_sample_frame(32, 16, f), expand_frame_pattern(dir + "/in.####.exr", f),
-                  {});
+        write_exr(
+            test::make_sample_frame(32, 16, f), expand_frame_pattern(dir + "/in.####.exr", f), {});
     }
 }
 
@@ -73,8 +76,9 @@ TEST(Cli, MissingFrameIsReportedByNumber)
     const std::string graph = write_graph(dir);
     std::string out;
     EXPECT_EQ(run_command(kBin + " run " + graph + " --frames 1-4 --jobs 1 -q", &out), 1) << out;
-    EXPECT_NE(out.find("error: node \"src\" (read), frame 3: " + dir + "/in.0003.exr: no such file"),
-              std::string::npos)
+    EXPECT_NE(
+        out.find("error: node \"src\" (read), frame 3: " + dir + "/in.0003.exr: no such file"),
+        std::string::npos)
         << out;
     EXPECT_EQ(line_count(out), 1) << out;
     EXPECT_FALSE(fs::exists(dir + "/out/o.0004.exr"));  // the run stopped at frame 3
@@ -116,7 +120,8 @@ TEST(Cli, InfoShowsTheMapping)
     const std::string dir = test::scratch_dir("cli_info");
     ASSERT_EQ(run_command("oiiotool --pattern constant:color=1,1,1,1,3,2,1 4x4 7 --chnames "
                           "RL.Combined.R,RL.Combined.G,RL.Combined.B,RL.Combined.A,RL.Depth.Z,"
-                          "RL.Vector.X,RL.Vector.Y -d float -o " + dir + "/b.exr"),
+                          "RL.Vector.X,RL.Vector.Y -d float -o " +
+                          dir + "/b.exr"),
               0);
     std::string out;
     ASSERT_EQ(run_command(kBin + " info " + dir + "/b.exr", &out), 0) << out;

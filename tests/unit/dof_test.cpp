@@ -3,11 +3,11 @@
 // field spreading over a sharp background but the far field not over a sharp foreground, and
 // finite, bounded output for NaN / Inf / extreme parameters.
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
-
-#include <gtest/gtest.h>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -194,9 +194,11 @@ TEST(Dof, FlatFieldStaysFlatAndConservesEnergy)
 std::string render_dof_graph(const std::string &dof_params)
 {
     return std::string(R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"scene": ")") + POSTHASTE_TEST_DIR +
+        {"id": "src", "type": "render", "params": {"scene": ")") +
+           POSTHASTE_TEST_DIR +
            R"(/../samples/scenes/cube.json", "width": 64, "height": 36}},
-        {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": )" + dof_params + R"(},
+        {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": )" +
+           dof_params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" +
            test::scratch_dir("dof_node") + R"(/o.exr"}}]})";
 }
@@ -211,7 +213,8 @@ TEST(Dof, NodeLargeFstopGivesInputBack)
     const Frame out = g.evaluate(1);
     EXPECT_TRUE(out.image("color").bit_equal(in.image("color")));
     // A wide aperture on the same frame does change it.
-    Graph open = Graph::parse(render_dof_graph(R"({"fstop": 1, "focus_distance": 3, "focal_length_mm": 200})"), "g.json");
+    Graph open = Graph::parse(
+        render_dof_graph(R"({"fstop": 1, "focus_distance": 3, "focal_length_mm": 200})"), "g.json");
     open.set_capture("d");
     EXPECT_FALSE(open.evaluate(1).image("color").bit_equal(in.image("color")));
 }
@@ -226,18 +229,19 @@ TEST(Dof, NodeReportsMissingLensAttributeAndUsesOverride)
     write_exr(f, dir + "/in.1.exr", WriteOptions{});
     const auto graph = [&](const std::string &params) {
         return R"({"nodes": [
-            {"id": "src", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
-            {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": )" + params + R"(},
-            {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" + dir +
-               R"(/o.exr"}}]})";
+            {"id": "src", "type": "read", "params": {"path": ")" +
+               dir + R"(/in.#.exr"}},
+            {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": )" +
+               params + R"(},
+            {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" +
+               dir + R"(/o.exr"}}]})";
     };
     Graph g = Graph::parse(graph("{}"), "g.json");
     g.set_capture("d");
     try {
         g.evaluate(1);
         FAIL() << "expected an error";
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("focalLength"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("dof"), std::string::npos) << e.what();
     }
@@ -262,9 +266,12 @@ TEST(Dof, ExtremeInputsStayFiniteAndBounded)
         float fstop, focus, max_coc;
         int samples;
     };
-    for (const Case &c : {Case{0.5f, 5.0f, 64.0f, 64}, Case{1e6f, 5.0f, 64.0f, 64},
-                          Case{2.0f, 0.05f, 64.0f, 64}, Case{2.0f, 5.0f, 0.0f, 64},
-                          Case{2.0f, 5.0f, 4096.0f, 16}, Case{2.0f, 5.0f, 64.0f, 1}}) {
+    for (const Case &c : {Case{0.5f, 5.0f, 64.0f, 64},
+                          Case{1e6f, 5.0f, 64.0f, 64},
+                          Case{2.0f, 0.05f, 64.0f, 64},
+                          Case{2.0f, 5.0f, 0.0f, 64},
+                          Case{2.0f, 5.0f, 4096.0f, 16},
+                          Case{2.0f, 5.0f, 64.0f, 1}}) {
         shading::DofLens l{c.fstop, c.focus, 50.0f, 36.0f};
         shading::DofSettings s;
         s.max_coc_px = c.max_coc;

@@ -3,10 +3,10 @@
 
 #include "metrics/flip.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <numeric>
-
-#include <gtest/gtest.h>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -63,9 +63,8 @@ TEST(Flip, ColorTransformsOnKnownColors)
                     {8.665871f, 110.629284f, 38.976880f},
                     1e-3f);
     // sRGB red in CIELAB (D65): the textbook (53.24, 80.09, 67.20).
-    expect_vec_near(xyz_to_lab(linear_rgb_to_xyz({1.0f, 0.0f, 0.0f})),
-                    {53.24f, 80.09f, 67.20f},
-                    0.01f);
+    expect_vec_near(
+        xyz_to_lab(linear_rgb_to_xyz({1.0f, 0.0f, 0.0f})), {53.24f, 80.09f, 67.20f}, 0.01f);
     expect_vec_near(xyz_to_lab(linear_rgb_to_xyz(glm::vec3(1.0f))), {100.0f, 0.0f, 0.0f}, 1e-4f);
     // Round trips.
     const glm::vec3 c(0.3f, 0.6f, 0.1f);
@@ -140,7 +139,7 @@ TEST(Flip, FeatureKernelsNormalised)
     EXPECT_NEAR(d1n, -1.0, 1e-6);
     EXPECT_NEAR(d2p, 1.0, 1e-6);
     EXPECT_NEAR(d2n, -1.0, 1e-6);
-    EXPECT_LT(k.d2[9], 0.0f);  // the point detector's centre is negative
+    EXPECT_LT(k.d2[9], 0.0f);   // the point detector's centre is negative
     EXPECT_LT(k.d1[10], 0.0f);  // -x g(x): negative right of centre
 }
 
@@ -170,14 +169,16 @@ TEST(Flip, IdenticalImagesGiveExactlyZero)
 TEST(Flip, ConstantImagesGiveTheColorErrorAlone)
 {
     // Flat images: CSF filtering keeps them, features vanish, so FLIP is the remapped HyAB.
-    FlipResult r = flip_ldr(constant_image(8, 6, glm::vec3(0.0f)), constant_image(8, 6, glm::vec3(1.0f)));
+    FlipResult r =
+        flip_ldr(constant_image(8, 6, glm::vec3(0.0f)), constant_image(8, 6, glm::vec3(1.0f)));
     EXPECT_NEAR(r.mean, 0.967380, 2e-3);
     EXPECT_NEAR(r.max, 0.967380f, 2e-3f);
     // sRGB grey 0.5 vs 0.6: HyAB 9.8336 -> 0.285013.
     r = flip_ldr(constant_image(8, 6, glm::vec3(0.5f)), constant_image(8, 6, glm::vec3(0.6f)));
     EXPECT_NEAR(r.mean, 0.285013, 2e-3);
     // Red vs blue at sRGB 0.8: 0.954595.
-    r = flip_ldr(constant_image(5, 5, {0.8f, 0.0f, 0.0f}), constant_image(5, 5, {0.0f, 0.0f, 0.8f}));
+    r = flip_ldr(constant_image(5, 5, {0.8f, 0.0f, 0.0f}),
+                 constant_image(5, 5, {0.0f, 0.0f, 0.8f}));
     EXPECT_NEAR(r.mean, 0.954595, 2e-3);
 }
 

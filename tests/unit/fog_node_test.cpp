@@ -3,11 +3,11 @@
 // cases (horizontal rays, camera at the fog base, 1e7 m, NaN/negative depth, sky, sun below the
 // horizon); same bits for 1 and N threads.
 
-#include <cmath>
-#include <limits>
-
-#include <glm/gtc/matrix_transform.hpp>
 #include <gtest/gtest.h>
+
+#include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
+#include <limits>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -45,8 +45,8 @@ Frame run_fog(const Frame &in, const std::string &params)
 }
 
 /// Height fog optical depth along the ray by a midpoint sum.
-double brute_optical_depth(glm::dvec3 o, glm::dvec3 d, double dist, double a, double b, double h0,
-                           double start)
+double brute_optical_depth(
+    glm::dvec3 o, glm::dvec3 d, double dist, double a, double b, double h0, double start)
 {
     const int n = 200000;
     const double ds = (dist - start) / n;
@@ -71,8 +71,8 @@ TEST(FogNode, HeightFogMatchesNumericIntegration)
                     const float u = (x + 0.5f) / 16.0f, v = (y + 0.5f) / 12.0f;
                     const double dist = 150.0 * glm::length(rays.depth_ray(u, v));
                     const glm::dvec3 dir = glm::dvec3(rays.direction(u, v));
-                    const double tau = brute_optical_depth(glm::dvec3(rays.position()), dir, dist,
-                                                           0.02, 0.08, 5.0, 3.0);
+                    const double tau = brute_optical_depth(
+                        glm::dvec3(rays.position()), dir, dist, 0.02, 0.08, 5.0, 3.0);
                     const double want = 1.0 - std::exp(-tau);  // in-scatter with color 1
                     const double got = out.image("color").at(x, y, 1);
                     EXPECT_NEAR(got, want, 1e-5 * std::max(1.0, want))
@@ -89,7 +89,8 @@ TEST(FogNode, ClassicModelsFollowTheirFormulas)
     const Frame in = fog_frame(8, 6, {0, 1, 0}, 0.0f, 40.0f);
     const shading::CameraRays rays(*in.camera.world_to_camera, *in.camera.world_to_ndc);
     const double d = 40.0 * glm::length(rays.depth_ray(0.5f / 8, 0.5f / 6));
-    const Frame lin = run_fog(in, R"({"model": "linear", "start": 10, "end": 90, "color": [1,1,1]})");
+    const Frame lin =
+        run_fog(in, R"({"model": "linear", "start": 10, "end": 90, "color": [1,1,1]})");
     EXPECT_NEAR(lin.image("color").at(0, 0, 0), 1.0 - (90.0 - d) / 80.0, 1e-6);
     const Frame ex = run_fog(in, R"({"model": "exp", "density": 0.03, "color": [1,1,1]})");
     EXPECT_NEAR(ex.image("color").at(0, 0, 0), 1.0 - std::exp(-0.03 * d), 1e-6);
@@ -114,7 +115,8 @@ TEST(FogNode, DensityZeroIsTheInputBitForBit)
 {
     const Frame in = test::make_sample_frame(32, 16, 1);
     for (const char *model : {"exp", "exp2", "height"}) {
-        const Frame out = run_fog(in, std::string(R"({"model": ")") + model + R"(", "density": 0})");
+        const Frame out =
+            run_fog(in, std::string(R"({"model": ")") + model + R"(", "density": 0})");
         EXPECT_EQ(out.pass("color").image, in.pass("color").image) << model;  // shared, not copied
     }
 }
@@ -132,14 +134,16 @@ TEST(FogNode, StabilityCasesStayFiniteAndBounded)
     Image color = in.image("color");
     color.fill(0.25f);
     in.set("color", std::move(color));
-    for (const char *params :
-         {R"({"model": "height", "density": 0.05, "falloff": 0.0, "color": [0.5, 0.6, 0.7]})",
-          R"({"model": "height", "density": 1e3, "falloff": 50, "color": [0.5, 0.6, 0.7]})",
-          R"({"model": "height", "density": 0.05, "sun_color": [2, 2, 2], "sun_direction": [0, -1, 0.2]})",
-          R"({"model": "exp", "density": 0.05})", R"({"model": "exp2", "density": 10})",
-          R"({"model": "linear", "start": 0, "end": 0})",
-          R"({"model": "atmosphere", "sun_direction": [0.3, -0.2, 0.9]})",
-          R"({"model": "atmosphere", "sun_direction": [0.0, 1.0, 0.0], "metres_per_unit": 1000})"}) {
+    for (
+        const char *params :
+        {R"({"model": "height", "density": 0.05, "falloff": 0.0, "color": [0.5, 0.6, 0.7]})",
+         R"({"model": "height", "density": 1e3, "falloff": 50, "color": [0.5, 0.6, 0.7]})",
+         R"({"model": "height", "density": 0.05, "sun_color": [2, 2, 2], "sun_direction": [0, -1, 0.2]})",
+         R"({"model": "exp", "density": 0.05})",
+         R"({"model": "exp2", "density": 10})",
+         R"({"model": "linear", "start": 0, "end": 0})",
+         R"({"model": "atmosphere", "sun_direction": [0.3, -0.2, 0.9]})",
+         R"({"model": "atmosphere", "sun_direction": [0.0, 1.0, 0.0], "metres_per_unit": 1000})"}) {
         SCOPED_TRACE(params);
         const Frame out = run_fog(in, params);
         const Image &c = out.image("color");
@@ -158,7 +162,8 @@ TEST(FogNode, StabilityCasesStayFiniteAndBounded)
         }
     }
     // Sky pixels get the fog color under the analytic models.
-    const Frame sky = run_fog(in, R"({"model": "height", "density": 0.05, "color": [0.5, 0.6, 0.7]})");
+    const Frame sky =
+        run_fog(in, R"({"model": "height", "density": 0.05, "color": [0.5, 0.6, 0.7]})");
     EXPECT_FLOAT_EQ(sky.image("color").at(2, 0, 1), 0.6f);
 }
 
@@ -166,7 +171,8 @@ TEST(FogNode, SameBitsForOneAndManyThreads)
 {
     const Frame in = test::make_sample_frame(96, 64, 1);
     for (const char *params : {R"({"model": "height", "density": 0.05, "sun_color": [1, 1, 1]})",
-                               R"({"model": "atmosphere"})", R"({"model": "exp2"})"}) {
+                               R"({"model": "atmosphere"})",
+                               R"({"model": "exp2"})"}) {
         set_thread_count(1);
         const Frame a = run_fog(in, params);
         set_thread_count(3);
@@ -183,8 +189,7 @@ TEST(FogNode, MissingCameraIsNamed)
     try {
         run_fog(in, R"({"model": "exp"})");
         FAIL();
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("camera attribute \"worldToNDC\" is missing"),
                   std::string::npos)
             << e.what();

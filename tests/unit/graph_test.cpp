@@ -4,10 +4,10 @@
 
 #include "graph/graph.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <filesystem>
-
-#include <gtest/gtest.h>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -25,8 +25,7 @@ std::string error_of(const std::string &json, const std::vector<std::string> &se
 {
     try {
         Graph::parse(json, "g.json", sets);
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_EQ(e.code(), ExitCode::Usage) << e.what();
         return e.what();
     }
@@ -53,22 +52,25 @@ TEST(GraphValidation, LocatedMessages)
     EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": 3}}]})"),
                     "param \"path\": expected string, got 3");
     EXPECT_CONTAINS(
-        error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x", "frame_offset": 1.5}}]})"),
+        error_of(
+            R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x", "frame_offset": 1.5}}]})"),
         "param \"frame_offset\": expected integer, got 1.5");
     EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read"}]})"),
                     "node \"a\" (read): required param \"path\" is missing");
-    EXPECT_CONTAINS(error_of(R"({"nodes": [
+    EXPECT_CONTAINS(
+        error_of(R"({"nodes": [
         {"id": "a", "type": "read", "params": {"path": "x"}},
         {"id": "m", "type": "merge", "inputs": {"b": "a", "a": "a"}, "params": {"mix": 2}},
         {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "o.exr"}}]})"),
-                    "g.json:/nodes/1/params/mix: node \"m\" (merge): param \"mix\": expected number "
-                    "in 0..1, got 2");
-    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        "g.json:/nodes/1/params/mix: node \"m\" (merge): param \"mix\": expected number "
+        "in 0..1, got 2");
+    EXPECT_CONTAINS(
+        error_of(R"({"nodes": [
         {"id": "a", "type": "read", "params": {"path": "x"}},
         {"id": "m", "type": "merge", "inputs": {"b": "a", "a": "a"}, "params": {"operation": "ovr"}},
         {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "o.exr"}}]})"),
-                    "expected one of over|under|add|subtract|multiply|max|min|mix, got \"ovr\" (did "
-                    "you mean \"over\"?)");
+        "expected one of over|under|add|subtract|multiply|max|min|mix, got \"ovr\" (did "
+        "you mean \"over\"?)");
     EXPECT_CONTAINS(error_of(R"({"nodes": [
         {"id": "a", "type": "read", "params": {"path": "x"}},
         {"id": "m", "type": "merge", "inputs": {"b": "a"}},
@@ -91,22 +93,26 @@ TEST(GraphValidation, LocatedMessages)
         {"id": "b", "type": "ocio", "inputs": {"image": "a"}},
         {"id": "o", "type": "write", "inputs": {"image": "b"}, "params": {"path": "o.exr"}}]})"),
                     "is in a cycle");
-    EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x"}}]})"),
-                    "the graph has no sink (write) node");
-    EXPECT_CONTAINS(error_of(R"({"nodez": []})"), "unknown key \"nodez\" (did you mean \"nodes\"?)");
+    EXPECT_CONTAINS(
+        error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x"}}]})"),
+        "the graph has no sink (write) node");
+    EXPECT_CONTAINS(error_of(R"({"nodez": []})"),
+                    "unknown key \"nodez\" (did you mean \"nodes\"?)");
     EXPECT_CONTAINS(error_of(R"({"frames": "5-1", "nodes": [{"id": "a", "type": "read"}]})"),
                     "range end 1 is before its start 5");
 }
 
 TEST(GraphValidation, SetOverridesUseTheSameChecks)
 {
-    const Graph g = Graph::parse(kReadWrite, "g.json", {"out.compression=zip", "src.frame_offset=3"});
+    const Graph g =
+        Graph::parse(kReadWrite, "g.json", {"out.compression=zip", "src.frame_offset=3"});
     EXPECT_EQ(g.nodes()[0].params.values().at("frame_offset").number, 3.0);
     EXPECT_EQ(g.nodes()[1].params.values().at("compression").text, "zip");
     EXPECT_CONTAINS(error_of(kReadWrite, {"src.frame_offset=abc"}),
                     "--set src.frame_offset=abc: node \"src\" (read): param \"frame_offset\": "
                     "expected integer, got \"abc\"");
-    EXPECT_CONTAINS(error_of(kReadWrite, {"sr.path=x"}), "unknown node \"sr\" (did you mean \"src\"?)");
+    EXPECT_CONTAINS(error_of(kReadWrite, {"sr.path=x"}),
+                    "unknown node \"sr\" (did you mean \"src\"?)");
     EXPECT_CONTAINS(error_of(kReadWrite, {"src.pat=x"}), "unknown param \"pat\"");
     EXPECT_CONTAINS(error_of(kReadWrite, {"srcpath"}), "expected node.param=value");
 }
@@ -160,7 +166,8 @@ std::string prepare_inputs(const std::string &name, int width, int height)
         WriteOptions o;
         o.storage["color"] = PixelStorage::Float;
         o.storage["albedo"] = PixelStorage::Float;
-        write_exr(make_sample_frame(width, height, f), dir + "/in." + std::to_string(f) + ".exr", o);
+        write_exr(
+            make_sample_frame(width, height, f), dir + "/in." + std::to_string(f) + ".exr", o);
     }
     return dir;
 }
@@ -170,12 +177,13 @@ TEST(GraphNodes, MergeOperationsOnHandComputedPixels)
     const std::string dir = prepare_inputs("merge", 8, 4);
     // Foreground: color scaled to alpha 0.5 (premultiplied) via a second read and channels.
     const std::string graph = R"({"nodes": [
-        {"id": "b", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+        {"id": "b", "type": "read", "params": {"path": ")" +
+                              dir + R"(/in.#.exr"}},
         {"id": "a", "type": "channels", "inputs": {"image": "b"},
          "params": {"copy": {"color": ["albedo.R", "albedo.G", "albedo.B", 0.5]}}},
         {"id": "m", "type": "merge", "inputs": {"b": "b", "a": "a"}, "params": {"operation": "over"}},
-        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": ")" + dir +
-                              R"(/o.exr", "passes": "color"}}]})";
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": ")" +
+                              dir + R"(/o.exr", "passes": "color"}}]})";
     Graph g = Graph::parse(graph, "g.json");
     g.set_capture("m");
     const Frame out = g.evaluate(1);
@@ -192,28 +200,28 @@ TEST(GraphNodes, MergeOperationsOnHandComputedPixels)
     }
     EXPECT_TRUE(out.has("depth"));  // B's other passes pass through
 
-    for (const auto &[op, r] : std::vector<std::pair<std::string, float>>{
-             {"add", 0.5f + 2.0f * (0.5f / 8.0f)},
-             {"multiply", 0.5f * 2.0f * (0.5f / 8.0f)},
-             {"subtract", 0.5f - 2.0f * (0.5f / 8.0f)},
-             {"under", 2.0f * (0.5f / 8.0f) + 0.5f * 0.0f},
-             {"max", 0.5f},
-             {"mix", 0.5f}}) {
+    for (const auto &[op, r] :
+         std::vector<std::pair<std::string, float>>{{"add", 0.5f + 2.0f * (0.5f / 8.0f)},
+                                                    {"multiply", 0.5f * 2.0f * (0.5f / 8.0f)},
+                                                    {"subtract", 0.5f - 2.0f * (0.5f / 8.0f)},
+                                                    {"under", 2.0f * (0.5f / 8.0f) + 0.5f * 0.0f},
+                                                    {"max", 0.5f},
+                                                    {"mix", 0.5f}}) {
         Graph h = Graph::parse(graph, "g.json", {"m.operation=" + op});
         h.set_capture("m");
         EXPECT_FLOAT_EQ(h.evaluate(1).image("color").at(0, 0, 0), r) << op;
     }
     Graph half = Graph::parse(graph, "g.json", {"m.operation=mix", "m.mix=0.25"});
     half.set_capture("m");
-    EXPECT_FLOAT_EQ(half.evaluate(1).image("color").at(0, 0, 0),
-                    0.125f + (0.5f - 0.125f) * 0.25f);
+    EXPECT_FLOAT_EQ(half.evaluate(1).image("color").at(0, 0, 0), 0.125f + (0.5f - 0.125f) * 0.25f);
 }
 
 TEST(GraphNodes, ChannelsCopyRenameRemoveKeep)
 {
     const std::string dir = prepare_inputs("channels", 4, 4);
     Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                               dir + R"(/in.#.exr"}},
         {"id": "sh", "type": "channels", "inputs": {"image": "src"},
          "params": {"copy": {"mv": ["motion.Y", "motion.X", 1], "n2": "normal"},
                     "rename": {"albedo": "base"}, "remove": "normal",
@@ -239,8 +247,8 @@ TEST(GraphNodes, OcioCheckValue)
     EXPECT_NEAR(rgb[0], 0.461356f, 1e-5f);
     EXPECT_NEAR(rgb[1], 0.0f, 1e-6f);
     EXPECT_NEAR(rgb[2], 1.0f, 1e-5f);
-    const ColorProcessor display = ColorProcessor::display_view("lin_rec709", "sRGB", "Standard",
-                                                                "test");
+    const ColorProcessor display =
+        ColorProcessor::display_view("lin_rec709", "sRGB", "Standard", "test");
     float g[3] = {0.18f, 0.18f, 0.18f};
     display.apply_rgb(g);
     EXPECT_NEAR(g[1], 0.461356f, 1e-5f);
@@ -258,7 +266,8 @@ TEST(GraphDeterminism, SameBitsForOneAndManyThreads)
 {
     const std::string dir = prepare_inputs("threads", 301, 173);
     const std::string graph = R"({"nodes": [
-        {"id": "b", "type": "read", "params": {"path": ")" + dir + R"(/in.#.exr"}},
+        {"id": "b", "type": "read", "params": {"path": ")" +
+                              dir + R"(/in.#.exr"}},
         {"id": "cc", "type": "ocio", "inputs": {"image": "b"}, "params": {"to": "srgb"}},
         {"id": "a", "type": "channels", "inputs": {"image": "b"},
          "params": {"copy": {"color": ["albedo.R", "position.X", "albedo.B", 0.25]}}},

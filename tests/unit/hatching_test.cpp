@@ -2,19 +2,18 @@
 // (monotonic mean ink, bounded steps), finite and sensible output on sky, NaN normals and
 // grazing faces, the id mask, bit-identical output for 1 and N threads, and the node in a graph.
 
-#include "shading/hatch.h"
+#include <gtest/gtest.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 
-#include <gtest/gtest.h>
-
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "raster/render.h"
+#include "shading/hatch.h"
 #include "shading/tam.h"
 #include "test_util.h"
 
@@ -89,8 +88,10 @@ TEST(HatchingTam, DeterministicFromSeedAndFast)
     TamParams p;  // the node's default: 256, 4 stroke levels
     const Tam a = build_tam(p);
     const Tam b = build_tam(p);
-    std::printf("TAM 256 build: %.1f ms wall, %.1f ms CPU, %zu strokes\n", a.build_ms(),
-                a.build_cpu_ms(), a.strokes().size());
+    std::printf("TAM 256 build: %.1f ms wall, %.1f ms CPU, %zu strokes\n",
+                a.build_ms(),
+                a.build_cpu_ms(),
+                a.strokes().size());
     ASSERT_EQ(a.strokes().size(), b.strokes().size());
     bool same = true;
     for (int t = 0; t < kTamTones; ++t) {
@@ -168,15 +169,18 @@ TEST(HatchingTone, RampIsMonotonicWithBoundedSteps)
         const double ink = mean_ink(hatch(flat.inputs(), s, tam), s);
         if (i == 0) {
             EXPECT_NEAR(ink, 0.0, 1e-6);  // white paper
-        }
-        else {
+        } else {
             EXPECT_GE(ink, prev - 1e-4) << "ramp goes back at step " << i;
             max_step = std::max(max_step, ink - prev);
         }
         prev = ink;
     }
     std::printf("tone ramp: %d steps, max step %.4f (ideal %.4f, bound %.4f), darkest %.3f\n",
-                steps, max_step, ideal, bound, prev);
+                steps,
+                max_step,
+                ideal,
+                bound,
+                prev);
     EXPECT_LE(max_step, bound);
     EXPECT_NEAR(prev, TamParams{}.darkest, 0.08);
 }
@@ -194,15 +198,12 @@ TEST(HatchingRobust, SkyNanNormalsGrazingAndBadColor)
                     f.position.at(x, y, c) = 0.0f;
                     f.normal.at(x, y, c) = 0.0f;
                 }
-            }
-            else if (y < 24 && x < 32) {  // NaN normals on a surface
+            } else if (y < 24 && x < 32) {  // NaN normals on a surface
                 f.normal.at(x, y, 0) = kNaN;
-            }
-            else if (y < 24) {  // grazing: 1 m between pixels along the view
+            } else if (y < 24) {  // grazing: 1 m between pixels along the view
                 f.position.at(x, y, 2) = float(y) * 1.0f;
                 f.position.at(x, y, 0) = float(x) * 1.0f;
-            }
-            else if (y < 30 && x < 8) {  // broken color and position
+            } else if (y < 30 && x < 8) {  // broken color and position
                 f.color.at(x, y, 0) = kNaN;
                 f.color.at(x, y, 1) = kInf;
                 f.position.at(x, y, 1) = kNaN;
@@ -225,7 +226,9 @@ TEST(HatchingRobust, SkyNanNormalsGrazingAndBadColor)
             // NaN normals: the flat (1 x 1 level) tone of the 7-level ramp, no strokes.
             const float level = (1.0f - hatch_tone(f.color.pixel(10, 18), 4, s)) * kTamTones;
             const int k = std::min(int(level), kTamTones - 1);
-            auto flat_of = [&](int j) { return j == 0 ? 0.0f : tam.texels(j - 1, tam.levels() - 1)[0]; };
+            auto flat_of = [&](int j) {
+                return j == 0 ? 0.0f : tam.texels(j - 1, tam.levels() - 1)[0];
+            };
             const float flat = flat_of(k) + (level - float(k)) * (flat_of(k + 1) - flat_of(k));
             const float expect = s.paper.x + flat * (s.ink.x - s.paper.x);
             EXPECT_NEAR(out.at(10, 18, 0), expect, 1e-4f);
@@ -249,7 +252,8 @@ TEST(HatchingRobust, IdMaskAndMix)
     s.mix = 0.25f;
     const Image quarter = hatch(f.inputs(), s, tam);
     EXPECT_NEAR(quarter.at(4, 4, 1),
-                f.color.at(4, 4, 1) + 0.25f * (drawn.at(4, 4, 1) - f.color.at(4, 4, 1)), 1e-6f);
+                f.color.at(4, 4, 1) + 0.25f * (drawn.at(4, 4, 1) - f.color.at(4, 4, 1)),
+                1e-6f);
 }
 
 const raster::Scene &scene()
@@ -267,8 +271,8 @@ TEST(HatchingRobust, SameBitsForAnyThreadCount)
     o.passes = {"color", "depth", "normal", "position"};
     const Frame f = raster::render_frame(scene(), 20, o);
     const Tam tam = build_tam(TamParams{});
-    const HatchInputs in{&f.image("color"), &f.image("depth"), &f.image("normal"),
-                         &f.image("position")};
+    const HatchInputs in{
+        &f.image("color"), &f.image("depth"), &f.image("normal"), &f.image("position")};
     for (int mode = 0; mode < 2; ++mode) {
         HatchSettings s;
         s.triplanar = mode == 1;
@@ -286,11 +290,12 @@ TEST(HatchingNode, RenderHatchGraph)
     const std::string out = test::scratch_dir("hatching_node") + "/x.exr";
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "scene", "type": "render", "params": {"width": 96, "height": 54,
-         "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) + R"(/samples/scenes/minecrappy.json"}},
+         "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) +
+                               R"(/samples/scenes/minecrappy.json"}},
         {"id": "ink", "type": "hatching", "inputs": {"image": "scene"},
          "params": {"ids": "1, 2,3", "tam_size": "128"}},
-        {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" + out +
-                               R"("}}]})",
+        {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" +
+                               out + R"("}}]})",
                            "g.json");
     g.set_capture("ink");
     const Frame f = g.evaluate(3);
@@ -304,7 +309,8 @@ TEST(HatchingNode, RenderHatchGraph)
     try {
         Graph bad = Graph::parse(R"({"nodes": [
             {"id": "scene", "type": "render", "params": {"width": 8, "height": 8,
-             "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) + R"(/samples/scenes/cube.json"}},
+             "scene": ")" + std::string(POSTHASTE_SOURCE_DIR) +
+                                     R"(/samples/scenes/cube.json"}},
             {"id": "ink", "type": "hatching", "inputs": {"image": "scene"},
              "params": {"ids": "1,x"}},
             {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" +
@@ -312,8 +318,7 @@ TEST(HatchingNode, RenderHatchGraph)
                                  "g.json");
         bad.check({1});
         ADD_FAILURE() << "bad ids accepted";
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("param \"ids\": expected comma-separated integers"),
                   std::string::npos)
             << e.what();

@@ -1,9 +1,9 @@
 #include "core/image.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <limits>
-
-#include <gtest/gtest.h>
 
 #include "core/error.h"
 #include "core/frame.h"
@@ -80,8 +80,7 @@ TEST(Frame, CanonicalChannelsAndSizeCheck)
     try {
         f.pass("motion", "node \"mb\"");
         FAIL();
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("no pass \"motion\" (have: color, normal)"),
                   std::string::npos)
             << e.what();

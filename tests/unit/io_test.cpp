@@ -2,7 +2,9 @@
 // metadata and matrices bit-exact, aliases for files written by another program (oiiotool with
 // Blender, Nuke and Arnold channel names), data windows, integer channels, and bad input.
 
-#include "io/image_file.h"
+#include <Imath/half.h>
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstring>
@@ -10,11 +12,8 @@
 #include <fstream>
 #include <limits>
 
-#include <Imath/half.h>
-#include <OpenImageIO/imageio.h>
-#include <gtest/gtest.h>
-
 #include "core/error.h"
+#include "io/image_file.h"
 #include "io/sequence.h"
 #include "test_util.h"
 
@@ -71,7 +70,8 @@ TEST_P(RoundTrip, EveryPassAndTheCameraComeBack)
     EXPECT_EQ(g.height, 21);
     EXPECT_EQ(g.pass_names(), f.pass_names());
     for (const std::string &n : f.pass_names()) {
-        const bool half = storage == "half" || (storage == "auto" && (n == "color" || n == "albedo"));
+        const bool half =
+            storage == "half" || (storage == "auto" && (n == "color" || n == "albedo"));
         expect_pass_equal(f, g, n, half);
     }
     EXPECT_EQ(g.camera, f.camera);  // matrices and lens, bit-exact
@@ -117,8 +117,7 @@ TEST(IoRead, OnlyRequestedPasses)
     try {
         read_frame(dir + "/a.exr", &missing, 1);
         FAIL();
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_EQ(e.code(), ExitCode::Runtime);
         EXPECT_NE(std::string(e.what()).find("no pass \"tangent\" in file (have: color, depth"),
                   std::string::npos)
@@ -131,7 +130,8 @@ TEST(IoRead, DataWindowIsPlacedInTheDisplayWindow)
     const std::string dir = scratch_dir("datawindow");
     const std::string path = dir + "/dw.exr";
     ASSERT_EQ(run_command("oiiotool --pattern constant:color=1,0.5,0.25,1 16x8 4 --chnames R,G,B,A "
-                          "--origin +4+2 --fullsize 32x16+0+0 -d float -o " + path),
+                          "--origin +4+2 --fullsize 32x16+0+0 -d float -o " +
+                          path),
               0);
     const Frame f = read_frame(path, nullptr, 1);
     ASSERT_EQ(f.width, 32);
@@ -203,16 +203,44 @@ std::string make_named_file(const std::string &dir,
 TEST(IoAliases, BlenderMultilayerNames)
 {
     const std::string dir = scratch_dir("blender");
-    const std::string path = make_named_file(
-        dir, "blender.exr",
-        {"ViewLayer.Combined.R", "ViewLayer.Combined.G", "ViewLayer.Combined.B",
-         "ViewLayer.Combined.A", "ViewLayer.Depth.Z", "ViewLayer.Vector.X", "ViewLayer.Vector.Y",
-         "ViewLayer.Vector.Z", "ViewLayer.Vector.W", "ViewLayer.Normal.X", "ViewLayer.Normal.Y",
-         "ViewLayer.Normal.Z", "ViewLayer.Position.X", "ViewLayer.Position.Y",
-         "ViewLayer.Position.Z", "ViewLayer.DiffCol.R", "ViewLayer.DiffCol.G",
-         "ViewLayer.DiffCol.B"},
-        {0.1f, 0.2f, 0.3f, 1.0f, 5.5f, 3.0f, 4.0f, 7.0f, 8.0f, 0.0f, 1.0f, 0.0f, 1.0f, 2.0f, 3.0f,
-         0.6f, 0.5f, 0.4f});
+    const std::string path = make_named_file(dir,
+                                             "blender.exr",
+                                             {"ViewLayer.Combined.R",
+                                              "ViewLayer.Combined.G",
+                                              "ViewLayer.Combined.B",
+                                              "ViewLayer.Combined.A",
+                                              "ViewLayer.Depth.Z",
+                                              "ViewLayer.Vector.X",
+                                              "ViewLayer.Vector.Y",
+                                              "ViewLayer.Vector.Z",
+                                              "ViewLayer.Vector.W",
+                                              "ViewLayer.Normal.X",
+                                              "ViewLayer.Normal.Y",
+                                              "ViewLayer.Normal.Z",
+                                              "ViewLayer.Position.X",
+                                              "ViewLayer.Position.Y",
+                                              "ViewLayer.Position.Z",
+                                              "ViewLayer.DiffCol.R",
+                                              "ViewLayer.DiffCol.G",
+                                              "ViewLayer.DiffCol.B"},
+                                             {0.1f,
+                                              0.2f,
+                                              0.3f,
+                                              1.0f,
+                                              5.5f,
+                                              3.0f,
+                                              4.0f,
+                                              7.0f,
+                                              8.0f,
+                                              0.0f,
+                                              1.0f,
+                                              0.0f,
+                                              1.0f,
+                                              2.0f,
+                                              3.0f,
+                                              0.6f,
+                                              0.5f,
+                                              0.4f});
     const Frame f = read_frame(path, nullptr, 1);
     EXPECT_FLOAT_EQ(f.image("color").at(2, 2, 1), 0.2f);
     EXPECT_FLOAT_EQ(f.image("depth").at(2, 2, 0), 5.5f);
@@ -235,7 +263,8 @@ TEST(IoAliases, NukeNames)
 {
     const std::string dir = scratch_dir("nuke");
     const std::string path = make_named_file(
-        dir, "nuke.exr",
+        dir,
+        "nuke.exr",
         {"R", "G", "B", "depth.Z", "backward.u", "backward.v", "forward.u", "forward.v"},
         {0.5f, 0.5f, 0.5f, 12.0f, 1.5f, -2.0f, 3.0f, 4.0f});
     const Frame f = read_frame(path, nullptr, 1);
@@ -250,11 +279,23 @@ TEST(IoAliases, NukeNames)
 TEST(IoAliases, ArnoldNamesAndGraphRules)
 {
     const std::string dir = scratch_dir("arnold");
-    const std::string path = make_named_file(
-        dir, "arnold.exr",
-        {"R", "G", "B", "A", "Z", "N.R", "N.G", "N.B", "P.R", "P.G", "P.B", "motionvector.R",
-         "motionvector.G", "zdepth.Z"},
-        {1, 1, 1, 1, 9, 0, 0, 1, 4, 5, 6, 2.5f, 1.5f, 0.25f});
+    const std::string path = make_named_file(dir,
+                                             "arnold.exr",
+                                             {"R",
+                                              "G",
+                                              "B",
+                                              "A",
+                                              "Z",
+                                              "N.R",
+                                              "N.G",
+                                              "N.B",
+                                              "P.R",
+                                              "P.G",
+                                              "P.B",
+                                              "motionvector.R",
+                                              "motionvector.G",
+                                              "zdepth.Z"},
+                                             {1, 1, 1, 1, 9, 0, 0, 1, 4, 5, 6, 2.5f, 1.5f, 0.25f});
     const Frame f = read_frame(path, nullptr, 1);
     EXPECT_FLOAT_EQ(f.image("depth").at(0, 0, 0), 9.0f);
     EXPECT_FLOAT_EQ(f.image("normal").at(0, 0, 2), 1.0f);
@@ -320,8 +361,7 @@ TEST(IoBadInput, TruncatedEmptyMisnamedAndMissing)
         try {
             read_frame(dir + "/" + name, nullptr, 1);
             FAIL() << "no error";
-        }
-        catch (const Error &e) {
+        } catch (const Error &e) {
             EXPECT_EQ(e.code(), ExitCode::Runtime);
             EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
             EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
@@ -331,8 +371,7 @@ TEST(IoBadInput, TruncatedEmptyMisnamedAndMissing)
     try {
         const Frame f = read_frame(dir + "/png_named.exr", nullptr, 1);
         EXPECT_NEAR(f.image("color").at(0, 0, 0), 0.214f, 0.002f);  // sRGB 128/255 decoded
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("png_named.exr"), std::string::npos);
     }
 }
@@ -366,8 +405,7 @@ TEST(IoBadInput, NanAndInfPixels)
     try {
         read_frame(dir + "/nan.exr", nullptr, 1, error);
         FAIL();
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("channel \"G\" has a NaN or infinite value at (3, 4)"),
                   std::string::npos)
             << e.what();
@@ -390,8 +428,7 @@ TEST(IoWrite, CompressionNamesAreValidated)
     try {
         write_exr(f, dir + "/a.exr", o);
         FAIL();
-    }
-    catch (const Error &e) {
+    } catch (const Error &e) {
         EXPECT_EQ(e.code(), ExitCode::Usage);
         EXPECT_NE(std::string(e.what()).find("lossy on data pass \"depth\""), std::string::npos);
     }
@@ -457,9 +494,23 @@ namespace {
 TEST(IoWrite, HalfConversionRoundsLikeImath)
 {
     // Ties, denormals, the largest half, overflow to inf, negative zero, NaN-free extremes.
-    const float values[] = {0.0f, -0.0f, 1.0f, 1.0f + 1.0f / 2048.0f, 1.0f + 3.0f / 2048.0f,
-                            0.1f, 1e-5f, 6e-8f, 3e-8f, 65504.0f, 65519.0f, 65520.0f, 1e6f,
-                            -1e6f, -0.333333f, 2.5e-4f, 1234.5678f};
+    const float values[] = {0.0f,
+                            -0.0f,
+                            1.0f,
+                            1.0f + 1.0f / 2048.0f,
+                            1.0f + 3.0f / 2048.0f,
+                            0.1f,
+                            1e-5f,
+                            6e-8f,
+                            3e-8f,
+                            65504.0f,
+                            65519.0f,
+                            65520.0f,
+                            1e6f,
+                            -1e6f,
+                            -0.333333f,
+                            2.5e-4f,
+                            1234.5678f};
     const int n = int(sizeof(values) / sizeof(values[0]));
     Frame f;
     Image color(n, 1, 4);

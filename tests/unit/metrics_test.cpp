@@ -3,6 +3,12 @@
 
 #include "metrics/metrics.h"
 
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,12 +17,6 @@
 #include <regex>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
-
-#include <OpenImageIO/imagebuf.h>
-#include <OpenImageIO/imagebufalgo.h>
-#include <OpenImageIO/imageio.h>
-#include <gtest/gtest.h>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -39,8 +39,21 @@ Image make_image(int w, int h, int c, std::initializer_list<float> values)
 // a = 0 everywhere; b differs by 0.1, 0.5 (x2, a tie), 0.2 (x2). 3x2 pixels, 2 channels.
 Image tiny_b()
 {
-    return make_image(3, 2, 2, {0.1f, 0.0f, 0.0f, 0.0f, 0.0f, -0.5f,  //
-                                0.5f, 0.0f, 0.2f, 0.2f, 0.0f, 0.0f});
+    return make_image(3,
+                      2,
+                      2,
+                      {0.1f,
+                       0.0f,
+                       0.0f,
+                       0.0f,
+                       0.0f,
+                       -0.5f,  //
+                       0.5f,
+                       0.0f,
+                       0.2f,
+                       0.2f,
+                       0.0f,
+                       0.0f});
 }
 
 TEST(Metrics, HandComputedSmallImage)
@@ -278,7 +291,7 @@ std::string match1(const std::string &text, const std::string &pattern)
 }
 
 class DiffIdiffAgreement : public ::testing::Test {
-  protected:
+   protected:
     void SetUp() override
     {
         idiff_ = find_on_path("idiff");
@@ -297,7 +310,10 @@ class DiffIdiffAgreement : public ::testing::Test {
     }
 
     /// Write a and b, run idiff and ImageBufAlgo::compare, and check ours against both.
-    void check_pair(const std::string &name, const Image &a, const Image &b, const Thresholds &t,
+    void check_pair(const std::string &name,
+                    const Image &a,
+                    const Image &b,
+                    const Thresholds &t,
                     const std::string &options)
     {
         SCOPED_TRACE(name + " " + options);
@@ -328,8 +344,8 @@ class DiffIdiffAgreement : public ::testing::Test {
         EXPECT_EQ(run.exit_code, exit_code(verdict(s, t))) << run.output;
 
         OIIO::ImageBuf ia(pa), ib(pb);
-        const auto cr = OIIO::ImageBufAlgo::compare(ia, ib, t.fail, t.warn, t.fail_relative,
-                                                    t.warn_relative);
+        const auto cr =
+            OIIO::ImageBufAlgo::compare(ia, ib, t.fail, t.warn, t.fail_relative, t.warn_relative);
         expect_rel(s.all.mean_error, cr.meanerror);
         expect_rel(s.all.rms_error, cr.rms_error);
         expect_rel(s.all.psnr, cr.PSNR);
@@ -387,8 +403,8 @@ TEST_F(DiffIdiffAgreement, SmallPerturbationLdr)
     t.warn_percent = 90.0f;
     check_pair("ldr", a, b, t, "-fail 0.05 -warn 0.005 -failpercent 1 -warnpercent 90");
     t.hard_fail = 0.2f;
-    check_pair("ldr", a, b, t,
-               "-fail 0.05 -warn 0.005 -failpercent 1 -warnpercent 90 -hardfail 0.2");
+    check_pair(
+        "ldr", a, b, t, "-fail 0.05 -warn 0.005 -failpercent 1 -warnpercent 90 -hardfail 0.2");
 }
 
 TEST_F(DiffIdiffAgreement, HdrWithNegativesAndAlpha)
