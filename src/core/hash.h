@@ -31,4 +31,16 @@ constexpr float hash_unit(int x, int y, int sample, std::uint32_t seed)
     return hash_to_unit(hash4(std::uint32_t(x), std::uint32_t(y), std::uint32_t(sample), seed));
 }
 
+/// Van der Corput radical inverse in base 2 (bit reversal), in [0, 1) with 24 bits: the second
+/// coordinate of a Hammersley point set.
+constexpr float radical_inverse_base2(std::uint32_t i)
+{
+    i = (i << 16u) | (i >> 16u);
+    i = ((i & 0x55555555u) << 1u) | ((i & 0xAAAAAAAAu) >> 1u);
+    i = ((i & 0x33333333u) << 2u) | ((i & 0xCCCCCCCCu) >> 2u);
+    i = ((i & 0x0F0F0F0Fu) << 4u) | ((i & 0xF0F0F0F0u) >> 4u);
+    i = ((i & 0x00FF00FFu) << 8u) | ((i & 0xFF00FF00u) >> 8u);
+    return float(i >> 8) * (1.0f / 16777216.0f);
+}
+
 }  // namespace posthaste

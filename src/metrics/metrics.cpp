@@ -141,10 +141,14 @@ double CompareStats::fail_percent() const
     return pixel_count ? 100.0 * double(all.fail_count) / double(pixel_count) : 0.0;
 }
 
-CompareStats compare(const Image &a, const Image &b, const Thresholds &thresholds)
+namespace {
+
+/// Throws an Error naming `who` when a and b differ in width, height or channel count.
+void require_same_shape(const Image &a, const Image &b, const char *who)
 {
     if (a.width() != b.width() || a.height() != b.height() || a.channels() != b.channels()) {
-        throw_runtime("compare: images differ in shape: ",
+        throw_runtime(who,
+                      ": images differ in shape: ",
                       a.width(),
                       "x",
                       a.height(),
@@ -157,6 +161,13 @@ CompareStats compare(const Image &a, const Image &b, const Thresholds &threshold
                       "x",
                       b.channels());
     }
+}
+
+}  // namespace
+
+CompareStats compare(const Image &a, const Image &b, const Thresholds &thresholds)
+{
+    require_same_shape(a, b, "compare");
     const Rect bounds = a.bounds();
     const int tile = kDefaultTileSize;
     const int tiles_x = (bounds.width() + tile - 1) / tile;
@@ -234,20 +245,7 @@ const char *verdict_name(Verdict v)
 
 Image difference_image(const Image &a, const Image &b, float scale)
 {
-    if (a.width() != b.width() || a.height() != b.height() || a.channels() != b.channels()) {
-        throw_runtime("difference_image: images differ in shape: ",
-                      a.width(),
-                      "x",
-                      a.height(),
-                      "x",
-                      a.channels(),
-                      " vs ",
-                      b.width(),
-                      "x",
-                      b.height(),
-                      "x",
-                      b.channels());
-    }
+    require_same_shape(a, b, "difference_image");
     Image out = Image::uninitialized(a.width(), a.height(), a.channels());
     parallel_for_tiles(out.bounds(), [&](const Rect &r) {
         for (int y = r.y0; y < r.y1; ++y) {

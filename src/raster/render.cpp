@@ -701,16 +701,6 @@ glm::vec2 concentric_disc(float u1, float u2)
                          std::sin(shading::kPi / 2 - pi4 * a / b));
 }
 
-float radical_inverse2(std::uint32_t i)
-{
-    i = (i << 16u) | (i >> 16u);
-    i = ((i & 0x55555555u) << 1u) | ((i & 0xAAAAAAAAu) >> 1u);
-    i = ((i & 0x33333333u) << 2u) | ((i & 0xCCCCCCCCu) >> 2u);
-    i = ((i & 0x0F0F0F0Fu) << 4u) | ((i & 0xF0F0F0F0u) >> 4u);
-    i = ((i & 0x00FF00FFu) << 8u) | ((i & 0xFF00FF00u) >> 8u);
-    return float(i >> 8) * (1.0f / 16777216.0f);
-}
-
 }  // namespace
 
 const std::set<std::string> &render_pass_names()
@@ -966,7 +956,8 @@ Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const Trut
         if (truth.dof) {
             const float u1 = (float(i) + hash_unit(i, frame, 1, truth.seed)) / float(n);
             const float u2 =
-                float((std::uint32_t(radical_inverse2(std::uint32_t(i)) * 16777216.0f) ^
+                float((std::uint32_t(posthaste::radical_inverse_base2(std::uint32_t(i)) *
+                                     16777216.0f) ^
                        (scramble >> 8)) &
                       0xffffffu) /
                 16777216.0f;

@@ -7,6 +7,7 @@
 #include <glm/geometric.hpp>
 #include <mutex>
 
+#include "core/hash.h"
 #include "core/parallel.h"
 
 namespace posthaste::shading {
@@ -223,16 +224,6 @@ float toon_band(float n_dot_l, int bands)
 
 namespace {
 
-float radical_inverse_base2(std::uint32_t i)
-{
-    i = (i << 16u) | (i >> 16u);
-    i = ((i & 0x55555555u) << 1u) | ((i & 0xAAAAAAAAu) >> 1u);
-    i = ((i & 0x33333333u) << 2u) | ((i & 0xCCCCCCCCu) >> 2u);
-    i = ((i & 0x0F0F0F0Fu) << 4u) | ((i & 0xF0F0F0F0u) >> 4u);
-    i = ((i & 0x00FF00FFu) << 8u) | ((i & 0xFF00FF00u) >> 8u);
-    return float(i >> 8) * (1.0f / 16777216.0f);
-}
-
 }  // namespace
 
 float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
@@ -257,7 +248,7 @@ float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
     double sum = 0.0;
     for (int i = 0; i < samples; ++i) {
         const float u1 = (float(i) + 0.5f) / float(samples);
-        const float u2 = radical_inverse_base2(std::uint32_t(i));
+        const float u2 = posthaste::radical_inverse_base2(std::uint32_t(i));
         const float r = std::sqrt(u1), phi = 2.0f * kPi * u2;
         const float p1 = r * std::cos(phi);
         const float sh = 0.5f * (1.0f + vh_dir.z);

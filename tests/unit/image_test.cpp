@@ -115,6 +115,15 @@ TEST(Hash, UnitRangeAndDeterminism)
     EXPECT_EQ(hash_unit(5, 6, 7, 8u), hash_unit(5, 6, 7, 8u));
 }
 
+TEST(Hash, RadicalInverseReversesBits)
+{
+    EXPECT_EQ(radical_inverse_base2(0), 0.0f);
+    EXPECT_EQ(radical_inverse_base2(1), 0.5f);
+    EXPECT_EQ(radical_inverse_base2(2), 0.25f);
+    EXPECT_EQ(radical_inverse_base2(3), 0.75f);
+    EXPECT_EQ(radical_inverse_base2(6), 0.375f);
+}
+
 }  // namespace
 }  // namespace posthaste
 
