@@ -1,0 +1,56 @@
+#include "core/simd.h"
+
+#include <atomic>
+#include <cstdlib>
+#include <cstring>
+
+namespace posthaste::simd {
+namespace {
+
+Level detect()
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    __builtin_cpu_init();
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+        __builtin_cpu_supports("f16c")) {
+        return Level::Avx2;
+    }
+#endif
+    return Level::Scalar;
+}
+
+Level initial()
+{
+    const char *env = std::getenv("POSTHASTE_SIMD");
+    if (env && std::strcmp(env, "scalar") == 0) {
+        return Level::Scalar;
+    }
+    return detected();
+}
+
+std::atomic<int> &current()
+{
+    static std::atomic<int> level{int(initial())};
+    return level;
+}
+
+}  // namespace
+
+Level detected()
+{
+    static const Level level = detect();
+    return level;
+}
+
+Level active()
+{
+    return Level(current().load(std::memory_order_relaxed));
+}
+
+void set_level(Level level)
+{
+    current().store(int(level) < int(detected()) ? int(level) : int(detected()),
+                    std::memory_order_relaxed);
+}
+
+}  // namespace posthaste::simd

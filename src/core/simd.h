@@ -1,0 +1,51 @@
+#pragma once
+// CPU dispatch for the hand-vectorized kernels. The build targets baseline x86-64, so AVX2 code
+// lives in functions marked POSTHASTE_AVX2 (GCC/Clang compile just those for AVX2 + FMA + F16C)
+// and is called only when simd::avx2() says the CPU has it; every such kernel keeps a portable
+// scalar path beside it. Tests force the scalar path with simd::set_level to check that both
+// give the same image within a stated tolerance (the paths round differently, so bits differ
+// between them; each path alone is bit-stable for any thread count).
+//
+// Environment: POSTHASTE_SIMD=scalar disables the vector paths (to compare or to debug).
+
+namespace posthaste::simd {
+
+enum class Level { Scalar = 0, Avx2 = 1 };
+
+/// The best level this CPU (and build) supports.
+Level detected();
+/// The level kernels use: detected(), lowered by POSTHASTE_SIMD=scalar or set_level.
+Level active();
+/// Use at most `level` from now on (clamped to detected()). Not thread-safe against running
+/// kernels: call between frames (tests, the CLI).
+void set_level(Level level);
+
+/// Whether kernels should take their AVX2 path.
+inline bool avx2()
+{
+    return active() == Level::Avx2;
+}
+
+/// Scoped override, for tests: restores the previous level on destruction.
+class ScopedLevel {
+   public:
+    explicit ScopedLevel(Level level) : previous_(active()) { set_level(level); }
+    ~ScopedLevel() { set_level(previous_); }
+    ScopedLevel(const ScopedLevel &) = delete;
+    ScopedLevel &operator=(const ScopedLevel &) = delete;
+
+   private:
+    Level previous_;
+};
+
+}  // namespace posthaste::simd
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define POSTHASTE_HAVE_AVX2_TARGET 1
+/// Marks a function (and every helper it calls that is not force-inlined) to be compiled for
+/// AVX2 + FMA + F16C. Call it only behind simd::avx2().
+#define POSTHASTE_AVX2 __attribute__((target("avx2,fma,f16c")))
+#else
+#define POSTHASTE_HAVE_AVX2_TARGET 0
+#define POSTHASTE_AVX2
+#endif
