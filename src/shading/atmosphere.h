@@ -179,6 +179,7 @@ class SkyView {
 
    private:
     friend class Atmosphere;
+    friend struct AtmosphereKernels;
     Lut2D lut_;
     glm::vec3 up_{0.0f, 1.0f, 0.0f}, sun_tangent_{1.0f, 0.0f, 0.0f}, sun_side_{0.0f, 0.0f, 1.0f};
     float mu_horizon_ = 0.0f, theta_horizon_ = 1.5707963f;
@@ -221,6 +222,13 @@ class AerialPerspective {
         const int cx = std::max(x0, 0), cy = std::max(y0, 0);
         const float tx = saturate(fx - float(cx)), ty = saturate(fy - float(cy));
         return fetch(cx, cy, tx, ty, std::sqrt(saturate(distance * inv_max_distance_)));
+    }
+    /// The froxel row below NDC v and the weight of the row after it (as sample() computes them).
+    void row_weights(float v, int &cy, float &ty) const
+    {
+        const float fy = saturate(v) * float(height_) - 0.5f;
+        cy = std::max(std::min(int(fy + 1.0f) - 1, height_ - 2), 0);
+        ty = saturate(fy - float(cy));
     }
     /// sample() for n points of one pixel row: NDC (u[i], v) at distance[i]; the row's vertical
     /// weights are computed once and the distance mapping four at a time (SSE2 where available).
@@ -290,6 +298,7 @@ class AerialPerspective {
                 a.transmittance[c] + t * (b.transmittance[c] - a.transmittance[c]);
         }
     }
+    friend struct AtmosphereKernels;
     Froxel bilinear(int z, int x0, int y0, float tx, float ty) const
     {
         const Froxel *p = &froxels_[(std::size_t(z) * height_ + y0) * width_ + x0];

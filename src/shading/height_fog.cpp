@@ -1,5 +1,6 @@
 #include "shading/height_fog.h"
 
+#include <algorithm>
 #include <cassert>
 #include <limits>
 
@@ -8,6 +9,8 @@
 #endif
 
 #include "core/parallel.h"
+#include "core/simd.h"
+#include "core/simd_avx2.h"
 
 namespace posthaste::shading {
 namespace {
@@ -106,6 +109,137 @@ int fog4(const HeightFogCamera &c,
 }
 #endif
 
+#if POSTHASTE_HAVE_AVX2_TARGET
+// fog4 for eight lanes with fused multiply-adds: the AVX2 path of apply_height_fog. Lanes that
+// are not `ok` (finite depth looking far down, where the closed form may overflow) go to
+// `scalar`, the exact per-pixel path.
+template <class Scalar>
+POSTHASTE_AVX2 void fog_row_avx2(const HeightFogCamera &c,
+                                 const glm::vec3 &row_origin,
+                                 const glm::vec3 &du,
+                                 float inv_w,
+                                 const float *z,
+                                 float *row,
+                                 int channels,
+                                 int x0,
+                                 int x1,
+                                 const Scalar &scalar)
+{
+    using namespace simd::v8;
+    const __m256 lane = _mm256_setr_ps(0.5f, 1.5f, 2.5f, 3.5f, 4.5f, 5.5f, 6.5f, 7.5f);
+    const __m256 inf = set1(std::numeric_limits<float>::infinity());
+    const __m256 b = set1(c.fog.falloff), a = set1(c.density_at_camera);
+    const __m128 fog_rgb = _mm_setr_ps(c.fog.color.x, c.fog.color.y, c.fog.color.z, 0.0f);
+    const __m128 sun_rgb = _mm_setr_ps(c.lobe_scale.x, c.lobe_scale.y, c.lobe_scale.z, 0.0f);
+    const __m128 keep_alpha = _mm_castsi128_ps(_mm_setr_epi32(-1, -1, -1, 0));
+    const __m256 fog_rgb2 = _mm256_set_m128(fog_rgb, fog_rgb);  // alpha lanes 0
+    const __m256 sun_rgb2 = _mm256_set_m128(sun_rgb, sun_rgb);
+    alignas(32) float t8[8], l8[8];
+    int x = x0;
+    for (; x + 8 <= x1; x += 8) {
+        const __m256 u = _mm256_mul_ps(_mm256_add_ps(set1(float(x)), lane), set1(inv_w));
+        const __m256 rx = _mm256_fmadd_ps(u, set1(du.x), set1(row_origin.x));
+        const __m256 ry = _mm256_fmadd_ps(u, set1(du.y), set1(row_origin.y));
+        const __m256 rz = _mm256_fmadd_ps(u, set1(du.z), set1(row_origin.z));
+        const __m256 len =
+            _mm256_sqrt_ps(_mm256_fmadd_ps(rx, rx, _mm256_fmadd_ps(ry, ry, _mm256_mul_ps(rz, rz))));
+        const __m256 depth = _mm256_loadu_ps(z + x);
+        // k * distance = b * (ray_y / len) * (depth * len) = b * ray_y * depth; optical depth
+        // a * distance * (1 - e^-x) / x, by its series near x = 0.
+        const __m256 xk = _mm256_mul_ps(b, _mm256_mul_ps(ry, depth));
+        const __m256 series = _mm256_fnmadd_ps(
+            xk,
+            _mm256_fnmadd_ps(
+                xk, _mm256_fnmadd_ps(xk, set1(1.0f / 24.0f), set1(1.0f / 6.0f)), set1(0.5f)),
+            set1(1.0f));
+        const __m256 zero_x = _mm256_cmp_ps(xk, _mm256_setzero_ps(), _CMP_EQ_OQ);
+        const __m256 safe_x = _mm256_blendv_ps(xk, set1(1.0f), zero_x);
+        const __m256 direct = _mm256_div_ps(
+            _mm256_sub_ps(set1(1.0f), exp(_mm256_sub_ps(_mm256_setzero_ps(), xk))), safe_x);
+        const __m256 small =
+            _mm256_cmp_ps(_mm256_andnot_ps(set1(-0.0f), xk), set1(0.03f), _CMP_LT_OQ);
+        const __m256 g = _mm256_blendv_ps(direct, series, small);
+        const __m256 finite = _mm256_and_ps(_mm256_cmp_ps(depth, _mm256_setzero_ps(), _CMP_GT_OQ),
+                                            _mm256_cmp_ps(depth, inf, _CMP_LT_OQ));
+        // Infinite depth: a / k looking up (k = b ray_y / len > 0), everything absorbed otherwise.
+        const __m256 k = _mm256_div_ps(_mm256_mul_ps(b, ry), len);
+        const __m256 up = _mm256_cmp_ps(k, _mm256_setzero_ps(), _CMP_GT_OQ);
+        const __m256 tau_inf =
+            _mm256_blendv_ps(set1(1e30f), _mm256_div_ps(a, _mm256_max_ps(k, set1(1e-30f))), up);
+        const __m256 tau_finite = _mm256_mul_ps(_mm256_mul_ps(a, _mm256_mul_ps(depth, len)), g);
+        const __m256 is_inf = _mm256_cmp_ps(depth, inf, _CMP_EQ_OQ);
+        // Depth <= 0 or NaN: no fog (tau = 0).
+        const __m256 tau =
+            _mm256_or_ps(_mm256_and_ps(finite, tau_finite), _mm256_and_ps(is_inf, tau_inf));
+        const __m256 t = exp(_mm256_sub_ps(_mm256_setzero_ps(), tau));
+        __m256 lobe = _mm256_setzero_ps();
+        if (c.has_lobe) {
+            const glm::vec3 &s = c.fog.sun_direction;
+            const __m256 dot = _mm256_fmadd_ps(
+                rx, set1(s.x), _mm256_fmadd_ps(ry, set1(s.y), _mm256_mul_ps(rz, set1(s.z))));
+            const __m256 d = _mm256_max_ps(
+                _mm256_fnmadd_ps(set1(c.lobe_b), _mm256_div_ps(dot, len), set1(c.lobe_a)),
+                set1(1e-6f));
+            lobe = _mm256_div_ps(set1(1.0f), _mm256_mul_ps(d, _mm256_sqrt_ps(d)));
+        }
+        // Lanes left to the scalar path: finite depth looking down far enough to risk overflow.
+        const int bad = _mm256_movemask_ps(
+            _mm256_andnot_ps(_mm256_cmp_ps(xk, set1(-40.0f), _CMP_GT_OQ), finite));
+        if (bad == 0 && channels == 4) {
+            // Two RGBA pixels per register: pixel * (T, T, T, 1) + (1 - T) (colour + lobe sun).
+            float *p = row + std::size_t(x) * 4;
+            const __m256 one_minus_t = _mm256_sub_ps(set1(1.0f), t);
+            for (int pair = 0; pair < 4; ++pair) {
+                const __m256i idx = _mm256_setr_epi32(2 * pair,
+                                                      2 * pair,
+                                                      2 * pair,
+                                                      2 * pair,
+                                                      2 * pair + 1,
+                                                      2 * pair + 1,
+                                                      2 * pair + 1,
+                                                      2 * pair + 1);
+                const __m256 factor =
+                    _mm256_blend_ps(_mm256_permutevar8x32_ps(t, idx), set1(1.0f), 0x88);
+                const __m256 radiance =
+                    _mm256_fmadd_ps(_mm256_permutevar8x32_ps(lobe, idx), sun_rgb2, fog_rgb2);
+                const __m256 inscatter =
+                    _mm256_mul_ps(_mm256_permutevar8x32_ps(one_minus_t, idx), radiance);
+                _mm256_storeu_ps(p + 8 * pair,
+                                 _mm256_fmadd_ps(_mm256_loadu_ps(p + 8 * pair), factor, inscatter));
+            }
+            continue;
+        }
+        _mm256_store_ps(t8, t);
+        _mm256_store_ps(l8, lobe);
+        for (int i = 0; i < 8; ++i) {
+            if (bad & (1 << i)) {
+                scalar(x + i);
+                continue;
+            }
+            // pixel = pixel * (T, T, T, 1) + (1 - T) * (colour + lobe * sun)
+            float *p = row + std::size_t(x + i) * std::size_t(channels);
+            const __m128 ti = _mm_broadcast_ss(&t8[i]);
+            const __m128 radiance = _mm_fmadd_ps(_mm_broadcast_ss(&l8[i]), sun_rgb, fog_rgb);
+            const __m128 inscatter = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(1.0f), ti), radiance);
+            if (channels == 4) {
+                const __m128 factor = _mm_or_ps(_mm_and_ps(keep_alpha, ti),
+                                                _mm_andnot_ps(keep_alpha, _mm_set1_ps(1.0f)));
+                _mm_storeu_ps(p, _mm_fmadd_ps(_mm_loadu_ps(p), factor, inscatter));
+            } else {
+                alignas(16) float s4[4];
+                _mm_store_ps(s4, inscatter);
+                for (int ch = 0; ch < 3; ++ch) {
+                    p[ch] = std::fma(p[ch], t8[i], s4[ch]);
+                }
+            }
+        }
+    }
+    for (; x < x1; ++x) {
+        scalar(x);
+    }
+}
+#endif
+
 }  // namespace
 
 void apply_height_fog(const HeightFog &fog,
@@ -123,8 +257,13 @@ void apply_height_fog(const HeightFog &fog,
     const float inv_h = 1.0f / float(color.height());
     const int channels = color.channels();
     // The 4-wide path needs the fast path's preconditions for the whole frame.
-    const bool simd = c.fog.start_distance == 0.0f && c.density_at_camera > 1e-20f;
-    parallel_for_tiles(color.bounds(), [&](const Rect &tile) {
+    const bool fast = c.fog.start_distance == 0.0f && c.density_at_camera > 1e-20f;
+    const bool avx2 = simd::avx2();
+    // Bands of whole rows: the pass streams through memory (it is bandwidth-bound: a 64-pixel
+    // tile row is only 1 KiB of RGBA, too short for the hardware prefetcher).
+    const int band = 4, bands = (color.height() + band - 1) / band;
+    parallel_for(0, bands, [&](int b) {
+        const Rect tile{0, b * band, color.width(), std::min(color.height(), (b + 1) * band)};
         for (int y = tile.y0; y < tile.y1; ++y) {
             const float v = (float(y) + 0.5f) * inv_h;
             const float *z = depth.pixel(0, y);
@@ -136,8 +275,24 @@ void apply_height_fog(const HeightFog &fog,
                           height_fog(c, ray * (1.0f / len), z[x] * len));
             };
             int x = tile.x0;
+#if POSTHASTE_HAVE_AVX2_TARGET
+            if (fast && avx2) {
+                const glm::vec3 row_origin = rays.depth_ray(0.0f, v);
+                fog_row_avx2(c,
+                             row_origin,
+                             rays.depth_ray(1.0f, v) - row_origin,
+                             inv_w,
+                             z,
+                             row,
+                             channels,
+                             tile.x0,
+                             tile.x1,
+                             scalar);
+                continue;
+            }
+#endif
 #if defined(__SSE2__)
-            if (simd) {
+            if (fast) {
                 const glm::vec3 row_origin = rays.depth_ray(0.0f, v);
                 const glm::vec3 du = rays.depth_ray(1.0f, v) - row_origin;
                 alignas(16) float t4[4], l4[4];
@@ -197,7 +352,7 @@ void apply_height_fog(const HeightFog &fog,
                 }
             }
 #else
-            (void)simd;
+            (void)fast;
 #endif
             for (; x < tile.x1; ++x) {
                 scalar(x);

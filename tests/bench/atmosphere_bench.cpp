@@ -9,6 +9,7 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/parallel.h"
+#include "core/simd.h"
 #include "shading/atmosphere.h"
 #include "shading/height_fog.h"
 
@@ -22,6 +23,15 @@ struct ThreadScope {
     explicit ThreadScope(const benchmark::State &state) { set_thread_count(int(state.range(0))); }
     ~ThreadScope() { set_thread_count(0); }
 };
+
+// The per-frame benchmarks run twice: as dispatched (AVX2 on this machine), and with the portable
+// scalar path forced, the baseline in the same run.
+template <void (*Body)(benchmark::State &)>
+void scalar_path(benchmark::State &state)
+{
+    const simd::ScopedLevel scalar(simd::Level::Scalar);
+    Body(state);
+}
 
 AtmosphereParams earth_params()
 {
@@ -113,6 +123,11 @@ void BM_HeightFogFrame1080p(benchmark::State &state)
         benchmark::ClobberMemory();
     }
 }
+BENCHMARK_TEMPLATE(scalar_path, BM_HeightFogFrame1080p)
+    ->Name("BM_HeightFogFrame1080pScalar")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Arg(2);
 BENCHMARK(BM_HeightFogFrame1080p)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
 
 // Per frame: build the froxels for the camera, then apply them to every pixel with geometry.
@@ -130,6 +145,11 @@ void BM_AerialPerspectiveFrame1080p(benchmark::State &state)
         benchmark::ClobberMemory();
     }
 }
+BENCHMARK_TEMPLATE(scalar_path, BM_AerialPerspectiveFrame1080p)
+    ->Name("BM_AerialPerspectiveFrame1080pScalar")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Arg(2);
 BENCHMARK(BM_AerialPerspectiveFrame1080p)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
@@ -152,6 +172,11 @@ void BM_AtmosphereFrame1080p(benchmark::State &state)
         benchmark::ClobberMemory();
     }
 }
+BENCHMARK_TEMPLATE(scalar_path, BM_AtmosphereFrame1080p)
+    ->Name("BM_AtmosphereFrame1080pScalar")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Arg(2);
 BENCHMARK(BM_AtmosphereFrame1080p)->Unit(benchmark::kMillisecond)->UseRealTime()->Arg(1)->Arg(2);
 
 }  // namespace
