@@ -237,10 +237,12 @@ void execute(NodeContext &ctx)
     const glm::mat4 &w2ndc = in.camera.require_world_to_ndc(who);
     const shading::CameraRays rays(w2c, w2ndc);
 
-    // Negative depths count as 0 (a copy is made only when there are some).
+    // Negative depths count as 0 (a copy is made only when there are some). The height fog and
+    // froxel kernels already treat depth <= 0 as "no fog", so they skip the scan.
     const Image *depth = &depth_in;
     Image sanitized;
-    for (std::size_t i = 0; i < depth_in.value_count(); ++i) {
+    const bool scan = model != Height && model != Atmo;
+    for (std::size_t i = 0; scan && i < depth_in.value_count(); ++i) {
         if (depth_in.data()[i] < 0.0f) {
             sanitized = depth_in;
             for (std::size_t j = 0; j < sanitized.value_count(); ++j) {
@@ -260,7 +262,12 @@ void execute(NodeContext &ctx)
     }
     sun_dir = glm::normalize(sun_dir);
 
-    Image out = *color_pass.image;
+    // The height fog and atmosphere kernels read the input and write the output in one sweep;
+    // the other models work on a copy.
+    const Image &source = *color_pass.image;
+    Image out = model == Height || model == Atmo
+                    ? Image::uninitialized(source.width(), source.height(), source.channels())
+                    : source;
     switch (model) {
         case Linear:
         case Exp:
@@ -277,34 +284,10 @@ void execute(NodeContext &ctx)
             fog.sun_color = vec3_of(ctx.get_vec(kSunColor));
             fog.sun_direction = sun_dir;
             fog.sun_g = ctx.get_float(kSunG);
-            shading::apply_height_fog(fog, rays, *depth, out);
-            if (ctx.get_choice(kSky) == 0) {
-                const int nch = out.channels();
-                const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
-                const bool lobe = glm::length(fog.sun_color) > 0.0f;
-                parallel_for_tiles(out.bounds(), [&](const Rect &t) {
-                    for (int y = t.y0; y < t.y1; ++y) {
-                        for (int x = t.x0; x < t.x1; ++x) {
-                            const float z = depth->at(x, y, 0);
-                            if (!(std::isinf(z) && z > 0.0f)) {
-                                continue;
-                            }
-                            glm::vec3 c = fog.color;
-                            if (lobe) {
-                                const glm::vec3 d =
-                                    rays.direction((x + 0.5f) * inv_w, (y + 0.5f) * inv_h);
-                                c += fog.sun_color * (4.0f * 3.14159265f) *
-                                     shading::henyey_greenstein_phase(glm::dot(d, sun_dir),
-                                                                      fog.sun_g);
-                            }
-                            float *p = out.pixel(x, y);
-                            for (int k = 0; k < std::min(nch, 3); ++k) {
-                                p[k] = c[k];
-                            }
-                        }
-                    }
-                });
-            }
+            // sky "fog": sky pixels get the fog's radiance (colour plus the sun lobe), folded
+            // into the same sweep.
+            fog.opaque_sky = ctx.get_choice(kSky) == 0;
+            shading::apply_height_fog(fog, rays, *depth, source, out);
             break;
         }
         case Atmo:
@@ -323,27 +306,31 @@ void execute(NodeContext &ctx)
                 s.max_distance = ctx.get_float(kMaxDistance);
                 const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s);
                 shading::apply_atmosphere(
-                    *atmosphere, atmosphere->cached_sky_view(), ap, *depth, out, disc);
+                    *atmosphere, atmosphere->cached_sky_view(), ap, *depth, source, out, disc);
                 // Sky pixels below the horizon see the lit ground (as the rasterizer draws it).
+                // Rows in bands; a pixel's ray points down when its depth-1 vector does, so the
+                // unit direction is only made for those.
                 const int nch = out.channels();
                 const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
-                parallel_for_tiles(out.bounds(), [&](const Rect &t) {
-                    for (int y = t.y0; y < t.y1; ++y) {
-                        for (int x = t.x0; x < t.x1; ++x) {
-                            const float z = depth->at(x, y, 0);
-                            if (!(std::isinf(z) && z > 0.0f)) {
-                                continue;
-                            }
-                            const glm::vec3 dir =
-                                rays.direction((x + 0.5f) * inv_w, (y + 0.5f) * inv_h);
-                            if (dir.y >= 0.0f) {
-                                continue;
-                            }
-                            const glm::vec3 g = built.sky->ground(dir, rays.position());
-                            float *p = out.pixel(x, y);
-                            for (int k = 0; k < std::min(nch, 3); ++k) {
-                                p[k] += g[k];
-                            }
+                parallel_for(0, out.height(), [&](int y) {
+                    const float v = (y + 0.5f) * inv_h;
+                    const glm::vec3 r0 = rays.depth_ray(0.0f, v);
+                    const glm::vec3 dr = rays.depth_ray(1.0f, v) - r0;
+                    const float *z = depth->pixel(0, y);
+                    for (int x = 0; x < out.width(); ++x) {
+                        const float u = (x + 0.5f) * inv_w;
+                        if (!(z[x] == std::numeric_limits<float>::infinity()) ||
+                            !(r0.y + u * dr.y < 0.0f)) {
+                            continue;
+                        }
+                        const glm::vec3 dir = rays.direction(u, v);
+                        if (dir.y >= 0.0f) {
+                            continue;
+                        }
+                        const glm::vec3 g = built.sky->ground(dir, rays.position());
+                        float *p = out.pixel(x, y);
+                        for (int k = 0; k < std::min(nch, 3); ++k) {
+                            p[k] += g[k];
                         }
                     }
                 });

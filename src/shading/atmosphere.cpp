@@ -2,6 +2,7 @@
 
 #include <cassert>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -961,9 +962,13 @@ void apply_frame(const Atmosphere *atmosphere,
                  const SkyView *sky,
                  const AerialPerspective &ap,
                  const Image &depth,
+                 const Image &source,
                  Image &color,
                  bool sun_disc)
 {
+    assert(source.width() == color.width() && source.height() == color.height() &&
+           source.channels() == color.channels());
+    const bool copy = &source != &color;
     assert(color.channels() >= 3 && depth.channels() == 1);
     assert(color.width() == depth.width() && color.height() == depth.height());
     const float inv_w = 1.0f / float(color.width());
@@ -979,6 +984,11 @@ void apply_frame(const Atmosphere *atmosphere,
         const int band = 4, bands = (color.height() + band - 1) / band;
         parallel_for(0, bands, [&](int b) {
             for (int y = b * band; y < std::min(color.height(), (b + 1) * band); ++y) {
+                if (copy) {  // then in place, in cache
+                    std::memcpy(color.pixel(0, y),
+                                source.pixel(0, y),
+                                sizeof(float) * std::size_t(color.width()) * std::size_t(channels));
+                }
                 const float v = (float(y) + 0.5f) * inv_h;
                 const glm::vec3 origin = rays.depth_ray(0.0f, v);
                 const AtmosphereKernels::Row r{atmosphere,
@@ -1015,6 +1025,11 @@ void apply_frame(const Atmosphere *atmosphere,
             const float v = (float(y) + 0.5f) * inv_h;
             const float *z = depth.pixel(0, y);
             float *row = color.pixel(0, y);
+            if (copy) {
+                std::memcpy(row + std::size_t(tile.x0) * std::size_t(channels),
+                            source.pixel(tile.x0, y),
+                            sizeof(float) * std::size_t(tile.width()) * std::size_t(channels));
+            }
             int n = 0, m = 0;
             for (int x = tile.x0; x < tile.x1; ++x) {
                 const float d = z[x];
@@ -1073,12 +1088,23 @@ void apply_atmosphere(const Atmosphere &atmosphere,
                       Image &color,
                       bool sun_disc)
 {
-    apply_frame(&atmosphere, &sky, ap, depth, color, sun_disc);
+    apply_frame(&atmosphere, &sky, ap, depth, color, color, sun_disc);
+}
+
+void apply_atmosphere(const Atmosphere &atmosphere,
+                      const SkyView &sky,
+                      const AerialPerspective &ap,
+                      const Image &depth,
+                      const Image &source,
+                      Image &color,
+                      bool sun_disc)
+{
+    apply_frame(&atmosphere, &sky, ap, depth, source, color, sun_disc);
 }
 
 void apply_aerial_perspective(const AerialPerspective &ap, const Image &depth, Image &color)
 {
-    apply_frame(nullptr, nullptr, ap, depth, color, false);
+    apply_frame(nullptr, nullptr, ap, depth, color, color, false);
 }
 
 }  // namespace posthaste::shading

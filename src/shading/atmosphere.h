@@ -428,4 +428,14 @@ void apply_atmosphere(const Atmosphere &atmosphere,
 /// channels, depth 1, same size. Parallel over tiles, thread-count independent.
 void apply_aerial_perspective(const AerialPerspective &ap, const Image &depth, Image &color);
 
+/// apply_atmosphere reading `source` and writing `color` (same size and channels; they may be the
+/// same image): one sweep over memory instead of a copy and a sweep.
+void apply_atmosphere(const Atmosphere &atmosphere,
+                      const SkyView &sky,
+                      const AerialPerspective &ap,
+                      const Image &depth,
+                      const Image &source,
+                      Image &color,
+                      bool sun_disc = true);
+
 }  // namespace posthaste::shading

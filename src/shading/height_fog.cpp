@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <cstring>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -80,7 +81,7 @@ int fog4(const HeightFogCamera &c,
         _mm_and_ps(_mm_cmpgt_ps(depth, _mm_setzero_ps()), _mm_cmplt_ps(depth, inf));
     // Infinite depth: a / k looking up (k = b * ray_y / len > 0), everything absorbed otherwise.
     const __m128 k = _mm_div_ps(_mm_mul_ps(_mm_set1_ps(c.fog.falloff), ry), len);
-    const __m128 up = _mm_cmpgt_ps(k, _mm_setzero_ps());
+    const __m128 up = c.fog.opaque_sky ? _mm_setzero_ps() : _mm_cmpgt_ps(k, _mm_setzero_ps());
     const __m128 tau_inf =
         _mm_or_ps(_mm_and_ps(up, _mm_div_ps(a, _mm_max_ps(k, _mm_set1_ps(1e-30f)))),
                   _mm_andnot_ps(up, _mm_set1_ps(1e30f)));
@@ -163,7 +164,8 @@ POSTHASTE_AVX2 void fog_row_avx2(const HeightFogCamera &c,
                                             _mm256_cmp_ps(depth, inf, _CMP_LT_OQ));
         // Infinite depth: a / k looking up (k = b ray_y / len > 0), everything absorbed otherwise.
         const __m256 k = _mm256_div_ps(_mm256_mul_ps(b, ry), len);
-        const __m256 up = _mm256_cmp_ps(k, _mm256_setzero_ps(), _CMP_GT_OQ);
+        const __m256 up = c.fog.opaque_sky ? _mm256_setzero_ps()
+                                           : _mm256_cmp_ps(k, _mm256_setzero_ps(), _CMP_GT_OQ);
         const __m256 tau_inf =
             _mm256_blendv_ps(set1(1e30f), _mm256_div_ps(a, _mm256_max_ps(k, set1(1e-30f))), up);
         const __m256 tau_finite = _mm256_mul_ps(_mm256_mul_ps(a, _mm256_mul_ps(depth, len)), g);
@@ -247,10 +249,28 @@ void apply_height_fog(const HeightFog &fog,
                       const Image &depth,
                       Image &color)
 {
+    apply_height_fog(fog, rays, depth, color, color);
+}
+
+void apply_height_fog(const HeightFog &fog,
+                      const CameraRays &rays,
+                      const Image &depth,
+                      const Image &source,
+                      Image &color)
+{
     assert(color.channels() >= 3 && depth.channels() == 1);
     assert(color.width() == depth.width() && color.height() == depth.height());
+    assert(source.width() == color.width() && source.height() == color.height() &&
+           source.channels() == color.channels());
     const HeightFogCamera c = prepare_height_fog(fog, rays.position());
+    const std::size_t row_bytes =
+        sizeof(float) * std::size_t(color.width()) * std::size_t(color.channels());
     if (c.empty) {
+        if (&source != &color) {
+            parallel_for(0, color.height(), [&](int y) {
+                std::memcpy(color.pixel(0, y), source.pixel(0, y), row_bytes);
+            });
+        }
         return;
     }
     const float inv_w = 1.0f / float(color.width());
@@ -268,6 +288,9 @@ void apply_height_fog(const HeightFog &fog,
             const float v = (float(y) + 0.5f) * inv_h;
             const float *z = depth.pixel(0, y);
             float *row = color.pixel(0, y);
+            if (&source != &color) {
+                std::memcpy(row, source.pixel(0, y), row_bytes);  // then in place, in cache
+            }
             const auto scalar = [&](int x) {
                 const glm::vec3 ray = rays.depth_ray((float(x) + 0.5f) * inv_w, v);
                 const float len = glm::length(ray);

@@ -31,6 +31,9 @@ struct HeightFog {
     glm::vec3 sun_color{0.0f};          ///< sun lobe radiance scale; 0 disables the lobe.
     glm::vec3 sun_direction{0.0f, 1.0f, 0.0f};  ///< unit vector towards the sun (world).
     float sun_g = 0.7f;  ///< Henyey-Greenstein asymmetry of the sun lobe, in (-1, 1).
+    /// Sky pixels (+inf depth) show the fog's radiance alone (transmittance 0), as if the fog went
+    /// on for ever in every direction; otherwise they get the fog of the infinite ray.
+    bool opaque_sky = false;
 };
 
 /// Transmittance and in-scattered radiance of a fog segment.
@@ -127,7 +130,7 @@ inline float height_fog_optical_depth(const HeightFogCamera &c,
         log_a -= k * t0;  // density at the start of the segment
     }
     if (std::isinf(distance)) {
-        return k > 0.0f ? fast_exp(log_a) / k : INFINITY;
+        return k > 0.0f && !c.fog.opaque_sky ? fast_exp(log_a) / k : INFINITY;
     }
     const float length = distance - t0;
     const float x = k * length;
@@ -205,6 +208,13 @@ inline float exp2_fog_factor(float distance, float density)
 void apply_height_fog(const HeightFog &fog,
                       const CameraRays &rays,
                       const Image &depth,
+                      Image &color);
+/// apply_height_fog reading `source` and writing `color` (same size and channels; they may be the
+/// same image): one sweep over memory instead of a copy and a sweep.
+void apply_height_fog(const HeightFog &fog,
+                      const CameraRays &rays,
+                      const Image &depth,
+                      const Image &source,
                       Image &color);
 
 }  // namespace posthaste::shading

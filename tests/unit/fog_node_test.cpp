@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 
@@ -14,6 +15,7 @@
 #include "graph/graph.h"
 #include "graph/node_registry.h"
 #include "shading/camera_rays.h"
+#include "shading/height_fog.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -165,6 +167,38 @@ TEST(FogNode, StabilityCasesStayFiniteAndBounded)
     const Frame sky =
         run_fog(in, R"({"model": "height", "density": 0.05, "color": [0.5, 0.6, 0.7]})");
     EXPECT_FLOAT_EQ(sky.image("color").at(2, 0, 1), 0.6f);
+}
+
+TEST(FogNode, SkyFogIsColourPlusTheSunLobe)
+{
+    // sky "fog" (the default): every sky pixel shows the fog's radiance, colour + sun colour x
+    // 4 pi x Henyey-Greenstein(view . sun); sky "ray" gives the fog of the infinite ray instead.
+    Frame in = fog_frame(24, 9, {0, 3, 0}, 20.0f, std::numeric_limits<float>::infinity());
+    const glm::vec3 sun = glm::normalize(glm::vec3(0.0f, 0.3f, 1.0f));
+    const Frame fog = run_fog(in, R"({"model": "height", "density": 0.05, "falloff": 0.1,
+        "color": [0.5, 0.6, 0.7], "sun_color": [2, 1, 0.5], "sun_g": 0.6,
+        "sun_direction": [0, 0.3, 1]})");
+    const Frame ray = run_fog(in, R"({"model": "height", "density": 0.05, "falloff": 0.1,
+        "color": [0.5, 0.6, 0.7], "sun_color": [2, 1, 0.5], "sun_g": 0.6,
+        "sun_direction": [0, 0.3, 1], "sky": "ray"})");
+    const shading::CameraRays rays(*in.camera.world_to_camera, *in.camera.world_to_ndc);
+    int looking_up = 0;
+    for (const auto &[x, y] : {std::pair(0, 0), std::pair(11, 4), std::pair(23, 8)}) {
+        const glm::vec3 d = rays.direction((x + 0.5f) / 24.0f, (y + 0.5f) / 9.0f);
+        const float lobe =
+            4.0f * 3.14159265f * shading::henyey_greenstein_phase(glm::dot(d, sun), 0.6f);
+        const glm::vec3 expected = glm::vec3(0.5f, 0.6f, 0.7f) + glm::vec3(2, 1, 0.5f) * lobe;
+        for (int c = 0; c < 3; ++c) {
+            EXPECT_NEAR(fog.image("color").at(x, y, c), expected[c], 2e-5f * expected[c]);
+            // Looking up through thinning fog the infinite ray does not reach full fog.
+            if (d.y > 0.1f) {
+                EXPECT_LT(ray.image("color").at(x, y, c), 0.99f * expected[c]);
+                ++looking_up;
+            }
+        }
+        EXPECT_EQ(fog.image("color").at(x, y, 3), 1.0f);
+    }
+    EXPECT_GT(looking_up, 0);
 }
 
 TEST(FogNode, SameBitsForOneAndManyThreads)
