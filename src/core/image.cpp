@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "core/error.h"
+#include "core/memory.h"
 
 namespace posthaste {
 
@@ -23,6 +24,7 @@ void Image::allocate(int width, int height, int channels)
     height_ = height;
     channels_ = channels;
     data_ = std::make_unique_for_overwrite<float[]>(n);
+    advise_huge_pages(data_.get(), n * sizeof(float));
 }
 
 Image::Image(int width, int height, int channels)
