@@ -304,7 +304,8 @@ void execute(NodeContext &ctx)
                 s.width = s.height = ctx.get_int(kFroxels);
                 s.slices = ctx.get_int(kSlices);
                 s.max_distance = ctx.get_float(kMaxDistance);
-                const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s);
+                // Froxels only as deep as this frame's geometry reaches.
+                const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s, *depth);
                 shading::apply_atmosphere(
                     *atmosphere, atmosphere->cached_sky_view(), ap, *depth, source, out, disc);
                 // Sky pixels below the horizon see the lit ground (as the rasterizer draws it).

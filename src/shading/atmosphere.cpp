@@ -572,6 +572,81 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
                                      const AerialPerspectiveSettings &settings)
     : settings_(settings), rays_(world_to_camera, world_to_ndc)
 {
+    build(atmosphere, nullptr);
+}
+
+AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
+                                     const glm::mat4 &world_to_camera,
+                                     const glm::mat4 &world_to_ndc,
+                                     const AerialPerspectiveSettings &settings,
+                                     const Image &depth)
+    : settings_(settings), rays_(world_to_camera, world_to_ndc)
+{
+    // The deepest w = sqrt(distance / max) in each froxel column's cell of the frame, over rows
+    // in parallel (a maximum: the same for any split). Sky and NaN depths read no froxel.
+    const int cw = std::max(settings.width, 2), ch = std::max(settings.height, 2);
+    const float max_distance = settings.max_distance > 0.0f ? settings.max_distance : 1.0f;
+    const int w = depth.width(), h = depth.height();
+    // Per row and column cell: the largest squared distance (z |ray|)^2; no root per pixel.
+    std::vector<float> row_max(std::size_t(h) * std::size_t(cw), 0.0f);
+    std::vector<int> cell_begin(std::size_t(cw) + 1, w);
+    for (int x = w - 1; x >= 0; --x) {
+        cell_begin[std::size_t(std::min(int((float(x) + 0.5f) / float(w) * float(cw)), cw - 1))] =
+            x;
+    }
+    for (int cx = cw - 1; cx >= 0; --cx) {
+        cell_begin[std::size_t(cx)] =
+            std::min(cell_begin[std::size_t(cx)], cell_begin[std::size_t(cx) + 1]);
+    }
+    parallel_for(0, h, [&](int y) {
+        const float v = (float(y) + 0.5f) / float(h);
+        const glm::vec3 r0 = rays_.depth_ray(0.0f, v), dr = rays_.depth_ray(1.0f, v) - r0;
+        const float *z = depth.pixel(0, y);
+        for (int cx = 0; cx < cw; ++cx) {
+            float m = 0.0f;
+            for (int x = cell_begin[std::size_t(cx)]; x < cell_begin[std::size_t(cx) + 1]; ++x) {
+                const float u = (float(x) + 0.5f) / float(w);
+                const glm::vec3 r = r0 + u * dr;
+                const float zz = z[x] > 0.0f && z[x] < std::numeric_limits<float>::infinity()
+                                     ? z[x] * z[x]
+                                     : 0.0f;  // sky and NaN read no froxel
+                m = std::max(m, zz * glm::dot(r, r));
+            }
+            row_max[std::size_t(y) * std::size_t(cw) + std::size_t(cx)] =
+                std::sqrt(std::min(std::sqrt(m) / max_distance, 1.0f));
+        }
+    });
+    std::vector<float> cell(std::size_t(cw) * std::size_t(ch), 0.0f);
+    for (int y = 0; y < h; ++y) {
+        const int cy = std::min(int((float(y) + 0.5f) / float(h) * float(ch)), ch - 1);
+        for (int cx = 0; cx < cw; ++cx) {
+            float &c = cell[std::size_t(cy) * std::size_t(cw) + std::size_t(cx)];
+            c = std::max(c, row_max[std::size_t(y) * std::size_t(cw) + std::size_t(cx)]);
+        }
+    }
+    // A pixel in cell (cx, cy) interpolates columns cx - 1 .. cx + 1 (and rows likewise) and the
+    // slices z0, z0 + 1 with z0 = int(w slices - 0.5): each column keeps the slices up to one past
+    // the deepest z0 of its neighbouring cells (float rounding margin: one slice more).
+    const int slices = std::max(settings.slices, 2);
+    std::vector<int> last(std::size_t(cw) * std::size_t(ch), 0);
+    for (int y = 0; y < ch; ++y) {
+        for (int x = 0; x < cw; ++x) {
+            float wmax = 0.0f;
+            for (int j = std::max(y - 1, 0); j <= std::min(y + 1, ch - 1); ++j) {
+                for (int i = std::max(x - 1, 0); i <= std::min(x + 1, cw - 1); ++i) {
+                    wmax = std::max(wmax, cell[std::size_t(j) * std::size_t(cw) + std::size_t(i)]);
+                }
+            }
+            const int z0 = std::max(int(wmax * float(slices) - 0.5f), 0);
+            last[std::size_t(y) * std::size_t(cw) + std::size_t(x)] = std::min(z0 + 2, slices - 1);
+        }
+    }
+    build(atmosphere, &last);
+}
+
+void AerialPerspective::build(const Atmosphere &atmosphere, const std::vector<int> *last_slice)
+{
+    const AerialPerspectiveSettings &settings = settings_;
     width_ = std::max(settings.width, 2);
     height_ = std::max(settings.height, 2);
     slices_ = std::max(settings.slices, 2);
@@ -597,6 +672,10 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
     const double r0 = std::clamp(len, bottom, top);
     const glm::dvec3 sun(atmosphere.sun_direction());
     const double metres = atmosphere.params().metres_per_unit;
+    froxels_built_ = 0;
+    for (int index = 0; index < width_ * height_; ++index) {
+        froxels_built_ += last_slice ? (*last_slice)[std::size_t(index)] + 1 : slices_;
+    }
     parallel_for(0, width_ * height_, [&](int index) {
         const int x = index % width_, y = index / width_;
         const glm::dvec3 dir(
@@ -613,7 +692,8 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
         const double t_top = distance_to_sphere(r0, ray.mu0, top);
         ScatteringResult acc;
         double t_prev = 0.0;
-        for (int k = 0; k < slices_; ++k) {
+        const int last = last_slice ? (*last_slice)[std::size_t(index)] : slices_ - 1;
+        for (int k = 0; k <= last; ++k) {
             const double t = std::min(double(slice_distance(k)) * metres, t_top);
             acc = atmosphere.integrate(ray, t_prev, t, steps, acc, 0);
             t_prev = std::max(t_prev, t);

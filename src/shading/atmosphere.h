@@ -208,6 +208,18 @@ class AerialPerspective {
                       const glm::mat4 &world_to_camera,
                       const glm::mat4 &world_to_ndc,
                       const AerialPerspectiveSettings &settings = {});
+    /// The same volume, built only as deep as `depth` (the frame's camera-space z, any size)
+    /// needs: each froxel column stops at the last slice that sample() can read for a pixel of
+    /// that frame (the columns and slices a pixel interpolates between), so the slices behind the
+    /// scene are never integrated. Lookups for that frame's depths give the same bits as the full
+    /// volume; deeper lookups are undefined.
+    AerialPerspective(const Atmosphere &atmosphere,
+                      const glm::mat4 &world_to_camera,
+                      const glm::mat4 &world_to_ndc,
+                      const AerialPerspectiveSettings &settings,
+                      const Image &depth);
+    /// Froxels integrated by the constructor (width x height x slices for the full volume).
+    long long froxels_built() const { return froxels_built_; }
 
     /// In-scatter and transmittance between the camera and the point at `distance` (scene units,
     /// along the ray) on the ray through NDC `uv`. Trilinear; distance 0, negative or NaN gives
@@ -317,6 +329,9 @@ class AerialPerspective {
     std::vector<float> inv_centre_sum_;  // 1 / (w_k + w_{k+1}) per slice k
 
     std::vector<Froxel> froxels_;  // [slice][y][x]
+    long long froxels_built_ = 0;
+
+    void build(const Atmosphere &atmosphere, const std::vector<int> *last_slice);
 };
 
 /// The atmosphere for one parameter set: LUTs built in the constructor (in parallel), immutable

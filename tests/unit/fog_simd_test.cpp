@@ -159,5 +159,36 @@ TEST(FogSimd, AtmosphereAvx2MatchesScalar)
     }
 }
 
+TEST(FogSimd, DepthLimitedFroxelsGiveTheSameFrame)
+{
+    // Froxels built only as deep as the frame's geometry: the same bits on that frame, on both
+    // paths, for a fraction of the integration.
+    AtmosphereParams p;
+    p.sun_direction = glm::normalize(glm::vec3(0.2f, 0.3f, 1.0f));
+    const Atmosphere atmo(p);
+    for (const float height : {20.0f, 400.0f}) {
+        const CameraMatrices m = looking_at_horizon(-8.0f, height);
+        const CameraRays rays(m.world_to_camera, m.world_to_ndc);
+        const Image depth = ground_depth(rays);
+        const AerialPerspective full(atmo, m.world_to_camera, m.world_to_ndc);
+        const AerialPerspective limited(atmo, m.world_to_camera, m.world_to_ndc, {}, depth);
+        EXPECT_LT(limited.froxels_built(), full.froxels_built());
+        EXPECT_EQ(full.froxels_built(), 32LL * 32 * 32);
+        std::printf("[ measured ] camera at %g: %lld of %lld froxels integrated\n",
+                    height,
+                    limited.froxels_built(),
+                    full.froxels_built());
+        for (const simd::Level level : {simd::Level::Scalar, simd::detected()}) {
+            const simd::ScopedLevel scoped(level);
+            Image a = colour(4), b = colour(4);
+            apply_atmosphere(atmo, atmo.cached_sky_view(), full, depth, a);
+            apply_atmosphere(atmo, atmo.cached_sky_view(), limited, depth, b);
+            for (std::size_t i = 0; i < a.value_count(); ++i) {
+                ASSERT_EQ(a.data()[i], b.data()[i]) << i;
+            }
+        }
+    }
+}
+
 }  // namespace
 }  // namespace posthaste::shading
