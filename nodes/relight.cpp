@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <limits>
 #include <set>
@@ -645,6 +646,7 @@ struct Shading {
     float ambient = 0.0f, clamp = 0.0f;
     shading::DirectOptions base, toon;
     ScreenShadows ss;
+    std::array<std::uint32_t, 8> toon_words{};  // Setup::is_toon as 256 bits
 };
 
 // Stage 1 for one pixel: its surface, or pr.valid = false for background and unusable pixels.
@@ -908,6 +910,29 @@ POSTHASTE_AVX2_INLINE V mask_from_bits(int bits)
     return _mm256_castsi256_ps(_mm256_cmpgt_epi32(b, _mm256_setzero_si256()));
 }
 
+// Lanes whose material id (rounded) is a toon id: bit i of the 256-bit set `bits` (8 words).
+POSTHASTE_AVX2_INLINE V toon_mask(const Image &id, int x, int y, int n, __m256i bits)
+{
+    V m;
+    if (id.channels() == 1 && n == 8) {
+        m = _mm256_loadu_ps(id.pixel(x, y));
+    } else {
+        alignas(32) float t[8] = {};
+        for (int i = 0; i < n; ++i) {
+            t[i] = id.at(x + i, y, 0);
+        }
+        m = _mm256_load_ps(t);
+    }
+    // As prepare_pixel: ids in [0.5, 255.5) round to 1..255; the rest (and NaN) are not toon.
+    const V in_range = _mm256_and_ps(_mm256_cmp_ps(m, vset(0.5f), _CMP_GE_OQ),
+                                     _mm256_cmp_ps(m, vset(255.5f), _CMP_LT_OQ));
+    const __m256i k = _mm256_cvttps_epi32(_mm256_and_ps(in_range, vadd(m, vset(0.5f))));
+    const __m256i word = _mm256_permutevar8x32_epi32(bits, _mm256_srli_epi32(k, 5));
+    const __m256i bit = _mm256_and_si256(_mm256_srlv_epi32(word, _mm256_and_si256(k, _mm256_set1_epi32(31))),
+                                         _mm256_set1_epi32(1));
+    return _mm256_and_ps(in_range, _mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, _mm256_set1_epi32(1))));
+}
+
 POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Image &out)
 {
     const V zero = _mm256_setzero_ps(), one = vset(1.0f), half = vset(0.5f);
@@ -921,6 +946,8 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
     const bool toon_in_kernel = sh.toon.toon_specular_steps == 0;
     const int nc = sh.color->channels();
     const V eye_x = vset(sh.eye.x), eye_y = vset(sh.eye.y), eye_z = vset(sh.eye.z);
+    const __m256i toon_bits =
+        _mm256_loadu_si256(reinterpret_cast<const __m256i *>(sh.toon_words.data()));
     for (int x = x0; x < x1; x += 8) {
         const int n = std::min(8, x1 - x);
         // Setup, as prepare_pixel.
@@ -976,14 +1003,7 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
             }
             V toon = zero;
             if (sh.id) {
-                alignas(32) float t[8] = {};
-                for (int i = 0; i < n; ++i) {
-                    const float m = sh.id->at(x + i, y, 0);
-                    const bool is_toon =
-                        m >= 0.5f && m < 255.5f && sh.setup->is_toon[std::size_t(m + 0.5f)];
-                    t[i] = is_toon ? 1.0f : 0.0f;
-                }
-                toon = _mm256_cmp_ps(_mm256_load_ps(t), zero, _CMP_NEQ_OQ);
+                toon = toon_mask(*sh.id, x, y, n, toon_bits);
                 if (!toon_in_kernel) {
                     slow = _mm256_or_ps(slow, toon);
                 }
@@ -1258,20 +1278,28 @@ void execute(NodeContext &ctx)
     sh.base = base;
     sh.toon = toon;
     sh.ss = ss;
+    for (std::size_t k = 0; k < setup.is_toon.size(); ++k) {
+        sh.toon_words[k >> 5] |= std::uint32_t(setup.is_toon[k]) << (k & 31);
+    }
     bool use_avx2 = false;
 #if POSTHASTE_HAVE_AVX2_TARGET
     use_avx2 = simd::avx2() && sh.fast_ok && !from_depth;
 #endif
 
-    parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
-        if (use_avx2) {
+    if (use_avx2) {
 #if POSTHASTE_HAVE_AVX2_TARGET
-            for (int y = tile.y0; y < tile.y1; ++y) {
-                shade_row_avx2(sh, tile.x0, tile.x1, y, out);
-            }
+        // Whole rows: seven long streams that the hardware prefetcher follows, instead of
+        // 64-pixel pieces of them (the tile layout left the loads of color and id waiting on
+        // memory). Pixels are independent, so the partition does not change any bits.
+        parallel_for(0, H, [&](int y) { shade_row_avx2(sh, 0, W, y, out); });
 #endif
-            return;
-        }
+        ctx.output().set(pass::kColor,
+                         std::make_shared<const Image>(std::move(out)),
+                         in.pass(pass::kColor, ctx.where()).channels,
+                         in.pass(pass::kColor, ctx.where()).storage);
+        return;
+    }
+    parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
         Row row;
         for (int y = tile.y0; y < tile.y1; ++y) {
             shade_row_portable(sh, tile.x0, tile.x1, y, row, out);
