@@ -996,11 +996,7 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
             alb_r = _mm256_and_ps(alb_r, alb_ok);
             alb_g = _mm256_and_ps(alb_g, alb_ok);
             alb_b = _mm256_and_ps(alb_b, alb_ok);
-            // Anisotropic candidates (the tangent decides) take the scalar path.
             V slow = zero;
-            if (sh.tangent) {
-                slow = _mm256_and_ps(finite_mask(ma), _mm256_cmp_ps(ma, zero, _CMP_NEQ_UQ));
-            }
             V toon = zero;
             if (sh.id) {
                 toon = toon_mask(*sh.id, x, y, n, toon_bits);
@@ -1026,6 +1022,55 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
             const V kd_scale = vmul(vsub(one, metal), vset(1.0f / shading::kPi));
             const V kdr = vmul(alb_r, kd_scale), kdg = vmul(alb_g, kd_scale),
                     kdb = vmul(alb_b, kd_scale);
+            // Anisotropic lanes, as prepare_pixel and evaluate(): a material anisotropy and a
+            // tangent with a usable part across n. t, b = n x t, the alphas of
+            // anisotropic_alphas and the per-pixel half of the anisotropic Smith term.
+            V aniso = zero;
+            V tx = zero, ty = zero, tz = zero, bx = zero, by = zero, bz = zero;
+            V inv_ax = one, inv_ay = one, ax2 = one, ay2 = one, d_scale = one;
+            V tv = zero, bv = zero, lv = one;
+            if (sh.tangent) {
+                const V cand = _mm256_and_ps(
+                    valid,
+                    _mm256_and_ps(finite_mask(ma), _mm256_cmp_ps(ma, zero, _CMP_NEQ_UQ)));
+                V px_ = zero, py_ = zero, pz_ = zero, tp2 = one;
+                if (_mm256_movemask_ps(cand) != 0) {
+                    V gx, gy, gz;
+                    load3x8(*sh.tangent, x, y, n, gx, gy, gz);
+                    const V ndt = vdot(nx, ny, nz, gx, gy, gz);
+                    px_ = vsub(gx, vmul(nx, ndt));
+                    py_ = vsub(gy, vmul(ny, ndt));
+                    pz_ = vsub(gz, vmul(nz, ndt));
+                    tp2 = vdot(px_, py_, pz_, px_, py_, pz_);
+                    aniso = _mm256_and_ps(
+                        cand, _mm256_and_ps(finite_mask(px_), finite_mask(py_)));
+                    aniso = _mm256_and_ps(aniso, finite_mask(pz_));
+                    aniso = _mm256_and_ps(aniso, _mm256_cmp_ps(tp2, vset(1e-8f), _CMP_GT_OQ));
+                }
+                if (_mm256_movemask_ps(aniso) != 0) {
+                    const V inv_t = _mm256_div_ps(one, _mm256_sqrt_ps(select(aniso, tp2, one)));
+                    tx = vmul(px_, inv_t);
+                    ty = vmul(py_, inv_t);
+                    tz = vmul(pz_, inv_t);
+                    bx = vsub(vmul(ny, tz), vmul(nz, ty));
+                    by = vsub(vmul(nz, tx), vmul(nx, tz));
+                    bz = vsub(vmul(nx, ty), vmul(ny, tx));
+                    const V an = simd::v8::clamp(ma, vset(-1.0f), one);
+                    const V min_alpha = vset(shading::kMinRoughness * shading::kMinRoughness);
+                    const V ax = _mm256_max_ps(vmul(alpha, vadd(one, an)), min_alpha);
+                    const V ay = _mm256_max_ps(vmul(alpha, vsub(one, an)), min_alpha);
+                    inv_ax = _mm256_div_ps(one, ax);
+                    inv_ay = _mm256_div_ps(one, ay);
+                    ax2 = vmul(ax, ax);
+                    ay2 = vmul(ay, ay);
+                    d_scale = _mm256_div_ps(vset(1.0f / shading::kPi), vmul(ax, ay));
+                    tv = vdot(tx, ty, tz, vx, vy, vz);
+                    bv = vdot(bx, by, bz, vx, vy, vz);
+                    lv = _mm256_sqrt_ps(
+                        vadd(vadd(vmul(ax2, vmul(tv, tv)), vmul(ay2, vmul(bv, bv))), vmul(nv, nv)));
+                }
+            }
+            const bool any_aniso = _mm256_movemask_ps(aniso) != 0;
 
             if (_mm256_movemask_ps(fast) != 0) {
                 for (const Light &light : lights) {
@@ -1081,9 +1126,9 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                     // s2 = 1 - (n.h)^2 from h's part across n, |h - n (n.h)|^2: near the peak
                     // 1 - (n.h)^2 cancels and D inherits an error ~ ulp / a2.
                     const V nhu = vadd(nv_raw, nl);  // n.(v + l)
-                    const V tx = vsub(hx, vmul(nx, nhu)), ty = vsub(hy, vmul(ny, nhu)),
-                            tz = vsub(hz, vmul(nz, nhu));
-                    V s2 = _mm256_min_ps(vmul(vdot(tx, ty, tz, tx, ty, tz), vmul(inv_h, inv_h)), one);
+                    const V qx = vsub(hx, vmul(nx, nhu)), qy = vsub(hy, vmul(ny, nhu)),
+                            qz = vsub(hz, vmul(nz, nhu));
+                    V s2 = _mm256_min_ps(vmul(vdot(qx, qy, qz, qx, qy, qz), vmul(inv_h, inv_h)), one);
                     s2 = select(_mm256_cmp_ps(nh, zero, _CMP_GT_OQ), s2, one);  // n.h = 0
                     s2 = select(hok, s2, zero);                                  // h = n
                     const V dd = vfma(s2, one_minus_a2, a2);
@@ -1093,7 +1138,23 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                     const V sl2 = vfma(vmul(nlc, nlc), one_minus_a2, a2);
                     const V sl = vmul(sl2, simd::v8::rsqrt(sl2));
                     const V vis = vmul(half, simd::v8::rcp(vfma(nlc, sv, vmul(nv, sl))));
-                    const V spec = vmul(vmul(d, vis), nl);
+                    V dv = vmul(d, vis);
+                    if (any_aniso) {
+                        // Anisotropic D and V (d_ggx_aniso, v_smith_correlated_aniso).
+                        const V tl = vdot(tx, ty, tz, lx, ly, lz);
+                        const V bl = vdot(bx, by, bz, lx, ly, lz);
+                        const V hxa = vmul(vmul(vadd(tv, tl), inv_h), inv_ax);
+                        const V hya = vmul(vmul(vadd(bv, bl), inv_h), inv_ay);
+                        const V da2 = vadd(vadd(vmul(hxa, hxa), vmul(hya, hya)), vmul(nh, nh));
+                        const V da = _mm256_and_ps(_mm256_cmp_ps(nh, zero, _CMP_GT_OQ),
+                                                   vmul(d_scale, simd::v8::rcp(vmul(da2, da2))));
+                        const V ll2 = vadd(vadd(vmul(ax2, vmul(tl, tl)), vmul(ay2, vmul(bl, bl))),
+                                           vmul(nlc, nlc));
+                        const V ll = vmul(ll2, simd::v8::rsqrt(ll2));
+                        const V visa = vmul(half, simd::v8::rcp(vadd(vmul(nlc, lv), vmul(nv, ll))));
+                        dv = select(aniso, vmul(da, visa), dv);
+                    }
+                    const V spec = vmul(dv, nl);
                     // Schlick: F = f0 + (1 - f0) m^5, m = 1 - clamp(v.h, 0, 1).
                     const V m = vsub(one, _mm256_min_ps(vh, one));
                     const V m2 = vmul(m, m);
