@@ -948,6 +948,9 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
     const V eye_x = vset(sh.eye.x), eye_y = vset(sh.eye.y), eye_z = vset(sh.eye.z);
     const __m256i toon_bits =
         _mm256_loadu_si256(reinterpret_cast<const __m256i *>(sh.toon_words.data()));
+    // Streaming (non-temporal) stores when the row is 16-byte aligned: the 33 MB output does
+    // not fit in any cache, and a normal store first reads each line it writes.
+    const bool stream = nc == 4 && reinterpret_cast<std::uintptr_t>(out.pixel(x0, y)) % 16 == 0;
     for (int x = x0; x < x1; x += 8) {
         const int n = std::min(8, x1 - x);
         // Setup, as prepare_pixel.
@@ -1109,7 +1112,11 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                         }
                     }
                     const V nl = vdot(nx, ny, nz, lx, ly, lz);
-                    const V lit = _mm256_and_ps(fast, _mm256_cmp_ps(nl, zero, _CMP_GT_OQ));
+                    V lit = _mm256_and_ps(fast, _mm256_cmp_ps(nl, zero, _CMP_GT_OQ));
+                    if (light.type == LightType::Spot) {
+                        // Outside the cone the light adds exactly 0: skip it for the group.
+                        lit = _mm256_and_ps(lit, _mm256_cmp_ps(falloff, zero, _CMP_GT_OQ));
+                    }
                     if (_mm256_movemask_ps(lit) == 0) {
                         continue;
                     }
@@ -1225,7 +1232,13 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
             for (int k = 0; k < 4; ++k) {
                 const V in = _mm256_loadu_ps(src + 8 * k);
                 const V lit = sh.replace ? acc[k] : vadd(in, acc[k]);
-                _mm256_storeu_ps(dst + 8 * k, select(mask[k], lit, in));
+                const V o = select(mask[k], lit, in);
+                if (stream) {
+                    _mm_stream_ps(dst + 8 * k, _mm256_castps256_ps128(o));
+                    _mm_stream_ps(dst + 8 * k + 4, _mm256_extractf128_ps(o, 1));
+                } else {
+                    _mm256_storeu_ps(dst + 8 * k, o);
+                }
             }
             continue;
         }
@@ -1241,6 +1254,9 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                 d[2] = sh.replace ? cb[i] : d[2] + cb[i];
             }
         }
+    }
+    if (stream) {
+        _mm_sfence();  // order the streaming stores before the loop's join
     }
 }
 #pragma GCC pop_options
