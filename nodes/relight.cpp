@@ -851,15 +851,12 @@ POSTHASTE_AVX2_INLINE void load3x8(const Image &img, int x, int y, int n, V &a, 
     if (ch == 3 && n == 8) {
         // 24 floats x0 y0 z0 x1 ... as three 256-bit registers of 128-bit halves
         // [x0 y0 z0 x1 | x4 y4 z4 x5], [y1 z1 x2 y2 | y5 z5 x6 y6], [z2 x3 y3 z3 | z6 x7 y7 z7].
-        const V m03 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p)),
-                                           _mm_loadu_ps(p + 12),
-                                           1);
-        const V m14 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p + 4)),
-                                           _mm_loadu_ps(p + 16),
-                                           1);
-        const V m25 = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p + 8)),
-                                           _mm_loadu_ps(p + 20),
-                                           1);
+        const V m03 =
+            _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p)), _mm_loadu_ps(p + 12), 1);
+        const V m14 = _mm256_insertf128_ps(
+            _mm256_castps128_ps256(_mm_loadu_ps(p + 4)), _mm_loadu_ps(p + 16), 1);
+        const V m25 = _mm256_insertf128_ps(
+            _mm256_castps128_ps256(_mm_loadu_ps(p + 8)), _mm_loadu_ps(p + 20), 1);
         const V xy = _mm256_shuffle_ps(m14, m25, _MM_SHUFFLE(2, 1, 3, 2));  // x2 y2 x3 y3
         const V yz = _mm256_shuffle_ps(m03, m14, _MM_SHUFFLE(1, 0, 2, 1));  // y0 z0 y1 z1
         a = _mm256_shuffle_ps(m03, xy, _MM_SHUFFLE(2, 0, 3, 0));
@@ -894,10 +891,11 @@ POSTHASTE_AVX2_INLINE void interleave4x8(V r, V g, V b, V a, V out[4])
     out[3] = _mm256_permute2f128_ps(u2, u3, 0x31);
 }
 
-// One channel of a light's contribution: (kd dfac + F spec) e, clamped, zero where unlit.
-POSTHASTE_AVX2_INLINE V light_channel(V f0, V kd, V e, V m5, V dfac, V spec, V lit, V clamp_v)
+// One channel of a light's contribution: (kd dfac + F spec) e, clamped, zero where unlit;
+// f1 = 1 - f0.
+POSTHASTE_AVX2_INLINE V light_channel(V f0, V f1, V kd, V e, V m5, V dfac, V spec, V lit, V clamp_v)
 {
-    const V f = vfma(vsub(vset(1.0f), f0), m5, f0);
+    const V f = vfma(f1, m5, f0);
     const V c = vmul(vfma(kd, dfac, vmul(f, spec)), e);
     return _mm256_and_ps(lit, _mm256_min_ps(c, clamp_v));
 }
@@ -905,8 +903,8 @@ POSTHASTE_AVX2_INLINE V light_channel(V f0, V kd, V e, V m5, V dfac, V spec, V l
 // Lanes whose bit is set in `bits`, as an all-ones mask.
 POSTHASTE_AVX2_INLINE V mask_from_bits(int bits)
 {
-    const __m256i b = _mm256_and_si256(_mm256_set1_epi32(bits),
-                                       _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128));
+    const __m256i b =
+        _mm256_and_si256(_mm256_set1_epi32(bits), _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128));
     return _mm256_castsi256_ps(_mm256_cmpgt_epi32(b, _mm256_setzero_si256()));
 }
 
@@ -928,9 +926,10 @@ POSTHASTE_AVX2_INLINE V toon_mask(const Image &id, int x, int y, int n, __m256i 
                                      _mm256_cmp_ps(m, vset(255.5f), _CMP_LT_OQ));
     const __m256i k = _mm256_cvttps_epi32(_mm256_and_ps(in_range, vadd(m, vset(0.5f))));
     const __m256i word = _mm256_permutevar8x32_epi32(bits, _mm256_srli_epi32(k, 5));
-    const __m256i bit = _mm256_and_si256(_mm256_srlv_epi32(word, _mm256_and_si256(k, _mm256_set1_epi32(31))),
-                                         _mm256_set1_epi32(1));
-    return _mm256_and_ps(in_range, _mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, _mm256_set1_epi32(1))));
+    const __m256i bit = _mm256_and_si256(
+        _mm256_srlv_epi32(word, _mm256_and_si256(k, _mm256_set1_epi32(31))), _mm256_set1_epi32(1));
+    return _mm256_and_ps(in_range,
+                         _mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, _mm256_set1_epi32(1))));
 }
 
 POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Image &out)
@@ -1034,8 +1033,7 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
             V tv = zero, bv = zero, lv = one;
             if (sh.tangent) {
                 const V cand = _mm256_and_ps(
-                    valid,
-                    _mm256_and_ps(finite_mask(ma), _mm256_cmp_ps(ma, zero, _CMP_NEQ_UQ)));
+                    valid, _mm256_and_ps(finite_mask(ma), _mm256_cmp_ps(ma, zero, _CMP_NEQ_UQ)));
                 V px_ = zero, py_ = zero, pz_ = zero, tp2 = one;
                 if (_mm256_movemask_ps(cand) != 0) {
                     V gx, gy, gz;
@@ -1045,8 +1043,7 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                     py_ = vsub(gy, vmul(ny, ndt));
                     pz_ = vsub(gz, vmul(nz, ndt));
                     tp2 = vdot(px_, py_, pz_, px_, py_, pz_);
-                    aniso = _mm256_and_ps(
-                        cand, _mm256_and_ps(finite_mask(px_), finite_mask(py_)));
+                    aniso = _mm256_and_ps(cand, _mm256_and_ps(finite_mask(px_), finite_mask(py_)));
                     aniso = _mm256_and_ps(aniso, finite_mask(pz_));
                     aniso = _mm256_and_ps(aniso, _mm256_cmp_ps(tp2, vset(1e-8f), _CMP_GT_OQ));
                 }
@@ -1074,6 +1071,8 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                 }
             }
             const bool any_aniso = _mm256_movemask_ps(aniso) != 0;
+            const bool any_toon = _mm256_movemask_ps(_mm256_and_ps(toon, valid)) != 0;
+            const V f1r = vsub(one, f0r), f1g = vsub(one, f0g), f1b = vsub(one, f0b);
 
             if (_mm256_movemask_ps(fast) != 0) {
                 for (const Light &light : lights) {
@@ -1089,8 +1088,7 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                         const V d2 = vdot(dx, dy, dz, dx, dy, dz);
                         // At the light (d2 = 0) the lane gets l = 0: n.l = 0, no light.
                         const V inv =
-                            _mm256_and_ps(_mm256_cmp_ps(d2, zero, _CMP_GT_OQ),
-                                          simd::v8::rsqrt(d2));
+                            _mm256_and_ps(_mm256_cmp_ps(d2, zero, _CMP_GT_OQ), simd::v8::rsqrt(d2));
                         lx = vmul(dx, inv);
                         ly = vmul(dy, inv);
                         lz = vmul(dz, inv);
@@ -1108,7 +1106,8 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                                      vset(1.0f / (light.cos_inner - light.cos_outer))),
                                 zero,
                                 one);
-                            falloff = vmul(falloff, vmul(vmul(t, t), vfma(t, vset(-2.0f), vset(3.0f))));
+                            falloff =
+                                vmul(falloff, vmul(vmul(t, t), vfma(t, vset(-2.0f), vset(3.0f))));
                         }
                     }
                     const V nl = vdot(nx, ny, nz, lx, ly, lz);
@@ -1126,18 +1125,21 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                     const V hok = _mm256_cmp_ps(hlen2, vset(1e-16f), _CMP_GT_OQ);
                     const V inv_h = simd::v8::rsqrt(select(hok, hlen2, one));
                     // Degenerate h (v = -l) falls back to h = n: n.h = 1, v.h = n.v.
-                    const V nh = _mm256_max_ps(select(hok, vmul(vadd(nv_raw, nl), inv_h), one), zero);
+                    const V nh =
+                        _mm256_max_ps(select(hok, vmul(vadd(nv_raw, nl), inv_h), one), zero);
                     const V vl = vdot(vx, vy, vz, lx, ly, lz);
-                    const V vh = _mm256_max_ps(select(hok, vmul(vadd(one, vl), inv_h), nv_raw), zero);
+                    const V vh =
+                        _mm256_max_ps(select(hok, vmul(vadd(one, vl), inv_h), nv_raw), zero);
                     // D = a2 / (pi d^2), d = (n.h)^2 (a2 - 1) + 1 = s2 (1 - a2) + a2 with
                     // s2 = 1 - (n.h)^2 from h's part across n, |h - n (n.h)|^2: near the peak
                     // 1 - (n.h)^2 cancels and D inherits an error ~ ulp / a2.
                     const V nhu = vadd(nv_raw, nl);  // n.(v + l)
                     const V qx = vsub(hx, vmul(nx, nhu)), qy = vsub(hy, vmul(ny, nhu)),
                             qz = vsub(hz, vmul(nz, nhu));
-                    V s2 = _mm256_min_ps(vmul(vdot(qx, qy, qz, qx, qy, qz), vmul(inv_h, inv_h)), one);
+                    V s2 =
+                        _mm256_min_ps(vmul(vdot(qx, qy, qz, qx, qy, qz), vmul(inv_h, inv_h)), one);
                     s2 = select(_mm256_cmp_ps(nh, zero, _CMP_GT_OQ), s2, one);  // n.h = 0
-                    s2 = select(hok, s2, zero);                                  // h = n
+                    s2 = select(hok, s2, zero);                                 // h = n
                     const V dd = vfma(s2, one_minus_a2, a2);
                     const V d = vmul(a2_pi, simd::v8::rcp(vmul(dd, dd)));
                     // V = 0.5 / (n.l sv + n.v sqrt(n.l^2 (1 - a2) + a2)), cosines clamped.
@@ -1168,13 +1170,15 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                     const V m5 = vmul(vmul(m2, m2), m);
                     // Diffuse n.l, or the toon band ceil(n.l bands) / bands.
                     const V dfac =
-                        select(toon, vmul(_mm256_ceil_ps(vmul(nl, bands_v)), inv_bands), nl);
+                        any_toon
+                            ? select(toon, vmul(_mm256_ceil_ps(vmul(nl, bands_v)), inv_bands), nl)
+                            : nl;
                     const V er = vmul(vset(light.power.x), falloff);
                     const V eg = vmul(vset(light.power.y), falloff);
                     const V eb = vmul(vset(light.power.z), falloff);
-                    ar = vadd(ar, light_channel(f0r, kdr, er, m5, dfac, spec, lit, clamp_v));
-                    ag = vadd(ag, light_channel(f0g, kdg, eg, m5, dfac, spec, lit, clamp_v));
-                    ab = vadd(ab, light_channel(f0b, kdb, eb, m5, dfac, spec, lit, clamp_v));
+                    ar = vadd(ar, light_channel(f0r, f1r, kdr, er, m5, dfac, spec, lit, clamp_v));
+                    ag = vadd(ag, light_channel(f0g, f1g, kdg, eg, m5, dfac, spec, lit, clamp_v));
+                    ab = vadd(ab, light_channel(f0b, f1b, kdb, eb, m5, dfac, spec, lit, clamp_v));
                 }
             }
             _mm256_store_ps(cr, ar);

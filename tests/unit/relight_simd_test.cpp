@@ -125,12 +125,13 @@ void check_paths_agree(const std::string &params, std::size_t max_outliers)
     }
     const Image fast = run_relight(params);
     const Difference d = compare(fast, ref, gbuffer().image("color"), kTolerance);
-    std::printf("relight AVX2 vs portable: worst relative difference %.3g, %zu of %zu values "
-                "beyond %.0e\n",
-                d.worst_rel,
-                d.outliers,
-                d.changed,
-                kTolerance);
+    std::printf(
+        "relight AVX2 vs portable: worst relative difference %.3g, %zu of %zu values "
+        "beyond %.0e\n",
+        d.worst_rel,
+        d.outliers,
+        d.changed,
+        kTolerance);
     EXPECT_GT(d.changed, std::size_t(ref.width()) * std::size_t(ref.height()));  // it did shade
     EXPECT_LE(d.worst_rel, kTolerance);
     EXPECT_LE(d.outliers, max_outliers);
@@ -145,9 +146,8 @@ TEST(RelightSimd, AddModeMatchesPortablePath)
 
 TEST(RelightSimd, ReplaceWithAmbientAndClampMatchesPortablePath)
 {
-    check_paths_agree(R"({"mode": "replace", "ambient": 0.6, "clamp": 2.0, )" +
-                          std::string(kLights) + "}",
-                      0);
+    check_paths_agree(
+        R"({"mode": "replace", "ambient": 0.6, "clamp": 2.0, )" + std::string(kLights) + "}", 0);
 }
 
 TEST(RelightSimd, SameBitsForAnyThreadCount)
