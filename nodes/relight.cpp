@@ -933,6 +933,46 @@ POSTHASTE_AVX2_INLINE V toon_mask(const Image &id, int x, int y, int n, __m256i 
                          _mm256_castsi256_ps(_mm256_cmpeq_epi32(bit, _mm256_set1_epi32(1))));
 }
 
+// World positions of 8 pixels from depth, as prepare_pixel: the 2x2 solve of the NDC equations
+// for the camera point (X, Y, z, 1), then camera to world. `ok` clears lanes with an infinite
+// depth (background) or a singular system.
+POSTHASTE_AVX2_INLINE void position_from_depth(
+    const Shading &sh, int x, int y, int n, V &px, V &py, V &pz, V &ok)
+{
+    const Image &depth = *sh.depth;
+    alignas(32) float zs[8] = {};
+    for (int i = 0; i < n; ++i) {
+        zs[i] = depth.at(x + i, y, 0);
+    }
+    const V z = _mm256_load_ps(zs);
+    const V xs = vadd(vset(float(x)), _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
+    const V u = _mm256_div_ps(vadd(xs, vset(0.5f)), vset(float(sh.width)));
+    const float v = (float(y) + 0.5f) / float(sh.height);
+    const glm::mat4 &m = sh.cam_to_ndc;
+    const V a00 = vsub(vset(m[0][0]), vmul(u, vset(m[0][3])));
+    const V a01 = vsub(vset(m[1][0]), vmul(u, vset(m[1][3])));
+    const V a10 = vset(m[0][1] - v * m[0][3]), a11 = vset(m[1][1] - v * m[1][3]);
+    const V b0 = _mm256_xor_ps(
+        vset(-0.0f),
+        vsub(vadd(vmul(vsub(vset(m[2][0]), vmul(u, vset(m[2][3]))), z), vset(m[3][0])),
+             vmul(u, vset(m[3][3]))));
+    const V b1 = _mm256_xor_ps(
+        vset(-0.0f),
+        vsub(vadd(vmul(vset(m[2][1] - v * m[2][3]), z), vset(m[3][1])), vset(v * m[3][3])));
+    const V det = vsub(vmul(a00, a11), vmul(a01, a10));
+    ok = _mm256_and_ps(finite_mask(z), _mm256_cmp_ps(det, _mm256_setzero_ps(), _CMP_NEQ_UQ));
+    const V d = select(ok, det, vset(1.0f));
+    const V qx = _mm256_div_ps(vsub(vmul(b0, a11), vmul(a01, b1)), d);
+    const V qy = _mm256_div_ps(vsub(vmul(a00, b1), vmul(a10, b0)), d);
+    const glm::mat4 &c = sh.c2w;
+    px = vadd(vadd(vadd(vmul(vset(c[0][0]), qx), vmul(vset(c[1][0]), qy)), vmul(vset(c[2][0]), z)),
+              vset(c[3][0]));
+    py = vadd(vadd(vadd(vmul(vset(c[0][1]), qx), vmul(vset(c[1][1]), qy)), vmul(vset(c[2][1]), z)),
+              vset(c[3][1]));
+    pz = vadd(vadd(vadd(vmul(vset(c[0][2]), qx), vmul(vset(c[1][2]), qy)), vmul(vset(c[2][2]), z)),
+              vset(c[3][2]));
+}
+
 POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Image &out)
 {
     const V zero = _mm256_setzero_ps(), one = vset(1.0f), half = vset(0.5f);
@@ -955,13 +995,18 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
         const int n = std::min(8, x1 - x);
         // Setup, as prepare_pixel.
         V px, py, pz, nx, ny, nz;
-        load3x8(*sh.position, x, y, n, px, py, pz);
+        V depth_ok = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+        if (sh.from_depth) {
+            position_from_depth(sh, x, y, n, px, py, pz, depth_ok);
+        } else {
+            load3x8(*sh.position, x, y, n, px, py, pz);
+        }
         load3x8(*sh.normal, x, y, n, nx, ny, nz);
         const V nlen2 = vdot(nx, ny, nz, nx, ny, nz);
         // |n| > 0.5 and finite, as nlen2 > 0.25 (rounding can differ only within an ulp of 0.5).
         V valid = _mm256_cmp_ps(lane, vset(float(n)), _CMP_LT_OQ);
         valid = _mm256_and_ps(valid, _mm256_and_ps(finite_mask(px), finite_mask(py)));
-        valid = _mm256_and_ps(valid, finite_mask(pz));
+        valid = _mm256_and_ps(valid, _mm256_and_ps(finite_mask(pz), depth_ok));
         valid = _mm256_and_ps(valid, _mm256_cmp_ps(nlen2, vset(0.25f), _CMP_GT_OQ));
         valid = _mm256_and_ps(valid, finite_mask(nlen2));
         const V ex = vsub(eye_x, px), ey = vsub(eye_y, py), ez = vsub(eye_z, pz);
@@ -1365,7 +1410,7 @@ void execute(NodeContext &ctx)
     }
     bool use_avx2 = false;
 #if POSTHASTE_HAVE_AVX2_TARGET
-    use_avx2 = simd::avx2() && sh.fast_ok && !from_depth;
+    use_avx2 = simd::avx2() && sh.fast_ok;
 #endif
 
     if (use_avx2) {

@@ -1,7 +1,8 @@
 // The relight node's AVX2 path (nodes/relight.cpp, shade_row_avx2) against its portable path
 // (scalar setup, SSE2 kernel, shading::direct_response) on a real frame: the Minecrappy scene's
 // G-buffer at frame 30 with every material kind (rough and glossy dielectrics, metals, the
-// anisotropic ones, toon leaves) under a sun, two point lights and a spot, in both modes.
+// anisotropic ones, toon leaves) under a sun, two point lights and a spot, in both modes and
+// with positions from the position pass or from depth.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -148,6 +149,14 @@ TEST(RelightSimd, ReplaceWithAmbientAndClampMatchesPortablePath)
 {
     check_paths_agree(
         R"({"mode": "replace", "ambient": 0.6, "clamp": 2.0, )" + std::string(kLights) + "}", 0);
+}
+
+TEST(RelightSimd, PositionFromDepthMatchesPortablePath)
+{
+    // The AVX2 path's own 2x2 solve for the position against prepare_pixel's.
+    check_paths_agree(R"({"mode": "replace", "position_from": "depth", "toon_ids": "6", )" +
+                          std::string(kLights) + "}",
+                      8);
 }
 
 TEST(RelightSimd, SameBitsForAnyThreadCount)
