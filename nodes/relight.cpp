@@ -640,7 +640,9 @@ struct Shading {
     const Image *color = nullptr, *normal = nullptr, *albedo = nullptr, *material = nullptr;
     const Image *position = nullptr, *depth = nullptr, *tangent = nullptr, *id = nullptr;
     bool from_depth = false, shadows = false, replace = false;
-    bool fast_ok = false;  // options the vector kernels cover (per pixel: isotropic, not toon)
+    bool fast_ok = false;  // options the SSE2 kernel covers (per pixel: isotropic, not toon)
+    bool avx2_ok = false;  // options the AVX2 path covers: fast_ok plus energy compensation
+    const shading::EnergyTable *energy = nullptr;  // the Kulla-Conty table when compensating
     glm::mat4 c2w{1.0f}, cam_to_ndc{1.0f};
     glm::vec3 eye{0.0f}, sky_sun{0.0f};
     int width = 0, height = 0;
@@ -901,6 +903,46 @@ POSTHASTE_AVX2_INLINE V light_channel(V f0, V f1, V kd, V e, V m5, V dfac, V spe
     return _mm256_and_ps(lit, _mm256_min_ps(c, clamp_v));
 }
 
+// The same with the multiple-scattering lobe `ms` (already times n.l) added to the BRDF.
+POSTHASTE_AVX2_INLINE V
+light_channel_ms(V f0, V f1, V kd, V e, V m5, V dfac, V spec, V ms, V lit, V clamp_v)
+{
+    const V f = vfma(f1, m5, f0);
+    const V c = vmul(vadd(vfma(kd, dfac, vmul(f, spec)), ms), e);
+    return _mm256_and_ps(lit, _mm256_min_ps(c, clamp_v));
+}
+
+// The coloured term of shading::multiscatter, F_avg^2 E_avg / (1 - F_avg (1 - E_avg)) with
+// Schlick's F_avg = (20 F0 + 1) / 21.
+POSTHASTE_AVX2_INLINE V ms_colour(V f0, V e_avg)
+{
+    const V one = vset(1.0f);
+    const V f_avg = _mm256_div_ps(vadd(vmul(vset(20.0f), f0), one), vset(21.0f));
+    return _mm256_div_ps(vmul(vmul(f_avg, f_avg), e_avg), vsub(one, vmul(f_avg, vsub(one, e_avg))));
+}
+
+// EnergyTable::lookup_e for 8 lanes at mu = min(n.l, 1), the roughness row `row0` (j0 kMu) and
+// its weight tr fixed per pixel. Unlit lanes (n.l <= 0 or NaN) read a clamped, valid entry.
+POSTHASTE_AVX2_INLINE V energy_e(const shading::EnergyTable &t, __m256i row0, V tr, V nl)
+{
+    constexpr int kMu = shading::EnergyTable::kMu;
+    const V mu = _mm256_min_ps(nl, vset(1.0f));
+    // max(x, 0) returns 0 for a NaN x (the second operand).
+    const V fm = _mm256_min_ps(
+        _mm256_max_ps(vsub(vmul(mu, vset(float(kMu))), vset(0.5f)), _mm256_setzero_ps()),
+        vset(float(kMu - 1)));
+    const __m256i i0 = _mm256_min_epi32(_mm256_cvttps_epi32(fm), _mm256_set1_epi32(kMu - 2));
+    const V tm = vsub(fm, _mm256_cvtepi32_ps(i0));
+    const __m256i idx = _mm256_add_epi32(row0, i0);
+    const float *e = t.e.data();
+    const V r00 = _mm256_i32gather_ps(e, idx, 4), r01 = _mm256_i32gather_ps(e + 1, idx, 4);
+    const V r10 = _mm256_i32gather_ps(e + kMu, idx, 4),
+            r11 = _mm256_i32gather_ps(e + kMu + 1, idx, 4);
+    const V a = vadd(r00, vmul(vsub(r01, r00), tm));
+    const V b = vadd(r10, vmul(vsub(r11, r10), tm));
+    return vadd(a, vmul(vsub(b, a), tr));
+}
+
 // Lanes whose bit is set in `bits`, as an all-ones mask.
 POSTHASTE_AVX2_INLINE V mask_from_bits(int bits)
 {
@@ -1118,6 +1160,40 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
             }
             const bool any_aniso = _mm256_movemask_ps(aniso) != 0;
             const bool any_toon = _mm256_movemask_ps(_mm256_and_ps(toon, valid)) != 0;
+            // Kulla-Conty lobe (shading::multiscatter): per pixel E_avg, E(n.v) and the coloured
+            // F_ms / (pi (1 - E_avg)) (1 - E(n.v)), looked up exactly as the scalar code; per light
+            // E(n.l) from the table row of this roughness. Toon lanes have none.
+            V msr = zero, msg = zero, msb = zero, tr = zero;
+            __m256i row0 = _mm256_setzero_si256();
+            if (sh.energy) {
+                alignas(32) float r_a[8], nv_a[8], eavg_a[8] = {}, k_a[8] = {};
+                _mm256_store_ps(r_a, rough);
+                _mm256_store_ps(nv_a, nv_raw);
+                const int fast_bits = _mm256_movemask_ps(_mm256_andnot_ps(toon, fast));
+                for (int i = 0; i < n; ++i) {
+                    if (!((fast_bits >> i) & 1)) {
+                        continue;
+                    }
+                    const float e_avg = sh.energy->lookup_e_avg(r_a[i]);
+                    if (e_avg > 1.0f - 1e-6f) {
+                        continue;
+                    }
+                    const float ev =
+                        sh.energy->lookup_e(r_a[i], std::clamp(nv_a[i], shading::kMinCosine, 1.0f));
+                    eavg_a[i] = e_avg;
+                    k_a[i] = (1.0f - ev) / (shading::kPi * (1.0f - e_avg));
+                }
+                const V e_avg = _mm256_load_ps(eavg_a), k = _mm256_load_ps(k_a);
+                msr = vmul(ms_colour(f0r, e_avg), k);
+                msg = vmul(ms_colour(f0g, e_avg), k);
+                msb = vmul(ms_colour(f0b, e_avg), k);
+                const V fr = vmul(rough, vset(float(shading::EnergyTable::kRoughness - 1)));
+                const __m256i j0 =
+                    _mm256_min_epi32(_mm256_cvttps_epi32(fr),
+                                     _mm256_set1_epi32(shading::EnergyTable::kRoughness - 2));
+                tr = vsub(fr, _mm256_cvtepi32_ps(j0));
+                row0 = _mm256_mullo_epi32(j0, _mm256_set1_epi32(shading::EnergyTable::kMu));
+            }
             const V f1r = vsub(one, f0r), f1g = vsub(one, f0g), f1b = vsub(one, f0b);
 
             if (_mm256_movemask_ps(fast) != 0) {
@@ -1209,7 +1285,7 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                         const V visa = vmul(half, simd::v8::rcp(vadd(vmul(nlc, lv), vmul(nv, ll))));
                         dv = select(aniso, vmul(da, visa), dv);
                     }
-                    const V spec = vmul(dv, nl);
+                    V spec = vmul(dv, nl);
                     // Schlick: F = f0 + (1 - f0) m^5, m = 1 - clamp(v.h, 0, 1).
                     const V m = vsub(one, _mm256_min_ps(vh, one));
                     const V m2 = vmul(m, m);
@@ -1222,6 +1298,22 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
                     const V er = vmul(vset(light.power.x), falloff);
                     const V eg = vmul(vset(light.power.y), falloff);
                     const V eb = vmul(vset(light.power.z), falloff);
+                    if (sh.energy) {
+                        const V msl = vmul(vsub(one, energy_e(*sh.energy, row0, tr, nl)), nl);
+                        ar = vadd(
+                            ar,
+                            light_channel_ms(
+                                f0r, f1r, kdr, er, m5, dfac, spec, vmul(msr, msl), lit, clamp_v));
+                        ag = vadd(
+                            ag,
+                            light_channel_ms(
+                                f0g, f1g, kdg, eg, m5, dfac, spec, vmul(msg, msl), lit, clamp_v));
+                        ab = vadd(
+                            ab,
+                            light_channel_ms(
+                                f0b, f1b, kdb, eb, m5, dfac, spec, vmul(msb, msl), lit, clamp_v));
+                        continue;
+                    }
                     ar = vadd(ar, light_channel(f0r, f1r, kdr, er, m5, dfac, spec, lit, clamp_v));
                     ag = vadd(ag, light_channel(f0g, f1g, kdg, eg, m5, dfac, spec, lit, clamp_v));
                     ab = vadd(ab, light_channel(f0b, f1b, kdb, eb, m5, dfac, spec, lit, clamp_v));
@@ -1394,6 +1486,10 @@ void execute(NodeContext &ctx)
     sh.replace = replace;
     sh.fast_ok = !shadows && !base.burley && !base.energy_compensation &&
                  base.geometry == shading::Geometry::SmithCorrelated;
+    sh.avx2_ok = !shadows && !base.burley && base.geometry == shading::Geometry::SmithCorrelated;
+    if (base.energy_compensation) {
+        sh.energy = &shading::energy_table(base.geometry);
+    }
     sh.c2w = c2w;
     sh.cam_to_ndc = cam_to_ndc;
     sh.eye = eye;
@@ -1410,7 +1506,7 @@ void execute(NodeContext &ctx)
     }
     bool use_avx2 = false;
 #if POSTHASTE_HAVE_AVX2_TARGET
-    use_avx2 = simd::avx2() && sh.fast_ok;
+    use_avx2 = simd::avx2() && sh.avx2_ok;
 #endif
 
     if (use_avx2) {

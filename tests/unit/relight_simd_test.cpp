@@ -159,6 +159,14 @@ TEST(RelightSimd, PositionFromDepthMatchesPortablePath)
                       8);
 }
 
+TEST(RelightSimd, EnergyCompensationMatchesPortablePath)
+{
+    // The Kulla-Conty lobe with the table read per lane (gathers) against multiscatter().
+    check_paths_agree(R"({"mode": "add", "energy_compensation": true, "toon_ids": "6", )" +
+                          std::string(kLights) + "}",
+                      8);
+}
+
 TEST(RelightSimd, SameBitsForAnyThreadCount)
 {
     const std::string params = R"({"mode": "add", "toon_ids": "6", )" + std::string(kLights) + "}";
