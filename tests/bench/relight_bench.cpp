@@ -14,6 +14,7 @@
 #include <string>
 
 #include "core/parallel.h"
+#include "core/simd.h"
 #include "graph/graph.h"
 #include "raster/render.h"
 
@@ -145,6 +146,13 @@ void BM_Relight4LightsOneThread(benchmark::State &state)
     set_thread_count(0);
 }
 
+// The same work on the portable path (scalar setup, SSE2 kernel): the AVX2 path's baseline.
+void BM_Relight4LightsPortable(benchmark::State &state)
+{
+    simd::ScopedLevel scalar(simd::Level::Scalar);
+    run_node(state, "");
+}
+
 void BM_Relight4LightsEnergyCompensation(benchmark::State &state)
 {
     run_node(state, R"(, "energy_compensation": true)");
@@ -159,6 +167,7 @@ BENCHMARK(BM_RelightBaselineCopy)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_RelightBaselineLambert)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4Lights)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsOneThread)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Relight4LightsPortable)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsEnergyCompensation)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsScreenShadows)->Unit(benchmark::kMillisecond)->UseRealTime();
 
