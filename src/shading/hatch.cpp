@@ -199,23 +199,36 @@ POSTHASTE_AVX2_INLINE V fast_log2_v(V x)
     return add(e, mul(t, sub(v8::set1(1.3466f), mul(v8::set1(0.3466f), t))));
 }
 
-/// Gathers the float pairs (base[i], base[i + 1]) of eight float indices i: a gets the first,
-/// b the second. Two 4-lane 64-bit gathers instead of two 8-lane 32-bit ones.
+/// Two adjacent floats at a (low 64 bits) and at b (high 64 bits).
+POSTHASTE_AVX2_INLINE __m128i load_two_pairs(const float *a, const float *b)
+{
+    std::uint64_t x, y;
+    std::memcpy(&x, a, 8);
+    std::memcpy(&y, b, 8);
+    return _mm_insert_epi64(_mm_cvtsi64_si128(std::int64_t(x)), std::int64_t(y), 1);
+}
+
+/// Loads the float pairs (base[i], base[i + 1]) of eight float indices i: a gets the first,
+/// b the second. Scalar 64-bit loads: on this kind of CPU (gather microcode mitigations) they
+/// measured faster than vgatherdpd.
 POSTHASTE_AVX2_INLINE void gather_pairs(const float *base, VI idx, V &a, V &b)
 {
-    // Lanes 0, 1, 4, 5 in the first gather and 2, 3, 6, 7 in the second, so that the shuffles
-    // below put the pairs back in lane order.
-    const VI perm = _mm256_permutevar8x32_epi32(idx, _mm256_setr_epi32(0, 1, 4, 5, 2, 3, 6, 7));
-    const double *d = reinterpret_cast<const double *>(base);
-    // The masked form with an explicit source: GCC 12's plain _mm256_i32gather_pd reads an
-    // undefined source and warns.
-    const __m256d all = _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), none = _mm256_setzero_pd();
-    const V lo =
-        _mm256_castpd_ps(_mm256_mask_i32gather_pd(none, d, _mm256_castsi256_si128(perm), all, 4));
-    const V hi = _mm256_castpd_ps(
-        _mm256_mask_i32gather_pd(none, d, _mm256_extracti128_si256(perm, 1), all, 4));
-    a = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(2, 0, 2, 0));
-    b = _mm256_shuffle_ps(lo, hi, _MM_SHUFFLE(3, 1, 3, 1));
+    alignas(32) std::int32_t i[8];
+    _mm256_store_si256(reinterpret_cast<VI *>(i), idx);
+    // Pixels 0, 1, 4, 5 in lo and 2, 3, 6, 7 in hi, so that the shuffles below put the pairs
+    // back in lane order.
+    const VI lo =
+        _mm256_inserti128_si256(_mm256_castsi128_si256(load_two_pairs(base + i[0], base + i[1])),
+                                load_two_pairs(base + i[4], base + i[5]),
+                                1);
+    const VI hi =
+        _mm256_inserti128_si256(_mm256_castsi128_si256(load_two_pairs(base + i[2], base + i[3])),
+                                load_two_pairs(base + i[6], base + i[7]),
+                                1);
+    a = _mm256_shuffle_ps(
+        _mm256_castsi256_ps(lo), _mm256_castsi256_ps(hi), _MM_SHUFFLE(2, 0, 2, 0));
+    b = _mm256_shuffle_ps(
+        _mm256_castsi256_ps(lo), _mm256_castsi256_ps(hi), _MM_SHUFFLE(3, 1, 3, 1));
 }
 
 /// ToneCurve::operator() on eight lanes.
@@ -243,8 +256,8 @@ POSTHASTE_AVX2_INLINE V texel_v(const float *packed, VI row, VI col, VI k, V f)
 }
 
 /// Tam::ramp_level on eight lanes (per-lane level, ramp entry k and blend f).
-POSTHASTE_AVX2_INLINE V ramp_level_v(
-    const float *packed, const int *level_offsets, int size, VI level, VI k, V f, VI fu, VI fv)
+POSTHASTE_AVX2_INLINE V
+ramp_level_v(const float *packed, int size, VI level, VI k, V f, VI fu, VI fv)
 {
     const VI one = _mm256_set1_epi32(1);
     const VI s = _mm256_srlv_epi32(_mm256_set1_epi32(size), level);
@@ -259,7 +272,13 @@ POSTHASTE_AVX2_INLINE V ramp_level_v(
     const V fy = mul(_mm256_cvtepi32_ps(_mm256_and_si256(y, frac)), inv);
     const VI x1 = _mm256_and_si256(_mm256_add_epi32(x0, one), mask);
     const VI y1 = _mm256_and_si256(_mm256_add_epi32(y0, one), mask);
-    const VI base = _mm256_i32gather_epi32(level_offsets, level, 4);
+    // First texel of the level: sum of (size >> j)^2 for j < level = 4 (size^2 - s^2) / 3,
+    // divided exactly by multiplying with the inverse of 3 modulo 2^32.
+    const VI sz = _mm256_set1_epi32(size);
+    const VI base = _mm256_mullo_epi32(
+        _mm256_slli_epi32(_mm256_sub_epi32(_mm256_mullo_epi32(sz, sz), _mm256_mullo_epi32(s, s)),
+                          2),
+        _mm256_set1_epi32(int(0xaaaaaaabu)));
     const VI row0 = _mm256_add_epi32(base, _mm256_mullo_epi32(y0, s));
     const VI row1 = _mm256_add_epi32(base, _mm256_mullo_epi32(y1, s));
     const V t00 = texel_v(packed, row0, x0, k, f), t10 = texel_v(packed, row0, x1, k, f);
@@ -270,8 +289,7 @@ POSTHASTE_AVX2_INLINE V ramp_level_v(
 }
 
 /// Tam::ramp on eight lanes; lanes outside `live` (or with darkness <= 0) give 0.
-POSTHASTE_AVX2_INLINE V
-ramp_v(const Tam &tam, const int *level_offsets, V live, V d, V u, V v, V lod)
+POSTHASTE_AVX2_INLINE V ramp_v(const Tam &tam, V live, V d, V u, V v, V lod)
 {
     const V active = vand(live, _mm256_cmp_ps(d, _mm256_setzero_ps(), _CMP_GT_OQ));
     if (_mm256_testz_ps(active, active)) {
@@ -300,12 +318,12 @@ ramp_v(const Tam &tam, const int *level_offsets, V live, V d, V u, V v, V lod)
     const V need0 = andnot(active, only1), need1 = andnot(active, only0);
     V c0 = _mm256_setzero_ps(), c1 = _mm256_setzero_ps();
     if (!_mm256_testz_ps(need0, need0)) {
-        c0 = ramp_level_v(tam.packed(), level_offsets, tam.size(), l0, k, f, fu, fv);
+        c0 = ramp_level_v(tam.packed(), tam.size(), l0, k, f, fu, fv);
     }
     if (!_mm256_testz_ps(need1, need1)) {
         const VI l1 = _mm256_min_epi32(_mm256_add_epi32(l0, _mm256_set1_epi32(1)),
                                        _mm256_set1_epi32(tam.levels() - 1));
-        c1 = ramp_level_v(tam.packed(), level_offsets, tam.size(), l1, k, f, fu, fv);
+        c1 = ramp_level_v(tam.packed(), tam.size(), l1, k, f, fu, fv);
     }
     const V r = select(only0, c0, select(only1, c1, add(c0, mul(b, sub(c1, c0)))));
     return vand(active, r);
@@ -360,6 +378,22 @@ POSTHASTE_AVX2_INLINE void store_rgba8(float *p, V r, V g, V b, V a)
     _mm256_storeu_ps(p + 8, _mm256_permute2f128_ps(p2, p3, 0x20));
     _mm256_storeu_ps(p + 16, _mm256_permute2f128_ps(p0, p1, 0x31));
     _mm256_storeu_ps(p + 24, _mm256_permute2f128_ps(p2, p3, 0x31));
+}
+
+/// store_rgba8 with non-temporal 16-byte stores (p 16-byte aligned): the output is written
+/// once and not read again here, so it need not be read into the cache first.
+POSTHASTE_AVX2_INLINE void stream_rgba8(float *p, V r, V g, V b, V a)
+{
+    const V t0 = _mm256_unpacklo_ps(r, g), t1 = _mm256_unpacklo_ps(b, a);
+    const V t2 = _mm256_unpackhi_ps(r, g), t3 = _mm256_unpackhi_ps(b, a);
+    const V q[4] = {_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0)),
+                    _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2)),
+                    _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0)),
+                    _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(3, 2, 3, 2))};  // pixel j | j + 4
+    for (int j = 0; j < 4; ++j) {
+        _mm_stream_ps(p + 4 * j, _mm256_castps256_ps128(q[j]));
+        _mm_stream_ps(p + 16 + 4 * j, _mm256_extractf128_ps(q[j], 1));
+    }
 }
 
 /// Tile-local planes of the AVX2 kernel, in one buffer: samples over the tile plus the outline
@@ -493,7 +527,7 @@ POSTHASTE_AVX2 void fill_samples_avx2(
 
 /// One tile of hatch() with AVX2, eight pixels of a row at a time. Supports everything but
 /// triplanar projection and the id mask (the caller checks).
-POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t, const int *level_offsets)
+POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
 {
     const Image &color = *k.color;
     const int w = color.width(), nc = color.channels();
@@ -576,30 +610,35 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t, const int
             } else {
                 c = SampleV{zero, zero, zero, zero, zero, zero, zero, zero, zero};
             }
-            // Tone (ToneCurve::tone or the n.l variant), darkness 0 where nothing is drawn.
-            V tone;
-            if (k.tone_from_light) {
-                const V nl = _mm256_max_ps(dot3(c.nx,
-                                                c.ny,
-                                                c.nz,
-                                                v8::set1(k.light.x),
-                                                v8::set1(k.light.y),
-                                                v8::set1(k.light.z)),
-                                           zero);
-                const V lit = select(c.nrm, nl, one);
-                tone = tone_curve_v(
-                    table,
-                    mul(add(v8::set1(k.ambient), mul(v8::set1(1.0f - k.ambient), lit)), exposure));
-            } else {
-                V lum = add(add(mul(v8::set1(0.2126f), cr), mul(v8::set1(0.7152f), cg)),
-                            mul(v8::set1(0.0722f), cb));
-                const V part = vand(_mm256_cmp_ps(ca, v8::set1(1e-6f), _CMP_GT_OQ),
-                                    _mm256_cmp_ps(ca, one, _CMP_LT_OQ));
-                lum = select(part, _mm256_div_ps(lum, ca), lum);
-                tone = tone_curve_v(table, mul(lum, exposure));
-            }
+            // Tone (ToneCurve::tone or the n.l variant); darkness 0 where nothing is drawn (the
+            // sky in surface mode), and no tone at all for eight such pixels.
             const V drawn = k.screen_space ? ones : c.hit;
-            const V darkness = vand(drawn, sub(one, tone));
+            V darkness = zero;
+            if (!_mm256_testz_ps(drawn, drawn)) {
+                V tone;
+                if (k.tone_from_light) {
+                    const V nl = _mm256_max_ps(dot3(c.nx,
+                                                    c.ny,
+                                                    c.nz,
+                                                    v8::set1(k.light.x),
+                                                    v8::set1(k.light.y),
+                                                    v8::set1(k.light.z)),
+                                               zero);
+                    const V lit = select(c.nrm, nl, one);
+                    tone = tone_curve_v(
+                        table,
+                        mul(add(v8::set1(k.ambient), mul(v8::set1(1.0f - k.ambient), lit)),
+                            exposure));
+                } else {
+                    V lum = add(add(mul(v8::set1(0.2126f), cr), mul(v8::set1(0.7152f), cg)),
+                                mul(v8::set1(0.0722f), cb));
+                    const V part = vand(_mm256_cmp_ps(ca, v8::set1(1e-6f), _CMP_GT_OQ),
+                                        _mm256_cmp_ps(ca, one, _CMP_LT_OQ));
+                    lum = select(part, _mm256_div_ps(lum, ca), lum);
+                    tone = tone_curve_v(table, mul(lum, exposure));
+                }
+                darkness = vand(drawn, sub(one, tone));
+            }
 
             V ink;
             if (k.screen_space) {
@@ -607,7 +646,7 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t, const int
                 const V u = _mm256_div_ps(add(fx, v8::set1(0.5f)), v8::set1(k.finest));
                 const V v =
                     _mm256_div_ps(add(v8::set1(float(y)), v8::set1(0.5f)), v8::set1(k.finest));
-                ink = ramp_v(tam, level_offsets, ones, darkness, u, v, zero);
+                ink = ramp_v(tam, ones, darkness, u, v, zero);
             } else if (_mm256_testz_ps(c.hit, c.hit)) {
                 ink = zero;  // all sky: blank paper
             } else {
@@ -651,7 +690,7 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t, const int
                 lod = select(vor(flat, andnot(ones, footprint)), v8::set1(k.flat_lod), lod);
                 u = andnot(u, flat);
                 v = andnot(v, flat);
-                ink = ramp_v(tam, level_offsets, c.hit, darkness, u, v, lod);
+                ink = ramp_v(tam, c.hit, darkness, u, v, lod);
             }
 
             V line = zero;
@@ -675,7 +714,9 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t, const int
                 outv[ch] = val;
             }
             float *dst = k.out->pixel(x, y);
-            if (nc == 4 && n == 8) {
+            if (nc == 4 && n == 8 && (reinterpret_cast<std::uintptr_t>(dst) & 15) == 0) {
+                stream_rgba8(dst, outv[0], outv[1], outv[2], alpha);
+            } else if (nc == 4 && n == 8) {
                 store_rgba8(dst, outv[0], outv[1], outv[2], alpha);
             } else {
                 _mm256_store_ps(stage[0], outv[0]);
@@ -698,6 +739,7 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t, const int
             }
         }
     }
+    _mm_sfence();  // order the streaming stores before the tile counts as done
 }
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC pop_options
@@ -787,17 +829,29 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                                         paper,
                                         ink_minus_paper,
                                         outline_color};
-    std::vector<int> level_offsets;
-    for (int l = 0; l < tam.levels(); ++l) {
-        level_offsets.push_back(int(tam.level_offset(l)));
+    for (int l = 0; l < tam.levels(); ++l) {  // the AVX2 kernel computes level offsets
+        assert(int(tam.level_offset(l)) ==
+               4 * (tam.size() * tam.size() - tam.level_size(l) * tam.level_size(l)) / 3);
     }
-    parallel_for_tiles(bounds, [&](const Rect &t) {
 #if POSTHASTE_HAVE_AVX2_TARGET
-        if (use_avx2) {
-            hatch_tile_avx2(kc, t, level_offsets.data());
-            return;
-        }
+    if (use_avx2) {
+        // Wide, short tiles: each row of a tile is a long sequential read of every pass (64-pixel
+        // rows are too short for the hardware prefetchers), and the tile's planes stay in L2.
+        // The output of a pixel does not depend on the tile it falls in.
+        constexpr int kTileW = 512, kTileH = 32;
+        const int tiles_x = (w + kTileW - 1) / kTileW, tiles_y = (h + kTileH - 1) / kTileH;
+        parallel_for(0, tiles_x * tiles_y, [&](int i) {
+            const int tx = i % tiles_x, ty = i / tiles_x;
+            const Rect t{tx * kTileW,
+                         ty * kTileH,
+                         std::min((tx + 1) * kTileW, w),
+                         std::min((ty + 1) * kTileH, h)};
+            hatch_tile_avx2(kc, t);
+        });
+        return out;
+    }
 #endif
+    parallel_for_tiles(bounds, [&](const Rect &t) {
         // Tile-local copies: samples on the tile plus the outline reach plus one pixel (edges and
         // footprints look at 4-neighbours), edge flags on the tile plus the outline reach.
         const Rect re = t.expand(line_reach).intersect(bounds);
