@@ -507,10 +507,16 @@ POSTHASTE_AVX2 void fill_samples_avx2(
                 vand(vand(hit, _mm256_cmp_ps(len2, v8::set1(1e-4f), _CMP_GT_OQ)), finite_v(len2));
             const V unit =
                 _mm256_cmp_ps(vabs(sub(len2, v8::set1(1.0f))), v8::set1(1e-4f), _CMP_LT_OQ);
-            const V root = _mm256_sqrt_ps(len2);
-            nx = vand(nrm, select(unit, nx, _mm256_div_ps(nx, root)));
-            ny = vand(nrm, select(unit, ny, _mm256_div_ps(ny, root)));
-            nz = vand(nrm, select(unit, nz, _mm256_div_ps(nz, root)));
+            const V rescale = andnot(nrm, unit);
+            if (!_mm256_testz_ps(rescale, rescale)) {  // rendered normals are unit already
+                const V root = _mm256_sqrt_ps(len2);
+                nx = select(unit, nx, _mm256_div_ps(nx, root));
+                ny = select(unit, ny, _mm256_div_ps(ny, root));
+                nz = select(unit, nz, _mm256_div_ps(nz, root));
+            }
+            nx = vand(nrm, nx);
+            ny = vand(nrm, ny);
+            nz = vand(nrm, nz);
             float *o = buf + std::size_t(row) * std::size_t(stride) + std::size_t(col);
             _mm256_storeu_ps(o + kZ * plane, vand(hit, z));
             _mm256_storeu_ps(o + kPx * plane, vand(hit, px));
