@@ -121,6 +121,8 @@ struct KernelCtx {
     float depth_threshold, cos_thr, inv_scale, lod_offset, flat_lod, finest;
     float ambient, exposure, mix;
     glm::vec3 light, paper, ink_minus_paper, outline_color;
+    bool triplanar;
+    float triplanar_sharpness, zero_pow;  ///< zero_pow = std::pow(0, triplanar_sharpness)
 };
 
 #if POSTHASTE_HAVE_AVX2_TARGET
@@ -463,6 +465,68 @@ pick_step_v(const SampleV &c, const SampleV &a, const SampleV &b, V &x, V &y, V 
     return vor(ha, hb);
 }
 
+/// Three lanes-of-8 vectors (x, y, z).
+struct V3 {
+    V v[3];
+};
+
+/// Mip level from the world steps to the x and y neighbours projected on a plane (u, v
+/// components), as the scalar path: 0.5 log2(max |step|^2) + log2(texels per metre).
+POSTHASTE_AVX2_INLINE V plane_lod(const KernelCtx &k, V ux, V vx, V uy, V vy)
+{
+    const V len2 = _mm256_max_ps(add(mul(uy, uy), mul(vy, vy)), add(mul(ux, ux), mul(vx, vx)));
+    return add(mul(v8::set1(0.5f), fast_log2_v(_mm256_max_ps(v8::set1(1e-30f), len2))),
+               v8::set1(k.lod_offset));
+}
+
+/// Three planar lookups blended by max(|n_i| - 0.2, 0)^sharpness (normalised); lanes without a
+/// usable normal (`flat`) take the flat tone, sky lanes 0. The weights use the 8-lane pow (about
+/// 2 ulp) where the scalar path calls std::pow, so this is the one part of the kernel that is not
+/// bit-equal to it (HatchingSimd states the tolerance).
+POSTHASTE_AVX2_INLINE V triplanar_ink(const KernelCtx &k,
+                                      const SampleV &c,
+                                      V flat,
+                                      V footprint,
+                                      V darkness,
+                                      const V3 &an,
+                                      const V3 &dpx,
+                                      const V3 &dpy)
+{
+    const V zero = _mm256_setzero_ps(), ones = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+    V w[3];
+    for (int a = 0; a < 3; ++a) {
+        const V x = _mm256_max_ps(sub(an.v[a], v8::set1(0.2f)), zero);
+        const V pos = _mm256_cmp_ps(x, zero, _CMP_GT_OQ);
+        // v8::pow takes x > 0 only; pow(0, sharpness) comes from std::pow once.
+        w[a] = select(pos,
+                      v8::pow(select(pos, x, v8::set1(1.0f)), v8::set1(k.triplanar_sharpness)),
+                      v8::set1(k.zero_pow));
+    }
+    const V sum = add(add(w[0], w[1]), w[2]);
+    const V surface = andnot(c.hit, flat);
+    const V p[3] = {c.px, c.py, c.pz};
+    static constexpr int kU[3] = {2, 0, 0}, kV[3] = {1, 2, 1};
+    const V no_footprint = andnot(ones, footprint);
+    V ink = zero;
+    for (int a = 0; a < 3; ++a) {
+        const V wa = _mm256_div_ps(w[a], sum);
+        const int iu = kU[a], iv = kV[a];
+        const V lod = select(no_footprint,
+                             v8::set1(k.flat_lod),
+                             plane_lod(k, dpx.v[iu], dpx.v[iv], dpy.v[iu], dpy.v[iv]));
+        const V live = vand(surface, _mm256_cmp_ps(wa, zero, _CMP_GT_OQ));
+        const V r = ramp_v(*k.tam,
+                           live,
+                           darkness,
+                           mul(p[iu], v8::set1(k.inv_scale)),
+                           mul(p[iv], v8::set1(k.inv_scale)),
+                           lod);
+        ink = add(ink, vand(live, mul(wa, r)));
+    }
+    const V flat_ink = ramp_v(*k.tam, flat, darkness, zero, zero, v8::set1(k.flat_lod));
+    return vand(c.hit, select(flat, flat_ink, ink));
+}
+
 /// Fills the sample planes of region r (stride `stride`, `rows` rows) from the passes.
 POSTHASTE_AVX2 void fill_samples_avx2(
     const KernelCtx &k, const Rect &r, int stride, float *buf, std::size_t plane)
@@ -531,8 +595,8 @@ POSTHASTE_AVX2 void fill_samples_avx2(
     }
 }
 
-/// One tile of hatch() with AVX2, eight pixels of a row at a time. Supports everything but
-/// triplanar projection and the id mask (the caller checks).
+/// One tile of hatch() with AVX2, eight pixels of a row at a time. Supports everything but the
+/// id mask (the caller checks).
 POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
 {
     const Image &color = *k.color;
@@ -678,25 +742,37 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
                 dyy = select(y_from_x, uy0, dyy);
                 dyz = select(y_from_x, uz0, dyz);
                 const V footprint = vor(hx, hy);
-                // Dominant plane: 0 = (z, y), 1 = (x, z), 2 = (x, y).
                 const V ax = vabs(c.nx), ay = vabs(c.ny), az = vabs(c.nz);
-                const V p0 =
-                    vand(_mm256_cmp_ps(ax, ay, _CMP_GE_OQ), _mm256_cmp_ps(ax, az, _CMP_GE_OQ));
-                const V p1 = andnot(_mm256_cmp_ps(ay, az, _CMP_GE_OQ), p0);
-                const V inv_scale = v8::set1(k.inv_scale);
-                V u = mul(select(p0, c.pz, c.px), inv_scale);
-                V v = mul(select(p1, c.pz, c.py), inv_scale);
-                const V ux = select(p0, dxz, dxx), vx = select(p1, dxz, dxy);
-                const V uy = select(p0, dyz, dyx), vy = select(p1, dyz, dyy);
-                const V len2 =
-                    _mm256_max_ps(add(mul(uy, uy), mul(vy, vy)), add(mul(ux, ux), mul(vx, vx)));
-                V lod = add(mul(v8::set1(0.5f), fast_log2_v(_mm256_max_ps(v8::set1(1e-30f), len2))),
-                            v8::set1(k.lod_offset));
                 const V flat = andnot(c.hit, c.nrm);  // no usable normal: flat mean tone
-                lod = select(vor(flat, andnot(ones, footprint)), v8::set1(k.flat_lod), lod);
-                u = andnot(u, flat);
-                v = andnot(v, flat);
-                ink = ramp_v(tam, c.hit, darkness, u, v, lod);
+                const V flat_lod = v8::set1(k.flat_lod);
+                if (k.triplanar) {
+                    ink = triplanar_ink(k,
+                                        c,
+                                        flat,
+                                        footprint,
+                                        darkness,
+                                        V3{{ax, ay, az}},
+                                        V3{{dxx, dxy, dxz}},
+                                        V3{{dyx, dyy, dyz}});
+                } else {
+                    // Dominant plane: 0 = (z, y), 1 = (x, z), 2 = (x, y).
+                    const V p0 =
+                        vand(_mm256_cmp_ps(ax, ay, _CMP_GE_OQ), _mm256_cmp_ps(ax, az, _CMP_GE_OQ));
+                    const V p1 = andnot(_mm256_cmp_ps(ay, az, _CMP_GE_OQ), p0);
+                    const V u = andnot(mul(select(p0, c.pz, c.px), v8::set1(k.inv_scale)), flat);
+                    const V v = andnot(mul(select(p1, c.pz, c.py), v8::set1(k.inv_scale)), flat);
+                    const V lod = plane_lod(k,
+                                            select(p0, dxz, dxx),
+                                            select(p1, dxz, dxy),
+                                            select(p0, dyz, dyx),
+                                            select(p1, dyz, dyy));
+                    ink = ramp_v(tam,
+                                 c.hit,
+                                 darkness,
+                                 u,
+                                 v,
+                                 select(vor(flat, andnot(ones, footprint)), flat_lod, lod));
+                }
             }
 
             V line = zero;
@@ -804,10 +880,9 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     const bool needs_samples = !s.screen_space || outlines || s.tone_from_light;
 
     Image out = Image::uninitialized(w, h, nc);
-    // The AVX2 kernel covers the default and screen modes; triplanar weights (pow) and the id
-    // mask stay on the scalar path, as does mix 0 (a copy).
-    const bool use_avx2 =
-        POSTHASTE_HAVE_AVX2_TARGET && simd::avx2() && !s.triplanar && s.ids.empty() && mix > 0.0f;
+    // The AVX2 kernel covers every mode; the id mask stays on the scalar path, as does mix 0 (a
+    // copy).
+    const bool use_avx2 = POSTHASTE_HAVE_AVX2_TARGET && simd::avx2() && s.ids.empty() && mix > 0.0f;
     [[maybe_unused]] const KernelCtx kc{&color,
                                         in.depth,
                                         in.normal,
@@ -834,7 +909,10 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                                         light,
                                         paper,
                                         ink_minus_paper,
-                                        outline_color};
+                                        outline_color,
+                                        s.triplanar,
+                                        s.triplanar_sharpness,
+                                        std::pow(0.0f, s.triplanar_sharpness)};
     for (int l = 0; l < tam.levels(); ++l) {  // the AVX2 kernel computes level offsets
         assert(int(tam.level_offset(l)) ==
                4 * (tam.size() * tam.size() - tam.level_size(l) * tam.level_size(l)) / 3);

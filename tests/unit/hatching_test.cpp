@@ -288,8 +288,9 @@ TEST(HatchingRobust, SameBitsForAnyThreadCount)
 
 // The AVX2 kernel mirrors the scalar one operation by operation (no FMA contraction in this
 // build), so the two paths must agree to within 1e-6 on every value of a rendered frame (in
-// practice bit for bit), in every mode the AVX2 path covers. An odd width exercises the row
-// tails, a 3-channel color the generic load and store.
+// practice bit for bit), in every mode the AVX2 path covers. Triplanar weights use the 8-lane
+// pow (about 2 ulp) instead of std::pow: there the tolerance is 2e-5. An odd width exercises the
+// row tails, a 3-channel color the generic load and store.
 TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
 {
     if (simd::detected() != simd::Level::Avx2) {
@@ -309,7 +310,7 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
             }
         }
     }
-    for (int mode = 0; mode < 8; ++mode) {
+    for (int mode = 0; mode < 10; ++mode) {
         HatchSettings s;
         HatchInputs in{
             &f.image("color"), &f.image("depth"), &f.image("normal"), &f.image("position")};
@@ -320,6 +321,8 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
         if (mode == 7) {
             in.color = &rgb;
         }
+        s.triplanar = mode >= 8;
+        s.screen_space = s.screen_space || mode == 9;  // triplanar is ignored in screen mode
         Image scalar;
         {
             simd::ScopedLevel level(simd::Level::Scalar);
@@ -338,7 +341,7 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
                     mode,
                     double(max_diff),
                     differ);
-        EXPECT_LE(max_diff, 1e-6f) << "mode " << mode;
+        EXPECT_LE(max_diff, mode == 8 ? 2e-5f : 1e-6f) << "mode " << mode;
     }
 }
 
