@@ -137,9 +137,8 @@ namespace v8 = simd::v8;
 using v8::V;
 using v8::VI;
 
-// Local 8-lane helpers. The AVX2 kernel mirrors the scalar path operation by operation (the
-// build does not contract a * b + c into FMA), so both paths give the same values; the test
-// HatchingSimd.Avx2MatchesScalarOnRenderedFrame checks it.
+// Local 8-lane helpers. HatchingSimd.Avx2MatchesScalarOnRenderedFrame checks that both paths
+// give the same values.
 
 POSTHASTE_AVX2_INLINE V add(V a, V b)
 {
@@ -211,8 +210,8 @@ POSTHASTE_AVX2_INLINE __m128i load_two_pairs(const float *a, const float *b)
 }
 
 /// Loads the float pairs (base[i], base[i + 1]) of eight float indices i: a gets the first,
-/// b the second. Scalar 64-bit loads: on this kind of CPU (gather microcode mitigations) they
-/// measured faster than vgatherdpd.
+/// b the second. Scalar 64-bit loads: as fast as vgatherdpd on the development machine, and not
+/// at the mercy of gather microcode mitigations elsewhere.
 POSTHASTE_AVX2_INLINE void gather_pairs(const float *base, VI idx, V &a, V &b)
 {
     alignas(32) std::int32_t i[8];
@@ -250,8 +249,8 @@ POSTHASTE_AVX2_INLINE V tone_curve_v(const float *table, V linear)
 /// Ramp entries k and k + 1 of texel row + col of packed texels, blended by f.
 POSTHASTE_AVX2_INLINE V texel_v(const float *packed, VI row, VI col, VI k, V f)
 {
-    const VI i = _mm256_add_epi32(_mm256_slli_epi32(_mm256_add_epi32(row, col), 3),
-                                  k);  // Tam::kPacked = 8 floats
+    static_assert(Tam::kPacked == 8, "the shift below multiplies by kPacked");
+    const VI i = _mm256_add_epi32(_mm256_slli_epi32(_mm256_add_epi32(row, col), 3), k);
     V a, b;
     gather_pairs(packed, i, a, b);
     return add(a, mul(f, sub(b, a)));
