@@ -123,6 +123,8 @@ struct KernelCtx {
     glm::vec3 light, paper, ink_minus_paper, outline_color;
     bool triplanar;
     float triplanar_sharpness, zero_pow;  ///< zero_pow = std::pow(0, triplanar_sharpness)
+    const Image *id;                      ///< With ids only.
+    const std::vector<int> *ids;          ///< Hatch only these ids; null: everywhere.
 };
 
 #if POSTHASTE_HAVE_AVX2_TARGET
@@ -594,8 +596,7 @@ POSTHASTE_AVX2 void fill_samples_avx2(
     }
 }
 
-/// One tile of hatch() with AVX2, eight pixels of a row at a time. Supports everything but the
-/// id mask (the caller checks).
+/// One tile of hatch() with AVX2, eight pixels of a row at a time (mix > 0; the caller checks).
 POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
 {
     const Image &color = *k.color;
@@ -781,9 +782,24 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
                 line = _mm256_max_ps(line, vand(e, v8::set1(tap.coverage)));
             }
 
-            const V alpha = nc >= 4 ? select(finite_v(ca), ca, one) : one;
+            V alpha = nc >= 4 ? select(finite_v(ca), ca, one) : one;
             const V srcv[3] = {cr, cg, cb};
             V outv[3];
+            // Id mask: lanes whose id is not listed keep their input pixel (all channels).
+            alignas(32) std::int32_t keep_lane[8] = {};
+            bool any_kept = false;
+            if (k.ids) {
+                for (int j = 0; j < n; ++j) {
+                    const float id = k.id->at(x + j, y, 0);
+                    const int key = std::isfinite(id) ? int(std::lround(id)) : -1;
+                    const bool listed =
+                        std::find(k.ids->begin(), k.ids->end(), key) != k.ids->end();
+                    keep_lane[j] = listed ? 0 : -1;
+                    any_kept = any_kept || !listed;
+                }
+            }
+            const V keep =
+                _mm256_castsi256_ps(_mm256_load_si256(reinterpret_cast<const VI *>(keep_lane)));
             for (int ch = 0; ch < 3; ++ch) {
                 V val = add(paper[ch], mul(ink, imp[ch]));
                 val = add(val, mul(line, sub(oc[ch], val)));
@@ -792,7 +808,10 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
                     const V base = select(finite_v(srcv[ch]), srcv[ch], val);
                     val = add(base, mul(mix, sub(val, base)));
                 }
-                outv[ch] = val;
+                outv[ch] = select(keep, srcv[ch], val);
+            }
+            if (any_kept && nc >= 4) {
+                alpha = select(keep, ca, alpha);
             }
             float *dst = k.out->pixel(x, y);
             if (nc == 4 && n == 8 && (reinterpret_cast<std::uintptr_t>(dst) & 15) == 0) {
@@ -807,6 +826,10 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
                 for (int j = 0; j < n; ++j) {
                     float *d = dst + std::size_t(j) * std::size_t(nc);
                     const float *s = src + std::size_t(j) * std::size_t(nc);
+                    if (keep_lane[j]) {
+                        std::copy_n(s, nc, d);
+                        continue;
+                    }
                     d[0] = stage[0][j];
                     d[1] = stage[1][j];
                     d[2] = stage[2][j];
@@ -879,9 +902,8 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
     const bool needs_samples = !s.screen_space || outlines || s.tone_from_light;
 
     Image out = Image::uninitialized(w, h, nc);
-    // The AVX2 kernel covers every mode; the id mask stays on the scalar path, as does mix 0 (a
-    // copy).
-    const bool use_avx2 = POSTHASTE_HAVE_AVX2_TARGET && simd::avx2() && s.ids.empty() && mix > 0.0f;
+    // The AVX2 kernel covers every mode; mix 0 (a copy) stays on the scalar path.
+    const bool use_avx2 = POSTHASTE_HAVE_AVX2_TARGET && simd::avx2() && mix > 0.0f;
     [[maybe_unused]] const KernelCtx kc{&color,
                                         in.depth,
                                         in.normal,
@@ -911,7 +933,9 @@ Image hatch(const HatchInputs &in, const HatchSettings &s, const Tam &tam)
                                         outline_color,
                                         s.triplanar,
                                         s.triplanar_sharpness,
-                                        std::pow(0.0f, s.triplanar_sharpness)};
+                                        std::pow(0.0f, s.triplanar_sharpness),
+                                        in.id,
+                                        s.ids.empty() ? nullptr : &s.ids};
     for (int l = 0; l < tam.levels(); ++l) {  // the AVX2 kernel computes level offsets
         assert(int(tam.level_offset(l)) ==
                4 * (tam.size() * tam.size() - tam.level_size(l) * tam.level_size(l)) / 3);

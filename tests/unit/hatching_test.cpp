@@ -290,7 +290,7 @@ TEST(HatchingRobust, SameBitsForAnyThreadCount)
 // build), so the two paths must agree to within 1e-6 on every value of a rendered frame (in
 // practice bit for bit), in every mode the AVX2 path covers. Triplanar weights use the 8-lane
 // pow (about 2 ulp) instead of std::pow: there the tolerance is 2e-5. An odd width exercises the
-// row tails, a 3-channel color the generic load and store.
+// row tails, a 3-channel color the generic load and store, ids the per-lane mask.
 TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
 {
     if (simd::detected() != simd::Level::Avx2) {
@@ -299,7 +299,7 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
     raster::RenderOptions o;
     o.width = 333;
     o.height = 190;
-    o.passes = {"color", "depth", "normal", "position"};
+    o.passes = {"color", "depth", "normal", "position", "id"};
     const Frame f = raster::render_frame(scene(), 20, o);
     const Tam tam = build_tam(TamParams{});
     Image rgb(o.width, o.height, 3);
@@ -310,10 +310,13 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
             }
         }
     }
-    for (int mode = 0; mode < 10; ++mode) {
+    for (int mode = 0; mode < 12; ++mode) {
         HatchSettings s;
-        HatchInputs in{
-            &f.image("color"), &f.image("depth"), &f.image("normal"), &f.image("position")};
+        HatchInputs in{&f.image("color"),
+                       &f.image("depth"),
+                       &f.image("normal"),
+                       &f.image("position"),
+                       &f.image("id")};
         s.screen_space = mode == 1 || mode == 2;
         s.outline_width = mode == 2 || mode == 3 ? 0.0f : (mode == 4 ? 4.0f : 1.5f);
         s.tone_from_light = mode == 5;
@@ -321,8 +324,13 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
         if (mode == 7) {
             in.color = &rgb;
         }
-        s.triplanar = mode >= 8;
+        s.triplanar = mode == 8 || mode == 9;
         s.screen_space = s.screen_space || mode == 9;  // triplanar is ignored in screen mode
+        if (mode >= 10) {
+            s.ids = {1, 3};  // the other materials keep their input colour
+            s.mix = mode == 11 ? 0.5f : 1.0f;
+            in.color = mode == 11 ? &rgb : in.color;
+        }
         Image scalar;
         {
             simd::ScopedLevel level(simd::Level::Scalar);
@@ -342,6 +350,18 @@ TEST(HatchingSimd, Avx2MatchesScalarOnRenderedFrame)
                     double(max_diff),
                     differ);
         EXPECT_LE(max_diff, mode == 8 ? 2e-5f : 1e-6f) << "mode " << mode;
+        if (mode == 10) {  // the mask takes some pixels and leaves others
+            std::size_t kept = 0;
+            for (int y = 0; y < o.height; ++y) {
+                for (int x = 0; x < o.width; ++x) {
+                    kept += std::equal(vec.pixel(x, y), vec.pixel(x, y) + 4, in.color->pixel(x, y))
+                                ? 1
+                                : 0;
+                }
+            }
+            EXPECT_GT(kept, 0u);
+            EXPECT_LT(kept, vec.pixel_count());
+        }
     }
 }
 
