@@ -81,8 +81,11 @@ class ToneCurve {
         return (*this)(lum * exposure);
     }
 
-   private:
     static constexpr int kSegments = 256;
+    /// The kSegments + 1 tabulated tones at sqrt(L) = i / kSegments (for vector kernels).
+    const float *table() const { return table_.data(); }
+
+   private:
     std::array<float, kSegments + 1> table_{};
 };
 

@@ -78,6 +78,13 @@ class Tam {
         const int k = std::min(int(s), kTamTones - 1);
         return ramp_at(k, s - float(k), u, v, lod);
     }
+    /// Floats per texel in packed(): paper 0, tones 0..5, tone 5 again.
+    static constexpr std::size_t kPacked = 8;
+    /// Texel-major copy of every level for vector kernels: texel i of level l starts at
+    /// packed() + (level_offset(l) + i) * kPacked; ramp entry k of it is element k.
+    const float *packed() const { return packed_.data(); }
+    /// First texel of level l in packed() (and in each tone plane).
+    std::size_t level_offset(int level) const { return level_offset_[std::size_t(level)]; }
     /// Milliseconds build_tam took: wall clock, and CPU time of its (single) thread.
     double build_ms() const { return build_ms_; }
     double build_cpu_ms() const { return build_cpu_ms_; }
@@ -133,8 +140,6 @@ class Tam {
         const float c = t01 + fx * (t11 - t01);
         return a + fy * (c - a);
     }
-    static constexpr std::size_t kPacked = 8;
-
     int size_ = 0, stroke_levels_ = 0, levels_ = 0;
     std::size_t tone_stride_ = 0;
     std::vector<std::size_t> level_offset_;

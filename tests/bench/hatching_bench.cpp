@@ -8,6 +8,7 @@
 #include <ctime>
 #include <string>
 
+#include "core/simd.h"
 #include "raster/render.h"
 #include "shading/hatch.h"
 #include "shading/tam.h"
@@ -59,6 +60,15 @@ void BM_HatchingSurface1080p(benchmark::State &state)
     hatch_bench(state, HatchSettings{});
 }
 BENCHMARK(BM_HatchingSurface1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The same default settings on the portable scalar path (simd::Level::Scalar), as the
+// same-run reference for the AVX2 kernel.
+void BM_HatchingSurfaceScalar1080p(benchmark::State &state)
+{
+    simd::ScopedLevel scalar(simd::Level::Scalar);
+    hatch_bench(state, HatchSettings{});
+}
+BENCHMARK(BM_HatchingSurfaceScalar1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_HatchingSurfaceTriplanar1080p(benchmark::State &state)
 {
