@@ -3,12 +3,18 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <glm/vec2.hpp>
 #include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
+#include <new>
 #include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "core/hash.h"
 #include "core/parallel.h"
@@ -72,16 +78,43 @@ struct Level {
 // Storage behind a Level: four colour planes and the 1 / CoC^2 plane (the CoC plane is the
 // caller's).
 struct Planes {
-    std::unique_ptr<float[]> data;
+    struct Free {
+        void operator()(float *p) const { std::free(p); }
+    };
+    std::unique_ptr<float[], Free> data;
     std::size_t n = 0;
 
+    // All written by the caller. A large frame's planes (40 MB at 1080p) are asked for in 2 MB
+    // pages where the system has them, so that first touching them costs a few page faults
+    // rather than ten thousand.
     void allocate(std::size_t pixels)
     {
         n = pixels;
-        data.reset(new float[5 * pixels]);  // all written by the caller
+        constexpr std::size_t kHuge = std::size_t(2) << 20;
+        const std::size_t bytes = 5 * pixels * sizeof(float);
+        if (bytes < 2 * kHuge) {
+            data.reset(static_cast<float *>(std::malloc(bytes)));
+        } else {
+            const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+            data.reset(static_cast<float *>(std::aligned_alloc(kHuge, rounded)));
+#ifdef MADV_HUGEPAGE
+            if (data) {
+                madvise(data.get(), rounded, MADV_HUGEPAGE);  // advisory: ignored where unsupported
+            }
+#endif
+        }
+        if (!data) {
+            throw std::bad_alloc();
+        }
     }
-    float *channel(int k) { return data.get() + std::size_t(k) * n; }
-    float *inv2() { return data.get() + 4 * n; }
+    float *channel(int k)
+    {
+        return data.get() + std::size_t(k) * n;
+    }
+    float *inv2()
+    {
+        return data.get() + 4 * n;
+    }
     Level level(const float *coc, int w, int h)
     {
         Level lv;
@@ -153,8 +186,20 @@ class Patterns {
                     t[i].dy = std::int16_t(std::clamp(oy, -32767, 32767));
                     t[i].rim = 0.5f - std::sqrt(float(ox * ox + oy * oy)) / shape;
                 }
+                // Row by row: consecutive taps read neighbouring memory (the sums do not depend
+                // on the order but for rounding).
+                std::sort(t, t + n, [](const Tap &a, const Tap &b) {
+                    return a.dy != b.dy ? a.dy < b.dy : a.dx < b.dx;
+                });
             }
         });
+        reach_.assign(radii_.size(), 0);
+        for (std::size_t k = 0; k < radii_.size(); ++k) {
+            const Tap *t = taps_.data() + start_[k];
+            for (std::size_t i = 0; i < std::size_t(n_[k]) * kVariants; ++i) {
+                reach_[k] = std::max(reach_[k], std::abs(int(t[i].dx)));
+            }
+        }
         lut_.resize(std::size_t(std::ceil(4.0f * radii_.back())) + 2);
         for (std::size_t i = 0; i < lut_.size(); ++i) {
             const auto it = std::lower_bound(radii_.begin(), radii_.end(), 0.25f * float(i));
@@ -176,6 +221,8 @@ class Patterns {
     }
     float radius(int k) const { return radii_[std::size_t(k)]; }
     int count(int k) const { return n_[std::size_t(k)]; }
+    /// The largest horizontal offset of any of level k's taps.
+    int reach(int k) const { return reach_[std::size_t(k)]; }
     const Tap *taps(int k, int variant) const
     {
         return taps_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
@@ -187,6 +234,7 @@ class Patterns {
     std::vector<std::size_t> start_;
     std::vector<Tap> taps_;
     std::vector<int> lut_;
+    std::vector<int> reach_;  ///< Largest |dx| of a level's taps.
 };
 
 struct Context {
@@ -370,49 +418,93 @@ POSTHASTE_AVX2 void near_pass_avx2(const Level &lv, int x0, int y, const Tap *ta
     _mm256_storeu_ps(g.near_w, nw);
 }
 
+// One background tap for eight lanes (see back_pass_scalar); Inside: the eight columns are in
+// the image (one load per plane), else edge-clamped (a gather per plane).
+struct BackLanes {
+    v8::V cp1, acp, lo, hi, ws;
+};
+struct Sums {
+    v8::V c[4], w;
+};
+
+template <bool Inside>
+POSTHASTE_AVX2_INLINE v8::V load_at(const float *row, int col0, v8::VI cols)
+{
+    if constexpr (Inside) {
+        return _mm256_loadu_ps(row + col0);
+    } else {
+        return _mm256_i32gather_ps(row, cols, 4);
+    }
+}
+
+template <bool Inside>
+POSTHASTE_AVX2_INLINE void back_tap(
+    const Level &lv, std::size_t row, int col0, float rim, const BackLanes &l, Sums &s)
+{
+    const v8::VI cols = Inside ? _mm256_setzero_si256() : clamped_cols(col0, lv.width);
+    const v8::V cq = load_at<Inside>(lv.coc + row, col0, cols);
+    const v8::V front = _mm256_and_ps(_mm256_cmp_ps(cq, v8::set1(-0.5f), _CMP_LT_OQ),
+                                      _mm256_cmp_ps(cq, l.cp1, _CMP_LE_OQ));
+    const v8::V r =
+        _mm256_min_ps(_mm256_max_ps(_mm256_andnot_ps(v8::set1(-0.0f), cq), l.lo), l.acp);
+    const v8::V inv_area =
+        _mm256_max_ps(_mm256_min_ps(load_at<Inside>(lv.inv2 + row, col0, cols), l.hi), l.ws);
+    const v8::V cov =
+        v8::clamp(_mm256_add_ps(r, v8::set1(rim)), _mm256_setzero_ps(), v8::set1(1.0f));
+    const v8::V wgt = _mm256_andnot_ps(front, _mm256_mul_ps(cov, inv_area));
+    for (int k = 0; k < 4; ++k) {
+        s.c[k] = _mm256_fmadd_ps(load_at<Inside>(lv.ch[k] + row, col0, cols), wgt, s.c[k]);
+    }
+    s.w = _mm256_add_ps(s.w, wgt);
+}
+
 POSTHASTE_AVX2 void back_pass_avx2(const Level &lv,
                                    int x0,
                                    int y,
                                    const Tap *taps,
                                    int n,
+                                   int reach,
                                    const float *lo_p,
                                    const float *hi_p,
                                    const float *ws_p,
                                    Group &g)
 {
     const int w = lv.width, h = lv.height;
-    const v8::V zero = _mm256_setzero_ps(), one = v8::set1(1.0f), lim = v8::set1(-0.5f);
-    const v8::V cp1 = _mm256_add_ps(_mm256_loadu_ps(g.cp), one);
-    const v8::V acp = _mm256_loadu_ps(g.acp), lo = _mm256_loadu_ps(lo_p);
-    const v8::V hi = _mm256_loadu_ps(hi_p), ws = _mm256_loadu_ps(ws_p);
-    const v8::V sign = v8::set1(-0.0f);
-    v8::V b0 = _mm256_loadu_ps(g.back[0]), b1 = _mm256_loadu_ps(g.back[1]);
-    v8::V b2 = _mm256_loadu_ps(g.back[2]), b3 = _mm256_loadu_ps(g.back[3]);
-    v8::V bw = _mm256_loadu_ps(g.back_w);
-    for (int i = 0; i < n; ++i) {
-        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
-        const int col0 = x0 + taps[i].dx;
-        const bool inside = col0 >= 0 && col0 + kLanes <= w;
-        const v8::VI cols = clamped_cols(col0, w);
-        const v8::V cq = load_lanes(lv.coc + row, col0, inside, cols);
-        const v8::V front =
-            _mm256_and_ps(_mm256_cmp_ps(cq, lim, _CMP_LT_OQ), _mm256_cmp_ps(cq, cp1, _CMP_LE_OQ));
-        const v8::V r = _mm256_min_ps(_mm256_max_ps(_mm256_andnot_ps(sign, cq), lo), acp);
-        const v8::V inv_area =
-            _mm256_max_ps(_mm256_min_ps(load_lanes(lv.inv2 + row, col0, inside, cols), hi), ws);
-        const v8::V cov = v8::clamp(_mm256_add_ps(r, v8::set1(taps[i].rim)), zero, one);
-        const v8::V wgt = _mm256_andnot_ps(front, _mm256_mul_ps(cov, inv_area));
-        b0 = _mm256_fmadd_ps(load_lanes(lv.ch[0] + row, col0, inside, cols), wgt, b0);
-        b1 = _mm256_fmadd_ps(load_lanes(lv.ch[1] + row, col0, inside, cols), wgt, b1);
-        b2 = _mm256_fmadd_ps(load_lanes(lv.ch[2] + row, col0, inside, cols), wgt, b2);
-        b3 = _mm256_fmadd_ps(load_lanes(lv.ch[3] + row, col0, inside, cols), wgt, b3);
-        bw = _mm256_add_ps(bw, wgt);
+    BackLanes l;
+    l.cp1 = _mm256_add_ps(_mm256_loadu_ps(g.cp), v8::set1(1.0f));
+    l.acp = _mm256_loadu_ps(g.acp);
+    l.lo = _mm256_loadu_ps(lo_p);
+    l.hi = _mm256_loadu_ps(hi_p);
+    l.ws = _mm256_loadu_ps(ws_p);
+    Sums s;
+    for (int k = 0; k < 4; ++k) {
+        s.c[k] = _mm256_loadu_ps(g.back[k]);
     }
-    _mm256_storeu_ps(g.back[0], b0);
-    _mm256_storeu_ps(g.back[1], b1);
-    _mm256_storeu_ps(g.back[2], b2);
-    _mm256_storeu_ps(g.back[3], b3);
-    _mm256_storeu_ps(g.back_w, bw);
+    s.w = _mm256_loadu_ps(g.back_w);
+    // Taps reach at most `reach` columns: when the whole group's reach is inside the row, no
+    // tap needs the edge check.
+    if (x0 - reach >= 0 && x0 + reach + kLanes <= w) {
+        for (int i = 0; i < n; ++i) {
+            const std::size_t row =
+                std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
+            back_tap<true>(lv, row, x0 + taps[i].dx, taps[i].rim, l, s);
+        }
+    } else {
+        for (int i = 0; i < n; ++i) {
+            const std::size_t row =
+                std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
+            const int col0 = x0 + taps[i].dx;
+            if (col0 >= 0 && col0 + kLanes <= w) {
+                back_tap<true>(lv, row, col0, taps[i].rim, l, s);
+            } else {
+                back_tap<false>(lv, row, col0, taps[i].rim, l, s);
+            }
+        }
+    }
+    for (int k = 0; k < 4; ++k) {
+        _mm256_storeu_ps(g.back[k], s.c[k]);
+    }
+    _mm256_storeu_ps(g.back_w, s.w);
 }
 #endif
 
@@ -427,7 +519,8 @@ void near_pass(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
     near_pass_scalar(lv, x0, y, taps, n, g);
 }
 
-void back_pass(const Level &lv, int x0, int y, const Tap *taps, int n, unsigned lanes, Group &g)
+void back_pass(
+    const Level &lv, int x0, int y, const Tap *taps, int n, int reach, unsigned lanes, Group &g)
 {
     float lo[kLanes], hi[kLanes], ws[kLanes];
     for (int j = 0; j < kLanes; ++j) {
@@ -438,7 +531,7 @@ void back_pass(const Level &lv, int x0, int y, const Tap *taps, int n, unsigned 
     }
 #if POSTHASTE_HAVE_AVX2_TARGET
     if (simd::avx2()) {
-        back_pass_avx2(lv, x0, y, taps, n, lo, hi, ws, g);
+        back_pass_avx2(lv, x0, y, taps, n, reach, lo, hi, ws, g);
         return;
     }
 #endif
@@ -543,6 +636,96 @@ POSTHASTE_AVX2 void composite_group_avx2(const Group &g, float sample_area, floa
 }
 #endif
 
+// Colour rows between the interleaved RGBA image and the planes (pure data movement and the
+// sanitising of non-finite values, so both paths give the same bits).
+void split_row_scalar(const float *src, int nc, int x0, int x1, float *const *plane)
+{
+    for (int x = x0; x < x1; ++x) {
+        for (int k = 0; k < 4; ++k) {
+            plane[k][x] =
+                k < nc ? sanitize(src[std::size_t(x) * std::size_t(nc) + std::size_t(k)]) : 0.0f;
+        }
+    }
+}
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+// Four channels of eight RGBA pixels: a 4 x 8 transpose either way. In 128-bit halves, pixel
+// pairs (0,1), (2,3), (4,5), (6,7) go to channel vectors ordered (0 2 4 6 | 1 3 5 7), hence the
+// final permute.
+POSTHASTE_AVX2 void split_row_avx2(const float *src, int nc, int x0, int x1, float *const *plane)
+{
+    int x = x0;
+    if (nc == 4) {
+        const v8::VI order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+        const v8::V sign = v8::set1(-0.0f), big = v8::set1(std::numeric_limits<float>::max());
+        for (; x + kLanes <= x1; x += kLanes) {
+            const float *p = src + std::size_t(x) * 4;
+            const v8::V p0 = _mm256_loadu_ps(p), p1 = _mm256_loadu_ps(p + 8);
+            const v8::V p2 = _mm256_loadu_ps(p + 16), p3 = _mm256_loadu_ps(p + 24);
+            const __m256d t0 = _mm256_castps_pd(_mm256_unpacklo_ps(p0, p1));
+            const __m256d t1 = _mm256_castps_pd(_mm256_unpackhi_ps(p0, p1));
+            const __m256d t2 = _mm256_castps_pd(_mm256_unpacklo_ps(p2, p3));
+            const __m256d t3 = _mm256_castps_pd(_mm256_unpackhi_ps(p2, p3));
+            const v8::V c[4] = {_mm256_castpd_ps(_mm256_unpacklo_pd(t0, t2)),
+                                _mm256_castpd_ps(_mm256_unpackhi_pd(t0, t2)),
+                                _mm256_castpd_ps(_mm256_unpacklo_pd(t1, t3)),
+                                _mm256_castpd_ps(_mm256_unpackhi_pd(t1, t3))};
+            for (int k = 0; k < 4; ++k) {
+                const v8::V v = _mm256_permutevar8x32_ps(c[k], order);
+                const v8::V finite = _mm256_cmp_ps(_mm256_andnot_ps(sign, v), big, _CMP_LE_OQ);
+                _mm256_storeu_ps(plane[k] + x, _mm256_and_ps(v, finite));
+            }
+        }
+    }
+    split_row_scalar(src, nc, x, x1, plane);
+}
+
+POSTHASTE_AVX2 void merge_rgba8_avx2(const float (*v)[kLanes], float *dst)
+{
+    const v8::V r = _mm256_loadu_ps(v[0]), g = _mm256_loadu_ps(v[1]);
+    const v8::V b = _mm256_loadu_ps(v[2]), a = _mm256_loadu_ps(v[3]);
+    const __m256d rg_lo = _mm256_castps_pd(_mm256_unpacklo_ps(r, g));  // r0 g0 r1 g1 | r4 g4 r5 g5
+    const __m256d rg_hi = _mm256_castps_pd(_mm256_unpackhi_ps(r, g));  // r2 g2 r3 g3 | r6 ..
+    const __m256d ba_lo = _mm256_castps_pd(_mm256_unpacklo_ps(b, a));
+    const __m256d ba_hi = _mm256_castps_pd(_mm256_unpackhi_ps(b, a));
+    const v8::V q0 = _mm256_castpd_ps(_mm256_unpacklo_pd(rg_lo, ba_lo));  // px 0 | px 4
+    const v8::V q1 = _mm256_castpd_ps(_mm256_unpackhi_pd(rg_lo, ba_lo));  // px 1 | px 5
+    const v8::V q2 = _mm256_castpd_ps(_mm256_unpacklo_pd(rg_hi, ba_hi));  // px 2 | px 6
+    const v8::V q3 = _mm256_castpd_ps(_mm256_unpackhi_pd(rg_hi, ba_hi));  // px 3 | px 7
+    _mm256_storeu_ps(dst, _mm256_permute2f128_ps(q0, q1, 0x20));
+    _mm256_storeu_ps(dst + 8, _mm256_permute2f128_ps(q2, q3, 0x20));
+    _mm256_storeu_ps(dst + 16, _mm256_permute2f128_ps(q0, q1, 0x31));
+    _mm256_storeu_ps(dst + 24, _mm256_permute2f128_ps(q2, q3, 0x31));
+}
+#endif
+
+void split_row(const float *src, int nc, int x0, int x1, float *const *plane)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        split_row_avx2(src, nc, x0, x1, plane);
+        return;
+    }
+#endif
+    split_row_scalar(src, nc, x0, x1, plane);
+}
+
+// The first `count` lanes of four channel rows into `nc`-channel interleaved pixels.
+void merge_row(const float (*v)[kLanes], int count, int nc, float *dst)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2() && nc == 4 && count == kLanes) {
+        merge_rgba8_avx2(v, dst);
+        return;
+    }
+#endif
+    for (int j = 0; j < count; ++j) {
+        for (int k = 0; k < nc; ++k) {  // nc <= 4
+            dst[j * nc + k] = v[k][j];
+        }
+    }
+}
+
 // Gathers both layers of the pixels x0 .. x0 + 7 of row y (x0 a multiple of 8; lanes from
 // `count` on are past the row's end) into g; returns the near samples' area (for alpha).
 float gather_group(
@@ -602,7 +785,7 @@ float gather_group(
                 }
             }
         }
-        back_pass(lv, x0, y, cx.patterns.taps(k, variant), n, lanes, g);
+        back_pass(lv, x0, y, cx.patterns.taps(k, variant), n, cx.patterns.reach(k), lanes, g);
         remaining &= ~lanes;
     }
     return sample_area;
@@ -714,14 +897,8 @@ bool apply_dof(const Image &color,
     parallel_for_tiles(color.bounds(), [&](const Rect &t) {
         for (int y = t.y0; y < t.y1; ++y) {
             const std::size_t row = std::size_t(y) * std::size_t(w);
-            const float *src = color.pixel(0, y);
-            for (int x = t.x0; x < t.x1; ++x) {
-                for (int k = 0; k < 4; ++k) {
-                    plane[k][row + std::size_t(x)] =
-                        k < nc ? sanitize(src[std::size_t(x) * std::size_t(nc) + std::size_t(k)])
-                               : 0.0f;
-                }
-            }
+            float *const dst[4] = {plane[0] + row, plane[1] + row, plane[2] + row, plane[3] + row};
+            split_row(color.pixel(0, y), nc, t.x0, t.x1, dst);
             const float *c = field.radius.data() + row;
             float *inv2 = planes.inv2() + row;
             for (int x = t.x0; x < t.x1; ++x) {
@@ -870,12 +1047,7 @@ bool apply_dof(const Image &color,
                             }
                         }
                     }
-                    float *o = out.pixel(x0, y);
-                    for (int j = 0; j < count; ++j) {
-                        for (int k = 0; k < nc; ++k) {  // nc <= 4
-                            o[j * nc + k] = v[k][j];
-                        }
-                    }
+                    merge_row(v, count, nc, out.pixel(x0, y));
                 }
             }
         },
