@@ -145,7 +145,7 @@ struct Tap {
 
 class Patterns {
    public:
-    void build(float max_radius, const DofSettings &st, float density)
+    void build(float max_radius, const DofSettings &st, float density, int width)
     {
         radii_.clear();
         for (float r = 0.25f;; r += std::max(0.25f, r / 32.0f)) {
@@ -194,10 +194,13 @@ class Patterns {
             }
         });
         reach_.assign(radii_.size(), 0);
+        offsets_.resize(taps_.size());
         for (std::size_t k = 0; k < radii_.size(); ++k) {
-            const Tap *t = taps_.data() + start_[k];
-            for (std::size_t i = 0; i < std::size_t(n_[k]) * kVariants; ++i) {
-                reach_[k] = std::max(reach_[k], std::abs(int(t[i].dx)));
+            const std::size_t start = start_[k], end = start + std::size_t(n_[k]) * kVariants;
+            for (std::size_t i = start; i < end; ++i) {
+                const Tap &t = taps_[i];
+                reach_[k] = std::max({reach_[k], std::abs(int(t.dx)), std::abs(int(t.dy))});
+                offsets_[i] = std::ptrdiff_t(t.dy) * width + t.dx;
             }
         }
         lut_.resize(std::size_t(std::ceil(4.0f * radii_.back())) + 2);
@@ -221,8 +224,13 @@ class Patterns {
     }
     float radius(int k) const { return radii_[std::size_t(k)]; }
     int count(int k) const { return n_[std::size_t(k)]; }
-    /// The largest horizontal offset of any of level k's taps.
+    /// The largest offset (either axis) of any of level k's taps.
     int reach(int k) const { return reach_[std::size_t(k)]; }
+    /// Each tap's dy * width + dx (width: the level's, given to build), beside taps(k, variant).
+    const std::ptrdiff_t *offsets(int k, int variant) const
+    {
+        return offsets_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
+    }
     const Tap *taps(int k, int variant) const
     {
         return taps_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
@@ -234,7 +242,8 @@ class Patterns {
     std::vector<std::size_t> start_;
     std::vector<Tap> taps_;
     std::vector<int> lut_;
-    std::vector<int> reach_;  ///< Largest |dx| of a level's taps.
+    std::vector<int> reach_;               ///< Largest |dx| or |dy| of a level's taps.
+    std::vector<std::ptrdiff_t> offsets_;  ///< dy * width + dx of each tap.
 };
 
 struct Context {
@@ -437,23 +446,23 @@ POSTHASTE_AVX2_INLINE v8::V load_at(const float *row, int col0, v8::VI cols)
     }
 }
 
+// idx: the first lane's element (Inside) or the row's first element (edge-clamped columns).
 template <bool Inside>
 POSTHASTE_AVX2_INLINE void back_tap(
-    const Level &lv, std::size_t row, int col0, float rim, const BackLanes &l, Sums &s)
+    const Level &lv, std::size_t idx, v8::VI cols, float rim, const BackLanes &l, Sums &s)
 {
-    const v8::VI cols = Inside ? _mm256_setzero_si256() : clamped_cols(col0, lv.width);
-    const v8::V cq = load_at<Inside>(lv.coc + row, col0, cols);
+    const v8::V cq = load_at<Inside>(lv.coc + idx, 0, cols);
     const v8::V front = _mm256_and_ps(_mm256_cmp_ps(cq, v8::set1(-0.5f), _CMP_LT_OQ),
                                       _mm256_cmp_ps(cq, l.cp1, _CMP_LE_OQ));
     const v8::V r =
         _mm256_min_ps(_mm256_max_ps(_mm256_andnot_ps(v8::set1(-0.0f), cq), l.lo), l.acp);
     const v8::V inv_area =
-        _mm256_max_ps(_mm256_min_ps(load_at<Inside>(lv.inv2 + row, col0, cols), l.hi), l.ws);
+        _mm256_max_ps(_mm256_min_ps(load_at<Inside>(lv.inv2 + idx, 0, cols), l.hi), l.ws);
     const v8::V cov =
         v8::clamp(_mm256_add_ps(r, v8::set1(rim)), _mm256_setzero_ps(), v8::set1(1.0f));
     const v8::V wgt = _mm256_andnot_ps(front, _mm256_mul_ps(cov, inv_area));
     for (int k = 0; k < 4; ++k) {
-        s.c[k] = _mm256_fmadd_ps(load_at<Inside>(lv.ch[k] + row, col0, cols), wgt, s.c[k]);
+        s.c[k] = _mm256_fmadd_ps(load_at<Inside>(lv.ch[k] + idx, 0, cols), wgt, s.c[k]);
     }
     s.w = _mm256_add_ps(s.w, wgt);
 }
@@ -462,6 +471,7 @@ POSTHASTE_AVX2 void back_pass_avx2(const Level &lv,
                                    int x0,
                                    int y,
                                    const Tap *taps,
+                                   const std::ptrdiff_t *offsets,
                                    int n,
                                    int reach,
                                    const float *lo_p,
@@ -481,13 +491,12 @@ POSTHASTE_AVX2 void back_pass_avx2(const Level &lv,
         s.c[k] = _mm256_loadu_ps(g.back[k]);
     }
     s.w = _mm256_loadu_ps(g.back_w);
-    // Taps reach at most `reach` columns: when the whole group's reach is inside the row, no
-    // tap needs the edge check.
-    if (x0 - reach >= 0 && x0 + reach + kLanes <= w) {
+    const v8::VI none = _mm256_setzero_si256();
+    if (x0 - reach >= 0 && x0 + reach + kLanes <= w && y - reach >= 0 && y + reach < h) {
+        // The whole reach inside the image: each tap is its precomputed offset.
+        const std::ptrdiff_t base = std::ptrdiff_t(y) * w + x0;
         for (int i = 0; i < n; ++i) {
-            const std::size_t row =
-                std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
-            back_tap<true>(lv, row, x0 + taps[i].dx, taps[i].rim, l, s);
+            back_tap<true>(lv, std::size_t(base + offsets[i]), none, taps[i].rim, l, s);
         }
     } else {
         for (int i = 0; i < n; ++i) {
@@ -495,9 +504,9 @@ POSTHASTE_AVX2 void back_pass_avx2(const Level &lv,
                 std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
             const int col0 = x0 + taps[i].dx;
             if (col0 >= 0 && col0 + kLanes <= w) {
-                back_tap<true>(lv, row, col0, taps[i].rim, l, s);
+                back_tap<true>(lv, row + std::size_t(col0), none, taps[i].rim, l, s);
             } else {
-                back_tap<false>(lv, row, col0, taps[i].rim, l, s);
+                back_tap<false>(lv, row, clamped_cols(col0, w), taps[i].rim, l, s);
             }
         }
     }
@@ -519,8 +528,15 @@ void near_pass(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
     near_pass_scalar(lv, x0, y, taps, n, g);
 }
 
-void back_pass(
-    const Level &lv, int x0, int y, const Tap *taps, int n, int reach, unsigned lanes, Group &g)
+void back_pass(const Level &lv,
+               int x0,
+               int y,
+               const Tap *taps,
+               const std::ptrdiff_t *offsets,
+               int n,
+               int reach,
+               unsigned lanes,
+               Group &g)
 {
     float lo[kLanes], hi[kLanes], ws[kLanes];
     for (int j = 0; j < kLanes; ++j) {
@@ -531,10 +547,12 @@ void back_pass(
     }
 #if POSTHASTE_HAVE_AVX2_TARGET
     if (simd::avx2()) {
-        back_pass_avx2(lv, x0, y, taps, n, reach, lo, hi, ws, g);
+        back_pass_avx2(lv, x0, y, taps, offsets, n, reach, lo, hi, ws, g);
         return;
     }
 #endif
+    (void)offsets;  // the scalar path clamps each tap instead
+    (void)reach;
     back_pass_scalar(lv, x0, y, taps, n, lo, hi, ws, g);
 }
 
@@ -785,7 +803,15 @@ float gather_group(
                 }
             }
         }
-        back_pass(lv, x0, y, cx.patterns.taps(k, variant), n, cx.patterns.reach(k), lanes, g);
+        back_pass(lv,
+                  x0,
+                  y,
+                  cx.patterns.taps(k, variant),
+                  cx.patterns.offsets(k, variant),
+                  n,
+                  cx.patterns.reach(k),
+                  lanes,
+                  g);
         remaining &= ~lanes;
     }
     return sample_area;
@@ -910,7 +936,7 @@ bool apply_dof(const Image &color,
     Context cx;
     cx.settings = &settings;
     cx.density = settings.density;
-    cx.patterns.build(field.max_radius, settings, settings.density);
+    cx.patterns.build(field.max_radius, settings, settings.density, w);
     tm.coc_ms += ms_since(t0);
     tm.coc_cpu_ms += process_cpu_ms() - c0;
     const Level full = planes.level(field.radius.data(), w, h);
@@ -975,7 +1001,7 @@ bool apply_dof(const Image &color,
         Context cx2;
         cx2.settings = &settings;
         cx2.density = settings.half_density;
-        cx2.patterns.build(0.5f * field.max_radius, settings, settings.half_density);
+        cx2.patterns.build(0.5f * field.max_radius, settings, settings.half_density, w2);
         parallel_for_tiles(
             Rect{0, 0, w2, h2},
             [&](const Rect &t) {
