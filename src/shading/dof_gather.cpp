@@ -132,7 +132,8 @@ struct Planes {
 // Sample patterns, precomputed per quantised gather radius: kVariants rotated and radially
 // jittered golden-angle spirals of n = clamp(density R^2) taps (disc, or polygon by the blade
 // shape), each tap an integer pixel offset and the shape-normalised distance of the pixel it
-// reads. A pixel picks its variant by hash(x, y), so the noise is the same for any thread count.
+// reads. A group of eight adjacent pixels picks its variant by hash(x / 8, y) (the simple method:
+// each pixel by hash(x, y)), so the noise is the same for any thread count.
 constexpr int kVariants = 16;
 
 struct Tap {
