@@ -1,7 +1,7 @@
 // nodes/dof.cpp: depth of field from color + depth: thin-lens circle of confusion (signed, px),
 // tile max CoC with dilation, then a near/far separated gather (src/shading/dof_gather.h; Jimenez
 // 2014, Abadie 2018). Lens values come from the frame header (aperture, focus, focalLength,
-// sensorWidth) unless a parameter overrides them. Jitter is hashed from (x, y): the output does
+// sensorWidth) unless a parameter overrides them. Jitter is hashed from (x / 8, y): the output does
 // not depend on the thread count. When no pixel's CoC reaches half a pixel the color pass is
 // passed on untouched (same bits). method "simple" is the baseline: a disc of each pixel's own
 // CoC, no depth test.

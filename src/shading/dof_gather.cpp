@@ -3,15 +3,23 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <ctime>
 #include <glm/vec2.hpp>
 #include <glm/vec4.hpp>
 #include <limits>
 #include <memory>
+#include <new>
 #include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "core/hash.h"
 #include "core/parallel.h"
+#include "core/simd.h"
+#include "core/simd_avx2.h"
 
 namespace posthaste::shading {
 namespace {
@@ -54,28 +62,91 @@ float polygon_boundary(float angle, int blades)
     return std::cos(0.5f * sector) / std::cos(a - 0.5f * sector);
 }
 
-// One resolution level of the gather's input: colour, signed CoC radius (in this level's
-// pixels) and size.
+// One resolution level of the gather's input, as planes (structure of arrays, so that eight
+// horizontally adjacent pixels are one contiguous load): colour channels, signed CoC radius (in
+// this level's pixels), 1 / CoC^2 (+inf at 0: the near field's footprint and, clamped to 1, the
+// background's) and size.
 struct Level {
-    const glm::vec4 *color = nullptr;
+    const float *ch[4] = {nullptr, nullptr, nullptr, nullptr};
     const float *coc = nullptr;
+    const float *inv2 = nullptr;
     int width = 0, height = 0;
+
+    glm::vec4 color(std::size_t i) const { return {ch[0][i], ch[1][i], ch[2][i], ch[3][i]}; }
+};
+
+// Storage behind a Level: four colour planes and the 1 / CoC^2 plane (the CoC plane is the
+// caller's).
+struct Planes {
+    struct Free {
+        void operator()(float *p) const { std::free(p); }
+    };
+    std::unique_ptr<float[], Free> data;
+    std::size_t n = 0;
+
+    // All written by the caller. A large frame's planes (40 MB at 1080p) are asked for in 2 MB
+    // pages where the system has them, so that first touching them costs a few page faults
+    // rather than ten thousand.
+    void allocate(std::size_t pixels)
+    {
+        n = pixels;
+        constexpr std::size_t kHuge = std::size_t(2) << 20;
+        const std::size_t bytes = 5 * pixels * sizeof(float);
+        if (bytes < 2 * kHuge) {
+            data.reset(static_cast<float *>(std::malloc(bytes)));
+        } else {
+            const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
+            data.reset(static_cast<float *>(std::aligned_alloc(kHuge, rounded)));
+#ifdef MADV_HUGEPAGE
+            if (data) {
+                madvise(data.get(), rounded, MADV_HUGEPAGE);  // advisory: ignored where unsupported
+            }
+#endif
+        }
+        if (!data) {
+            throw std::bad_alloc();
+        }
+    }
+    float *channel(int k)
+    {
+        return data.get() + std::size_t(k) * n;
+    }
+    float *inv2()
+    {
+        return data.get() + 4 * n;
+    }
+    Level level(const float *coc, int w, int h)
+    {
+        Level lv;
+        for (int k = 0; k < 4; ++k) {
+            lv.ch[k] = channel(k);
+        }
+        lv.coc = coc;
+        lv.inv2 = inv2();
+        lv.width = w;
+        lv.height = h;
+        return lv;
+    }
 };
 
 // Sample patterns, precomputed per quantised gather radius: kVariants rotated and radially
 // jittered golden-angle spirals of n = clamp(density R^2) taps (disc, or polygon by the blade
 // shape), each tap an integer pixel offset and the shape-normalised distance of the pixel it
-// reads. A pixel picks its variant by hash(x, y), so the noise is the same for any thread count.
+// reads. A group of eight adjacent pixels picks its variant by hash(x / 8, y) (the simple method:
+// each pixel by hash(x, y)), so the noise is the same for any thread count.
 constexpr int kVariants = 16;
 
 struct Tap {
     std::int16_t dx, dy;
-    float dist;
+    /// 0.5 - the shape-normalised distance d of the pixel read. How much of that pixel a CoC of
+    /// radius r covers is clamp(r - d + 0.5, 0, 1) = clamp(r + rim, 0, 1): a one-pixel ramp
+    /// centred on the rim, so a CoC under half a pixel reaches no neighbour.
+    float rim;
 };
 
 class Patterns {
    public:
-    void build(float max_radius, const DofSettings &st, float density)
+    void build(float max_radius, const DofSettings &st, float density, int width)
     {
         radii_.clear();
         for (float r = 0.25f;; r += std::max(0.25f, r / 32.0f)) {
@@ -114,19 +185,53 @@ class Patterns {
                     const int oy = int(std::lrint(dist * shape * dy));
                     t[i].dx = std::int16_t(std::clamp(ox, -32767, 32767));
                     t[i].dy = std::int16_t(std::clamp(oy, -32767, 32767));
-                    t[i].dist = std::sqrt(float(ox * ox + oy * oy)) / shape;
+                    t[i].rim = 0.5f - std::sqrt(float(ox * ox + oy * oy)) / shape;
                 }
+                // Row by row: consecutive taps read neighbouring memory (the sums do not depend
+                // on the order but for rounding).
+                std::sort(t, t + n, [](const Tap &a, const Tap &b) {
+                    return a.dy != b.dy ? a.dy < b.dy : a.dx < b.dx;
+                });
             }
         });
+        reach_.assign(radii_.size(), 0);
+        offsets_.resize(taps_.size());
+        for (std::size_t k = 0; k < radii_.size(); ++k) {
+            const std::size_t start = start_[k], end = start + std::size_t(n_[k]) * kVariants;
+            for (std::size_t i = start; i < end; ++i) {
+                const Tap &t = taps_[i];
+                reach_[k] = std::max({reach_[k], std::abs(int(t.dx)), std::abs(int(t.dy))});
+                offsets_[i] = std::ptrdiff_t(t.dy) * width + t.dx;
+            }
+        }
+        lut_.resize(std::size_t(std::ceil(4.0f * radii_.back())) + 2);
+        for (std::size_t i = 0; i < lut_.size(); ++i) {
+            const auto it = std::lower_bound(radii_.begin(), radii_.end(), 0.25f * float(i));
+            lut_[i] = it == radii_.end() ? int(radii_.size()) - 1 : int(it - radii_.begin());
+        }
     }
     /// The smallest quantised radius >= r (or the largest there is).
     int level(float r) const
     {
-        const auto it = std::lower_bound(radii_.begin(), radii_.end(), r);
-        return it == radii_.end() ? int(radii_.size()) - 1 : int(it - radii_.begin());
+        // lut_[i] is the level of i / 4 px, a lower bound; the steps are at least 0.25 px, so
+        // one or two more comparisons at most.
+        const float q = std::clamp(r * 4.0f, 0.0f, float(lut_.size() - 1));
+        int k = lut_[std::size_t(q)];
+        const int last = int(radii_.size()) - 1;
+        while (k < last && radii_[std::size_t(k)] < r) {
+            ++k;
+        }
+        return k;
     }
     float radius(int k) const { return radii_[std::size_t(k)]; }
     int count(int k) const { return n_[std::size_t(k)]; }
+    /// The largest offset (either axis) of any of level k's taps.
+    int reach(int k) const { return reach_[std::size_t(k)]; }
+    /// Each tap's dy * width + dx (width: the level's, given to build), beside taps(k, variant).
+    const std::ptrdiff_t *offsets(int k, int variant) const
+    {
+        return offsets_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
+    }
     const Tap *taps(int k, int variant) const
     {
         return taps_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
@@ -137,10 +242,14 @@ class Patterns {
     std::vector<int> n_;
     std::vector<std::size_t> start_;
     std::vector<Tap> taps_;
+    std::vector<int> lut_;
+    std::vector<int> reach_;               ///< Largest |dx| or |dy| of a level's taps.
+    std::vector<std::ptrdiff_t> offsets_;  ///< dy * width + dx of each tap.
 };
 
 struct Context {
     const DofSettings *settings = nullptr;
+    float density = 8.0f;  ///< Samples per R^2 of this level's patterns.
     Patterns patterns;
 };
 
@@ -159,116 +268,586 @@ struct Layers {
     glm::vec4 composite() const { return back * (1.0f - alpha) + front * alpha; }
 };
 
-// How much of a pixel at `distance` a CoC of `radius` covers: a one-pixel ramp centred on the
-// rim, so a CoC under half a pixel reaches no neighbour.
-inline float coverage(float radius, float distance)
-{
-    return std::clamp(radius - distance + 0.5f, 0.0f, 1.0f);
-}
-
 // Baseline: a uniform disc (or polygon) of the pixel's own CoC, no depth test.
 glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
 {
     const std::size_t ip = std::size_t(y) * std::size_t(lv.width) + std::size_t(x);
     const float radius = std::fabs(lv.coc[ip]);
     if (radius < 0.5f) {
-        return lv.color[ip];
+        return lv.color(ip);
     }
     const int k = cx.patterns.level(radius);
     const int n = cx.patterns.count(k);
     const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
-    glm::vec4 sum = lv.color[ip];
+    glm::vec4 sum = lv.color(ip);
     for (int i = 0; i < n; ++i) {
         const int qx = std::clamp(x + taps[i].dx, 0, lv.width - 1);
         const int qy = std::clamp(y + taps[i].dy, 0, lv.height - 1);
-        sum += lv.color[std::size_t(qy) * std::size_t(lv.width) + std::size_t(qx)];
+        sum += lv.color(std::size_t(qy) * std::size_t(lv.width) + std::size_t(qx));
     }
     return sum / float(n + 1);
 }
 
-// Near/far gather at one pixel. The background (everything not in front of p in the near
-// field) only reaches p within p's own CoC (weights use min(|c_q|, |c_p|) behind p, and
-// |c_q| < |c_p| in front), so it is gathered over |c_p|; the near field can reach from as far
-// as the tile neighbourhood's largest near CoC, `near_radius`, and is gathered over that.
-Layers gather_layers(const Context &cx, const Level &lv, int x, int y, float near_radius)
+// Near/far gather over a group of up to eight horizontally adjacent pixels (x0 .. x0 + 7, y) that
+// share their tap offsets, so that the vector path reads each tap as one contiguous load of eight
+// pixels per plane. Per pixel p with signed radius c_p:
+// - the near field (samples q in front of p and of the focus plane) can reach p from as far as
+//   the tile neighbourhood's largest near CoC, `near_radius`, and is gathered over that (one
+//   spiral for the whole group): it spreads with its own CoC and gives a coverage alpha
+//   sum cov (R^2 / n) / c_q^2;
+// - the background (everything else) only reaches p within p's own CoC (weights use
+//   min(|c_q|, |c_p|) behind p, and |c_q| < |c_p| in front), so it is gathered over a spiral of
+//   about |c_p|: the group's pixels are served largest radius first, each pass taking every
+//   pixel for which the pass's spiral puts at least 3/4 of the samples that its own radius would
+//   get inside its own disc (a pixel outside a sample's reach gets a zero weight from it, so a
+//   larger spiral only costs density). Pixels under half a pixel, or whose near field already
+//   covers the lens (alpha >= 1: the composite would weigh the background by 0), skip it.
+// The spiral variant is hashed from (group, y), so the result does not depend on the thread
+// count. Both paths below sum each pixel's taps in the same order; they differ only in rounding.
+constexpr int kLanes = 8;
+
+// Per-lane state of one group: the pixel's own CoC and background self weight, and the running
+// sums of both layers.
+struct Group {
+    float cp[kLanes], acp[kLanes], w_self[kLanes];
+    float front[4][kLanes], front_w[kLanes], near_w[kLanes];
+    float back[4][kLanes], back_w[kLanes];
+};
+
+void near_pass_scalar(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
 {
     const int w = lv.width, h = lv.height;
-    const std::size_t ip = std::size_t(y) * std::size_t(w) + std::size_t(x);
-    const float cp = lv.coc[ip];
-    const float acp = std::fabs(cp);
-    const bool p_near = cp < -0.5f;
-    const auto in_front = [cp](float cq) { return cq < -0.5f && cq <= cp + 1.0f; };
-
-    // The pixel itself: part of the near layer when it is in the near field.
-    const float w_self = 1.0f / std::max(cp * cp, 1.0f);
-    glm::vec4 front(0.0f), back(0.0f);
-    float front_w = 0.0f, back_w = 0.0f, alpha = 0.0f;
-    if (p_near) {
-        front = lv.color[ip] * w_self;
-        front_w = w_self;
-    } else {
-        back = lv.color[ip] * w_self;
-        back_w = w_self;
+    for (int i = 0; i < n; ++i) {
+        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
+        for (int j = 0; j < kLanes; ++j) {
+            const std::size_t iq = row + std::size_t(std::clamp(x0 + j + taps[i].dx, 0, w - 1));
+            const float cq = lv.coc[iq];
+            if (!(cq < -0.5f && cq <= g.cp[j] + 1.0f)) {
+                continue;
+            }
+            // Near field in front of p: spreads with its own CoC over whatever is behind.
+            const float wgt = std::clamp(taps[i].rim - cq, 0.0f, 1.0f) * lv.inv2[iq];
+            for (int k = 0; k < 4; ++k) {
+                g.front[k][j] += lv.ch[k][iq] * wgt;
+            }
+            g.front_w[j] += wgt;
+            g.near_w[j] += wgt;
+        }
     }
+}
+
+// Background weights. Behind p (c_q > c_p) a sample counts with p's own radius when p is in the
+// near field (the background within p's disc shows through it), else with min(|c_q|, |c_p|): a
+// far field never bleeds over a sharper foreground; not behind p and not in the near field
+// (|c_q| <= 0.5 or |c_q| <= |c_p|) with its own. Both cases are r = min(max(|c_q|, lo_p), |c_p|)
+// with lo_p = |c_p| in the near field and 0 elsewhere, and the weight's 1 / max(r^2, 1) is
+// max(min(1 / c_q^2, hi_p), w_p) with w_p = 1 / max(c_p^2, 1), hi_p = 0 in the near field and 1
+// elsewhere. A lane outside the pass gets hi = w = 0: a zero weight.
+void back_pass_scalar(const Level &lv,
+                      int x0,
+                      int y,
+                      const Tap *taps,
+                      int n,
+                      const float *lo,
+                      const float *hi,
+                      const float *ws,
+                      Group &g)
+{
+    const int w = lv.width, h = lv.height;
+    for (int i = 0; i < n; ++i) {
+        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
+        for (int j = 0; j < kLanes; ++j) {
+            const std::size_t iq = row + std::size_t(std::clamp(x0 + j + taps[i].dx, 0, w - 1));
+            const float cq = lv.coc[iq];
+            if (cq < -0.5f && cq <= g.cp[j] + 1.0f) {
+                continue;  // the near pass
+            }
+            const float r = std::min(std::max(std::fabs(cq), lo[j]), g.acp[j]);
+            const float inv_area = std::max(std::min(lv.inv2[iq], hi[j]), ws[j]);
+            const float wgt = std::clamp(r + taps[i].rim, 0.0f, 1.0f) * inv_area;
+            for (int k = 0; k < 4; ++k) {
+                g.back[k][j] += lv.ch[k][iq] * wgt;
+            }
+            g.back_w[j] += wgt;
+        }
+    }
+}
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+namespace v8 = simd::v8;
+
+// Eight pixels of a plane at columns col0 .. col0 + 7 of a row: one load inside the image, a
+// gather of the edge-clamped columns across its left or right border.
+POSTHASTE_AVX2_INLINE v8::V load_lanes(const float *row, int col0, bool inside, v8::VI cols)
+{
+    return inside ? _mm256_loadu_ps(row + col0) : _mm256_i32gather_ps(row, cols, 4);
+}
+
+POSTHASTE_AVX2_INLINE v8::VI clamped_cols(int col0, int w)
+{
+    const v8::VI c =
+        _mm256_add_epi32(_mm256_set1_epi32(col0), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    return _mm256_min_epi32(_mm256_max_epi32(c, _mm256_setzero_si256()), _mm256_set1_epi32(w - 1));
+}
+
+POSTHASTE_AVX2 void near_pass_avx2(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
+{
+    const int w = lv.width, h = lv.height;
+    const v8::V cp1 = _mm256_add_ps(_mm256_loadu_ps(g.cp), v8::set1(1.0f));
+    const v8::V lim = v8::set1(-0.5f), zero = _mm256_setzero_ps(), one = v8::set1(1.0f);
+    v8::V f0 = _mm256_loadu_ps(g.front[0]), f1 = _mm256_loadu_ps(g.front[1]);
+    v8::V f2 = _mm256_loadu_ps(g.front[2]), f3 = _mm256_loadu_ps(g.front[3]);
+    v8::V fw = _mm256_loadu_ps(g.front_w), nw = _mm256_loadu_ps(g.near_w);
+    for (int i = 0; i < n; ++i) {
+        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
+        const int col0 = x0 + taps[i].dx;
+        const bool inside = col0 >= 0 && col0 + kLanes <= w;
+        const v8::VI cols = clamped_cols(col0, w);
+        const v8::V cq = load_lanes(lv.coc + row, col0, inside, cols);
+        const v8::V front =
+            _mm256_and_ps(_mm256_cmp_ps(cq, lim, _CMP_LT_OQ), _mm256_cmp_ps(cq, cp1, _CMP_LE_OQ));
+        if (_mm256_movemask_ps(front) == 0) {
+            continue;
+        }
+        // clamp(-cq + 0.5 - dist, 0, 1) * (1 / cq^2), on the near-field lanes only.
+        const v8::V cov = v8::clamp(_mm256_sub_ps(v8::set1(taps[i].rim), cq), zero, one);
+        const v8::V wgt =
+            _mm256_and_ps(_mm256_mul_ps(cov, load_lanes(lv.inv2 + row, col0, inside, cols)), front);
+        f0 = _mm256_fmadd_ps(load_lanes(lv.ch[0] + row, col0, inside, cols), wgt, f0);
+        f1 = _mm256_fmadd_ps(load_lanes(lv.ch[1] + row, col0, inside, cols), wgt, f1);
+        f2 = _mm256_fmadd_ps(load_lanes(lv.ch[2] + row, col0, inside, cols), wgt, f2);
+        f3 = _mm256_fmadd_ps(load_lanes(lv.ch[3] + row, col0, inside, cols), wgt, f3);
+        fw = _mm256_add_ps(fw, wgt);
+        nw = _mm256_add_ps(nw, wgt);
+    }
+    _mm256_storeu_ps(g.front[0], f0);
+    _mm256_storeu_ps(g.front[1], f1);
+    _mm256_storeu_ps(g.front[2], f2);
+    _mm256_storeu_ps(g.front[3], f3);
+    _mm256_storeu_ps(g.front_w, fw);
+    _mm256_storeu_ps(g.near_w, nw);
+}
+
+// One background tap for eight lanes (see back_pass_scalar); Inside: the eight columns are in
+// the image (one load per plane), else edge-clamped (a gather per plane).
+struct BackLanes {
+    v8::V cp1, acp, lo, hi, ws;
+};
+struct Sums {
+    v8::V c[4], w;
+};
+
+template <bool Inside>
+POSTHASTE_AVX2_INLINE v8::V load_at(const float *row, int col0, v8::VI cols)
+{
+    if constexpr (Inside) {
+        return _mm256_loadu_ps(row + col0);
+    } else {
+        return _mm256_i32gather_ps(row, cols, 4);
+    }
+}
+
+// idx: the first lane's element (Inside) or the row's first element (edge-clamped columns).
+template <bool Inside>
+POSTHASTE_AVX2_INLINE void back_tap(
+    const Level &lv, std::size_t idx, v8::VI cols, float rim, const BackLanes &l, Sums &s)
+{
+    const v8::V cq = load_at<Inside>(lv.coc + idx, 0, cols);
+    const v8::V front = _mm256_and_ps(_mm256_cmp_ps(cq, v8::set1(-0.5f), _CMP_LT_OQ),
+                                      _mm256_cmp_ps(cq, l.cp1, _CMP_LE_OQ));
+    const v8::V r =
+        _mm256_min_ps(_mm256_max_ps(_mm256_andnot_ps(v8::set1(-0.0f), cq), l.lo), l.acp);
+    const v8::V inv_area =
+        _mm256_max_ps(_mm256_min_ps(load_at<Inside>(lv.inv2 + idx, 0, cols), l.hi), l.ws);
+    const v8::V cov =
+        v8::clamp(_mm256_add_ps(r, v8::set1(rim)), _mm256_setzero_ps(), v8::set1(1.0f));
+    const v8::V wgt = _mm256_andnot_ps(front, _mm256_mul_ps(cov, inv_area));
+    for (int k = 0; k < 4; ++k) {
+        s.c[k] = _mm256_fmadd_ps(load_at<Inside>(lv.ch[k] + idx, 0, cols), wgt, s.c[k]);
+    }
+    s.w = _mm256_add_ps(s.w, wgt);
+}
+
+POSTHASTE_AVX2 void back_pass_avx2(const Level &lv,
+                                   int x0,
+                                   int y,
+                                   const Tap *taps,
+                                   const std::ptrdiff_t *offsets,
+                                   int n,
+                                   int reach,
+                                   const float *lo_p,
+                                   const float *hi_p,
+                                   const float *ws_p,
+                                   Group &g)
+{
+    const int w = lv.width, h = lv.height;
+    BackLanes l;
+    l.cp1 = _mm256_add_ps(_mm256_loadu_ps(g.cp), v8::set1(1.0f));
+    l.acp = _mm256_loadu_ps(g.acp);
+    l.lo = _mm256_loadu_ps(lo_p);
+    l.hi = _mm256_loadu_ps(hi_p);
+    l.ws = _mm256_loadu_ps(ws_p);
+    Sums s;
+    for (int k = 0; k < 4; ++k) {
+        s.c[k] = _mm256_loadu_ps(g.back[k]);
+    }
+    s.w = _mm256_loadu_ps(g.back_w);
+    const v8::VI none = _mm256_setzero_si256();
+    if (x0 - reach >= 0 && x0 + reach + kLanes <= w && y - reach >= 0 && y + reach < h) {
+        // The whole reach inside the image: each tap is its precomputed offset.
+        const std::ptrdiff_t base = std::ptrdiff_t(y) * w + x0;
+        for (int i = 0; i < n; ++i) {
+            back_tap<true>(lv, std::size_t(base + offsets[i]), none, taps[i].rim, l, s);
+        }
+    } else {
+        for (int i = 0; i < n; ++i) {
+            const std::size_t row =
+                std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
+            const int col0 = x0 + taps[i].dx;
+            if (col0 >= 0 && col0 + kLanes <= w) {
+                back_tap<true>(lv, row + std::size_t(col0), none, taps[i].rim, l, s);
+            } else {
+                back_tap<false>(lv, row, clamped_cols(col0, w), taps[i].rim, l, s);
+            }
+        }
+    }
+    for (int k = 0; k < 4; ++k) {
+        _mm256_storeu_ps(g.back[k], s.c[k]);
+    }
+    _mm256_storeu_ps(g.back_w, s.w);
+}
+#endif
+
+void near_pass(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        near_pass_avx2(lv, x0, y, taps, n, g);
+        return;
+    }
+#endif
+    near_pass_scalar(lv, x0, y, taps, n, g);
+}
+
+void back_pass(const Level &lv,
+               int x0,
+               int y,
+               const Tap *taps,
+               const std::ptrdiff_t *offsets,
+               int n,
+               int reach,
+               unsigned lanes,
+               Group &g)
+{
+    float lo[kLanes], hi[kLanes], ws[kLanes];
+    for (int j = 0; j < kLanes; ++j) {
+        const bool on = (lanes >> j) & 1u, p_near = g.cp[j] < -0.5f;
+        lo[j] = p_near ? g.acp[j] : 0.0f;
+        hi[j] = on && !p_near ? 1.0f : 0.0f;
+        ws[j] = on ? g.w_self[j] : 0.0f;
+    }
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        back_pass_avx2(lv, x0, y, taps, offsets, n, reach, lo, hi, ws, g);
+        return;
+    }
+#endif
+    (void)offsets;  // the scalar path clamps each tap instead
+    (void)reach;
+    back_pass_scalar(lv, x0, y, taps, n, lo, hi, ws, g);
+}
+
+// A group's starting sums: each pixel itself, in the near layer when it is in the near field,
+// else in the background, weighed 1 / max(c_p^2, 1). Lanes past the row's end repeat its last
+// pixel; their results are dropped.
+void setup_group_scalar(const Level &lv, int x0, int y, Group &g)
+{
+    const int w = lv.width;
+    for (int j = 0; j < kLanes; ++j) {
+        const std::size_t ip =
+            std::size_t(y) * std::size_t(w) + std::size_t(std::min(x0 + j, w - 1));
+        const float cp = lv.coc[ip];
+        g.cp[j] = cp;
+        g.acp[j] = std::fabs(cp);
+        g.w_self[j] = std::min(lv.inv2[ip], 1.0f);
+        const float wf = cp < -0.5f ? g.w_self[j] : 0.0f, wb = g.w_self[j] - wf;
+        for (int k = 0; k < 4; ++k) {
+            const float v = lv.ch[k][ip];
+            g.front[k][j] = v * wf;
+            g.back[k][j] = v * wb;
+        }
+        g.front_w[j] = wf;
+        g.back_w[j] = wb;
+        g.near_w[j] = 0.0f;
+    }
+}
+
+// The composite back (1 - alpha) + front alpha of each lane, from its sums: front and back are
+// weighted means; alpha = sum cov (R^2 / n) / c_q^2 over the near samples, at most 1; with no
+// background weight at all the near layer stands alone.
+void composite_group_scalar(const Group &g, float sample_area, float (*out)[kLanes])
+{
+    for (int j = 0; j < kLanes; ++j) {
+        float front[4] = {0.0f, 0.0f, 0.0f, 0.0f}, alpha = 0.0f, back[4];
+        if (g.front_w[j] > 0.0f) {
+            const float inv = 1.0f / g.front_w[j];
+            for (int k = 0; k < 4; ++k) {
+                front[k] = g.front[k][j] * inv;
+            }
+            alpha = std::min(g.near_w[j] * sample_area, 1.0f);
+        }
+        if (g.back_w[j] > 0.0f) {
+            const float inv = 1.0f / g.back_w[j];
+            for (int k = 0; k < 4; ++k) {
+                back[k] = g.back[k][j] * inv;
+            }
+        } else {
+            std::copy(front, front + 4, back);
+            alpha = 1.0f;
+        }
+        for (int k = 0; k < 4; ++k) {
+            out[k][j] = back[k] * (1.0f - alpha) + front[k] * alpha;
+        }
+    }
+}
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+POSTHASTE_AVX2 void setup_group_avx2(const Level &lv, int x0, int y, Group &g)
+{
+    const std::size_t ip = std::size_t(y) * std::size_t(lv.width) + std::size_t(x0);
+    const v8::V cp = _mm256_loadu_ps(lv.coc + ip);
+    const v8::V ws = _mm256_min_ps(_mm256_loadu_ps(lv.inv2 + ip), v8::set1(1.0f));
+    const v8::V wf = _mm256_and_ps(ws, _mm256_cmp_ps(cp, v8::set1(-0.5f), _CMP_LT_OQ));
+    const v8::V wb = _mm256_sub_ps(ws, wf);
+    _mm256_storeu_ps(g.cp, cp);
+    _mm256_storeu_ps(g.acp, _mm256_andnot_ps(v8::set1(-0.0f), cp));
+    _mm256_storeu_ps(g.w_self, ws);
+    for (int k = 0; k < 4; ++k) {
+        const v8::V v = _mm256_loadu_ps(lv.ch[k] + ip);
+        _mm256_storeu_ps(g.front[k], _mm256_mul_ps(v, wf));
+        _mm256_storeu_ps(g.back[k], _mm256_mul_ps(v, wb));
+    }
+    _mm256_storeu_ps(g.front_w, wf);
+    _mm256_storeu_ps(g.back_w, wb);
+    _mm256_storeu_ps(g.near_w, _mm256_setzero_ps());
+}
+
+POSTHASTE_AVX2 void composite_group_avx2(const Group &g, float sample_area, float (*out)[kLanes])
+{
+    const v8::V zero = _mm256_setzero_ps(), one = v8::set1(1.0f);
+    const v8::V fw = _mm256_loadu_ps(g.front_w), bw = _mm256_loadu_ps(g.back_w);
+    const v8::V has_front = _mm256_cmp_ps(fw, zero, _CMP_GT_OQ);
+    const v8::V has_back = _mm256_cmp_ps(bw, zero, _CMP_GT_OQ);
+    const v8::V inv_f = _mm256_div_ps(one, fw), inv_b = _mm256_div_ps(one, bw);
+    v8::V alpha = _mm256_and_ps(
+        _mm256_min_ps(_mm256_mul_ps(_mm256_loadu_ps(g.near_w), v8::set1(sample_area)), one),
+        has_front);
+    alpha = _mm256_blendv_ps(one, alpha, has_back);
+    const v8::V keep = _mm256_sub_ps(one, alpha);
+    for (int k = 0; k < 4; ++k) {
+        const v8::V front =
+            _mm256_and_ps(_mm256_mul_ps(_mm256_loadu_ps(g.front[k]), inv_f), has_front);
+        const v8::V back =
+            _mm256_blendv_ps(front, _mm256_mul_ps(_mm256_loadu_ps(g.back[k]), inv_b), has_back);
+        _mm256_storeu_ps(out[k],
+                         _mm256_add_ps(_mm256_mul_ps(back, keep), _mm256_mul_ps(front, alpha)));
+    }
+}
+#endif
+
+// Colour rows between the interleaved RGBA image and the planes (pure data movement and the
+// sanitising of non-finite values, so both paths give the same bits).
+void split_row_scalar(const float *src, int nc, int x0, int x1, float *const *plane)
+{
+    for (int x = x0; x < x1; ++x) {
+        for (int k = 0; k < 4; ++k) {
+            plane[k][x] =
+                k < nc ? sanitize(src[std::size_t(x) * std::size_t(nc) + std::size_t(k)]) : 0.0f;
+        }
+    }
+}
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+// Four channels of eight RGBA pixels: a 4 x 8 transpose either way. In 128-bit halves, pixel
+// pairs (0,1), (2,3), (4,5), (6,7) go to channel vectors ordered (0 2 4 6 | 1 3 5 7), hence the
+// final permute.
+POSTHASTE_AVX2 void split_row_avx2(const float *src, int nc, int x0, int x1, float *const *plane)
+{
+    int x = x0;
+    if (nc == 4) {
+        const v8::VI order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
+        const v8::V sign = v8::set1(-0.0f), big = v8::set1(std::numeric_limits<float>::max());
+        for (; x + kLanes <= x1; x += kLanes) {
+            const float *p = src + std::size_t(x) * 4;
+            const v8::V p0 = _mm256_loadu_ps(p), p1 = _mm256_loadu_ps(p + 8);
+            const v8::V p2 = _mm256_loadu_ps(p + 16), p3 = _mm256_loadu_ps(p + 24);
+            const __m256d t0 = _mm256_castps_pd(_mm256_unpacklo_ps(p0, p1));
+            const __m256d t1 = _mm256_castps_pd(_mm256_unpackhi_ps(p0, p1));
+            const __m256d t2 = _mm256_castps_pd(_mm256_unpacklo_ps(p2, p3));
+            const __m256d t3 = _mm256_castps_pd(_mm256_unpackhi_ps(p2, p3));
+            const v8::V c[4] = {_mm256_castpd_ps(_mm256_unpacklo_pd(t0, t2)),
+                                _mm256_castpd_ps(_mm256_unpackhi_pd(t0, t2)),
+                                _mm256_castpd_ps(_mm256_unpacklo_pd(t1, t3)),
+                                _mm256_castpd_ps(_mm256_unpackhi_pd(t1, t3))};
+            for (int k = 0; k < 4; ++k) {
+                const v8::V v = _mm256_permutevar8x32_ps(c[k], order);
+                const v8::V finite = _mm256_cmp_ps(_mm256_andnot_ps(sign, v), big, _CMP_LE_OQ);
+                _mm256_storeu_ps(plane[k] + x, _mm256_and_ps(v, finite));
+            }
+        }
+    }
+    split_row_scalar(src, nc, x, x1, plane);
+}
+
+POSTHASTE_AVX2 void merge_rgba8_avx2(const float (*v)[kLanes], float *dst)
+{
+    const v8::V r = _mm256_loadu_ps(v[0]), g = _mm256_loadu_ps(v[1]);
+    const v8::V b = _mm256_loadu_ps(v[2]), a = _mm256_loadu_ps(v[3]);
+    const __m256d rg_lo = _mm256_castps_pd(_mm256_unpacklo_ps(r, g));  // r0 g0 r1 g1 | r4 g4 r5 g5
+    const __m256d rg_hi = _mm256_castps_pd(_mm256_unpackhi_ps(r, g));  // r2 g2 r3 g3 | r6 ..
+    const __m256d ba_lo = _mm256_castps_pd(_mm256_unpacklo_ps(b, a));
+    const __m256d ba_hi = _mm256_castps_pd(_mm256_unpackhi_ps(b, a));
+    const v8::V q0 = _mm256_castpd_ps(_mm256_unpacklo_pd(rg_lo, ba_lo));  // px 0 | px 4
+    const v8::V q1 = _mm256_castpd_ps(_mm256_unpackhi_pd(rg_lo, ba_lo));  // px 1 | px 5
+    const v8::V q2 = _mm256_castpd_ps(_mm256_unpacklo_pd(rg_hi, ba_hi));  // px 2 | px 6
+    const v8::V q3 = _mm256_castpd_ps(_mm256_unpackhi_pd(rg_hi, ba_hi));  // px 3 | px 7
+    _mm256_storeu_ps(dst, _mm256_permute2f128_ps(q0, q1, 0x20));
+    _mm256_storeu_ps(dst + 8, _mm256_permute2f128_ps(q2, q3, 0x20));
+    _mm256_storeu_ps(dst + 16, _mm256_permute2f128_ps(q0, q1, 0x31));
+    _mm256_storeu_ps(dst + 24, _mm256_permute2f128_ps(q2, q3, 0x31));
+}
+#endif
+
+void split_row(const float *src, int nc, int x0, int x1, float *const *plane)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        split_row_avx2(src, nc, x0, x1, plane);
+        return;
+    }
+#endif
+    split_row_scalar(src, nc, x0, x1, plane);
+}
+
+// The first `count` lanes of four channel rows into `nc`-channel interleaved pixels.
+void merge_row(const float (*v)[kLanes], int count, int nc, float *dst)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2() && nc == 4 && count == kLanes) {
+        merge_rgba8_avx2(v, dst);
+        return;
+    }
+#endif
+    for (int j = 0; j < count; ++j) {
+        for (int k = 0; k < nc; ++k) {  // nc <= 4
+            dst[j * nc + k] = v[k][j];
+        }
+    }
+}
+
+// Gathers both layers of the pixels x0 .. x0 + 7 of row y (x0 a multiple of 8; lanes from
+// `count` on are past the row's end) into g; returns the near samples' area (for alpha).
+float gather_group(
+    const Context &cx, const Level &lv, int x0, int y, int count, float near_radius, Group &g)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2() && count == kLanes) {
+        setup_group_avx2(lv, x0, y, g);
+    } else {
+        setup_group_scalar(lv, x0, y, g);
+    }
+#else
+    setup_group_scalar(lv, x0, y, g);
+#endif
+    const int group = x0 / kLanes;
+    float sample_area = 0.0f;
     if (near_radius >= 0.5f) {
         const int k = cx.patterns.level(near_radius);
         const int n = cx.patterns.count(k);
         const float r = cx.patterns.radius(k);
-        const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 1));
         // Each sample stands for R^2 / n of the kernel's area (in units of the unit shape's
-        // area), a near sample's footprint is |c_q|^2 of them: alpha = sum cov (R^2 / n) / c_q^2.
-        const float sample_area = r * r / float(n);
-        for (int i = 0; i < n; ++i) {
-            const int qx = std::clamp(x + taps[i].dx, 0, w - 1);
-            const int qy = std::clamp(y + taps[i].dy, 0, h - 1);
-            const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
-            const float cq = lv.coc[iq];
-            if (!in_front(cq)) {
-                continue;
-            }
-            // Near field in front of p: spreads with its own CoC over whatever is behind.
-            const float cov = coverage(-cq, taps[i].dist);
-            const float inv_area = 1.0f / (cq * cq);
-            front += lv.color[iq] * (cov * inv_area);
-            front_w += cov * inv_area;
-            alpha += cov * inv_area * sample_area;
+        // area), a near sample's footprint is |c_q|^2 of them.
+        sample_area = r * r / float(n);
+        near_pass(lv, x0, y, cx.patterns.taps(k, variant_of(cx, group, y, 1)), n, g);
+    }
+    unsigned remaining = 0;
+    for (int j = 0; j < count; ++j) {
+        if (g.acp[j] >= 0.5f && g.near_w[j] * sample_area < 1.0f) {
+            remaining |= 1u << j;
         }
     }
-    // Once the near field covers the whole lens (alpha >= 1) the background is hidden: skip it
-    // (the composite would weigh it by 1 - alpha = 0, so the result is the same bits).
-    if (acp >= 0.5f && alpha < 1.0f) {
-        const int k = cx.patterns.level(acp);
+    if (remaining == 0) {
+        return sample_area;
+    }
+    const int variant = variant_of(cx, group, y, 0);
+    const int cap = std::max(cx.settings->samples, 1);
+    while (remaining != 0) {
+        int top = 0;
+        float top_r = -1.0f;
+        for (int j = 0; j < kLanes; ++j) {
+            if (((remaining >> j) & 1u) && g.acp[j] > top_r) {
+                top = j;
+                top_r = g.acp[j];
+            }
+        }
+        const int k = cx.patterns.level(top_r);
         const int n = cx.patterns.count(k);
-        const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
-        for (int i = 0; i < n; ++i) {
-            const int qx = std::clamp(x + taps[i].dx, 0, w - 1);
-            const int qy = std::clamp(y + taps[i].dy, 0, h - 1);
-            const std::size_t iq = std::size_t(qy) * std::size_t(w) + std::size_t(qx);
-            const float cq = lv.coc[iq];
-            if (in_front(cq)) {
-                continue;  // the near loop below
+        const float r = cx.patterns.radius(k);
+        unsigned lanes = 1u << top;
+        for (int j = 0; j < kLanes; ++j) {
+            if ((remaining >> j) & 1u) {
+                const float a2 = g.acp[j] * g.acp[j];
+                const float own =
+                    std::clamp(std::ceil(cx.density * a2), float(std::min(6, cap)), float(cap));
+                if (float(n) * a2 >= 0.75f * own * r * r) {
+                    lanes |= 1u << j;
+                }
             }
-            // Behind p: limited by p's own CoC (a far field never bleeds over a sharper
-            // foreground); seen through a near-field p, the background within p's disc shows.
-            const float acq = std::fabs(cq);
-            const float r_eff = cq > cp ? (p_near ? acp : std::min(acq, acp)) : acq;
-            const float wgt = coverage(r_eff, taps[i].dist) / std::max(r_eff * r_eff, 1.0f);
-            back += lv.color[iq] * wgt;
-            back_w += wgt;
+        }
+        back_pass(lv,
+                  x0,
+                  y,
+                  cx.patterns.taps(k, variant),
+                  cx.patterns.offsets(k, variant),
+                  n,
+                  cx.patterns.reach(k),
+                  lanes,
+                  g);
+        remaining &= ~lanes;
+    }
+    return sample_area;
+}
+
+void composite_group(const Group &g, float sample_area, float (*out)[kLanes])
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        composite_group_avx2(g, sample_area, out);
+        return;
+    }
+#endif
+    composite_group_scalar(g, sample_area, out);
+}
+
+// The two layers of each of the first `count` lanes (the half-resolution path keeps them apart).
+void layers_of(const Group &g, float sample_area, int count, Layers *out)
+{
+    for (int j = 0; j < count; ++j) {
+        Layers &l = out[j];
+        l = Layers{};
+        if (g.front_w[j] > 0.0f) {
+            const float inv = 1.0f / g.front_w[j];
+            l.front = glm::vec4(g.front[0][j], g.front[1][j], g.front[2][j], g.front[3][j]) * inv;
+            l.alpha = std::min(g.near_w[j] * sample_area, 1.0f);
+        }
+        if (g.back_w[j] > 0.0f) {
+            const float inv = 1.0f / g.back_w[j];
+            l.back = glm::vec4(g.back[0][j], g.back[1][j], g.back[2][j], g.back[3][j]) * inv;
+        } else {
+            l.back = l.front;
+            l.alpha = 1.0f;
         }
     }
-    Layers l;
-    if (front_w > 0.0f) {
-        l.front = front / front_w;
-        l.alpha = std::min(alpha, 1.0f);
-    }
-    if (back_w > 0.0f) {
-        l.back = back / back_w;
-    } else {
-        l.back = l.front;
-        l.alpha = 1.0f;
-    }
-    return l;
 }
 
 // Full-resolution pixel from the half-resolution layers: the background is upsampled with
@@ -303,7 +882,7 @@ glm::vec4 composite_half(const Level &full,
         alpha += alpha2[q] * bw;
     }
     const float sharp = std::clamp(std::fabs(cp) - 0.5f, 0.0f, 1.0f);
-    const glm::vec4 bg = full.color[ip] * (1.0f - sharp) + back * (sharp / back_w);
+    const glm::vec4 bg = full.color(ip) * (1.0f - sharp) + back * (sharp / back_w);
     return bg * (1.0f - alpha) + front;
 }
 
@@ -338,30 +917,30 @@ bool apply_dof(const Image &color,
     t0 = Clock::now();
     c0 = process_cpu_ms();
     const int w = color.width(), h = color.height(), nc = color.channels();
-    std::unique_ptr<glm::vec4[]> col(new glm::vec4[color.pixel_count()]);  // all written
+    Planes planes;
+    planes.allocate(color.pixel_count());
+    float *const plane[4] = {
+        planes.channel(0), planes.channel(1), planes.channel(2), planes.channel(3)};
     parallel_for_tiles(color.bounds(), [&](const Rect &t) {
         for (int y = t.y0; y < t.y1; ++y) {
+            const std::size_t row = std::size_t(y) * std::size_t(w);
+            float *const dst[4] = {plane[0] + row, plane[1] + row, plane[2] + row, plane[3] + row};
+            split_row(color.pixel(0, y), nc, t.x0, t.x1, dst);
+            const float *c = field.radius.data() + row;
+            float *inv2 = planes.inv2() + row;
             for (int x = t.x0; x < t.x1; ++x) {
-                const float *p = color.pixel(x, y);
-                glm::vec4 v(0.0f);
-                if (nc >= 4) {
-                    v = glm::vec4(sanitize(p[0]), sanitize(p[1]), sanitize(p[2]), sanitize(p[3]));
-                } else {
-                    for (int k = 0; k < nc; ++k) {
-                        v[k] = sanitize(p[k]);
-                    }
-                }
-                col[std::size_t(y) * std::size_t(w) + std::size_t(x)] = v;
+                inv2[x] = 1.0f / (c[x] * c[x]);  // +inf at 0
             }
         }
     });
 
     Context cx;
     cx.settings = &settings;
-    cx.patterns.build(field.max_radius, settings, settings.density);
+    cx.density = settings.density;
+    cx.patterns.build(field.max_radius, settings, settings.density, w);
     tm.coc_ms += ms_since(t0);
     tm.coc_cpu_ms += process_cpu_ms() - c0;
-    const Level full{col.get(), field.radius.data(), w, h};
+    const Level full = planes.level(field.radius.data(), w, h);
     const bool simple = settings.method == DofMethod::Simple;
     const bool half = settings.half_res && !simple;
     const auto tile_of = [&](int x, int y) {
@@ -372,13 +951,14 @@ bool apply_dof(const Image &color,
     // pixels within one pixel of CoC of it, so a block straddling a depth edge stays on the
     // near side; then gather both layers there.
     const int w2 = (w + 1) / 2, h2 = (h + 1) / 2;
-    std::vector<glm::vec4> col2, back2, front2;  // front2: premultiplied by alpha
+    Planes planes2;
+    std::vector<glm::vec4> back2, front2;  // front2: premultiplied by alpha
     std::vector<float> coc2, alpha2;
     if (half) {
         t0 = Clock::now();
         c0 = process_cpu_ms();
-        col2.resize(std::size_t(w2) * std::size_t(h2));
-        coc2.resize(col2.size());
+        planes2.allocate(std::size_t(w2) * std::size_t(h2));
+        coc2.resize(planes2.n);
         parallel_for_tiles(Rect{0, 0, w2, h2}, [&](const Rect &t) {
             for (int y = t.y0; y < t.y1; ++y) {
                 for (int x = t.x0; x < t.x1; ++x) {
@@ -396,14 +976,17 @@ bool apply_dof(const Image &color,
                         for (int xx = x0; xx < x1; ++xx) {
                             const std::size_t i = std::size_t(yy) * w + xx;
                             if (full.coc[i] <= cmin + 1.0f) {
-                                sum += col[i];
+                                sum += full.color(i);
                                 cnt += 1.0f;
                             }
                         }
                     }
                     const std::size_t o = std::size_t(y) * w2 + x;
-                    col2[o] = sum / cnt;
+                    for (int k = 0; k < 4; ++k) {
+                        planes2.channel(k)[o] = sum[k] / cnt;
+                    }
                     coc2[o] = 0.5f * cmin;
+                    planes2.inv2()[o] = 1.0f / (coc2[o] * coc2[o]);
                 }
             }
         });
@@ -412,30 +995,38 @@ bool apply_dof(const Image &color,
 
         t0 = Clock::now();
         c0 = process_cpu_ms();
-        const Level lv{col2.data(), coc2.data(), w2, h2};
-        back2.resize(col2.size());
-        front2.resize(col2.size());
-        alpha2.resize(col2.size());
+        const Level lv = planes2.level(coc2.data(), w2, h2);
+        back2.resize(planes2.n);
+        front2.resize(planes2.n);
+        alpha2.resize(planes2.n);
         Context cx2;
         cx2.settings = &settings;
-        cx2.patterns.build(0.5f * field.max_radius, settings, settings.half_density);
+        cx2.density = settings.half_density;
+        cx2.patterns.build(0.5f * field.max_radius, settings, settings.half_density, w2);
         parallel_for_tiles(
             Rect{0, 0, w2, h2},
             [&](const Rect &t) {
                 const float radius = 0.5f * field.gather[tile_of(2 * t.x0, 2 * t.y0)];
                 const float near_radius = 0.5f * field.near_gather[tile_of(2 * t.x0, 2 * t.y0)];
                 for (int y = t.y0; y < t.y1; ++y) {
-                    for (int x = t.x0; x < t.x1; ++x) {
-                        const std::size_t o = std::size_t(y) * w2 + x;
-                        Layers l;
+                    for (int x0 = t.x0; x0 < t.x1; x0 += kLanes) {
+                        const int count = std::min(kLanes, t.x1 - x0);
+                        Layers l[kLanes];
                         if (radius < 0.5f) {
-                            l.back = col2[o];
+                            for (int j = 0; j < count; ++j) {
+                                l[j].back = lv.color(std::size_t(y) * w2 + std::size_t(x0 + j));
+                            }
                         } else {
-                            l = gather_layers(cx2, lv, x, y, near_radius);
+                            Group g;
+                            const float area = gather_group(cx2, lv, x0, y, count, near_radius, g);
+                            layers_of(g, area, count, l);
                         }
-                        back2[o] = l.back;
-                        front2[o] = l.front * l.alpha;
-                        alpha2[o] = l.alpha;
+                        for (int j = 0; j < count; ++j) {
+                            const std::size_t o = std::size_t(y) * w2 + std::size_t(x0 + j);
+                            back2[o] = l[j].back;
+                            front2[o] = l[j].front * l[j].alpha;
+                            alpha2[o] = l[j].alpha;
+                        }
                     }
                 }
             },
@@ -460,23 +1051,30 @@ bool apply_dof(const Image &color,
             const bool use_half = half && radius >= settings.half_min_radius;
             gathered[std::size_t(ti)] = copy ? 0 : 1;
             for (int y = t.y0; y < t.y1; ++y) {
-                for (int x = t.x0; x < t.x1; ++x) {
-                    const std::size_t ip = std::size_t(y) * std::size_t(w) + std::size_t(x);
-                    glm::vec4 v;
-                    if (copy) {
-                        v = col[ip];
-                    } else if (simple) {
-                        v = gather_simple(cx, full, x, y);
-                    } else if (use_half) {
-                        v = composite_half(full, x, y, w2, h2, coc2, back2, front2, alpha2);
+                for (int x0 = t.x0; x0 < t.x1; x0 += kLanes) {
+                    const int count = std::min(kLanes, t.x1 - x0);
+                    float v[4][kLanes];
+                    if (!copy && !simple && !use_half) {
+                        Group g;
+                        const float area = gather_group(cx, full, x0, y, count, near_radius, g);
+                        composite_group(g, area, v);
                     } else {
-                        v = gather_layers(cx, full, x, y, near_radius).composite();
+                        for (int j = 0; j < count; ++j) {
+                            const int x = x0 + j;
+                            glm::vec4 c;
+                            if (copy) {
+                                c = full.color(std::size_t(y) * std::size_t(w) + std::size_t(x));
+                            } else if (simple) {
+                                c = gather_simple(cx, full, x, y);
+                            } else {
+                                c = composite_half(full, x, y, w2, h2, coc2, back2, front2, alpha2);
+                            }
+                            for (int k = 0; k < 4; ++k) {
+                                v[k][j] = c[k];
+                            }
+                        }
                     }
-                    float *o = out.pixel(x, y);
-                    for (int k = 0; k < nc; ++k) {
-                        // Channels past the fourth pass through (sanitised).
-                        o[k] = k < 4 ? v[k] : sanitize(color.pixel(x, y)[k]);
-                    }
+                    merge_row(v, count, nc, out.pixel(x0, y));
                 }
             }
         },

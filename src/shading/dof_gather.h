@@ -48,7 +48,8 @@ struct DofTimes {
 /// false, leaving `out` untouched, when every pixel's CoC radius is under half a pixel (the
 /// caller keeps its input: bit for bit). Otherwise `out` is a new image of color's shape;
 /// non-finite colour values (NaN, +-Inf) are read as 0 so the output stays finite.
-/// Same bits for any thread count (jitter hashed from (x, y)).
+/// Same bits for any thread count (jitter hashed from (x / 8, y): eight adjacent pixels share
+/// their taps) and, within rounding, for the AVX2 and scalar paths.
 bool apply_dof(const Image &color,
                const Image &depth,
                const DofLens &lens,
