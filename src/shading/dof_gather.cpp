@@ -12,11 +12,8 @@
 #include <new>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
-
 #include "core/hash.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
@@ -90,19 +87,9 @@ struct Planes {
     void allocate(std::size_t pixels)
     {
         n = pixels;
-        constexpr std::size_t kHuge = std::size_t(2) << 20;
         const std::size_t bytes = 5 * pixels * sizeof(float);
-        if (bytes < 2 * kHuge) {
-            data.reset(static_cast<float *>(std::malloc(bytes)));
-        } else {
-            const std::size_t rounded = (bytes + kHuge - 1) / kHuge * kHuge;
-            data.reset(static_cast<float *>(std::aligned_alloc(kHuge, rounded)));
-#ifdef MADV_HUGEPAGE
-            if (data) {
-                madvise(data.get(), rounded, MADV_HUGEPAGE);  // advisory: ignored where unsupported
-            }
-#endif
-        }
+        data.reset(static_cast<float *>(std::malloc(bytes)));
+        advise_huge_pages(data.get(), bytes);
         if (!data) {
             throw std::bad_alloc();
         }
