@@ -17,6 +17,8 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "core/simd.h"
+#include "core/simd_avx2.h"
 #include "raster/mesh.h"
 #include "raster/raster.h"
 #include "raster/sky.h"
@@ -579,6 +581,260 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, Sky
     return shading::add_sky_light(c, surf, n, v, *sky.sky, sky.ambient(n), s.sky_ambient);
 }
 
+// Surface pixels of one row in struct-of-arrays form for the AVX2 beauty kernel. Everything per
+// pixel that branches or looks up tables (hit, material, shadow map, memoised ambient) is done
+// by the scalar prelude in ColorRow::add_surface; the kernel does the BRDF and sky light.
+struct SurfaceLanes {
+    std::vector<float> nx, ny, nz, vx, vy, vz, ar, ag, ab, rough, metal, vis, amb_r, amb_g, amb_b,
+        env_r, env_g, env_b;
+    std::vector<float> out_r, out_g, out_b;
+
+    void resize(std::size_t n)
+    {
+        for (std::vector<float> *a : {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,
+                                      &ag,    &ab,    &rough, &metal, &vis,   &amb_r, &amb_g,
+                                      &amb_b, &env_r, &env_g, &env_b, &out_r, &out_g, &out_b}) {
+            a->assign(n, 0.0f);
+        }
+    }
+};
+
+// Sun and sky constants of the kernel.
+struct KernelLight {
+    glm::vec3 l;        // toward the sun
+    glm::vec3 sun_rgb;  // sun colour * illuminance
+    float scale;        // scene sky_ambient
+};
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+namespace v8 = simd::v8;
+
+POSTHASTE_AVX2_INLINE v8::V dot3(v8::V ax, v8::V ay, v8::V az, v8::V bx, v8::V by, v8::V bz)
+{
+    return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)),
+                         _mm256_mul_ps(az, bz));
+}
+
+// The expressions of shading::evaluate (isotropic, height-correlated Smith) and
+// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8).
+POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLight &kl)
+{
+    using v8::set1;
+    using v8::V;
+    const V zero = _mm256_setzero_ps(), one = set1(1.0f);
+    const V lx = set1(kl.l.x), ly = set1(kl.l.y), lz = set1(kl.l.z);
+    const V inv_pi = set1(1.0f / shading::kPi), pi = set1(shading::kPi);
+    const V min_cos = set1(shading::kMinCosine), f0d = set1(0.04f), scale = set1(kl.scale);
+    const V sun[3] = {set1(kl.sun_rgb.x), set1(kl.sun_rgb.y), set1(kl.sun_rgb.z)};
+    for (int i = 0; i < count; i += 8) {
+        const V nx = _mm256_loadu_ps(&s.nx[i]), ny = _mm256_loadu_ps(&s.ny[i]),
+                nz = _mm256_loadu_ps(&s.nz[i]);
+        const V vx = _mm256_loadu_ps(&s.vx[i]), vy = _mm256_loadu_ps(&s.vy[i]),
+                vz = _mm256_loadu_ps(&s.vz[i]);
+        const V rough = _mm256_loadu_ps(&s.rough[i]), metal = _mm256_loadu_ps(&s.metal[i]);
+        const V vis = _mm256_loadu_ps(&s.vis[i]);
+        const V alb[3] = {_mm256_loadu_ps(&s.ar[i]),
+                          _mm256_loadu_ps(&s.ag[i]),
+                          _mm256_loadu_ps(&s.ab[i])};
+
+        const V nl = dot3(nx, ny, nz, lx, ly, lz);
+        const V nv_raw = dot3(nx, ny, nz, vx, vy, vz);
+        const V nv = _mm256_max_ps(nv_raw, min_cos);
+        V hx = _mm256_add_ps(vx, lx), hy = _mm256_add_ps(vy, ly), hz = _mm256_add_ps(vz, lz);
+        const V hlen = _mm256_sqrt_ps(dot3(hx, hy, hz, hx, hy, hz));
+        const V hok = _mm256_cmp_ps(hlen, set1(1e-8f), _CMP_GT_OQ);
+        hx = _mm256_blendv_ps(nx, _mm256_div_ps(hx, hlen), hok);
+        hy = _mm256_blendv_ps(ny, _mm256_div_ps(hy, hlen), hok);
+        hz = _mm256_blendv_ps(nz, _mm256_div_ps(hz, hlen), hok);
+        const V nh = _mm256_max_ps(dot3(nx, ny, nz, hx, hy, hz), zero);
+        const V vh = _mm256_max_ps(dot3(vx, vy, vz, hx, hy, hz), zero);
+        const V r = v8::clamp(rough, set1(shading::kMinRoughness), one);
+        const V alpha = _mm256_mul_ps(r, r);
+        const V a2 = _mm256_mul_ps(alpha, alpha);
+        // D (zero for n.h <= 0) times the correlated Smith V.
+        const V d = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nh, nh), _mm256_sub_ps(a2, one)), one);
+        V dggx = _mm256_div_ps(a2, _mm256_mul_ps(_mm256_mul_ps(pi, d), d));
+        dggx = _mm256_and_ps(dggx, _mm256_cmp_ps(nh, zero, _CMP_GT_OQ));
+        const V nlc = _mm256_max_ps(nl, min_cos);
+        const V one_a2 = _mm256_sub_ps(one, a2);
+        const V gv = _mm256_mul_ps(
+            nlc, _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nv, nv), one_a2), a2)));
+        const V gl = _mm256_mul_ps(
+            nv, _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nlc, nlc), one_a2), a2)));
+        const V dv = _mm256_mul_ps(dggx, _mm256_div_ps(set1(0.5f), _mm256_add_ps(gv, gl)));
+        // Schlick at v.h (direct) and at n.v (sky).
+        const V mh = _mm256_sub_ps(one, v8::clamp(vh, zero, one));
+        const V mh5 = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mh, mh), _mm256_mul_ps(mh, mh)), mh);
+        const V nv2 = _mm256_max_ps(nv_raw, zero);
+        const V mv = _mm256_sub_ps(one, v8::clamp(nv2, zero, one));
+        const V mv5 = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mv, mv), _mm256_mul_ps(mv, mv)), mv);
+        const V lit = _mm256_cmp_ps(vis, zero, _CMP_GT_OQ);  // vis > 0 implies n.l > 0
+        const V gloss = _mm256_mul_ps(_mm256_sub_ps(one, rough), _mm256_sub_ps(one, rough));
+        const V glossy = _mm256_cmp_ps(gloss, set1(0.05f), _CMP_GE_OQ);
+        const V one_metal = _mm256_sub_ps(one, metal);
+        const V amb_in[3] = {_mm256_loadu_ps(&s.amb_r[i]),
+                             _mm256_loadu_ps(&s.amb_g[i]),
+                             _mm256_loadu_ps(&s.amb_b[i])};
+        const V env_in[3] = {_mm256_loadu_ps(&s.env_r[i]),
+                             _mm256_loadu_ps(&s.env_g[i]),
+                             _mm256_loadu_ps(&s.env_b[i])};
+        float *out[3] = {&s.out_r[i], &s.out_g[i], &s.out_b[i]};
+        for (int c = 0; c < 3; ++c) {
+            const V f0 = _mm256_add_ps(_mm256_mul_ps(f0d, one_metal), _mm256_mul_ps(alb[c], metal));
+            const V one_f0 = _mm256_sub_ps(one, f0);
+            const V diffuse = _mm256_mul_ps(alb[c], one_metal);
+            const V f = _mm256_add_ps(f0, _mm256_mul_ps(one_f0, mh5));
+            const V direct = _mm256_mul_ps(
+                _mm256_add_ps(_mm256_mul_ps(diffuse, inv_pi), _mm256_mul_ps(f, dv)), nl);
+            V col = _mm256_and_ps(_mm256_mul_ps(direct, _mm256_mul_ps(sun[c], vis)), lit);
+            const V amb = _mm256_mul_ps(amb_in[c], scale);
+            col = _mm256_add_ps(col, _mm256_mul_ps(diffuse, amb));
+            const V env_mix = _mm256_add_ps(_mm256_mul_ps(amb, _mm256_sub_ps(one, gloss)),
+                                            _mm256_mul_ps(_mm256_mul_ps(env_in[c], scale), gloss));
+            const V env = _mm256_blendv_ps(amb, env_mix, glossy);
+            const V fs = _mm256_add_ps(f0, _mm256_mul_ps(one_f0, mv5));
+            col = _mm256_add_ps(col, _mm256_mul_ps(fs, env));
+            _mm256_storeu_ps(out[c], col);
+        }
+    }
+}
+#endif
+
+// The beauty of one row of visibility samples. The scalar path shades each pixel as it is added
+// (shade() and the sky); the AVX2 path defers surfaces to shade_lanes_avx2 and the sky to the
+// 4-wide SkyView::radiance_n. Toon and anisotropic materials always take shade().
+class ColorRow {
+   public:
+    ColorRow(const Lighting &lt, SkyCache &sky, int capacity)
+        : lt_(lt), sky_(sky), vector_(simd::avx2()), out_(std::size_t(capacity))
+    {
+        if (vector_) {
+            const std::size_t padded = std::size_t(capacity + 8);
+            lanes_.resize(padded);
+            lane_slot_.resize(padded);
+            for (std::vector<float> *a : {&sky_x_, &sky_y_, &sky_z_, &env_x_, &env_y_, &env_z_}) {
+                a->resize(padded);
+            }
+            sky_slot_.resize(padded);
+            env_lane_.resize(padded);
+            sky_out_.resize(padded);
+            kl_.l = lt.scene->sun.direction;
+            kl_.sun_rgb = lt.scene->sun.color * lt.scene->sun.illuminance;
+            kl_.scale = lt.scene->sky_ambient;
+        }
+    }
+
+    void add_sky(int slot, const glm::vec3 &dn)
+    {
+        if (!vector_) {
+            out_[std::size_t(slot)] = sky_.radiance(dn);
+            return;
+        }
+        sky_x_[sky_n_] = dn.x;
+        sky_y_[sky_n_] = dn.y;
+        sky_z_[sky_n_] = dn.z;
+        sky_slot_[sky_n_++] = slot;
+    }
+
+    void add_surface(int slot, const Hit &h, const glm::vec3 &dn)
+    {
+        const Material &mat = lt_.materials->m[h.material];
+        if (!vector_ || mat.toon || mat.anisotropy != 0.0f) {
+            out_[std::size_t(slot)] = shade(lt_, h, dn, sky_);
+            return;
+        }
+        // The branchy part of shade(), in the same order.
+        const glm::vec3 v = -dn;
+        glm::vec3 n = h.n;
+        if (glm::dot(n, v) < 0.0f) {
+            n = -n;
+        }
+        const glm::vec3 &l = lt_.scene->sun.direction;
+        float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;
+        if (vis > 0.0f && lt_.static_map) {
+            vis *= shadow_lookup(*lt_.static_map, h.p, n);
+        }
+        if (vis > 0.0f && lt_.dynamic_map) {
+            vis *= shadow_lookup(*lt_.dynamic_map, h.p, n);
+        }
+        const glm::vec3 &amb = sky_.ambient(n);
+        const std::size_t k = lane_n_++;
+        SurfaceLanes &s = lanes_;
+        s.nx[k] = n.x, s.ny[k] = n.y, s.nz[k] = n.z;
+        s.vx[k] = v.x, s.vy[k] = v.y, s.vz[k] = v.z;
+        s.ar[k] = mat.albedo.x, s.ag[k] = mat.albedo.y, s.ab[k] = mat.albedo.z;
+        s.rough[k] = mat.roughness, s.metal[k] = mat.metallic, s.vis[k] = vis;
+        s.amb_r[k] = amb.x, s.amb_g[k] = amb.y, s.amb_b[k] = amb.z;
+        lane_slot_[k] = slot;
+        const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
+        if (gloss >= 0.05f) {
+            const glm::vec3 r = glm::reflect(-v, n);
+            env_x_[env_n_] = r.x;
+            env_y_[env_n_] = r.y;
+            env_z_[env_n_] = r.z;
+            env_lane_[env_n_++] = k;
+        }
+    }
+
+    /// Colours of the row's slots (valid for every slot added since the last finish()).
+    const std::vector<glm::vec3> &finish()
+    {
+#if POSTHASTE_HAVE_AVX2_TARGET
+        if (vector_) {
+            finish_vector();
+        }
+#endif
+        return out_;
+    }
+
+   private:
+#if POSTHASTE_HAVE_AVX2_TARGET
+    void finish_vector()
+    {
+        const glm::vec3 cam(0.0f, kSkyCameraY, 0.0f);
+        const shading::SkyView &view = sky_.sky->atmosphere().cached_sky_view();
+        if (sky_n_ > 0) {
+            view.radiance_n(
+                sky_x_.data(), sky_y_.data(), sky_z_.data(), int(sky_n_), sky_out_.data());
+            for (std::size_t i = 0; i < sky_n_; ++i) {
+                const glm::vec3 d(sky_x_[i], sky_y_[i], sky_z_[i]);
+                out_[std::size_t(sky_slot_[i])] = sky_out_[i] + sky_.sky->ground(d, cam);
+            }
+        }
+        if (env_n_ > 0) {
+            view.radiance_n(
+                env_x_.data(), env_y_.data(), env_z_.data(), int(env_n_), sky_out_.data());
+            for (std::size_t i = 0; i < env_n_; ++i) {
+                const glm::vec3 d(env_x_[i], env_y_[i], env_z_[i]);
+                const glm::vec3 e = sky_out_[i] + sky_.sky->ground(d, cam);
+                const std::size_t k = env_lane_[i];
+                lanes_.env_r[k] = e.x, lanes_.env_g[k] = e.y, lanes_.env_b[k] = e.z;
+            }
+        }
+        if (lane_n_ > 0) {
+            shade_lanes_avx2(lanes_, int(lane_n_), kl_);
+            for (std::size_t k = 0; k < lane_n_; ++k) {
+                out_[std::size_t(lane_slot_[k])] =
+                    glm::vec3(lanes_.out_r[k], lanes_.out_g[k], lanes_.out_b[k]);
+            }
+        }
+        sky_n_ = env_n_ = lane_n_ = 0;
+    }
+#endif
+
+    const Lighting &lt_;
+    SkyCache &sky_;
+    bool vector_;
+    std::vector<glm::vec3> out_;
+    SurfaceLanes lanes_;
+    KernelLight kl_{};
+    std::vector<int> lane_slot_, sky_slot_;
+    std::vector<std::size_t> env_lane_;
+    std::vector<float> sky_x_, sky_y_, sky_z_, env_x_, env_y_, env_z_;
+    std::vector<glm::vec3> sky_out_;
+    std::size_t sky_n_ = 0, env_n_ = 0, lane_n_ = 0;
+};
+
 // Visibility buffer of a view.
 struct Visibility {
     int width = 0, height = 0;
@@ -624,28 +880,38 @@ void shade_color(
     parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
         SkyCache sky(*lt.scene);
+        const int x0 = tile.x0 * ss, x1 = tile.x1 * ss;
+        ColorRow row(lt, sky, x1 - x0);
+        std::vector<glm::vec3> sum(std::size_t(tile.x1 - tile.x0));
         for (int y = tile.y0; y < tile.y1; ++y) {
-            for (int x = tile.x0; x < tile.x1; ++x) {
-                glm::vec3 sum(0.0f);
-                for (int sy = 0; sy < ss; ++sy) {
-                    for (int sx = 0; sx < ss; ++sx) {
-                        const int X = x * ss + sx, Y = y * ss + sy;
-                        const std::uint32_t id =
-                            vis.ids[std::size_t(Y) * std::size_t(vis.width) + std::size_t(X)];
-                        const glm::vec3 d = v.ray_dir(float(X) + 0.5f, float(Y) + 0.5f);
-                        const glm::vec3 dn = glm::normalize(d);
-                        if (id == kNoTriangle) {
-                            sum += sky.radiance(dn);
-                        } else {
-                            sum += shade(lt, hitter.hit(id, d), dn, sky);
-                        }
+            std::fill(sum.begin(), sum.end(), glm::vec3(0.0f));
+            for (int sy = 0; sy < ss; ++sy) {
+                const int Y = y * ss + sy;
+                const std::uint32_t *ids = &vis.ids[std::size_t(Y) * std::size_t(vis.width)];
+                for (int X = x0; X < x1; ++X) {
+                    const std::uint32_t id = ids[X];
+                    const glm::vec3 d = v.ray_dir(float(X) + 0.5f, float(Y) + 0.5f);
+                    const glm::vec3 dn = glm::normalize(d);
+                    if (id == kNoTriangle) {
+                        row.add_sky(X - x0, dn);
+                    } else {
+                        row.add_surface(X - x0, hitter.hit(id, d), dn);
                     }
                 }
-                sum /= float(ss * ss);
+                // Per pixel the samples add up in the order (sy, sx), as one loop per pixel.
+                const std::vector<glm::vec3> &c = row.finish();
+                for (std::size_t i = 0; i < sum.size(); ++i) {
+                    for (int sx = 0; sx < ss; ++sx) {
+                        sum[i] += c[i * std::size_t(ss) + std::size_t(sx)];
+                    }
+                }
+            }
+            for (int x = tile.x0; x < tile.x1; ++x) {
+                const glm::vec3 c = sum[std::size_t(x - tile.x0)] / float(ss * ss);
                 float *px = out.pixel(x, y);
-                px[0] = sum.x;
-                px[1] = sum.y;
-                px[2] = sum.z;
+                px[0] = c.x;
+                px[1] = c.y;
+                px[2] = c.z;
                 px[3] = 1.0f;
             }
         }
@@ -875,18 +1141,15 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
         SkyCache sky(s);
+        std::optional<ColorRow> row;
+        if (color_here) {
+            row.emplace(ls->lighting, sky, tile.x1 - tile.x0);
+        }
         for (int y = tile.y0; y < tile.y1; ++y) {
             for (int x = tile.x0; x < tile.x1; ++x) {
                 const std::uint32_t tid =
                     vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
                 const glm::vec3 d = v.ray_dir(float(x) + 0.5f, float(y) + 0.5f);
-                auto put_color = [&](const glm::vec3 &c) {
-                    float *p = color.pixel(x, y);
-                    p[0] = c.x;
-                    p[1] = c.y;
-                    p[2] = c.z;
-                    p[3] = 1.0f;
-                };
                 auto put3 = [&](Image &img, const glm::vec3 &c) {
                     if (!img.empty()) {
                         float *p = img.pixel(x, y);
@@ -897,7 +1160,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 };
                 if (tid == kNoTriangle) {
                     if (color_here) {
-                        put_color(sky.radiance(glm::normalize(d)));
+                        row->add_sky(x - tile.x0, glm::normalize(d));
                     }
                     if (!depth.empty()) {
                         depth.at(x, y, 0) = std::numeric_limits<float>::infinity();
@@ -926,7 +1189,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 }
                 const Hit h = hitter.hit(tid, d);
                 if (color_here) {
-                    put_color(shade(ls->lighting, h, glm::normalize(d), sky));
+                    row->add_surface(x - tile.x0, h, glm::normalize(d));
                 }
                 if (!depth.empty()) {
                     depth.at(x, y, 0) = glm::dot(zrow, glm::vec4(h.p, 1.0f));
@@ -949,6 +1212,16 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 put3(tangent, h.t);
                 if (!id.empty()) {
                     id.at(x, y, 0) = float(h.material);
+                }
+            }
+            if (color_here) {
+                const std::vector<glm::vec3> &c = row->finish();
+                float *p = color.pixel(tile.x0, y);
+                for (int i = 0; i < tile.x1 - tile.x0; ++i, p += 4) {
+                    p[0] = c[std::size_t(i)].x;
+                    p[1] = c[std::size_t(i)].y;
+                    p[2] = c[std::size_t(i)].z;
+                    p[3] = 1.0f;
                 }
             }
         }
