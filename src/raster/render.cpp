@@ -1219,7 +1219,9 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
         if (color_here) {
             row.emplace(ls->lighting, sky, n);
         }
-        RowBuffer color_row(color, n), depth_row(depth, n), normal_row(normal, n);
+        Image no_color;  // supersampled colour was shaded already: leave it alone
+        RowBuffer color_row(color_here ? color : no_color, n), depth_row(depth, n);
+        RowBuffer normal_row(normal, n);
         RowBuffer position_row(position, n), motion_row(motion, n), albedo_row(albedo, n);
         RowBuffer material_row(material, n), tangent_row(tangent, n), id_row(id, n);
         for (int y = tile.y0; y < tile.y1; ++y) {
