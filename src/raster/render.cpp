@@ -610,14 +610,15 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, Sky
 // by the scalar prelude in ColorRow::add_surface; the kernel does the BRDF and sky light.
 struct SurfaceLanes {
     std::vector<float> nx, ny, nz, vx, vy, vz, ar, ag, ab, rough, metal, vis, amb_r, amb_g, amb_b,
-        env_r, env_g, env_b;
+        env_r, env_g, env_b, px, py, pz;
     std::vector<float> out_r, out_g, out_b;
 
     void resize(std::size_t n)
     {
         for (std::vector<float> *a : {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,
                                       &ag,    &ab,    &rough, &metal, &vis,   &amb_r, &amb_g,
-                                      &amb_b, &env_r, &env_g, &env_b, &out_r, &out_g, &out_b}) {
+                                      &amb_b, &env_r, &env_g, &env_b, &out_r, &out_g, &out_b,
+                                      &px,    &py,    &pz}) {
             a->assign(n, 0.0f);
         }
     }
@@ -637,6 +638,75 @@ POSTHASTE_AVX2_INLINE v8::V dot3(v8::V ax, v8::V ay, v8::V az, v8::V bx, v8::V b
 {
     return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)),
                          _mm256_mul_ps(az, bz));
+}
+
+// shadow_lookup for eight lanes at a time: vis *= the 2x2 PCF of `sm` where vis > 0. Without
+// fused multiply-adds, so the map coordinates round as in the scalar code: one ulp of a 2048-texel
+// coordinate moves the PCF weights by ~1e-4, which would make the two paths disagree visibly.
+POSTHASTE_AVX2 __attribute__((optimize("fp-contract=off"))) void shadow_lanes_avx2(const ShadowMap &sm, SurfaceLanes &s, int count)
+{
+    using v8::set1;
+    using v8::V;
+    const V zero = _mm256_setzero_ps(), one = set1(1.0f);
+    const V offset = set1(1.5f * sm.texel_m), bias = set1(0.5f * sm.texel_m);
+    const V limit = set1(float(sm.size));
+    const __m256i size = _mm256_set1_epi32(sm.size);
+    const glm::mat4 &r = sm.raster;
+    for (int i = 0; i < count; i += 8) {
+        const V vis = _mm256_loadu_ps(&s.vis[i]);
+        const V lit_mask = _mm256_cmp_ps(vis, zero, _CMP_GT_OQ);
+        if (_mm256_movemask_ps(lit_mask) == 0) {
+            continue;
+        }
+        const V qx = _mm256_add_ps(_mm256_loadu_ps(&s.px[i]),
+                                   _mm256_mul_ps(_mm256_loadu_ps(&s.nx[i]), offset));
+        const V qy = _mm256_add_ps(_mm256_loadu_ps(&s.py[i]),
+                                   _mm256_mul_ps(_mm256_loadu_ps(&s.ny[i]), offset));
+        const V qz = _mm256_add_ps(_mm256_loadu_ps(&s.pz[i]),
+                                   _mm256_mul_ps(_mm256_loadu_ps(&s.nz[i]), offset));
+        V h[3];
+        for (int c = 0; c < 3; ++c) {
+            h[c] = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(set1(r[0][c]), qx), _mm256_mul_ps(set1(r[1][c]), qy)),
+                _mm256_add_ps(_mm256_mul_ps(set1(r[2][c]), qz), set1(r[3][c])));
+        }
+        const V x = _mm256_sub_ps(h[0], set1(0.5f)), y = _mm256_sub_ps(h[1], set1(0.5f));
+        const V inside = _mm256_and_ps(
+            _mm256_and_ps(_mm256_cmp_ps(x, set1(-1.0f), _CMP_GT_OQ),
+                          _mm256_cmp_ps(y, set1(-1.0f), _CMP_GT_OQ)),
+            _mm256_and_ps(_mm256_cmp_ps(x, limit, _CMP_LT_OQ), _mm256_cmp_ps(y, limit, _CMP_LT_OQ)));
+        const V use = _mm256_and_ps(inside, lit_mask);
+        if (_mm256_movemask_ps(use) == 0) {
+            continue;
+        }
+        const V fx0 = _mm256_floor_ps(x), fy0 = _mm256_floor_ps(y);
+        const V fx = _mm256_sub_ps(x, fx0), fy = _mm256_sub_ps(y, fy0);
+        // Out-of-map lanes are masked below; clamp first so the conversion stays in range.
+        const __m256i x0 = _mm256_cvttps_epi32(v8::clamp(fx0, set1(-2.0f), limit));
+        const __m256i y0 = _mm256_cvttps_epi32(v8::clamp(fy0, set1(-2.0f), limit));
+        const V depth = _mm256_add_ps(h[2], bias);
+        V lit[4];
+        for (int k = 0; k < 4; ++k) {
+            const __m256i xi = _mm256_add_epi32(x0, _mm256_set1_epi32(k & 1));
+            const __m256i yi = _mm256_add_epi32(y0, _mm256_set1_epi32(k >> 1));
+            const __m256i in_x = _mm256_andnot_si256(
+                _mm256_cmpgt_epi32(_mm256_setzero_si256(), xi), _mm256_cmpgt_epi32(size, xi));
+            const __m256i in_y = _mm256_andnot_si256(
+                _mm256_cmpgt_epi32(_mm256_setzero_si256(), yi), _mm256_cmpgt_epi32(size, yi));
+            const V valid = _mm256_and_ps(_mm256_castsi256_ps(_mm256_and_si256(in_x, in_y)), use);
+            const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(yi, size), xi);
+            const V key = _mm256_mask_i32gather_ps(zero, sm.keys.data(), index, valid, 4);
+            const V shadowed = _mm256_and_ps(valid, _mm256_cmp_ps(key, depth, _CMP_GT_OQ));
+            lit[k] = _mm256_andnot_ps(shadowed, one);
+        }
+        const V one_fx = _mm256_sub_ps(one, fx), one_fy = _mm256_sub_ps(one, fy);
+        const V pcf = _mm256_add_ps(
+            _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(lit[0], one_fx), _mm256_mul_ps(lit[1], fx)),
+                          one_fy),
+            _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(lit[2], one_fx), _mm256_mul_ps(lit[3], fx)),
+                          fy));
+        _mm256_storeu_ps(&s.vis[i], _mm256_blendv_ps(vis, _mm256_mul_ps(vis, pcf), use));
+    }
 }
 
 // The expressions of shading::evaluate (isotropic, height-correlated Smith) and
@@ -774,13 +844,7 @@ class ColorRow {
             n = -n;
         }
         const glm::vec3 &l = lt_.scene->sun.direction;
-        float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;
-        if (vis > 0.0f && lt_.static_map) {
-            vis *= shadow_lookup(*lt_.static_map, h.p, n);
-        }
-        if (vis > 0.0f && lt_.dynamic_map) {
-            vis *= shadow_lookup(*lt_.dynamic_map, h.p, n);
-        }
+        const float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;  // shadows: shadow_lanes_avx2
         const glm::vec3 &amb = sky_.ambient(n);
         const std::size_t k = lane_n_++;
         SurfaceLanes &s = lanes_;
@@ -788,6 +852,7 @@ class ColorRow {
         s.vx[k] = v.x, s.vy[k] = v.y, s.vz[k] = v.z;
         s.ar[k] = mat.albedo.x, s.ag[k] = mat.albedo.y, s.ab[k] = mat.albedo.z;
         s.rough[k] = mat.roughness, s.metal[k] = mat.metallic, s.vis[k] = vis;
+        s.px[k] = h.p.x, s.py[k] = h.p.y, s.pz[k] = h.p.z;
         s.amb_r[k] = amb.x, s.amb_g[k] = amb.y, s.amb_b[k] = amb.z;
         lane_slot_[k] = slot;
         const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
@@ -836,6 +901,12 @@ class ColorRow {
             }
         }
         if (lane_n_ > 0) {
+            if (lt_.static_map) {
+                shadow_lanes_avx2(*lt_.static_map, lanes_, int(lane_n_));
+            }
+            if (lt_.dynamic_map) {
+                shadow_lanes_avx2(*lt_.dynamic_map, lanes_, int(lane_n_));
+            }
             shade_lanes_avx2(lanes_, int(lane_n_), kl_);
             for (std::size_t k = 0; k < lane_n_; ++k) {
                 out_[std::size_t(lane_slot_[k])] =
