@@ -475,8 +475,9 @@ class SurfaceHitter {
             const float tl = glm::length(tg);
             h.t = tl > 1e-12f ? tg / tl : glm::vec3(0.0f);
         }
-        h.p_prev =
-            moving_ ? glm::vec3(mul(prev_, glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f))) : h.p;
+        h.p_prev = moving_
+                       ? glm::vec3(mul(prev_, glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f)))
+                       : h.p;
         return h;
     }
 
@@ -615,10 +616,10 @@ struct SurfaceLanes {
 
     void resize(std::size_t n)
     {
-        for (std::vector<float> *a : {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,
-                                      &ag,    &ab,    &rough, &metal, &vis,   &amb_r, &amb_g,
-                                      &amb_b, &env_r, &env_g, &env_b, &out_r, &out_g, &out_b,
-                                      &px,    &py,    &pz}) {
+        for (std::vector<float> *a :
+             {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,    &ag,
+              &ab,    &rough, &metal, &vis,   &amb_r, &amb_g, &amb_b, &env_r,
+              &env_g, &env_b, &out_r, &out_g, &out_b, &px,    &py,    &pz}) {
             a->assign(n, 0.0f);
         }
     }
@@ -634,6 +635,12 @@ struct KernelLight {
 #if POSTHASTE_HAVE_AVX2_TARGET
 namespace v8 = simd::v8;
 
+#if defined(__clang__)
+#define POSTHASTE_NO_CONTRACT  // clang fuses a * b + c only within one source expression
+#else
+#define POSTHASTE_NO_CONTRACT __attribute__((optimize("fp-contract=off")))
+#endif
+
 POSTHASTE_AVX2_INLINE v8::V dot3(v8::V ax, v8::V ay, v8::V az, v8::V bx, v8::V by, v8::V bz)
 {
     return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)),
@@ -643,7 +650,9 @@ POSTHASTE_AVX2_INLINE v8::V dot3(v8::V ax, v8::V ay, v8::V az, v8::V bx, v8::V b
 // shadow_lookup for eight lanes at a time: vis *= the 2x2 PCF of `sm` where vis > 0. Without
 // fused multiply-adds, so the map coordinates round as in the scalar code: one ulp of a 2048-texel
 // coordinate moves the PCF weights by ~1e-4, which would make the two paths disagree visibly.
-POSTHASTE_AVX2 __attribute__((optimize("fp-contract=off"))) void shadow_lanes_avx2(const ShadowMap &sm, SurfaceLanes &s, int count)
+POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void shadow_lanes_avx2(const ShadowMap &sm,
+                                                            SurfaceLanes &s,
+                                                            int count)
 {
     using v8::set1;
     using v8::V;
@@ -671,10 +680,10 @@ POSTHASTE_AVX2 __attribute__((optimize("fp-contract=off"))) void shadow_lanes_av
                 _mm256_add_ps(_mm256_mul_ps(set1(r[2][c]), qz), set1(r[3][c])));
         }
         const V x = _mm256_sub_ps(h[0], set1(0.5f)), y = _mm256_sub_ps(h[1], set1(0.5f));
-        const V inside = _mm256_and_ps(
-            _mm256_and_ps(_mm256_cmp_ps(x, set1(-1.0f), _CMP_GT_OQ),
-                          _mm256_cmp_ps(y, set1(-1.0f), _CMP_GT_OQ)),
-            _mm256_and_ps(_mm256_cmp_ps(x, limit, _CMP_LT_OQ), _mm256_cmp_ps(y, limit, _CMP_LT_OQ)));
+        const V inside = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(x, set1(-1.0f), _CMP_GT_OQ),
+                                                     _mm256_cmp_ps(y, set1(-1.0f), _CMP_GT_OQ)),
+                                       _mm256_and_ps(_mm256_cmp_ps(x, limit, _CMP_LT_OQ),
+                                                     _mm256_cmp_ps(y, limit, _CMP_LT_OQ)));
         const V use = _mm256_and_ps(inside, lit_mask);
         if (_mm256_movemask_ps(use) == 0) {
             continue;
@@ -689,10 +698,10 @@ POSTHASTE_AVX2 __attribute__((optimize("fp-contract=off"))) void shadow_lanes_av
         for (int k = 0; k < 4; ++k) {
             const __m256i xi = _mm256_add_epi32(x0, _mm256_set1_epi32(k & 1));
             const __m256i yi = _mm256_add_epi32(y0, _mm256_set1_epi32(k >> 1));
-            const __m256i in_x = _mm256_andnot_si256(
-                _mm256_cmpgt_epi32(_mm256_setzero_si256(), xi), _mm256_cmpgt_epi32(size, xi));
-            const __m256i in_y = _mm256_andnot_si256(
-                _mm256_cmpgt_epi32(_mm256_setzero_si256(), yi), _mm256_cmpgt_epi32(size, yi));
+            const __m256i in_x = _mm256_andnot_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), xi),
+                                                     _mm256_cmpgt_epi32(size, xi));
+            const __m256i in_y = _mm256_andnot_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), yi),
+                                                     _mm256_cmpgt_epi32(size, yi));
             const V valid = _mm256_and_ps(_mm256_castsi256_ps(_mm256_and_si256(in_x, in_y)), use);
             const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(yi, size), xi);
             const V key = _mm256_mask_i32gather_ps(zero, sm.keys.data(), index, valid, 4);
@@ -727,9 +736,8 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
                 vz = _mm256_loadu_ps(&s.vz[i]);
         const V rough = _mm256_loadu_ps(&s.rough[i]), metal = _mm256_loadu_ps(&s.metal[i]);
         const V vis = _mm256_loadu_ps(&s.vis[i]);
-        const V alb[3] = {_mm256_loadu_ps(&s.ar[i]),
-                          _mm256_loadu_ps(&s.ag[i]),
-                          _mm256_loadu_ps(&s.ab[i])};
+        const V alb[3] = {
+            _mm256_loadu_ps(&s.ar[i]), _mm256_loadu_ps(&s.ag[i]), _mm256_loadu_ps(&s.ab[i])};
 
         const V nl = dot3(nx, ny, nz, lx, ly, lz);
         const V nv_raw = dot3(nx, ny, nz, vx, vy, vz);
@@ -746,7 +754,8 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
         const V alpha = _mm256_mul_ps(r, r);
         const V a2 = _mm256_mul_ps(alpha, alpha);
         // D (zero for n.h <= 0) times the correlated Smith V.
-        const V d = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nh, nh), _mm256_sub_ps(a2, one)), one);
+        const V d =
+            _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nh, nh), _mm256_sub_ps(a2, one)), one);
         V dggx = _mm256_div_ps(a2, _mm256_mul_ps(_mm256_mul_ps(pi, d), d));
         dggx = _mm256_and_ps(dggx, _mm256_cmp_ps(nh, zero, _CMP_GT_OQ));
         const V nlc = _mm256_max_ps(nl, min_cos);
@@ -758,10 +767,12 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
         const V dv = _mm256_mul_ps(dggx, _mm256_div_ps(set1(0.5f), _mm256_add_ps(gv, gl)));
         // Schlick at v.h (direct) and at n.v (sky).
         const V mh = _mm256_sub_ps(one, v8::clamp(vh, zero, one));
-        const V mh5 = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mh, mh), _mm256_mul_ps(mh, mh)), mh);
+        const V mh5 =
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mh, mh), _mm256_mul_ps(mh, mh)), mh);
         const V nv2 = _mm256_max_ps(nv_raw, zero);
         const V mv = _mm256_sub_ps(one, v8::clamp(nv2, zero, one));
-        const V mv5 = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mv, mv), _mm256_mul_ps(mv, mv)), mv);
+        const V mv5 =
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mv, mv), _mm256_mul_ps(mv, mv)), mv);
         const V lit = _mm256_cmp_ps(vis, zero, _CMP_GT_OQ);  // vis > 0 implies n.l > 0
         const V gloss = _mm256_mul_ps(_mm256_sub_ps(one, rough), _mm256_sub_ps(one, rough));
         const V glossy = _mm256_cmp_ps(gloss, set1(0.05f), _CMP_GE_OQ);

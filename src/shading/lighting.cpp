@@ -82,7 +82,9 @@ glm::vec3 add_sky_light(glm::vec3 c,
     const glm::vec3 env =
         gloss < 0.05f
             ? amb
-            : glm::mix(amb, sky.radiance(r, glm::vec3(0.0f, raster::kSkyCameraY, 0.0f), false) * scale, gloss);
+            : glm::mix(amb,
+                       sky.radiance(r, glm::vec3(0.0f, raster::kSkyCameraY, 0.0f), false) * scale,
+                       gloss);
     c += fresnel_schlick(specular_f0(s), nv) * env;
     return c;
 }
