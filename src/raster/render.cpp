@@ -13,15 +13,26 @@
 #include <mutex>
 #include <optional>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "core/simd.h"
+#include "core/simd_avx2.h"
 #include "raster/mesh.h"
 #include "raster/raster.h"
 #include "raster/sky.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
+#include "shading/scene_sky.h"
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 namespace posthaste::raster {
 
@@ -58,6 +69,51 @@ using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0)
 {
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+// Ask for 2 MiB pages on a fresh buffer before its first write. Every pass of a 1080p frame is
+// ~190 MB; faulting that in 4 KiB pages cost more CPU than shading it (perf: ~16% of a frame in
+// the kernel's fault path). Only a hint: without transparent huge pages nothing changes.
+void prefer_huge_pages(void *data, std::size_t bytes)
+{
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
+    const auto begin = (reinterpret_cast<std::uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+    const auto end = (reinterpret_cast<std::uintptr_t>(data) + bytes) & ~(kHuge - 1);
+    if (end > begin) {
+        madvise(reinterpret_cast<void *>(begin), end - begin, MADV_HUGEPAGE);
+    }
+#else
+    (void)data;
+    (void)bytes;
+#endif
+}
+
+// glm's mat4 * vec4 in its own order of operations, so the same bits, but always inlined: GCC
+// had outlined glm's operator, and the per-pixel calls (shadow maps, motion) took ~20% of a
+// frame (perf).
+[[gnu::always_inline]] inline glm::vec4 mul(const glm::mat4 &m, const glm::vec4 &v)
+{
+    return (m[0] * v.x + m[1] * v.y) + (m[2] * v.z + m[3] * v.w);
+}
+
+// world_to_pixel (core/camera.h), with the inlined product.
+[[gnu::always_inline]] inline bool to_pixel(
+    const glm::mat4 &world_to_ndc, const glm::vec3 &p, int width, int height, glm::vec2 &pixel)
+{
+    const glm::vec4 h = mul(world_to_ndc, glm::vec4(p, 1.0f));
+    if (!(h.w > 0.0f)) {
+        return false;
+    }
+    pixel = glm::vec2(h.x / h.w * float(width), h.y / h.w * float(height));
+    return true;
+}
+
+Image fresh_image(int width, int height, int channels)
+{
+    Image img = Image::uninitialized(width, height, channels);
+    prefer_huge_pages(img.data(), img.value_count() * sizeof(float));
+    return img;
 }
 
 std::shared_ptr<const SceneMeshes> scene_meshes(const Scene &s, SceneCache &cache, bool greedy)
@@ -261,7 +317,7 @@ Batches make_batches(const Geometry &g,
         std::vector<glm::vec4> &out = b.vertices[std::size_t(k)];
         out.resize(in.mesh->positions.size());
         for (std::size_t v = 0; v < out.size(); ++v) {
-            out[v] = m * glm::vec4(in.mesh->positions[v], 1.0f);
+            out[v] = mul(m, glm::vec4(in.mesh->positions[v], 1.0f));
         }
     });
     for (std::size_t k = 0; k < visible.size(); ++k) {
@@ -359,7 +415,7 @@ std::unique_ptr<ShadowMap> dynamic_shadow(const Scene &s, const Geometry &g)
 float shadow_lookup(const ShadowMap &sm, const glm::vec3 &p, const glm::vec3 &n)
 {
     const glm::vec3 q = p + n * (1.5f * sm.texel_m);  // normal offset against acne
-    const glm::vec4 h = sm.raster * glm::vec4(q, 1.0f);
+    const glm::vec4 h = mul(sm.raster, glm::vec4(q, 1.0f));
     const float x = h.x - 0.5f, y = h.y - 0.5f;
     const float limit = float(sm.size);
     if (!(x > -1.0f && y > -1.0f && x < limit && y < limit)) {
@@ -419,8 +475,9 @@ class SurfaceHitter {
             const float tl = glm::length(tg);
             h.t = tl > 1e-12f ? tg / tl : glm::vec3(0.0f);
         }
-        h.p_prev =
-            moving_ ? glm::vec3(prev_ * glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f)) : h.p;
+        h.p_prev = moving_
+                       ? glm::vec3(mul(prev_, glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f)))
+                       : h.p;
         return h;
     }
 
@@ -493,7 +550,29 @@ struct Lighting {
     const MaterialTable *materials;
 };
 
-glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
+// Per-tile sky state: the scene sky looked up once, and the ambient of the last normal (voxel
+// faces share six normals, so consecutive pixels mostly repeat it).
+struct SkyCache {
+    const shading::SceneSky *sky;
+    glm::vec3 n{std::numeric_limits<float>::quiet_NaN()};
+    glm::vec3 amb{0.0f};
+
+    explicit SkyCache(const Scene &s) : sky(&scene_sky(s.sun.direction)) {}
+    const glm::vec3 &ambient(const glm::vec3 &normal)
+    {
+        if (normal != n) {
+            n = normal;
+            amb = sky->ambient(normal);
+        }
+        return amb;
+    }
+    glm::vec3 radiance(const glm::vec3 &dir) const
+    {
+        return sky->radiance(dir, glm::vec3(0.0f, kSkyCameraY, 0.0f), false);
+    }
+};
+
+glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, SkyCache &sky)
 {
     const Scene &s = *lt.scene;
     const Material &mat = lt.materials->m[h.material];
@@ -524,8 +603,343 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir)
         direct.toon_bands = mat.toon ? 3 : 0;
         c = shading::direct_response(surf, n, v, l, direct) * e_sun;
     }
-    return shading::add_sky_light(c, surf, n, v, l, s.sky_ambient);
+    return shading::add_sky_light(c, surf, n, v, *sky.sky, sky.ambient(n), s.sky_ambient);
 }
+
+// Surface pixels of one row in struct-of-arrays form for the AVX2 beauty kernel. Everything per
+// pixel that branches or looks up tables (hit, material, shadow map, memoised ambient) is done
+// by the scalar prelude in ColorRow::add_surface; the kernel does the BRDF and sky light.
+struct SurfaceLanes {
+    std::vector<float> nx, ny, nz, vx, vy, vz, ar, ag, ab, rough, metal, vis, amb_r, amb_g, amb_b,
+        env_r, env_g, env_b, px, py, pz;
+    std::vector<float> out_r, out_g, out_b;
+
+    void resize(std::size_t n)
+    {
+        for (std::vector<float> *a :
+             {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,    &ag,
+              &ab,    &rough, &metal, &vis,   &amb_r, &amb_g, &amb_b, &env_r,
+              &env_g, &env_b, &out_r, &out_g, &out_b, &px,    &py,    &pz}) {
+            a->assign(n, 0.0f);
+        }
+    }
+};
+
+// Sun and sky constants of the kernel.
+struct KernelLight {
+    glm::vec3 l;        // toward the sun
+    glm::vec3 sun_rgb;  // sun colour * illuminance
+    float scale;        // scene sky_ambient
+};
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+namespace v8 = simd::v8;
+
+#if defined(__clang__)
+#define POSTHASTE_NO_CONTRACT  // clang fuses a * b + c only within one source expression
+#else
+#define POSTHASTE_NO_CONTRACT __attribute__((optimize("fp-contract=off")))
+#endif
+
+POSTHASTE_AVX2_INLINE v8::V dot3(v8::V ax, v8::V ay, v8::V az, v8::V bx, v8::V by, v8::V bz)
+{
+    return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)),
+                         _mm256_mul_ps(az, bz));
+}
+
+// shadow_lookup for eight lanes at a time: vis *= the 2x2 PCF of `sm` where vis > 0. Without
+// fused multiply-adds, so the map coordinates round as in the scalar code: one ulp of a 2048-texel
+// coordinate moves the PCF weights by ~1e-4, which would make the two paths disagree visibly.
+POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void shadow_lanes_avx2(const ShadowMap &sm,
+                                                            SurfaceLanes &s,
+                                                            int count)
+{
+    using v8::set1;
+    using v8::V;
+    const V zero = _mm256_setzero_ps(), one = set1(1.0f);
+    const V offset = set1(1.5f * sm.texel_m), bias = set1(0.5f * sm.texel_m);
+    const V limit = set1(float(sm.size));
+    const __m256i size = _mm256_set1_epi32(sm.size);
+    const glm::mat4 &r = sm.raster;
+    for (int i = 0; i < count; i += 8) {
+        const V vis = _mm256_loadu_ps(&s.vis[i]);
+        const V lit_mask = _mm256_cmp_ps(vis, zero, _CMP_GT_OQ);
+        if (_mm256_movemask_ps(lit_mask) == 0) {
+            continue;
+        }
+        const V qx = _mm256_add_ps(_mm256_loadu_ps(&s.px[i]),
+                                   _mm256_mul_ps(_mm256_loadu_ps(&s.nx[i]), offset));
+        const V qy = _mm256_add_ps(_mm256_loadu_ps(&s.py[i]),
+                                   _mm256_mul_ps(_mm256_loadu_ps(&s.ny[i]), offset));
+        const V qz = _mm256_add_ps(_mm256_loadu_ps(&s.pz[i]),
+                                   _mm256_mul_ps(_mm256_loadu_ps(&s.nz[i]), offset));
+        V h[3];
+        for (int c = 0; c < 3; ++c) {
+            h[c] = _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(set1(r[0][c]), qx), _mm256_mul_ps(set1(r[1][c]), qy)),
+                _mm256_add_ps(_mm256_mul_ps(set1(r[2][c]), qz), set1(r[3][c])));
+        }
+        const V x = _mm256_sub_ps(h[0], set1(0.5f)), y = _mm256_sub_ps(h[1], set1(0.5f));
+        const V inside = _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(x, set1(-1.0f), _CMP_GT_OQ),
+                                                     _mm256_cmp_ps(y, set1(-1.0f), _CMP_GT_OQ)),
+                                       _mm256_and_ps(_mm256_cmp_ps(x, limit, _CMP_LT_OQ),
+                                                     _mm256_cmp_ps(y, limit, _CMP_LT_OQ)));
+        const V use = _mm256_and_ps(inside, lit_mask);
+        if (_mm256_movemask_ps(use) == 0) {
+            continue;
+        }
+        const V fx0 = _mm256_floor_ps(x), fy0 = _mm256_floor_ps(y);
+        const V fx = _mm256_sub_ps(x, fx0), fy = _mm256_sub_ps(y, fy0);
+        // Out-of-map lanes are masked below; clamp first so the conversion stays in range.
+        const __m256i x0 = _mm256_cvttps_epi32(v8::clamp(fx0, set1(-2.0f), limit));
+        const __m256i y0 = _mm256_cvttps_epi32(v8::clamp(fy0, set1(-2.0f), limit));
+        const V depth = _mm256_add_ps(h[2], bias);
+        V lit[4];
+        for (int k = 0; k < 4; ++k) {
+            const __m256i xi = _mm256_add_epi32(x0, _mm256_set1_epi32(k & 1));
+            const __m256i yi = _mm256_add_epi32(y0, _mm256_set1_epi32(k >> 1));
+            const __m256i in_x = _mm256_andnot_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), xi),
+                                                     _mm256_cmpgt_epi32(size, xi));
+            const __m256i in_y = _mm256_andnot_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), yi),
+                                                     _mm256_cmpgt_epi32(size, yi));
+            const V valid = _mm256_and_ps(_mm256_castsi256_ps(_mm256_and_si256(in_x, in_y)), use);
+            const __m256i index = _mm256_add_epi32(_mm256_mullo_epi32(yi, size), xi);
+            const V key = _mm256_mask_i32gather_ps(zero, sm.keys.data(), index, valid, 4);
+            const V shadowed = _mm256_and_ps(valid, _mm256_cmp_ps(key, depth, _CMP_GT_OQ));
+            lit[k] = _mm256_andnot_ps(shadowed, one);
+        }
+        const V one_fx = _mm256_sub_ps(one, fx), one_fy = _mm256_sub_ps(one, fy);
+        const V pcf = _mm256_add_ps(
+            _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(lit[0], one_fx), _mm256_mul_ps(lit[1], fx)),
+                          one_fy),
+            _mm256_mul_ps(_mm256_add_ps(_mm256_mul_ps(lit[2], one_fx), _mm256_mul_ps(lit[3], fx)),
+                          fy));
+        _mm256_storeu_ps(&s.vis[i], _mm256_blendv_ps(vis, _mm256_mul_ps(vis, pcf), use));
+    }
+}
+
+// The expressions of shading::evaluate (isotropic, height-correlated Smith) and
+// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8).
+POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLight &kl)
+{
+    using v8::set1;
+    using v8::V;
+    const V zero = _mm256_setzero_ps(), one = set1(1.0f);
+    const V lx = set1(kl.l.x), ly = set1(kl.l.y), lz = set1(kl.l.z);
+    const V inv_pi = set1(1.0f / shading::kPi), pi = set1(shading::kPi);
+    const V min_cos = set1(shading::kMinCosine), f0d = set1(0.04f), scale = set1(kl.scale);
+    const V sun[3] = {set1(kl.sun_rgb.x), set1(kl.sun_rgb.y), set1(kl.sun_rgb.z)};
+    for (int i = 0; i < count; i += 8) {
+        const V nx = _mm256_loadu_ps(&s.nx[i]), ny = _mm256_loadu_ps(&s.ny[i]),
+                nz = _mm256_loadu_ps(&s.nz[i]);
+        const V vx = _mm256_loadu_ps(&s.vx[i]), vy = _mm256_loadu_ps(&s.vy[i]),
+                vz = _mm256_loadu_ps(&s.vz[i]);
+        const V rough = _mm256_loadu_ps(&s.rough[i]), metal = _mm256_loadu_ps(&s.metal[i]);
+        const V vis = _mm256_loadu_ps(&s.vis[i]);
+        const V alb[3] = {
+            _mm256_loadu_ps(&s.ar[i]), _mm256_loadu_ps(&s.ag[i]), _mm256_loadu_ps(&s.ab[i])};
+
+        const V nl = dot3(nx, ny, nz, lx, ly, lz);
+        const V nv_raw = dot3(nx, ny, nz, vx, vy, vz);
+        const V nv = _mm256_max_ps(nv_raw, min_cos);
+        V hx = _mm256_add_ps(vx, lx), hy = _mm256_add_ps(vy, ly), hz = _mm256_add_ps(vz, lz);
+        const V hlen = _mm256_sqrt_ps(dot3(hx, hy, hz, hx, hy, hz));
+        const V hok = _mm256_cmp_ps(hlen, set1(1e-8f), _CMP_GT_OQ);
+        hx = _mm256_blendv_ps(nx, _mm256_div_ps(hx, hlen), hok);
+        hy = _mm256_blendv_ps(ny, _mm256_div_ps(hy, hlen), hok);
+        hz = _mm256_blendv_ps(nz, _mm256_div_ps(hz, hlen), hok);
+        const V nh = _mm256_max_ps(dot3(nx, ny, nz, hx, hy, hz), zero);
+        const V vh = _mm256_max_ps(dot3(vx, vy, vz, hx, hy, hz), zero);
+        const V r = v8::clamp(rough, set1(shading::kMinRoughness), one);
+        const V alpha = _mm256_mul_ps(r, r);
+        const V a2 = _mm256_mul_ps(alpha, alpha);
+        // D (zero for n.h <= 0) times the correlated Smith V.
+        const V d =
+            _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nh, nh), _mm256_sub_ps(a2, one)), one);
+        V dggx = _mm256_div_ps(a2, _mm256_mul_ps(_mm256_mul_ps(pi, d), d));
+        dggx = _mm256_and_ps(dggx, _mm256_cmp_ps(nh, zero, _CMP_GT_OQ));
+        const V nlc = _mm256_max_ps(nl, min_cos);
+        const V one_a2 = _mm256_sub_ps(one, a2);
+        const V gv = _mm256_mul_ps(
+            nlc, _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nv, nv), one_a2), a2)));
+        const V gl = _mm256_mul_ps(
+            nv, _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nlc, nlc), one_a2), a2)));
+        const V dv = _mm256_mul_ps(dggx, _mm256_div_ps(set1(0.5f), _mm256_add_ps(gv, gl)));
+        // Schlick at v.h (direct) and at n.v (sky).
+        const V mh = _mm256_sub_ps(one, v8::clamp(vh, zero, one));
+        const V mh5 =
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mh, mh), _mm256_mul_ps(mh, mh)), mh);
+        const V nv2 = _mm256_max_ps(nv_raw, zero);
+        const V mv = _mm256_sub_ps(one, v8::clamp(nv2, zero, one));
+        const V mv5 =
+            _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mv, mv), _mm256_mul_ps(mv, mv)), mv);
+        const V lit = _mm256_cmp_ps(vis, zero, _CMP_GT_OQ);  // vis > 0 implies n.l > 0
+        const V gloss = _mm256_mul_ps(_mm256_sub_ps(one, rough), _mm256_sub_ps(one, rough));
+        const V glossy = _mm256_cmp_ps(gloss, set1(0.05f), _CMP_GE_OQ);
+        const V one_metal = _mm256_sub_ps(one, metal);
+        const V amb_in[3] = {_mm256_loadu_ps(&s.amb_r[i]),
+                             _mm256_loadu_ps(&s.amb_g[i]),
+                             _mm256_loadu_ps(&s.amb_b[i])};
+        const V env_in[3] = {_mm256_loadu_ps(&s.env_r[i]),
+                             _mm256_loadu_ps(&s.env_g[i]),
+                             _mm256_loadu_ps(&s.env_b[i])};
+        float *out[3] = {&s.out_r[i], &s.out_g[i], &s.out_b[i]};
+        for (int c = 0; c < 3; ++c) {
+            const V f0 = _mm256_add_ps(_mm256_mul_ps(f0d, one_metal), _mm256_mul_ps(alb[c], metal));
+            const V one_f0 = _mm256_sub_ps(one, f0);
+            const V diffuse = _mm256_mul_ps(alb[c], one_metal);
+            const V f = _mm256_add_ps(f0, _mm256_mul_ps(one_f0, mh5));
+            const V direct = _mm256_mul_ps(
+                _mm256_add_ps(_mm256_mul_ps(diffuse, inv_pi), _mm256_mul_ps(f, dv)), nl);
+            V col = _mm256_and_ps(_mm256_mul_ps(direct, _mm256_mul_ps(sun[c], vis)), lit);
+            const V amb = _mm256_mul_ps(amb_in[c], scale);
+            col = _mm256_add_ps(col, _mm256_mul_ps(diffuse, amb));
+            const V env_mix = _mm256_add_ps(_mm256_mul_ps(amb, _mm256_sub_ps(one, gloss)),
+                                            _mm256_mul_ps(_mm256_mul_ps(env_in[c], scale), gloss));
+            const V env = _mm256_blendv_ps(amb, env_mix, glossy);
+            const V fs = _mm256_add_ps(f0, _mm256_mul_ps(one_f0, mv5));
+            col = _mm256_add_ps(col, _mm256_mul_ps(fs, env));
+            _mm256_storeu_ps(out[c], col);
+        }
+    }
+}
+#endif
+
+// The beauty of one row of visibility samples. The scalar path shades each pixel as it is added
+// (shade() and the sky); the AVX2 path defers surfaces to shade_lanes_avx2 and the sky to the
+// 4-wide SkyView::radiance_n. Toon and anisotropic materials always take shade().
+class ColorRow {
+   public:
+    ColorRow(const Lighting &lt, SkyCache &sky, int capacity)
+        : lt_(lt), sky_(sky), vector_(simd::avx2()), out_(std::size_t(capacity))
+    {
+        if (vector_) {
+            const std::size_t padded = std::size_t(capacity + 8);
+            lanes_.resize(padded);
+            lane_slot_.resize(padded);
+            for (std::vector<float> *a : {&sky_x_, &sky_y_, &sky_z_, &env_x_, &env_y_, &env_z_}) {
+                a->resize(padded);
+            }
+            sky_slot_.resize(padded);
+            env_lane_.resize(padded);
+            sky_out_.resize(padded);
+            kl_.l = lt.scene->sun.direction;
+            kl_.sun_rgb = lt.scene->sun.color * lt.scene->sun.illuminance;
+            kl_.scale = lt.scene->sky_ambient;
+        }
+    }
+
+    void add_sky(int slot, const glm::vec3 &dn)
+    {
+        if (!vector_) {
+            out_[std::size_t(slot)] = sky_.radiance(dn);
+            return;
+        }
+        sky_x_[sky_n_] = dn.x;
+        sky_y_[sky_n_] = dn.y;
+        sky_z_[sky_n_] = dn.z;
+        sky_slot_[sky_n_++] = slot;
+    }
+
+    void add_surface(int slot, const Hit &h, const glm::vec3 &dn)
+    {
+        const Material &mat = lt_.materials->m[h.material];
+        if (!vector_ || mat.toon || mat.anisotropy != 0.0f) {
+            out_[std::size_t(slot)] = shade(lt_, h, dn, sky_);
+            return;
+        }
+        // The branchy part of shade(), in the same order.
+        const glm::vec3 v = -dn;
+        glm::vec3 n = h.n;
+        if (glm::dot(n, v) < 0.0f) {
+            n = -n;
+        }
+        const glm::vec3 &l = lt_.scene->sun.direction;
+        const float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;  // shadows: shadow_lanes_avx2
+        const glm::vec3 &amb = sky_.ambient(n);
+        const std::size_t k = lane_n_++;
+        SurfaceLanes &s = lanes_;
+        s.nx[k] = n.x, s.ny[k] = n.y, s.nz[k] = n.z;
+        s.vx[k] = v.x, s.vy[k] = v.y, s.vz[k] = v.z;
+        s.ar[k] = mat.albedo.x, s.ag[k] = mat.albedo.y, s.ab[k] = mat.albedo.z;
+        s.rough[k] = mat.roughness, s.metal[k] = mat.metallic, s.vis[k] = vis;
+        s.px[k] = h.p.x, s.py[k] = h.p.y, s.pz[k] = h.p.z;
+        s.amb_r[k] = amb.x, s.amb_g[k] = amb.y, s.amb_b[k] = amb.z;
+        lane_slot_[k] = slot;
+        const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
+        if (gloss >= 0.05f) {
+            const glm::vec3 r = glm::reflect(-v, n);
+            env_x_[env_n_] = r.x;
+            env_y_[env_n_] = r.y;
+            env_z_[env_n_] = r.z;
+            env_lane_[env_n_++] = k;
+        }
+    }
+
+    /// Colours of the row's slots (valid for every slot added since the last finish()).
+    const std::vector<glm::vec3> &finish()
+    {
+#if POSTHASTE_HAVE_AVX2_TARGET
+        if (vector_) {
+            finish_vector();
+        }
+#endif
+        return out_;
+    }
+
+   private:
+#if POSTHASTE_HAVE_AVX2_TARGET
+    void finish_vector()
+    {
+        const glm::vec3 cam(0.0f, kSkyCameraY, 0.0f);
+        const shading::SkyView &view = sky_.sky->atmosphere().cached_sky_view();
+        if (sky_n_ > 0) {
+            view.radiance_n(
+                sky_x_.data(), sky_y_.data(), sky_z_.data(), int(sky_n_), sky_out_.data());
+            for (std::size_t i = 0; i < sky_n_; ++i) {
+                const glm::vec3 d(sky_x_[i], sky_y_[i], sky_z_[i]);
+                out_[std::size_t(sky_slot_[i])] = sky_out_[i] + sky_.sky->ground(d, cam);
+            }
+        }
+        if (env_n_ > 0) {
+            view.radiance_n(
+                env_x_.data(), env_y_.data(), env_z_.data(), int(env_n_), sky_out_.data());
+            for (std::size_t i = 0; i < env_n_; ++i) {
+                const glm::vec3 d(env_x_[i], env_y_[i], env_z_[i]);
+                const glm::vec3 e = sky_out_[i] + sky_.sky->ground(d, cam);
+                const std::size_t k = env_lane_[i];
+                lanes_.env_r[k] = e.x, lanes_.env_g[k] = e.y, lanes_.env_b[k] = e.z;
+            }
+        }
+        if (lane_n_ > 0) {
+            if (lt_.static_map) {
+                shadow_lanes_avx2(*lt_.static_map, lanes_, int(lane_n_));
+            }
+            if (lt_.dynamic_map) {
+                shadow_lanes_avx2(*lt_.dynamic_map, lanes_, int(lane_n_));
+            }
+            shade_lanes_avx2(lanes_, int(lane_n_), kl_);
+            for (std::size_t k = 0; k < lane_n_; ++k) {
+                out_[std::size_t(lane_slot_[k])] =
+                    glm::vec3(lanes_.out_r[k], lanes_.out_g[k], lanes_.out_b[k]);
+            }
+        }
+        sky_n_ = env_n_ = lane_n_ = 0;
+    }
+#endif
+
+    const Lighting &lt_;
+    SkyCache &sky_;
+    bool vector_;
+    std::vector<glm::vec3> out_;
+    SurfaceLanes lanes_;
+    KernelLight kl_{};
+    std::vector<int> lane_slot_, sky_slot_;
+    std::vector<std::size_t> env_lane_;
+    std::vector<float> sky_x_, sky_y_, sky_z_, env_x_, env_y_, env_z_;
+    std::vector<glm::vec3> sky_out_;
+    std::size_t sky_n_ = 0, env_n_ = 0, lane_n_ = 0;
+};
 
 // Visibility buffer of a view.
 struct Visibility {
@@ -545,6 +959,8 @@ Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
     const std::size_t n = std::size_t(v.width) * std::size_t(v.height);
     vis.keys.reset(new float[n]);  // uninitialised: rasterize() clears
     vis.ids.reset(new std::uint32_t[n]);
+    prefer_huge_pages(vis.keys.get(), n * sizeof(float));
+    prefer_huge_pages(vis.ids.get(), n * sizeof(std::uint32_t));
     RasterParams rp;
     rp.width = v.width;
     rp.height = v.height;
@@ -562,6 +978,55 @@ Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
     return vis;
 }
 
+// One tile row of a pass, built in cache and then written to the image in one sweep with
+// streaming stores: the row overwrites whole cache lines, so reading them first (what plain
+// stores do) would double the memory traffic of ~190 MB of passes per 1080p frame.
+class RowBuffer {
+   public:
+    RowBuffer(Image &image, int width) : image_(image.empty() ? nullptr : &image)
+    {
+        if (image_) {
+            values_.resize(std::size_t(width) * std::size_t(image.channels()));
+        }
+    }
+    bool active() const { return image_ != nullptr; }
+    float *at(int i) { return values_.data() + std::size_t(i) * std::size_t(image_->channels()); }
+    /// Copy the row to pixels (x0, y) onwards.
+    void write(int x0, int y)
+    {
+        if (!image_) {
+            return;
+        }
+        float *dst = image_->pixel(x0, y);
+        const float *src = values_.data();
+        const std::size_t n = values_.size();
+        std::size_t i = 0;
+#if defined(__SSE2__)
+        for (; i < n && (reinterpret_cast<std::uintptr_t>(dst + i) & 15u) != 0; ++i) {
+            dst[i] = src[i];
+        }
+        for (; i + 4 <= n; i += 4) {
+            _mm_stream_ps(dst + i, _mm_loadu_ps(src + i));
+        }
+#endif
+        for (; i < n; ++i) {
+            dst[i] = src[i];
+        }
+    }
+
+   private:
+    Image *image_;
+    std::vector<float> values_;
+};
+
+// Order this thread's streaming stores before the tile is reported done.
+void stream_fence()
+{
+#if defined(__SSE2__)
+    _mm_sfence();
+#endif
+}
+
 // Beauty of one view into `out` (RGBA), averaging ss x ss samples per pixel when vis is ss times
 // the output size.
 void shade_color(
@@ -569,28 +1034,39 @@ void shade_color(
 {
     parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
+        SkyCache sky(*lt.scene);
+        const int x0 = tile.x0 * ss, x1 = tile.x1 * ss;
+        ColorRow row(lt, sky, x1 - x0);
+        std::vector<glm::vec3> sum(std::size_t(tile.x1 - tile.x0));
         for (int y = tile.y0; y < tile.y1; ++y) {
-            for (int x = tile.x0; x < tile.x1; ++x) {
-                glm::vec3 sum(0.0f);
-                for (int sy = 0; sy < ss; ++sy) {
-                    for (int sx = 0; sx < ss; ++sx) {
-                        const int X = x * ss + sx, Y = y * ss + sy;
-                        const std::uint32_t id =
-                            vis.ids[std::size_t(Y) * std::size_t(vis.width) + std::size_t(X)];
-                        const glm::vec3 d = v.ray_dir(float(X) + 0.5f, float(Y) + 0.5f);
-                        const glm::vec3 dn = glm::normalize(d);
-                        if (id == kNoTriangle) {
-                            sum += sky_radiance(dn, lt.scene->sun.direction);
-                        } else {
-                            sum += shade(lt, hitter.hit(id, d), dn);
-                        }
+            std::fill(sum.begin(), sum.end(), glm::vec3(0.0f));
+            for (int sy = 0; sy < ss; ++sy) {
+                const int Y = y * ss + sy;
+                const std::uint32_t *ids = &vis.ids[std::size_t(Y) * std::size_t(vis.width)];
+                for (int X = x0; X < x1; ++X) {
+                    const std::uint32_t id = ids[X];
+                    const glm::vec3 d = v.ray_dir(float(X) + 0.5f, float(Y) + 0.5f);
+                    const glm::vec3 dn = glm::normalize(d);
+                    if (id == kNoTriangle) {
+                        row.add_sky(X - x0, dn);
+                    } else {
+                        row.add_surface(X - x0, hitter.hit(id, d), dn);
                     }
                 }
-                sum /= float(ss * ss);
+                // Per pixel the samples add up in the order (sy, sx), as one loop per pixel.
+                const std::vector<glm::vec3> &c = row.finish();
+                for (std::size_t i = 0; i < sum.size(); ++i) {
+                    for (int sx = 0; sx < ss; ++sx) {
+                        sum[i] += c[i * std::size_t(ss) + std::size_t(sx)];
+                    }
+                }
+            }
+            for (int x = tile.x0; x < tile.x1; ++x) {
+                const glm::vec3 c = sum[std::size_t(x - tile.x0)] / float(ss * ss);
                 float *px = out.pixel(x, y);
-                px[0] = sum.x;
-                px[1] = sum.y;
-                px[2] = sum.z;
+                px[0] = c.x;
+                px[1] = c.y;
+                px[2] = c.z;
                 px[3] = 1.0f;
             }
         }
@@ -772,7 +1248,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     Image color;
     if (want_color) {
         ls = std::make_unique<LightingState>(s, cache, g, o, stats);
-        color = Image::uninitialized(o.width, o.height, 4);
+        color = fresh_image(o.width, o.height, 4);
         if (o.supersample > 1) {
             // The beauty gets its own visibility at the supersampled size.
             const View vs = make_view(cam,
@@ -805,7 +1281,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     const glm::mat4 cur_ndc = *f.camera.world_to_ndc;
 
     auto make = [&](const char *name, int channels) {
-        return has(name) ? Image::uninitialized(o.width, o.height, channels) : Image();
+        return has(name) ? fresh_image(o.width, o.height, channels) : Image();
     };
     Image depth = make(pass::kDepth, 1), normal = make(pass::kNormal, 3);
     Image position = make(pass::kPosition, 3), motion = make(pass::kMotion, 2);
@@ -819,21 +1295,26 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
 
     parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
+        SkyCache sky(s);
+        const int n = tile.x1 - tile.x0;
+        std::optional<ColorRow> row;
+        if (color_here) {
+            row.emplace(ls->lighting, sky, n);
+        }
+        Image no_color;  // supersampled colour was shaded already: leave it alone
+        RowBuffer color_row(color_here ? color : no_color, n), depth_row(depth, n);
+        RowBuffer normal_row(normal, n);
+        RowBuffer position_row(position, n), motion_row(motion, n), albedo_row(albedo, n);
+        RowBuffer material_row(material, n), tangent_row(tangent, n), id_row(id, n);
         for (int y = tile.y0; y < tile.y1; ++y) {
-            for (int x = tile.x0; x < tile.x1; ++x) {
-                const std::uint32_t tid =
-                    vis.ids[std::size_t(y) * std::size_t(o.width) + std::size_t(x)];
+            const std::uint32_t *ids = &vis.ids[std::size_t(y) * std::size_t(o.width)];
+            for (int i = 0; i < n; ++i) {
+                const int x = tile.x0 + i;
+                const std::uint32_t tid = ids[x];
                 const glm::vec3 d = v.ray_dir(float(x) + 0.5f, float(y) + 0.5f);
-                auto put_color = [&](const glm::vec3 &c) {
-                    float *p = color.pixel(x, y);
-                    p[0] = c.x;
-                    p[1] = c.y;
-                    p[2] = c.z;
-                    p[3] = 1.0f;
-                };
-                auto put3 = [&](Image &img, const glm::vec3 &c) {
-                    if (!img.empty()) {
-                        float *p = img.pixel(x, y);
+                auto put3 = [&](RowBuffer &b, const glm::vec3 &c) {
+                    if (b.active()) {
+                        float *p = b.at(i);
                         p[0] = c.x;
                         p[1] = c.y;
                         p[2] = c.z;
@@ -841,61 +1322,83 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 };
                 if (tid == kNoTriangle) {
                     if (color_here) {
-                        put_color(sky_radiance(glm::normalize(d), s.sun.direction));
+                        row->add_sky(i, glm::normalize(d));
                     }
-                    if (!depth.empty()) {
-                        depth.at(x, y, 0) = std::numeric_limits<float>::infinity();
+                    if (depth_row.active()) {
+                        *depth_row.at(i) = std::numeric_limits<float>::infinity();
                     }
-                    if (!motion.empty()) {
+                    if (motion_row.active()) {
                         // A point at infinity moves with the camera rotation only.
-                        const glm::vec4 hc = cur_ndc * glm::vec4(d, 0.0f);
-                        const glm::vec4 hp = prev_ndc * glm::vec4(d, 0.0f);
+                        const glm::vec4 hc = mul(cur_ndc, glm::vec4(d, 0.0f));
+                        const glm::vec4 hp = mul(prev_ndc, glm::vec4(d, 0.0f));
                         glm::vec2 mv(0.0f);
                         if (hc.w > 0.0f && hp.w > 0.0f) {
                             mv = glm::vec2(hc.x / hc.w - hp.x / hp.w, hc.y / hc.w - hp.y / hp.w) *
                                  glm::vec2(W, H);
                         }
-                        motion.at(x, y, 0) = mv.x;
-                        motion.at(x, y, 1) = mv.y;
+                        motion_row.at(i)[0] = mv.x;
+                        motion_row.at(i)[1] = mv.y;
                     }
-                    put3(normal, glm::vec3(0.0f));
-                    put3(position, glm::vec3(0.0f));
-                    put3(albedo, glm::vec3(0.0f));
-                    put3(material, glm::vec3(0.0f));
-                    put3(tangent, glm::vec3(0.0f));
-                    if (!id.empty()) {
-                        id.at(x, y, 0) = 0.0f;
+                    put3(normal_row, glm::vec3(0.0f));
+                    put3(position_row, glm::vec3(0.0f));
+                    put3(albedo_row, glm::vec3(0.0f));
+                    put3(material_row, glm::vec3(0.0f));
+                    put3(tangent_row, glm::vec3(0.0f));
+                    if (id_row.active()) {
+                        *id_row.at(i) = 0.0f;
                     }
                     continue;
                 }
                 const Hit h = hitter.hit(tid, d);
                 if (color_here) {
-                    put_color(shade(ls->lighting, h, glm::normalize(d)));
+                    row->add_surface(i, h, glm::normalize(d));
                 }
-                if (!depth.empty()) {
-                    depth.at(x, y, 0) = glm::dot(zrow, glm::vec4(h.p, 1.0f));
+                if (depth_row.active()) {
+                    *depth_row.at(i) = glm::dot(zrow, glm::vec4(h.p, 1.0f));
                 }
-                if (!motion.empty()) {
+                if (motion_row.active()) {
                     glm::vec2 cur, prev;
                     glm::vec2 mv(0.0f);
-                    if (world_to_pixel(cur_ndc, h.p, o.width, o.height, cur) &&
-                        world_to_pixel(prev_ndc, h.p_prev, o.width, o.height, prev)) {
+                    if (to_pixel(cur_ndc, h.p, o.width, o.height, cur) &&
+                        to_pixel(prev_ndc, h.p_prev, o.width, o.height, prev)) {
                         mv = cur - prev;
                     }
-                    motion.at(x, y, 0) = mv.x;
-                    motion.at(x, y, 1) = mv.y;
+                    motion_row.at(i)[0] = mv.x;
+                    motion_row.at(i)[1] = mv.y;
                 }
                 const Material &m = mats.m[h.material];
-                put3(normal, h.n);
-                put3(position, h.p);
-                put3(albedo, m.albedo);
-                put3(material, glm::vec3(m.roughness, m.metallic, m.anisotropy));
-                put3(tangent, h.t);
-                if (!id.empty()) {
-                    id.at(x, y, 0) = float(h.material);
+                put3(normal_row, h.n);
+                put3(position_row, h.p);
+                put3(albedo_row, m.albedo);
+                put3(material_row, glm::vec3(m.roughness, m.metallic, m.anisotropy));
+                put3(tangent_row, h.t);
+                if (id_row.active()) {
+                    *id_row.at(i) = float(h.material);
                 }
             }
+            if (color_here) {
+                const std::vector<glm::vec3> &c = row->finish();
+                for (int i = 0; i < n; ++i) {
+                    float *p = color_row.at(i);
+                    p[0] = c[std::size_t(i)].x;
+                    p[1] = c[std::size_t(i)].y;
+                    p[2] = c[std::size_t(i)].z;
+                    p[3] = 1.0f;
+                }
+            }
+            for (RowBuffer *b : {&color_row,
+                                 &depth_row,
+                                 &normal_row,
+                                 &position_row,
+                                 &motion_row,
+                                 &albedo_row,
+                                 &material_row,
+                                 &tangent_row,
+                                 &id_row}) {
+                b->write(tile.x0, y);
+            }
         }
+        stream_fence();
     });
     if (stats) {
         stats->shade_ms += ms_since(t0);

@@ -5,6 +5,7 @@
 #include <glm/geometric.hpp>
 
 #include "raster/sky.h"
+#include "shading/scene_sky.h"
 
 namespace posthaste::shading {
 
@@ -59,7 +60,19 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const glm::vec3 &sun_dir,
                         float scale)
 {
-    const glm::vec3 amb = raster::sky_ambient_radiance(n, sun_dir) * scale;
+    const SceneSky &sky = raster::scene_sky(sun_dir);
+    return add_sky_light(c, s, n, v, sky, sky.ambient(n), scale);
+}
+
+glm::vec3 add_sky_light(glm::vec3 c,
+                        const Surface &s,
+                        const glm::vec3 &n,
+                        const glm::vec3 &v,
+                        const SceneSky &sky,
+                        const glm::vec3 &ambient,
+                        float scale)
+{
+    const glm::vec3 amb = ambient * scale;
     c += diffuse_albedo(s) * amb;
     const float nv = std::max(glm::dot(n, v), 0.0f);
     const glm::vec3 r = glm::reflect(-v, n);
@@ -67,7 +80,11 @@ glm::vec3 add_sky_light(glm::vec3 c,
     // Rough materials (gloss < 0.05, roughness > 0.78) reflect the ambient term alone: the sky
     // lookup would change them by less than 5% of a small term.
     const glm::vec3 env =
-        gloss < 0.05f ? amb : glm::mix(amb, raster::sky_radiance(r, sun_dir) * scale, gloss);
+        gloss < 0.05f
+            ? amb
+            : glm::mix(amb,
+                       sky.radiance(r, glm::vec3(0.0f, raster::kSkyCameraY, 0.0f), false) * scale,
+                       gloss);
     c += fresnel_schlick(specular_f0(s), nv) * env;
     return c;
 }

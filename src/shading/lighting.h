@@ -13,6 +13,8 @@
 
 namespace posthaste::shading {
 
+class SceneSky;
+
 /// Options of direct_response. The defaults are exactly the rasterizer's non-toon shading.
 struct DirectOptions {
     Geometry geometry = Geometry::SmithCorrelated;
@@ -43,6 +45,16 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const glm::vec3 &n,
                         const glm::vec3 &v,
                         const glm::vec3 &sun_dir,
+                        float scale);
+
+/// add_sky_light for callers that look the sky up once per tile: `sky` is raster::scene_sky
+/// of the sun direction and `ambient` its ambient(n), unscaled. The same result, bit for bit.
+glm::vec3 add_sky_light(glm::vec3 c,
+                        const Surface &s,
+                        const glm::vec3 &n,
+                        const glm::vec3 &v,
+                        const SceneSky &sky,
+                        const glm::vec3 &ambient,
                         float scale);
 
 }  // namespace posthaste::shading
