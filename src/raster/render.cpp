@@ -19,6 +19,7 @@
 
 #include "core/error.h"
 #include "core/hash.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "core/passes.h"
 #include "core/simd.h"
@@ -29,10 +30,6 @@
 #include "shading/brdf.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
-
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
 
 namespace posthaste::raster {
 
@@ -71,24 +68,6 @@ double ms_since(Clock::time_point t0)
     return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// Ask for 2 MiB pages on a fresh buffer before its first write. Every pass of a 1080p frame is
-// ~190 MB; faulting that in 4 KiB pages cost more CPU than shading it (perf: ~16% of a frame in
-// the kernel's fault path). Only a hint: without transparent huge pages nothing changes.
-void prefer_huge_pages(void *data, std::size_t bytes)
-{
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
-    const auto begin = (reinterpret_cast<std::uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
-    const auto end = (reinterpret_cast<std::uintptr_t>(data) + bytes) & ~(kHuge - 1);
-    if (end > begin) {
-        madvise(reinterpret_cast<void *>(begin), end - begin, MADV_HUGEPAGE);
-    }
-#else
-    (void)data;
-    (void)bytes;
-#endif
-}
-
 // glm's mat4 * vec4 in its own order of operations, so the same bits, but always inlined: GCC
 // had outlined glm's operator, and the per-pixel calls (shadow maps, motion) took ~20% of a
 // frame (perf).
@@ -111,9 +90,9 @@ void prefer_huge_pages(void *data, std::size_t bytes)
 
 Image fresh_image(int width, int height, int channels)
 {
-    Image img = Image::uninitialized(width, height, channels);
-    prefer_huge_pages(img.data(), img.value_count() * sizeof(float));
-    return img;
+    // Image::uninitialized advises huge pages (core/memory.h): every pass of a 1080p frame is
+    // ~190 MB, and faulting that in 4 KiB pages cost ~16 % of a frame (perf).
+    return Image::uninitialized(width, height, channels);
 }
 
 std::shared_ptr<const SceneMeshes> scene_meshes(const Scene &s, SceneCache &cache, bool greedy)
@@ -959,8 +938,8 @@ Visibility visibility(const Geometry &g, const View &v, RenderStats *stats)
     const std::size_t n = std::size_t(v.width) * std::size_t(v.height);
     vis.keys.reset(new float[n]);  // uninitialised: rasterize() clears
     vis.ids.reset(new std::uint32_t[n]);
-    prefer_huge_pages(vis.keys.get(), n * sizeof(float));
-    prefer_huge_pages(vis.ids.get(), n * sizeof(std::uint32_t));
+    advise_huge_pages(vis.keys.get(), n * sizeof(float));
+    advise_huge_pages(vis.ids.get(), n * sizeof(std::uint32_t));
     RasterParams rp;
     rp.width = v.width;
     rp.height = v.height;
