@@ -15,10 +15,13 @@
 #include <cstring>
 #include <ctime>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "core/hash.h"
 #include "core/parallel.h"
+#include "core/simd.h"
+#include "core/simd_avx2.h"
 #include "shading/tiles.h"
 
 namespace posthaste::shading {
@@ -65,18 +68,21 @@ inline float reach(float t, float len)
 
 /// The records (see Px) and the clamped half-extent vectors (2 channels, for the tile max).
 struct Packed {
-    std::vector<Px> px;
+    std::unique_ptr<Px[]> px;  // uninitialized on allocation: pack writes every record
     Image velocity;
 };
 
-Packed pack(const Image &color, const Image &motion, const Image &depth, const MotionBlurOptions &o)
-{
-    const int w = motion.width(), h = motion.height(), nc = std::min(color.channels(), 4);
-    Packed out{std::vector<Px>(std::size_t(w) * std::size_t(h)), Image::uninitialized(w, h, 2)};
-    const float scale = 0.5f * o.shutter;
-    const float max_r = std::max(o.max_radius, 0.0f);
-    parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
+/// Writes the records and velocities of a frame, row by row.
+struct Packer {
+    const Image &color, &motion, &depth;
+    Packed &out;
+    int w, nc;
+    float scale, max_r;
+
+    /// Pixels [x0, x1) of row y.
+    void pixels(int y, int x0, int x1) const
+    {
+        for (int x = x0; x < x1; ++x) {
             const float *m = motion.pixel(x, y);
             float vx = m[0] * scale, vy = m[1] * scale;
             if (!std::isfinite(vx) || !std::isfinite(vy)) {
@@ -108,7 +114,104 @@ Packed pack(const Image &color, const Image &motion, const Image &depth, const M
             out.velocity.at(x, y, 0) = vx;
             out.velocity.at(x, y, 1) = vy;
         }
-    });
+    }
+};
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+using simd::v8::V;
+using simd::v8::VI;
+using simd::v8::set1;
+
+POSTHASTE_AVX2_INLINE V abs8(V x)
+{
+    return _mm256_andnot_ps(set1(-0.0f), x);
+}
+POSTHASTE_AVX2_INLINE V finite8(V x)
+{
+    return _mm256_cmp_ps(abs8(x), set1(std::numeric_limits<float>::infinity()), _CMP_LT_OQ);
+}
+
+/// Packer::pixels for a whole row, eight pixels at a time (the same arithmetic; log is the
+/// polynomial of simd::v8, within 2 ulp of std::log).
+POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
+{
+    const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const VI mstride = _mm256_mullo_epi32(lane, _mm256_set1_epi32(p.motion.channels()));
+    const V scale = set1(p.scale), max_r = set1(p.max_r), zero = _mm256_setzero_ps();
+    alignas(32) float f[8][8];
+    int x = 0;
+    for (; x + 8 <= p.w; x += 8) {
+        const float *m = p.motion.pixel(x, y);
+        V vx = _mm256_mul_ps(_mm256_i32gather_ps(m, mstride, 4), scale);
+        V vy = _mm256_mul_ps(_mm256_i32gather_ps(m + 1, mstride, 4), scale);
+        const V ok = _mm256_and_ps(finite8(vx), finite8(vy));
+        vx = _mm256_and_ps(vx, ok);
+        vy = _mm256_and_ps(vy, ok);
+        V len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(vx, vx), _mm256_mul_ps(vy, vy)));
+        const V lok = finite8(len);
+        vx = _mm256_and_ps(vx, lok);
+        vy = _mm256_and_ps(vy, lok);
+        len = _mm256_and_ps(len, lok);
+        const V over = _mm256_cmp_ps(len, max_r, _CMP_GT_OQ);
+        const V k = _mm256_blendv_ps(set1(1.0f), _mm256_div_ps(max_r, len), over);
+        vx = _mm256_blendv_ps(vx, _mm256_mul_ps(vx, k), over);
+        vy = _mm256_blendv_ps(vy, _mm256_mul_ps(vy, k), over);
+        len = _mm256_blendv_ps(len, max_r, over);
+        V lz = set1(0.0f);  // log 1: no depth
+        if (!p.depth.empty()) {
+            const V z = _mm256_loadu_ps(p.depth.pixel(x, y));
+            const V good = _mm256_and_ps(_mm256_cmp_ps(z, zero, _CMP_GT_OQ), finite8(z));
+            lz = _mm256_blendv_ps(set1(kSkyLogZ), simd::v8::log(_mm256_max_ps(z, set1(1e-30f))),
+                                  good);
+        }
+        const V dens = _mm256_and_ps(
+            _mm256_div_ps(set1(1.0f), _mm256_mul_ps(_mm256_mul_ps(set1(2.0f), len), len)),
+            _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ));
+        _mm256_store_ps(f[4], _mm256_mul_ps(vx, dens));
+        _mm256_store_ps(f[5], _mm256_mul_ps(vy, dens));
+        _mm256_store_ps(f[6], lz);
+        _mm256_store_ps(f[7], len);
+        // Interleave the velocity: (vx0, vy0, vx1, vy1, ...).
+        const V lo = _mm256_unpacklo_ps(vx, vy), hi = _mm256_unpackhi_ps(vx, vy);
+        float *vel = p.out.velocity.pixel(x, y);
+        _mm256_storeu_ps(vel, _mm256_permute2f128_ps(lo, hi, 0x20));
+        _mm256_storeu_ps(vel + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
+        Px *rec = &p.out.px[std::size_t(y) * std::size_t(p.w) + std::size_t(x)];
+        const float *c = p.color.pixel(x, y);
+        for (int j = 0; j < 8; ++j) {
+            for (int ch = 0; ch < 4; ++ch) {
+                rec[j].c[ch] = ch < p.nc ? c[j * p.color.channels() + ch] : 0.0f;
+            }
+            rec[j].wx = f[4][j];
+            rec[j].wy = f[5][j];
+            rec[j].lz = f[6][j];
+            rec[j].len = f[7][j];
+        }
+    }
+    p.pixels(y, x, p.w);
+}
+#endif
+
+Packed pack(const Image &color, const Image &motion, const Image &depth, const MotionBlurOptions &o)
+{
+    const int w = motion.width(), h = motion.height();
+    Packed out{std::unique_ptr<Px[]>(new Px[std::size_t(w) * std::size_t(h)]),
+               Image::uninitialized(w, h, 2)};
+    const Packer p{color,
+                   motion,
+                   depth,
+                   out,
+                   w,
+                   std::min(color.channels(), 4),
+                   0.5f * o.shutter,
+                   std::max(o.max_radius, 0.0f)};
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        parallel_for(0, h, [&](int y) { pack_row_avx2(p, y); });
+        return out;
+    }
+#endif
+    parallel_for(0, h, [&](int y) { p.pixels(y, 0, w); });
     return out;
 }
 
@@ -275,6 +378,290 @@ struct Gather {
     }
 };
 
+#if POSTHASTE_HAVE_AVX2_TARGET
+/// pcg_hash on eight lanes.
+POSTHASTE_AVX2_INLINE VI pcg8(VI v)
+{
+    const VI state = _mm256_add_epi32(_mm256_mullo_epi32(v, _mm256_set1_epi32(747796405)),
+                                      _mm256_set1_epi32(int(2891336453u)));
+    const VI shift = _mm256_add_epi32(_mm256_srli_epi32(state, 28), _mm256_set1_epi32(4));
+    const VI word = _mm256_mullo_epi32(_mm256_xor_si256(_mm256_srlv_epi32(state, shift), state),
+                                       _mm256_set1_epi32(277803737));
+    return _mm256_xor_si256(_mm256_srli_epi32(word, 22), word);
+}
+/// hash_to_unit on eight lanes.
+POSTHASTE_AVX2_INLINE V unit8(VI h)
+{
+    return _mm256_mul_ps(_mm256_cvtepi32_ps(_mm256_srli_epi32(h, 8)), set1(1.0f / 16777216.0f));
+}
+/// Gather::sample_count on eight lanes, as floats.
+POSTHASTE_AVX2_INLINE V count8(V len, V most)
+{
+    const V n = _mm256_min_ps(most, _mm256_max_ps(set1(2.0f), _mm256_ceil_ps(_mm256_add_ps(len, len))));
+    return _mm256_max_ps(set1(1.0f), n);
+}
+/// Largest lane, as an int (lanes hold small whole numbers).
+POSTHASTE_AVX2_INLINE int max_lane(V x)
+{
+    __m128 m = _mm_max_ps(_mm256_castps256_ps128(x), _mm256_extractf128_ps(x, 1));
+    m = _mm_max_ps(m, _mm_movehl_ps(m, m));
+    m = _mm_max_ss(m, _mm_movehdup_ps(m));
+    return int(_mm_cvtss_f32(m));
+}
+/// Lane x + 0.5 + t v of the frame, clamped to the frame, as a record offset in floats
+/// (Gather::at).
+struct Frame8 {
+    V xf, yf, xmax, ymax;
+    VI w;
+};
+POSTHASTE_AVX2_INLINE VI offset8(const Frame8 &f, V t, V vx, V vy)
+{
+    const V zero = _mm256_setzero_ps();
+    const V fx = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.xf, _mm256_mul_ps(t, vx)), zero), f.xmax);
+    const V fy = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.yf, _mm256_mul_ps(t, vy)), zero), f.ymax);
+    const VI idx = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(fy), f.w),
+                                    _mm256_cvttps_epi32(fx));
+    return _mm256_slli_epi32(idx, 3);
+}
+template <int Field>
+POSTHASTE_AVX2_INLINE V field8(const float *base, VI off)
+{
+    return _mm256_i32gather_ps(base + Field, off, 4);
+}
+
+/// Writes eight results (SoA, r[channel][lane]) of row y from x, lanes not in `keep` copied
+/// from the input.
+POSTHASTE_AVX2_INLINE void store8(const Gather &g, Image &out, int x, int y, const V *r, V keep)
+{
+    alignas(32) float v[4][8];
+    for (int k = 0; k < 4; ++k) {
+        _mm256_store_ps(v[k], r[k]);
+    }
+    const int mask = _mm256_movemask_ps(keep);
+    for (int j = 0; j < 8; ++j) {
+        float *po = out.pixel(x + j, y);
+        if (mask & (1 << j)) {
+            for (int k = 0; k < g.nc; ++k) {
+                po[k] = v[k][j];
+            }
+        } else {
+            g.copy_pixel(out, x + j, y);
+        }
+    }
+}
+
+/// Gather::uniform for pixels [x0, x1) of row y, eight at a time.
+POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
+{
+    const float *base = reinterpret_cast<const float *>(g.px_);
+    const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const VI lane8 = _mm256_slli_epi32(lane, 3), lane2 = _mm256_slli_epi32(lane, 1);
+    const Frame8 fr{set1(0.0f), set1(float(y) + 0.5f), set1(float(g.w) - 0.5f),
+                    set1(float(g.h) - 0.5f), _mm256_set1_epi32(g.w)};
+    const VI ky = _mm256_set1_epi32(
+        int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
+    const V most = set1(float(g.o.samples));
+    int x = x0;
+    for (; x + 8 <= x1; x += 8) {
+        const float *own = base + (std::size_t(y) * std::size_t(g.w) + std::size_t(x)) * 8;
+        const V len = _mm256_i32gather_ps(own + 7, lane8, 4);
+        const V moving = _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ);
+        if (_mm256_movemask_ps(moving) == 0) {
+            for (int j = 0; j < 8; ++j) {
+                g.copy_pixel(out, x + j, y);
+            }
+            continue;
+        }
+        const float *vel = g.velocity.pixel(x, y);
+        const V vx = _mm256_i32gather_ps(vel, lane2, 4), vy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+        const VI xi = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
+        Frame8 f = fr;
+        f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(xi), set1(0.5f));
+        const V n = _mm256_and_ps(count8(len, most), moving);
+        const int n_max = max_lane(n);
+        const V step = _mm256_div_ps(set1(2.0f), _mm256_max_ps(n, set1(1.0f)));
+        const V u = unit8(pcg8(_mm256_xor_si256(xi, ky)));
+        V acc[4] = {_mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps(),
+                    _mm256_setzero_ps()};
+        for (int i = 0; i < n_max; ++i) {
+            const V fi = set1(float(i));
+            const V active = _mm256_cmp_ps(fi, n, _CMP_LT_OQ);
+            const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u), step));
+            const VI off = offset8(f, t, vx, vy);
+            acc[0] = _mm256_add_ps(acc[0], _mm256_and_ps(field8<0>(base, off), active));
+            acc[1] = _mm256_add_ps(acc[1], _mm256_and_ps(field8<1>(base, off), active));
+            acc[2] = _mm256_add_ps(acc[2], _mm256_and_ps(field8<2>(base, off), active));
+            acc[3] = _mm256_add_ps(acc[3], _mm256_and_ps(field8<3>(base, off), active));
+        }
+        for (int k = 0; k < 4; ++k) {
+            acc[k] = _mm256_div_ps(acc[k], n);
+        }
+        store8(g, out, x, y, acc, moving);
+    }
+    for (; x < x1; ++x) {
+        g.uniform(out, x, y);
+    }
+}
+
+/// Gather::reconstruct for pixels [x0, x1) of row y, eight at a time: each lane follows its
+/// own pixel's paths and sample counts (lanes past their count add nothing).
+POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
+{
+    const float *base = reinterpret_cast<const float *>(g.px_);
+    const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const VI lane8 = _mm256_slli_epi32(lane, 3), lane2 = _mm256_slli_epi32(lane, 1);
+    const Frame8 fr{set1(0.0f), set1(float(y) + 0.5f), set1(float(g.w) - 0.5f),
+                    set1(float(g.h) - 0.5f), _mm256_set1_epi32(g.w)};
+    const std::uint32_t s0 = pcg_hash(g.o.seed);
+    const VI ky0 = _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ s0))));
+    const VI ky1 = _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(1u ^ s0))));
+    const V most = set1(float(g.o.samples)), zero = _mm256_setzero_ps(), one = set1(1.0f),
+            half = set1(0.5f), inv_soft = set1(g.inv_soft), inv_tile = set1(g.inv_tile);
+    const V jit = set1(2.0f * g.o.tile_jitter * float(g.o.tile));
+    const VI ntw = _mm256_set1_epi32(g.nmax.width());
+    const VI tx_max = _mm256_set1_epi32(g.nmax.width() - 1),
+             ty_max = _mm256_set1_epi32(g.nmax.height() - 1);
+    const float *nbase = g.nmax.data();
+    int x = x0;
+    for (; x + 8 <= x1; x += 8) {
+        const VI xi = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
+        Frame8 f = fr;
+        f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(xi), half);
+        // Jittered neighbour-max lookup.
+        const VI hj = pcg8(_mm256_xor_si256(xi, ky1));
+        const V jx = _mm256_mul_ps(_mm256_sub_ps(unit8(hj), half), jit);
+        const V jy = _mm256_mul_ps(_mm256_sub_ps(unit8(pcg8(hj)), half), jit);
+        const VI tx = _mm256_min_epi32(
+            _mm256_cvttps_epi32(_mm256_mul_ps(_mm256_max_ps(_mm256_add_ps(f.xf, jx), zero), inv_tile)),
+            tx_max);
+        const VI ty = _mm256_min_epi32(
+            _mm256_cvttps_epi32(_mm256_mul_ps(_mm256_max_ps(_mm256_add_ps(f.yf, jy), zero), inv_tile)),
+            ty_max);
+        const VI toff = _mm256_slli_epi32(_mm256_add_epi32(_mm256_mullo_epi32(ty, ntw), tx), 1);
+        V nvx = _mm256_i32gather_ps(nbase, toff, 4), nvy = _mm256_i32gather_ps(nbase + 1, toff, 4);
+        V L = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(nvx, nvx), _mm256_mul_ps(nvy, nvy)));
+        const V live = _mm256_cmp_ps(L, half, _CMP_GE_OQ);
+        if (_mm256_movemask_ps(live) == 0) {
+            for (int j = 0; j < 8; ++j) {
+                g.copy_pixel(out, x + j, y);
+            }
+            continue;
+        }
+        const float *own = base + (std::size_t(y) * std::size_t(g.w) + std::size_t(x)) * 8;
+        const V cc[4] = {_mm256_i32gather_ps(own, lane8, 4), _mm256_i32gather_ps(own + 1, lane8, 4),
+                         _mm256_i32gather_ps(own + 2, lane8, 4),
+                         _mm256_i32gather_ps(own + 3, lane8, 4)};
+        const V clz = _mm256_i32gather_ps(own + 6, lane8, 4);
+        const V clen = _mm256_i32gather_ps(own + 7, lane8, 4);
+        const float *vel = g.velocity.pixel(x, y);
+        const V cvx = _mm256_i32gather_ps(vel, lane2, 4), cvy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+        V dnx = _mm256_div_ps(nvx, L), dny = _mm256_div_ps(nvy, L);
+        const VI hu = pcg8(_mm256_xor_si256(xi, ky0));
+        const V u = unit8(hu), u2 = unit8(pcg8(hu));
+
+        const V own_path = _mm256_cmp_ps(clen, half, _CMP_GE_OQ);
+        const V dcx = _mm256_and_ps(_mm256_div_ps(cvx, clen), own_path);
+        const V dcy = _mm256_and_ps(_mm256_div_ps(cvy, clen), own_path);
+        const V cosine = abs8(_mm256_add_ps(_mm256_mul_ps(dcx, dnx), _mm256_mul_ps(dcy, dny)));
+        const V shared = _mm256_and_ps(
+            _mm256_and_ps(own_path, _mm256_cmp_ps(cosine, set1(0.9f), _CMP_GT_OQ)),
+            _mm256_cmp_ps(clen, _mm256_mul_ps(half, L), _CMP_GE_OQ));
+        const V inv_own =
+            _mm256_and_ps(_mm256_div_ps(one, _mm256_mul_ps(set1(2.0f), clen)), own_path);
+        dnx = _mm256_blendv_ps(dnx, dcx, shared);
+        dny = _mm256_blendv_ps(dny, dcy, shared);
+        nvx = _mm256_blendv_ps(nvx, _mm256_mul_ps(dcx, L), shared);
+        nvy = _mm256_blendv_ps(nvy, _mm256_mul_ps(dcy, L), shared);
+        const V longer =
+            _mm256_and_ps(shared, _mm256_cmp_ps(clen, _mm256_mul_ps(set1(0.8f), L), _CMP_GT_OQ));
+        nvx = _mm256_blendv_ps(nvx, cvx, longer);
+        nvy = _mm256_blendv_ps(nvy, cvy, longer);
+        L = _mm256_blendv_ps(L, clen, longer);
+
+        const V n = _mm256_and_ps(count8(L, most), live);
+        const V step = _mm256_div_ps(set1(2.0f), _mm256_max_ps(n, one));
+        const V delta = _mm256_mul_ps(L, step);
+        const V own_w = _mm256_and_ps(_mm256_mul_ps(delta, inv_own), shared);
+        V fg[4] = {zero, zero, zero, zero}, bg[4] = {zero, zero, zero, zero};
+        V F = zero, B = zero;
+        const int n_max = max_lane(n);
+        for (int i = 0; i < n_max; ++i) {
+            const V fi = set1(float(i));
+            const V active = _mm256_cmp_ps(fi, n, _CMP_LT_OQ);
+            const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u), step));
+            const VI off = offset8(f, t, nvx, nvy);
+            const V slz = field8<6>(base, off), slen = field8<7>(base, off);
+            const V swx = field8<4>(base, off), swy = field8<5>(base, off);
+            const V T = _mm256_mul_ps(abs8(t), L);
+            const V fr_w = simd::v8::clamp(
+                _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero, one);
+            const V reach_s =
+                simd::v8::clamp(_mm256_sub_ps(_mm256_add_ps(slen, half), T), zero, one);
+            const V reach_c =
+                simd::v8::clamp(_mm256_sub_ps(_mm256_add_ps(clen, half), T), zero, one);
+            const V along = abs8(_mm256_add_ps(_mm256_mul_ps(swx, dnx), _mm256_mul_ps(swy, dny)));
+            const V wf = _mm256_and_ps(
+                _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(fr_w, reach_s), along), delta), active);
+            const V wb = _mm256_and_ps(
+                _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(one, fr_w), reach_c), own_w), active);
+            F = _mm256_add_ps(F, wf);
+            B = _mm256_add_ps(B, wb);
+            const V sc[4] = {field8<0>(base, off), field8<1>(base, off), field8<2>(base, off),
+                             field8<3>(base, off)};
+            for (int k = 0; k < 4; ++k) {
+                fg[k] = _mm256_add_ps(fg[k], _mm256_mul_ps(wf, sc[k]));
+                bg[k] = _mm256_add_ps(bg[k], _mm256_mul_ps(wb, sc[k]));
+            }
+        }
+        // Guertin's second direction, for lanes whose own path is not shared.
+        V own_delta = delta;
+        const V second = _mm256_andnot_ps(shared, _mm256_and_ps(own_path, live));
+        if (_mm256_movemask_ps(second) != 0) {
+            const V half_n = _mm256_floor_ps(_mm256_mul_ps(_mm256_add_ps(n, one), half));
+            const V m = _mm256_and_ps(
+                _mm256_max_ps(set1(2.0f), _mm256_min_ps(count8(clen, most), half_n)), second);
+            const V mstep = _mm256_div_ps(set1(2.0f), _mm256_max_ps(m, one));
+            const V od = _mm256_mul_ps(clen, mstep);
+            own_delta = _mm256_blendv_ps(own_delta, od, second);
+            const V wm = _mm256_mul_ps(od, inv_own);
+            const int m_max = max_lane(m);
+            for (int i = 0; i < m_max; ++i) {
+                const V fi = set1(float(i));
+                const V active = _mm256_cmp_ps(fi, m, _CMP_LT_OQ);
+                const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u2), mstep));
+                const VI off = offset8(f, t, cvx, cvy);
+                const V slz = field8<6>(base, off);
+                const V fr_w = simd::v8::clamp(
+                    _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero,
+                    one);
+                const V wb = _mm256_and_ps(_mm256_mul_ps(_mm256_sub_ps(one, fr_w), wm), active);
+                B = _mm256_add_ps(B, wb);
+                const V sc[4] = {field8<0>(base, off), field8<1>(base, off), field8<2>(base, off),
+                                 field8<3>(base, off)};
+                for (int k = 0; k < 4; ++k) {
+                    bg[k] = _mm256_add_ps(bg[k], _mm256_mul_ps(wb, sc[k]));
+                }
+            }
+        }
+        const V full = _mm256_cmp_ps(F, one, _CMP_GE_OQ);
+        const V wc = _mm256_blendv_ps(
+            one, _mm256_mul_ps(_mm256_mul_ps(set1(1e-3f), own_delta), inv_own), own_path);
+        B = _mm256_add_ps(B, wc);
+        const V rest = _mm256_div_ps(_mm256_sub_ps(one, F), B);
+        V r[4];
+        for (int k = 0; k < 4; ++k) {
+            const V blend = _mm256_add_ps(
+                fg[k], _mm256_mul_ps(rest, _mm256_add_ps(bg[k], _mm256_mul_ps(wc, cc[k]))));
+            r[k] = _mm256_blendv_ps(blend, _mm256_div_ps(fg[k], F), full);
+        }
+        store8(g, out, x, y, r, live);
+    }
+    for (; x < x1; ++x) {
+        g.reconstruct(out, x, y);
+    }
+}
+#endif
+
 }  // namespace
 
 Image motion_blur(const Image &color,
@@ -323,7 +710,7 @@ Image motion_blur(const Image &color,
     c0 = process_cpu_ms();
     Image out = Image::uninitialized(w, h, color.channels());
     const Gather g{color,
-                   packed.px.data(),
+                   packed.px.get(),
                    packed.velocity,
                    nmax,
                    o,
@@ -333,6 +720,9 @@ Image motion_blur(const Image &color,
                    1.0f / o.soft_z,
                    1.0f / float(o.tile)};
     const int nt_x = nmax.width(), nt_y = nmax.height();
+    // The AVX2 rows address records with 32-bit offsets.
+    [[maybe_unused]] const bool vector =
+        simd::avx2() && std::size_t(w) * std::size_t(h) * 8 < (std::size_t(1) << 31);
     // Per tile: 1 copied, 2 coherent (uniform path), 0 reconstructed.
     std::vector<unsigned char> kind(std::size_t(nt_x) * std::size_t(nt_y), 0);
     parallel_for_tiles(
@@ -377,9 +767,22 @@ Image motion_blur(const Image &color,
             if (coherent) {
                 kind[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)] = 2;
             }
+            const bool uniform = o.method == BlurMethod::Uniform || coherent;
+#if POSTHASTE_HAVE_AVX2_TARGET
+            if (vector) {
+                for (int y = r.y0; y < r.y1; ++y) {
+                    if (uniform) {
+                        uniform_row_avx2(g, out, y, r.x0, r.x1);
+                    } else {
+                        reconstruct_row_avx2(g, out, y, r.x0, r.x1);
+                    }
+                }
+                return;
+            }
+#endif
             for (int y = r.y0; y < r.y1; ++y) {
                 for (int x = r.x0; x < r.x1; ++x) {
-                    if (o.method == BlurMethod::Uniform || coherent) {
+                    if (uniform) {
                         g.uniform(out, x, y);
                     } else {
                         g.reconstruct(out, x, y);
