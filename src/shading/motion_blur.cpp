@@ -66,9 +66,23 @@ inline float reach(float t, float len)
     return std::min(std::max(len + 0.5f - t, 0.0f), 1.0f);
 }
 
-/// The records (see Px) and the clamped half-extent vectors (2 channels, for the tile max).
+/// The AVX2 path's records, two arrays (24 bytes a pixel instead of 32, six gathers a sample
+/// instead of eight): colour, four floats (zero-padded; floats, so the output stays a convex
+/// combination of input values), and Geo: the density (wx, wy) as two half floats and log
+/// depth as a float (halves would quantise the depth ramp). |v| = 1 / (2 |w|) where it is used.
+struct Geo {
+    std::uint32_t w;
+    float lz;
+};
+static_assert(sizeof(Geo) == 2 * sizeof(float));
+
+/// The records (Px for the scalar path; colour and Geo for the AVX2 path; allocated
+/// uninitialized, pack writes every one) and the clamped half-extent vectors (2 channels, for
+/// the tile max).
 struct Packed {
-    std::unique_ptr<Px[]> px;  // uninitialized on allocation: pack writes every record
+    std::unique_ptr<Px[]> px;
+    std::unique_ptr<float[]> col;
+    std::unique_ptr<Geo[]> geo;
     Image velocity;
 };
 
@@ -79,10 +93,10 @@ struct Packer {
     int w, nc;
     float scale, max_r;
 
-    /// Pixels [x0, x1) of row y.
-    void pixels(int y, int x0, int x1) const
+    /// The record of pixel (x, y) into `p`; writes its velocity.
+    void pixel(int y, int x, Px &p) const
     {
-        for (int x = x0; x < x1; ++x) {
+        {
             const float *m = motion.pixel(x, y);
             float vx = m[0] * scale, vy = m[1] * scale;
             if (!std::isfinite(vx) || !std::isfinite(vy)) {
@@ -101,7 +115,6 @@ struct Packer {
             const float z = depth.empty() ? 1.0f : depth.at(x, y, 0);
             // NaN, zero or negative depth is treated as sky.
             const float lz = (z > 0.0f && std::isfinite(z)) ? std::log(z) : kSkyLogZ;
-            Px &p = out.px[std::size_t(y) * std::size_t(w) + std::size_t(x)];
             const float *c = color.pixel(x, y);
             for (int k = 0; k < 4; ++k) {
                 p.c[k] = k < nc ? c[k] : 0.0f;
@@ -113,6 +126,26 @@ struct Packer {
             p.len = len;
             out.velocity.at(x, y, 0) = vx;
             out.velocity.at(x, y, 1) = vy;
+        }
+    }
+
+    /// The colour records (AVX2 path) of pixels [x0, x1) of row y.
+    void colors(int y, int x0, int x1) const
+    {
+        float *o = &out.col[(std::size_t(y) * std::size_t(w) + std::size_t(x0)) * 4];
+        const float *c = color.pixel(x0, y);
+        for (int x = x0; x < x1; ++x, o += 4, c += color.channels()) {
+            for (int k = 0; k < 4; ++k) {
+                o[k] = k < nc ? c[k] : 0.0f;
+            }
+        }
+    }
+
+    /// Pixels [x0, x1) of row y.
+    void pixels(int y, int x0, int x1) const
+    {
+        for (int x = x0; x < x1; ++x) {
+            pixel(y, x, out.px[std::size_t(y) * std::size_t(w) + std::size_t(x)]);
         }
     }
 };
@@ -138,7 +171,6 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     const VI mstride = _mm256_mullo_epi32(lane, _mm256_set1_epi32(p.motion.channels()));
     const V scale = set1(p.scale), max_r = set1(p.max_r), zero = _mm256_setzero_ps();
-    alignas(32) float f[8][8];
     int x = 0;
     for (; x + 8 <= p.w; x += 8) {
         const float *m = p.motion.pixel(x, y);
@@ -167,35 +199,51 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
         const V dens = _mm256_and_ps(
             _mm256_div_ps(set1(1.0f), _mm256_mul_ps(_mm256_mul_ps(set1(2.0f), len), len)),
             _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ));
-        _mm256_store_ps(f[4], _mm256_mul_ps(vx, dens));
-        _mm256_store_ps(f[5], _mm256_mul_ps(vy, dens));
-        _mm256_store_ps(f[6], lz);
-        _mm256_store_ps(f[7], len);
+        const int round = _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC;
+        const __m128i hx = _mm256_cvtps_ph(_mm256_mul_ps(vx, dens), round);
+        const __m128i hy = _mm256_cvtps_ph(_mm256_mul_ps(vy, dens), round);
+        alignas(32) std::uint32_t words[8];
+        alignas(32) float lzs[8];
+        _mm_store_si128(reinterpret_cast<__m128i *>(words), _mm_unpacklo_epi16(hx, hy));
+        _mm_store_si128(reinterpret_cast<__m128i *>(words + 4), _mm_unpackhi_epi16(hx, hy));
+        _mm256_store_ps(lzs, lz);
         // Interleave the velocity: (vx0, vy0, vx1, vy1, ...).
         const V lo = _mm256_unpacklo_ps(vx, vy), hi = _mm256_unpackhi_ps(vx, vy);
         float *vel = p.out.velocity.pixel(x, y);
         _mm256_storeu_ps(vel, _mm256_permute2f128_ps(lo, hi, 0x20));
         _mm256_storeu_ps(vel + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
-        Px *rec = &p.out.px[std::size_t(y) * std::size_t(p.w) + std::size_t(x)];
-        const float *c = p.color.pixel(x, y);
+        const std::size_t i0 = std::size_t(y) * std::size_t(p.w) + std::size_t(x);
         for (int j = 0; j < 8; ++j) {
-            for (int ch = 0; ch < 4; ++ch) {
-                rec[j].c[ch] = ch < p.nc ? c[j * p.color.channels() + ch] : 0.0f;
-            }
-            rec[j].wx = f[4][j];
-            rec[j].wy = f[5][j];
-            rec[j].lz = f[6][j];
-            rec[j].len = f[7][j];
+            p.out.geo[i0 + std::size_t(j)] = Geo{words[j], lzs[j]};
         }
+        p.colors(y, x, x + 8);
     }
-    p.pixels(y, x, p.w);
+    for (; x < p.w; ++x) {
+        // The tail: one pixel through the scalar arithmetic, converted.
+        Px one;
+        p.pixel(y, x, one);
+        alignas(16) std::uint16_t hv[8];
+        _mm_store_si128(reinterpret_cast<__m128i *>(hv),
+                        _mm256_cvtps_ph(_mm256_setr_ps(one.wx, one.wy, 0, 0, 0, 0, 0, 0),
+                                        _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC));
+        p.out.geo[std::size_t(y) * std::size_t(p.w) + std::size_t(x)] =
+            Geo{std::uint32_t(hv[0]) | std::uint32_t(hv[1]) << 16, one.lz};
+        p.colors(y, x, x + 1);
+    }
 }
 #endif
 
-Packed pack(const Image &color, const Image &motion, const Image &depth, const MotionBlurOptions &o)
+Packed pack(const Image &color,
+            const Image &motion,
+            const Image &depth,
+            const MotionBlurOptions &o,
+            bool vector)
 {
     const int w = motion.width(), h = motion.height();
-    Packed out{std::unique_ptr<Px[]>(new Px[std::size_t(w) * std::size_t(h)]),
+    const std::size_t n = std::size_t(w) * std::size_t(h);
+    Packed out{vector ? nullptr : std::unique_ptr<Px[]>(new Px[n]),
+               vector ? std::unique_ptr<float[]>(new float[4 * n]) : nullptr,
+               vector ? std::unique_ptr<Geo[]>(new Geo[n]) : nullptr,
                Image::uninitialized(w, h, 2)};
     const Packer p{color,
                    motion,
@@ -206,7 +254,7 @@ Packed pack(const Image &color, const Image &motion, const Image &depth, const M
                    0.5f * o.shutter,
                    std::max(o.max_radius, 0.0f)};
 #if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
+    if (vector) {
         parallel_for(0, h, [&](int y) { pack_row_avx2(p, y); });
         return out;
     }
@@ -217,7 +265,9 @@ Packed pack(const Image &color, const Image &motion, const Image &depth, const M
 
 struct Gather {
     const Image &color;
-    const Px *px_;
+    const Px *px_;        ///< scalar path
+    const float *col_;    ///< AVX2 path: colour records
+    const Geo *geo_;      ///< AVX2 path
     const Image &velocity;
     const Image &nmax;
     const MotionBlurOptions &o;
@@ -408,8 +458,7 @@ POSTHASTE_AVX2_INLINE int max_lane(V x)
     m = _mm_max_ss(m, _mm_movehdup_ps(m));
     return int(_mm_cvtss_f32(m));
 }
-/// Lane x + 0.5 + t v of the frame, clamped to the frame, as a record offset in floats
-/// (Gather::at).
+/// The pixel index of lane x + 0.5 + t v, clamped to the frame (Gather::at).
 struct Frame8 {
     V xf, yf, xmax, ymax;
     VI w;
@@ -419,26 +468,47 @@ POSTHASTE_AVX2_INLINE VI offset8(const Frame8 &f, V t, V vx, V vy)
     const V zero = _mm256_setzero_ps();
     const V fx = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.xf, _mm256_mul_ps(t, vx)), zero), f.xmax);
     const V fy = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.yf, _mm256_mul_ps(t, vy)), zero), f.ymax);
-    const VI idx = _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(fy), f.w),
-                                    _mm256_cvttps_epi32(fx));
-    return _mm256_slli_epi32(idx, 3);
+    return _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(fy), f.w),
+                            _mm256_cvttps_epi32(fx));
 }
 template <int Field>
 POSTHASTE_AVX2_INLINE V field8(const float *base, VI off)
 {
     return _mm256_i32gather_ps(base + Field, off, 4);
 }
+/// The two half floats of each 32-bit lane (low, high) as two float vectors.
+POSTHASTE_AVX2_INLINE void halves8(V words, V &lo, V &hi)
+{
+    // Per 128-bit half: low halves to bytes 0-7, high halves to bytes 8-15; then the quadwords
+    // in the order (lo 0-3, lo 4-7, hi 0-3, hi 4-7).
+    const VI order = _mm256_setr_epi8(0, 1, 4, 5, 8, 9, 12, 13, 2, 3, 6, 7, 10, 11, 14, 15,
+                                      0, 1, 4, 5, 8, 9, 12, 13, 2, 3, 6, 7, 10, 11, 14, 15);
+    const VI s = _mm256_permute4x64_epi64(_mm256_shuffle_epi8(_mm256_castps_si256(words), order),
+                                          _MM_SHUFFLE(3, 1, 2, 0));
+    lo = _mm256_cvtph_ps(_mm256_castsi256_si128(s));
+    hi = _mm256_cvtph_ps(_mm256_extracti128_si256(s, 1));
+}
+/// The four colour channels of the colour records `idx` (pixel indices from `col`).
+POSTHASTE_AVX2_INLINE void color8(const float *col, VI idx, V *c)
+{
+    const VI off = _mm256_slli_epi32(idx, 2);
+    c[0] = field8<0>(col, off);
+    c[1] = field8<1>(col, off);
+    c[2] = field8<2>(col, off);
+    c[3] = field8<3>(col, off);
+}
 
-/// Writes eight results (SoA, r[channel][lane]) of row y from x, lanes not in `keep` copied
-/// from the input.
-POSTHASTE_AVX2_INLINE void store8(const Gather &g, Image &out, int x, int y, const V *r, V keep)
+/// Writes the first `lanes` results (SoA, r[channel][lane]) of row y from x, lanes not in
+/// `keep` copied from the input.
+POSTHASTE_AVX2_INLINE void store8(
+    const Gather &g, Image &out, int x, int y, int lanes, const V *r, V keep)
 {
     alignas(32) float v[4][8];
     for (int k = 0; k < 4; ++k) {
         _mm256_store_ps(v[k], r[k]);
     }
     const int mask = _mm256_movemask_ps(keep);
-    for (int j = 0; j < 8; ++j) {
+    for (int j = 0; j < lanes; ++j) {
         float *po = out.pixel(x + j, y);
         if (mask & (1 << j)) {
             for (int k = 0; k < g.nc; ++k) {
@@ -453,27 +523,31 @@ POSTHASTE_AVX2_INLINE void store8(const Gather &g, Image &out, int x, int y, con
 /// Gather::uniform for pixels [x0, x1) of row y, eight at a time.
 POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
 {
-    const float *base = reinterpret_cast<const float *>(g.px_);
+    const float *col = g.col_;
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    const VI lane8 = _mm256_slli_epi32(lane, 3), lane2 = _mm256_slli_epi32(lane, 1);
     const Frame8 fr{set1(0.0f), set1(float(y) + 0.5f), set1(float(g.w) - 0.5f),
                     set1(float(g.h) - 0.5f), _mm256_set1_epi32(g.w)};
     const VI ky = _mm256_set1_epi32(
         int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
     const V most = set1(float(g.o.samples));
-    int x = x0;
-    for (; x + 8 <= x1; x += 8) {
-        const float *own = base + (std::size_t(y) * std::size_t(g.w) + std::size_t(x)) * 8;
-        const V len = _mm256_i32gather_ps(own + 7, lane8, 4);
+    const VI last = _mm256_set1_epi32(g.w - 1);
+    for (int x = x0; x < x1; x += 8) {
+        // A group past the row's end (narrow tiles) computes its lanes on the last pixel and
+        // stores only the first `lanes`.
+        const int lanes = std::min(8, x1 - x);
+        const VI xc = _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
+                                       _mm256_set1_epi32(x));
+        const VI lane2 = _mm256_slli_epi32(xc, 1);
+        const float *vel = g.velocity.pixel(x, y);
+        const V vx = _mm256_i32gather_ps(vel, lane2, 4), vy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+        const V len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(vx, vx), _mm256_mul_ps(vy, vy)));
         const V moving = _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ);
         if (_mm256_movemask_ps(moving) == 0) {
-            for (int j = 0; j < 8; ++j) {
+            for (int j = 0; j < lanes; ++j) {
                 g.copy_pixel(out, x + j, y);
             }
             continue;
         }
-        const float *vel = g.velocity.pixel(x, y);
-        const V vx = _mm256_i32gather_ps(vel, lane2, 4), vy = _mm256_i32gather_ps(vel + 1, lane2, 4);
         const VI xi = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
         Frame8 f = fr;
         f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(xi), set1(0.5f));
@@ -487,19 +561,16 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
             const V fi = set1(float(i));
             const V active = _mm256_cmp_ps(fi, n, _CMP_LT_OQ);
             const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u), step));
-            const VI off = offset8(f, t, vx, vy);
-            acc[0] = _mm256_add_ps(acc[0], _mm256_and_ps(field8<0>(base, off), active));
-            acc[1] = _mm256_add_ps(acc[1], _mm256_and_ps(field8<1>(base, off), active));
-            acc[2] = _mm256_add_ps(acc[2], _mm256_and_ps(field8<2>(base, off), active));
-            acc[3] = _mm256_add_ps(acc[3], _mm256_and_ps(field8<3>(base, off), active));
+            V c[4];
+            color8(col, offset8(f, t, vx, vy), c);
+            for (int k = 0; k < 4; ++k) {
+                acc[k] = _mm256_add_ps(acc[k], _mm256_and_ps(c[k], active));
+            }
         }
         for (int k = 0; k < 4; ++k) {
             acc[k] = _mm256_div_ps(acc[k], n);
         }
-        store8(g, out, x, y, acc, moving);
-    }
-    for (; x < x1; ++x) {
-        g.uniform(out, x, y);
+        store8(g, out, x, y, lanes, acc, moving);
     }
 }
 
@@ -507,9 +578,9 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
 /// own pixel's paths and sample counts (lanes past their count add nothing).
 POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
 {
-    const float *base = reinterpret_cast<const float *>(g.px_);
+    const float *col = g.col_, *geo = reinterpret_cast<const float *>(g.geo_);
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    const VI lane8 = _mm256_slli_epi32(lane, 3), lane2 = _mm256_slli_epi32(lane, 1);
+
     const Frame8 fr{set1(0.0f), set1(float(y) + 0.5f), set1(float(g.w) - 0.5f),
                     set1(float(g.h) - 0.5f), _mm256_set1_epi32(g.w)};
     const std::uint32_t s0 = pcg_hash(g.o.seed);
@@ -522,8 +593,14 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
     const VI tx_max = _mm256_set1_epi32(g.nmax.width() - 1),
              ty_max = _mm256_set1_epi32(g.nmax.height() - 1);
     const float *nbase = g.nmax.data();
-    int x = x0;
-    for (; x + 8 <= x1; x += 8) {
+    const VI last = _mm256_set1_epi32(g.w - 1);
+    for (int x = x0; x < x1; x += 8) {
+        // A group past the row's end (narrow tiles) computes its lanes on the last pixel and
+        // stores only the first `lanes`.
+        const int lanes = std::min(8, x1 - x);
+        const VI xc = _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
+                                       _mm256_set1_epi32(x));
+        const VI lane2 = _mm256_slli_epi32(xc, 1);
         const VI xi = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
         Frame8 f = fr;
         f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(xi), half);
@@ -542,19 +619,19 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
         V L = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(nvx, nvx), _mm256_mul_ps(nvy, nvy)));
         const V live = _mm256_cmp_ps(L, half, _CMP_GE_OQ);
         if (_mm256_movemask_ps(live) == 0) {
-            for (int j = 0; j < 8; ++j) {
+            for (int j = 0; j < lanes; ++j) {
                 g.copy_pixel(out, x + j, y);
             }
             continue;
         }
-        const float *own = base + (std::size_t(y) * std::size_t(g.w) + std::size_t(x)) * 8;
-        const V cc[4] = {_mm256_i32gather_ps(own, lane8, 4), _mm256_i32gather_ps(own + 1, lane8, 4),
-                         _mm256_i32gather_ps(own + 2, lane8, 4),
-                         _mm256_i32gather_ps(own + 3, lane8, 4)};
-        const V clz = _mm256_i32gather_ps(own + 6, lane8, 4);
-        const V clen = _mm256_i32gather_ps(own + 7, lane8, 4);
+        const std::size_t i0 = std::size_t(y) * std::size_t(g.w) + std::size_t(x);
+        V cc[4];
+        color8(col + i0 * 4, xc, cc);
+        const V clz = _mm256_i32gather_ps(geo + i0 * 2 + 1, _mm256_slli_epi32(xc, 1), 4);
         const float *vel = g.velocity.pixel(x, y);
         const V cvx = _mm256_i32gather_ps(vel, lane2, 4), cvy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+        const V clen =
+            _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(cvx, cvx), _mm256_mul_ps(cvy, cvy)));
         V dnx = _mm256_div_ps(nvx, L), dny = _mm256_div_ps(nvy, L);
         const VI hu = pcg8(_mm256_xor_si256(xi, ky0));
         const V u = unit8(hu), u2 = unit8(pcg8(hu));
@@ -589,9 +666,15 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
             const V fi = set1(float(i));
             const V active = _mm256_cmp_ps(fi, n, _CMP_LT_OQ);
             const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u), step));
-            const VI off = offset8(f, t, nvx, nvy);
-            const V slz = field8<6>(base, off), slen = field8<7>(base, off);
-            const V swx = field8<4>(base, off), swy = field8<5>(base, off);
+            const VI idx = offset8(f, t, nvx, nvy), goff = _mm256_slli_epi32(idx, 1);
+            const V slz = field8<1>(geo, goff);
+            V swx, swy;
+            halves8(field8<0>(geo, goff), swx, swy);
+            // |v| = 1 / (2 |w|); where w = 0 it is unused (the weight has a factor |w . d|).
+            const V slen = _mm256_mul_ps(
+                half,
+                simd::v8::rsqrt(_mm256_max_ps(
+                    _mm256_add_ps(_mm256_mul_ps(swx, swx), _mm256_mul_ps(swy, swy)), set1(1e-30f))));
             const V T = _mm256_mul_ps(abs8(t), L);
             const V fr_w = simd::v8::clamp(
                 _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero, one);
@@ -606,8 +689,8 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 _mm256_mul_ps(_mm256_mul_ps(_mm256_sub_ps(one, fr_w), reach_c), own_w), active);
             F = _mm256_add_ps(F, wf);
             B = _mm256_add_ps(B, wb);
-            const V sc[4] = {field8<0>(base, off), field8<1>(base, off), field8<2>(base, off),
-                             field8<3>(base, off)};
+            V sc[4];
+            color8(col, idx, sc);
             for (int k = 0; k < 4; ++k) {
                 fg[k] = _mm256_add_ps(fg[k], _mm256_mul_ps(wf, sc[k]));
                 bg[k] = _mm256_add_ps(bg[k], _mm256_mul_ps(wb, sc[k]));
@@ -629,15 +712,15 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 const V fi = set1(float(i));
                 const V active = _mm256_cmp_ps(fi, m, _CMP_LT_OQ);
                 const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u2), mstep));
-                const VI off = offset8(f, t, cvx, cvy);
-                const V slz = field8<6>(base, off);
+                const VI idx = offset8(f, t, cvx, cvy);
+                const V slz = field8<1>(geo, _mm256_slli_epi32(idx, 1));
                 const V fr_w = simd::v8::clamp(
                     _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero,
                     one);
                 const V wb = _mm256_and_ps(_mm256_mul_ps(_mm256_sub_ps(one, fr_w), wm), active);
                 B = _mm256_add_ps(B, wb);
-                const V sc[4] = {field8<0>(base, off), field8<1>(base, off), field8<2>(base, off),
-                                 field8<3>(base, off)};
+                V sc[4];
+                color8(col, idx, sc);
                 for (int k = 0; k < 4; ++k) {
                     bg[k] = _mm256_add_ps(bg[k], _mm256_mul_ps(wb, sc[k]));
                 }
@@ -654,10 +737,7 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 fg[k], _mm256_mul_ps(rest, _mm256_add_ps(bg[k], _mm256_mul_ps(wc, cc[k]))));
             r[k] = _mm256_blendv_ps(blend, _mm256_div_ps(fg[k], F), full);
         }
-        store8(g, out, x, y, r, live);
-    }
-    for (; x < x1; ++x) {
-        g.reconstruct(out, x, y);
+        store8(g, out, x, y, lanes, r, live);
     }
 }
 #endif
@@ -678,7 +758,10 @@ Image motion_blur(const Image &color,
     MotionBlurStats st;
     auto t0 = std::chrono::steady_clock::now();
     double c0 = process_cpu_ms();
-    const Packed packed = pack(color, motion, depth, o);
+    // The AVX2 rows address the colour records with 32-bit offsets.
+    const bool vector =
+        simd::avx2() && std::size_t(w) * std::size_t(h) * 4 < (std::size_t(1) << 31);
+    const Packed packed = pack(color, motion, depth, o, vector);
     st.pack_ms = ms_since(t0);
     st.pack_cpu_ms = process_cpu_ms() - c0;
 
@@ -711,6 +794,8 @@ Image motion_blur(const Image &color,
     Image out = Image::uninitialized(w, h, color.channels());
     const Gather g{color,
                    packed.px.get(),
+                   packed.col.get(),
+                   packed.geo.get(),
                    packed.velocity,
                    nmax,
                    o,
@@ -720,9 +805,6 @@ Image motion_blur(const Image &color,
                    1.0f / o.soft_z,
                    1.0f / float(o.tile)};
     const int nt_x = nmax.width(), nt_y = nmax.height();
-    // The AVX2 rows address records with 32-bit offsets.
-    [[maybe_unused]] const bool vector =
-        simd::avx2() && std::size_t(w) * std::size_t(h) * 8 < (std::size_t(1) << 31);
     // Per tile: 1 copied, 2 coherent (uniform path), 0 reconstructed.
     std::vector<unsigned char> kind(std::size_t(nt_x) * std::size_t(nt_y), 0);
     parallel_for_tiles(
