@@ -781,11 +781,18 @@ Image motion_blur(const Image &color,
     }
     // Reach in tiles of the longest vector, plus one for the jittered lookup.
     const int radius = int(std::ceil(longest / float(o.tile))) + (o.tile_jitter > 0.0f ? 1 : 0);
-    const Image nmax = neighbour_max(tiles, std::max(radius, 1));
-    const Image nbounds =
-        o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
-            ? neighbour_bounds(tile_bounds(packed.velocity, o.tile), std::max(radius, 1))
-            : Image();
+    // Per tile, only the tiles whose own vectors can reach it (plus the jitter's one tile):
+    // slow regions beside fast ones get a short neighbour max (fewer samples, along motion that
+    // can actually cover them) and pass the coherence test more often.
+    const int margin = o.tile_jitter > 0.0f ? 1 : 0;
+    const Image nmax = neighbour_max_reach(tiles, o.tile, margin, std::max(radius, 1));
+    const Image nbounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
+                              ? neighbour_bounds_reach(tile_bounds(packed.velocity, o.tile),
+                                                       tiles,
+                                                       o.tile,
+                                                       margin,
+                                                       std::max(radius, 1))
+                              : Image();
     st.neighbour_max_ms = ms_since(t0);
     st.neighbour_max_cpu_ms = process_cpu_ms() - c0;
 

@@ -133,6 +133,31 @@ TEST(MotionBlurTiles, TileAndNeighbourMaxKeepTheLongestVector)
     EXPECT_EQ(n0.at(1, 0, 1), 1.0f);
 }
 
+TEST(MotionBlurTiles, ReachLimitedNeighbourMaxKeepsOnlyVectorsThatCanReach)
+{
+    // Tile 0 moves 40 px (reaches 3 tiles of 16 px), tile 5 moves 4 px (reaches 1).
+    Image tiles(6, 1, 2);
+    tiles.at(0, 0, 0) = 40.0f;
+    tiles.at(5, 0, 0) = 4.0f;
+    const Image reach = shading::neighbour_max_reach(tiles, 16, 0, 5);
+    const Image all = shading::neighbour_max(tiles, 5);
+    for (int x = 0; x < 6; ++x) {
+        EXPECT_EQ(all.at(x, 0, 0), 40.0f) << x;
+        EXPECT_EQ(reach.at(x, 0, 0), x <= 3 ? 40.0f : 4.0f) << x;
+    }
+    // One tile of margin (the jittered lookup) lets tile 0 count at tile 4 too.
+    EXPECT_EQ(shading::neighbour_max_reach(tiles, 16, 1, 5).at(4, 0, 0), 40.0f);
+    Image bounds(6, 1, 4);
+    for (int x = 0; x < 6; ++x) {
+        const float v = tiles.at(x, 0, 0);
+        bounds.at(x, 0, 0) = bounds.at(x, 0, 2) = v;
+    }
+    const Image nb = shading::neighbour_bounds_reach(bounds, tiles, 16, 0, 5);
+    EXPECT_EQ(nb.at(3, 0, 2), 40.0f);  // max x
+    EXPECT_EQ(nb.at(4, 0, 2), 4.0f);
+    EXPECT_EQ(nb.at(4, 0, 0), 0.0f);  // min x: tiles 1-3 are still
+}
+
 TEST(MotionBlur, ZeroMotionGivesTheInputBitForBit)
 {
     Scene1D s = moving_block(97, 13, 30, 50, 0.0f);
@@ -308,8 +333,9 @@ TEST(MotionBlur, CameraReprojectionMatchesTheRasterizerOnAStaticWorld)
 
 // The AVX2 rows against the portable scalar path on rendered frames of the default scene (fast
 // translation and fast turn; both methods). The paths round differently (log polynomial in the
-// pack, FMA contraction in sample positions), so a sample now and then lands on the next pixel:
-// a few pixels differ visibly, the image as a whole does not.
+// pack, the density as half floats, FMA contraction in sample positions), so a sample now and
+// then lands on the next pixel or weighs 1e-3 differently: under 0.5 % of pixels differ by more
+// than 1e-3 (relative above 1), RMSE under 1e-3.
 TEST(MotionBlur, Avx2RowsMatchTheScalarPath)
 {
     if (simd::detected() != simd::Level::Avx2) {
@@ -341,7 +367,8 @@ TEST(MotionBlur, Avx2RowsMatchTheScalarPath)
             for (int y = 0; y < vec.height(); ++y) {
                 for (int x = 0; x < vec.width(); ++x) {
                     for (int c = 0; c < vec.channels(); ++c) {
-                        if (std::abs(vec.at(x, y, c) - scalar.at(x, y, c)) > 1e-3f) {
+                        const float v = scalar.at(x, y, c);
+                        if (std::abs(vec.at(x, y, c) - v) > 1e-3f * std::max(1.0f, std::abs(v))) {
                             ++off;
                             break;
                         }
@@ -349,14 +376,15 @@ TEST(MotionBlur, Avx2RowsMatchTheScalarPath)
                 }
             }
             const double frac = double(off) / (double(vec.width()) * vec.height());
-            std::printf("avx2 vs scalar f%d %s: rms %.3g max %.3g, %.4f %% of pixels > 1e-3\n",
+            std::printf("avx2 vs scalar f%d %s: rms %.3g max %.3g, %.4f %% of pixels off by > 1e-3 "
+                        "(relative above 1)\n",
                         frame,
                         method == shading::BlurMethod::Uniform ? "uniform" : "reconstruct",
                         st.all.rms_error,
                         st.all.max_error,
                         100.0 * frac);
             EXPECT_LT(st.all.rms_error, 1e-3) << frame;
-            EXPECT_LT(frac, 0.002) << frame;
+            EXPECT_LT(frac, 0.005) << frame;
         }
     }
 }
