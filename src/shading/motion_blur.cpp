@@ -488,14 +488,28 @@ POSTHASTE_AVX2_INLINE void halves8(V words, V &lo, V &hi)
     lo = _mm256_cvtph_ps(_mm256_castsi256_si128(s));
     hi = _mm256_cvtph_ps(_mm256_extracti128_si256(s, 1));
 }
-/// The four colour channels of the colour records `idx` (pixel indices from `col`).
+/// Colour records a and b in the low and high halves.
+POSTHASTE_AVX2_INLINE V pair8(const float *col, std::int32_t a, std::int32_t b)
+{
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(col + 4 * std::ptrdiff_t(a))),
+                                _mm_loadu_ps(col + 4 * std::ptrdiff_t(b)),
+                                1);
+}
+/// The four colour channels of the colour records `idx` (pixel indices from `col`): eight
+/// 16-byte loads and a 4x4 transpose per 128-bit half, cheaper than four gathers of the same
+/// lines.
 POSTHASTE_AVX2_INLINE void color8(const float *col, VI idx, V *c)
 {
-    const VI off = _mm256_slli_epi32(idx, 2);
-    c[0] = field8<0>(col, off);
-    c[1] = field8<1>(col, off);
-    c[2] = field8<2>(col, off);
-    c[3] = field8<3>(col, off);
+    alignas(32) std::int32_t i[8];
+    _mm256_store_si256(reinterpret_cast<VI *>(i), idx);
+    const V r0 = pair8(col, i[0], i[4]), r1 = pair8(col, i[1], i[5]);
+    const V r2 = pair8(col, i[2], i[6]), r3 = pair8(col, i[3], i[7]);
+    const V t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
+    const V t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
+    c[0] = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0));
+    c[1] = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2));
+    c[2] = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0));
+    c[3] = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(3, 2, 3, 2));
 }
 
 /// Writes the first `lanes` results (SoA, r[channel][lane]) of row y from x, lanes not in
