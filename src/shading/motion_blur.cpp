@@ -495,13 +495,10 @@ POSTHASTE_AVX2_INLINE V pair8(const float *col, std::int32_t a, std::int32_t b)
                                 _mm_loadu_ps(col + 4 * std::ptrdiff_t(b)),
                                 1);
 }
-/// The four colour channels of the colour records `idx` (pixel indices from `col`): eight
-/// 16-byte loads and a 4x4 transpose per 128-bit half, cheaper than four gathers of the same
-/// lines.
-POSTHASTE_AVX2_INLINE void color8(const float *col, VI idx, V *c)
+/// The four colour channels of the colour records of pixels i[0..7]: eight 16-byte loads and a
+/// 4x4 transpose per 128-bit half, cheaper than four gathers of the same lines.
+POSTHASTE_AVX2_INLINE void color8(const float *col, const std::int32_t *i, V *c)
 {
-    alignas(32) std::int32_t i[8];
-    _mm256_store_si256(reinterpret_cast<VI *>(i), idx);
     const V r0 = pair8(col, i[0], i[4]), r1 = pair8(col, i[1], i[5]);
     const V r2 = pair8(col, i[2], i[6]), r3 = pair8(col, i[3], i[7]);
     const V t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
@@ -510,6 +507,29 @@ POSTHASTE_AVX2_INLINE void color8(const float *col, VI idx, V *c)
     c[1] = _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2));
     c[2] = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0));
     c[3] = _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(3, 2, 3, 2));
+}
+/// color8 from a vector of pixel indices.
+POSTHASTE_AVX2_INLINE void color8(const float *col, VI idx, V *c)
+{
+    alignas(32) std::int32_t i[8];
+    _mm256_store_si256(reinterpret_cast<VI *>(i), idx);
+    color8(col, i, c);
+}
+/// Geo records a, b in the low 128 bits, c, d in the high.
+POSTHASTE_AVX2_INLINE V quad8(const Geo *geo, std::int32_t a, std::int32_t b, std::int32_t c, std::int32_t d)
+{
+    auto half = [geo](std::int32_t x, std::int32_t y) {
+        return _mm_castpd_ps(_mm_loadh_pd(_mm_load_sd(reinterpret_cast<const double *>(geo + x)),
+                                          reinterpret_cast<const double *>(geo + y)));
+    };
+    return _mm256_insertf128_ps(_mm256_castps128_ps256(half(a, b)), half(c, d), 1);
+}
+/// The Geo records of pixels i[0..7]: density words and log depth, by 8-byte loads.
+POSTHASTE_AVX2_INLINE void geo8(const Geo *geo, const std::int32_t *i, V &w, V &lz)
+{
+    const V a = quad8(geo, i[0], i[1], i[4], i[5]), b = quad8(geo, i[2], i[3], i[6], i[7]);
+    w = _mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0));
+    lz = _mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1));
 }
 
 /// Writes the first `lanes` results (SoA, r[channel][lane]) of row y from x, lanes not in
@@ -680,10 +700,11 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
             const V fi = set1(float(i));
             const V active = _mm256_cmp_ps(fi, n, _CMP_LT_OQ);
             const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u), step));
-            const VI idx = offset8(f, t, nvx, nvy), goff = _mm256_slli_epi32(idx, 1);
-            const V slz = field8<1>(geo, goff);
-            V swx, swy;
-            halves8(field8<0>(geo, goff), swx, swy);
+            alignas(32) std::int32_t idx[8];
+            _mm256_store_si256(reinterpret_cast<VI *>(idx), offset8(f, t, nvx, nvy));
+            V words, slz, swx, swy;
+            geo8(g.geo_, idx, words, slz);
+            halves8(words, swx, swy);
             // |v| = 1 / (2 |w|); where w = 0 it is unused (the weight has a factor |w . d|).
             const V slen = _mm256_mul_ps(
                 half,
@@ -726,8 +747,10 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 const V fi = set1(float(i));
                 const V active = _mm256_cmp_ps(fi, m, _CMP_LT_OQ);
                 const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u2), mstep));
-                const VI idx = offset8(f, t, cvx, cvy);
-                const V slz = field8<1>(geo, _mm256_slli_epi32(idx, 1));
+                alignas(32) std::int32_t idx[8];
+                _mm256_store_si256(reinterpret_cast<VI *>(idx), offset8(f, t, cvx, cvy));
+                V words, slz;
+                geo8(g.geo_, idx, words, slz);
                 const V fr_w = simd::v8::clamp(
                     _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero,
                     one);
