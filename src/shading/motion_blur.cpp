@@ -12,11 +12,17 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <limits>
 #include <memory>
+#include <new>
 #include <vector>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 #include "core/hash.h"
 #include "core/parallel.h"
@@ -76,13 +82,38 @@ struct Geo {
 };
 static_assert(sizeof(Geo) == 2 * sizeof(float));
 
+struct FreeDeleter {
+    void operator()(void *p) const { std::free(p); }
+};
+/// Uninitialized storage for n trivial records (pack writes every one).
+template <class T>
+using Scratch = std::unique_ptr<T[], FreeDeleter>;
+
+/// Scratch<T> in 2 MiB-aligned blocks marked for transparent huge pages: tens of megabytes of
+/// fresh memory otherwise cost one page fault per 4 KiB on first touch (measured: kernel page
+/// fault handling was a quarter of the AVX2 gather's time). madvise is only a hint.
+template <class T>
+Scratch<T> scratch(std::size_t n)
+{
+    constexpr std::size_t kHuge = std::size_t(2) << 20;
+    const std::size_t bytes = std::max<std::size_t>((n * sizeof(T) + kHuge - 1) / kHuge, 1) * kHuge;
+    void *p = std::aligned_alloc(kHuge, bytes);
+    if (!p) {
+        throw std::bad_alloc();
+    }
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    madvise(p, bytes, MADV_HUGEPAGE);
+#endif
+    return Scratch<T>(static_cast<T *>(p));
+}
+
 /// The records (Px for the scalar path; colour and Geo for the AVX2 path; allocated
 /// uninitialized, pack writes every one) and the clamped half-extent vectors (2 channels, for
 /// the tile max).
 struct Packed {
-    std::unique_ptr<Px[]> px;
-    std::unique_ptr<float[]> col;
-    std::unique_ptr<Geo[]> geo;
+    Scratch<Px> px;
+    Scratch<float> col;
+    Scratch<Geo> geo;
     Image velocity;
 };
 
@@ -96,37 +127,35 @@ struct Packer {
     /// The record of pixel (x, y) into `p`; writes its velocity.
     void pixel(int y, int x, Px &p) const
     {
-        {
-            const float *m = motion.pixel(x, y);
-            float vx = m[0] * scale, vy = m[1] * scale;
-            if (!std::isfinite(vx) || !std::isfinite(vy)) {
-                vx = vy = 0.0f;
-            }
-            float len = std::sqrt(vx * vx + vy * vy);
-            if (!std::isfinite(len)) {
-                vx = vy = len = 0.0f;
-            }
-            if (len > max_r) {
-                const float k = max_r / len;
-                vx *= k;
-                vy *= k;
-                len = max_r;
-            }
-            const float z = depth.empty() ? 1.0f : depth.at(x, y, 0);
-            // NaN, zero or negative depth is treated as sky.
-            const float lz = (z > 0.0f && std::isfinite(z)) ? std::log(z) : kSkyLogZ;
-            const float *c = color.pixel(x, y);
-            for (int k = 0; k < 4; ++k) {
-                p.c[k] = k < nc ? c[k] : 0.0f;
-            }
-            const float density = len >= 0.5f ? 1.0f / (2.0f * len * len) : 0.0f;
-            p.wx = vx * density;
-            p.wy = vy * density;
-            p.lz = lz;
-            p.len = len;
-            out.velocity.at(x, y, 0) = vx;
-            out.velocity.at(x, y, 1) = vy;
+        const float *m = motion.pixel(x, y);
+        float vx = m[0] * scale, vy = m[1] * scale;
+        if (!std::isfinite(vx) || !std::isfinite(vy)) {
+            vx = vy = 0.0f;
         }
+        float len = std::sqrt(vx * vx + vy * vy);
+        if (!std::isfinite(len)) {
+            vx = vy = len = 0.0f;
+        }
+        if (len > max_r) {
+            const float k = max_r / len;
+            vx *= k;
+            vy *= k;
+            len = max_r;
+        }
+        const float z = depth.empty() ? 1.0f : depth.at(x, y, 0);
+        // NaN, zero or negative depth is treated as sky.
+        const float lz = (z > 0.0f && std::isfinite(z)) ? std::log(z) : kSkyLogZ;
+        const float *c = color.pixel(x, y);
+        for (int k = 0; k < 4; ++k) {
+            p.c[k] = k < nc ? c[k] : 0.0f;
+        }
+        const float density = len >= 0.5f ? 1.0f / (2.0f * len * len) : 0.0f;
+        p.wx = vx * density;
+        p.wy = vy * density;
+        p.lz = lz;
+        p.len = len;
+        out.velocity.at(x, y, 0) = vx;
+        out.velocity.at(x, y, 1) = vy;
     }
 
     /// The colour records (AVX2 path) of pixels [x0, x1) of row y.
@@ -151,9 +180,9 @@ struct Packer {
 };
 
 #if POSTHASTE_HAVE_AVX2_TARGET
+using simd::v8::set1;
 using simd::v8::V;
 using simd::v8::VI;
-using simd::v8::set1;
 
 POSTHASTE_AVX2_INLINE V abs8(V x)
 {
@@ -193,8 +222,8 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
         if (!p.depth.empty()) {
             const V z = _mm256_loadu_ps(p.depth.pixel(x, y));
             const V good = _mm256_and_ps(_mm256_cmp_ps(z, zero, _CMP_GT_OQ), finite8(z));
-            lz = _mm256_blendv_ps(set1(kSkyLogZ), simd::v8::log(_mm256_max_ps(z, set1(1e-30f))),
-                                  good);
+            lz = _mm256_blendv_ps(
+                set1(kSkyLogZ), simd::v8::log(_mm256_max_ps(z, set1(1e-30f))), good);
         }
         const V dens = _mm256_and_ps(
             _mm256_div_ps(set1(1.0f), _mm256_mul_ps(_mm256_mul_ps(set1(2.0f), len), len)),
@@ -241,9 +270,9 @@ Packed pack(const Image &color,
 {
     const int w = motion.width(), h = motion.height();
     const std::size_t n = std::size_t(w) * std::size_t(h);
-    Packed out{vector ? nullptr : std::unique_ptr<Px[]>(new Px[n]),
-               vector ? std::unique_ptr<float[]>(new float[4 * n]) : nullptr,
-               vector ? std::unique_ptr<Geo[]>(new Geo[n]) : nullptr,
+    Packed out{vector ? nullptr : scratch<Px>(n),
+               vector ? scratch<float>(4 * n) : nullptr,
+               vector ? scratch<Geo>(n) : nullptr,
                Image::uninitialized(w, h, 2)};
     const Packer p{color,
                    motion,
@@ -265,9 +294,9 @@ Packed pack(const Image &color,
 
 struct Gather {
     const Image &color;
-    const Px *px_;        ///< scalar path
-    const float *col_;    ///< AVX2 path: colour records
-    const Geo *geo_;      ///< AVX2 path
+    const Px *px_;      ///< scalar path
+    const float *col_;  ///< AVX2 path: colour records
+    const Geo *geo_;    ///< AVX2 path
     const Image &velocity;
     const Image &nmax;
     const MotionBlurOptions &o;
@@ -447,7 +476,8 @@ POSTHASTE_AVX2_INLINE V unit8(VI h)
 /// Gather::sample_count on eight lanes, as floats.
 POSTHASTE_AVX2_INLINE V count8(V len, V most)
 {
-    const V n = _mm256_min_ps(most, _mm256_max_ps(set1(2.0f), _mm256_ceil_ps(_mm256_add_ps(len, len))));
+    const V n =
+        _mm256_min_ps(most, _mm256_max_ps(set1(2.0f), _mm256_ceil_ps(_mm256_add_ps(len, len))));
     return _mm256_max_ps(set1(1.0f), n);
 }
 /// Largest lane, as an int (lanes hold small whole numbers).
@@ -466,8 +496,10 @@ struct Frame8 {
 POSTHASTE_AVX2_INLINE VI offset8(const Frame8 &f, V t, V vx, V vy)
 {
     const V zero = _mm256_setzero_ps();
-    const V fx = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.xf, _mm256_mul_ps(t, vx)), zero), f.xmax);
-    const V fy = _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.yf, _mm256_mul_ps(t, vy)), zero), f.ymax);
+    const V fx =
+        _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.xf, _mm256_mul_ps(t, vx)), zero), f.xmax);
+    const V fy =
+        _mm256_min_ps(_mm256_max_ps(_mm256_add_ps(f.yf, _mm256_mul_ps(t, vy)), zero), f.ymax);
     return _mm256_add_epi32(_mm256_mullo_epi32(_mm256_cvttps_epi32(fy), f.w),
                             _mm256_cvttps_epi32(fx));
 }
@@ -481,8 +513,38 @@ POSTHASTE_AVX2_INLINE void halves8(V words, V &lo, V &hi)
 {
     // Per 128-bit half: low halves to bytes 0-7, high halves to bytes 8-15; then the quadwords
     // in the order (lo 0-3, lo 4-7, hi 0-3, hi 4-7).
-    const VI order = _mm256_setr_epi8(0, 1, 4, 5, 8, 9, 12, 13, 2, 3, 6, 7, 10, 11, 14, 15,
-                                      0, 1, 4, 5, 8, 9, 12, 13, 2, 3, 6, 7, 10, 11, 14, 15);
+    const VI order = _mm256_setr_epi8(0,
+                                      1,
+                                      4,
+                                      5,
+                                      8,
+                                      9,
+                                      12,
+                                      13,
+                                      2,
+                                      3,
+                                      6,
+                                      7,
+                                      10,
+                                      11,
+                                      14,
+                                      15,
+                                      0,
+                                      1,
+                                      4,
+                                      5,
+                                      8,
+                                      9,
+                                      12,
+                                      13,
+                                      2,
+                                      3,
+                                      6,
+                                      7,
+                                      10,
+                                      11,
+                                      14,
+                                      15);
     const VI s = _mm256_permute4x64_epi64(_mm256_shuffle_epi8(_mm256_castps_si256(words), order),
                                           _MM_SHUFFLE(3, 1, 2, 0));
     lo = _mm256_cvtph_ps(_mm256_castsi256_si128(s));
@@ -516,7 +578,8 @@ POSTHASTE_AVX2_INLINE void color8(const float *col, VI idx, V *c)
     color8(col, i, c);
 }
 /// Geo records a, b in the low 128 bits, c, d in the high.
-POSTHASTE_AVX2_INLINE V quad8(const Geo *geo, std::int32_t a, std::int32_t b, std::int32_t c, std::int32_t d)
+POSTHASTE_AVX2_INLINE V
+quad8(const Geo *geo, std::int32_t a, std::int32_t b, std::int32_t c, std::int32_t d)
 {
     auto half = [geo](std::int32_t x, std::int32_t y) {
         return _mm_castpd_ps(_mm_loadh_pd(_mm_load_sd(reinterpret_cast<const double *>(geo + x)),
@@ -559,21 +622,26 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
 {
     const float *col = g.col_;
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    const Frame8 fr{set1(0.0f), set1(float(y) + 0.5f), set1(float(g.w) - 0.5f),
-                    set1(float(g.h) - 0.5f), _mm256_set1_epi32(g.w)};
-    const VI ky = _mm256_set1_epi32(
-        int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
+    const Frame8 fr{set1(0.0f),
+                    set1(float(y) + 0.5f),
+                    set1(float(g.w) - 0.5f),
+                    set1(float(g.h) - 0.5f),
+                    _mm256_set1_epi32(g.w)};
+    const VI ky =
+        _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
     const V most = set1(float(g.o.samples));
     const VI last = _mm256_set1_epi32(g.w - 1);
     for (int x = x0; x < x1; x += 8) {
         // A group past the row's end (narrow tiles) computes its lanes on the last pixel and
         // stores only the first `lanes`.
         const int lanes = std::min(8, x1 - x);
-        const VI xc = _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
-                                       _mm256_set1_epi32(x));
+        const VI xc =
+            _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
+                             _mm256_set1_epi32(x));
         const VI lane2 = _mm256_slli_epi32(xc, 1);
         const float *vel = g.velocity.pixel(x, y);
-        const V vx = _mm256_i32gather_ps(vel, lane2, 4), vy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+        const V vx = _mm256_i32gather_ps(vel, lane2, 4),
+                vy = _mm256_i32gather_ps(vel + 1, lane2, 4);
         const V len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(vx, vx), _mm256_mul_ps(vy, vy)));
         const V moving = _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ);
         if (_mm256_movemask_ps(moving) == 0) {
@@ -589,8 +657,8 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
         const int n_max = max_lane(n);
         const V step = _mm256_div_ps(set1(2.0f), _mm256_max_ps(n, set1(1.0f)));
         const V u = unit8(pcg8(_mm256_xor_si256(xi, ky)));
-        V acc[4] = {_mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps(),
-                    _mm256_setzero_ps()};
+        V acc[4] = {
+            _mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps()};
         for (int i = 0; i < n_max; ++i) {
             const V fi = set1(float(i));
             const V active = _mm256_cmp_ps(fi, n, _CMP_LT_OQ);
@@ -615,8 +683,11 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
     const float *col = g.col_, *geo = reinterpret_cast<const float *>(g.geo_);
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
 
-    const Frame8 fr{set1(0.0f), set1(float(y) + 0.5f), set1(float(g.w) - 0.5f),
-                    set1(float(g.h) - 0.5f), _mm256_set1_epi32(g.w)};
+    const Frame8 fr{set1(0.0f),
+                    set1(float(y) + 0.5f),
+                    set1(float(g.w) - 0.5f),
+                    set1(float(g.h) - 0.5f),
+                    _mm256_set1_epi32(g.w)};
     const std::uint32_t s0 = pcg_hash(g.o.seed);
     const VI ky0 = _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ s0))));
     const VI ky1 = _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(1u ^ s0))));
@@ -632,8 +703,9 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
         // A group past the row's end (narrow tiles) computes its lanes on the last pixel and
         // stores only the first `lanes`.
         const int lanes = std::min(8, x1 - x);
-        const VI xc = _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
-                                       _mm256_set1_epi32(x));
+        const VI xc =
+            _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
+                             _mm256_set1_epi32(x));
         const VI lane2 = _mm256_slli_epi32(xc, 1);
         const VI xi = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
         Frame8 f = fr;
@@ -642,12 +714,12 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
         const VI hj = pcg8(_mm256_xor_si256(xi, ky1));
         const V jx = _mm256_mul_ps(_mm256_sub_ps(unit8(hj), half), jit);
         const V jy = _mm256_mul_ps(_mm256_sub_ps(unit8(pcg8(hj)), half), jit);
-        const VI tx = _mm256_min_epi32(
-            _mm256_cvttps_epi32(_mm256_mul_ps(_mm256_max_ps(_mm256_add_ps(f.xf, jx), zero), inv_tile)),
-            tx_max);
-        const VI ty = _mm256_min_epi32(
-            _mm256_cvttps_epi32(_mm256_mul_ps(_mm256_max_ps(_mm256_add_ps(f.yf, jy), zero), inv_tile)),
-            ty_max);
+        const VI tx = _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(
+                                           _mm256_max_ps(_mm256_add_ps(f.xf, jx), zero), inv_tile)),
+                                       tx_max);
+        const VI ty = _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(
+                                           _mm256_max_ps(_mm256_add_ps(f.yf, jy), zero), inv_tile)),
+                                       ty_max);
         const VI toff = _mm256_slli_epi32(_mm256_add_epi32(_mm256_mullo_epi32(ty, ntw), tx), 1);
         V nvx = _mm256_i32gather_ps(nbase, toff, 4), nvy = _mm256_i32gather_ps(nbase + 1, toff, 4);
         V L = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(nvx, nvx), _mm256_mul_ps(nvy, nvy)));
@@ -663,7 +735,8 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
         color8(col + i0 * 4, xc, cc);
         const V clz = _mm256_i32gather_ps(geo + i0 * 2 + 1, _mm256_slli_epi32(xc, 1), 4);
         const float *vel = g.velocity.pixel(x, y);
-        const V cvx = _mm256_i32gather_ps(vel, lane2, 4), cvy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+        const V cvx = _mm256_i32gather_ps(vel, lane2, 4),
+                cvy = _mm256_i32gather_ps(vel + 1, lane2, 4);
         const V clen =
             _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(cvx, cvx), _mm256_mul_ps(cvy, cvy)));
         V dnx = _mm256_div_ps(nvx, L), dny = _mm256_div_ps(nvy, L);
@@ -674,9 +747,9 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
         const V dcx = _mm256_and_ps(_mm256_div_ps(cvx, clen), own_path);
         const V dcy = _mm256_and_ps(_mm256_div_ps(cvy, clen), own_path);
         const V cosine = abs8(_mm256_add_ps(_mm256_mul_ps(dcx, dnx), _mm256_mul_ps(dcy, dny)));
-        const V shared = _mm256_and_ps(
-            _mm256_and_ps(own_path, _mm256_cmp_ps(cosine, set1(0.9f), _CMP_GT_OQ)),
-            _mm256_cmp_ps(clen, _mm256_mul_ps(half, L), _CMP_GE_OQ));
+        const V shared =
+            _mm256_and_ps(_mm256_and_ps(own_path, _mm256_cmp_ps(cosine, set1(0.9f), _CMP_GT_OQ)),
+                          _mm256_cmp_ps(clen, _mm256_mul_ps(half, L), _CMP_GE_OQ));
         const V inv_own =
             _mm256_and_ps(_mm256_div_ps(one, _mm256_mul_ps(set1(2.0f), clen)), own_path);
         dnx = _mm256_blendv_ps(dnx, dcx, shared);
@@ -706,10 +779,11 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
             geo8(g.geo_, idx, words, slz);
             halves8(words, swx, swy);
             // |v| = 1 / (2 |w|); where w = 0 it is unused (the weight has a factor |w . d|).
-            const V slen = _mm256_mul_ps(
-                half,
-                simd::v8::rsqrt(_mm256_max_ps(
-                    _mm256_add_ps(_mm256_mul_ps(swx, swx), _mm256_mul_ps(swy, swy)), set1(1e-30f))));
+            const V slen =
+                _mm256_mul_ps(half,
+                              simd::v8::rsqrt(_mm256_max_ps(
+                                  _mm256_add_ps(_mm256_mul_ps(swx, swx), _mm256_mul_ps(swy, swy)),
+                                  set1(1e-30f))));
             const V T = _mm256_mul_ps(abs8(t), L);
             const V fr_w = simd::v8::clamp(
                 _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero, one);
@@ -752,7 +826,8 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 V words, slz;
                 geo8(g.geo_, idx, words, slz);
                 const V fr_w = simd::v8::clamp(
-                    _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)), zero,
+                    _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(clz, slz), inv_soft)),
+                    zero,
                     one);
                 const V wb = _mm256_and_ps(_mm256_mul_ps(_mm256_sub_ps(one, fr_w), wm), active);
                 B = _mm256_add_ps(B, wb);
@@ -823,13 +898,11 @@ Image motion_blur(const Image &color,
     // can actually cover them) and pass the coherence test more often.
     const int margin = o.tile_jitter > 0.0f ? 1 : 0;
     const Image nmax = neighbour_max_reach(tiles, o.tile, margin, std::max(radius, 1));
-    const Image nbounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
-                              ? neighbour_bounds_reach(tile_bounds(packed.velocity, o.tile),
-                                                       tiles,
-                                                       o.tile,
-                                                       margin,
-                                                       std::max(radius, 1))
-                              : Image();
+    const Image nbounds =
+        o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
+            ? neighbour_bounds_reach(
+                  tile_bounds(packed.velocity, o.tile), tiles, o.tile, margin, std::max(radius, 1))
+            : Image();
     st.neighbour_max_ms = ms_since(t0);
     st.neighbour_max_cpu_ms = process_cpu_ms() - c0;
 

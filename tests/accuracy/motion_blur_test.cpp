@@ -354,13 +354,13 @@ TEST(MotionBlur, Avx2RowsMatchTheScalarPath)
             o.shutter = f.camera.shutter.value_or(0.5f);
             // max_radius 16 at this size is the default's 64 px at 1920x1080.
             o.max_radius = 16.0f;
-            const Image vec = shading::motion_blur(f.image("color"), f.image("motion"),
-                                                   f.image("depth"), o);
+            const Image vec =
+                shading::motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o);
             Image scalar;
             {
                 simd::ScopedLevel level(simd::Level::Scalar);
-                scalar = shading::motion_blur(f.image("color"), f.image("motion"),
-                                              f.image("depth"), o);
+                scalar =
+                    shading::motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o);
             }
             const metrics::CompareStats st = metrics::compare(vec, scalar);
             int off = 0;
@@ -376,13 +376,14 @@ TEST(MotionBlur, Avx2RowsMatchTheScalarPath)
                 }
             }
             const double frac = double(off) / (double(vec.width()) * vec.height());
-            std::printf("avx2 vs scalar f%d %s: rms %.3g max %.3g, %.4f %% of pixels off by > 1e-3 "
-                        "(relative above 1)\n",
-                        frame,
-                        method == shading::BlurMethod::Uniform ? "uniform" : "reconstruct",
-                        st.all.rms_error,
-                        st.all.max_error,
-                        100.0 * frac);
+            std::printf(
+                "avx2 vs scalar f%d %s: rms %.3g max %.3g, %.4f %% of pixels off by > 1e-3 "
+                "(relative above 1)\n",
+                frame,
+                method == shading::BlurMethod::Uniform ? "uniform" : "reconstruct",
+                st.all.rms_error,
+                st.all.max_error,
+                100.0 * frac);
             EXPECT_LT(st.all.rms_error, 1e-3) << frame;
             EXPECT_LT(frac, 0.005) << frame;
         }
