@@ -220,7 +220,12 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
         len = _mm256_blendv_ps(len, max_r, over);
         V lz = set1(0.0f);  // log 1: no depth
         if (!p.depth.empty()) {
-            const V z = _mm256_loadu_ps(p.depth.pixel(x, y));
+            const int dc = p.depth.channels();
+            const V z =
+                dc == 1
+                    ? _mm256_loadu_ps(p.depth.pixel(x, y))
+                    : _mm256_i32gather_ps(
+                          p.depth.pixel(x, y), _mm256_mullo_epi32(lane, _mm256_set1_epi32(dc)), 4);
             const V good = _mm256_and_ps(_mm256_cmp_ps(z, zero, _CMP_GT_OQ), finite8(z));
             lz = _mm256_blendv_ps(
                 set1(kSkyLogZ), simd::v8::log(_mm256_max_ps(z, set1(1e-30f))), good);
