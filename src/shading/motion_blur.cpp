@@ -20,11 +20,8 @@
 #include <new>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
-
 #include "core/hash.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
@@ -89,9 +86,9 @@ struct FreeDeleter {
 template <class T>
 using Scratch = std::unique_ptr<T[], FreeDeleter>;
 
-/// Scratch<T> in 2 MiB-aligned blocks marked for transparent huge pages: tens of megabytes of
-/// fresh memory otherwise cost one page fault per 4 KiB on first touch (measured: kernel page
-/// fault handling was a quarter of the AVX2 gather's time). madvise is only a hint.
+/// Scratch<T> in 2 MiB-aligned blocks with huge pages advised (core/memory.h): tens of
+/// megabytes of fresh memory otherwise cost one page fault per 4 KiB on first touch (measured:
+/// kernel page-fault handling was a quarter of the AVX2 gather's time).
 template <class T>
 Scratch<T> scratch(std::size_t n)
 {
@@ -101,9 +98,7 @@ Scratch<T> scratch(std::size_t n)
     if (!p) {
         throw std::bad_alloc();
     }
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-    madvise(p, bytes, MADV_HUGEPAGE);
-#endif
+    advise_huge_pages(p, bytes);
     return Scratch<T>(static_cast<T *>(p));
 }
 
