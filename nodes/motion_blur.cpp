@@ -45,7 +45,7 @@ constexpr ParamSpec kTileJitter =
     ParamSpec::real("tile_jitter", 0.25)
         .range(0.0, 1.0)
         .doc("Jitter of the neighbour-max lookup, in tiles (hides tile seams as noise).");
-constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.05)
+constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.1)
                                      .range(0.0, 1.0)
                                      .doc(
                                          "Tiles whose reachable motion vectors differ by at most "

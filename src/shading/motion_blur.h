@@ -27,7 +27,7 @@ struct MotionBlurOptions {
     float tile_jitter = 0.25f;  ///< Jitter of the neighbour-max lookup, in tiles (hides seams).
     /// Tiles whose reachable vectors all lie within coherence x the longest of each other take
     /// the uniform path (0: never).
-    float coherence = 0.05f;
+    float coherence = 0.1f;
     std::uint32_t seed = 0;
 };
 

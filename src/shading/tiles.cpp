@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <vector>
 
 #include "core/parallel.h"
 
@@ -55,6 +57,87 @@ Image neighbour_max(const Image &tiles, int radius)
             }
             out.at(tx, ty, 0) = bx;
             out.at(tx, ty, 1) = by;
+        }
+    });
+    return out;
+}
+
+namespace {
+
+/// Per tile: the Chebyshev distance in tiles its longest vector can reach, plus margin.
+std::vector<int> tile_reach(const Image &tiles, int tile, int margin)
+{
+    std::vector<int> reach(std::size_t(tiles.width()) * std::size_t(tiles.height()));
+    for (int ty = 0; ty < tiles.height(); ++ty) {
+        for (int tx = 0; tx < tiles.width(); ++tx) {
+            const float l = std::hypot(tiles.at(tx, ty, 0), tiles.at(tx, ty, 1));
+            // Clamped before the conversion: a huge (or non-finite) length reaches everything.
+            const float r = std::min(std::ceil(l / float(tile)), 65536.0f);
+            reach[std::size_t(ty) * std::size_t(tiles.width()) + std::size_t(tx)] =
+                (r >= 0.0f ? int(r) : 65536) + margin;
+        }
+    }
+    return reach;
+}
+
+}  // namespace
+
+Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius)
+{
+    const int tw = tiles.width(), th = tiles.height();
+    const std::vector<int> reach = tile_reach(tiles, tile, margin);
+    Image out(tw, th, 2);
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float best = 0.0f, bx = 0.0f, by = 0.0f;
+            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
+                    const int d = std::max(std::abs(x - tx), std::abs(y - ty));
+                    if (d > reach[std::size_t(y) * std::size_t(tw) + std::size_t(x)]) {
+                        continue;
+                    }
+                    const float vx = tiles.at(x, y, 0), vy = tiles.at(x, y, 1);
+                    const float l = vx * vx + vy * vy;
+                    if (l > best) {
+                        best = l;
+                        bx = vx;
+                        by = vy;
+                    }
+                }
+            }
+            out.at(tx, ty, 0) = bx;
+            out.at(tx, ty, 1) = by;
+        }
+    });
+    return out;
+}
+
+Image neighbour_bounds_reach(
+    const Image &bounds, const Image &tiles, int tile, int margin, int radius)
+{
+    const int tw = bounds.width(), th = bounds.height();
+    const std::vector<int> reach = tile_reach(tiles, tile, margin);
+    Image out(tw, th, 4);
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float b[4] = {std::numeric_limits<float>::infinity(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity()};
+            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
+                    const int d = std::max(std::abs(x - tx), std::abs(y - ty));
+                    if (d > reach[std::size_t(y) * std::size_t(tw) + std::size_t(x)]) {
+                        continue;
+                    }
+                    const float *p = bounds.pixel(x, y);
+                    b[0] = std::min(b[0], p[0]);
+                    b[1] = std::min(b[1], p[1]);
+                    b[2] = std::max(b[2], p[2]);
+                    b[3] = std::max(b[3], p[3]);
+                }
+            }
+            std::copy(b, b + 4, out.pixel(tx, ty));
         }
     });
     return out;

@@ -18,6 +18,17 @@ Image tile_max(const Image &field, int tile, int first = 0);
 /// longer than radius * tile pixels. Ties keep the first in scan order.
 Image neighbour_max(const Image &tiles, int radius);
 
+/// neighbour_max counting only the tiles whose own longest vector can reach: a tile at Chebyshev
+/// distance d (in tiles, d <= radius) counts when d <= ceil(|v| / tile) + margin. A vector of
+/// length |v| crosses at most ceil(|v| / tile) tile borders, so this is still everything that
+/// can reach into the tile (margin: tiles more, e.g. for a jittered lookup), without the longer
+/// vectors further away that cannot. Ties keep the first in scan order.
+Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius);
+
+/// neighbour_bounds over the same tiles as neighbour_max_reach (`tiles`: their tile max).
+Image neighbour_bounds_reach(
+    const Image &bounds, const Image &tiles, int tile, int margin, int radius);
+
 /// The bounding box of each tile's vectors (channels `first`, `first` + 1 of `field`): 4
 /// channels, min x, min y, max x, max y. Non-finite vectors count as zero.
 Image tile_bounds(const Image &field, int tile, int first = 0);

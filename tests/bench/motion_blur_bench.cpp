@@ -12,6 +12,7 @@
 #include <map>
 #include <string>
 
+#include "core/simd.h"
 #include "raster/render.h"
 #include "shading/motion_blur.h"
 #include "shading/reproject.h"
@@ -88,6 +89,19 @@ void BM_MotionBlurReconstruct(benchmark::State &state)
     run_blur(state, BlurMethod::Reconstruct);
 }
 
+// The portable scalar path of the same filter (POSTHASTE_SIMD=scalar), as a same-run baseline of
+// the AVX2 rows.
+void BM_MotionBlurReconstructScalar(benchmark::State &state)
+{
+    simd::ScopedLevel scalar(simd::Level::Scalar);
+    run_blur(state, BlurMethod::Reconstruct);
+}
+void BM_MotionBlurUniformScalar(benchmark::State &state)
+{
+    simd::ScopedLevel scalar(simd::Level::Scalar);
+    run_blur(state, BlurMethod::Uniform);
+}
+
 void BM_MotionBlurCameraMotion(benchmark::State &state)
 {
     const Frame &f = input_frame(int(state.range(0)));
@@ -100,6 +114,12 @@ void BM_MotionBlurCameraMotion(benchmark::State &state)
 BENCHMARK(BM_MotionBlurCopy)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_MotionBlurUniform)->Arg(6)->Arg(20)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_MotionBlurReconstruct)->Arg(6)->Arg(20)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_MotionBlurReconstructScalar)
+    ->Arg(6)
+    ->Arg(20)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_MotionBlurUniformScalar)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Quality sweep on frame 6: samples 4, 8, 16 (default), 32.
 void BM_MotionBlurReconstructSamples(benchmark::State &state)
