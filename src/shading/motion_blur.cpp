@@ -86,7 +86,7 @@ static_assert(sizeof(Geo) == 2 * sizeof(float));
 /// takes a block of the same size if one is free. At most kPoolBytes are kept; the contents of
 /// a reused block are stale, which is fine: pack writes every record before it is read.
 class ScratchPool {
-public:
+   public:
     static ScratchPool &instance()
     {
         static ScratchPool pool;
@@ -135,7 +135,7 @@ public:
         }
     }
 
-private:
+   private:
     static constexpr std::size_t kPoolBytes = std::size_t(256) << 20;
     struct Block {
         void *p;
