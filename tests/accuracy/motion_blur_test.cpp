@@ -299,6 +299,24 @@ TEST(MotionBlur, SameBitsForAnyThreadCount)
     EXPECT_TRUE(one.bit_equal(all));
 }
 
+// The scratch records are kept between calls (ScratchPool): a frame after another of the same
+// size reuses the same blocks, stale contents included, and must give the same bits as alone.
+TEST(MotionBlur, ScratchReusedBetweenFramesGivesTheSameBits)
+{
+    const Scene1D a = moving_block(301, 67, 20, 90, -23.0f, true);
+    const Scene1D b = moving_block(301, 67, 100, 180, 37.0f);
+    shading::MotionBlurOptions o;
+    for (const bool scalar : {false, true}) {
+        // The scalar path's records are another block size: both kinds of reuse.
+        const simd::ScopedLevel level(scalar ? simd::Level::Scalar : simd::active());
+        const Image first = shading::motion_blur(b.color, b.motion, b.depth, o);
+        const Image other = shading::motion_blur(a.color, a.motion, a.depth, o);
+        const Image again = shading::motion_blur(b.color, b.motion, b.depth, o);
+        EXPECT_TRUE(first.bit_equal(again)) << (scalar ? "scalar" : "default");
+        EXPECT_FALSE(first.bit_equal(other));
+    }
+}
+
 std::string scene_path(const std::string &name)
 {
     return std::string(POSTHASTE_TEST_DIR) + "/../samples/scenes/" + name;
