@@ -3,8 +3,10 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
@@ -529,21 +531,35 @@ struct Lighting {
     const MaterialTable *materials;
 };
 
-// Per-tile sky state: the scene sky looked up once, and the ambient of the last normal (voxel
-// faces share six normals, so consecutive pixels mostly repeat it).
+// Per-tile sky state: the scene sky looked up once, and the ambient of recent normals in a small
+// direct-mapped table (voxel faces share six normals, which get distinct slots, so a row that
+// alternates between top and side faces no longer re-evaluates the harmonics; perf had the
+// single-entry memo at ~2% of a frame).
 struct SkyCache {
     const shading::SceneSky *sky;
-    glm::vec3 n{std::numeric_limits<float>::quiet_NaN()};
-    glm::vec3 amb{0.0f};
+    struct Slot {
+        glm::vec3 n{std::numeric_limits<float>::quiet_NaN()};  // NaN: matches nothing
+        glm::vec3 amb{0.0f};
+    };
+    std::array<Slot, 16> slots;
 
     explicit SkyCache(const Scene &s) : sky(&scene_sky(s.sun.direction)) {}
     const glm::vec3 &ambient(const glm::vec3 &normal)
     {
-        if (normal != n) {
-            n = normal;
-            amb = sky->ambient(normal);
+        const std::uint32_t h = bits(normal.x) * 0x9E3779B1u + bits(normal.y) * 0x85EBCA77u +
+                                bits(normal.z) * 0xC2B2AE3Du;
+        Slot &s = slots[h >> 28];
+        if (normal != s.n) {
+            s.n = normal;
+            s.amb = sky->ambient(normal);
         }
-        return amb;
+        return s.amb;
+    }
+    static std::uint32_t bits(float f)
+    {
+        std::uint32_t u;
+        std::memcpy(&u, &f, sizeof u);
+        return u;
     }
     glm::vec3 radiance(const glm::vec3 &dir) const
     {
