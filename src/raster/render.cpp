@@ -3,8 +3,10 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/mat3x3.hpp>
@@ -529,21 +531,35 @@ struct Lighting {
     const MaterialTable *materials;
 };
 
-// Per-tile sky state: the scene sky looked up once, and the ambient of the last normal (voxel
-// faces share six normals, so consecutive pixels mostly repeat it).
+// Per-tile sky state: the scene sky looked up once, and the ambient of recent normals in a small
+// direct-mapped table (voxel faces share six normals, which get distinct slots, so a row that
+// alternates between top and side faces no longer re-evaluates the harmonics; perf had the
+// single-entry memo at ~2% of a frame).
 struct SkyCache {
     const shading::SceneSky *sky;
-    glm::vec3 n{std::numeric_limits<float>::quiet_NaN()};
-    glm::vec3 amb{0.0f};
+    struct Slot {
+        glm::vec3 n{std::numeric_limits<float>::quiet_NaN()};  // NaN: matches nothing
+        glm::vec3 amb{0.0f};
+    };
+    std::array<Slot, 16> slots;
 
     explicit SkyCache(const Scene &s) : sky(&scene_sky(s.sun.direction)) {}
     const glm::vec3 &ambient(const glm::vec3 &normal)
     {
-        if (normal != n) {
-            n = normal;
-            amb = sky->ambient(normal);
+        const std::uint32_t h = bits(normal.x) * 0x9E3779B1u + bits(normal.y) * 0x85EBCA77u +
+                                bits(normal.z) * 0xC2B2AE3Du;
+        Slot &s = slots[h >> 28];
+        if (normal != s.n) {
+            s.n = normal;
+            s.amb = sky->ambient(normal);
         }
-        return amb;
+        return s.amb;
+    }
+    static std::uint32_t bits(float f)
+    {
+        std::uint32_t u;
+        std::memcpy(&u, &f, sizeof u);
+        return u;
     }
     glm::vec3 radiance(const glm::vec3 &dir) const
     {
@@ -998,6 +1014,171 @@ class RowBuffer {
     std::vector<float> values_;
 };
 
+// Depth and motion of one tile row, from what the per-pixel loop gathered: for a surface pixel
+// its world position now and one frame ago, for a sky pixel its ray direction (a point at
+// infinity). Kept apart from that loop so the projective divisions run eight pixels at a time.
+struct DepthMotionRow {
+    std::vector<float> px, py, pz;  // position (surface) or ray direction (sky)
+    std::vector<float> qx, qy, qz;  // previous position (surface); unused for sky
+    std::vector<std::int32_t> sky;  // -1 sky, 0 surface (a lane mask for the vector path)
+
+    explicit DepthMotionRow(int n)
+        : px(std::size_t(n)),
+          py(std::size_t(n)),
+          pz(std::size_t(n)),
+          qx(std::size_t(n)),
+          qy(std::size_t(n)),
+          qz(std::size_t(n)),
+          sky(std::size_t(n))
+    {
+    }
+    void surface(int i, const glm::vec3 &p, const glm::vec3 &p_prev)
+    {
+        const std::size_t k = std::size_t(i);
+        px[k] = p.x, py[k] = p.y, pz[k] = p.z;
+        qx[k] = p_prev.x, qy[k] = p_prev.y, qz[k] = p_prev.z;
+        sky[k] = 0;
+    }
+    void background(int i, const glm::vec3 &d)
+    {
+        const std::size_t k = std::size_t(i);
+        px[k] = d.x, py[k] = d.y, pz[k] = d.z;
+        sky[k] = -1;
+    }
+};
+
+struct DepthMotionParams {
+    glm::vec4 zrow;
+    glm::mat4 cur, prev;  // world to NDC now and one frame ago
+    int width, height;
+};
+
+// The reference: pixels [begin, end) of the row, depth to depth[i] and motion to motion[2i]
+// (either may be null).
+void depth_motion_scalar(const DepthMotionRow &r,
+                         int begin,
+                         int end,
+                         const DepthMotionParams &q,
+                         float *depth,
+                         float *motion)
+{
+    const float W = float(q.width), H = float(q.height);
+    for (int i = begin; i < end; ++i) {
+        const std::size_t k = std::size_t(i);
+        const glm::vec3 p(r.px[k], r.py[k], r.pz[k]);
+        if (r.sky[k]) {
+            if (depth) {
+                depth[i] = std::numeric_limits<float>::infinity();
+            }
+            if (motion) {
+                // A point at infinity moves with the camera rotation only.
+                const glm::vec4 hc = mul(q.cur, glm::vec4(p, 0.0f));
+                const glm::vec4 hp = mul(q.prev, glm::vec4(p, 0.0f));
+                glm::vec2 mv(0.0f);
+                if (hc.w > 0.0f && hp.w > 0.0f) {
+                    mv = glm::vec2(hc.x / hc.w - hp.x / hp.w, hc.y / hc.w - hp.y / hp.w) *
+                         glm::vec2(W, H);
+                }
+                motion[2 * i] = mv.x;
+                motion[2 * i + 1] = mv.y;
+            }
+            continue;
+        }
+        if (depth) {
+            depth[i] = glm::dot(q.zrow, glm::vec4(p, 1.0f));
+        }
+        if (motion) {
+            glm::vec2 cur, prev;
+            glm::vec2 mv(0.0f);
+            if (to_pixel(q.cur, p, q.width, q.height, cur) &&
+                to_pixel(q.prev, glm::vec3(r.qx[k], r.qy[k], r.qz[k]), q.width, q.height, prev)) {
+                mv = cur - prev;
+            }
+            motion[2 * i] = mv.x;
+            motion[2 * i + 1] = mv.y;
+        }
+    }
+}
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+// Column c of a mat4 times (x, y, z, w) in mul()'s order: (m0 x + m1 y) + (m2 z + m3 w), one row
+// of the result per call.
+POSTHASTE_AVX2_INLINE v8::V mul_row(const glm::mat4 &m, int row, v8::V x, v8::V y, v8::V z, v8::V w)
+{
+    const v8::V a = _mm256_mul_ps(_mm256_set1_ps(m[0][row]), x);
+    const v8::V b = _mm256_mul_ps(_mm256_set1_ps(m[1][row]), y);
+    const v8::V c = _mm256_mul_ps(_mm256_set1_ps(m[2][row]), z);
+    const v8::V d = _mm256_mul_ps(_mm256_set1_ps(m[3][row]), w);
+    return _mm256_add_ps(_mm256_add_ps(a, b), _mm256_add_ps(c, d));
+}
+
+// Eight pixels at a time, the same operations in the same order as depth_motion_scalar and no
+// fused multiply-adds, so the same bits (the data passes are compared bit for bit).
+POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void depth_motion_avx2(
+    const DepthMotionRow &r, int n, const DepthMotionParams &q, float *depth, float *motion)
+{
+    const v8::V zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+    const v8::V W = _mm256_set1_ps(float(q.width)), H = _mm256_set1_ps(float(q.height));
+    const v8::V inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+    int i = 0;
+    for (; i + 8 <= n; i += 8) {
+        const std::size_t k = std::size_t(i);
+        const v8::V sky = _mm256_castsi256_ps(
+            _mm256_loadu_si256(reinterpret_cast<const __m256i *>(r.sky.data() + k)));
+        const v8::V x = _mm256_loadu_ps(r.px.data() + k), y = _mm256_loadu_ps(r.py.data() + k);
+        const v8::V z = _mm256_loadu_ps(r.pz.data() + k);
+        if (depth) {
+            const v8::V a = _mm256_mul_ps(_mm256_set1_ps(q.zrow.x), x);
+            const v8::V b = _mm256_mul_ps(_mm256_set1_ps(q.zrow.y), y);
+            const v8::V c = _mm256_mul_ps(_mm256_set1_ps(q.zrow.z), z);
+            const v8::V d = _mm256_mul_ps(_mm256_set1_ps(q.zrow.w), one);
+            const v8::V dz = _mm256_add_ps(_mm256_add_ps(a, b), _mm256_add_ps(c, d));
+            _mm256_storeu_ps(depth + i, _mm256_blendv_ps(dz, inf, sky));
+        }
+        if (!motion) {
+            continue;
+        }
+        // Sky lanes project the direction (w = 0), surface lanes the point (w = 1).
+        const v8::V w = _mm256_blendv_ps(one, zero, sky);
+        const v8::V cx = mul_row(q.cur, 0, x, y, z, w), cy = mul_row(q.cur, 1, x, y, z, w);
+        const v8::V cw = mul_row(q.cur, 3, x, y, z, w);
+        const v8::V sx = _mm256_blendv_ps(_mm256_loadu_ps(r.qx.data() + k), x, sky);
+        const v8::V sy = _mm256_blendv_ps(_mm256_loadu_ps(r.qy.data() + k), y, sky);
+        const v8::V sz = _mm256_blendv_ps(_mm256_loadu_ps(r.qz.data() + k), z, sky);
+        const v8::V px = mul_row(q.prev, 0, sx, sy, sz, w), py = mul_row(q.prev, 1, sx, sy, sz, w);
+        const v8::V pw = mul_row(q.prev, 3, sx, sy, sz, w);
+        const v8::V ok =
+            _mm256_and_ps(_mm256_cmp_ps(cw, zero, _CMP_GT_OQ), _mm256_cmp_ps(pw, zero, _CMP_GT_OQ));
+        const v8::V ncx = _mm256_div_ps(cx, cw), ncy = _mm256_div_ps(cy, cw);
+        const v8::V npx = _mm256_div_ps(px, pw), npy = _mm256_div_ps(py, pw);
+        // Sky: (cur - prev) * size; surface: cur * size - prev * size.
+        const v8::V sky_x = _mm256_mul_ps(_mm256_sub_ps(ncx, npx), W);
+        const v8::V sky_y = _mm256_mul_ps(_mm256_sub_ps(ncy, npy), H);
+        const v8::V srf_x = _mm256_sub_ps(_mm256_mul_ps(ncx, W), _mm256_mul_ps(npx, W));
+        const v8::V srf_y = _mm256_sub_ps(_mm256_mul_ps(ncy, H), _mm256_mul_ps(npy, H));
+        const v8::V mx = _mm256_and_ps(ok, _mm256_blendv_ps(srf_x, sky_x, sky));
+        const v8::V my = _mm256_and_ps(ok, _mm256_blendv_ps(srf_y, sky_y, sky));
+        // Interleave to x0 y0 x1 y1 ...
+        const v8::V lo = _mm256_unpacklo_ps(mx, my), hi = _mm256_unpackhi_ps(mx, my);
+        _mm256_storeu_ps(motion + 2 * i, _mm256_permute2f128_ps(lo, hi, 0x20));
+        _mm256_storeu_ps(motion + 2 * i + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
+    }
+    depth_motion_scalar(r, i, n, q, depth, motion);
+}
+#endif
+
+void depth_motion(
+    const DepthMotionRow &r, int n, const DepthMotionParams &q, float *depth, float *motion)
+{
+#if POSTHASTE_HAVE_AVX2_TARGET
+    if (simd::avx2()) {
+        depth_motion_avx2(r, n, q, depth, motion);
+        return;
+    }
+#endif
+    depth_motion_scalar(r, 0, n, q, depth, motion);
+}
+
 // Order this thread's streaming stores before the tile is reported done.
 void stream_fence()
 {
@@ -1266,11 +1447,11 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     Image position = make(pass::kPosition, 3), motion = make(pass::kMotion, 2);
     Image albedo = make(pass::kAlbedo, 3), material = make(pass::kMaterial, 3);
     Image tangent = make(pass::kTangent, 3), id = make(pass::kId, 1);
-    const float W = float(o.width), H = float(o.height);
     const glm::vec4 zrow(v.world_to_camera[0][2],
                          v.world_to_camera[1][2],
                          v.world_to_camera[2][2],
                          v.world_to_camera[3][2]);
+    const DepthMotionParams dmp{zrow, cur_ndc, prev_ndc, o.width, o.height};
 
     parallel_for_tiles(Rect{0, 0, o.width, o.height}, [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
@@ -1285,6 +1466,8 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
         RowBuffer normal_row(normal, n);
         RowBuffer position_row(position, n), motion_row(motion, n), albedo_row(albedo, n);
         RowBuffer material_row(material, n), tangent_row(tangent, n), id_row(id, n);
+        const bool depth_motion_here = depth_row.active() || motion_row.active();
+        DepthMotionRow dm(depth_motion_here ? n : 0);
         for (int y = tile.y0; y < tile.y1; ++y) {
             const std::uint32_t *ids = &vis.ids[std::size_t(y) * std::size_t(o.width)];
             for (int i = 0; i < n; ++i) {
@@ -1303,20 +1486,8 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                     if (color_here) {
                         row->add_sky(i, glm::normalize(d));
                     }
-                    if (depth_row.active()) {
-                        *depth_row.at(i) = std::numeric_limits<float>::infinity();
-                    }
-                    if (motion_row.active()) {
-                        // A point at infinity moves with the camera rotation only.
-                        const glm::vec4 hc = mul(cur_ndc, glm::vec4(d, 0.0f));
-                        const glm::vec4 hp = mul(prev_ndc, glm::vec4(d, 0.0f));
-                        glm::vec2 mv(0.0f);
-                        if (hc.w > 0.0f && hp.w > 0.0f) {
-                            mv = glm::vec2(hc.x / hc.w - hp.x / hp.w, hc.y / hc.w - hp.y / hp.w) *
-                                 glm::vec2(W, H);
-                        }
-                        motion_row.at(i)[0] = mv.x;
-                        motion_row.at(i)[1] = mv.y;
+                    if (depth_motion_here) {
+                        dm.background(i, d);
                     }
                     put3(normal_row, glm::vec3(0.0f));
                     put3(position_row, glm::vec3(0.0f));
@@ -1332,18 +1503,8 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 if (color_here) {
                     row->add_surface(i, h, glm::normalize(d));
                 }
-                if (depth_row.active()) {
-                    *depth_row.at(i) = glm::dot(zrow, glm::vec4(h.p, 1.0f));
-                }
-                if (motion_row.active()) {
-                    glm::vec2 cur, prev;
-                    glm::vec2 mv(0.0f);
-                    if (to_pixel(cur_ndc, h.p, o.width, o.height, cur) &&
-                        to_pixel(prev_ndc, h.p_prev, o.width, o.height, prev)) {
-                        mv = cur - prev;
-                    }
-                    motion_row.at(i)[0] = mv.x;
-                    motion_row.at(i)[1] = mv.y;
+                if (depth_motion_here) {
+                    dm.surface(i, h.p, h.p_prev);
                 }
                 const Material &m = mats.m[h.material];
                 put3(normal_row, h.n);
@@ -1354,6 +1515,13 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 if (id_row.active()) {
                     *id_row.at(i) = float(h.material);
                 }
+            }
+            if (depth_motion_here) {
+                depth_motion(dm,
+                             n,
+                             dmp,
+                             depth_row.active() ? depth_row.at(0) : nullptr,
+                             motion_row.active() ? motion_row.at(0) : nullptr);
             }
             if (color_here) {
                 const std::vector<glm::vec3> &c = row->finish();

@@ -621,6 +621,33 @@ TEST(RasterFrame, VectorBeautyMatchesScalar)
     }
 }
 
+// The depth and motion rows run eight pixels at a time under AVX2: same bits as the scalar path,
+// also for a width that leaves a scalar tail in each tile row, and with only one of the two passes.
+TEST(RasterFrame, VectorDepthMotionMatchScalar)
+{
+    if (simd::detected() != simd::Level::Avx2) {
+        GTEST_SKIP() << "no AVX2 on this CPU";
+    }
+    const Scene s = load_scene(sample("minecrappy.json"));
+    for (const std::set<std::string> &passes :
+         {kAllPasses, std::set<std::string>{"depth"}, std::set<std::string>{"motion"}}) {
+        for (const int frame : {7, 20}) {
+            const RenderOptions o = small(301, 173, passes);
+            const Frame vec = render_frame(s, frame, o);
+            Frame scalar;
+            {
+                simd::ScopedLevel level(simd::Level::Scalar);
+                scalar = render_frame(s, frame, o);
+            }
+            for (const std::string &p : vec.pass_names()) {
+                if (p != "color") {
+                    EXPECT_TRUE(vec.image(p).bit_equal(scalar.image(p))) << p << " frame " << frame;
+                }
+            }
+        }
+    }
+}
+
 TEST(RasterFrame, SupersampleAffectsOnlyColor)
 {
     const Scene s = load_scene(sample("two_planes.json"));
