@@ -11,6 +11,7 @@
 #include <ctime>
 #include <string>
 
+#include "bench_util.h"
 #include "raster/render.h"
 #include "shading/dof_gather.h"
 
@@ -19,24 +20,10 @@ namespace {
 
 const Frame &closeup_frame()
 {
-    static const Frame f = [] {
-        const raster::Scene s = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                                   "/samples/scenes/minecrappy.json");
-        raster::RenderOptions o;
-        o.width = 1920;
-        o.height = 1080;
-        o.passes = {"color", "depth"};
-        return raster::render_frame(s, 48, o);
-    }();
-    return f;
+    return bench::minecrappy_frame(48, {"color", "depth"});
 }
 
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using bench::process_cpu_ms;
 
 shading::DofLens lens_of(const Camera &c)
 {

@@ -10,6 +10,7 @@
 #include <ctime>
 #include <string>
 
+#include "bench_util.h"
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "graph/graph.h"
@@ -20,25 +21,10 @@ namespace {
 
 const Frame &fog_input()
 {
-    static const Frame f = [] {
-        const raster::Scene s = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                                   "/samples/scenes/minecrappy.json");
-        raster::RenderOptions o;
-        o.width = 1920;
-        o.height = 1080;
-        o.shadows = false;
-        o.passes = {"color", "depth"};
-        return raster::render_frame(s, 8, o);
-    }();
-    return f;
+    return bench::minecrappy_frame(8, {"color", "depth"}, false);
 }
 
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using bench::process_cpu_ms;
 
 void run_fog(benchmark::State &state, const std::string &params, bool scalar)
 {

@@ -8,6 +8,7 @@
 #include <ctime>
 #include <string>
 
+#include "bench_util.h"
 #include "core/simd.h"
 #include "raster/render.h"
 #include "shading/hatch.h"
@@ -16,23 +17,11 @@
 namespace posthaste::shading {
 namespace {
 
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using bench::process_cpu_ms;
 
 const Frame &frame_1080p()
 {
-    static const Frame f = [] {
-        const raster::Scene scene = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                                       "/samples/scenes/minecrappy.json");
-        raster::RenderOptions o;
-        o.passes = {"color", "depth", "normal", "position"};
-        return raster::render_frame(scene, 20, o);
-    }();
-    return f;
+    return bench::minecrappy_frame(20, {"color", "depth", "normal", "position"});
 }
 
 const Tam &default_tam()

@@ -12,6 +12,7 @@
 #include <map>
 #include <string>
 
+#include "bench_util.h"
 #include "core/simd.h"
 #include "raster/render.h"
 #include "shading/motion_blur.h"
@@ -22,26 +23,10 @@ namespace {
 
 const Frame &input_frame(int frame)
 {
-    static std::map<int, Frame> frames;
-    auto it = frames.find(frame);
-    if (it == frames.end()) {
-        const raster::Scene s = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                                   "/samples/scenes/minecrappy.json");
-        raster::RenderOptions o;
-        o.width = 1920;
-        o.height = 1080;
-        o.passes = {"color", "depth", "motion"};
-        it = frames.emplace(frame, raster::render_frame(s, frame, o)).first;
-    }
-    return it->second;
+    return bench::minecrappy_frame(frame, {"color", "depth", "motion"});
 }
 
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using bench::process_cpu_ms;
 
 void BM_MotionBlurCopy(benchmark::State &state)
 {

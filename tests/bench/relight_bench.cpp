@@ -13,6 +13,7 @@
 #include <glm/geometric.hpp>
 #include <string>
 
+#include "bench_util.h"
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "graph/graph.h"
@@ -23,25 +24,11 @@ namespace {
 
 const Frame &gbuffer()
 {
-    static const Frame f = [] {
-        const raster::Scene s = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                                   "/samples/scenes/minecrappy.json");
-        raster::RenderOptions o;
-        o.width = 1920;
-        o.height = 1080;
-        o.shadows = false;
-        o.passes = {"color", "normal", "position", "albedo", "material", "tangent", "id", "depth"};
-        return raster::render_frame(s, 30, o);
-    }();
-    return f;
+    return bench::minecrappy_frame(
+        30, {"color", "normal", "position", "albedo", "material", "tangent", "id", "depth"}, false);
 }
 
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using bench::process_cpu_ms;
 
 const char *kLights = R"("lights": [
     {"type": "directional", "direction": [0.4, 0.75, 0.3], "color": [1, 0.95, 0.88], "intensity": 4},

@@ -1,0 +1,47 @@
+#pragma once
+// Shared by the benchmark files: process CPU time (all threads), and frames of the default
+// Minecrappy scene rendered on first use and kept for the process, so each benchmark times its
+// node on the same input without rendering it again.
+
+#include <ctime>
+#include <map>
+#include <set>
+#include <string>
+#include <tuple>
+
+#include "raster/render.h"
+
+namespace posthaste::bench {
+
+/// CPU time of the whole process (every thread), milliseconds.
+inline double process_cpu_ms()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
+}
+
+/// Frame `frame` of samples/scenes/minecrappy.json at 1920x1080 with `passes`, rendered once.
+/// Benchmarks register and run on one thread, so the cache needs no lock.
+inline const Frame &minecrappy_frame(int frame,
+                                     const std::set<std::string> &passes,
+                                     bool shadows = true)
+{
+    using Key = std::tuple<int, std::set<std::string>, bool>;
+    static std::map<Key, Frame> frames;
+    const Key key{frame, passes, shadows};
+    auto it = frames.find(key);
+    if (it == frames.end()) {
+        static const raster::Scene scene = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
+                                                              "/samples/scenes/minecrappy.json");
+        raster::RenderOptions o;
+        o.width = 1920;
+        o.height = 1080;
+        o.shadows = shadows;
+        o.passes = passes;
+        it = frames.emplace(key, raster::render_frame(scene, frame, o)).first;
+    }
+    return it->second;
+}
+
+}  // namespace posthaste::bench
