@@ -37,7 +37,12 @@ Image tile_max(const Image &field, int tile, int first)
     return out;
 }
 
-Image neighbour_max(const Image &tiles, int radius)
+namespace {
+
+/// Per tile, the longest vector among the tiles within `radius` (Chebyshev) that `admit(dx, dy,
+/// x, y)` accepts, dx and dy being the offsets from the tile to tile (x, y).
+template <class Admit>
+Image neighbour_max_if(const Image &tiles, int radius, const Admit &admit)
 {
     const int tw = tiles.width(), th = tiles.height();
     Image out(tw, th, 2);
@@ -46,6 +51,9 @@ Image neighbour_max(const Image &tiles, int radius)
             float best = 0.0f, bx = 0.0f, by = 0.0f;
             for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
                 for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
+                    if (!admit(x - tx, y - ty, x, y)) {
+                        continue;
+                    }
                     const float vx = tiles.at(x, y, 0), vy = tiles.at(x, y, 1);
                     const float l = vx * vx + vy * vy;
                     if (l > best) {
@@ -60,6 +68,13 @@ Image neighbour_max(const Image &tiles, int radius)
         }
     });
     return out;
+}
+
+}  // namespace
+
+Image neighbour_max(const Image &tiles, int radius)
+{
+    return neighbour_max_if(tiles, radius, [](int, int, int, int) { return true; });
 }
 
 namespace {
@@ -84,32 +99,11 @@ std::vector<int> tile_reach(const Image &tiles, int tile, int margin)
 
 Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius)
 {
-    const int tw = tiles.width(), th = tiles.height();
     const std::vector<int> reach = tile_reach(tiles, tile, margin);
-    Image out(tw, th, 2);
-    parallel_for(0, th, [&](int ty) {
-        for (int tx = 0; tx < tw; ++tx) {
-            float best = 0.0f, bx = 0.0f, by = 0.0f;
-            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
-                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
-                    const int d = std::max(std::abs(x - tx), std::abs(y - ty));
-                    if (d > reach[std::size_t(y) * std::size_t(tw) + std::size_t(x)]) {
-                        continue;
-                    }
-                    const float vx = tiles.at(x, y, 0), vy = tiles.at(x, y, 1);
-                    const float l = vx * vx + vy * vy;
-                    if (l > best) {
-                        best = l;
-                        bx = vx;
-                        by = vy;
-                    }
-                }
-            }
-            out.at(tx, ty, 0) = bx;
-            out.at(tx, ty, 1) = by;
-        }
+    const std::size_t tw = std::size_t(tiles.width());
+    return neighbour_max_if(tiles, radius, [&](int dx, int dy, int x, int y) {
+        return std::max(std::abs(dx), std::abs(dy)) <= reach[std::size_t(y) * tw + std::size_t(x)];
     });
-    return out;
 }
 
 Image neighbour_bounds_reach(
