@@ -9,6 +9,7 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/simd.h"
 
 namespace posthaste::cli {
 
@@ -27,6 +28,10 @@ int main(int argc, char **argv)
     // images in again; keep freed memory in the heap for the next frame instead.
     mallopt(M_MMAP_THRESHOLD, 1 << 30);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    if (const std::string bad = simd::environment_error(); !bad.empty()) {
+        std::fprintf(stderr, "error: %s\n", bad.c_str());
+        return int(ExitCode::Usage);
+    }
     CLI::App app{"posthaste: a node-graph compositor for multi-layer OpenEXR frame sequences"};
     app.set_version_flag("--version", std::string("posthaste ") + POSTHASTE_VERSION);
     app.require_subcommand(1);

@@ -25,7 +25,7 @@ Level initial()
     if (env && std::strcmp(env, "scalar") == 0) {
         return Level::Scalar;
     }
-    return detected();
+    return detected();  // unset, "avx2", or unknown (refused by the CLI: environment_error)
 }
 
 std::atomic<int> &current()
@@ -35,6 +35,16 @@ std::atomic<int> &current()
 }
 
 }  // namespace
+
+std::string environment_error()
+{
+    const char *env = std::getenv("POSTHASTE_SIMD");
+    if (!env || !*env || std::strcmp(env, "scalar") == 0 || std::strcmp(env, "avx2") == 0) {
+        return "";
+    }
+    return std::string("environment variable POSTHASTE_SIMD: unknown value \"") + env +
+           "\" (expected \"scalar\" or \"avx2\")";
+}
 
 Level detected()
 {

@@ -6,7 +6,10 @@
 // give the same image within a stated tolerance (the paths round differently, so bits differ
 // between them; each path alone is bit-stable for any thread count).
 //
-// Environment: POSTHASTE_SIMD=scalar disables the vector paths (to compare or to debug).
+// Environment: POSTHASTE_SIMD=scalar disables the vector paths (to compare or to debug);
+// POSTHASTE_SIMD=avx2 (or unset) uses them where the CPU has them.
+
+#include <string>
 
 namespace posthaste::simd {
 
@@ -19,6 +22,11 @@ Level active();
 /// Use at most `level` from now on (clamped to detected()). Not thread-safe against running
 /// kernels: call between frames (tests, the CLI).
 void set_level(Level level);
+
+/// "" when POSTHASTE_SIMD is unset, empty, "scalar" or "avx2" (the best the CPU has, up to
+/// AVX2); otherwise a one-line message naming the variable and the value. Kernels ignore an
+/// unknown value (they use detected()); the CLI refuses it with exit code 2.
+std::string environment_error();
 
 /// Whether kernels should take their AVX2 path.
 inline bool avx2()

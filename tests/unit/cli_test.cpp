@@ -113,6 +113,12 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_NE(out.find("--skip-bad-frames"), std::string::npos);
     EXPECT_EQ(run_command(kBin + " --version", &out), 0);
     EXPECT_NE(out.find("posthaste 0."), std::string::npos);
+    // The SIMD switch: its two values run, anything else is refused before any work.
+    EXPECT_EQ(run_command("POSTHASTE_SIMD=avx512 " + kBin + " run " + graph, &out), 2) << out;
+    EXPECT_NE(out.find("POSTHASTE_SIMD: unknown value \"avx512\""), std::string::npos) << out;
+    EXPECT_EQ(line_count(out), 1) << out;
+    EXPECT_EQ(run_command("POSTHASTE_SIMD=scalar " + kBin + " nodes merge", &out), 0) << out;
+    EXPECT_EQ(run_command("POSTHASTE_SIMD=avx2 " + kBin + " nodes merge", &out), 0) << out;
 }
 
 TEST(Cli, InfoShowsTheMapping)
