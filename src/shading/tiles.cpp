@@ -70,6 +70,37 @@ Image neighbour_max_if(const Image &tiles, int radius, const Admit &admit)
     return out;
 }
 
+/// Per tile, the union of the (min x, min y, max x, max y) bounds of the tiles within `radius`
+/// that `admit` accepts (as in neighbour_max_if).
+template <class Admit>
+Image neighbour_bounds_if(const Image &bounds, int radius, const Admit &admit)
+{
+    const int tw = bounds.width(), th = bounds.height();
+    Image out(tw, th, 4);
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float b[4] = {std::numeric_limits<float>::infinity(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity()};
+            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
+                    if (!admit(x - tx, y - ty, x, y)) {
+                        continue;
+                    }
+                    const float *p = bounds.pixel(x, y);
+                    b[0] = std::min(b[0], p[0]);
+                    b[1] = std::min(b[1], p[1]);
+                    b[2] = std::max(b[2], p[2]);
+                    b[3] = std::max(b[3], p[3]);
+                }
+            }
+            std::copy(b, b + 4, out.pixel(tx, ty));
+        }
+    });
+    return out;
+}
+
 }  // namespace
 
 Image neighbour_max(const Image &tiles, int radius)
@@ -109,32 +140,11 @@ Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius)
 Image neighbour_bounds_reach(
     const Image &bounds, const Image &tiles, int tile, int margin, int radius)
 {
-    const int tw = bounds.width(), th = bounds.height();
     const std::vector<int> reach = tile_reach(tiles, tile, margin);
-    Image out(tw, th, 4);
-    parallel_for(0, th, [&](int ty) {
-        for (int tx = 0; tx < tw; ++tx) {
-            float b[4] = {std::numeric_limits<float>::infinity(),
-                          std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity()};
-            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
-                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
-                    const int d = std::max(std::abs(x - tx), std::abs(y - ty));
-                    if (d > reach[std::size_t(y) * std::size_t(tw) + std::size_t(x)]) {
-                        continue;
-                    }
-                    const float *p = bounds.pixel(x, y);
-                    b[0] = std::min(b[0], p[0]);
-                    b[1] = std::min(b[1], p[1]);
-                    b[2] = std::max(b[2], p[2]);
-                    b[3] = std::max(b[3], p[3]);
-                }
-            }
-            std::copy(b, b + 4, out.pixel(tx, ty));
-        }
+    const std::size_t tw = std::size_t(bounds.width());
+    return neighbour_bounds_if(bounds, radius, [&](int dx, int dy, int x, int y) {
+        return std::max(std::abs(dx), std::abs(dy)) <= reach[std::size_t(y) * tw + std::size_t(x)];
     });
-    return out;
 }
 
 Image tile_bounds(const Image &field, int tile, int first)
@@ -171,27 +181,7 @@ Image tile_bounds(const Image &field, int tile, int first)
 
 Image neighbour_bounds(const Image &bounds, int radius)
 {
-    const int tw = bounds.width(), th = bounds.height();
-    Image out(tw, th, 4);
-    parallel_for(0, th, [&](int ty) {
-        for (int tx = 0; tx < tw; ++tx) {
-            float b[4] = {std::numeric_limits<float>::infinity(),
-                          std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity()};
-            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
-                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
-                    const float *p = bounds.pixel(x, y);
-                    b[0] = std::min(b[0], p[0]);
-                    b[1] = std::min(b[1], p[1]);
-                    b[2] = std::max(b[2], p[2]);
-                    b[3] = std::max(b[3], p[3]);
-                }
-            }
-            std::copy(b, b + 4, out.pixel(tx, ty));
-        }
-    });
-    return out;
+    return neighbour_bounds_if(bounds, radius, [](int, int, int, int) { return true; });
 }
 
 }  // namespace posthaste::shading
