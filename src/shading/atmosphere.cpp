@@ -598,6 +598,7 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
         cell_begin[std::size_t(cx)] =
             std::min(cell_begin[std::size_t(cx)], cell_begin[std::size_t(cx) + 1]);
     }
+    const float inv_w = 1.0f / float(w);  // a multiply per pixel, not a division
     parallel_for(0, h, [&](int y) {
         const float v = (float(y) + 0.5f) / float(h);
         const glm::vec3 r0 = rays_.depth_ray(0.0f, v), dr = rays_.depth_ray(1.0f, v) - r0;
@@ -605,7 +606,7 @@ AerialPerspective::AerialPerspective(const Atmosphere &atmosphere,
         for (int cx = 0; cx < cw; ++cx) {
             float m = 0.0f;
             for (int x = cell_begin[std::size_t(cx)]; x < cell_begin[std::size_t(cx) + 1]; ++x) {
-                const float u = (float(x) + 0.5f) / float(w);
+                const float u = (float(x) + 0.5f) * inv_w;
                 const glm::vec3 r = r0 + u * dr;
                 const float zz = z[x] > 0.0f && z[x] < std::numeric_limits<float>::infinity()
                                      ? z[x] * z[x]
