@@ -28,6 +28,11 @@ struct MotionBlurOptions {
     /// Tiles whose reachable vectors all lie within coherence x the longest of each other take
     /// the uniform path (0: never).
     float coherence = 0.1f;
+    /// Eight adjacent pixels of a row share their sample positions (one run of adjacent pixels,
+    /// read with one load per field) where the vectors they sample along all lie within this
+    /// many pixels of the middle of their bounding box; a sample then moves by at most this
+    /// much at the ends of its path (0: every pixel samples on its own).
+    float group_tolerance = 0.5f;
     std::uint32_t seed = 0;
 };
 
