@@ -19,6 +19,7 @@
 #include <memory>
 #include <mutex>
 #include <new>
+#include <cstdint>
 #include <vector>
 
 #include "core/hash.h"
@@ -359,7 +360,12 @@ struct Gather {
     const Image &nmax;
     const MotionBlurOptions &o;
     int w, h, nc;
-    float inv_soft, inv_tile, jitter, tolerance;
+    float inv_soft, tolerance;
+    /// Per neighbour-max tile: its vector, length and direction (computed once a frame).
+    std::vector<Lookup> tiles;
+    /// The lookup jitter's full width in 1/256 px, and the seed's part of its hash.
+    std::int64_t jitter_q;
+    std::uint32_t seed1;
 
     Gather(const Image &color_,
            const Packed &packed,
@@ -375,12 +381,27 @@ struct Gather {
           h(color_.height()),
           nc(nc_),
           inv_soft(1.0f / o_.soft_z),
-          inv_tile(1.0f / float(o_.tile)),
-          jitter(2.0f * o_.tile_jitter * float(o_.tile)),
-          tolerance(o_.group_tolerance)
+          tolerance(o_.group_tolerance),
+          tiles(std::size_t(nmax_.width()) * std::size_t(nmax_.height())),
+          // At most one tile either way: the neighbour max's margin (NaN or negative: none).
+          jitter_q(o_.tile_jitter > 0.0f
+                       ? std::int64_t(std::min(2.0f * o_.tile_jitter, 2.0f) * float(o_.tile) * 256.0f)
+                       : 0),
+          seed1(pcg_hash(1u ^ pcg_hash(o_.seed)))
     {
         for (int k = 0; k < kFields; ++k) {
             f[k] = packed.plane(k);
+        }
+        for (int ty = 0; ty < nmax.height(); ++ty) {
+            for (int tx = 0; tx < nmax.width(); ++tx) {
+                Lookup &l = tiles[std::size_t(ty) * std::size_t(nmax.width()) + std::size_t(tx)];
+                l = Lookup{nmax.at(tx, ty, 0), nmax.at(tx, ty, 1), 0.0f, 0.0f, 0.0f};
+                l.len = std::sqrt(l.vx * l.vx + l.vy * l.vy);
+                if (l.len >= 0.5f) {
+                    l.dx = l.vx / l.len;
+                    l.dy = l.vy / l.len;
+                }
+            }
         }
     }
 
@@ -423,28 +444,23 @@ struct Gather {
 
     /// One jittered neighbour-max lookup for the group at (x0, y): pixels near a tile border
     /// sometimes read the next tile's neighbourhood, which turns seams into noise (Guertin
-    /// 2014). Not inlined, so both paths round it alike.
-    __attribute__((noinline)) Lookup lookup(int x0, int y) const
+    /// 2014). The jitter is a whole number of 1/256 px, so both paths find the same tile.
+    const Lookup &lookup(int x0, int y) const
     {
-        const std::uint32_t hj = hash4(std::uint32_t(x0), std::uint32_t(y), 1u, o.seed);
-        const float jx = (hash_to_unit(hj) - 0.5f) * jitter;
-        const float jy = (hash_to_unit(pcg_hash(hj)) - 0.5f) * jitter;
-        const int tx =
-            std::min(int(std::max(float(x0) + 4.0f + jx, 0.0f) * inv_tile), nmax.width() - 1);
-        const int ty =
-            std::min(int(std::max(float(y) + 0.5f + jy, 0.0f) * inv_tile), nmax.height() - 1);
-        Lookup l{nmax.at(tx, ty, 0), nmax.at(tx, ty, 1), 0.0f, 0.0f, 0.0f};
-        l.len = std::sqrt(l.vx * l.vx + l.vy * l.vy);
-        if (l.len >= 0.5f) {
-            l.dx = l.vx / l.len;
-            l.dy = l.vy / l.len;
-        }
-        return l;
+        const std::uint32_t hj = pcg_hash(std::uint32_t(x0) ^ pcg_hash(std::uint32_t(y) ^ seed1));
+        const std::int64_t jx = ((std::int64_t(hj >> 8) * jitter_q) >> 24) - jitter_q / 2;
+        const std::int64_t jy =
+            ((std::int64_t(pcg_hash(hj) >> 8) * jitter_q) >> 24) - jitter_q / 2;
+        const std::int64_t span = std::int64_t(o.tile) * 256;
+        const std::int64_t px = (std::int64_t(x0) + 4) * 256 + jx;
+        const std::int64_t py = std::int64_t(y) * 256 + 128 + jy;
+        const int tx = px <= 0 ? 0 : int(std::min<std::int64_t>(px / span, nmax.width() - 1));
+        const int ty = py <= 0 ? 0 : int(std::min<std::int64_t>(py / span, nmax.height() - 1));
+        return tiles[std::size_t(ty) * std::size_t(nmax.width()) + std::size_t(tx)];
     }
 
-    /// The shared run of vectors whose components span [lo_x, hi_x] x [lo_y, hi_y]. Not
-    /// inlined, so both paths round it alike.
-    __attribute__((noinline)) Run run(float lo_x, float hi_x, float lo_y, float hi_y) const
+    /// The shared run of vectors whose components span [lo_x, hi_x] x [lo_y, hi_y].
+    Run run(float lo_x, float hi_x, float lo_y, float hi_y) const
     {
         Run r{false, 0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y), 0.0f, 0.0f, 0.0f, 1};
         r.len = std::sqrt(r.vx * r.vx + r.vy * r.vy);
