@@ -167,6 +167,9 @@ struct Packed {
     Scratch<float> block;
     std::size_t stride = 0;  ///< floats from one plane to the next (a multiple of 16)
     Image velocity;
+    /// Per row: every alpha is exactly 1 (RGBA colour). A frame opaque everywhere blurs to
+    /// alpha 1, and the gather does not sum its alpha plane.
+    std::vector<unsigned char> opaque_rows;
 
     float *plane(int field) const { return block.get() + std::size_t(field) * stride; }
 };
@@ -213,12 +216,15 @@ struct Packer {
         out.velocity.at(x, y, 1) = vy;
     }
 
-    /// Pixels [x0, x1) of row y.
-    void pixels(int y, int x0, int x1) const
+    /// Pixels [x0, x1) of row y; returns whether their alpha is exactly 1 (RGBA only).
+    bool pixels(int y, int x0, int x1) const
     {
+        bool opaque = nc == 4;
         for (int x = x0; x < x1; ++x) {
             pixel(y, x);
+            opaque = opaque && color.pixel(x, y)[3] == 1.0f;
         }
+        return opaque;
     }
 };
 
@@ -238,8 +244,9 @@ POSTHASTE_AVX2_INLINE V finite8(V x)
 
 /// Packer::pixels for a whole row, eight pixels at a time (the same arithmetic; log is the
 /// polynomial of simd::v8, within 2 ulp of std::log).
-POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
+POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
 {
+    bool opaque = p.nc == 4;
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     const VI mstride = _mm256_mullo_epi32(lane, _mm256_set1_epi32(p.motion.channels()));
     const VI cstride = _mm256_mullo_epi32(lane, _mm256_set1_epi32(p.color.channels()));
@@ -247,8 +254,19 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
     int x = 0;
     for (; x + 8 <= p.w; x += 8) {
         const float *m = p.motion.pixel(x, y);
-        V vx = _mm256_mul_ps(_mm256_i32gather_ps(m, mstride, 4), scale);
-        V vy = _mm256_mul_ps(_mm256_i32gather_ps(m + 1, mstride, 4), scale);
+        V vx, vy;
+        if (p.motion.channels() == 2) {
+            const V a = _mm256_loadu_ps(m), b = _mm256_loadu_ps(m + 8);
+            vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
+                _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))), _MM_SHUFFLE(3, 1, 2, 0)));
+            vy = _mm256_castpd_ps(_mm256_permute4x64_pd(
+                _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))), _MM_SHUFFLE(3, 1, 2, 0)));
+        } else {
+            vx = _mm256_i32gather_ps(m, mstride, 4);
+            vy = _mm256_i32gather_ps(m + 1, mstride, 4);
+        }
+        vx = _mm256_mul_ps(vx, scale);
+        vy = _mm256_mul_ps(vy, scale);
         const V ok = _mm256_and_ps(finite8(vx), finite8(vy));
         vx = _mm256_and_ps(vx, ok);
         vy = _mm256_and_ps(vy, ok);
@@ -279,9 +297,29 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
             _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ));
         const std::size_t i0 = std::size_t(y) * std::size_t(p.w) + std::size_t(x);
         const float *c = p.color.pixel(x, y);
-        for (int k = 0; k < 4; ++k) {
-            _mm256_storeu_ps(p.out.plane(kRed + k) + i0,
-                             k < p.nc ? _mm256_i32gather_ps(c + k, cstride, 4) : zero);
+        if (p.color.channels() == 4) {
+            // Eight RGBA pixels: four loads and a 4x4 transpose per 128-bit half.
+            const V a0 = _mm256_loadu_ps(c), a1 = _mm256_loadu_ps(c + 8);
+            const V a2 = _mm256_loadu_ps(c + 16), a3 = _mm256_loadu_ps(c + 24);
+            const V r0 = _mm256_permute2f128_ps(a0, a2, 0x20), r1 = _mm256_permute2f128_ps(a0, a2, 0x31);
+            const V r2 = _mm256_permute2f128_ps(a1, a3, 0x20), r3 = _mm256_permute2f128_ps(a1, a3, 0x31);
+            // r0 = pixels (0, 4), r1 = (1, 5), r2 = (2, 6), r3 = (3, 7).
+            const V t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
+            const V t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
+            const V ch[4] = {_mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(1, 0, 1, 0)),
+                             _mm256_shuffle_ps(t0, t1, _MM_SHUFFLE(3, 2, 3, 2)),
+                             _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(1, 0, 1, 0)),
+                             _mm256_shuffle_ps(t2, t3, _MM_SHUFFLE(3, 2, 3, 2))};
+            for (int k = 0; k < 4; ++k) {
+                _mm256_storeu_ps(p.out.plane(kRed + k) + i0, ch[k]);
+            }
+            opaque = opaque && _mm256_movemask_ps(_mm256_cmp_ps(ch[3], set1(1.0f), _CMP_EQ_OQ)) == 0xff;
+        } else {
+            for (int k = 0; k < 4; ++k) {
+                _mm256_storeu_ps(p.out.plane(kRed + k) + i0,
+                                 k < p.nc ? _mm256_i32gather_ps(c + k, cstride, 4) : zero);
+            }
+            opaque = false;
         }
         _mm256_storeu_ps(p.out.plane(kWx) + i0, _mm256_mul_ps(vx, dens));
         _mm256_storeu_ps(p.out.plane(kWy) + i0, _mm256_mul_ps(vy, dens));
@@ -294,7 +332,7 @@ POSTHASTE_AVX2 void pack_row_avx2(const Packer &p, int y)
         _mm256_storeu_ps(vel + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
     }
     // The tail through the scalar arithmetic.
-    p.pixels(y, x, p.w);
+    return p.pixels(y, x, p.w) && opaque;
 }
 #endif
 
@@ -304,7 +342,10 @@ Packed pack(
     const int w = motion.width(), h = motion.height();
     const std::size_t n = std::size_t(w) * std::size_t(h);
     const std::size_t stride = (n + 15) / 16 * 16;
-    Packed out{scratch<float>(stride * kFields), stride, Image::uninitialized(w, h, 2)};
+    Packed out{scratch<float>(stride * kFields),
+               stride,
+               Image::uninitialized(w, h, 2),
+               std::vector<unsigned char>(std::size_t(h), 0)};
     const Packer p{color,
                    motion,
                    depth,
@@ -315,11 +356,11 @@ Packed pack(
                    std::max(o.max_radius, 0.0f)};
 #if POSTHASTE_HAVE_AVX2_TARGET
     if (vector) {
-        parallel_for(0, h, [&](int y) { pack_row_avx2(p, y); });
+        parallel_for(0, h, [&](int y) { out.opaque_rows[std::size_t(y)] = pack_row_avx2(p, y); });
         return out;
     }
 #endif
-    parallel_for(0, h, [&](int y) { p.pixels(y, 0, w); });
+    parallel_for(0, h, [&](int y) { out.opaque_rows[std::size_t(y)] = p.pixels(y, 0, w); });
     return out;
 }
 
@@ -331,9 +372,9 @@ struct Lookup {
 /// The sampling vector a group of pixels shares (see Gather): the middle of their vectors'
 /// bounding box, with its length, direction and sample count.
 struct Run {
-    bool ok;  ///< the vectors agree within the tolerance and the run is at least half a pixel
     float vx, vy, len, dx, dy;
     int n;
+    int ok;  ///< the vectors agree within the tolerance and the run is at least half a pixel
 };
 
 /// The per-pixel plan of the reconstruction: the pixel's own motion, whether its own path shares
@@ -361,6 +402,7 @@ struct Gather {
     const MotionBlurOptions &o;
     int w, h, nc;
     float inv_soft, tolerance;
+    bool opaque;  ///< RGBA with alpha 1 everywhere: alpha is not summed, and blurs to 1
     /// Per neighbour-max tile: its vector, length and direction (computed once a frame).
     std::vector<Lookup> tiles;
     /// The lookup jitter's full width in 1/256 px, and the seed's part of its hash.
@@ -382,6 +424,9 @@ struct Gather {
           nc(nc_),
           inv_soft(1.0f / o_.soft_z),
           tolerance(o_.group_tolerance),
+          opaque(nc_ == 4 && std::all_of(packed.opaque_rows.begin(),
+                                         packed.opaque_rows.end(),
+                                         [](unsigned char r) { return r != 0; })),
           tiles(std::size_t(nmax_.width()) * std::size_t(nmax_.height())),
           // At most one tile either way: the neighbour max's margin (NaN or negative: none).
           jitter_q(o_.tile_jitter > 0.0f
@@ -462,16 +507,25 @@ struct Gather {
     /// The shared run of vectors whose components span [lo_x, hi_x] x [lo_y, hi_y].
     Run run(float lo_x, float hi_x, float lo_y, float hi_y) const
     {
-        Run r{false, 0.5f * (lo_x + hi_x), 0.5f * (lo_y + hi_y), 0.0f, 0.0f, 0.0f, 1};
-        r.len = std::sqrt(r.vx * r.vx + r.vy * r.vy);
-        r.ok = tolerance > 0.0f && hi_x - lo_x <= 2.0f * tolerance &&
-               hi_y - lo_y <= 2.0f * tolerance && r.len >= 0.5f;
-        if (r.ok) {
-            r.dx = r.vx / r.len;
-            r.dy = r.vy / r.len;
-            r.n = sample_count(r.len, o.samples);
-        }
+        Run r;
+        run(lo_x, hi_x, lo_y, hi_y, r);
         return r;
+    }
+    /// run() into `r`, field by field (a plan's runs are written in place: building the struct
+    /// and copying it stalled on store forwarding).
+    void run(float lo_x, float hi_x, float lo_y, float hi_y, Run &r) const
+    {
+        const float vx = 0.5f * (lo_x + hi_x), vy = 0.5f * (lo_y + hi_y);
+        const float len = std::sqrt(vx * vx + vy * vy);
+        const bool ok = tolerance > 0.0f && hi_x - lo_x <= 2.0f * tolerance &&
+                        hi_y - lo_y <= 2.0f * tolerance && len >= 0.5f;
+        r.vx = vx;
+        r.vy = vy;
+        r.len = len;
+        r.ok = ok;
+        r.dx = ok ? vx / len : 0.0f;
+        r.dy = ok ? vy / len : 0.0f;
+        r.n = ok ? sample_count(len, o.samples) : 1;
     }
 
     /// The plan of pixel (x, y) under the neighbour-max vector `l`.
@@ -529,6 +583,9 @@ struct Gather {
             for (int k = 0; k < nc; ++k) {
                 po[k] = fg[k] * inv_f;
             }
+            if (opaque) {
+                po[3] = 1.0f;
+            }
             return;
         }
         // The pixel itself, so that B > 0. Where the pixel has a path of its own, the samples
@@ -539,6 +596,9 @@ struct Gather {
         const std::size_t i = index(x, y);
         for (int k = 0; k < nc; ++k) {
             po[k] = fg[k] + rest * (bg[k] + wc * f[kRed + k][i]);
+        }
+        if (opaque) {
+            po[3] = 1.0f;
         }
     }
 
@@ -609,6 +669,7 @@ struct Gather {
         const std::uint32_t hu = hash4(std::uint32_t(x0), std::uint32_t(y), 0u, o.seed);
         const float u = hash_to_unit(hu), u2 = hash_to_unit(pcg_hash(hu));
         const float step = 2.0f / float(r.n), delta = r.len * step;
+        const int kc = opaque ? 3 : 4;  // colour channels summed
         float F[8] = {}, B[8] = {}, fg[8][4] = {}, bg[8][4] = {}, clz[8];
         for (int j = 0; j < cnt; ++j) {
             clz[j] = f[kLogZ][index(x0 + j, y)];
@@ -626,7 +687,7 @@ struct Gather {
                 const float wb = (1.0f - fr) * reach(T, p[j].clen);
                 F[j] += wf;
                 B[j] += wb;
-                for (int k = 0; k < 4; ++k) {
+                for (int k = 0; k < kc; ++k) {
                     fg[j][k] += wf * f[kRed + k][s];
                     bg[j][k] += wb * f[kRed + k][s];
                 }
@@ -641,7 +702,7 @@ struct Gather {
             own_weight[j] = p[j].shared ? delta * p[j].inv_own : 0.0f;
             F[j] *= delta;
             B[j] *= own_weight[j];
-            for (int k = 0; k < 4; ++k) {
+            for (int k = 0; k < kc; ++k) {
                 fg[j][k] *= delta;
                 bg[j][k] *= own_weight[j];
             }
@@ -668,7 +729,7 @@ struct Gather {
                             const std::size_t s = run_at(bx, j, by);
                             const float wb = (1.0f - front(f[kLogZ][s], clz[j], inv_soft)) * wm;
                             B[j] += wb;
-                            for (int k = 0; k < 4; ++k) {
+                            for (int k = 0; k < kc; ++k) {
                                 bg[j][k] += wb * f[kRed + k][s];
                             }
                         }
@@ -760,7 +821,7 @@ struct Gather {
             lo_y = std::min(lo_y, vy);
             hi_y = std::max(hi_y, vy);
         }
-        const Run r = runs && shortest >= 0.5f ? run(lo_x, hi_x, lo_y, hi_y) : Run{};
+        const Run r = runs && shortest >= 0.5f ? run(lo_x, hi_x, lo_y, hi_y) : Run{0, 0, 0, 0, 0, 1, 0};
         if (!r.ok) {
             for (int j = 0; j < cnt; ++j) {
                 uniform_lane(out, x0 + j, y);
@@ -894,6 +955,43 @@ POSTHASTE_AVX2_INLINE V gather8(const Gather &g, int field, VI idx)
     return _mm256_i32gather_ps(g.f[field], idx, 4);
 }
 
+/// The most samples of a run whose origins a plan tabulates (longer runs compute them as
+/// they go).
+constexpr int kTabulated = 32;
+
+/// Gather::run_origin for samples t_i = -1 + (i + u) step, i < n <= kTabulated, eight at a
+/// time: first columns (unclamped) and row offsets (clamped row x width). Tabulated in the
+/// plan, a sample's loads no longer wait on its chain of float-to-int conversions.
+POSTHASTE_AVX2_INLINE void origins8(
+    const Gather &g, int x0, int y, float u, float step, float vx, float vy, int n, std::int32_t *bx, std::int32_t *row)
+{
+    const V lanef = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+    const V ox = set1(float(x0) + 0.5f), oy = set1(float(y) + 0.5f);
+    for (int i = 0; i < n; i += 8) {
+        const V t = _mm256_fmadd_ps(
+            _mm256_add_ps(_mm256_add_ps(set1(float(i)), lanef), set1(u)), set1(step), set1(-1.0f));
+        const VI cx = _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_fmadd_ps(t, set1(vx), ox)));
+        VI cy = _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_fmadd_ps(t, set1(vy), oy)));
+        cy = _mm256_min_epi32(_mm256_max_epi32(cy, _mm256_setzero_si256()), _mm256_set1_epi32(g.h - 1));
+        _mm256_storeu_si256(reinterpret_cast<VI *>(bx + i), cx);
+        _mm256_storeu_si256(reinterpret_cast<VI *>(row + i),
+                            _mm256_mullo_epi32(cy, _mm256_set1_epi32(g.w)));
+    }
+}
+/// RunAt of a tabulated origin.
+POSTHASTE_AVX2_INLINE RunAt run_at8(const Gather &g, std::int32_t bx, std::int32_t row)
+{
+    RunAt a{bx >= 0 && bx + 8 <= g.w, std::size_t(row) + std::size_t(std::max(bx, 0)), VI{}};
+    if (!a.inside) {
+        const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        const VI col = _mm256_min_epi32(
+            _mm256_max_epi32(_mm256_add_epi32(_mm256_set1_epi32(bx), lane), _mm256_setzero_si256()),
+            _mm256_set1_epi32(g.w - 1));
+        a.idx = _mm256_add_epi32(_mm256_set1_epi32(row), col);
+    }
+    return a;
+}
+
 /// The velocities (vx, vy) of pixels x .. x + 7 of row y (lanes past the row's end read its last
 /// pixel): two loads and a de-interleave where the eight lie inside the row.
 POSTHASTE_AVX2_INLINE void velocity8(const Gather &g, int x, int y, VI xc, V &vx, V &vy)
@@ -979,6 +1077,9 @@ POSTHASTE_AVX2_INLINE void finish8(const Gather &g,
         const V blend =
             _mm256_add_ps(fg[k], _mm256_mul_ps(rest, _mm256_add_ps(bg[k], _mm256_mul_ps(wc, p.cc[k]))));
         r[k] = _mm256_blendv_ps(blend, _mm256_mul_ps(fg[k], inv_f), full);
+    }
+    if (g.opaque) {
+        r[3] = one;
     }
     store8(g, out, x, y, lanes, r, _mm256_castsi256_ps(_mm256_set1_epi32(-1)));
 }
@@ -1073,9 +1174,19 @@ POSTHASTE_AVX2_INLINE void lanes8(
 /// The front estimate along a shared run (Gather::reconstruct_run's first loop; kBack: also
 /// the own-surface sums, needed only where some lane's own path is the shared one). The sums
 /// leave out the path length per sample, delta, which the caller multiplies in.
-template <bool kBack>
-POSTHASTE_AVX2_INLINE void front_run8(
-    const Gather &g, int x, int y, const Run &r, float u, const Lanes8 &p, V &F, V &B, V *fg, V *bg)
+template <bool kBack, int kNc>
+POSTHASTE_AVX2_INLINE void front_run8(const Gather &g,
+                                      int x,
+                                      int y,
+                                      const Run &r,
+                                      float u,
+                                      const std::int32_t *bx,
+                                      const std::int32_t *row,
+                                      const Lanes8 &p,
+                                      V &F,
+                                      V &B,
+                                      V *fg,
+                                      V *bg)
 {
     const V zero = _mm256_setzero_ps(), one = set1(1.0f), half = set1(0.5f);
     const V inv_soft = set1(g.inv_soft), dx = set1(r.dx), dy = set1(r.dy);
@@ -1083,7 +1194,7 @@ POSTHASTE_AVX2_INLINE void front_run8(
     for (int i = 0; i < r.n; ++i) {
         const float t = -1.0f + (float(i) + u) * step;
         const V rT = set1(0.5f - std::abs(t) * r.len);
-        const RunAt a = run_at8(g, x, y, t, r.vx, r.vy);
+        const RunAt a = bx ? run_at8(g, bx[i], row[i]) : run_at8(g, x, y, t, r.vx, r.vy);
         const V fr = simd::v8::clamp(
             _mm256_fmadd_ps(_mm256_sub_ps(p.clz, field8(g, kLogZ, a)), inv_soft, half), zero, one);
         const V reach_s = simd::v8::clamp(_mm256_add_ps(field8(g, kLen, a), rT), zero, one);
@@ -1092,7 +1203,7 @@ POSTHASTE_AVX2_INLINE void front_run8(
         const V wf = _mm256_mul_ps(_mm256_mul_ps(fr, reach_s), along);
         F = _mm256_add_ps(F, wf);
         V c[4];
-        for (int k = 0; k < 4; ++k) {
+        for (int k = 0; k < kNc; ++k) {
             c[k] = field8(g, kRed + k, a);
             fg[k] = _mm256_fmadd_ps(wf, c[k], fg[k]);
         }
@@ -1100,7 +1211,7 @@ POSTHASTE_AVX2_INLINE void front_run8(
             const V reach_c = simd::v8::clamp(_mm256_add_ps(p.clen, rT), zero, one);
             const V wb = _mm256_fnmadd_ps(fr, reach_c, reach_c);  // (1 - fr) reach_c
             B = _mm256_add_ps(B, wb);
-            for (int k = 0; k < 4; ++k) {
+            for (int k = 0; k < kNc; ++k) {
                 bg[k] = _mm256_fmadd_ps(wb, c[k], bg[k]);
             }
         }
@@ -1118,6 +1229,10 @@ struct Plan8 {
     Run c;      ///< the second direction's shared run, for the lanes whose path is not shared
     bool second;  ///< some lane needs the second direction
     float u, u2;
+    /// Sample origins of the shared runs (front: r.n of them, second: m), when tabulated.
+    alignas(32) std::int32_t bx[kTabulated + 8], row[kTabulated + 8];
+    alignas(32) std::int32_t bx2[kTabulated + 8], row2[kTabulated + 8];
+    int m;
 };
 
 POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &pl)
@@ -1173,8 +1288,8 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
     p.len = _mm256_blendv_ps(llen, p.clen, longer);
     float lo_x, hi_x, lo_y, hi_y;
     bounds8(p.vx, p.vy, p.valid, lo_x, hi_x, lo_y, hi_y);
-    pl.r = g.run(lo_x, hi_x, lo_y, hi_y);
-    pl.c = Run{};
+    g.run(lo_x, hi_x, lo_y, hi_y, pl.r);
+    pl.c.ok = 0;
     pl.second = false;
     if (pl.r.ok) {
         const std::uint32_t hu = hash4(std::uint32_t(x), std::uint32_t(y), 0u, g.o.seed);
@@ -1184,12 +1299,22 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
         pl.second = _mm256_movemask_ps(second_valid) != 0;
         if (pl.second) {
             bounds8(p.cvx, p.cvy, second_valid, lo_x, hi_x, lo_y, hi_y);
-            pl.c = g.run(lo_x, hi_x, lo_y, hi_y);
+            g.run(lo_x, hi_x, lo_y, hi_y, pl.c);
+        }
+        if (pl.r.n <= kTabulated) {
+            origins8(g, x, y, pl.u, 2.0f / float(pl.r.n), pl.r.vx, pl.r.vy, pl.r.n, pl.bx, pl.row);
+        }
+        if (pl.c.ok) {
+            pl.m = std::max(2, std::min(pl.c.n, (pl.r.n + 1) / 2));
+            if (pl.m <= kTabulated) {
+                origins8(g, x, y, pl.u2, 2.0f / float(pl.m), pl.c.vx, pl.c.vy, pl.m, pl.bx2, pl.row2);
+            }
         }
     }
 }
 
-/// Gather::reconstruct_run on eight lanes.
+/// Gather::reconstruct_run on eight lanes (kNc: colour channels summed; 3 for opaque RGBA).
+template <int kNc>
 POSTHASTE_AVX2_INLINE void run8(const Gather &g, Image &out, int y, const Plan8 &pl, const Frame8 &fr)
 {
     const V zero = _mm256_setzero_ps(), one = set1(1.0f), half = set1(0.5f);
@@ -1200,10 +1325,11 @@ POSTHASTE_AVX2_INLINE void run8(const Gather &g, Image &out, int y, const Plan8 
     const float delta = r.len * (2.0f / float(r.n));
     V fg[4] = {zero, zero, zero, zero}, bg[4] = {zero, zero, zero, zero};
     V F = zero, B = zero;
+    const std::int32_t *bx = r.n <= kTabulated ? pl.bx : nullptr;
     if (_mm256_movemask_ps(_mm256_and_ps(p.shared, p.valid)) != 0) {
-        front_run8<true>(g, x, y, r, pl.u, p, F, B, fg, bg);
+        front_run8<true, kNc>(g, x, y, r, pl.u, bx, pl.row, p, F, B, fg, bg);
     } else {
-        front_run8<false>(g, x, y, r, pl.u, p, F, B, fg, bg);
+        front_run8<false, kNc>(g, x, y, r, pl.u, bx, pl.row, p, F, B, fg, bg);
     }
     const V vdelta = set1(delta);
     V own_weight = _mm256_and_ps(_mm256_mul_ps(vdelta, p.inv_own), p.shared);
@@ -1217,18 +1343,21 @@ POSTHASTE_AVX2_INLINE void run8(const Gather &g, Image &out, int y, const Plan8 
         const V second = _mm256_andnot_ps(p.shared, p.own);
         const Run &c = pl.c;
         if (c.ok) {
-            const int m = std::max(2, std::min(c.n, (r.n + 1) / 2));
+            const int m = pl.m;
             const float mstep = 2.0f / float(m);
             const V wm = _mm256_and_ps(set1(1.0f / float(m)), second);
             for (int i = 0; i < m; ++i) {
-                const RunAt a = run_at8(g, x, y, -1.0f + (float(i) + pl.u2) * mstep, c.vx, c.vy);
+                const RunAt a =
+                    m <= kTabulated
+                        ? run_at8(g, pl.bx2[i], pl.row2[i])
+                        : run_at8(g, x, y, -1.0f + (float(i) + pl.u2) * mstep, c.vx, c.vy);
                 const V f = simd::v8::clamp(
                     _mm256_fmadd_ps(_mm256_sub_ps(p.clz, field8(g, kLogZ, a)), inv_soft, half),
                     zero,
                     one);
                 const V wb = _mm256_fnmadd_ps(f, wm, wm);  // (1 - f) wm
                 B = _mm256_add_ps(B, wb);
-                for (int k = 0; k < 4; ++k) {
+                for (int k = 0; k < kNc; ++k) {
                     bg[k] = _mm256_fmadd_ps(wb, field8(g, kRed + k, a), bg[k]);
                 }
             }
@@ -1270,7 +1399,11 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 g.copy_pixel(out, x + j, y);
             }
         } else if (pl.r.ok) {
-            run8(g, out, y, pl, fr);
+            if (g.opaque) {
+                run8<3>(g, out, y, pl, fr);
+            } else {
+                run8<4>(g, out, y, pl, fr);
+            }
         } else {
             lanes8(g, out, x, y, pl.lanes, pl.p, fr, ky0);
         }
