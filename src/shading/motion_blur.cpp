@@ -1450,15 +1450,17 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
                 const float u = hash_unit(x, y, 0, g.o.seed);
                 V acc[4] = {_mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps(),
                             _mm256_setzero_ps()};
+                // Opaque RGBA: the mean of n ones is exactly 1; the alpha plane is not read.
+                const int kc = g.opaque ? 3 : 4;
                 for (int i = 0; i < r.n; ++i) {
                     const RunAt a = run_at8(g, x, y, -1.0f + (float(i) + u) * step, r.vx, r.vy);
-                    for (int k = 0; k < 4; ++k) {
+                    for (int k = 0; k < kc; ++k) {
                         acc[k] = _mm256_add_ps(acc[k], field8(g, kRed + k, a));
                     }
                 }
                 const V vn = set1(float(r.n));
                 for (int k = 0; k < 4; ++k) {
-                    acc[k] = _mm256_div_ps(acc[k], vn);
+                    acc[k] = k < kc ? _mm256_div_ps(acc[k], vn) : set1(1.0f);
                 }
                 store8(g, out, x, y, lanes, acc, all);
                 continue;
@@ -1515,7 +1517,9 @@ Image motion_blur(const Image &color,
 
     t0 = std::chrono::steady_clock::now();
     c0 = process_cpu_ms();
-    const Image tiles = tile_max(packed.velocity, o.tile);
+    const bool want_bounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct;
+    Image tiles, bounds;
+    tile_max_bounds(packed.velocity, o.tile, 0, &tiles, want_bounds ? &bounds : nullptr);
     st.tile_max_ms = ms_since(t0);
     st.tile_max_cpu_ms = process_cpu_ms() - c0;
 
@@ -1533,12 +1537,14 @@ Image motion_blur(const Image &color,
     // slow regions beside fast ones get a short neighbour max (fewer samples, along motion that
     // can actually cover them) and pass the coherence test more often.
     const int margin = o.tile_jitter > 0.0f ? 1 : 0;
-    const Image nmax = neighbour_max_reach(tiles, o.tile, margin, std::max(radius, 1));
-    const Image nbounds =
-        o.coherence > 0.0f && o.method == BlurMethod::Reconstruct
-            ? neighbour_bounds_reach(
-                  tile_bounds(packed.velocity, o.tile), tiles, o.tile, margin, std::max(radius, 1))
-            : Image();
+    Image nmax, nbounds;
+    neighbour_reach(tiles,
+                    want_bounds ? &bounds : nullptr,
+                    o.tile,
+                    margin,
+                    std::max(radius, 1),
+                    &nmax,
+                    want_bounds ? &nbounds : nullptr);
     st.neighbour_max_ms = ms_since(t0);
     st.neighbour_max_cpu_ms = process_cpu_ms() - c0;
 

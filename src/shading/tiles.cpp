@@ -10,30 +10,67 @@
 
 namespace posthaste::shading {
 
-Image tile_max(const Image &field, int tile, int first)
+void tile_max_bounds(const Image &field, int tile, int first, Image *max, Image *bounds)
 {
     const int tw = (field.width() + tile - 1) / tile, th = (field.height() + tile - 1) / tile;
-    Image out(tw, th, 2);
+    if (max) {
+        *max = Image(tw, th, 2);
+    }
+    if (bounds) {
+        *bounds = Image(tw, th, 4);
+    }
+    constexpr float kInf = std::numeric_limits<float>::infinity();
     parallel_for(0, th, [&](int ty) {
-        const int y0 = ty * tile, y1 = std::min(field.height(), y0 + tile);
+        // Per tile of the band: the longest vector so far (length^2, x, y) and the box. Rows
+        // are read whole, in order; each tile still sees its pixels in scan order.
+        std::vector<float> acc(std::size_t(tw) * 7);
         for (int tx = 0; tx < tw; ++tx) {
-            const int x0 = tx * tile, x1 = std::min(field.width(), x0 + tile);
-            float best = 0.0f, bx = 0.0f, by = 0.0f;
-            for (int y = y0; y < y1; ++y) {
-                const float *p = field.pixel(x0, y) + first;
-                for (int x = x0; x < x1; ++x, p += field.channels()) {
-                    const float l = p[0] * p[0] + p[1] * p[1];
-                    if (l > best && std::isfinite(l)) {
-                        best = l;
-                        bx = p[0];
-                        by = p[1];
+            float *a = &acc[std::size_t(tx) * 7];
+            a[0] = a[1] = a[2] = 0.0f;
+            a[3] = a[4] = kInf;
+            a[5] = a[6] = -kInf;
+        }
+        const int y0 = ty * tile, y1 = std::min(field.height(), y0 + tile);
+        for (int y = y0; y < y1; ++y) {
+            const float *p = field.pixel(0, y) + first;
+            const int stride = field.channels();
+            for (int tx = 0; tx < tw; ++tx) {
+                float *a = &acc[std::size_t(tx) * 7];
+                const int x1 = std::min(field.width(), (tx + 1) * tile);
+                for (int x = tx * tile; x < x1; ++x, p += stride) {
+                    const float vx = p[0], vy = p[1];
+                    const float l = vx * vx + vy * vy;
+                    if (l > a[0] && std::isfinite(l)) {
+                        a[0] = l;
+                        a[1] = vx;
+                        a[2] = vy;
                     }
+                    const bool ok = std::isfinite(vx) && std::isfinite(vy);
+                    const float bx = ok ? vx : 0.0f, by = ok ? vy : 0.0f;
+                    a[3] = std::min(a[3], bx);
+                    a[4] = std::min(a[4], by);
+                    a[5] = std::max(a[5], bx);
+                    a[6] = std::max(a[6], by);
                 }
             }
-            out.at(tx, ty, 0) = bx;
-            out.at(tx, ty, 1) = by;
+        }
+        for (int tx = 0; tx < tw; ++tx) {
+            const float *a = &acc[std::size_t(tx) * 7];
+            if (max) {
+                max->at(tx, ty, 0) = a[1];
+                max->at(tx, ty, 1) = a[2];
+            }
+            if (bounds) {
+                std::copy(a + 3, a + 7, bounds->pixel(tx, ty));
+            }
         }
     });
+}
+
+Image tile_max(const Image &field, int tile, int first)
+{
+    Image out;
+    tile_max_bounds(field, tile, first, &out, nullptr);
     return out;
 }
 
@@ -128,54 +165,83 @@ std::vector<int> tile_reach(const Image &tiles, int tile, int margin)
 
 }  // namespace
 
-Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius)
+void neighbour_reach(const Image &tiles,
+                     const Image *bounds,
+                     int tile,
+                     int margin,
+                     int radius,
+                     Image *nmax,
+                     Image *nbounds)
 {
     const std::vector<int> reach = tile_reach(tiles, tile, margin);
-    const std::size_t tw = std::size_t(tiles.width());
-    return neighbour_max_if(tiles, radius, [&](int dx, int dy, int x, int y) {
-        return std::max(std::abs(dx), std::abs(dy)) <= reach[std::size_t(y) * tw + std::size_t(x)];
+    const int tw = tiles.width(), th = tiles.height();
+    if (nmax) {
+        *nmax = Image(tw, th, 2);
+    }
+    if (nbounds) {
+        *nbounds = Image(tw, th, 4);
+    }
+    const bool with_bounds = bounds && nbounds;
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float best = 0.0f, bx = 0.0f, by = 0.0f;
+            float b[4] = {kInf, kInf, -kInf, -kInf};
+            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                const int dy = std::abs(y - ty);
+                const int x0 = std::max(0, tx - radius), x1 = std::min(tw - 1, tx + radius);
+                const int *r = &reach[std::size_t(y) * std::size_t(tw)];
+                const float *v = tiles.pixel(0, y);
+                for (int x = x0; x <= x1; ++x) {
+                    if (std::max(std::abs(x - tx), dy) > r[x]) {
+                        continue;
+                    }
+                    const float vx = v[2 * x], vy = v[2 * x + 1];
+                    const float l = vx * vx + vy * vy;
+                    if (l > best) {
+                        best = l;
+                        bx = vx;
+                        by = vy;
+                    }
+                    if (with_bounds) {
+                        const float *p = bounds->pixel(x, y);
+                        b[0] = std::min(b[0], p[0]);
+                        b[1] = std::min(b[1], p[1]);
+                        b[2] = std::max(b[2], p[2]);
+                        b[3] = std::max(b[3], p[3]);
+                    }
+                }
+            }
+            if (nmax) {
+                nmax->at(tx, ty, 0) = bx;
+                nmax->at(tx, ty, 1) = by;
+            }
+            if (with_bounds) {
+                std::copy(b, b + 4, nbounds->pixel(tx, ty));
+            }
+        }
     });
+}
+
+Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius)
+{
+    Image out;
+    neighbour_reach(tiles, nullptr, tile, margin, radius, &out, nullptr);
+    return out;
 }
 
 Image neighbour_bounds_reach(
     const Image &bounds, const Image &tiles, int tile, int margin, int radius)
 {
-    const std::vector<int> reach = tile_reach(tiles, tile, margin);
-    const std::size_t tw = std::size_t(bounds.width());
-    return neighbour_bounds_if(bounds, radius, [&](int dx, int dy, int x, int y) {
-        return std::max(std::abs(dx), std::abs(dy)) <= reach[std::size_t(y) * tw + std::size_t(x)];
-    });
+    Image out;
+    neighbour_reach(tiles, &bounds, tile, margin, radius, nullptr, &out);
+    return out;
 }
 
 Image tile_bounds(const Image &field, int tile, int first)
 {
-    const int tw = (field.width() + tile - 1) / tile, th = (field.height() + tile - 1) / tile;
-    Image out(tw, th, 4);
-    parallel_for(0, th, [&](int ty) {
-        const int y0 = ty * tile, y1 = std::min(field.height(), y0 + tile);
-        for (int tx = 0; tx < tw; ++tx) {
-            const int x0 = tx * tile, x1 = std::min(field.width(), x0 + tile);
-            float lo[2] = {std::numeric_limits<float>::infinity(),
-                           std::numeric_limits<float>::infinity()};
-            float hi[2] = {-lo[0], -lo[1]};
-            for (int y = y0; y < y1; ++y) {
-                const float *p = field.pixel(x0, y) + first;
-                for (int x = x0; x < x1; ++x, p += field.channels()) {
-                    const bool ok = std::isfinite(p[0]) && std::isfinite(p[1]);
-                    for (int c = 0; c < 2; ++c) {
-                        const float v = ok ? p[c] : 0.0f;
-                        lo[c] = std::min(lo[c], v);
-                        hi[c] = std::max(hi[c], v);
-                    }
-                }
-            }
-            float *o = out.pixel(tx, ty);
-            o[0] = lo[0];
-            o[1] = lo[1];
-            o[2] = hi[0];
-            o[3] = hi[1];
-        }
-    });
+    Image out;
+    tile_max_bounds(field, tile, first, nullptr, &out);
     return out;
 }
 

@@ -29,6 +29,19 @@ Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius);
 Image neighbour_bounds_reach(
     const Image &bounds, const Image &tiles, int tile, int margin, int radius);
 
+/// tile_max and tile_bounds (either may be null) in one pass over `field`.
+void tile_max_bounds(const Image &field, int tile, int first, Image *max, Image *bounds);
+
+/// neighbour_max_reach of `tiles` into `nmax` and neighbour_bounds_reach of `bounds` into
+/// `nbounds` (either may be null; `bounds` only with `nbounds`) in one pass over the windows.
+void neighbour_reach(const Image &tiles,
+                     const Image *bounds,
+                     int tile,
+                     int margin,
+                     int radius,
+                     Image *nmax,
+                     Image *nbounds);
+
 /// The bounding box of each tile's vectors (channels `first`, `first` + 1 of `field`): 4
 /// channels, min x, min y, max x, max y. Non-finite vectors count as zero.
 Image tile_bounds(const Image &field, int tile, int first = 0);
