@@ -20,6 +20,7 @@
 #include <mutex>
 #include <new>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "core/hash.h"
@@ -170,6 +171,9 @@ struct Packed {
     /// Per row: every alpha is exactly 1 (RGBA colour). A frame opaque everywhere blurs to
     /// alpha 1, and the gather does not sum its alpha plane.
     std::vector<unsigned char> opaque_rows;
+    /// Tile max and tile bounds of the velocities (tiles.h), when the pack reduced them
+    /// (AVX2, tiles a multiple of 8 wide); else empty.
+    Image tiles, bounds;
 
     float *plane(int field) const { return block.get() + std::size_t(field) * stride; }
 };
@@ -334,10 +338,134 @@ POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
     // The tail through the scalar arithmetic.
     return p.pixels(y, x, p.w) && opaque;
 }
+
+/// Per tile of a band, eight lanes of tile_max_bounds: the longest vector so far (length^2,
+/// x, y, and its scan index in the tile, for ties) and the box.
+struct TileAcc8 {
+    V l, x, y, lo_x, lo_y, hi_x, hi_y;
+    VI i;
+};
+
+// The lengths compare exactly as in tile_max_bounds (compiled without FMA): no contraction.
+#pragma GCC push_options
+#pragma GCC optimize("fp-contract=off")
+/// Folds row y (the band's row `r`) of the velocities into the band's tiles (tile a multiple
+/// of 8).
+POSTHASTE_AVX2 void reduce_row_avx2(const Image &velocity, int y, int r, int tile, TileAcc8 *acc)
+{
+    const int w = velocity.width(), tw = (w + tile - 1) / tile;
+    const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+    const float *vel = velocity.pixel(0, y);
+    for (int tx = 0; tx < tw; ++tx) {
+        TileAcc8 &a = acc[tx];
+        const int x0 = tx * tile, x1 = std::min(w, x0 + tile);
+        for (int x = x0; x < x1; x += 8) {
+            __m256 vx, vy;
+            VI valid = _mm256_set1_epi32(-1);
+            if (x + 8 <= w) {
+                const __m256 p0 = _mm256_loadu_ps(vel + 2 * x), p1 = _mm256_loadu_ps(vel + 2 * x + 8);
+                vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
+                    _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(2, 0, 2, 0))),
+                    _MM_SHUFFLE(3, 1, 2, 0)));
+                vy = _mm256_castpd_ps(_mm256_permute4x64_pd(
+                    _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(3, 1, 3, 1))),
+                    _MM_SHUFFLE(3, 1, 2, 0)));
+            } else {
+                // The row's end: lanes past it repeat its last pixel and are masked out.
+                const VI xc = _mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane),
+                                               _mm256_set1_epi32(w - 1));
+                const VI two = _mm256_slli_epi32(xc, 1);
+                vx = _mm256_i32gather_ps(vel, two, 4);
+                vy = _mm256_i32gather_ps(vel + 1, two, 4);
+                valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(w - x), lane);
+            }
+            const __m256 l = _mm256_add_ps(_mm256_mul_ps(vx, vx), _mm256_mul_ps(vy, vy));
+            const VI idx = _mm256_add_epi32(_mm256_set1_epi32(r * tile + (x - x0)), lane);
+            const __m256 ok = _mm256_castsi256_ps(valid);
+            const __m256 gt = _mm256_and_ps(
+                _mm256_and_ps(_mm256_cmp_ps(l, a.l, _CMP_GT_OQ), _mm256_cmp_ps(l, inf, _CMP_LT_OQ)),
+                ok);
+            a.l = _mm256_blendv_ps(a.l, l, gt);
+            a.x = _mm256_blendv_ps(a.x, vx, gt);
+            a.y = _mm256_blendv_ps(a.y, vy, gt);
+            a.i = _mm256_castps_si256(
+                _mm256_blendv_ps(_mm256_castsi256_ps(a.i), _mm256_castsi256_ps(idx), gt));
+            a.lo_x = _mm256_blendv_ps(a.lo_x, _mm256_min_ps(a.lo_x, vx), ok);
+            a.lo_y = _mm256_blendv_ps(a.lo_y, _mm256_min_ps(a.lo_y, vy), ok);
+            a.hi_x = _mm256_blendv_ps(a.hi_x, _mm256_max_ps(a.hi_x, vx), ok);
+            a.hi_y = _mm256_blendv_ps(a.hi_y, _mm256_max_ps(a.hi_y, vy), ok);
+        }
+    }
+}
+#pragma GCC pop_options
+
+/// The band's tiles from their lanes: the longest vector (the first in scan order among equals)
+/// and the box.
+POSTHASTE_AVX2 void finish_tiles_avx2(const TileAcc8 *acc, int tw, int ty, Image &tiles, Image &bounds)
+{
+    for (int tx = 0; tx < tw; ++tx) {
+        alignas(32) float l[8], vx[8], vy[8], b[4][8];
+        alignas(32) std::int32_t i[8];
+        _mm256_store_ps(l, acc[tx].l);
+        _mm256_store_ps(vx, acc[tx].x);
+        _mm256_store_ps(vy, acc[tx].y);
+        _mm256_store_si256(reinterpret_cast<VI *>(i), acc[tx].i);
+        _mm256_store_ps(b[0], acc[tx].lo_x);
+        _mm256_store_ps(b[1], acc[tx].lo_y);
+        _mm256_store_ps(b[2], acc[tx].hi_x);
+        _mm256_store_ps(b[3], acc[tx].hi_y);
+        int best = 0;
+        for (int j = 1; j < 8; ++j) {
+            if (l[j] > l[best] || (l[j] == l[best] && i[j] < i[best])) {
+                best = j;
+            }
+        }
+        tiles.at(tx, ty, 0) = vx[best];
+        tiles.at(tx, ty, 1) = vy[best];
+        if (!bounds.empty()) {
+            float *o = bounds.pixel(tx, ty);
+            o[0] = *std::min_element(b[0], b[0] + 8);
+            o[1] = *std::min_element(b[1], b[1] + 8);
+            o[2] = *std::max_element(b[2], b[2] + 8);
+            o[3] = *std::max_element(b[3], b[3] + 8);
+        }
+    }
+}
+
+/// pack_row_avx2 for the rows of tile band ty, folding each row into the band's tile max and
+/// bounds while it is in cache (instead of a second pass over the velocities).
+POSTHASTE_AVX2 void pack_band_avx2(const Packer &p, int ty, int tile, Packed &out)
+{
+    const int tw = out.tiles.width();
+    // 32-byte aligned accumulators (std::vector's storage was found 16-byte aligned here).
+    std::vector<unsigned char> storage(std::size_t(tw) * sizeof(TileAcc8) + 32);
+    TileAcc8 *const acc = reinterpret_cast<TileAcc8 *>(
+        (reinterpret_cast<std::uintptr_t>(storage.data()) + 31) & ~std::uintptr_t(31));
+    const V inf = set1(kInf);
+    for (int tx = 0; tx < tw; ++tx) {
+        TileAcc8 &a = *new (acc + tx) TileAcc8;
+        a.l = a.x = a.y = _mm256_setzero_ps();
+        a.i = _mm256_set1_epi32(std::numeric_limits<std::int32_t>::max());
+        a.lo_x = a.lo_y = inf;
+        a.hi_x = a.hi_y = _mm256_sub_ps(_mm256_setzero_ps(), inf);
+    }
+    const int y0 = ty * tile, y1 = std::min(p.motion.height(), y0 + tile);
+    for (int y = y0; y < y1; ++y) {
+        out.opaque_rows[std::size_t(y)] = pack_row_avx2(p, y);
+        reduce_row_avx2(out.velocity, y, y - y0, tile, acc);
+    }
+    finish_tiles_avx2(acc, tw, ty, out.tiles, out.bounds);
+}
 #endif
 
-Packed pack(
-    const Image &color, const Image &motion, const Image &depth, const MotionBlurOptions &o, bool vector)
+/// The records of a frame; with `bounds`, also the tile bounds (else only the tile max).
+Packed pack(const Image &color,
+            const Image &motion,
+            const Image &depth,
+            const MotionBlurOptions &o,
+            bool vector,
+            bool bounds)
 {
     const int w = motion.width(), h = motion.height();
     const std::size_t n = std::size_t(w) * std::size_t(h);
@@ -345,7 +473,9 @@ Packed pack(
     Packed out{scratch<float>(stride * kFields),
                stride,
                Image::uninitialized(w, h, 2),
-               std::vector<unsigned char>(std::size_t(h), 0)};
+               std::vector<unsigned char>(std::size_t(h), 0),
+               Image(),
+               Image()};
     const Packer p{color,
                    motion,
                    depth,
@@ -355,6 +485,15 @@ Packed pack(
                    0.5f * o.shutter,
                    std::max(o.max_radius, 0.0f)};
 #if POSTHASTE_HAVE_AVX2_TARGET
+    if (vector && o.tile % 8 == 0) {
+        const int tw = (w + o.tile - 1) / o.tile, th = (h + o.tile - 1) / o.tile;
+        out.tiles = Image(tw, th, 2);
+        if (bounds) {
+            out.bounds = Image(tw, th, 4);
+        }
+        parallel_for(0, th, [&](int ty) { pack_band_avx2(p, ty, o.tile, out); });
+        return out;
+    }
     if (vector) {
         parallel_for(0, h, [&](int y) { out.opaque_rows[std::size_t(y)] = pack_row_avx2(p, y); });
         return out;
@@ -1511,15 +1650,17 @@ Image motion_blur(const Image &color,
     // The AVX2 rows address the colour records with 32-bit offsets.
     const bool vector =
         simd::avx2() && std::size_t(w) * std::size_t(h) * 4 < (std::size_t(1) << 31);
-    const Packed packed = pack(color, motion, depth, o, vector);
+    const bool want_bounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct;
+    Packed packed = pack(color, motion, depth, o, vector, want_bounds);
     st.pack_ms = ms_since(t0);
     st.pack_cpu_ms = process_cpu_ms() - c0;
 
     t0 = std::chrono::steady_clock::now();
     c0 = process_cpu_ms();
-    const bool want_bounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct;
-    Image tiles, bounds;
-    tile_max_bounds(packed.velocity, o.tile, 0, &tiles, want_bounds ? &bounds : nullptr);
+    Image tiles = std::move(packed.tiles), bounds = std::move(packed.bounds);
+    if (tiles.empty()) {
+        tile_max_bounds(packed.velocity, o.tile, 0, &tiles, want_bounds ? &bounds : nullptr);
+    }
     st.tile_max_ms = ms_since(t0);
     st.tile_max_cpu_ms = process_cpu_ms() - c0;
 
