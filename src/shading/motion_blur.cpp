@@ -675,11 +675,13 @@ struct Gather {
         p.cvy = velocity.at(x, y, 1);
         p.clen = std::sqrt(p.cvx * p.cvx + p.cvy * p.cvy);
         p.own = p.clen >= 0.5f;
-        const float dcx = p.own ? p.cvx / p.clen : 0.0f, dcy = p.own ? p.cvy / p.clen : 0.0f;
+        // One division for the direction and the own weight.
+        const float inv_len = p.own ? 1.0f / p.clen : 0.0f;
+        const float dcx = p.cvx * inv_len, dcy = p.cvy * inv_len;
         // Does the pixel's own path share the neighbour-max samples? Only if it is aligned
         // with them and long enough for their spacing; else it gets samples of its own.
         p.shared = p.own && std::abs(dcx * l.dx + dcy * l.dy) > 0.9f && p.clen >= 0.5f * l.len;
-        p.inv_own = p.own ? 1.0f / (2.0f * p.clen) : 0.0f;
+        p.inv_own = 0.5f * inv_len;
         p.vx = l.vx;
         p.vy = l.vy;
         p.len = l.len;
@@ -1408,14 +1410,14 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
     p.clen =
         _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(p.cvx, p.cvx), _mm256_mul_ps(p.cvy, p.cvy)));
     p.own = _mm256_cmp_ps(p.clen, half, _CMP_GE_OQ);
-    const V dcx = _mm256_and_ps(_mm256_div_ps(p.cvx, p.clen), p.own);
-    const V dcy = _mm256_and_ps(_mm256_div_ps(p.cvy, p.clen), p.own);
+    // One division for the direction and the own weight.
+    const V inv_len = _mm256_and_ps(_mm256_div_ps(set1(1.0f), p.clen), p.own);
+    const V dcx = _mm256_mul_ps(p.cvx, inv_len), dcy = _mm256_mul_ps(p.cvy, inv_len);
     const V ldx = set1(l.dx), ldy = set1(l.dy), llen = set1(l.len);
     const V cosine = abs8(_mm256_add_ps(_mm256_mul_ps(dcx, ldx), _mm256_mul_ps(dcy, ldy)));
     p.shared = _mm256_and_ps(_mm256_and_ps(p.own, _mm256_cmp_ps(cosine, set1(0.9f), _CMP_GT_OQ)),
                              _mm256_cmp_ps(p.clen, _mm256_mul_ps(half, llen), _CMP_GE_OQ));
-    p.inv_own =
-        _mm256_and_ps(_mm256_div_ps(set1(1.0f), _mm256_mul_ps(set1(2.0f), p.clen)), p.own);
+    p.inv_own = _mm256_mul_ps(half, inv_len);
     p.dx = _mm256_blendv_ps(ldx, dcx, p.shared);
     p.dy = _mm256_blendv_ps(ldy, dcy, p.shared);
     p.vx = _mm256_blendv_ps(set1(l.vx), _mm256_mul_ps(dcx, llen), p.shared);
