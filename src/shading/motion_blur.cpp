@@ -1730,23 +1730,23 @@ Image motion_blur(const Image &color,
         }
         return 0;
     };
-    // One band of tiles a task, swept a whole row at a time (each tile's row segment by its
-    // kind): the rows' records, velocities and output are then read and written in order,
-    // which the hardware prefetchers follow; tile by tile, every 8-pixel group began with a
-    // cache miss on a new row (measured: a third of the coherent path's time).
+    // One band of tiles a task, swept in rows of a few hundred pixels (each tile's row segment
+    // by its kind): the rows' records, velocities and output are then read and written in
+    // order, which the hardware prefetchers follow; tile by tile, every 8-pixel group began
+    // with a cache miss on a new row (measured: a third of the coherent path's time).
     parallel_for(0, nt_y, [&](int ty) {
         unsigned char *band = &kind[std::size_t(ty) * std::size_t(nt_x)];
         for (int tx = 0; tx < nt_x; ++tx) {
             band[tx] = classify(tx, ty);
         }
         const int y0 = ty * o.tile, y1 = std::min(h, y0 + o.tile);
-        // Neighbouring tiles of one kind form one row segment when groups of 8 tile them
-        // (the groups are the same; longer segments let a row plan ahead).
-        const bool merge = o.tile % 8 == 0;
-        for (int y = y0; y < y1; ++y) {
-            for (int tx = 0, tn = 1; tx < nt_x; tx += tn) {
+        // Row y of tiles [c0, c1) of the band. Neighbouring tiles of one kind form one row
+        // segment when groups of 8 tile them (the groups are the same; longer segments let a
+        // row plan ahead).
+        const auto sweep = [&](int y, int c0, int c1, bool merge) {
+            for (int tx = c0, tn = 1; tx < c1; tx += tn) {
                 tn = 1;
-                while (merge && tx + tn < nt_x && band[tx + tn] == band[tx]) {
+                while (merge && tx + tn < c1 && band[tx + tn] == band[tx]) {
                     ++tn;
                 }
                 const int x0 = tx * o.tile, x1 = std::min(w, (tx + tn) * o.tile);
@@ -1776,6 +1776,18 @@ Image motion_blur(const Image &color,
                         g.reconstruct(out, x, cnt, y);
                     }
                 }
+            }
+        };
+        const bool merge = o.tile % 8 == 0;
+        // The band is swept in columns of about 256 px, all its rows one column at a time:
+        // consecutive rows then read mostly the same sample lines, which stay in L2 (a whole
+        // row's samples, about 2 MB on the fast translation, did not). Measured, f6: 16 tiles
+        // 33.8 ms, 8 tiles 34.5, 32 tiles 34.8, whole rows 37.2.
+        const int chunk = std::max(1, 256 / o.tile);
+        for (int c0 = 0; c0 < nt_x; c0 += chunk) {
+            const int c1 = std::min(nt_x, c0 + chunk);
+            for (int y = y0; y < y1; ++y) {
+                sweep(y, c0, c1, merge);
             }
         }
     });
