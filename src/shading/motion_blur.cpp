@@ -895,14 +895,15 @@ struct Gather {
     }
 
     /// The reconstruction of the group of cnt pixels from (x0, y).
-    void reconstruct(Image &out, int x0, int cnt, int y) const
+    /// Returns whether the group shared a run.
+    bool reconstruct(Image &out, int x0, int cnt, int y) const
     {
         const Lookup l = lookup(x0, y);
         if (l.len < 0.5f) {
             for (int j = 0; j < cnt; ++j) {
                 copy_pixel(out, x0 + j, y);
             }
-            return;
+            return false;
         }
         Lane p[8];
         float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf;
@@ -916,11 +917,12 @@ struct Gather {
         const Run r = run(lo_x, hi_x, lo_y, hi_y);
         if (r.ok) {
             reconstruct_run(out, x0, cnt, y, p, r);
-            return;
+            return true;
         }
         for (int j = 0; j < cnt; ++j) {
             reconstruct_lane(out, x0 + j, y, p[j]);
         }
+        return false;
     }
 
     /// The uniform blur along the pixel's own motion.
@@ -950,8 +952,8 @@ struct Gather {
 
     /// The uniform blur of the group of cnt pixels from (x0, y); `runs`: where their motions
     /// agree, one shared run (the coherent tiles of the reconstruction; the Uniform method,
-    /// the seeds' baseline, samples per pixel).
-    void uniform(Image &out, int x0, int cnt, int y, bool runs) const
+    /// the seeds' baseline, samples per pixel). Returns whether the group shared a run.
+    bool uniform(Image &out, int x0, int cnt, int y, bool runs) const
     {
         float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf, shortest = kInf;
         for (int j = 0; j < cnt && runs; ++j) {
@@ -967,7 +969,7 @@ struct Gather {
             for (int j = 0; j < cnt; ++j) {
                 uniform_lane(out, x0 + j, y);
             }
-            return;
+            return false;
         }
         const float step = 2.0f / float(r.n);
         const float u = hash_unit(x0, y, 0, o.seed);
@@ -988,6 +990,7 @@ struct Gather {
                 po[k] = acc[j][k] / float(r.n);
             }
         }
+        return true;
     }
 };
 
@@ -1516,9 +1519,11 @@ POSTHASTE_AVX2_INLINE void run8(const Gather &g, Image &out, int y, const Plan8 
     finish8(g, out, x, y, pl.lanes, p, F, B, fg, bg, own_weight);
 }
 
-/// Gather::reconstruct for the groups of pixels [x0, x1) of row y.
-POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
+/// Gather::reconstruct for the groups of pixels [x0, x1) of row y; returns how many shared a
+/// run.
+POSTHASTE_AVX2 int reconstruct_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
 {
+    int shared = 0;
     const Frame8 fr{set1(0.0f),
                     set1(float(y) + 0.5f),
                     set1(float(g.w) - 0.5f),
@@ -1540,6 +1545,7 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
                 g.copy_pixel(out, x + j, y);
             }
         } else if (pl.r.ok) {
+            ++shared;
             if (g.opaque) {
                 run8<3>(g, out, y, pl, fr);
             } else {
@@ -1549,11 +1555,13 @@ POSTHASTE_AVX2 void reconstruct_row_avx2(const Gather &g, Image &out, int y, int
             lanes8(g, out, x, y, pl.lanes, pl.p, fr, ky0);
         }
     }
+    return shared;
 }
 
-/// Gather::uniform for the groups of pixels [x0, x1) of row y.
-POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0, int x1, bool runs)
+/// Gather::uniform for the groups of pixels [x0, x1) of row y; returns how many shared a run.
+POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, int x1, bool runs)
 {
+    int shared = 0;
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     const Frame8 fr{set1(0.0f),
                     set1(float(y) + 0.5f),
@@ -1604,6 +1612,7 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
                     acc[k] = k < kc ? _mm256_div_ps(acc[k], vn) : set1(1.0f);
                 }
                 store8(g, out, x, y, lanes, acc, all);
+                ++shared;
                 continue;
             }
         }
@@ -1630,10 +1639,31 @@ POSTHASTE_AVX2 void uniform_row_avx2(const Gather &g, Image &out, int y, int x0,
         }
         store8(g, out, x, y, lanes, acc, moving);
     }
+    return shared;
 }
 #endif
 
 }  // namespace
+
+void motion_blur_tiles(const Image &color,
+                       const Image &motion,
+                       const Image &depth,
+                       const MotionBlurOptions &options,
+                       Image &tiles,
+                       Image &bounds)
+{
+    MotionBlurOptions o = options;
+    o.tile = std::max(o.tile, 1);
+    const bool vector = simd::avx2() &&
+                        std::size_t(color.width()) * std::size_t(color.height()) * 4 <
+                            (std::size_t(1) << 31);
+    Packed packed = pack(color, motion, depth, o, vector, true);
+    tiles = std::move(packed.tiles);
+    bounds = std::move(packed.bounds);
+    if (tiles.empty()) {
+        tile_max_bounds(packed.velocity, o.tile, 0, &tiles, &bounds);
+    }
+}
 
 Image motion_blur(const Image &color,
                   const Image &motion,
@@ -1649,7 +1679,7 @@ Image motion_blur(const Image &color,
     MotionBlurStats st;
     auto t0 = std::chrono::steady_clock::now();
     double c0 = process_cpu_ms();
-    // The AVX2 rows address the colour records with 32-bit offsets.
+    // The AVX2 rows gather records with 32-bit offsets.
     const bool vector =
         simd::avx2() && std::size_t(w) * std::size_t(h) * 4 < (std::size_t(1) << 31);
     const bool want_bounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct;
@@ -1698,6 +1728,8 @@ Image motion_blur(const Image &color,
     const int nt_x = nmax.width(), nt_y = nmax.height();
     // Per tile: 1 copied, 2 coherent (uniform path), 0 reconstructed.
     std::vector<unsigned char> kind(std::size_t(nt_x) * std::size_t(nt_y), 0);
+    // Per band: the 8-pixel groups gathered, and how many of them shared a run.
+    std::vector<long> groups(std::size_t(nt_y), 0), shared_groups(std::size_t(nt_y), 0);
     const auto classify = [&](int tx, int ty) -> unsigned char {
         // Copy a tile outright when no lookup its jitter can reach sees half a pixel of motion
         // (the Uniform method reads the tile max, its own pixels' longest).
@@ -1758,23 +1790,22 @@ Image motion_blur(const Image &color,
                 }
                 const bool coherent = band[tx] == 2;
                 const bool uniform = o.method == BlurMethod::Uniform || coherent;
+                // Groups of 8 from each tile's left edge.
+                for (int t = tx; t < tx + tn; ++t) {
+                    groups[std::size_t(ty)] += (std::min(w, (t + 1) * o.tile) - t * o.tile + 7) / 8;
+                }
 #if POSTHASTE_HAVE_AVX2_TARGET
                 if (vector) {
-                    if (uniform) {
-                        uniform_row_avx2(g, out, y, x0, x1, coherent);
-                    } else {
-                        reconstruct_row_avx2(g, out, y, x0, x1);
-                    }
+                    shared_groups[std::size_t(ty)] +=
+                        uniform ? uniform_row_avx2(g, out, y, x0, x1, coherent)
+                                : reconstruct_row_avx2(g, out, y, x0, x1);
                     continue;
                 }
 #endif
                 for (int x = x0; x < x1; x += 8) {
                     const int cnt = std::min(8, x1 - x);
-                    if (uniform) {
-                        g.uniform(out, x, cnt, y, coherent);
-                    } else {
-                        g.reconstruct(out, x, cnt, y);
-                    }
+                    shared_groups[std::size_t(ty)] += uniform ? g.uniform(out, x, cnt, y, coherent)
+                                                              : g.reconstruct(out, x, cnt, y);
                 }
             }
         };
@@ -1797,6 +1828,10 @@ Image motion_blur(const Image &color,
     for (unsigned char k : kind) {
         st.tiles_copied += k == 1;
         st.tiles_coherent += k == 2;
+    }
+    for (int ty = 0; ty < nt_y; ++ty) {
+        st.groups += groups[std::size_t(ty)];
+        st.groups_shared += shared_groups[std::size_t(ty)];
     }
     if (stats) {
         *stats = st;

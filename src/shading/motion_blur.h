@@ -43,6 +43,8 @@ struct MotionBlurStats {
     double pack_cpu_ms = 0.0, tile_max_cpu_ms = 0.0, neighbour_max_cpu_ms = 0.0,
            gather_cpu_ms = 0.0;
     int tiles_copied = 0, tiles_coherent = 0, tiles_total = 0;
+    /// 8-pixel groups gathered (outside copied tiles), and how many shared a run of samples.
+    long groups = 0, groups_shared = 0;
 };
 
 /// Blur `color` (1-4 channels) along `motion` (>= 2 channels, pixels from the previous frame to
@@ -55,5 +57,15 @@ Image motion_blur(const Image &color,
                   const Image &depth,
                   const MotionBlurOptions &options,
                   MotionBlurStats *stats = nullptr);
+
+/// The tile max and tile bounds (shading/tiles.h) of the clamped half-extent vectors
+/// (motion x shutter / 2, at most max_radius long), as motion_blur computes them (the AVX2 path
+/// folds them into its pack); for tests.
+void motion_blur_tiles(const Image &color,
+                       const Image &motion,
+                       const Image &depth,
+                       const MotionBlurOptions &options,
+                       Image &tiles,
+                       Image &bounds);
 
 }  // namespace posthaste::shading
