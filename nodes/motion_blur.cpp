@@ -51,6 +51,14 @@ constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.1)
                                          "Tiles whose reachable motion vectors differ by at most "
                                          "this fraction of the longest take "
                                          "the cheaper uniform path (0: never).");
+constexpr ParamSpec kGroupTolerance =
+    ParamSpec::real("group_tolerance", 0.5)
+        .range(0.0, 4.0)
+        .units("px")
+        .doc(
+            "Eight adjacent pixels share their sample positions where the paths they sample "
+            "agree within this many pixels (a sample moves by at most this much; much faster). "
+            "0: every pixel samples on its own.");
 constexpr ParamSpec kMotionPass = ParamSpec::string("motion_pass", "motion")
                                       .doc(
                                           "Pass holding the motion (pixels from the previous frame "
@@ -73,6 +81,7 @@ constexpr ParamSpec kParams[] = {kShutter,
                                  kSoftZ,
                                  kTileJitter,
                                  kCoherence,
+                                 kGroupTolerance,
                                  kMotionPass,
                                  kSource,
                                  kMethod,
@@ -138,6 +147,7 @@ void execute(NodeContext &ctx)
     o.soft_z = ctx.get_float(kSoftZ);
     o.tile_jitter = ctx.get_float(kTileJitter);
     o.coherence = ctx.get_float(kCoherence);
+    o.group_tolerance = ctx.get_float(kGroupTolerance);
     o.seed = std::uint32_t(ctx.get_int(kSeed));
     Image out = shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());

@@ -2,12 +2,14 @@
 // frame (6: every pixel moves) and fast-turn frame (20), beside baselines in the same run:
 // copying the color pass, and the uniform blur along each pixel's motion (the seeds' method).
 // Counters: per-stage wall and process-CPU milliseconds of the last iteration (pack, tile max,
-// neighbour max, gather), tiles copied / coherent, and process CPU ms per iteration (all
-// threads; on a shared machine wall time also counts waiting for a core).
+// neighbour max, gather), tiles copied / coherent, 8-pixel groups and how many shared a run,
+// and process CPU ms per iteration (all threads; on a shared machine wall time also counts
+// waiting for a core).
 //   build/tests/posthaste_benchmarks --benchmark_filter=MotionBlur
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <ctime>
 #include <map>
 #include <string>
@@ -60,6 +62,8 @@ void run_blur(benchmark::State &state, BlurMethod method)
     state.counters["tile_max_cpu_ms"] = st.tile_max_cpu_ms;
     state.counters["neighbour_max_cpu_ms"] = st.neighbour_max_cpu_ms;
     state.counters["gather_cpu_ms"] = st.gather_cpu_ms;
+    state.counters["groups"] = double(st.groups);
+    state.counters["groups_shared"] = double(st.groups_shared);
     state.counters["tiles_copied"] = st.tiles_copied;
     state.counters["tiles_coherent"] = st.tiles_coherent;
     state.counters["tiles"] = st.tiles_total;
@@ -124,6 +128,29 @@ BENCHMARK(BM_MotionBlurReconstructSamples)
     ->Arg(4)
     ->Arg(8)
     ->Arg(32)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+// Shared runs on frame 6: group_tolerance 0 (every pixel samples on its own), 0.25, 0.5
+// (default), 1 px; the argument is hundredths of a pixel.
+void BM_MotionBlurReconstructTolerance(benchmark::State &state)
+{
+    const Frame &f = input_frame(6);
+    MotionBlurOptions o;
+    o.shutter = f.camera.shutter.value_or(0.5f);
+    o.group_tolerance = float(state.range(0)) / 100.0f;
+    MotionBlurStats st;
+    const double cpu0 = process_cpu_ms();
+    for (auto _ : state) {
+        Image out = motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o, &st);
+        benchmark::DoNotOptimize(out.data());
+    }
+    state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
+    state.counters["groups_shared"] = double(st.groups_shared) / double(std::max(st.groups, 1L));
+}
+BENCHMARK(BM_MotionBlurReconstructTolerance)
+    ->Arg(0)
+    ->Arg(25)
+    ->Arg(100)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK(BM_MotionBlurCameraMotion)->Arg(6)->Unit(benchmark::kMillisecond)->UseRealTime();
