@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
@@ -19,7 +20,6 @@
 #include <memory>
 #include <mutex>
 #include <new>
-#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -262,9 +262,11 @@ POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
         if (p.motion.channels() == 2) {
             const V a = _mm256_loadu_ps(m), b = _mm256_loadu_ps(m + 8);
             vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
-                _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))), _MM_SHUFFLE(3, 1, 2, 0)));
+                _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))),
+                _MM_SHUFFLE(3, 1, 2, 0)));
             vy = _mm256_castpd_ps(_mm256_permute4x64_pd(
-                _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))), _MM_SHUFFLE(3, 1, 2, 0)));
+                _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))),
+                _MM_SHUFFLE(3, 1, 2, 0)));
         } else {
             vx = _mm256_i32gather_ps(m, mstride, 4);
             vy = _mm256_i32gather_ps(m + 1, mstride, 4);
@@ -305,8 +307,10 @@ POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
             // Eight RGBA pixels: four loads and a 4x4 transpose per 128-bit half.
             const V a0 = _mm256_loadu_ps(c), a1 = _mm256_loadu_ps(c + 8);
             const V a2 = _mm256_loadu_ps(c + 16), a3 = _mm256_loadu_ps(c + 24);
-            const V r0 = _mm256_permute2f128_ps(a0, a2, 0x20), r1 = _mm256_permute2f128_ps(a0, a2, 0x31);
-            const V r2 = _mm256_permute2f128_ps(a1, a3, 0x20), r3 = _mm256_permute2f128_ps(a1, a3, 0x31);
+            const V r0 = _mm256_permute2f128_ps(a0, a2, 0x20),
+                    r1 = _mm256_permute2f128_ps(a0, a2, 0x31);
+            const V r2 = _mm256_permute2f128_ps(a1, a3, 0x20),
+                    r3 = _mm256_permute2f128_ps(a1, a3, 0x31);
             // r0 = pixels (0, 4), r1 = (1, 5), r2 = (2, 6), r3 = (3, 7).
             const V t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpacklo_ps(r2, r3);
             const V t2 = _mm256_unpackhi_ps(r0, r1), t3 = _mm256_unpackhi_ps(r2, r3);
@@ -317,7 +321,8 @@ POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
             for (int k = 0; k < 4; ++k) {
                 _mm256_storeu_ps(p.out.plane(kRed + k) + i0, ch[k]);
             }
-            opaque = opaque && _mm256_movemask_ps(_mm256_cmp_ps(ch[3], set1(1.0f), _CMP_EQ_OQ)) == 0xff;
+            opaque =
+                opaque && _mm256_movemask_ps(_mm256_cmp_ps(ch[3], set1(1.0f), _CMP_EQ_OQ)) == 0xff;
         } else {
             for (int k = 0; k < 4; ++k) {
                 _mm256_storeu_ps(p.out.plane(kRed + k) + i0,
@@ -364,7 +369,8 @@ POSTHASTE_AVX2 void reduce_row_avx2(const Image &velocity, int y, int r, int til
             __m256 vx, vy;
             VI valid = _mm256_set1_epi32(-1);
             if (x + 8 <= w) {
-                const __m256 p0 = _mm256_loadu_ps(vel + 2 * x), p1 = _mm256_loadu_ps(vel + 2 * x + 8);
+                const __m256 p0 = _mm256_loadu_ps(vel + 2 * x),
+                             p1 = _mm256_loadu_ps(vel + 2 * x + 8);
                 vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
                     _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(2, 0, 2, 0))),
                     _MM_SHUFFLE(3, 1, 2, 0)));
@@ -402,7 +408,8 @@ POSTHASTE_AVX2 void reduce_row_avx2(const Image &velocity, int y, int r, int til
 
 /// The band's tiles from their lanes: the longest vector (the first in scan order among equals)
 /// and the box.
-POSTHASTE_AVX2 void finish_tiles_avx2(const TileAcc8 *acc, int tw, int ty, Image &tiles, Image &bounds)
+POSTHASTE_AVX2 void finish_tiles_avx2(
+    const TileAcc8 *acc, int tw, int ty, Image &tiles, Image &bounds)
 {
     for (int tx = 0; tx < tw; ++tx) {
         alignas(32) float l[8], vx[8], vy[8], b[4][8];
@@ -568,9 +575,9 @@ struct Gather {
                                          [](unsigned char r) { return r != 0; })),
           tiles(std::size_t(nmax_.width()) * std::size_t(nmax_.height())),
           // At most one tile either way: the neighbour max's margin (NaN or negative: none).
-          jitter_q(o_.tile_jitter > 0.0f
-                       ? std::int64_t(std::min(2.0f * o_.tile_jitter, 2.0f) * float(o_.tile) * 256.0f)
-                       : 0),
+          jitter_q(o_.tile_jitter > 0.0f ? std::int64_t(std::min(2.0f * o_.tile_jitter, 2.0f) *
+                                                        float(o_.tile) * 256.0f)
+                                         : 0),
           seed1(pcg_hash(1u ^ pcg_hash(o_.seed)))
     {
         for (int k = 0; k < kFields; ++k) {
@@ -633,8 +640,7 @@ struct Gather {
     {
         const std::uint32_t hj = pcg_hash(std::uint32_t(x0) ^ pcg_hash(std::uint32_t(y) ^ seed1));
         const std::int64_t jx = ((std::int64_t(hj >> 8) * jitter_q) >> 24) - jitter_q / 2;
-        const std::int64_t jy =
-            ((std::int64_t(pcg_hash(hj) >> 8) * jitter_q) >> 24) - jitter_q / 2;
+        const std::int64_t jy = ((std::int64_t(pcg_hash(hj) >> 8) * jitter_q) >> 24) - jitter_q / 2;
         const std::int64_t span = std::int64_t(o.tile) * 256;
         const std::int64_t px = (std::int64_t(x0) + 4) * 256 + jx;
         const std::int64_t py = std::int64_t(y) * 256 + 128 + jy;
@@ -784,8 +790,8 @@ struct Gather {
             const float fr = front(f[kLogZ][s], clz, inv_soft);
             // Coverage of X by Y: Y's reach along the sampled line, time density along the
             // line |dot(vY, d)| / |vY| / (2 |vY|) (zero for Y slower than half a pixel).
-            const float wf = fr * reach(T, f[kLen][s]) *
-                             std::abs(f[kWx][s] * p.dx + f[kWy][s] * p.dy) * delta;
+            const float wf =
+                fr * reach(T, f[kLen][s]) * std::abs(f[kWx][s] * p.dx + f[kWy][s] * p.dy) * delta;
             // X's own surface along its own path (shared samples).
             const float wb = (1.0f - fr) * reach(T, p.clen) * own_w;
             F += wf;
@@ -964,7 +970,8 @@ struct Gather {
             lo_y = std::min(lo_y, vy);
             hi_y = std::max(hi_y, vy);
         }
-        const Run r = runs && shortest >= 0.5f ? run(lo_x, hi_x, lo_y, hi_y) : Run{0, 0, 0, 0, 0, 1, 0};
+        const Run r =
+            runs && shortest >= 0.5f ? run(lo_x, hi_x, lo_y, hi_y) : Run{0, 0, 0, 0, 0, 1, 0};
         if (!r.ok) {
             for (int j = 0; j < cnt; ++j) {
                 uniform_lane(out, x0 + j, y);
@@ -1042,7 +1049,8 @@ POSTHASTE_AVX2_INLINE float max_lane_f(V x)
     return _mm_cvtss_f32(m);
 }
 /// The bounding box of the (vx, vy) lanes in `mask`.
-POSTHASTE_AVX2_INLINE void bounds8(V vx, V vy, V mask, float &lo_x, float &hi_x, float &lo_y, float &hi_y)
+POSTHASTE_AVX2_INLINE void bounds8(
+    V vx, V vy, V mask, float &lo_x, float &hi_x, float &lo_y, float &hi_y)
 {
     const V inf = set1(kInf), ninf = set1(-kInf);
     lo_x = min_lane(_mm256_blendv_ps(inf, vx, mask));
@@ -1106,8 +1114,16 @@ constexpr int kTabulated = 32;
 /// Gather::run_origin for samples t_i = -1 + (i + u) step, i < n <= kTabulated, eight at a
 /// time: first columns (unclamped) and row offsets (clamped row x width). Tabulated in the
 /// plan, a sample's loads no longer wait on its chain of float-to-int conversions.
-POSTHASTE_AVX2_INLINE void origins8(
-    const Gather &g, int x0, int y, float u, float step, float vx, float vy, int n, std::int32_t *bx, std::int32_t *row)
+POSTHASTE_AVX2_INLINE void origins8(const Gather &g,
+                                    int x0,
+                                    int y,
+                                    float u,
+                                    float step,
+                                    float vx,
+                                    float vy,
+                                    int n,
+                                    std::int32_t *bx,
+                                    std::int32_t *row)
 {
     const V lanef = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
     const V ox = set1(float(x0) + 0.5f), oy = set1(float(y) + 0.5f);
@@ -1116,7 +1132,8 @@ POSTHASTE_AVX2_INLINE void origins8(
             _mm256_add_ps(_mm256_add_ps(set1(float(i)), lanef), set1(u)), set1(step), set1(-1.0f));
         const VI cx = _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_fmadd_ps(t, set1(vx), ox)));
         VI cy = _mm256_cvttps_epi32(_mm256_floor_ps(_mm256_fmadd_ps(t, set1(vy), oy)));
-        cy = _mm256_min_epi32(_mm256_max_epi32(cy, _mm256_setzero_si256()), _mm256_set1_epi32(g.h - 1));
+        cy = _mm256_min_epi32(_mm256_max_epi32(cy, _mm256_setzero_si256()),
+                              _mm256_set1_epi32(g.h - 1));
         _mm256_storeu_si256(reinterpret_cast<VI *>(bx + i), cx);
         _mm256_storeu_si256(reinterpret_cast<VI *>(row + i),
                             _mm256_mullo_epi32(cy, _mm256_set1_epi32(g.w)));
@@ -1144,9 +1161,11 @@ POSTHASTE_AVX2_INLINE void velocity8(const Gather &g, int x, int y, VI xc, V &vx
     if (x + 8 <= g.w) {
         const V a = _mm256_loadu_ps(vel), b = _mm256_loadu_ps(vel + 8);
         vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
-            _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))), _MM_SHUFFLE(3, 1, 2, 0)));
+            _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))),
+            _MM_SHUFFLE(3, 1, 2, 0)));
         vy = _mm256_castpd_ps(_mm256_permute4x64_pd(
-            _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))), _MM_SHUFFLE(3, 1, 2, 0)));
+            _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))),
+            _MM_SHUFFLE(3, 1, 2, 0)));
         return;
     }
     const VI lane2 = _mm256_slli_epi32(_mm256_sub_epi32(xc, _mm256_set1_epi32(x)), 1);
@@ -1218,8 +1237,8 @@ POSTHASTE_AVX2_INLINE void finish8(const Gather &g,
     const V inv_f = _mm256_div_ps(one, F);
     V r[4];
     for (int k = 0; k < 4; ++k) {
-        const V blend =
-            _mm256_add_ps(fg[k], _mm256_mul_ps(rest, _mm256_add_ps(bg[k], _mm256_mul_ps(wc, p.cc[k]))));
+        const V blend = _mm256_add_ps(
+            fg[k], _mm256_mul_ps(rest, _mm256_add_ps(bg[k], _mm256_mul_ps(wc, p.cc[k]))));
         r[k] = _mm256_blendv_ps(blend, _mm256_mul_ps(fg[k], inv_f), full);
     }
     if (g.opaque) {
@@ -1230,8 +1249,8 @@ POSTHASTE_AVX2_INLINE void finish8(const Gather &g,
 
 /// Gather::second_lane on the lanes in `second` (n: the front estimate's sample counts);
 /// returns the weight of one sample.
-POSTHASTE_AVX2_INLINE V second_lanes8(
-    const Gather &g, const Frame8 &f, const Lanes8 &p, V second, V n, VI hu, V &B, V *bg)
+POSTHASTE_AVX2_INLINE V
+second_lanes8(const Gather &g, const Frame8 &f, const Lanes8 &p, V second, V n, VI hu, V &B, V *bg)
 {
     const V one = set1(1.0f), half = set1(0.5f), zero = _mm256_setzero_ps();
     const V inv_soft = set1(g.inv_soft);
@@ -1249,7 +1268,8 @@ POSTHASTE_AVX2_INLINE V second_lanes8(
         const V t = _mm256_add_ps(set1(-1.0f), _mm256_mul_ps(_mm256_add_ps(fi, u2), mstep));
         const VI idx = offset8(f, t, p.cvx, p.cvy);
         const V fr = simd::v8::clamp(
-            _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(p.clz, gather8(g, kLogZ, idx)), inv_soft)),
+            _mm256_add_ps(half,
+                          _mm256_mul_ps(_mm256_sub_ps(p.clz, gather8(g, kLogZ, idx)), inv_soft)),
             zero,
             one);
         const V wb = _mm256_and_ps(_mm256_mul_ps(_mm256_sub_ps(one, fr), wm), active);
@@ -1286,7 +1306,8 @@ POSTHASTE_AVX2_INLINE void lanes8(
         const VI idx = offset8(f, t, p.vx, p.vy);
         const V T = _mm256_mul_ps(abs8(t), p.len);
         const V fr_w = simd::v8::clamp(
-            _mm256_add_ps(half, _mm256_mul_ps(_mm256_sub_ps(p.clz, gather8(g, kLogZ, idx)), inv_soft)),
+            _mm256_add_ps(half,
+                          _mm256_mul_ps(_mm256_sub_ps(p.clz, gather8(g, kLogZ, idx)), inv_soft)),
             zero,
             one);
         const V reach_s = simd::v8::clamp(
@@ -1369,8 +1390,8 @@ struct Plan8 {
     int x, lanes;
     bool live;
     Lanes8 p;
-    Run r;      ///< the shared run (r.ok false: each lane samples on its own)
-    Run c;      ///< the second direction's shared run, for the lanes whose path is not shared
+    Run r;        ///< the shared run (r.ok false: each lane samples on its own)
+    Run c;        ///< the second direction's shared run, for the lanes whose path is not shared
     bool second;  ///< some lane needs the second direction
     float u, u2;
     /// Sample origins of the shared runs (front: r.n of them, second: m), when tabulated.
@@ -1425,8 +1446,8 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
     p.dy = _mm256_blendv_ps(ldy, dcy, p.shared);
     p.vx = _mm256_blendv_ps(set1(l.vx), _mm256_mul_ps(dcx, llen), p.shared);
     p.vy = _mm256_blendv_ps(set1(l.vy), _mm256_mul_ps(dcy, llen), p.shared);
-    const V longer = _mm256_and_ps(
-        p.shared, _mm256_cmp_ps(p.clen, _mm256_mul_ps(set1(0.8f), llen), _CMP_GT_OQ));
+    const V longer =
+        _mm256_and_ps(p.shared, _mm256_cmp_ps(p.clen, _mm256_mul_ps(set1(0.8f), llen), _CMP_GT_OQ));
     p.vx = _mm256_blendv_ps(p.vx, p.cvx, longer);
     p.vy = _mm256_blendv_ps(p.vy, p.cvy, longer);
     p.len = _mm256_blendv_ps(llen, p.clen, longer);
@@ -1451,7 +1472,8 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
         if (pl.c.ok) {
             pl.m = std::max(2, std::min(pl.c.n, (pl.r.n + 1) / 2));
             if (pl.m <= kTabulated) {
-                origins8(g, x, y, pl.u2, 2.0f / float(pl.m), pl.c.vx, pl.c.vy, pl.m, pl.bx2, pl.row2);
+                origins8(
+                    g, x, y, pl.u2, 2.0f / float(pl.m), pl.c.vx, pl.c.vy, pl.m, pl.bx2, pl.row2);
             }
         }
     }
@@ -1459,7 +1481,8 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
 
 /// Gather::reconstruct_run on eight lanes (kNc: colour channels summed; 3 for opaque RGBA).
 template <int kNc>
-POSTHASTE_AVX2_INLINE void run8(const Gather &g, Image &out, int y, const Plan8 &pl, const Frame8 &fr)
+POSTHASTE_AVX2_INLINE void run8(
+    const Gather &g, Image &out, int y, const Plan8 &pl, const Frame8 &fr)
 {
     const V zero = _mm256_setzero_ps(), one = set1(1.0f), half = set1(0.5f);
     const V inv_soft = set1(g.inv_soft);
@@ -1511,7 +1534,8 @@ POSTHASTE_AVX2_INLINE void run8(const Gather &g, Image &out, int y, const Plan8 
             f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(p.xi), half);
             const VI hv = pcg8(_mm256_xor_si256(
                 p.xi,
-                _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))))));
+                _mm256_set1_epi32(
+                    int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))))));
             own_weight = _mm256_blendv_ps(
                 own_weight, second_lanes8(g, f, p, second, set1(float(r.n)), hv, B, bg), second);
         }
@@ -1529,8 +1553,8 @@ POSTHASTE_AVX2 int reconstruct_row_avx2(const Gather &g, Image &out, int y, int 
                     set1(float(g.w) - 0.5f),
                     set1(float(g.h) - 0.5f),
                     _mm256_set1_epi32(g.w)};
-    const VI ky0 = _mm256_set1_epi32(
-        int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
+    const VI ky0 =
+        _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
     Plan8 plans[2];
     int cur = 0;
     plan8(g, x0, y, x1, plans[0]);
@@ -1597,7 +1621,9 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
             if (r.ok) {
                 const float step = 2.0f / float(r.n);
                 const float u = hash_unit(x, y, 0, g.o.seed);
-                V acc[4] = {_mm256_setzero_ps(), _mm256_setzero_ps(), _mm256_setzero_ps(),
+                V acc[4] = {_mm256_setzero_ps(),
+                            _mm256_setzero_ps(),
+                            _mm256_setzero_ps(),
                             _mm256_setzero_ps()};
                 // Opaque RGBA: the mean of n ones is exactly 1; the alpha plane is not read.
                 const int kc = g.opaque ? 3 : 4;
@@ -1654,9 +1680,9 @@ void motion_blur_tiles(const Image &color,
 {
     MotionBlurOptions o = options;
     o.tile = std::max(o.tile, 1);
-    const bool vector = simd::avx2() &&
-                        std::size_t(color.width()) * std::size_t(color.height()) * 4 <
-                            (std::size_t(1) << 31);
+    const bool vector =
+        simd::avx2() &&
+        std::size_t(color.width()) * std::size_t(color.height()) * 4 < (std::size_t(1) << 31);
     Packed packed = pack(color, motion, depth, o, vector, true);
     tiles = std::move(packed.tiles);
     bounds = std::move(packed.bounds);

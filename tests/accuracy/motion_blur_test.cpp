@@ -386,8 +386,10 @@ TEST(MotionBlur, SharedRunsAverageAlongThePath)
             double acc[3] = {0, 0, 0};
             for (int k = 0; k < K; ++k) {
                 const float t = -1.0f + (float(k) + 0.5f) * (2.0f / float(K));
-                const int sx = std::clamp(int(std::floor(float(x) + 0.5f + t * 0.5f * vx)), 0, w - 1);
-                const int sy = std::clamp(int(std::floor(float(y) + 0.5f + t * 0.5f * vy)), 0, h - 1);
+                const int sx =
+                    std::clamp(int(std::floor(float(x) + 0.5f + t * 0.5f * vx)), 0, w - 1);
+                const int sy =
+                    std::clamp(int(std::floor(float(y) + 0.5f + t * 0.5f * vy)), 0, h - 1);
                 for (int c = 0; c < 3; ++c) {
                     acc[c] += color.at(sx, sy, c);
                 }
@@ -614,13 +616,14 @@ TEST(MotionBlur, Avx2MatchesTheScalarPathAtOddSizesAndLayouts)
             }
         }
         const double frac = double(off) / (double(vec.width()) * vec.height());
-        std::printf("avx2 vs scalar, %s: rms %.3g, %.4f %% of pixels off by > 1e-3; %ld of %ld "
-                    "groups shared a run\n",
-                    c.name,
-                    cs.all.rms_error,
-                    100.0 * frac,
-                    st.groups_shared,
-                    st.groups);
+        std::printf(
+            "avx2 vs scalar, %s: rms %.3g, %.4f %% of pixels off by > 1e-3; %ld of %ld "
+            "groups shared a run\n",
+            c.name,
+            cs.all.rms_error,
+            100.0 * frac,
+            st.groups_shared,
+            st.groups);
         EXPECT_LT(cs.all.rms_error, 1e-3) << c.name;
         EXPECT_LT(frac, 0.005) << c.name;
         EXPECT_GT(double(st.groups_shared), 0.9 * double(st.groups)) << c.name;
