@@ -1582,6 +1582,36 @@ POSTHASTE_AVX2 int reconstruct_row_avx2(const Gather &g, Image &out, int y, int 
     return shared;
 }
 
+/// The mean colour of eight pixels along a shared run (Gather::uniform's run; kNc channels
+/// summed, 3 for opaque RGBA, whose mean alpha of n ones is exactly 1). A template, so the
+/// sums stay in registers (a run-time channel count kept them on the stack, each sample
+/// waiting on a store-to-load forward).
+template <int kNc>
+POSTHASTE_AVX2_INLINE void uniform_run8(const Gather &g, int x, int y, const Run &r, V *acc)
+{
+    const float step = 2.0f / float(r.n);
+    const float u = hash_unit(x, y, 0, g.o.seed);
+    for (int k = 0; k < 4; ++k) {
+        acc[k] = _mm256_setzero_ps();
+    }
+    alignas(32) std::int32_t bx[kTabulated + 8], row[kTabulated + 8];
+    const bool tab = r.n <= kTabulated;
+    if (tab) {
+        origins8(g, x, y, u, step, r.vx, r.vy, r.n, bx, row);
+    }
+    for (int i = 0; i < r.n; ++i) {
+        const RunAt a = tab ? run_at8(g, bx[i], row[i])
+                            : run_at8(g, x, y, -1.0f + (float(i) + u) * step, r.vx, r.vy);
+        for (int k = 0; k < kNc; ++k) {
+            acc[k] = _mm256_add_ps(acc[k], field8(g, kRed + k, a));
+        }
+    }
+    const V vn = set1(float(r.n));
+    for (int k = 0; k < 4; ++k) {
+        acc[k] = k < kNc ? _mm256_div_ps(acc[k], vn) : set1(1.0f);
+    }
+}
+
 /// Gather::uniform for the groups of pixels [x0, x1) of row y; returns how many shared a run.
 POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, int x1, bool runs)
 {
@@ -1619,23 +1649,11 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
             bounds8(vx, vy, valid, lo_x, hi_x, lo_y, hi_y);
             const Run r = g.run(lo_x, hi_x, lo_y, hi_y);
             if (r.ok) {
-                const float step = 2.0f / float(r.n);
-                const float u = hash_unit(x, y, 0, g.o.seed);
-                V acc[4] = {_mm256_setzero_ps(),
-                            _mm256_setzero_ps(),
-                            _mm256_setzero_ps(),
-                            _mm256_setzero_ps()};
-                // Opaque RGBA: the mean of n ones is exactly 1; the alpha plane is not read.
-                const int kc = g.opaque ? 3 : 4;
-                for (int i = 0; i < r.n; ++i) {
-                    const RunAt a = run_at8(g, x, y, -1.0f + (float(i) + u) * step, r.vx, r.vy);
-                    for (int k = 0; k < kc; ++k) {
-                        acc[k] = _mm256_add_ps(acc[k], field8(g, kRed + k, a));
-                    }
-                }
-                const V vn = set1(float(r.n));
-                for (int k = 0; k < 4; ++k) {
-                    acc[k] = k < kc ? _mm256_div_ps(acc[k], vn) : set1(1.0f);
+                V acc[4];
+                if (g.opaque) {
+                    uniform_run8<3>(g, x, y, r, acc);
+                } else {
+                    uniform_run8<4>(g, x, y, r, acc);
                 }
                 store8(g, out, x, y, lanes, acc, all);
                 ++shared;
