@@ -167,6 +167,9 @@ enum Field { kRed, kGreen, kBlue, kAlpha, kLogZ, kWx, kWy, kLen, kFields };
 struct Packed {
     Scratch<float> block;
     std::size_t stride = 0;  ///< floats from one plane to the next (a multiple of 16)
+    /// The clamped half-extent vectors (2 channels) for tiles.h's reductions, where the pack
+    /// does not fold them itself (scalar path, tiles not a multiple of 8); else empty. The
+    /// gather recovers a pixel's vector from its planes: v = w 2|v|^2.
     Image velocity;
     /// Per row: every alpha is exactly 1 (RGBA colour). A frame opaque everywhere blurs to
     /// alpha 1, and the gather does not sum its alpha plane.
@@ -185,8 +188,9 @@ struct Packer {
     int w, nc;
     float scale, max_r;
 
-    /// The record and velocity of pixel (x, y).
-    void pixel(int y, int x) const
+    /// The record of pixel (x, y); its velocity into (vx_out, vy_out) and the velocity image
+    /// (when there is one).
+    void pixel(int y, int x, float &vx_out, float &vy_out) const
     {
         const float *m = motion.pixel(x, y);
         float vx = m[0] * scale, vy = m[1] * scale;
@@ -216,16 +220,26 @@ struct Packer {
         out.plane(kWy)[i] = vy * density;
         out.plane(kLogZ)[i] = lz;
         out.plane(kLen)[i] = len;
-        out.velocity.at(x, y, 0) = vx;
-        out.velocity.at(x, y, 1) = vy;
+        if (!out.velocity.empty()) {
+            out.velocity.at(x, y, 0) = vx;
+            out.velocity.at(x, y, 1) = vy;
+        }
+        vx_out = vx;
+        vy_out = vy;
     }
 
     /// Pixels [x0, x1) of row y; returns whether their alpha is exactly 1 (RGBA only).
-    bool pixels(int y, int x0, int x1) const
+    /// With vx, vy: the velocities into them (x - x0 indexed).
+    bool pixels(int y, int x0, int x1, float *vx = nullptr, float *vy = nullptr) const
     {
         bool opaque = nc == 4;
         for (int x = x0; x < x1; ++x) {
-            pixel(y, x);
+            float a, b;
+            pixel(y, x, a, b);
+            if (vx) {
+                vx[x - x0] = a;
+                vy[x - x0] = b;
+            }
             opaque = opaque && color.pixel(x, y)[3] == 1.0f;
         }
         return opaque;
@@ -246,11 +260,44 @@ POSTHASTE_AVX2_INLINE V finite8(V x)
     return _mm256_cmp_ps(abs8(x), set1(std::numeric_limits<float>::infinity()), _CMP_LT_OQ);
 }
 
+/// Per tile of a band, eight lanes of tile_max_bounds: the longest vector so far (length^2,
+/// x, y, and its scan index in the tile, for ties) and the box.
+struct TileAcc8 {
+    V l, x, y, lo_x, lo_y, hi_x, hi_y;
+    VI i;
+};
+
+/// Folds eight vectors (scan indices idx in their tile; lanes outside `ok` ignored) into a
+/// tile's accumulators. The squared lengths are rounded as in tile_max_bounds (compiled
+/// without FMA): the products are kept from fusing, so the paths pick the same vector.
+POSTHASTE_AVX2_INLINE void fold8(TileAcc8 &a, V vx, V vy, VI idx, V ok)
+{
+    V xx = _mm256_mul_ps(vx, vx), yy = _mm256_mul_ps(vy, vy);
+    asm("" : "+x"(xx), "+x"(yy));  // no FMA contraction of the sum below
+    const V l = _mm256_add_ps(xx, yy);
+    const V gt = _mm256_and_ps(
+        _mm256_and_ps(_mm256_cmp_ps(l, a.l, _CMP_GT_OQ), _mm256_cmp_ps(l, set1(kInf), _CMP_LT_OQ)),
+        ok);
+    a.l = _mm256_blendv_ps(a.l, l, gt);
+    a.x = _mm256_blendv_ps(a.x, vx, gt);
+    a.y = _mm256_blendv_ps(a.y, vy, gt);
+    a.i = _mm256_castps_si256(
+        _mm256_blendv_ps(_mm256_castsi256_ps(a.i), _mm256_castsi256_ps(idx), gt));
+    a.lo_x = _mm256_blendv_ps(a.lo_x, _mm256_min_ps(a.lo_x, vx), ok);
+    a.lo_y = _mm256_blendv_ps(a.lo_y, _mm256_min_ps(a.lo_y, vy), ok);
+    a.hi_x = _mm256_blendv_ps(a.hi_x, _mm256_max_ps(a.hi_x, vx), ok);
+    a.hi_y = _mm256_blendv_ps(a.hi_y, _mm256_max_ps(a.hi_y, vy), ok);
+}
+
 /// Packer::pixels for a whole row, eight pixels at a time (the same arithmetic; log is the
 /// polynomial of simd::v8, within 2 ulp of std::log).
-POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
+/// With `acc` (a band's tile accumulators, tiles `tile` wide, a multiple of 8; row r of the
+/// band), also folds the row's vectors into its tiles.
+POSTHASTE_AVX2 bool pack_row_avx2(
+    const Packer &p, int y, TileAcc8 *acc = nullptr, int r = 0, int tile = 8)
 {
     bool opaque = p.nc == 4;
+    const V all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     const VI mstride = _mm256_mullo_epi32(lane, _mm256_set1_epi32(p.motion.channels()));
     const VI cstride = _mm256_mullo_epi32(lane, _mm256_set1_epi32(p.color.channels()));
@@ -334,77 +381,39 @@ POSTHASTE_AVX2 bool pack_row_avx2(const Packer &p, int y)
         _mm256_storeu_ps(p.out.plane(kWy) + i0, _mm256_mul_ps(vy, dens));
         _mm256_storeu_ps(p.out.plane(kLogZ) + i0, lz);
         _mm256_storeu_ps(p.out.plane(kLen) + i0, len);
-        // Interleave the velocity: (vx0, vy0, vx1, vy1, ...).
-        const V lo = _mm256_unpacklo_ps(vx, vy), hi = _mm256_unpackhi_ps(vx, vy);
-        float *vel = p.out.velocity.pixel(x, y);
-        _mm256_storeu_ps(vel, _mm256_permute2f128_ps(lo, hi, 0x20));
-        _mm256_storeu_ps(vel + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
-    }
-    // The tail through the scalar arithmetic.
-    return p.pixels(y, x, p.w) && opaque;
-}
-
-/// Per tile of a band, eight lanes of tile_max_bounds: the longest vector so far (length^2,
-/// x, y, and its scan index in the tile, for ties) and the box.
-struct TileAcc8 {
-    V l, x, y, lo_x, lo_y, hi_x, hi_y;
-    VI i;
-};
-
-// The lengths compare exactly as in tile_max_bounds (compiled without FMA): no contraction.
-#pragma GCC push_options
-#pragma GCC optimize("fp-contract=off")
-/// Folds row y (the band's row `r`) of the velocities into the band's tiles (tile a multiple
-/// of 8).
-POSTHASTE_AVX2 void reduce_row_avx2(const Image &velocity, int y, int r, int tile, TileAcc8 *acc)
-{
-    const int w = velocity.width(), tw = (w + tile - 1) / tile;
-    const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
-    const float *vel = velocity.pixel(0, y);
-    for (int tx = 0; tx < tw; ++tx) {
-        TileAcc8 &a = acc[tx];
-        const int x0 = tx * tile, x1 = std::min(w, x0 + tile);
-        for (int x = x0; x < x1; x += 8) {
-            __m256 vx, vy;
-            VI valid = _mm256_set1_epi32(-1);
-            if (x + 8 <= w) {
-                const __m256 p0 = _mm256_loadu_ps(vel + 2 * x),
-                             p1 = _mm256_loadu_ps(vel + 2 * x + 8);
-                vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
-                    _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(2, 0, 2, 0))),
-                    _MM_SHUFFLE(3, 1, 2, 0)));
-                vy = _mm256_castpd_ps(_mm256_permute4x64_pd(
-                    _mm256_castps_pd(_mm256_shuffle_ps(p0, p1, _MM_SHUFFLE(3, 1, 3, 1))),
-                    _MM_SHUFFLE(3, 1, 2, 0)));
-            } else {
-                // The row's end: lanes past it repeat its last pixel and are masked out.
-                const VI xc = _mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane),
-                                               _mm256_set1_epi32(w - 1));
-                const VI two = _mm256_slli_epi32(xc, 1);
-                vx = _mm256_i32gather_ps(vel, two, 4);
-                vy = _mm256_i32gather_ps(vel + 1, two, 4);
-                valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(w - x), lane);
-            }
-            const __m256 l = _mm256_add_ps(_mm256_mul_ps(vx, vx), _mm256_mul_ps(vy, vy));
-            const VI idx = _mm256_add_epi32(_mm256_set1_epi32(r * tile + (x - x0)), lane);
-            const __m256 ok = _mm256_castsi256_ps(valid);
-            const __m256 gt = _mm256_and_ps(
-                _mm256_and_ps(_mm256_cmp_ps(l, a.l, _CMP_GT_OQ), _mm256_cmp_ps(l, inf, _CMP_LT_OQ)),
-                ok);
-            a.l = _mm256_blendv_ps(a.l, l, gt);
-            a.x = _mm256_blendv_ps(a.x, vx, gt);
-            a.y = _mm256_blendv_ps(a.y, vy, gt);
-            a.i = _mm256_castps_si256(
-                _mm256_blendv_ps(_mm256_castsi256_ps(a.i), _mm256_castsi256_ps(idx), gt));
-            a.lo_x = _mm256_blendv_ps(a.lo_x, _mm256_min_ps(a.lo_x, vx), ok);
-            a.lo_y = _mm256_blendv_ps(a.lo_y, _mm256_min_ps(a.lo_y, vy), ok);
-            a.hi_x = _mm256_blendv_ps(a.hi_x, _mm256_max_ps(a.hi_x, vx), ok);
-            a.hi_y = _mm256_blendv_ps(a.hi_y, _mm256_max_ps(a.hi_y, vy), ok);
+        if (acc) {
+            const int tx = x / tile;
+            fold8(acc[tx],
+                  vx,
+                  vy,
+                  _mm256_add_epi32(_mm256_set1_epi32(r * tile + (x - tx * tile)), lane),
+                  all);
+        }
+        if (!p.out.velocity.empty()) {
+            // Interleave the velocity: (vx0, vy0, vx1, vy1, ...).
+            const V lo = _mm256_unpacklo_ps(vx, vy), hi = _mm256_unpackhi_ps(vx, vy);
+            float *vel = p.out.velocity.pixel(x, y);
+            _mm256_storeu_ps(vel, _mm256_permute2f128_ps(lo, hi, 0x20));
+            _mm256_storeu_ps(vel + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
         }
     }
+    if (x == p.w) {
+        return opaque;
+    }
+    // The tail through the scalar arithmetic.
+    alignas(32) float tvx[8] = {}, tvy[8] = {};
+    opaque = p.pixels(y, x, p.w, tvx, tvy) && opaque;
+    if (acc) {
+        const int tx = x / tile;
+        const V ok = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(p.w - x), lane));
+        fold8(acc[tx],
+              _mm256_load_ps(tvx),
+              _mm256_load_ps(tvy),
+              _mm256_add_epi32(_mm256_set1_epi32(r * tile + (x - tx * tile)), lane),
+              ok);
+    }
+    return opaque;
 }
-#pragma GCC pop_options
 
 /// The band's tiles from their lanes: the longest vector (the first in scan order among equals)
 /// and the box.
@@ -459,8 +468,7 @@ POSTHASTE_AVX2 void pack_band_avx2(const Packer &p, int ty, int tile, Packed &ou
     }
     const int y0 = ty * tile, y1 = std::min(p.motion.height(), y0 + tile);
     for (int y = y0; y < y1; ++y) {
-        out.opaque_rows[std::size_t(y)] = pack_row_avx2(p, y);
-        reduce_row_avx2(out.velocity, y, y - y0, tile, acc);
+        out.opaque_rows[std::size_t(y)] = pack_row_avx2(p, y, acc, y - y0, tile);
     }
     finish_tiles_avx2(acc, tw, ty, out.tiles, out.bounds);
 }
@@ -477,9 +485,11 @@ Packed pack(const Image &color,
     const int w = motion.width(), h = motion.height();
     const std::size_t n = std::size_t(w) * std::size_t(h);
     const std::size_t stride = (n + 15) / 16 * 16;
+    // The AVX2 pack folds the tile reductions itself where groups of 8 tile the tiles.
+    const bool fold = vector && o.tile % 8 == 0 && POSTHASTE_HAVE_AVX2_TARGET;
     Packed out{scratch<float>(stride * kFields),
                stride,
-               Image::uninitialized(w, h, 2),
+               fold ? Image() : Image::uninitialized(w, h, 2),
                std::vector<unsigned char>(std::size_t(h), 0),
                Image(),
                Image()};
@@ -543,7 +553,6 @@ struct Lane {
 struct Gather {
     const Image &color;
     const float *f[kFields];
-    const Image &velocity;
     const Image &nmax;
     const MotionBlurOptions &o;
     int w, h, nc;
@@ -562,7 +571,6 @@ struct Gather {
            int nc_)
         : color(color_),
           f{},
-          velocity(packed.velocity),
           nmax(nmax_),
           o(o_),
           w(color_.width()),
@@ -599,6 +607,16 @@ struct Gather {
     std::size_t index(int x, int y) const
     {
         return std::size_t(y) * std::size_t(w) + std::size_t(x);
+    }
+
+    /// The clamped half-extent vector of record i and its length, from the planes (v = w 2|v|^2;
+    /// zero below half a pixel, where no path uses it).
+    void own(std::size_t i, float &vx, float &vy, float &len) const
+    {
+        len = f[kLen][i];
+        const float k = 2.0f * len * len;
+        vx = f[kWx][i] * k;
+        vy = f[kWy][i] * k;
     }
 
     void copy_pixel(Image &out, int x, int y) const
@@ -677,9 +695,7 @@ struct Gather {
     Lane lane(int x, int y, const Lookup &l) const
     {
         Lane p{};
-        p.cvx = velocity.at(x, y, 0);
-        p.cvy = velocity.at(x, y, 1);
-        p.clen = std::sqrt(p.cvx * p.cvx + p.cvy * p.cvy);
+        own(index(x, y), p.cvx, p.cvy, p.clen);
         p.own = p.clen >= 0.5f;
         // One division for the direction and the own weight.
         const float inv_len = p.own ? 1.0f / p.clen : 0.0f;
@@ -934,8 +950,8 @@ struct Gather {
     /// The uniform blur along the pixel's own motion.
     void uniform_lane(Image &out, int x, int y) const
     {
-        const float vx = velocity.at(x, y, 0), vy = velocity.at(x, y, 1);
-        const float len = std::sqrt(vx * vx + vy * vy);
+        float vx, vy, len;
+        own(index(x, y), vx, vy, len);
         if (len < 0.5f) {
             copy_pixel(out, x, y);
             return;
@@ -963,8 +979,9 @@ struct Gather {
     {
         float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf, shortest = kInf;
         for (int j = 0; j < cnt && runs; ++j) {
-            const float vx = velocity.at(x0 + j, y, 0), vy = velocity.at(x0 + j, y, 1);
-            shortest = std::min(shortest, std::sqrt(vx * vx + vy * vy));
+            float vx, vy, len;
+            own(index(x0 + j, y), vx, vy, len);
+            shortest = std::min(shortest, len);
             lo_x = std::min(lo_x, vx);
             hi_x = std::max(hi_x, vx);
             lo_y = std::min(lo_y, vy);
@@ -1153,24 +1170,25 @@ POSTHASTE_AVX2_INLINE RunAt run_at8(const Gather &g, std::int32_t bx, std::int32
     return a;
 }
 
-/// The velocities (vx, vy) of pixels x .. x + 7 of row y (lanes past the row's end read its last
-/// pixel): two loads and a de-interleave where the eight lie inside the row.
-POSTHASTE_AVX2_INLINE void velocity8(const Gather &g, int x, int y, VI xc, V &vx, V &vy)
+/// Gather::own for pixels x .. x + 7 of row y (lanes past the row's end read its last pixel):
+/// three loads where the eight lie inside the row.
+POSTHASTE_AVX2_INLINE void own8(const Gather &g, int x, int y, VI xc, V &vx, V &vy, V &len)
 {
-    const float *vel = g.velocity.pixel(x, y);
+    V wx, wy;
     if (x + 8 <= g.w) {
-        const V a = _mm256_loadu_ps(vel), b = _mm256_loadu_ps(vel + 8);
-        vx = _mm256_castpd_ps(_mm256_permute4x64_pd(
-            _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0))),
-            _MM_SHUFFLE(3, 1, 2, 0)));
-        vy = _mm256_castpd_ps(_mm256_permute4x64_pd(
-            _mm256_castps_pd(_mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1))),
-            _MM_SHUFFLE(3, 1, 2, 0)));
-        return;
+        const std::size_t i0 = g.index(x, y);
+        wx = _mm256_loadu_ps(g.f[kWx] + i0);
+        wy = _mm256_loadu_ps(g.f[kWy] + i0);
+        len = _mm256_loadu_ps(g.f[kLen] + i0);
+    } else {
+        const VI ci = _mm256_add_epi32(_mm256_set1_epi32(int(g.index(0, y))), xc);
+        wx = _mm256_i32gather_ps(g.f[kWx], ci, 4);
+        wy = _mm256_i32gather_ps(g.f[kWy], ci, 4);
+        len = _mm256_i32gather_ps(g.f[kLen], ci, 4);
     }
-    const VI lane2 = _mm256_slli_epi32(_mm256_sub_epi32(xc, _mm256_set1_epi32(x)), 1);
-    vx = _mm256_i32gather_ps(vel, lane2, 4);
-    vy = _mm256_i32gather_ps(vel + 1, lane2, 4);
+    const V k = _mm256_mul_ps(_mm256_mul_ps(set1(2.0f), len), len);
+    vx = _mm256_mul_ps(wx, k);
+    vy = _mm256_mul_ps(wy, k);
 }
 
 /// Writes the first `lanes` results (SoA, r[channel][lane]) of row y from x, lanes not in
@@ -1430,9 +1448,7 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
         }
         p.clz = gather8(g, kLogZ, ci);
     }
-    velocity8(g, x, y, xc, p.cvx, p.cvy);
-    p.clen =
-        _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(p.cvx, p.cvx), _mm256_mul_ps(p.cvy, p.cvy)));
+    own8(g, x, y, xc, p.cvx, p.cvy, p.clen);
     p.own = _mm256_cmp_ps(p.clen, half, _CMP_GE_OQ);
     // One division for the direction and the own weight.
     const V inv_len = _mm256_and_ps(_mm256_div_ps(set1(1.0f), p.clen), p.own);
@@ -1632,9 +1648,8 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
         const VI xc =
             _mm256_sub_epi32(_mm256_min_epi32(_mm256_add_epi32(_mm256_set1_epi32(x), lane), last),
                              _mm256_set1_epi32(x));
-        V vx, vy;
-        velocity8(g, x, y, _mm256_add_epi32(xc, _mm256_set1_epi32(x)), vx, vy);
-        const V len = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(vx, vx), _mm256_mul_ps(vy, vy)));
+        V vx, vy, len;
+        own8(g, x, y, _mm256_add_epi32(xc, _mm256_set1_epi32(x)), vx, vy, len);
         const V moving = _mm256_cmp_ps(len, set1(0.5f), _CMP_GE_OQ);
         const int live = _mm256_movemask_ps(moving), wanted = (1 << lanes) - 1;
         if (live == 0) {
