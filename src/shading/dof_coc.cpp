@@ -35,19 +35,20 @@ CocField compute_coc(const Image &depth, const DofLens &lens, float max_radius_p
     const float k0f = float(k0), k1f = float(k0 * s);
     const float rmax = std::max(0.0f, max_radius_px);
     const int w = c.width;
-    parallel_for_tiles(depth.bounds(), [&](const Rect &t) {
-        for (int y = t.y0; y < t.y1; ++y) {
-            for (int x = t.x0; x < t.x1; ++x) {
-                const float z = depth.at(x, y, 0);
-                float r;
-                if (!(z > 0.0f)) {
-                    r = 0.0f;  // NaN, zero or negative depth is not a depth: leave it sharp
-                } else {
-                    r = k0f - k1f / z;  // z = +inf gives k0 exactly
-                }
-                c.radius[std::size_t(y) * std::size_t(w) + std::size_t(x)] =
-                    std::clamp(r, -rmax, rmax);
+    // Whole rows: a bandwidth-bound pass (64-pixel tile rows are too short for the prefetcher).
+    parallel_for(0, c.height, [&](int y) {
+        const float *zr = depth.pixel(0, y);
+        const int stride = depth.channels();
+        float *out = c.radius.data() + std::size_t(y) * std::size_t(w);
+        for (int x = 0; x < w; ++x) {
+            const float z = zr[std::size_t(x) * std::size_t(stride)];
+            float r;
+            if (!(z > 0.0f)) {
+                r = 0.0f;  // NaN, zero or negative depth is not a depth: leave it sharp
+            } else {
+                r = k0f - k1f / z;  // z = +inf gives k0 exactly
             }
+            out[x] = std::clamp(r, -rmax, rmax);
         }
     });
     return c;

@@ -75,33 +75,19 @@ struct Level {
 // Storage behind a Level: four colour planes and the 1 / CoC^2 plane (the CoC plane is the
 // caller's).
 struct Planes {
-    struct Free {
-        void operator()(float *p) const { std::free(p); }
-    };
-    std::unique_ptr<float[], Free> data;
+    ScratchArray<float> data;
     std::size_t n = 0;
 
-    // All written by the caller. A large frame's planes (40 MB at 1080p) are asked for in 2 MB
-    // pages where the system has them, so that first touching them costs a few page faults
-    // rather than ten thousand.
+    // All written by the caller. A large frame's planes (40 MB at 1080p) come from the scratch
+    // pool (core/memory.h): kept between frames, in 2 MB pages where the system has them, so
+    // touching them costs neither a page clear nor a fault per 4 KiB.
     void allocate(std::size_t pixels)
     {
         n = pixels;
-        const std::size_t bytes = 5 * pixels * sizeof(float);
-        data.reset(static_cast<float *>(std::malloc(bytes)));
-        advise_huge_pages(data.get(), bytes);
-        if (!data) {
-            throw std::bad_alloc();
-        }
+        data = scratch_array<float>(5 * pixels);
     }
-    float *channel(int k)
-    {
-        return data.get() + std::size_t(k) * n;
-    }
-    float *inv2()
-    {
-        return data.get() + 4 * n;
-    }
+    float *channel(int k) { return data.get() + std::size_t(k) * n; }
+    float *inv2() { return data.get() + 4 * n; }
     Level level(const float *coc, int w, int h)
     {
         Level lv;
@@ -908,16 +894,16 @@ bool apply_dof(const Image &color,
     planes.allocate(color.pixel_count());
     float *const plane[4] = {
         planes.channel(0), planes.channel(1), planes.channel(2), planes.channel(3)};
-    parallel_for_tiles(color.bounds(), [&](const Rect &t) {
-        for (int y = t.y0; y < t.y1; ++y) {
-            const std::size_t row = std::size_t(y) * std::size_t(w);
-            float *const dst[4] = {plane[0] + row, plane[1] + row, plane[2] + row, plane[3] + row};
-            split_row(color.pixel(0, y), nc, t.x0, t.x1, dst);
-            const float *c = field.radius.data() + row;
-            float *inv2 = planes.inv2() + row;
-            for (int x = t.x0; x < t.x1; ++x) {
-                inv2[x] = 1.0f / (c[x] * c[x]);  // +inf at 0
-            }
+    // Whole rows: the split is bandwidth-bound, and a 64-pixel tile row is too short for the
+    // hardware prefetcher (docs/ARCHITECTURE.md, "Speed").
+    parallel_for(0, h, [&](int y) {
+        const std::size_t row = std::size_t(y) * std::size_t(w);
+        float *const dst[4] = {plane[0] + row, plane[1] + row, plane[2] + row, plane[3] + row};
+        split_row(color.pixel(0, y), nc, 0, w, dst);
+        const float *c = field.radius.data() + row;
+        float *inv2 = planes.inv2() + row;
+        for (int x = 0; x < w; ++x) {
+            inv2[x] = 1.0f / (c[x] * c[x]);  // +inf at 0
         }
     });
 

@@ -67,90 +67,14 @@ inline float reach(float t, float len)
     return std::min(std::max(len + 0.5f - t, 0.0f), 1.0f);
 }
 
-/// Scratch blocks kept between calls: the records are tens of megabytes written once per
-/// frame, and fresh memory costs the kernel a page clear (and a fault) per page on first touch
-/// (perf, f6: clear_page_erms about 5 % of the node). A released block goes back here; a call
-/// takes a block of the same size if one is free. At most kPoolBytes are kept; the contents of
-/// a reused block are stale, which is fine: pack writes every record before it is read.
-class ScratchPool {
-   public:
-    static ScratchPool &instance()
-    {
-        static ScratchPool pool;
-        return pool;
-    }
-
-    void *take(std::size_t bytes)
-    {
-        {
-            const std::lock_guard<std::mutex> lock(mutex_);
-            for (std::size_t i = 0; i < free_.size(); ++i) {
-                if (free_[i].bytes == bytes) {
-                    void *p = free_[i].p;
-                    kept_ -= bytes;
-                    free_.erase(free_.begin() + std::ptrdiff_t(i));
-                    return p;
-                }
-            }
-        }
-        constexpr std::size_t kHuge = std::size_t(2) << 20;
-        void *p = std::aligned_alloc(kHuge, bytes);
-        if (!p) {
-            throw std::bad_alloc();
-        }
-        advise_huge_pages(p, bytes);
-        return p;
-    }
-
-    void give(void *p, std::size_t bytes)
-    {
-        {
-            const std::lock_guard<std::mutex> lock(mutex_);
-            if (kept_ + bytes <= kPoolBytes) {
-                free_.push_back({p, bytes});
-                kept_ += bytes;
-                return;
-            }
-        }
-        std::free(p);
-    }
-
-    ~ScratchPool()
-    {
-        for (const Block &b : free_) {
-            std::free(b.p);
-        }
-    }
-
-   private:
-    static constexpr std::size_t kPoolBytes = std::size_t(256) << 20;
-    struct Block {
-        void *p;
-        std::size_t bytes;
-    };
-    std::mutex mutex_;
-    std::vector<Block> free_;
-    std::size_t kept_ = 0;
-};
-
-struct PoolDeleter {
-    std::size_t bytes = 0;
-    void operator()(void *p) const { ScratchPool::instance().give(p, bytes); }
-};
-/// Uninitialized storage for n trivial records (pack writes every one).
+/// Uninitialized storage for n trivial records from the scratch pool (core/memory.h; pack
+/// writes every record before it is read).
 template <class T>
-using Scratch = std::unique_ptr<T[], PoolDeleter>;
-
-/// Scratch<T> in 2 MiB-aligned blocks with huge pages advised (core/memory.h): tens of
-/// megabytes of fresh memory otherwise cost one page fault per 4 KiB on first touch (measured:
-/// kernel page-fault handling was a quarter of the AVX2 gather's time), reused between calls
-/// through ScratchPool.
+using Scratch = ScratchArray<T>;
 template <class T>
 Scratch<T> scratch(std::size_t n)
 {
-    constexpr std::size_t kHuge = std::size_t(2) << 20;
-    const std::size_t bytes = std::max<std::size_t>((n * sizeof(T) + kHuge - 1) / kHuge, 1) * kHuge;
-    return Scratch<T>(static_cast<T *>(ScratchPool::instance().take(bytes)), PoolDeleter{bytes});
+    return scratch_array<T>(n);
 }
 
 /// The per-pixel records of a frame, one plane per field (structure of arrays): the eight

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -72,6 +73,37 @@ TEST(Memory, ImagesOfEverySizeKeepTheirValues)
                 huge_kb_at(b.data() + b.value_count() / 2));
         }
     }
+}
+
+// The scratch pool: whole, 2 MiB-aligned blocks; a freed block is handed out again for the same
+// size (stale contents, writable), not for another size; blocks of several users coexist.
+TEST(Memory, ScratchBlocksAreAlignedAndReusedBySize)
+{
+    constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
+    const std::size_t n = 3 * 1000 * 1000;  // 12 MB of floats: rounded up to 12 MiB
+    float *first = nullptr;
+    {
+        ScratchArray<float> a = scratch_array<float>(n);
+        ASSERT_NE(a.get(), nullptr);
+        EXPECT_EQ(reinterpret_cast<std::uintptr_t>(a.get()) % kHuge, 0u);
+        a[0] = 1.0f;
+        a[n - 1] = 2.0f;
+        first = a.get();
+    }
+    {
+        ScratchArray<float> other = scratch_array<float>(n / 2);  // another size: a new block
+        EXPECT_NE(other.get(), first);
+        ScratchArray<float> same = scratch_array<float>(n);  // the freed block again
+        EXPECT_EQ(same.get(), first);
+        same[n - 1] = 3.0f;                                    // writable to its end
+        ScratchArray<float> second = scratch_array<float>(n);  // the first is in use: a new one
+        EXPECT_NE(second.get(), first);
+        second[0] = 4.0f;
+        EXPECT_EQ(same[n - 1], 3.0f);
+    }
+    ScratchArray<char> tiny = scratch_array<char>(1);  // at least one 2 MiB block
+    ASSERT_NE(tiny.get(), nullptr);
+    tiny[(std::size_t(2) << 20) - 1] = 'x';
 }
 
 }  // namespace
