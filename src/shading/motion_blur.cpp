@@ -457,6 +457,18 @@ struct Run {
     int ok;  ///< the vectors agree within the tolerance and the run is at least half a pixel
 };
 
+/// The bounding box of a group's vectors (what Gather::run decides on).
+struct Box {
+    float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf;
+    void add(float x, float y)
+    {
+        lo_x = std::min(lo_x, x);
+        hi_x = std::max(hi_x, x);
+        lo_y = std::min(lo_y, y);
+        hi_y = std::max(hi_y, y);
+    }
+};
+
 /// The per-pixel plan of the reconstruction: the pixel's own motion, whether its own path shares
 /// the neighbour-max samples, and the vector (vx, vy), length and direction it samples along.
 struct Lane {
@@ -591,21 +603,21 @@ struct Gather {
         return tiles[std::size_t(ty) * std::size_t(nmax.width()) + std::size_t(tx)];
     }
 
-    /// The shared run of vectors whose components span [lo_x, hi_x] x [lo_y, hi_y].
-    Run run(float lo_x, float hi_x, float lo_y, float hi_y) const
+    /// The shared run of the vectors in box b.
+    Run run(const Box &b) const
     {
         Run r;
-        run(lo_x, hi_x, lo_y, hi_y, r);
+        run(b, r);
         return r;
     }
     /// run() into `r`, field by field (a plan's runs are written in place: building the struct
     /// and copying it stalled on store forwarding).
-    void run(float lo_x, float hi_x, float lo_y, float hi_y, Run &r) const
+    void run(const Box &b, Run &r) const
     {
-        const float vx = 0.5f * (lo_x + hi_x), vy = 0.5f * (lo_y + hi_y);
+        const float vx = 0.5f * (b.lo_x + b.hi_x), vy = 0.5f * (b.lo_y + b.hi_y);
         const float len = std::sqrt(vx * vx + vy * vy);
-        const bool ok = tolerance > 0.0f && hi_x - lo_x <= 2.0f * tolerance &&
-                        hi_y - lo_y <= 2.0f * tolerance && len >= 0.5f;
+        const bool ok = tolerance > 0.0f && b.hi_x - b.lo_x <= 2.0f * tolerance &&
+                        b.hi_y - b.lo_y <= 2.0f * tolerance && len >= 0.5f;
         r.vx = vx;
         r.vy = vy;
         r.len = len;
@@ -783,7 +795,7 @@ struct Gather {
         // The path length each sample stands for, and the own-surface weights (zero where the
         // pixel's own path is not the shared one).
         float own_weight[8];
-        float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf;
+        Box own_box;
         bool second = false;
         for (int j = 0; j < cnt; ++j) {
             own_weight[j] = p[j].shared ? delta * p[j].inv_own : 0.0f;
@@ -795,16 +807,13 @@ struct Gather {
             }
             if (p[j].own && !p[j].shared) {
                 second = true;
-                lo_x = std::min(lo_x, p[j].cvx);
-                hi_x = std::max(hi_x, p[j].cvx);
-                lo_y = std::min(lo_y, p[j].cvy);
-                hi_y = std::max(hi_y, p[j].cvy);
+                own_box.add(p[j].cvx, p[j].cvy);
             }
         }
         if (second) {
             // Guertin's second direction for the pixels whose own path is not shared: one run
             // where their motions agree, else each its own.
-            const Run c = run(lo_x, hi_x, lo_y, hi_y);
+            const Run c = run(own_box);
             if (c.ok) {
                 const int m = std::max(2, std::min(c.n, (r.n + 1) / 2));
                 const float mstep = 2.0f / float(m), wm = 1.0f / float(m);
@@ -852,15 +861,12 @@ struct Gather {
             return false;
         }
         Lane p[8];
-        float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf;
+        Box box;
         for (int j = 0; j < cnt; ++j) {
             p[j] = lane(x0 + j, y, l);
-            lo_x = std::min(lo_x, p[j].vx);
-            hi_x = std::max(hi_x, p[j].vx);
-            lo_y = std::min(lo_y, p[j].vy);
-            hi_y = std::max(hi_y, p[j].vy);
+            box.add(p[j].vx, p[j].vy);
         }
-        const Run r = run(lo_x, hi_x, lo_y, hi_y);
+        const Run r = run(box);
         if (r.ok) {
             reconstruct_run(out, x0, cnt, y, p, r);
             return true;
@@ -901,18 +907,15 @@ struct Gather {
     /// the seeds' baseline, samples per pixel). Returns whether the group shared a run.
     bool uniform(Image &out, int x0, int cnt, int y, bool runs) const
     {
-        float lo_x = kInf, hi_x = -kInf, lo_y = kInf, hi_y = -kInf, shortest = kInf;
+        Box box;
+        float shortest = kInf;
         for (int j = 0; j < cnt && runs; ++j) {
             float vx, vy, len;
             own(index(x0 + j, y), vx, vy, len);
             shortest = std::min(shortest, len);
-            lo_x = std::min(lo_x, vx);
-            hi_x = std::max(hi_x, vx);
-            lo_y = std::min(lo_y, vy);
-            hi_y = std::max(hi_y, vy);
+            box.add(vx, vy);
         }
-        const Run r =
-            runs && shortest >= 0.5f ? run(lo_x, hi_x, lo_y, hi_y) : Run{0, 0, 0, 0, 0, 1, 0};
+        const Run r = runs && shortest >= 0.5f ? run(box) : Run{0, 0, 0, 0, 0, 1, 0};
         if (!r.ok) {
             for (int j = 0; j < cnt; ++j) {
                 uniform_lane(out, x0 + j, y);
@@ -990,14 +993,15 @@ POSTHASTE_AVX2_INLINE float max_lane_f(V x)
     return _mm_cvtss_f32(m);
 }
 /// The bounding box of the (vx, vy) lanes in `mask`.
-POSTHASTE_AVX2_INLINE void bounds8(
-    V vx, V vy, V mask, float &lo_x, float &hi_x, float &lo_y, float &hi_y)
+POSTHASTE_AVX2_INLINE Box bounds8(V vx, V vy, V mask)
 {
     const V inf = set1(kInf), ninf = set1(-kInf);
-    lo_x = min_lane(_mm256_blendv_ps(inf, vx, mask));
-    hi_x = max_lane_f(_mm256_blendv_ps(ninf, vx, mask));
-    lo_y = min_lane(_mm256_blendv_ps(inf, vy, mask));
-    hi_y = max_lane_f(_mm256_blendv_ps(ninf, vy, mask));
+    Box b;
+    b.lo_x = min_lane(_mm256_blendv_ps(inf, vx, mask));
+    b.hi_x = max_lane_f(_mm256_blendv_ps(ninf, vx, mask));
+    b.lo_y = min_lane(_mm256_blendv_ps(inf, vy, mask));
+    b.hi_y = max_lane_f(_mm256_blendv_ps(ninf, vy, mask));
+    return b;
 }
 
 /// The pixel index of lane x + 0.5 + t v, clamped to the frame (Gather::at).
@@ -1005,6 +1009,26 @@ struct Frame8 {
     V xf, yf, xmax, ymax;
     VI w;
 };
+/// Frame8 of row y (xf: set per group with lanes8_at).
+POSTHASTE_AVX2_INLINE Frame8 frame8(const Gather &g, int y)
+{
+    return Frame8{set1(0.0f),
+                  set1(float(y) + 0.5f),
+                  set1(float(g.w) - 0.5f),
+                  set1(float(g.h) - 0.5f),
+                  _mm256_set1_epi32(g.w)};
+}
+/// `f` at the pixel centres of columns xi.
+POSTHASTE_AVX2_INLINE Frame8 lanes8_at(Frame8 f, VI xi)
+{
+    f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(xi), set1(0.5f));
+    return f;
+}
+/// The row's part of the per-pixel hash hash4(x, y, 0, seed) = pcg_hash(x ^ key).
+POSTHASTE_AVX2_INLINE VI row_key8(const Gather &g, int y)
+{
+    return _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
+}
 POSTHASTE_AVX2_INLINE VI offset8(const Frame8 &f, V t, V vx, V vy)
 {
     const V zero = _mm256_setzero_ps();
@@ -1230,8 +1254,7 @@ POSTHASTE_AVX2_INLINE void lanes8(
 {
     const V zero = _mm256_setzero_ps(), one = set1(1.0f), half = set1(0.5f);
     const V inv_soft = set1(g.inv_soft);
-    Frame8 f = fr;
-    f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(p.xi), half);
+    const Frame8 f = lanes8_at(fr, p.xi);
     const V n = count8(p.len, set1(float(g.o.samples)));
     const V step = _mm256_div_ps(set1(2.0f), n);
     const V delta = _mm256_mul_ps(p.len, step);
@@ -1391,9 +1414,7 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
     p.vx = _mm256_blendv_ps(p.vx, p.cvx, longer);
     p.vy = _mm256_blendv_ps(p.vy, p.cvy, longer);
     p.len = _mm256_blendv_ps(llen, p.clen, longer);
-    float lo_x, hi_x, lo_y, hi_y;
-    bounds8(p.vx, p.vy, p.valid, lo_x, hi_x, lo_y, hi_y);
-    g.run(lo_x, hi_x, lo_y, hi_y, pl.r);
+    g.run(bounds8(p.vx, p.vy, p.valid), pl.r);
     pl.c.ok = 0;
     pl.second = false;
     if (pl.r.ok) {
@@ -1403,8 +1424,7 @@ POSTHASTE_AVX2_INLINE void plan8(const Gather &g, int x, int y, int x1, Plan8 &p
         const V second_valid = _mm256_and_ps(_mm256_andnot_ps(p.shared, p.own), p.valid);
         pl.second = _mm256_movemask_ps(second_valid) != 0;
         if (pl.second) {
-            bounds8(p.cvx, p.cvy, second_valid, lo_x, hi_x, lo_y, hi_y);
-            g.run(lo_x, hi_x, lo_y, hi_y, pl.c);
+            g.run(bounds8(p.cvx, p.cvy, second_valid), pl.c);
         }
         if (pl.r.n <= kTabulated) {
             origins8(g, x, y, pl.u, 2.0f / float(pl.r.n), pl.r.vx, pl.r.vy, pl.r.n, pl.bx, pl.row);
@@ -1470,14 +1490,11 @@ POSTHASTE_AVX2_INLINE void run8(
             }
             own_weight = _mm256_blendv_ps(own_weight, wm, second);
         } else {
-            Frame8 f = fr;
-            f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(p.xi), half);
-            const VI hv = pcg8(_mm256_xor_si256(
-                p.xi,
-                _mm256_set1_epi32(
-                    int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))))));
+            const VI hv = pcg8(_mm256_xor_si256(p.xi, row_key8(g, y)));
             own_weight = _mm256_blendv_ps(
-                own_weight, second_lanes8(g, f, p, second, set1(float(r.n)), hv, B, bg), second);
+                own_weight,
+                second_lanes8(g, lanes8_at(fr, p.xi), p, second, set1(float(r.n)), hv, B, bg),
+                second);
         }
     }
     finish8(g, out, x, y, pl.lanes, p, F, B, fg, bg, own_weight);
@@ -1488,13 +1505,8 @@ POSTHASTE_AVX2_INLINE void run8(
 POSTHASTE_AVX2 int reconstruct_row_avx2(const Gather &g, Image &out, int y, int x0, int x1)
 {
     int shared = 0;
-    const Frame8 fr{set1(0.0f),
-                    set1(float(y) + 0.5f),
-                    set1(float(g.w) - 0.5f),
-                    set1(float(g.h) - 0.5f),
-                    _mm256_set1_epi32(g.w)};
-    const VI ky0 =
-        _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
+    const Frame8 fr = frame8(g, y);
+    const VI ky0 = row_key8(g, y);
     Plan8 plans[2];
     int cur = 0;
     plan8(g, x0, y, x1, plans[0]);
@@ -1557,13 +1569,8 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
 {
     int shared = 0;
     const VI lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-    const Frame8 fr{set1(0.0f),
-                    set1(float(y) + 0.5f),
-                    set1(float(g.w) - 0.5f),
-                    set1(float(g.h) - 0.5f),
-                    _mm256_set1_epi32(g.w)};
-    const VI ky =
-        _mm256_set1_epi32(int(pcg_hash(std::uint32_t(y) ^ pcg_hash(0u ^ pcg_hash(g.o.seed)))));
+    const Frame8 fr = frame8(g, y);
+    const VI ky = row_key8(g, y);
     const V most = set1(float(g.o.samples));
     const VI last = _mm256_set1_epi32(g.w - 1);
     const V all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
@@ -1584,9 +1591,7 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
         }
         if (runs && (live & wanted) == wanted) {
             const V valid = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(lanes), lane));
-            float lo_x, hi_x, lo_y, hi_y;
-            bounds8(vx, vy, valid, lo_x, hi_x, lo_y, hi_y);
-            const Run r = g.run(lo_x, hi_x, lo_y, hi_y);
+            const Run r = g.run(bounds8(vx, vy, valid));
             if (r.ok) {
                 V acc[4];
                 if (g.opaque) {
@@ -1600,8 +1605,7 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
             }
         }
         const VI xi = _mm256_add_epi32(_mm256_set1_epi32(x), lane);
-        Frame8 f = fr;
-        f.xf = _mm256_add_ps(_mm256_cvtepi32_ps(xi), set1(0.5f));
+        const Frame8 f = lanes8_at(fr, xi);
         const V n = _mm256_and_ps(count8(len, most), moving);
         const int n_max = max_lane(n);
         const V step = _mm256_div_ps(set1(2.0f), _mm256_max_ps(n, set1(1.0f)));
