@@ -76,73 +76,76 @@ Image tile_max(const Image &field, int tile, int first)
 
 namespace {
 
-/// Per tile, the longest vector among the tiles within `radius` (Chebyshev) that `admit(dx, dy,
-/// x, y)` accepts, dx and dy being the offsets from the tile to tile (x, y).
+/// The one window loop of the neighbour reductions: per tile, over the tiles within `radius`
+/// (Chebyshev) that `admit(d, x, y)` accepts (d: the Chebyshev distance to tile (x, y)), the
+/// longest vector of `tiles` (ties keep the first in scan order) into `nmax`, and the union of
+/// the (min x, min y, max x, max y) boxes of `bounds` into `nbounds`. Either pair may be null.
 template <class Admit>
-Image neighbour_max_if(const Image &tiles, int radius, const Admit &admit)
+void neighbours_if(const Image *tiles,
+                   const Image *bounds,
+                   int radius,
+                   const Admit &admit,
+                   Image *nmax,
+                   Image *nbounds)
 {
-    const int tw = tiles.width(), th = tiles.height();
-    Image out(tw, th, 2);
+    const bool with_max = tiles && nmax, with_bounds = bounds && nbounds;
+    const Image &dims = with_max ? *tiles : *bounds;
+    const int tw = dims.width(), th = dims.height();
+    if (with_max) {
+        *nmax = Image(tw, th, 2);
+    }
+    if (with_bounds) {
+        *nbounds = Image(tw, th, 4);
+    }
+    constexpr float kInf = std::numeric_limits<float>::infinity();
     parallel_for(0, th, [&](int ty) {
         for (int tx = 0; tx < tw; ++tx) {
             float best = 0.0f, bx = 0.0f, by = 0.0f;
+            float b[4] = {kInf, kInf, -kInf, -kInf};
             for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
+                const int dy = std::abs(y - ty);
                 for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
-                    if (!admit(x - tx, y - ty, x, y)) {
+                    if (!admit(std::max(std::abs(x - tx), dy), x, y)) {
                         continue;
                     }
-                    const float vx = tiles.at(x, y, 0), vy = tiles.at(x, y, 1);
-                    const float l = vx * vx + vy * vy;
-                    if (l > best) {
-                        best = l;
-                        bx = vx;
-                        by = vy;
+                    if (with_max) {
+                        const float *v = tiles->pixel(x, y);
+                        const float l = v[0] * v[0] + v[1] * v[1];
+                        if (l > best) {
+                            best = l;
+                            bx = v[0];
+                            by = v[1];
+                        }
+                    }
+                    if (with_bounds) {
+                        const float *p = bounds->pixel(x, y);
+                        b[0] = std::min(b[0], p[0]);
+                        b[1] = std::min(b[1], p[1]);
+                        b[2] = std::max(b[2], p[2]);
+                        b[3] = std::max(b[3], p[3]);
                     }
                 }
             }
-            out.at(tx, ty, 0) = bx;
-            out.at(tx, ty, 1) = by;
+            if (with_max) {
+                nmax->at(tx, ty, 0) = bx;
+                nmax->at(tx, ty, 1) = by;
+            }
+            if (with_bounds) {
+                std::copy(b, b + 4, nbounds->pixel(tx, ty));
+            }
         }
     });
-    return out;
 }
 
-/// Per tile, the union of the (min x, min y, max x, max y) bounds of the tiles within `radius`
-/// that `admit` accepts (as in neighbour_max_if).
-template <class Admit>
-Image neighbour_bounds_if(const Image &bounds, int radius, const Admit &admit)
-{
-    const int tw = bounds.width(), th = bounds.height();
-    Image out(tw, th, 4);
-    parallel_for(0, th, [&](int ty) {
-        for (int tx = 0; tx < tw; ++tx) {
-            float b[4] = {std::numeric_limits<float>::infinity(),
-                          std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity(),
-                          -std::numeric_limits<float>::infinity()};
-            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
-                for (int x = std::max(0, tx - radius); x <= std::min(tw - 1, tx + radius); ++x) {
-                    if (!admit(x - tx, y - ty, x, y)) {
-                        continue;
-                    }
-                    const float *p = bounds.pixel(x, y);
-                    b[0] = std::min(b[0], p[0]);
-                    b[1] = std::min(b[1], p[1]);
-                    b[2] = std::max(b[2], p[2]);
-                    b[3] = std::max(b[3], p[3]);
-                }
-            }
-            std::copy(b, b + 4, out.pixel(tx, ty));
-        }
-    });
-    return out;
-}
+constexpr auto kAll = [](int, int, int) { return true; };
 
 }  // namespace
 
 Image neighbour_max(const Image &tiles, int radius)
 {
-    return neighbour_max_if(tiles, radius, [](int, int, int, int) { return true; });
+    Image out;
+    neighbours_if(&tiles, nullptr, radius, kAll, &out, nullptr);
+    return out;
 }
 
 namespace {
@@ -174,53 +177,14 @@ void neighbour_reach(const Image &tiles,
                      Image *nbounds)
 {
     const std::vector<int> reach = tile_reach(tiles, tile, margin);
-    const int tw = tiles.width(), th = tiles.height();
-    if (nmax) {
-        *nmax = Image(tw, th, 2);
-    }
-    if (nbounds) {
-        *nbounds = Image(tw, th, 4);
-    }
-    const bool with_bounds = bounds && nbounds;
-    constexpr float kInf = std::numeric_limits<float>::infinity();
-    parallel_for(0, th, [&](int ty) {
-        for (int tx = 0; tx < tw; ++tx) {
-            float best = 0.0f, bx = 0.0f, by = 0.0f;
-            float b[4] = {kInf, kInf, -kInf, -kInf};
-            for (int y = std::max(0, ty - radius); y <= std::min(th - 1, ty + radius); ++y) {
-                const int dy = std::abs(y - ty);
-                const int x0 = std::max(0, tx - radius), x1 = std::min(tw - 1, tx + radius);
-                const int *r = &reach[std::size_t(y) * std::size_t(tw)];
-                const float *v = tiles.pixel(0, y);
-                for (int x = x0; x <= x1; ++x) {
-                    if (std::max(std::abs(x - tx), dy) > r[x]) {
-                        continue;
-                    }
-                    const float vx = v[2 * x], vy = v[2 * x + 1];
-                    const float l = vx * vx + vy * vy;
-                    if (l > best) {
-                        best = l;
-                        bx = vx;
-                        by = vy;
-                    }
-                    if (with_bounds) {
-                        const float *p = bounds->pixel(x, y);
-                        b[0] = std::min(b[0], p[0]);
-                        b[1] = std::min(b[1], p[1]);
-                        b[2] = std::max(b[2], p[2]);
-                        b[3] = std::max(b[3], p[3]);
-                    }
-                }
-            }
-            if (nmax) {
-                nmax->at(tx, ty, 0) = bx;
-                nmax->at(tx, ty, 1) = by;
-            }
-            if (with_bounds) {
-                std::copy(b, b + 4, nbounds->pixel(tx, ty));
-            }
-        }
-    });
+    const std::size_t tw = std::size_t(tiles.width());
+    neighbours_if(
+        &tiles,
+        bounds,
+        radius,
+        [&](int d, int x, int y) { return d <= reach[std::size_t(y) * tw + std::size_t(x)]; },
+        nmax,
+        nbounds);
 }
 
 Image neighbour_max_reach(const Image &tiles, int tile, int margin, int radius)
@@ -247,7 +211,9 @@ Image tile_bounds(const Image &field, int tile, int first)
 
 Image neighbour_bounds(const Image &bounds, int radius)
 {
-    return neighbour_bounds_if(bounds, radius, [](int, int, int, int) { return true; });
+    Image out;
+    neighbours_if(nullptr, &bounds, radius, kAll, nullptr, &out);
+    return out;
 }
 
 }  // namespace posthaste::shading
