@@ -115,6 +115,25 @@ void expect_bounded(const Image &in, const Image &out, const std::string &what)
     }
 }
 
+// The share of pixels of `a` with a channel off from `ref` by more than 1e-3 (relative above 1):
+// how the AVX2 and scalar paths are compared.
+double fraction_off(const Image &a, const Image &ref)
+{
+    int off = 0;
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            for (int c = 0; c < a.channels(); ++c) {
+                const float v = ref.at(x, y, c);
+                if (std::abs(a.at(x, y, c) - v) > 1e-3f * std::max(1.0f, std::abs(v))) {
+                    ++off;
+                    break;
+                }
+            }
+        }
+    }
+    return double(off) / (double(a.width()) * a.height());
+}
+
 TEST(MotionBlurTiles, TileAndNeighbourMaxKeepTheLongestVector)
 {
     Image f(8, 4, 2);
@@ -528,19 +547,7 @@ TEST(MotionBlur, Avx2RowsMatchTheScalarPath)
                     shading::motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o);
             }
             const metrics::CompareStats st = metrics::compare(vec, scalar);
-            int off = 0;
-            for (int y = 0; y < vec.height(); ++y) {
-                for (int x = 0; x < vec.width(); ++x) {
-                    for (int c = 0; c < vec.channels(); ++c) {
-                        const float v = scalar.at(x, y, c);
-                        if (std::abs(vec.at(x, y, c) - v) > 1e-3f * std::max(1.0f, std::abs(v))) {
-                            ++off;
-                            break;
-                        }
-                    }
-                }
-            }
-            const double frac = double(off) / (double(vec.width()) * vec.height());
+            const double frac = fraction_off(vec, scalar);
             std::printf(
                 "avx2 vs scalar f%d %s: rms %.3g max %.3g, %.4f %% of pixels off by > 1e-3 "
                 "(relative above 1)\n",
@@ -603,19 +610,7 @@ TEST(MotionBlur, Avx2MatchesTheScalarPathAtOddSizesAndLayouts)
             scalar = shading::motion_blur(c.color, c.motion, f.image("depth"), o);
         }
         const metrics::CompareStats cs = metrics::compare(vec, scalar);
-        int off = 0;
-        for (int y = 0; y < vec.height(); ++y) {
-            for (int x = 0; x < vec.width(); ++x) {
-                for (int k = 0; k < vec.channels(); ++k) {
-                    const float v = scalar.at(x, y, k);
-                    if (std::abs(vec.at(x, y, k) - v) > 1e-3f * std::max(1.0f, std::abs(v))) {
-                        ++off;
-                        break;
-                    }
-                }
-            }
-        }
-        const double frac = double(off) / (double(vec.width()) * vec.height());
+        const double frac = fraction_off(vec, scalar);
         std::printf(
             "avx2 vs scalar, %s: rms %.3g, %.4f %% of pixels off by > 1e-3; %ld of %ld "
             "groups shared a run\n",

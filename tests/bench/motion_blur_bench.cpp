@@ -9,7 +9,6 @@
 //       --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 
-#include <algorithm>
 #include <ctime>
 #include <map>
 #include <string>
@@ -41,12 +40,9 @@ void BM_MotionBlurCopy(benchmark::State &state)
     state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
 }
 
-void run_blur(benchmark::State &state, BlurMethod method)
+// Times motion_blur on frame f with options o; the counters of the last iteration.
+void time_blur(benchmark::State &state, const Frame &f, const MotionBlurOptions &o)
 {
-    const Frame &f = input_frame(int(state.range(0)));
-    MotionBlurOptions o;
-    o.method = method;
-    o.shutter = f.camera.shutter.value_or(0.5f);
     MotionBlurStats st;
     const double cpu0 = process_cpu_ms();
     for (auto _ : state) {
@@ -67,6 +63,22 @@ void run_blur(benchmark::State &state, BlurMethod method)
     state.counters["tiles_copied"] = st.tiles_copied;
     state.counters["tiles_coherent"] = st.tiles_coherent;
     state.counters["tiles"] = st.tiles_total;
+}
+
+// The default options for frame f (its shutter from the header).
+MotionBlurOptions options_for(const Frame &f)
+{
+    MotionBlurOptions o;
+    o.shutter = f.camera.shutter.value_or(0.5f);
+    return o;
+}
+
+void run_blur(benchmark::State &state, BlurMethod method)
+{
+    const Frame &f = input_frame(int(state.range(0)));
+    MotionBlurOptions o = options_for(f);
+    o.method = method;
+    time_blur(state, f, o);
 }
 
 void BM_MotionBlurUniform(benchmark::State &state)
@@ -114,15 +126,9 @@ BENCHMARK(BM_MotionBlurUniformScalar)->Arg(6)->Unit(benchmark::kMillisecond)->Us
 void BM_MotionBlurReconstructSamples(benchmark::State &state)
 {
     const Frame &f = input_frame(6);
-    MotionBlurOptions o;
-    o.shutter = f.camera.shutter.value_or(0.5f);
+    MotionBlurOptions o = options_for(f);
     o.samples = int(state.range(0));
-    const double cpu0 = process_cpu_ms();
-    for (auto _ : state) {
-        Image out = motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o);
-        benchmark::DoNotOptimize(out.data());
-    }
-    state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
+    time_blur(state, f, o);
 }
 BENCHMARK(BM_MotionBlurReconstructSamples)
     ->Arg(4)
@@ -135,17 +141,9 @@ BENCHMARK(BM_MotionBlurReconstructSamples)
 void BM_MotionBlurReconstructTolerance(benchmark::State &state)
 {
     const Frame &f = input_frame(6);
-    MotionBlurOptions o;
-    o.shutter = f.camera.shutter.value_or(0.5f);
+    MotionBlurOptions o = options_for(f);
     o.group_tolerance = float(state.range(0)) / 100.0f;
-    MotionBlurStats st;
-    const double cpu0 = process_cpu_ms();
-    for (auto _ : state) {
-        Image out = motion_blur(f.image("color"), f.image("motion"), f.image("depth"), o, &st);
-        benchmark::DoNotOptimize(out.data());
-    }
-    state.counters["cpu_ms"] = (process_cpu_ms() - cpu0) / double(state.iterations());
-    state.counters["groups_shared"] = double(st.groups_shared) / double(std::max(st.groups, 1L));
+    time_blur(state, f, o);
 }
 BENCHMARK(BM_MotionBlurReconstructTolerance)
     ->Arg(0)

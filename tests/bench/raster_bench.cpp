@@ -13,6 +13,7 @@
 #include <ctime>
 #include <string>
 
+#include "bench_util.h"
 #include "raster/render.h"
 
 namespace posthaste::raster {
@@ -25,14 +26,7 @@ const Scene &default_scene()
     return s;
 }
 
-// CPU time of the whole process (all threads), milliseconds. On a shared machine the wall time
-// depends on other load; process CPU time / threads is what an idle machine would approach.
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
+using bench::process_cpu_ms;
 
 void report(benchmark::State &state, const RenderStats &st)
 {
