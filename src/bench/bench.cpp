@@ -13,6 +13,7 @@
 #include "bench/chart.h"
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/timing.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
@@ -92,11 +93,6 @@ std::string resolve(const std::string &path, const std::string &base_dir)
 }
 
 // --- Running -------------------------------------------------------------------------------
-
-double ms_since(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
 
 const Image &measured_pass(const Frame &frame, const std::string &pass, const std::string &who)
 {

@@ -26,6 +26,7 @@
 #include "core/passes.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
+#include "core/timing.h"
 #include "raster/mesh.h"
 #include "raster/raster.h"
 #include "raster/sky.h"
@@ -64,11 +65,6 @@ std::shared_ptr<SceneCache> make_scene_cache()
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t0)
-{
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
 
 // glm's mat4 * vec4 in its own order of operations, so the same bits, but always inlined: GCC
 // had outlined glm's operator, and the per-pixel calls (shadow maps, motion) took ~20% of a

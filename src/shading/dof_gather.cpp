@@ -17,25 +17,12 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
+#include "core/timing.h"
 
 namespace posthaste::shading {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point t0)
-{
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-// CPU time of the whole process (every thread), ms: on a shared machine the wall time of a pass
-// depends on other load, its CPU time much less.
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
 
 constexpr float kGoldenAngle = 2.39996323f;
 constexpr float kTwoPi = 6.28318531f;

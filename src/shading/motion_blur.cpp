@@ -28,6 +28,7 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
+#include "core/timing.h"
 #include "shading/tiles.h"
 
 namespace posthaste::shading {
@@ -40,18 +41,6 @@ namespace {
 /// Log depth of sky: far beyond any finite depth, finite so that sky - sky = 0.
 constexpr float kSkyLogZ = 1e30f;
 constexpr float kInf = std::numeric_limits<float>::infinity();
-
-double ms_since(std::chrono::steady_clock::time_point t0)
-{
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-double process_cpu_ms()
-{
-    timespec ts{};
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
-}
 
 /// Weight of "Y is in front of X": 1 in front, 0 behind, 0.5 at equal depth, a linear ramp in
 /// log depth (relative depth difference) of width soft_z between. Sky is behind everything

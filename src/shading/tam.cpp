@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "core/hash.h"
+#include "core/timing.h"
 
 namespace posthaste::shading {
 namespace {
@@ -251,8 +252,7 @@ Tam build_tam(const TamParams &p)
         dst[kTamTones + 1] = dst[kTamTones];
     }
     tam.build_cpu_ms_ = thread_cpu_ms() - cpu0;
-    tam.build_ms_ =
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    tam.build_ms_ = ms_since(t0);
     return tam;
 }
 
