@@ -1621,6 +1621,29 @@ POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, 
 
 }  // namespace
 
+namespace {
+
+/// Whether the AVX2 path runs: the CPU has it, and the frame is small enough for its 32-bit
+/// gather offsets.
+bool vector_path(const Image &color)
+{
+    return simd::avx2() &&
+           std::size_t(color.width()) * std::size_t(color.height()) * 4 < (std::size_t(1) << 31);
+}
+
+/// The tile max (and, with `want_bounds`, tile bounds) the pack folded in, else tiles.h's from
+/// the velocity image.
+void packed_tiles(Packed &packed, int tile, bool want_bounds, Image &tiles, Image &bounds)
+{
+    tiles = std::move(packed.tiles);
+    bounds = std::move(packed.bounds);
+    if (tiles.empty()) {
+        tile_max_bounds(packed.velocity, tile, 0, &tiles, want_bounds ? &bounds : nullptr);
+    }
+}
+
+}  // namespace
+
 void motion_blur_tiles(const Image &color,
                        const Image &motion,
                        const Image &depth,
@@ -1630,15 +1653,8 @@ void motion_blur_tiles(const Image &color,
 {
     MotionBlurOptions o = options;
     o.tile = std::max(o.tile, 1);
-    const bool vector =
-        simd::avx2() &&
-        std::size_t(color.width()) * std::size_t(color.height()) * 4 < (std::size_t(1) << 31);
-    Packed packed = pack(color, motion, depth, o, vector, true);
-    tiles = std::move(packed.tiles);
-    bounds = std::move(packed.bounds);
-    if (tiles.empty()) {
-        tile_max_bounds(packed.velocity, o.tile, 0, &tiles, &bounds);
-    }
+    Packed packed = pack(color, motion, depth, o, vector_path(color), true);
+    packed_tiles(packed, o.tile, true, tiles, bounds);
 }
 
 Image motion_blur(const Image &color,
@@ -1655,9 +1671,7 @@ Image motion_blur(const Image &color,
     MotionBlurStats st;
     auto t0 = std::chrono::steady_clock::now();
     double c0 = process_cpu_ms();
-    // The AVX2 rows gather records with 32-bit offsets.
-    const bool vector =
-        simd::avx2() && std::size_t(w) * std::size_t(h) * 4 < (std::size_t(1) << 31);
+    const bool vector = vector_path(color);
     const bool want_bounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct;
     Packed packed = pack(color, motion, depth, o, vector, want_bounds);
     st.pack_ms = ms_since(t0);
@@ -1665,10 +1679,8 @@ Image motion_blur(const Image &color,
 
     t0 = std::chrono::steady_clock::now();
     c0 = process_cpu_ms();
-    Image tiles = std::move(packed.tiles), bounds = std::move(packed.bounds);
-    if (tiles.empty()) {
-        tile_max_bounds(packed.velocity, o.tile, 0, &tiles, want_bounds ? &bounds : nullptr);
-    }
+    Image tiles, bounds;
+    packed_tiles(packed, o.tile, want_bounds, tiles, bounds);
     st.tile_max_ms = ms_since(t0);
     st.tile_max_cpu_ms = process_cpu_ms() - c0;
 
