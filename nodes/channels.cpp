@@ -112,7 +112,7 @@ void execute(NodeContext &ctx)
             out.set(c.target, p.image, p.channels, p.storage);
             continue;
         }
-        Image img = Image::uninitialized(in.width, in.height, int(c.channels.size()));
+        Image img = Image::uninitialized(in.width(), in.height(), int(c.channels.size()));
         std::vector<std::string> names;
         for (std::size_t k = 0; k < c.channels.size(); ++k) {
             const ChannelRef &r = c.channels[k];

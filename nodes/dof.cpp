@@ -63,8 +63,14 @@ constexpr ParamSpec kParams[] = {
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}};
 
-shading::DofLens lens_of(NodeContext &ctx, const Camera &cam)
+shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
 {
+    // The data window's camera: its sensor spans the pass images (the display window's sensor
+    // width, given or from the header, scaled by data width / display width).
+    const Camera cam = in.pixel_camera();
+    const double window_scale = in.display_window.empty()
+                                    ? 1.0
+                                    : double(in.width()) / double(in.display_window.width());
     const std::string who = ctx.where();
     shading::DofLens l;
     const double fstop = ctx.get_real(kFstop), focus = ctx.get_real(kFocus);
@@ -72,7 +78,7 @@ shading::DofLens lens_of(NodeContext &ctx, const Camera &cam)
     l.fstop = fstop > 0.0 ? float(fstop) : cam.require_fstop(who);
     l.focus_m = focus > 0.0 ? float(focus) : cam.require_focus_distance(who);
     l.focal_mm = focal > 0.0 ? float(focal) : cam.require_focal_length_mm(who);
-    l.sensor_mm = sensor > 0.0 ? float(sensor) : cam.require_sensor_width_mm(who);
+    l.sensor_mm = sensor > 0.0 ? float(sensor * window_scale) : cam.require_sensor_width_mm(who);
     if (!(l.fstop > 0.0f) || !(l.focus_m > 0.0f) || !(l.focal_mm > 0.0f) || !(l.sensor_mm > 0.0f) ||
         !std::isfinite(l.fstop) || !std::isfinite(l.focus_m) || !std::isfinite(l.focal_mm) ||
         !std::isfinite(l.sensor_mm)) {
@@ -105,7 +111,7 @@ void execute(NodeContext &ctx)
                       "x",
                       color.height());
     }
-    const shading::DofLens lens = lens_of(ctx, in.camera);
+    const shading::DofLens lens = lens_of(ctx, in);
     shading::DofSettings s;
     s.max_coc_px = ctx.get_float(kMaxCoc);
     s.samples = ctx.get_int(kSamples);

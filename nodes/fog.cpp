@@ -233,8 +233,9 @@ void execute(NodeContext &ctx)
                       " channels; fog needs RGB");
     }
     const std::string who = ctx.where();
-    const glm::mat4 &w2c = in.camera.require_world_to_camera(who);
-    const glm::mat4 &w2ndc = in.camera.require_world_to_ndc(who);
+    const Camera camera = in.pixel_camera();  // NDC spans the data window
+    const glm::mat4 &w2c = camera.require_world_to_camera(who);
+    const glm::mat4 &w2ndc = camera.require_world_to_ndc(who);
     const shading::CameraRays rays(w2c, w2ndc);
 
     // Negative depths count as 0 (a copy is made only when there are some). The height fog and

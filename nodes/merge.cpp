@@ -56,32 +56,23 @@ inline float combine(Op op, float a, float b, float a_alpha, float b_alpha)
 
 void execute(NodeContext &ctx)
 {
+    // The result covers B's data window (Nuke's "bbox: B"): A and the mask are placed into it,
+    // transparent (zero) where their own data windows do not reach.
+    const Frame &fb = ctx.input("b");
     const Image &b = ctx.input_pass("b", pass::kColor);
-    const Image &a = ctx.input_pass("a", pass::kColor);
-    if (a.width() != b.width() || a.height() != b.height()) {
-        throw_runtime(ctx.where(),
-                      ": input \"a\" is ",
-                      a.width(),
-                      "x",
-                      a.height(),
-                      " but input \"b\" is ",
-                      b.width(),
-                      "x",
-                      b.height());
+    Image a_placed, mask_placed;
+    const Image *a_ptr = &ctx.input_pass("a", pass::kColor);
+    if (const Frame &fa = ctx.input("a"); fa.data_window != fb.data_window) {
+        a_placed = place_in_window(*a_ptr, fa.data_window, fb.data_window);
+        a_ptr = &a_placed;
     }
+    const Image &a = *a_ptr;
     const Image *mask = nullptr;
     if (ctx.has_input("mask")) {
         mask = &ctx.input_pass("mask", ctx.get_string(kMaskPass));
-        if (mask->width() != b.width() || mask->height() != b.height()) {
-            throw_runtime(ctx.where(),
-                          ": input \"mask\" is ",
-                          mask->width(),
-                          "x",
-                          mask->height(),
-                          " but input \"b\" is ",
-                          b.width(),
-                          "x",
-                          b.height());
+        if (const Frame &fm = ctx.input("mask"); fm.data_window != fb.data_window) {
+            mask_placed = place_in_window(*mask, fm.data_window, fb.data_window);
+            mask = &mask_placed;
         }
     }
     const Op op = Op(ctx.get_choice(kOperation));

@@ -115,7 +115,7 @@ void execute(NodeContext &ctx)
                           " channel(s), expected 2");
         }
     } else {
-        reprojected = shading::camera_motion(depth, in.camera, ctx.where());
+        reprojected = shading::camera_motion(depth, in.pixel_camera(), ctx.where());
         motion = &reprojected;
     }
     if (color.channels() > 4) {

@@ -28,7 +28,19 @@ constexpr ParamSpec kAliases = ParamSpec::json("aliases", "[]")
                                    .doc(
                                        "Extra channel alias rules [{pass, channels, scale, offset, "
                                        "infinite_above}], tried first.");
-constexpr ParamSpec kParams[] = {kPath, kFrameOffset, kBadPixels, kLinearize, kAliases};
+constexpr ParamSpec kView =
+    ParamSpec::string("view", "")
+        .doc(
+            "Stereo/multi-view files: the view the canonical passes come from (\"\": the file's "
+            "default, the first of its multiView list). Other views' passes travel as "
+            "pass@view and are written back as views.");
+constexpr ParamSpec kDeep =
+    ParamSpec::choice("deep", "flatten|error", "flatten")
+        .doc(
+            "Deep files: composite each pixel's samples front to back (depth = the nearest "
+            "sample), or refuse them.");
+constexpr ParamSpec kParams[] = {
+    kPath, kFrameOffset, kBadPixels, kLinearize, kAliases, kView, kDeep};
 
 ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
 {
@@ -37,6 +49,8 @@ ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
                                   node.json_path + "/params/aliases: " + node.describe());
     o.bad_pixels = BadPixels(params.get_choice(kBadPixels));
     o.linearize = params.get_bool(kLinearize);
+    o.view = params.get_string(kView);
+    o.deep = DeepMode(params.get_choice(kDeep));
     return o;
 }
 

@@ -1431,12 +1431,13 @@ void execute(NodeContext &ctx)
                       "need 3 channels");
     }
     const Frame &in = ctx.input("image");
-    const glm::mat4 w2c = in.camera.require_world_to_camera(ctx.where());
+    const Camera camera = in.pixel_camera();  // NDC spans the data window
+    const glm::mat4 w2c = camera.require_world_to_camera(ctx.where());
     const glm::mat4 c2w = glm::inverse(w2c);
     const glm::vec3 eye(c2w[3]);
     glm::mat4 w2ndc(1.0f), cam_to_ndc(1.0f);
     if (from_depth || shadows) {
-        w2ndc = in.camera.require_world_to_ndc(ctx.where());
+        w2ndc = camera.require_world_to_ndc(ctx.where());
         cam_to_ndc = w2ndc * c2w;
     }
     const glm::vec4 z_row(w2c[0][2], w2c[1][2], w2c[2][2], w2c[3][2]);

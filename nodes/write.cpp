@@ -19,16 +19,23 @@ constexpr ParamSpec kPath =
 constexpr ParamSpec kPasses =
     ParamSpec::string("passes", "*")
         .doc("EXR: comma-separated passes to write, or * for every pass the frame has.");
-constexpr ParamSpec kCompression = ParamSpec::string("compression", "piz")
-                                       .doc(
-                                           "EXR compression: none, rle, zips, zip, piz, pxr24, "
-                                           "b44, b44a, dwaa, dwab (dwaa:45 sets a "
-                                           "level).");
-constexpr ParamSpec kLayout = ParamSpec::choice("layout", "single|multipart", "single")
-                                  .doc("EXR: one part with every channel, or one part per pass.");
+constexpr ParamSpec kCompression =
+    ParamSpec::string("compression", "auto")
+        .doc(
+            "EXR compression: auto (the source part's if lossless, else zip; piz for frames not "
+            "read from an EXR), none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab (dwaa:45 "
+            "sets a level).");
+constexpr ParamSpec kLayout =
+    ParamSpec::choice("layout", "auto|single|multipart", "auto")
+        .doc(
+            "EXR: auto keeps the source file's parts, views, channel names, pixel types and "
+            "windows (single for frames not read from an EXR); single or multipart rebuild the "
+            "file with canonical channel names, in one part or one part per pass.");
 constexpr ParamSpec kStorage =
     ParamSpec::choice("storage", "auto|half|float", "auto")
-        .doc("EXR pixel type: auto is half for color and albedo, float for data passes.");
+        .doc(
+            "EXR pixel type: auto keeps each source channel's type, and is half for color and "
+            "albedo, float for other passes no file gave.");
 constexpr ParamSpec kAllowLossyData = ParamSpec::boolean("allow_lossy_data", false)
                                           .doc(
                                               "Permit lossy compression (dwaa, dwab, pxr24) on "
@@ -80,14 +87,20 @@ void execute(NodeContext &ctx)
         if (is_preview(params)) {
             const ColorProcessor &display = ctx.state().get_or_create<ColorProcessor>(
                 [&] { return make_display(params, ctx.node()); });
-            Image rgba = frame.image(pass::kColor, ctx.where());
+            // A preview shows the display window (the delivered format); outside the data
+            // window it is transparent black.
+            Image rgba = frame.data_window == frame.display_window
+                             ? frame.image(pass::kColor, ctx.where())
+                             : place_in_window(frame.image(pass::kColor, ctx.where()),
+                                               frame.data_window,
+                                               frame.display_window);
             display.apply(rgba, /*unpremultiply=*/true);
             write_preview(rgba, path, params.get_bool(kAlpha));
             return;
         }
         WriteOptions options;
         options.compression = params.get_string(kCompression);
-        options.multipart = params.get_choice(kLayout) == 1;
+        options.layout = ExrLayout(params.get_choice(kLayout));
         options.passes = listed_passes(params);
         options.allow_lossy_data = params.get_bool(kAllowLossyData);
         const int storage = params.get_choice(kStorage);

@@ -107,8 +107,7 @@ Frame difference_frame(const metrics::DiffReport &report, const Frame &a)
 {
     Frame f;
     f.number = report.frame;
-    f.width = report.width;
-    f.height = report.height;
+    f.set_size(report.width, report.height);
     for (const metrics::PassDiff &d : report.passes) {
         if (d.compared && !d.difference.empty()) {
             f.set(d.name,
@@ -125,8 +124,7 @@ void write_flip_map(const metrics::FlipDiff &flip, const std::string &path, int 
     if (is_exr_path(path)) {
         Frame f;
         f.number = frame_number;
-        f.width = flip.heatmap.width();
-        f.height = flip.heatmap.height();
+        f.set_size(flip.heatmap.width(), flip.heatmap.height());
         f.set(pass::kColor,
               std::make_shared<const Image>(flip.heatmap),
               {"R", "G", "B"},

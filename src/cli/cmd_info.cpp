@@ -40,36 +40,70 @@ void print_scalar(const char *name, const std::optional<float> &v, const char *u
     }
 }
 
+std::string window_text(const Rect &r)
+{
+    return "(" + std::to_string(r.x0) + "," + std::to_string(r.y0) + ")-(" +
+           std::to_string(r.x1 - 1) + "," + std::to_string(r.y1 - 1) + ") " +
+           std::to_string(r.width()) + "x" + std::to_string(r.height());
+}
+
 int info(const std::vector<std::string> &files)
 {
+    ReadOptions options;
+    options.count_deep_samples = true;
     for (const std::string &path : files) {
-        const FileInfo fi = read_file_info(path);
+        const FileInfo fi = read_file_info(path, options);
         std::printf("%s\n", path.c_str());
-        std::printf("  format             %s, %zu part(s), %d x %d\n",
+        std::printf("  format             %s, %zu part(s)%s%s\n",
                     fi.format.c_str(),
                     fi.parts.size(),
-                    fi.width,
-                    fi.height);
+                    fi.conversion.empty() ? "" : ", read as ",
+                    fi.conversion.c_str());
+        std::printf("  display window     %s\n", window_text(fi.display_window).c_str());
+        std::printf("  data window        %s (union of the parts')\n",
+                    window_text(fi.data_window).c_str());
+        if (!fi.views.empty()) {
+            std::string views;
+            for (const std::string &v : fi.views) {
+                views += (views.empty() ? "" : ", ") + v;
+            }
+            std::printf("  views              %s; passes from \"%s\", others as pass@view\n",
+                        views.c_str(),
+                        fi.view.c_str());
+        }
+        std::printf("  nodes work on      the data window of the parts read (every pass is its "
+                    "size);\n                     NDC and the sensor span the display window\n");
         for (std::size_t p = 0; p < fi.parts.size(); ++p) {
             const FilePart &part = fi.parts[p];
-            std::printf(
-                "  part %zu%s%s%s: display (%d,%d)-(%d,%d), data (%d,%d)-(%d,%d) relative, %s"
-                "%s%s\n",
-                p,
-                part.name.empty() ? "" : " \"",
-                part.name.c_str(),
-                part.name.empty() ? "" : "\"",
-                part.display_window.x0,
-                part.display_window.y0,
-                part.display_window.x1 - 1,
-                part.display_window.y1 - 1,
-                part.data_window.x0,
-                part.data_window.y0,
-                part.data_window.x1 - 1,
-                part.data_window.y1 - 1,
-                part.tiled ? "tiled" : "scanline",
-                part.compression.empty() ? "" : ", ",
-                part.compression.c_str());
+            std::string kind = part.deep ? "deep " : "";
+            kind += part.tiled ? "tiled " + std::to_string(part.tile_width) + "x" +
+                                     std::to_string(part.tile_height)
+                               : "scanline";
+            if (part.mip_levels > 1) {
+                kind += ", " + part.level_mode + " " + std::to_string(part.mip_levels) + " levels";
+            }
+            if (!part.envmap.empty()) {
+                kind += ", " + part.envmap + " environment";
+            }
+            std::printf("  part %zu%s%s%s%s%s: data %s, %s%s%s\n",
+                        p,
+                        part.name.empty() ? "" : " \"",
+                        part.name.c_str(),
+                        part.name.empty() ? "" : "\"",
+                        part.view.empty() ? "" : " view ",
+                        part.view.c_str(),
+                        window_text(part.data_window).c_str(),
+                        kind.c_str(),
+                        part.compression.empty() ? "" : ", ",
+                        part.compression.c_str());
+            if (part.deep && part.deep_samples >= 0) {
+                std::printf("    deep samples: %lld (%.3g per pixel, at most %d)\n",
+                            static_cast<long long>(part.deep_samples),
+                            double(part.deep_samples) /
+                                double(std::int64_t(part.data_window.width()) *
+                                       part.data_window.height()),
+                            part.deep_max_samples);
+            }
             std::string line;
             for (const FileChannel &c : part.channels) {
                 line += (line.empty() ? "" : ", ") + c.name + " (" + c.type + ")";

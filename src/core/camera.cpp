@@ -35,6 +35,38 @@ const glm::mat4 &Camera::require_prev_world_to_ndc(const std::string &who) const
 {
     return require(prev_world_to_ndc, attr::kPrevWorldToNDC, who);
 }
+Camera Camera::for_window(const Rect &display, const Rect &data) const
+{
+    if (display == data || display.empty() || data.empty()) {
+        return *this;
+    }
+    // NDC of the display window -> NDC of the data window: u' = a u + b (an affine map after
+    // the divide, so it composes onto the clip-space matrix as A * M).
+    const float ax = float(display.width()) / float(data.width());
+    const float bx = float(display.x0 - data.x0) / float(data.width());
+    const float ay = float(display.height()) / float(data.height());
+    const float by = float(display.y0 - data.y0) / float(data.height());
+    glm::mat4 remap(1.0f);
+    remap[0][0] = ax;
+    remap[3][0] = bx;
+    remap[1][1] = ay;
+    remap[3][1] = by;
+    Camera c = *this;
+    if (c.world_to_ndc) {
+        c.world_to_ndc = remap * *c.world_to_ndc;
+    }
+    if (c.prev_world_to_ndc) {
+        c.prev_world_to_ndc = remap * *c.prev_world_to_ndc;
+    }
+    if (c.sensor_width_mm) {
+        *c.sensor_width_mm /= ax;
+    }
+    if (c.sensor_height_mm) {
+        *c.sensor_height_mm /= ay;
+    }
+    return c;
+}
+
 float Camera::require_fstop(const std::string &who) const
 {
     return require(fstop, attr::kAperture, who);

@@ -13,6 +13,8 @@
 #include <optional>
 #include <string>
 
+#include "core/image.h"
+
 namespace posthaste {
 
 /// EXR header attribute names for the camera. The first two are OpenEXR standard attributes;
@@ -59,6 +61,11 @@ struct Camera {
     float require_focus_distance(const std::string &who) const;
     float require_focal_length_mm(const std::string &who) const;
     float require_sensor_width_mm(const std::string &who) const;
+
+    /// The same camera for an image covering `data` instead of `display` (both absolute pixel
+    /// rectangles): NDC [0,1]^2 and the sensor size then span `data`. The identity when they are
+    /// equal. Used to give nodes, which map pixels over their images, the data window's view.
+    Camera for_window(const Rect &display, const Rect &data) const;
 };
 
 /// A pinhole camera's matrices from a camera-to-world transform and lens. `view_to_world` maps

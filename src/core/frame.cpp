@@ -25,6 +25,25 @@ const Pass &Frame::pass(const std::string &name, const std::string &who) const
     return it->second;
 }
 
+void Frame::check_size(const std::string &name, const Image &image)
+{
+    if (passes_.empty() && data_window.empty()) {
+        set_size(image.width(), image.height());
+    }
+    if (image.width() != width() || image.height() != height()) {
+        throw_runtime("pass \"",
+                      name,
+                      "\" is ",
+                      image.width(),
+                      "x",
+                      image.height(),
+                      " but the frame's data window is ",
+                      width(),
+                      "x",
+                      height());
+    }
+}
+
 void Frame::set(const std::string &name,
                 ImagePtr image,
                 std::vector<std::string> channels,
@@ -33,22 +52,7 @@ void Frame::set(const std::string &name,
     if (!image) {
         throw_runtime("pass \"", name, "\": no image");
     }
-    if (passes_.empty() && width == 0 && height == 0) {
-        width = image->width();
-        height = image->height();
-    }
-    if (image->width() != width || image->height() != height) {
-        throw_runtime("pass \"",
-                      name,
-                      "\" is ",
-                      image->width(),
-                      "x",
-                      image->height(),
-                      " but the frame is ",
-                      width,
-                      "x",
-                      height);
-    }
+    check_size(name, *image);
     if (channels.empty()) {
         const pass::CanonicalPass *canonical = pass::find_canonical(name);
         if (canonical && int(canonical->channels.size()) == image->channels()) {
@@ -70,7 +74,27 @@ void Frame::set(const std::string &name,
                       image->channels(),
                       " channels");
     }
-    passes_[name] = Pass{std::move(image), std::move(channels), storage};
+    Pass next{std::move(image), std::move(channels), storage, {}, {}};
+    if (auto it = passes_.find(name); it != passes_.end()) {
+        const Pass &old = it->second;
+        if (old.origin.size() == next.channels.size() && old.channels == next.channels) {
+            next.origin = old.origin;
+            next.as_read = old.as_read;
+            if (next.storage == PixelStorage::Auto) {
+                next.storage = old.storage;
+            }
+        }
+    }
+    passes_[name] = std::move(next);
+}
+
+void Frame::set_pass(const std::string &name, Pass pass)
+{
+    if (!pass.image) {
+        throw_runtime("pass \"", name, "\": no image");
+    }
+    check_size(name, *pass.image);
+    passes_[name] = std::move(pass);
 }
 
 std::vector<std::string> Frame::pass_names() const

@@ -93,4 +93,32 @@ bool Image::bit_equal(const Image &other) const
            std::memcmp(data_.get(), other.data_.get(), value_count() * sizeof(float)) == 0;
 }
 
+Image place_in_window(const Image &image,
+                      const Rect &from,
+                      const Rect &to,
+                      const std::vector<float> &fill)
+{
+    const int nch = image.channels();
+    Image out = Image::uninitialized(to.width(), to.height(), nch);
+    const Rect both = from.intersect(to);
+    for (int y = 0; y < out.height(); ++y) {
+        float *row = out.pixel(0, y);
+        const int ay = y + to.y0;
+        const bool inside_row = ay >= both.y0 && ay < both.y1 && !both.empty();
+        for (int x = 0; x < out.width(); ++x) {
+            const int ax = x + to.x0;
+            float *dst = row + std::size_t(x) * std::size_t(nch);
+            if (inside_row && ax >= both.x0 && ax < both.x1) {
+                const float *src = image.pixel(ax - from.x0, ay - from.y0);
+                std::copy(src, src + nch, dst);
+                continue;
+            }
+            for (int c = 0; c < nch; ++c) {
+                dst[c] = std::size_t(c) < fill.size() ? fill[std::size_t(c)] : 0.0f;
+            }
+        }
+    }
+    return out;
+}
+
 }  // namespace posthaste

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <glm/vec4.hpp>
 #include <memory>
+#include <vector>
 
 namespace posthaste {
 
@@ -24,6 +25,19 @@ struct Rect {
     }
     /// Grow by r pixels on every side.
     Rect expand(int r) const { return {x0 - r, y0 - r, x1 + r, y1 + r}; }
+    /// Moved by (dx, dy).
+    Rect offset(int dx, int dy) const { return {x0 + dx, y0 + dy, x1 + dx, y1 + dy}; }
+    /// The smallest rectangle holding both (an empty one is ignored).
+    Rect unite(const Rect &o) const
+    {
+        if (empty()) {
+            return o;
+        }
+        if (o.empty()) {
+            return *this;
+        }
+        return {std::min(x0, o.x0), std::min(y0, o.y0), std::max(x1, o.x1), std::max(y1, o.y1)};
+    }
     bool operator==(const Rect &) const = default;
 };
 
@@ -98,5 +112,13 @@ class Image {
 };
 
 using ImagePtr = std::shared_ptr<const Image>;
+
+/// `image`, which covers the absolute rectangle `from`, placed over the rectangle `to`: pixels of
+/// `to` outside `from` take `fill[c]` (0 where `fill` has no entry). The same pixels when the
+/// rectangles are equal.
+Image place_in_window(const Image &image,
+                      const Rect &from,
+                      const Rect &to,
+                      const std::vector<float> &fill = {});
 
 }  // namespace posthaste

@@ -1,6 +1,9 @@
 #pragma once
-// Reading and writing frames: multi-layer / multi-part OpenEXR (and PNG/TIFF/JPEG through
-// OpenImageIO for color-only inputs), with channel aliases, camera attributes and atomic writes.
+// Reading and writing frames: multi-layer / multi-part / multi-view OpenEXR (scanline, tiled,
+// mip-mapped, deep, luminance/chroma) and PNG/TIFF/JPEG through OpenImageIO for color-only inputs,
+// with channel aliases, camera attributes, data and display windows, and atomic writes. A frame
+// read from an EXR remembers the file's layout (io/source_file.h), so a write puts back every
+// channel no node changed exactly as it was.
 
 #include <functional>
 #include <map>
@@ -14,61 +17,104 @@
 namespace posthaste {
 
 struct FileChannel {
-    std::string name;  ///< Full name as stored ("ViewLayer.Depth.Z"), part-prefixed if needed.
+    std::string name;  ///< As stored in its part ("ViewLayer.Depth.Z", "right.R", "Z").
     std::string type;  ///< "half", "float", "uint", "uint8", ...
+    std::string view;  ///< Its view ("" when the file has none).
+    int xsampling = 1, ysampling = 1;
 };
 
 struct FilePart {
     std::string name;
+    std::string view;  ///< The part's view attribute ("" when none).
     std::vector<FileChannel> channels;
-    Rect data_window;     ///< In pixel coordinates of the display window's origin.
+    Rect data_window;     ///< Absolute, as in the file.
     Rect display_window;  ///< Absolute, as in the file.
     bool tiled = false;
+    int tile_width = 0, tile_height = 0;
+    int mip_levels = 1;
+    std::string level_mode;  ///< "", "mipmap" or "ripmap".
     std::string compression;
+    std::string envmap;  ///< "latlong", "cube" or "".
+    bool deep = false;
+    std::int64_t deep_samples = -1;  ///< Deep parts: samples in the part (read by info).
+    int deep_max_samples = -1;       ///< Deep parts: most samples in one pixel.
 };
 
 struct FileInfo {
     std::string path;
     std::string format;  ///< OIIO format name: "openexr", "png", ...
+    /// "" when read as stored; "luminance/chroma" (converted to RGB by OpenEXR's RGBA
+    /// interface) or "deep, flattened" when the frame is a conversion of the file.
+    std::string conversion;
     std::vector<FilePart> parts;
-    int width = 0, height = 0;  ///< Display window size.
+    Rect display_window;  ///< Absolute; every part has it.
+    Rect data_window;     ///< The union of the parts' data windows: the frame's data window.
+    std::vector<std::string> views;  ///< multiView (or the parts' views), in order.
+    std::string view;                ///< The view the canonical passes come from.
     Camera camera;
-    OIIO::ParamValueList attributes;  ///< Part 0's attributes, camera and structural ones removed.
-    std::vector<PassSource> passes;   ///< How the file's channels map onto passes.
+    OIIO::ParamValueList attributes;  ///< That view's first part's attributes, camera removed.
+    /// How the file's channels map onto passes: the chosen view's passes under their own names,
+    /// other views' as "pass@view".
+    std::vector<PassSource> passes;
+    int width() const { return display_window.width(); }
+    int height() const { return display_window.height(); }
 };
 
 /// What to do with NaN and infinite values when reading (depth's +inf is always kept).
 enum class BadPixels { Keep, Zero, Error };
+/// Deep files: composite each pixel's samples front to back, or refuse them.
+enum class DeepMode { Flatten, Error };
 
 struct ReadOptions {
     std::vector<AliasRule> aliases;  ///< Graph rules, tried before the built-in ones.
     BadPixels bad_pixels = BadPixels::Keep;
     bool linearize = true;  ///< sRGB-encoded integer files (PNG, JPEG) are decoded to linear.
+    std::string view;       ///< "" = the file's default view.
+    DeepMode deep = DeepMode::Flatten;
+    bool count_deep_samples = false;  ///< read_file_info: fill FilePart::deep_samples.
 };
 
+/// Largest data window area accepted from a file (pixels), beside kMaxImageSide per side.
+inline constexpr std::int64_t kMaxFilePixels = std::int64_t(1) << 28;
+
 /// Open a file's header and map its channels. Throws Error (exit 1) naming the file on a
-/// missing, truncated or unreadable file.
+/// missing, truncated or unreadable file, an absurd window, an unknown view, or a deep file
+/// with DeepMode::Error.
 FileInfo read_file_info(const std::string &path, const ReadOptions &options = {});
 
-/// Read the passes `wanted` (nullptr: every pass) into a Frame. Throws Error naming the file and
-/// the missing pass (with the passes the file has) if one is absent.
+/// Read the passes `wanted` (nullptr: every pass) into a Frame whose windows are the file's
+/// display window and the union of the read parts' data windows. Throws Error naming the file
+/// and the missing pass (with the passes the file has) if one is absent.
 Frame read_frame(const std::string &path,
                  const std::set<std::string> *wanted,
                  int frame_number,
                  const ReadOptions &options = {});
 
+/// How write_exr lays the file out.
+enum class ExrLayout {
+    Auto,       ///< The source file's layout when the frame has one, else Single.
+    Single,     ///< One part with every channel, canonical channel names.
+    Multipart,  ///< One part per pass, canonical channel names.
+};
+
 struct WriteOptions {
-    std::string compression = "piz";
-    bool multipart = false;           ///< One part per pass instead of one part with every channel.
+    /// "auto": the source part's compression when it is lossless (zip for a lossy one, so
+    /// nothing degrades twice), piz for frames not read from an EXR.
+    std::string compression = "auto";
+    ExrLayout layout = ExrLayout::Auto;
+    bool multipart = false;           ///< Deprecated spelling of layout = Multipart.
     std::vector<std::string> passes;  ///< Empty: every pass of the frame.
-    std::map<std::string, PixelStorage> storage;  ///< Per pass; default half for color/albedo.
+    std::map<std::string, PixelStorage> storage;  ///< Per pass; default: the source's, else
+                                                  ///< half for color/albedo, float otherwise.
     bool allow_lossy_data = false;                ///< Permit DWAA/DWAB/PXR24 on data passes.
 };
 
-/// Validate an EXR compression name ("dwaa:45" allowed); throws a usage Error naming `where`.
+/// Validate an EXR compression name ("dwaa:45" allowed, "auto"); throws a usage Error naming
+/// `where`.
 void check_compression(const std::string &compression, const std::string &where);
 
-/// Write an EXR atomically (temporary file, then rename). Camera and header attributes kept.
+/// Write an EXR atomically (temporary file, then rename). Camera and header attributes kept;
+/// the data and display windows are the frame's.
 void write_exr(const Frame &frame, const std::string &path, const WriteOptions &options);
 
 /// Write an 8-bit display-referred preview (PNG, JPEG, TIFF...) of an RGB(A) image whose values

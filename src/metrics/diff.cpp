@@ -130,13 +130,31 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
     }
     DiffReport r;
     r.frame = a.number;
-    r.width = a.width;
-    r.height = a.height;
+    r.width = a.width();
+    r.height = a.height();
     r.thresholds = options.thresholds;
-    if (a.width != b.width || a.height != b.height) {
+    if (a.data_window != b.data_window) {
+        const Rect &wa = a.data_window, &wb = b.data_window;
         r.verdict = Verdict::SizeMismatch;
-        r.messages.push_back(str_cat(
-            "frame ", a.number, ": size ", a.width, "x", a.height, " vs ", b.width, "x", b.height));
+        r.messages.push_back(str_cat("frame ",
+                                     a.number,
+                                     ": data window ",
+                                     wa.width(),
+                                     "x",
+                                     wa.height(),
+                                     " at (",
+                                     wa.x0,
+                                     ", ",
+                                     wa.y0,
+                                     ") vs ",
+                                     wb.width(),
+                                     "x",
+                                     wb.height(),
+                                     " at (",
+                                     wb.x0,
+                                     ", ",
+                                     wb.y0,
+                                     ")"));
         return r;
     }
 

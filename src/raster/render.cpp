@@ -1282,8 +1282,7 @@ void render_color(const Scene &s,
 void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
 {
     f.number = frame;
-    f.width = o.width;
-    f.height = o.height;
+    f.set_size(o.width, o.height);
     const CameraState c = s.camera_at(frame), cp = s.camera_at(frame - 1);
     const float aspect = float(o.width) / float(o.height);
     const CameraMatrices m = make_camera_matrices(

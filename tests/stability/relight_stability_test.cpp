@@ -52,8 +52,7 @@ Frame degenerate_frame(int w, int h)
 {
     Frame f;
     f.number = 1;
-    f.width = w;
-    f.height = h;
+    f.set_size(w, h);
     const CameraMatrices cm =
         make_camera_matrices(glm::mat4(1.0f), 35.0f, 36.0f, float(w) / float(h), 0.05f);
     f.camera.world_to_camera = cm.world_to_camera;

@@ -114,8 +114,7 @@ Frame plain_frame(int w, int h, int number)
 {
     Frame f;
     f.number = number;
-    f.width = w;
-    f.height = h;
+    f.set_size(w, h);
     for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
         const int channels = int(cp.channels.size());
         Image img(w, h, channels);
@@ -259,7 +258,7 @@ StabilityResult run_case(const NodeType &type,
     NodeContext ctx(identity, params, inputs, ports, requested, input.number, state);
 
     // Where the input is non-finite: a pixel mask over the frame.
-    std::vector<char> bad_in(std::size_t(input.width) * std::size_t(input.height), 0);
+    std::vector<char> bad_in(std::size_t(input.width()) * std::size_t(input.height()), 0);
     for (const auto &[name, pass] : input.passes()) {
         const Image &img = *pass.image;
         for (int y = 0; y < img.height(); ++y) {
@@ -267,7 +266,7 @@ StabilityResult run_case(const NodeType &type,
                 for (int c = 0; c < img.channels(); ++c) {
                     if (!std::isfinite(img.at(x, y, c))) {
                         ++r.nonfinite_in;
-                        bad_in[std::size_t(y) * std::size_t(input.width) + std::size_t(x)] = 1;
+                        bad_in[std::size_t(y) * std::size_t(input.width()) + std::size_t(x)] = 1;
                     }
                 }
             }
@@ -291,7 +290,7 @@ StabilityResult run_case(const NodeType &type,
     const Frame &out = ctx.output();
     for (const auto &[name, pass] : out.passes()) {
         const Image &img = *pass.image;
-        const bool same_size = img.width() == input.width && img.height() == input.height;
+        const bool same_size = img.width() == input.width() && img.height() == input.height();
         for (int y = 0; y < img.height(); ++y) {
             for (int x = 0; x < img.width(); ++x) {
                 for (int c = 0; c < img.channels(); ++c) {
@@ -302,7 +301,7 @@ StabilityResult run_case(const NodeType &type,
                     }
                     ++r.nonfinite_out;
                     if (!same_size ||
-                        !bad_in[std::size_t(y) * std::size_t(input.width) + std::size_t(x)]) {
+                        !bad_in[std::size_t(y) * std::size_t(input.width()) + std::size_t(x)]) {
                         ++r.spread;
                     }
                 }

@@ -75,7 +75,7 @@ TEST(StabilityHarness, DetectsSpreadingAndUnboundedOutput)
     static constexpr PortSpec kInputs[] = {{"image", "", false, ""}};
     static const NodeType kBad{{"bad", "", kInputs, {}, ""}, [](NodeContext &ctx) {
                                    Image img(
-                                       ctx.input("image").width, ctx.input("image").height, 1);
+                                       ctx.input("image").width(), ctx.input("image").height(), 1);
                                    img.fill(std::numeric_limits<float>::quiet_NaN());
                                    img.at(0, 0, 0) = 1e30f;
                                    ctx.output().set("junk", std::move(img));

@@ -72,7 +72,7 @@ TEST(Frame, CanonicalChannelsAndSizeCheck)
 {
     Frame f;
     f.set("color", Image(4, 3, 4));
-    EXPECT_EQ(f.width, 4);
+    EXPECT_EQ(f.width(), 4);
     EXPECT_EQ(f.pass("color").channels, (std::vector<std::string>{"R", "G", "B", "A"}));
     f.set("normal", Image(4, 3, 3));
     EXPECT_EQ(f.pass("normal").channels, (std::vector<std::string>{"X", "Y", "Z"}));

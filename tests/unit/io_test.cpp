@@ -66,8 +66,8 @@ TEST_P(RoundTrip, EveryPassAndTheCameraComeBack)
     const std::string path = dir + "/rt.exr";
     write_exr(f, path, o);
     const Frame g = read_frame(path, nullptr, 7);
-    EXPECT_EQ(g.width, 37);
-    EXPECT_EQ(g.height, 21);
+    EXPECT_EQ(g.width(), 37);
+    EXPECT_EQ(g.height(), 21);
     EXPECT_EQ(g.pass_names(), f.pass_names());
     for (const std::string &n : f.pass_names()) {
         const bool half =
@@ -125,7 +125,7 @@ TEST(IoRead, OnlyRequestedPasses)
     }
 }
 
-TEST(IoRead, DataWindowIsPlacedInTheDisplayWindow)
+TEST(IoRead, DataWindowIsKeptBesideTheDisplayWindow)
 {
     const std::string dir = scratch_dir("datawindow");
     const std::string path = dir + "/dw.exr";
@@ -134,14 +134,21 @@ TEST(IoRead, DataWindowIsPlacedInTheDisplayWindow)
                           path),
               0);
     const Frame f = read_frame(path, nullptr, 1);
-    ASSERT_EQ(f.width, 32);
-    ASSERT_EQ(f.height, 16);
+    // The passes cover the data window; the display window is kept beside it.
+    EXPECT_EQ(f.data_window, (Rect{4, 2, 20, 10}));
+    EXPECT_EQ(f.display_window, (Rect{0, 0, 32, 16}));
+    ASSERT_EQ(f.width(), 16);
+    ASSERT_EQ(f.height(), 8);
     const Image &c = f.image("color");
-    EXPECT_EQ(c.at(4, 2, 0), 1.0f);
-    EXPECT_EQ(c.at(19, 9, 1), 0.5f);
-    EXPECT_EQ(c.at(3, 2, 0), 0.0f);
-    EXPECT_EQ(c.at(20, 9, 3), 0.0f);
-    EXPECT_EQ(c.at(4, 10, 0), 0.0f);
+    EXPECT_EQ(c.at(0, 0, 0), 1.0f);
+    EXPECT_EQ(c.at(15, 7, 1), 0.5f);
+    // Written back: the same windows (oiiotool's own reading as the independent check).
+    write_exr(f, dir + "/dw_out.exr", {});
+    std::string info;
+    ASSERT_EQ(run_command("oiiotool --info -v " + dir + "/dw_out.exr", &info), 0);
+    EXPECT_NE(info.find("16 x    8"), std::string::npos) << info;
+    EXPECT_NE(info.find("pixel data origin: x=4, y=2"), std::string::npos) << info;
+    EXPECT_NE(info.find("full/display size: 32 x 16"), std::string::npos) << info;
 }
 
 TEST(IoRead, UnsignedIntegerChannelsStayIntegers)

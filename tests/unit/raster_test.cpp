@@ -78,9 +78,9 @@ void check_planes(const Frame &f,
     const Image &depth = f.image("depth"), &pos = f.image("position"), &nrm = f.image("normal");
     const glm::mat4 w2c = *f.camera.world_to_camera;
     int covered = 0;
-    for (int y = 0; y < f.height; ++y) {
-        for (int x = 0; x < f.width; ++x) {
-            const Ray r = pixel_ray(c, f.width, f.height, x, y);
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
+            const Ray r = pixel_ray(c, f.width(), f.height(), x, y);
             // Nearest plane whose hit is accepted by `which`.
             double best = std::numeric_limits<double>::infinity();
             int hit = -1;
@@ -125,9 +125,9 @@ TEST(RasterAnalytic, CubeExactDepthPositionNormal)
     // Front face z = 20 over [30, 34]^2, 10 m in front of the camera.
     const Image &depth = f.image("depth"), &pos = f.image("position"), &nrm = f.image("normal");
     int covered = 0;
-    for (int y = 0; y < f.height; ++y) {
-        for (int x = 0; x < f.width; ++x) {
-            const Ray r = pixel_ray(c, f.width, f.height, x, y);
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
+            const Ray r = pixel_ray(c, f.width(), f.height(), x, y);
             const double t = (20.0 - r.o.z) / r.d.z;
             const glm::dvec3 p = r.o + t * r.d;
             const double m = 1e-3;
@@ -185,15 +185,15 @@ void check_motion_against_reprojection(const Scene &s, int frame)
     const Image &mv = f.image("motion"), &pos = f.image("position"), &depth = f.image("depth");
     const glm::mat4 cur = *f.camera.world_to_ndc, prev = *f.camera.prev_world_to_ndc;
     double worst = 0.0;
-    for (int y = 0; y < f.height; ++y) {
-        for (int x = 0; x < f.width; ++x) {
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
             if (std::isinf(depth.at(x, y, 0))) {
                 continue;
             }
             const glm::vec3 p(pos.at(x, y, 0), pos.at(x, y, 1), pos.at(x, y, 2));
             glm::vec2 a, b;
-            ASSERT_TRUE(world_to_pixel(cur, p, f.width, f.height, a));
-            ASSERT_TRUE(world_to_pixel(prev, p, f.width, f.height, b));
+            ASSERT_TRUE(world_to_pixel(cur, p, f.width(), f.height(), a));
+            ASSERT_TRUE(world_to_pixel(prev, p, f.width(), f.height(), b));
             // The current projection is the pixel centre: header and raster agree.
             EXPECT_NEAR(a.x, x + 0.5f, 0.01f);
             EXPECT_NEAR(a.y, y + 0.5f, 0.01f);
@@ -260,8 +260,8 @@ TEST(RasterMotion, ObjectMotion)
     const Frame f = render_frame(s, 3, small(128, 72, {"motion", "position", "id"}));
     const glm::mat4 cur = *f.camera.world_to_ndc, prev = *f.camera.prev_world_to_ndc;
     int moving = 0;
-    for (int y = 0; y < f.height; ++y) {
-        for (int x = 0; x < f.width; ++x) {
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
             const glm::vec2 m(f.image("motion").at(x, y, 0), f.image("motion").at(x, y, 1));
             if (f.image("id").at(x, y, 0) != 2.0f) {
                 EXPECT_EQ(m, glm::vec2(0.0f));
@@ -272,8 +272,8 @@ TEST(RasterMotion, ObjectMotion)
                               f.image("position").at(x, y, 1),
                               f.image("position").at(x, y, 2));
             glm::vec2 a, b;
-            ASSERT_TRUE(world_to_pixel(cur, p, f.width, f.height, a));
-            ASSERT_TRUE(world_to_pixel(prev, p - glm::vec3(3, 0, 0), f.width, f.height, b));
+            ASSERT_TRUE(world_to_pixel(cur, p, f.width(), f.height(), a));
+            ASSERT_TRUE(world_to_pixel(prev, p - glm::vec3(3, 0, 0), f.width(), f.height(), b));
             EXPECT_NEAR(m.x, a.x - b.x, 0.01f);
             EXPECT_NEAR(m.y, a.y - b.y, 0.01f);
         }

@@ -1,0 +1,850 @@
+// Reading frames: OpenImageIO for flat files (every part, tiled or scanline, at native pixel
+// types), OpenEXR's RGBA interface for luminance/chroma files, and deep files flattened front to
+// back. Windows, views and the file's layout come along (io/source_file.h).
+
+#include <ImfRgbaFile.h>
+#include <ImfHeader.h>
+#include <ImfMatrixAttribute.h>
+#include <ImfStandardAttributes.h>
+#include <OpenImageIO/deepdata.h>
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <numeric>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/passes.h"
+#include "io/image_file.h"
+#include "io/io_detail.h"
+#include "io/source_file.h"
+
+namespace posthaste {
+
+using namespace io_detail;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string join(const std::vector<std::string> &v)
+{
+    std::string s;
+    for (const std::string &e : v) {
+        s += (s.empty() ? "" : ", ") + e;
+    }
+    return s;
+}
+
+std::vector<std::string> split_dots(const std::string &name)
+{
+    std::vector<std::string> out;
+    std::size_t start = 0;
+    while (true) {
+        const std::size_t dot = name.find('.', start);
+        out.push_back(name.substr(start, dot - start));
+        if (dot == std::string::npos) {
+            return out;
+        }
+        start = dot + 1;
+    }
+}
+
+bool has_exr_magic(const std::string &path)
+{
+    std::ifstream f(path, std::ios::binary);
+    unsigned char m[4] = {};
+    f.read(reinterpret_cast<char *>(m), 4);
+    return f && m[0] == 0x76 && m[1] == 0x2f && m[2] == 0x31 && m[3] == 0x01;
+}
+
+/// True for an EXR whose RGBA interface reports chroma channels (Y, RY, BY).
+bool is_luminance_chroma(const std::string &path)
+{
+    try {
+        Imf::RgbaInputFile f(path.c_str());
+        return (f.channels() & Imf::WRITE_C) != 0;
+    } catch (const std::exception &) {
+        return false;
+    }
+}
+
+void check_window(const std::string &path, int part, const char *which, const Rect &w)
+{
+    const std::int64_t area = std::int64_t(w.width()) * std::int64_t(w.height());
+    if (w.width() <= 0 || w.height() <= 0 || w.width() > kMaxImageSide ||
+        w.height() > kMaxImageSide || area > kMaxFilePixels) {
+        throw_runtime(path,
+                      ": part ",
+                      part,
+                      " has an unsupported ",
+                      which,
+                      " window ",
+                      w.width(),
+                      "x",
+                      w.height(),
+                      " at (",
+                      w.x0,
+                      ", ",
+                      w.y0,
+                      ") (limit ",
+                      kMaxImageSide,
+                      " per side, ",
+                      kMaxFilePixels,
+                      " pixels)");
+    }
+}
+
+/// Which part of a file each channel belongs to, and under which view and name it maps.
+struct MappedChannel {
+    int part, channel;
+    std::string view;
+    std::string name;  ///< Name used for pass mapping: view removed, part layer added.
+};
+
+/// The views of a file and each channel's view and mapping name.
+void assign_views(const std::vector<OIIO::ImageSpec> &specs,
+                  FileInfo &info,
+                  std::vector<MappedChannel> &channels,
+                  bool &single_part_views)
+{
+    std::vector<std::string> multi_view;
+    if (const OIIO::ParamValue *p = specs[0].find_attribute("multiView")) {
+        if (p->type().basetype == OIIO::TypeDesc::STRING) {
+            for (int i = 0; i < p->nvalues() * int(p->type().numelements()); ++i) {
+                multi_view.emplace_back(p->get_ustring_indexed(i).string());
+            }
+        }
+    }
+    info.views = multi_view;
+    bool parts_have_views = false;
+    for (const FilePart &part : info.parts) {
+        if (!part.view.empty()) {
+            parts_have_views = true;
+            if (std::find(info.views.begin(), info.views.end(), part.view) == info.views.end()) {
+                info.views.push_back(part.view);
+            }
+        }
+    }
+    single_part_views = !parts_have_views && !multi_view.empty();
+    // The first part of each view keeps bare channel names; later parts' bare names take the
+    // part's layer ("depth.left" part, channel "Z" -> "depth.Z"), except the conventional "rgba".
+    std::set<std::string> seen_view;
+    for (std::size_t p = 0; p < info.parts.size(); ++p) {
+        FilePart &part = info.parts[p];
+        std::string layer = part.name;
+        if (!part.view.empty() && layer.ends_with("." + part.view)) {
+            layer.resize(layer.size() - part.view.size() - 1);
+        }
+        const bool first_of_view = seen_view.insert(part.view).second;
+        for (std::size_t c = 0; c < part.channels.size(); ++c) {
+            FileChannel &fc = part.channels[c];
+            MappedChannel m{int(p), int(c), part.view, fc.name};
+            if (single_part_views) {
+                std::vector<std::string> parts = split_dots(fc.name);
+                m.view = multi_view[0];
+                if (parts.size() >= 2 &&
+                    std::find(multi_view.begin(), multi_view.end(), parts[parts.size() - 2]) !=
+                        multi_view.end()) {
+                    m.view = parts[parts.size() - 2];
+                    parts.erase(parts.end() - 2);
+                    m.name.clear();
+                    for (const std::string &s : parts) {
+                        m.name += (m.name.empty() ? "" : ".") + s;
+                    }
+                }
+            } else if (!first_of_view && !layer.empty() && layer != "rgba" &&
+                       fc.name.find('.') == std::string::npos) {
+                m.name = layer + "." + fc.name;
+            }
+            fc.view = m.view;
+            channels.push_back(std::move(m));
+        }
+    }
+}
+
+/// Map the channels of each view onto passes; the chosen view's keep their names, others become
+/// "pass@view". View-less channels of a multi-view file count as the chosen view's.
+std::vector<PassSource> map_views(const FileInfo &info,
+                                  const std::vector<MappedChannel> &channels,
+                                  const std::vector<AliasRule> &rules)
+{
+    std::vector<std::string> order = {info.view};
+    for (const std::string &v : info.views) {
+        if (v != info.view) {
+            order.push_back(v);
+        }
+    }
+    std::vector<PassSource> out;
+    for (const std::string &view : order) {
+        // map_channels sees one list of names per part; remember the real channel indices.
+        std::vector<PartChannels> parts(info.parts.size());
+        std::vector<std::vector<int>> index(info.parts.size());
+        for (std::size_t p = 0; p < info.parts.size(); ++p) {
+            parts[p].part_name = info.parts[p].name;
+        }
+        for (const MappedChannel &m : channels) {
+            if (m.view == view || (m.view.empty() && view == info.view)) {
+                parts[std::size_t(m.part)].names.push_back(m.name);
+                index[std::size_t(m.part)].push_back(m.channel);
+            }
+        }
+        for (PassSource ps : map_channels(parts, rules)) {
+            for (ChannelSource &cs : ps.sources) {
+                if (cs.part >= 0) {
+                    cs.channel = index[std::size_t(cs.part)][std::size_t(cs.channel)];
+                    cs.name = info.parts[std::size_t(cs.part)]
+                                  .channels[std::size_t(cs.channel)]
+                                  .name;
+                }
+            }
+            if (view != info.view) {
+                ps.pass += "@" + view;
+            }
+            out.push_back(std::move(ps));
+        }
+    }
+    return out;
+}
+
+/// The header of a luminance/chroma file, read through OpenEXR's RGBA interface.
+FileInfo luminance_chroma_info(const std::string &path)
+{
+    FileInfo info;
+    info.path = path;
+    info.format = "openexr";
+    info.conversion = "luminance/chroma";
+    try {
+        Imf::RgbaInputFile f(path.c_str());
+        const Imath::Box2i dw = f.dataWindow(), disp = f.displayWindow();
+        FilePart part;
+        part.data_window = {dw.min.x, dw.min.y, dw.max.x + 1, dw.max.y + 1};
+        part.display_window = {disp.min.x, disp.min.y, disp.max.x + 1, disp.max.y + 1};
+        part.compression = "";
+        for (const char *c : {"R", "G", "B"}) {
+            part.channels.push_back({c, "half", "", 1, 1});
+        }
+        if (f.channels() & Imf::WRITE_A) {
+            part.channels.push_back({"A", "half", "", 1, 1});
+        }
+        const Imf::Header &h = f.header();
+        auto matrix = [&](const char *name, std::optional<glm::mat4> &out) {
+            if (const auto *a = h.findTypedAttribute<Imf::M44fAttribute>(name)) {
+                glm::mat4 m;
+                for (int r = 0; r < 4; ++r) {
+                    for (int c = 0; c < 4; ++c) {
+                        m[r][c] = a->value()[r][c];  // same layout: row r of Imath, column r of glm
+                    }
+                }
+                out = m;
+            }
+        };
+        matrix(attr::kWorldToCamera, info.camera.world_to_camera);
+        matrix(attr::kWorldToNDC, info.camera.world_to_ndc);
+        info.parts.push_back(std::move(part));
+    } catch (const std::exception &e) {
+        std::string err = e.what();
+        std::replace(err.begin(), err.end(), '\n', ' ');
+        throw_runtime(path, ": cannot read luminance/chroma image: ", err);
+    }
+    check_window(path, 0, "data", info.parts[0].data_window);
+    check_window(path, 0, "display", info.parts[0].display_window);
+    info.display_window = info.parts[0].display_window;
+    info.data_window = info.parts[0].data_window;
+    return info;
+}
+
+struct Opened {
+    std::unique_ptr<OIIO::ImageInput> in;  ///< Null for luminance/chroma files.
+    FileInfo info;
+    std::vector<OIIO::ImageSpec> specs;
+    bool single_part_views = false;
+};
+
+Opened open_file(const std::string &path, const ReadOptions &options)
+{
+    Opened o;
+    std::error_code ec;
+    if (fs::exists(path, ec) && !fs::is_directory(path, ec) && fs::file_size(path, ec) > 0 &&
+        has_exr_magic(path) && is_luminance_chroma(path)) {
+        o.info = luminance_chroma_info(path);
+        std::vector<PartChannels> parts(1);
+        for (const FileChannel &c : o.info.parts[0].channels) {
+            parts[0].names.push_back(c.name);
+        }
+        o.info.passes = map_channels(parts, options.aliases);
+        return o;
+    }
+    o.in = open_input(path);
+    FileInfo &info = o.info;
+    info.path = path;
+    info.format = o.in->format_name();
+    for (int sub = 0; o.in->seek_subimage(sub, 0); ++sub) {
+        const OIIO::ImageSpec &spec = o.in->spec();
+        if (spec.nchannels <= 0) {
+            throw_runtime(path, ": part ", sub, " has no channels");
+        }
+        FilePart part;
+        part.name = spec.get_string_attribute("name");
+        part.view = spec.get_string_attribute("view");
+        part.deep = spec.deep;
+        part.tiled = spec.tile_width > 0;
+        part.tile_width = spec.tile_width;
+        part.tile_height = spec.tile_height;
+        part.compression = spec.get_string_attribute("compression");
+        const std::string tex = spec.get_string_attribute("textureformat");
+        part.envmap = tex == "CubeFace Environment"  ? "cube"
+                      : tex == "LatLong Environment" ? "latlong"
+                                                     : "";
+        part.display_window = {spec.full_x,
+                               spec.full_y,
+                               spec.full_x + spec.full_width,
+                               spec.full_y + spec.full_height};
+        part.data_window = {spec.x, spec.y, spec.x + spec.width, spec.y + spec.height};
+        check_window(path, sub, "data", part.data_window);
+        check_window(path, sub, "display", part.display_window);
+        for (int c = 0; c < spec.nchannels; ++c) {
+            part.channels.push_back({spec.channel_name(c), type_name(spec.channelformat(c)), "", 1, 1});
+        }
+        while (o.in->seek_subimage(sub, part.mip_levels)) {
+            ++part.mip_levels;
+        }
+        // OpenImageIO shows a ripmap's diagonal levels as a MIP chain.
+        part.level_mode = part.mip_levels > 1 ? "mipmap" : "";
+        if (sub == 0) {
+            info.display_window = part.display_window;
+        } else if (part.display_window != info.display_window) {
+            throw_runtime(path,
+                          ": part ",
+                          sub,
+                          " has display window (",
+                          part.display_window.x0,
+                          ", ",
+                          part.display_window.y0,
+                          ") ",
+                          part.display_window.width(),
+                          "x",
+                          part.display_window.height(),
+                          " but part 0 has (",
+                          info.display_window.x0,
+                          ", ",
+                          info.display_window.y0,
+                          ") ",
+                          info.display_window.width(),
+                          "x",
+                          info.display_window.height());
+        }
+        o.in->seek_subimage(sub, 0);
+        o.specs.push_back(o.in->spec());
+        info.parts.push_back(std::move(part));
+    }
+    if (info.parts.empty()) {
+        throw_runtime(path, ": no image in file");
+    }
+    const bool deep = std::any_of(
+        info.parts.begin(), info.parts.end(), [](const FilePart &p) { return p.deep; });
+    if (deep) {
+        if (options.deep == DeepMode::Error) {
+            throw_runtime(path, ": part 0 is deep and the read's deep mode is \"error\"");
+        }
+        info.conversion = "deep, flattened";
+        for (std::size_t p = 0; p < info.parts.size(); ++p) {
+            if (!info.parts[p].deep) {
+                throw_runtime(path, ": part ", p, " is flat in a deep file (not supported)");
+            }
+        }
+    }
+    std::vector<MappedChannel> channels;
+    assign_views(o.specs, info, channels, o.single_part_views);
+    if (!options.view.empty()) {
+        if (std::find(info.views.begin(), info.views.end(), options.view) == info.views.end()) {
+            throw_runtime(path,
+                          ": no view \"",
+                          options.view,
+                          "\" (",
+                          info.views.empty() ? "the file has no views"
+                                             : "have: " + join(info.views),
+                          ")");
+        }
+        info.view = options.view;
+    } else if (!info.views.empty()) {
+        const bool has_multi_view = o.specs[0].find_attribute("multiView") != nullptr;
+        const bool viewless_part = std::any_of(
+            info.parts.begin(), info.parts.end(), [](const FilePart &p) { return p.view.empty(); });
+        info.view = has_multi_view || !viewless_part ? info.views[0] : "";
+    }
+    // The camera and attributes of the chosen view's first part.
+    std::size_t camera_part = 0;
+    for (std::size_t p = 0; p < info.parts.size(); ++p) {
+        if (info.parts[p].view == info.view) {
+            camera_part = p;
+            break;
+        }
+    }
+    read_camera(o.specs[camera_part], info.camera);
+    for (const OIIO::ParamValue &p : o.specs[camera_part].extra_attribs) {
+        const std::string n = p.name().string();
+        if (!is_structural_attribute(n) && !is_camera_attribute(n) && n != "multiView") {
+            info.attributes.push_back(p);
+        }
+    }
+    if (deep) {
+        // Flattened deep channels: Z is the nearest sample's, ZBack is dropped.
+        for (MappedChannel &m : channels) {
+            if (m.name == "ZBack") {
+                m.view = "\x01";  // in no view: not mapped
+            }
+        }
+    }
+    info.passes = map_views(info, channels, options.aliases);
+    info.data_window = {};
+    for (const FilePart &p : info.parts) {
+        info.data_window = info.data_window.unite(p.data_window);
+    }
+    return o;
+}
+
+/// A part's needed channel span, at native pixel types (converted by the caller, in parallel,
+/// rather than by OIIO on one thread), or as floats for converted files.
+struct PartPixels {
+    int chbegin = 0, chend = 0;
+    std::size_t pixel_bytes = 0;
+    struct Channel {
+        std::size_t offset = 0;  ///< Byte offset within a pixel.
+        OIIO::TypeDesc type;
+    };
+    std::vector<Channel> channels;  ///< By channel - chbegin.
+    std::shared_ptr<std::vector<unsigned char>> data;
+};
+
+/// Every channel of part 0 of a luminance/chroma file, as RGB(A) floats.
+PartPixels read_luminance_chroma(const std::string &path, const FilePart &part)
+{
+    PartPixels pd;
+    pd.chend = int(part.channels.size());
+    for (int c = 0; c < pd.chend; ++c) {
+        pd.channels.push_back({pd.pixel_bytes, OIIO::TypeDesc::FLOAT});
+        pd.pixel_bytes += sizeof(float);
+    }
+    const Rect &dw = part.data_window;
+    const std::size_t npix = std::size_t(dw.width()) * std::size_t(dw.height());
+    std::vector<Imf::Rgba> rgba(npix);
+    try {
+        Imf::RgbaInputFile f(path.c_str());
+        f.setFrameBuffer(rgba.data() - dw.x0 - std::ptrdiff_t(dw.y0) * dw.width(),
+                         1,
+                         std::size_t(dw.width()));
+        f.readPixels(dw.y0, dw.y1 - 1);
+    } catch (const std::exception &e) {
+        std::string err = e.what();
+        std::replace(err.begin(), err.end(), '\n', ' ');
+        throw_runtime(path, ": cannot read pixels (truncated or corrupt?): ", err);
+    }
+    pd.data = std::make_shared<std::vector<unsigned char>>(npix * pd.pixel_bytes);
+    auto *out = reinterpret_cast<float *>(pd.data->data());
+    for (std::size_t i = 0; i < npix; ++i) {
+        const float v[4] = {float(rgba[i].r), float(rgba[i].g), float(rgba[i].b), float(rgba[i].a)};
+        std::copy(v, v + pd.chend, out + i * std::size_t(pd.chend));
+    }
+    return pd;
+}
+
+/// A deep part flattened: per pixel the samples sorted by Z (stable), composited front to back
+/// with `over` on premultiplied values (c += (1 - a_acc) * c_s; alpha likewise), Z the nearest
+/// sample's (+inf for an empty pixel), every other channel composited like a colour. Floats.
+PartPixels flatten_deep(OIIO::ImageInput &in, int sub, const std::string &path)
+{
+    OIIO::DeepData deep;
+    if (!in.read_native_deep_image(sub, 0, deep)) {
+        std::string err = in.geterror();
+        std::replace(err.begin(), err.end(), '\n', ' ');
+        throw_runtime(path, ": cannot read deep part ", sub, " (truncated or corrupt?): ", err);
+    }
+    in.seek_subimage(sub, 0);
+    const OIIO::ImageSpec &spec = in.spec();
+    PartPixels pd;
+    pd.chend = spec.nchannels;
+    for (int c = 0; c < pd.chend; ++c) {
+        pd.channels.push_back({pd.pixel_bytes, OIIO::TypeDesc::FLOAT});
+        pd.pixel_bytes += sizeof(float);
+    }
+    const int nch = spec.nchannels;
+    int z = -1, alpha = -1;
+    for (int c = 0; c < nch; ++c) {
+        const std::string n = spec.channel_name(c);
+        if (n == "Z") {
+            z = c;
+        } else if (n == "A") {
+            alpha = c;
+        }
+    }
+    const std::int64_t npix = std::int64_t(spec.width) * spec.height;
+    pd.data = std::make_shared<std::vector<unsigned char>>(std::size_t(npix) * pd.pixel_bytes);
+    auto *out = reinterpret_cast<float *>(pd.data->data());
+    parallel_for(0, spec.height, [&](int y) {
+        std::vector<int> order;
+        for (int x = 0; x < spec.width; ++x) {
+            const std::int64_t pixel = std::int64_t(y) * spec.width + x;
+            float *dst = out + std::size_t(pixel) * std::size_t(nch);
+            const int n = int(deep.samples(pixel));
+            order.resize(std::size_t(n));
+            std::iota(order.begin(), order.end(), 0);
+            if (z >= 0) {
+                std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+                    return deep.deep_value(pixel, z, a) < deep.deep_value(pixel, z, b);
+                });
+            }
+            std::fill(dst, dst + nch, 0.0f);
+            float acc_alpha = 0.0f;
+            for (int s : order) {
+                const float transmit = 1.0f - acc_alpha;
+                for (int c = 0; c < nch; ++c) {
+                    if (c != z && c != alpha) {
+                        dst[c] += transmit * deep.deep_value(pixel, c, s);
+                    }
+                }
+                const float a = alpha >= 0 ? deep.deep_value(pixel, alpha, s) : 1.0f;
+                acc_alpha += transmit * a;
+            }
+            if (alpha >= 0) {
+                dst[alpha] = acc_alpha;
+            }
+            if (z >= 0) {
+                dst[z] = n > 0 ? deep.deep_value(pixel, z, order[0])
+                               : std::numeric_limits<float>::infinity();
+            }
+        }
+    });
+    return pd;
+}
+
+/// Whether a float pass can give back the file's bits for this channel and mapping.
+bool float_reproduces(OIIO::TypeDesc type, const ChannelSource &cs, const PassSource &ps, bool lin)
+{
+    const bool exact_type =
+        type.basetype == OIIO::TypeDesc::HALF || type.basetype == OIIO::TypeDesc::FLOAT;
+    const bool exact_map = (cs.scale == 1.0f || cs.scale == -1.0f) && cs.offset == 0.0f;
+    return exact_type && exact_map && !(ps.infinite_above > 0.0f) && !lin;
+}
+
+}  // namespace
+
+FileInfo read_file_info(const std::string &path, const ReadOptions &options)
+{
+    Opened o = open_file(path, options);
+    if (options.count_deep_samples && o.in) {
+        for (std::size_t p = 0; p < o.info.parts.size(); ++p) {
+            FilePart &part = o.info.parts[p];
+            if (!part.deep) {
+                continue;
+            }
+            OIIO::DeepData deep;
+            if (!o.in->read_native_deep_image(int(p), 0, deep)) {
+                throw_runtime(path, ": cannot read deep part ", p, ": ", o.in->geterror());
+            }
+            part.deep_samples = 0;
+            part.deep_max_samples = 0;
+            for (std::int64_t i = 0; i < deep.pixels(); ++i) {
+                const int n = int(deep.samples(i));
+                part.deep_samples += n;
+                part.deep_max_samples = std::max(part.deep_max_samples, n);
+            }
+        }
+    }
+    return std::move(o.info);
+}
+
+Frame read_frame(const std::string &path,
+                 const std::set<std::string> *wanted,
+                 int frame_number,
+                 const ReadOptions &options)
+{
+    Opened o = open_file(path, options);
+    const FileInfo &info = o.info;
+    std::vector<const PassSource *> selected;
+    if (wanted) {
+        for (const std::string &name : *wanted) {
+            auto it = std::find_if(info.passes.begin(),
+                                   info.passes.end(),
+                                   [&](const PassSource &p) { return p.pass == name; });
+            if (it == info.passes.end()) {
+                std::string have;
+                for (const PassSource &p : info.passes) {
+                    have += (have.empty() ? "" : ", ") + p.pass;
+                }
+                throw_runtime(path, ": no pass \"", name, "\" in file (have: ", have, ")");
+            }
+            selected.push_back(&*it);
+        }
+    } else {
+        for (const PassSource &p : info.passes) {
+            selected.push_back(&p);
+        }
+    }
+
+    // Which channels of which parts are needed, and the frame's data window: the union of the
+    // windows of the parts read (part 0's when nothing is read).
+    std::vector<std::set<int>> needed(info.parts.size());
+    for (const PassSource *ps : selected) {
+        for (const ChannelSource &cs : ps->sources) {
+            if (cs.part >= 0) {
+                needed[std::size_t(cs.part)].insert(cs.channel);
+            }
+        }
+    }
+    Rect window;
+    for (std::size_t p = 0; p < info.parts.size(); ++p) {
+        if (!needed[p].empty()) {
+            window = window.unite(info.parts[p].data_window);
+        }
+    }
+    if (window.empty()) {
+        window = info.parts[0].data_window;
+    }
+    if (window.width() > kMaxImageSide || window.height() > kMaxImageSide ||
+        std::int64_t(window.width()) * window.height() > kMaxFilePixels) {
+        throw_runtime(path,
+                      ": the parts' data windows together span ",
+                      window.width(),
+                      "x",
+                      window.height(),
+                      " (limit ",
+                      kMaxImageSide,
+                      " per side, ",
+                      kMaxFilePixels,
+                      " pixels)");
+    }
+
+    Frame frame;
+    frame.number = frame_number;
+    frame.display_window = info.display_window;
+    frame.data_window = window;
+    frame.camera = info.camera;
+    frame.attributes = info.attributes;
+    const bool keep_layout = o.in && info.format == "openexr" && info.conversion.empty();
+    std::shared_ptr<SourceFile> source;
+    if (keep_layout) {
+        source = std::make_shared<SourceFile>();
+        source->path = path;
+        source->views = info.views;
+        source->view = info.view;
+        source->single_part_views = o.single_part_views;
+        source->camera = info.camera;
+    }
+
+    std::vector<PartPixels> data(info.parts.size());
+    bool srgb_encoded = false;
+    for (std::size_t p = 0; p < info.parts.size(); ++p) {
+        const FilePart &part = info.parts[p];
+        const bool whole = int(needed[p].size()) == int(part.channels.size());
+        if (!o.in) {
+            if (!needed[p].empty()) {
+                data[p] = read_luminance_chroma(path, part);
+            }
+            continue;
+        }
+        const OIIO::ImageSpec &spec = o.specs[p];
+        if (source) {
+            SourcePart sp;
+            sp.spec = spec;
+            sp.name = part.name;
+            sp.view = part.view;
+            sp.mip_levels = part.mip_levels;
+            for (const FileChannel &c : part.channels) {
+                sp.channel_views.push_back(c.view);
+            }
+            source->parts.push_back(std::move(sp));
+        }
+        if (needed[p].empty()) {
+            continue;
+        }
+        if (part.deep) {
+            data[p] = flatten_deep(*o.in, int(p), path);
+            continue;
+        }
+        PartPixels &pd = data[p];
+        pd.chbegin = *needed[p].begin();
+        pd.chend = *needed[p].rbegin() + 1;
+        for (int c = pd.chbegin; c < pd.chend; ++c) {
+            const OIIO::TypeDesc t = spec.channelformat(c);
+            if (!supported_native(t)) {
+                throw_runtime(path,
+                              ": channel \"",
+                              spec.channel_name(c),
+                              "\" has pixel type ",
+                              t.c_str(),
+                              ", which is not supported");
+            }
+            pd.channels.push_back({pd.pixel_bytes, t});
+            pd.pixel_bytes += t.size();
+        }
+        const std::size_t npix = std::size_t(spec.width) * std::size_t(spec.height);
+        pd.data = std::make_shared<std::vector<unsigned char>>(npix * pd.pixel_bytes);
+        if (!o.in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeUnknown, pd.data->data())) {
+            std::string err = o.in->geterror();
+            std::replace(err.begin(), err.end(), '\n', ' ');
+            throw_runtime(
+                path, ": cannot read pixels of part ", p, " (truncated or corrupt?): ", err);
+        }
+        // Lower mip levels of a part read whole travel as read, for an untouched write.
+        if (source && whole && part.mip_levels > 1 && part.level_mode == "mipmap") {
+            for (int level = 1; level < part.mip_levels; ++level) {
+                if (!o.in->seek_subimage(int(p), level)) {
+                    break;
+                }
+                SourceLevel sl;
+                sl.spec = o.in->spec();
+                auto buf = std::make_shared<std::vector<unsigned char>>(
+                    std::size_t(sl.spec.width) * std::size_t(sl.spec.height) *
+                    sl.spec.pixel_bytes(/*native=*/true));
+                if (!o.in->read_image(
+                        int(p), level, 0, sl.spec.nchannels, OIIO::TypeUnknown, buf->data())) {
+                    // A ripmap: OpenImageIO 2.4 cannot read its levels. Level 0 travels alone
+                    // (docs/ARCHITECTURE.md, "Windows, channels and views").
+                    o.in->geterror();
+                    source->parts.back().levels.clear();
+                    source->parts.back().mip_levels = 1;
+                    break;
+                }
+                sl.pixels = std::move(buf);
+                source->parts.back().levels.push_back(std::move(sl));
+            }
+        }
+        if (p == 0 && is_integer_type(spec.format) && options.linearize) {
+            const std::string cs = spec.get_string_attribute("oiio:ColorSpace", "sRGB");
+            srgb_encoded = cs.empty() || OIIO::Strutil::iequals(cs, "sRGB");
+        }
+    }
+
+    const int width = window.width(), height = window.height();
+    for (const PassSource *ps : selected) {
+        const int nch = int(ps->sources.size());
+        Image img = Image::uninitialized(width, height, nch);
+        const bool is_depth = ps->pass == pass::kDepth || ps->pass.starts_with("depth@");
+        const bool linearize = srgb_encoded && ps->pass == pass::kColor;
+        // First bad value per row (x, channel), for BadPixels::Error; -1 when none.
+        std::vector<std::pair<int, int>> bad(std::size_t(height), {-1, -1});
+        parallel_for(0, height, [&](int y) {
+            float *row = img.pixel(0, y);
+            for (int k = 0; k < nch; ++k) {
+                const ChannelSource &cs = ps->sources[std::size_t(k)];
+                float *out = row + k;
+                const std::size_t step = std::size_t(nch);
+                if (cs.part < 0) {
+                    for (int x = 0; x < width; ++x) {
+                        out[std::size_t(x) * step] = cs.offset;
+                    }
+                    continue;
+                }
+                const FilePart &part = info.parts[std::size_t(cs.part)];
+                const PartPixels &pd = data[std::size_t(cs.part)];
+                const Rect dw = part.data_window.offset(-window.x0, -window.y0);
+                const float outside = (ps->pass == pass::kColor && k == 3) ? 0.0f
+                                      : is_depth ? std::numeric_limits<float>::infinity()
+                                                 : 0.0f;
+                const int x0 = std::clamp(dw.x0, 0, width), x1 = std::clamp(dw.x1, 0, width);
+                if (y < dw.y0 || y >= dw.y1 || x0 >= x1) {
+                    for (int x = 0; x < width; ++x) {
+                        out[std::size_t(x) * step] = outside;
+                    }
+                    continue;
+                }
+                for (int x = 0; x < x0; ++x) {
+                    out[std::size_t(x) * step] = outside;
+                }
+                for (int x = x1; x < width; ++x) {
+                    out[std::size_t(x) * step] = outside;
+                }
+                const auto &nc = pd.channels[std::size_t(cs.channel - pd.chbegin)];
+                const std::size_t first =
+                    std::size_t(y - dw.y0) * std::size_t(dw.width()) + std::size_t(x0 - dw.x0);
+                convert_channel(pd.data->data() + first * pd.pixel_bytes + nc.offset,
+                                pd.pixel_bytes,
+                                nc.type,
+                                out + std::size_t(x0) * step,
+                                step,
+                                x1 - x0);
+                const bool affine = cs.scale != 1.0f || cs.offset != 0.0f;
+                const bool lin = linearize && k < 3;
+                const bool clip_inf = ps->infinite_above > 0.0f;
+                const bool check_bad = options.bad_pixels != BadPixels::Keep;
+                if (!(affine || lin || clip_inf || check_bad)) {
+                    continue;
+                }
+                for (int x = x0; x < x1; ++x) {
+                    float &v = out[std::size_t(x) * step];
+                    if (lin) {
+                        v = srgb_to_linear(v);
+                    }
+                    if (affine) {
+                        v = cs.scale * v + cs.offset;
+                    }
+                    if (clip_inf && v >= ps->infinite_above) {
+                        v = std::numeric_limits<float>::infinity();
+                    }
+                    if (check_bad && !std::isfinite(v) && !(is_depth && v > 0.0f)) {
+                        if (options.bad_pixels == BadPixels::Zero) {
+                            v = 0.0f;
+                        } else if (bad[std::size_t(y)].first < 0 ||
+                                   std::make_pair(x, k) < bad[std::size_t(y)]) {
+                            bad[std::size_t(y)] = {x, k};
+                        }
+                    }
+                }
+            }
+        });
+        for (int y = 0; y < height; ++y) {
+            if (bad[std::size_t(y)].first >= 0) {
+                const auto [x, k] = bad[std::size_t(y)];
+                throw_runtime(path,
+                              ": pass \"",
+                              ps->pass,
+                              "\" channel \"",
+                              ps->sources[std::size_t(k)].name,
+                              "\" has a NaN or infinite value at (",
+                              x + window.x0,
+                              ", ",
+                              y + window.y0,
+                              ")");
+            }
+        }
+        Pass pass;
+        pass.image = std::make_shared<const Image>(std::move(img));
+        pass.channels = ps->channel_suffixes;
+        if (source) {
+            pass.as_read = pass.image;
+            for (const ChannelSource &cs : ps->sources) {
+                pass.origin.push_back({cs.part, cs.channel, cs.scale, cs.offset});
+                if (cs.part < 0) {
+                    continue;
+                }
+                const PartPixels &pd = data[std::size_t(cs.part)];
+                const auto &nc = pd.channels[std::size_t(cs.channel - pd.chbegin)];
+                const bool lin = srgb_encoded && ps->pass == pass::kColor;
+                const auto key = std::make_pair(cs.part, cs.channel);
+                if (float_reproduces(nc.type, cs, *ps, lin) || source->raw.count(key)) {
+                    continue;
+                }
+                // Keep the file's bits for this channel (one native plane).
+                const std::size_t n = pd.data->size() / pd.pixel_bytes, size = nc.type.size();
+                auto plane = std::make_shared<std::vector<unsigned char>>(n * size);
+                for (std::size_t i = 0; i < n; ++i) {
+                    std::memcpy(plane->data() + i * size,
+                                pd.data->data() + i * pd.pixel_bytes + nc.offset,
+                                size);
+                }
+                source->raw[key] = std::move(plane);
+            }
+        }
+        frame.set_pass(ps->pass, std::move(pass));
+    }
+    frame.source = std::move(source);
+    return frame;
+}
+
+}  // namespace posthaste

@@ -1,0 +1,789 @@
+// Writing frames: EXR through OpenImageIO, in the layout of the file the frame was read from
+// (parts, views, channel names and pixel types, windows, tiles and untouched mip levels), or
+// rebuilt with canonical channel names; 8-bit previews; atomic writes.
+
+#include <OpenImageIO/imageio.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <random>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "core/passes.h"
+#include "io/image_file.h"
+#include "io/io_detail.h"
+#include "io/source_file.h"
+
+namespace posthaste {
+
+using namespace io_detail;
+
+namespace {
+
+namespace fs = std::filesystem;
+
+bool is_lossy(const std::string &compression)
+{
+    const std::string base = compression.substr(0, compression.find(':'));
+    return base == "dwaa" || base == "dwab" || base == "pxr24" || base == "b44" || base == "b44a";
+}
+
+/// One channel of an output part and where its values come from.
+struct OutChannel {
+    std::string name;
+    OIIO::TypeDesc type;
+    std::string pass;  ///< For messages.
+    bool data_pass = false;
+    bool untouched = false;  ///< From a pass no node replaced.
+    /// Float source: channel `k` of `image` (covering the frame's data window), written as
+    /// (v - offset) / scale.
+    const Image *image = nullptr;
+    int k = 0;
+    float scale = 1.0f, offset = 0.0f;
+    /// Or the file's own samples over the part's data window.
+    const std::vector<unsigned char> *raw = nullptr;
+};
+
+struct OutPart {
+    OIIO::ImageSpec spec;  ///< Attributes, name, view, tiles; channels and windows set last.
+    Rect data_window;
+    std::vector<OutChannel> channels;
+    const SourcePart *source = nullptr;
+    bool copy_levels = false;  ///< Write the source's lower levels as read.
+    bool make_levels = false;  ///< Make the lower levels again (a touched MIP-mapped part).
+
+    int find(const std::string &name) const
+    {
+        for (std::size_t i = 0; i < channels.size(); ++i) {
+            if (channels[i].name == name) {
+                return int(i);
+            }
+        }
+        return -1;
+    }
+};
+
+/// Passes in write order: canonical ones first, in table order, then the rest alphabetically.
+std::vector<std::string> passes_to_write(const Frame &frame, const WriteOptions &options)
+{
+    std::vector<std::string> names = options.passes;
+    if (!names.empty()) {
+        return names;
+    }
+    names = frame.pass_names();
+    std::stable_sort(names.begin(), names.end(), [](const std::string &a, const std::string &b) {
+        auto rank = [](const std::string &n) {
+            int i = 0;
+            for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
+                if (cp.name == n) {
+                    return i;
+                }
+                ++i;
+            }
+            return 1000;
+        };
+        return rank(a) < rank(b);
+    });
+    return names;
+}
+
+OIIO::TypeDesc storage_type(PixelStorage s)
+{
+    return s == PixelStorage::Half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
+}
+
+/// The storage asked for a pass: the write's per-pass setting, else the pass's own hint.
+PixelStorage asked_storage(const std::string &name, const Pass &p, const WriteOptions &options)
+{
+    if (auto it = options.storage.find(name); it != options.storage.end()) {
+        return it->second;
+    }
+    return p.storage;
+}
+
+PixelStorage default_storage(const std::string &name)
+{
+    const std::string base = name.substr(0, name.find('@'));
+    const pass::CanonicalPass *cp = pass::find_canonical(base);
+    return cp && cp->half_by_default ? PixelStorage::Half : PixelStorage::Float;
+}
+
+bool is_data_pass(const std::string &name)
+{
+    const std::string base = name.substr(0, name.find('@'));
+    return !(base == pass::kColor || base == pass::kAlbedo);
+}
+
+OIIO::ImageSpec fresh_spec(const Frame &frame)
+{
+    OIIO::ImageSpec spec(1, 1, 1, OIIO::TypeDesc::FLOAT);
+    for (const OIIO::ParamValue &p : frame.attributes) {
+        spec.extra_attribs.push_back(p);
+    }
+    write_camera(frame.camera, spec);
+    return spec;
+}
+
+/// Insert a view into a channel name, OpenEXR's single-part multi-view way ("N.X" -> "N.right.X",
+/// "R" -> "right.R").
+std::string with_view(const std::string &name, const std::string &view)
+{
+    const auto dot = name.rfind('.');
+    return dot == std::string::npos ? view + "." + name
+                                    : name.substr(0, dot) + "." + view + name.substr(dot);
+}
+
+/// The name of a channel next to `sibling` in the same layer: "ViewLayer.Combined.R" + "A" ->
+/// "ViewLayer.Combined.A".
+std::string sibling_name(const std::string &sibling, const std::string &suffix)
+{
+    const auto dot = sibling.rfind('.');
+    return dot == std::string::npos ? suffix : sibling.substr(0, dot + 1) + suffix;
+}
+
+void add_channel(OutPart &part, OutChannel c, const std::string &path)
+{
+    if (part.find(c.name) >= 0) {
+        throw_runtime(path,
+                      ": two passes would write channel \"",
+                      c.name,
+                      "\" (pass \"",
+                      c.pass,
+                      "\" and pass \"",
+                      part.channels[std::size_t(part.find(c.name))].pass,
+                      "\"); rename one with a channels node");
+    }
+    part.channels.push_back(std::move(c));
+}
+
+/// Rebuilt layout: canonical channel names, one part or one part per pass.
+std::vector<OutPart> rebuilt_layout(const Frame &frame,
+                                    const std::vector<std::string> &names,
+                                    bool multipart,
+                                    const WriteOptions &options,
+                                    const std::string &path)
+{
+    std::vector<OutPart> parts;
+    for (const std::string &name : names) {
+        const Pass &p = frame.pass(name, path);
+        if (multipart || parts.empty()) {
+            OutPart part;
+            part.spec = fresh_spec(frame);
+            part.data_window = frame.data_window;
+            if (multipart) {
+                part.spec.attribute("name", name == pass::kColor ? std::string("rgba") : name);
+            }
+            parts.push_back(std::move(part));
+        }
+        PixelStorage s = asked_storage(name, p, options);
+        if (s == PixelStorage::Auto) {
+            s = default_storage(name);
+        }
+        const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+        for (std::size_t k = 0; k < exr.size(); ++k) {
+            OutChannel c;
+            c.name = exr[k];
+            c.type = storage_type(s);
+            c.pass = name;
+            c.data_pass = is_data_pass(name);
+            c.image = p.image.get();
+            c.k = int(k);
+            add_channel(parts.back(), std::move(c), path);
+        }
+    }
+    return parts;
+}
+
+/// True when every value of channel k equals `v` (a constant channel a node left alone).
+bool channel_is(const Image &img, int k, float v)
+{
+    const std::size_t n = img.pixel_count(), nch = std::size_t(img.channels());
+    for (std::size_t i = 0; i < n; ++i) {
+        if (img.data()[i * nch + std::size_t(k)] != v) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/// The source file's layout: its parts in order with their channels; passes no file gave (and
+/// touched passes that cannot be mapped back) join part 0 of a single-part file or get a part
+/// of their own.
+std::vector<OutPart> source_layout(const Frame &frame,
+                                   const std::vector<std::string> &names,
+                                   const WriteOptions &options,
+                                   const std::string &path)
+{
+    const SourceFile &src = *frame.source;
+    std::vector<OutPart> parts(src.parts.size());
+    for (std::size_t i = 0; i < parts.size(); ++i) {
+        parts[i].source = &src.parts[i];
+        parts[i].spec = src.parts[i].spec;
+        parts[i].data_window = src.parts[i].data_window();
+    }
+    std::set<std::pair<int, int>> written;  // source slots already filled
+    std::vector<std::string> fresh;         // passes written under canonical names
+    for (const std::string &name : names) {
+        const Pass &p = frame.pass(name, path);
+        const bool untouched = p.untouched();
+        bool mappable = !p.origin.empty();
+        std::set<std::pair<int, int>> own;
+        int first_sourced = -1;
+        for (std::size_t k = 0; k < p.origin.size() && mappable; ++k) {
+            const ChannelOrigin &o = p.origin[k];
+            if (o.part < 0) {
+                continue;
+            }
+            if (o.part >= int(parts.size()) || !own.insert({o.part, o.channel}).second ||
+                o.scale == 0.0f) {
+                mappable = untouched;  // shared or constant sources map back only untouched
+            }
+            if (first_sourced < 0) {
+                first_sourced = int(k);
+            }
+        }
+        if (!mappable || first_sourced < 0) {
+            fresh.push_back(name);
+            continue;
+        }
+        const PixelStorage asked = asked_storage(name, p, options);
+        const ChannelOrigin &anchor = p.origin[std::size_t(first_sourced)];
+        for (std::size_t k = 0; k < p.origin.size(); ++k) {
+            const ChannelOrigin &o = p.origin[k];
+            OutChannel c;
+            c.pass = name;
+            c.data_pass = is_data_pass(name);
+            c.untouched = untouched;
+            c.image = p.image.get();
+            c.k = int(k);
+            if (o.part < 0) {
+                // A constant the reader made up (alpha of an RGB file): written only when a node
+                // made it vary.
+                if (untouched || channel_is(*p.image, int(k), o.offset)) {
+                    continue;
+                }
+                OutPart &part = parts[std::size_t(anchor.part)];
+                c.name = sibling_name(part.spec.channel_name(anchor.channel), p.channels[k]);
+                c.type = storage_type(asked == PixelStorage::Auto ? default_storage(name) : asked);
+                if (frame.data_window != part.data_window) {
+                    fresh.push_back(name);  // would be cropped to the part's window
+                    break;
+                }
+                add_channel(part, std::move(c), path);
+                continue;
+            }
+            if (!written.insert({o.part, o.channel}).second) {
+                continue;  // another pass already put this channel back
+            }
+            OutPart &part = parts[std::size_t(o.part)];
+            const OIIO::TypeDesc file_type = part.spec.channelformat(o.channel);
+            c.name = part.spec.channel_name(o.channel);
+            if (asked != PixelStorage::Auto) {
+                c.type = storage_type(asked);
+            } else if (file_type.basetype == OIIO::TypeDesc::HALF ||
+                       file_type.basetype == OIIO::TypeDesc::FLOAT ||
+                       (file_type.basetype == OIIO::TypeDesc::UINT && untouched)) {
+                c.type = file_type;
+            } else {
+                c.type = OIIO::TypeDesc::FLOAT;  // a node's values in a uint id channel
+            }
+            c.scale = o.scale;
+            c.offset = o.offset;
+            if (untouched && c.type == file_type) {
+                if (auto it = src.raw.find({o.part, o.channel}); it != src.raw.end()) {
+                    c.raw = it->second.get();
+                }
+            }
+            add_channel(part, std::move(c), path);
+        }
+    }
+    // Passes under canonical names: into part 0 of a single-part file (same window), else one
+    // part each, in the chosen view.
+    const bool default_view = src.views.empty() || src.view == src.views[0];
+    for (const std::string &name : fresh) {
+        const Pass &p = frame.pass(name, path);
+        OutPart *part = nullptr;
+        if (parts.size() == 1 && parts[0].data_window == frame.data_window) {
+            part = &parts[0];
+        } else {
+            OutPart np;
+            np.spec = fresh_spec(frame);
+            np.data_window = frame.data_window;
+            np.spec.attribute("name", src.view.empty() ? name : name + "." + src.view);
+            if (!src.view.empty()) {
+                np.spec.attribute("view", src.view);
+            }
+            parts.push_back(std::move(np));
+            part = &parts.back();
+        }
+        PixelStorage s = asked_storage(name, p, options);
+        if (s == PixelStorage::Auto) {
+            s = default_storage(name);
+        }
+        const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+        for (std::size_t k = 0; k < exr.size(); ++k) {
+            OutChannel c;
+            c.name = exr[k];
+            if (src.single_part_views && !default_view && part->source) {
+                c.name = with_view(c.name, src.view);
+            }
+            c.type = storage_type(s);
+            c.pass = name;
+            c.data_pass = is_data_pass(name);
+            c.image = p.image.get();
+            c.k = int(k);
+            add_channel(*part, std::move(c), path);
+        }
+    }
+    // Parts nothing is written to are left out.
+    parts.erase(std::remove_if(parts.begin(),
+                               parts.end(),
+                               [](const OutPart &p) { return p.channels.empty(); }),
+                parts.end());
+    return parts;
+}
+
+/// Fill in each part's spec: channels, formats, windows, compression, camera, attributes.
+void finish_specs(std::vector<OutPart> &parts,
+                  const Frame &frame,
+                  const WriteOptions &options,
+                  const std::string &path)
+{
+    const SourceFile *src = frame.source.get();
+    // Attributes a node added or changed (compared with the source's chosen-view part).
+    OIIO::ParamValueList changed;
+    const OIIO::ImageSpec *first = nullptr;
+    if (src) {
+        for (const SourcePart &sp : src->parts) {
+            if (sp.view == src->view) {
+                first = &sp.spec;
+                break;
+            }
+        }
+    }
+    for (const OIIO::ParamValue &p : frame.attributes) {
+        const OIIO::ParamValue *old = first ? first->find_attribute(p.name().string()) : nullptr;
+        if (!old || old->type() != p.type() || old->nvalues() != p.nvalues() ||
+            std::memcmp(old->data(), p.data(), p.type().size() * std::size_t(p.nvalues())) != 0) {
+            changed.push_back(p);
+        }
+    }
+    for (OutPart &part : parts) {
+        OIIO::ImageSpec &spec = part.spec;
+        spec.nchannels = int(part.channels.size());
+        spec.channelnames.clear();
+        spec.channelformats.clear();
+        spec.alpha_channel = spec.z_channel = -1;
+        for (const OutChannel &c : part.channels) {
+            spec.channelnames.push_back(c.name);
+            spec.channelformats.push_back(c.type);
+        }
+        spec.format = part.channels[0].type;
+        spec.x = part.data_window.x0;
+        spec.y = part.data_window.y0;
+        spec.width = part.data_window.width();
+        spec.height = part.data_window.height();
+        spec.full_x = frame.display_window.x0;
+        spec.full_y = frame.display_window.y0;
+        spec.full_width = frame.display_window.width();
+        spec.full_height = frame.display_window.height();
+        spec.z = spec.full_z = 0;
+        spec.depth = spec.full_depth = 1;
+        if (spec.tile_width > 0) {
+            spec.tile_depth = 1;
+        }
+        std::string compression = options.compression;
+        if (compression == "auto") {
+            const std::string was =
+                part.source ? part.source->spec.get_string_attribute("compression") : "";
+            compression = was.empty() ? "piz" : is_lossy(was) ? "zip" : was;
+        }
+        const std::string base = compression.substr(0, compression.find(':'));
+        if ((base == "dwaa" || base == "dwab" || base == "pxr24") && !options.allow_lossy_data) {
+            for (const OutChannel &c : part.channels) {
+                if (c.data_pass) {
+                    throw_usage(path,
+                                ": compression \"",
+                                compression,
+                                "\" is lossy on data pass \"",
+                                c.pass,
+                                "\"; choose a lossless compression or allow lossy data passes");
+                }
+            }
+        }
+        spec.attribute("compression", compression);
+        // Mip levels travel only with a part written whole and untouched.
+        part.copy_levels = false;
+        if (part.source && !part.source->levels.empty() &&
+            int(part.channels.size()) == part.source->spec.nchannels) {
+            part.copy_levels = true;
+            for (const OutChannel &c : part.channels) {
+                const int i = part.source->spec.channelindex(c.name);
+                part.copy_levels = part.copy_levels && i >= 0 && c.untouched &&
+                                   c.type == part.source->spec.channelformat(i);
+            }
+        }
+        part.make_levels = !part.copy_levels && part.source && part.source->mip_levels > 1 &&
+                           spec.tile_width > 0;
+        if (!part.copy_levels && !part.make_levels) {
+            spec.attribute("openexr:levelmode", 0);  // one level (OIIO would make textures MIP)
+        }
+        const bool chosen_view = !src || !part.source || part.source->view == src->view ||
+                                 part.source->view.empty();
+        if (chosen_view) {
+            write_camera(frame.camera, spec, src && part.source ? &src->camera : nullptr);
+            if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {
+                spec.attribute(attr::kFrameNumber, frame.number);
+            }
+        }
+        for (const OIIO::ParamValue &p : changed) {
+            spec.extra_attribs.remove(p.name());
+            spec.extra_attribs.push_back(p);
+        }
+        spec.erase_attribute("oiio:subimages");
+        spec.erase_attribute("openexr:chunkCount");
+    }
+}
+
+/// Convert `count` floats to `type` at dst + i * stride.
+void store_values(const float *v, int count, OIIO::TypeDesc type, unsigned char *dst, std::size_t stride)
+{
+    if (type.basetype == OIIO::TypeDesc::HALF) {
+        floats_to_halves(v, 1, count, dst, stride);
+    } else if (type.basetype == OIIO::TypeDesc::UINT) {
+        for (int i = 0; i < count; ++i, dst += stride) {
+            const float f = v[i];
+            const std::uint32_t u =
+                !(f > 0.0f) ? 0u : f >= 4294967295.0f ? 0xffffffffu : std::uint32_t(std::lround(f));
+            std::memcpy(dst, &u, sizeof(u));
+        }
+    } else {
+        scatter_floats(v, 1, count, dst, stride);
+    }
+}
+
+/// The part's channels as floats over its data window (W x H x C), for making mip levels.
+std::vector<float> part_floats(const OutPart &part, const Frame &frame)
+{
+    const Rect &dw = part.data_window, fw = frame.data_window;
+    const std::size_t nch = part.channels.size();
+    std::vector<float> out(std::size_t(dw.width()) * std::size_t(dw.height()) * nch, 0.0f);
+    parallel_for(0, dw.height(), [&](int y) {
+        const int ay = y + dw.y0;
+        for (std::size_t ci = 0; ci < nch; ++ci) {
+            const OutChannel &c = part.channels[ci];
+            float *dst = out.data() + std::size_t(y) * std::size_t(dw.width()) * nch + ci;
+            if (c.raw) {
+                const std::size_t size = c.type.size();
+                convert_channel(c.raw->data() + std::size_t(y) * std::size_t(dw.width()) * size,
+                                size,
+                                c.type,
+                                dst,
+                                nch,
+                                dw.width());
+                continue;
+            }
+            for (int x = 0; x < dw.width(); ++x) {
+                const int ax = x + dw.x0;
+                if (ay >= fw.y0 && ay < fw.y1 && ax >= fw.x0 && ax < fw.x1) {
+                    const float v = c.image->at(ax - fw.x0, ay - fw.y0, c.k);
+                    dst[std::size_t(x) * nch] = (v - c.offset) / c.scale;
+                }
+            }
+        }
+    });
+    return out;
+}
+
+/// The next MIP level (OpenEXR's round-down sizes): each pixel the mean of the 2x2 (or 2x1,
+/// 1x2) block above it; the odd last row or column of the level above is dropped, as maketx's
+/// box filter does for round-down levels.
+std::vector<float> half_size(const std::vector<float> &src, int w, int h, int nch, int &nw, int &nh)
+{
+    nw = std::max(1, w / 2);
+    nh = std::max(1, h / 2);
+    std::vector<float> dst(std::size_t(nw) * std::size_t(nh) * std::size_t(nch));
+    const int fx = w > 1 ? 2 : 1, fy = h > 1 ? 2 : 1;
+    for (int y = 0; y < nh; ++y) {
+        for (int x = 0; x < nw; ++x) {
+            for (int c = 0; c < nch; ++c) {
+                float sum = 0.0f;
+                for (int j = 0; j < fy; ++j) {
+                    for (int i = 0; i < fx; ++i) {
+                        sum += src[(std::size_t(y * fy + j) * std::size_t(w) +
+                                    std::size_t(x * fx + i)) *
+                                       std::size_t(nch) +
+                                   std::size_t(c)];
+                    }
+                }
+                dst[(std::size_t(y) * std::size_t(nw) + std::size_t(x)) * std::size_t(nch) +
+                    std::size_t(c)] = sum / float(fx * fy);
+            }
+        }
+    }
+    return dst;
+}
+
+/// The part's pixels at native types over its data window, converted in parallel by rows.
+std::unique_ptr<unsigned char[]> pack_part(const OutPart &part, const Frame &frame)
+{
+    const Rect &dw = part.data_window;
+    std::size_t pixel_bytes = 0;
+    std::vector<std::size_t> offsets;
+    for (const OutChannel &c : part.channels) {
+        offsets.push_back(pixel_bytes);
+        pixel_bytes += c.type.size();
+    }
+    const std::size_t row_bytes = pixel_bytes * std::size_t(dw.width());
+    auto buf = std::make_unique_for_overwrite<unsigned char[]>(row_bytes * std::size_t(dw.height()));
+    const Rect fw = frame.data_window;
+    parallel_for(0, dw.height(), [&](int y) {
+        unsigned char *row = buf.get() + std::size_t(y) * row_bytes;
+        std::vector<float> tmp(std::size_t(dw.width()));
+        const int ay = y + dw.y0;
+        for (std::size_t ci = 0; ci < part.channels.size(); ++ci) {
+            const OutChannel &c = part.channels[ci];
+            unsigned char *dst = row + offsets[ci];
+            const std::size_t size = c.type.size();
+            if (c.raw) {
+                const unsigned char *src = c.raw->data() + std::size_t(y) * std::size_t(dw.width()) * size;
+                for (int x = 0; x < dw.width(); ++x) {
+                    std::memcpy(dst + std::size_t(x) * pixel_bytes, src + std::size_t(x) * size, size);
+                }
+                continue;
+            }
+            const Image &img = *c.image;
+            const bool whole_row = ay >= fw.y0 && ay < fw.y1;
+            const bool identity = c.scale == 1.0f && c.offset == 0.0f;
+            for (int x = 0; x < dw.width(); ++x) {
+                const int ax = x + dw.x0;
+                float v = 0.0f;
+                if (whole_row && ax >= fw.x0 && ax < fw.x1) {
+                    v = img.at(ax - fw.x0, ay - fw.y0, c.k);
+                }
+                tmp[std::size_t(x)] = identity ? v : (v - c.offset) / c.scale;
+            }
+            store_values(tmp.data(), dw.width(), c.type, dst, pixel_bytes);
+        }
+    });
+    return buf;
+}
+
+}  // namespace
+
+bool is_exr_path(const std::string &path)
+{
+    std::string ext = fs::path(path).extension().string();
+    std::transform(
+        ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return ext == ".exr" || ext == ".sxr" || ext == ".mxr";
+}
+
+void check_compression(const std::string &compression, const std::string &where)
+{
+    static const std::vector<std::string> kNames = {
+        "auto", "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
+    std::string base = compression.substr(0, compression.find(':'));
+    if (std::find(kNames.begin(), kNames.end(), base) == kNames.end()) {
+        throw_usage(where,
+                    ": unknown EXR compression \"",
+                    compression,
+                    "\" (expected auto, none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa, dwab)");
+    }
+    if (auto colon = compression.find(':'); colon != std::string::npos) {
+        const std::string level = compression.substr(colon + 1);
+        if (base.rfind("dwa", 0) != 0 && base != "zip" && base != "zips") {
+            throw_usage(where, ": compression \"", base, "\" takes no level");
+        }
+        char *end = nullptr;
+        const double v = std::strtod(level.c_str(), &end);
+        if (level.empty() || *end != '\0' || !(v > 0.0) || v > 1000.0) {
+            throw_usage(where, ": invalid compression level \"", level, "\"");
+        }
+    }
+}
+
+void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write)
+{
+    const fs::path target(path);
+    std::error_code ec;
+    if (target.has_parent_path()) {
+        fs::create_directories(target.parent_path(), ec);
+        if (ec) {
+            throw_runtime(path,
+                          ": cannot create directory ",
+                          target.parent_path().string(),
+                          ": ",
+                          ec.message());
+        }
+    }
+    // Keep the extension last: OIIO picks the writer from it.
+    thread_local std::mt19937 rng(std::random_device{}());
+    const std::string tmp =
+        (target.parent_path() / ("." + target.stem().string() + ".tmp" +
+                                 std::to_string(::getpid()) + "-" + std::to_string(rng() % 100000)))
+            .string() +
+        target.extension().string();
+    try {
+        write(tmp);
+    } catch (...) {
+        fs::remove(tmp, ec);
+        throw;
+    }
+    fs::rename(tmp, target, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        throw_runtime(path, ": cannot rename temporary file into place: ", ec.message());
+    }
+}
+
+void write_exr(const Frame &frame, const std::string &path, const WriteOptions &options)
+{
+    check_compression(options.compression, path);
+    const std::vector<std::string> names = passes_to_write(frame, options);
+    if (names.empty()) {
+        throw_runtime(path, ": nothing to write: the frame has no passes");
+    }
+    ExrLayout layout = options.layout;
+    if (options.multipart) {
+        layout = ExrLayout::Multipart;
+    }
+    std::vector<OutPart> parts =
+        layout == ExrLayout::Auto && frame.source
+            ? source_layout(frame, names, options, path)
+            : rebuilt_layout(frame, names, layout == ExrLayout::Multipart, options, path);
+    if (parts.empty()) {
+        throw_runtime(path, ": nothing to write: the frame has no passes");
+    }
+    for (const OutPart &p : parts) {
+        if (p.channels.size() > std::size_t(kMaxChannels) * 4) {
+            throw_runtime(path, ": too many channels (", p.channels.size(), ")");
+        }
+    }
+    finish_specs(parts, frame, options, path);
+
+    atomic_write(path, [&](const std::string &tmp) {
+        auto out = OIIO::ImageOutput::create("exr");
+        if (!out) {
+            throw_runtime(path, ": no EXR writer: ", OIIO::geterror());
+        }
+        std::vector<OIIO::ImageSpec> specs;
+        for (const OutPart &p : parts) {
+            specs.push_back(p.spec);
+        }
+        if (!out->open(tmp, int(specs.size()), specs.data())) {
+            throw_runtime(path, ": cannot open for writing: ", out->geterror());
+        }
+        for (std::size_t i = 0; i < parts.size(); ++i) {
+            const OutPart &part = parts[i];
+            if (i > 0 && !out->open(tmp, specs[i], OIIO::ImageOutput::AppendSubimage)) {
+                throw_runtime(path, ": cannot append part ", i, ": ", out->geterror());
+            }
+            const auto buf = pack_part(part, frame);
+            if (!out->write_image(OIIO::TypeUnknown, buf.get())) {
+                throw_runtime(path, ": cannot write pixels: ", out->geterror());
+            }
+            if (part.make_levels) {
+                // A touched MIP-mapped part: its levels are made again from the new pixels.
+                const int nch = int(part.channels.size());
+                std::vector<float> level = part_floats(part, frame);
+                int w = part.data_window.width(), h = part.data_window.height();
+                std::size_t pixel_bytes = 0;
+                for (const OutChannel &c : part.channels) {
+                    pixel_bytes += c.type.size();
+                }
+                while (w > 1 || h > 1) {
+                    int nw = 0, nh = 0;
+                    level = half_size(level, w, h, nch, nw, nh);
+                    w = nw;
+                    h = nh;
+                    std::vector<unsigned char> buf(std::size_t(w) * std::size_t(h) * pixel_bytes);
+                    std::size_t offset = 0;
+                    std::vector<float> column(std::size_t(w) * std::size_t(h));
+                    for (int c = 0; c < nch; ++c) {
+                        for (std::size_t i = 0; i < column.size(); ++i) {
+                            column[i] = level[i * std::size_t(nch) + std::size_t(c)];
+                        }
+                        store_values(column.data(),
+                                     int(column.size()),
+                                     part.channels[std::size_t(c)].type,
+                                     buf.data() + offset,
+                                     pixel_bytes);
+                        offset += part.channels[std::size_t(c)].type.size();
+                    }
+                    OIIO::ImageSpec ls = specs[i];
+                    ls.width = ls.full_width = w;
+                    ls.height = ls.full_height = h;
+                    ls.x = ls.y = ls.full_x = ls.full_y = 0;
+                    if (!out->open(tmp, ls, OIIO::ImageOutput::AppendMIPLevel) ||
+                        !out->write_image(OIIO::TypeUnknown, buf.data())) {
+                        throw_runtime(
+                            path, ": cannot write mip level of part ", i, ": ", out->geterror());
+                    }
+                }
+                continue;
+            }
+            if (!part.copy_levels) {
+                continue;
+            }
+            for (const SourceLevel &level : part.source->levels) {
+                OIIO::ImageSpec ls = specs[i];
+                ls.x = level.spec.x;
+                ls.y = level.spec.y;
+                ls.width = level.spec.width;
+                ls.height = level.spec.height;
+                ls.full_x = level.spec.full_x;
+                ls.full_y = level.spec.full_y;
+                ls.full_width = level.spec.full_width;
+                ls.full_height = level.spec.full_height;
+                // The level's bytes are in the source's channel order; write in that order.
+                ls.channelnames = level.spec.channelnames;
+                ls.channelformats = level.spec.channelformats;
+                if (!out->open(tmp, ls, OIIO::ImageOutput::AppendMIPLevel) ||
+                    !out->write_image(OIIO::TypeUnknown, level.pixels->data())) {
+                    throw_runtime(path, ": cannot write mip level of part ", i, ": ", out->geterror());
+                }
+            }
+        }
+        if (!out->close()) {
+            throw_runtime(path, ": cannot finish writing: ", out->geterror());
+        }
+    });
+}
+
+void write_preview(const Image &display_rgba, const std::string &path, bool with_alpha)
+{
+    const int nch = with_alpha && display_rgba.channels() >= 4 ? 4 : 3;
+    std::vector<std::uint8_t> buf(display_rgba.pixel_count() * std::size_t(nch));
+    for (int y = 0; y < display_rgba.height(); ++y) {
+        for (int x = 0; x < display_rgba.width(); ++x) {
+            const float *p = display_rgba.pixel(x, y);
+            for (int c = 0; c < nch; ++c) {
+                float v = c < display_rgba.channels() ? p[c] : 1.0f;
+                v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
+                buf[(std::size_t(y) * std::size_t(display_rgba.width()) + std::size_t(x)) *
+                        std::size_t(nch) +
+                    std::size_t(c)] = std::uint8_t(std::lround(v * 255.0f));
+            }
+        }
+    }
+    atomic_write(path, [&](const std::string &tmp) {
+        auto out = OIIO::ImageOutput::create(path);
+        if (!out) {
+            throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
+        }
+        OIIO::ImageSpec spec(
+            display_rgba.width(), display_rgba.height(), nch, OIIO::TypeDesc::UINT8);
+        spec.attribute("oiio:ColorSpace", "sRGB");
+        if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
+            !out->close()) {
+            throw_runtime(path, ": cannot write preview: ", out->geterror());
+        }
+    });
+}
+
+}  // namespace posthaste

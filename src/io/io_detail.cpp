@@ -1,0 +1,359 @@
+#include "io/io_detail.h"
+
+#include <Imath/half.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <set>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
+
+#include "core/error.h"
+
+namespace posthaste::io_detail {
+namespace fs = std::filesystem;
+
+bool is_structural_attribute(const std::string &name)
+{
+    static const std::set<std::string> kNames = {"compression",
+                                                 "channelformats",
+                                                 "oiio:subimages",
+                                                 "oiio:subimagename",
+                                                 "name",
+                                                 "type",
+                                                 "view",
+                                                 "openexr:chunkCount",
+                                                 "openexr:lineOrder",
+                                                 "tiles",
+                                                 "textureformat",
+                                                 "oiio:ColorSpace",
+                                                 "oiio:BitsPerSample",
+                                                 "oiio:UnassociatedAlpha",
+                                                 "openexr:roundingmode",
+                                                 "openexr:levelmode",
+                                                 "openexr:dwaCompressionLevel",
+                                                 "Compression",
+                                                 "PixelAspectRatio",
+                                                 "smpte:TimeCode",
+                                                 "oiio:Movie",
+                                                 "oiio:updirection",
+                                                 "oiio:sampleborder",
+                                                 "png:compressionLevel",
+                                                 "ImageDescription",
+                                                 "Software",
+                                                 "DateTime"};
+    return kNames.count(name) != 0 || name.rfind("oiio:", 0) == 0 || name.rfind("tiff:", 0) == 0 ||
+           name.rfind("png:", 0) == 0 || name.rfind("jpeg:", 0) == 0 || name.rfind("Exif:", 0) == 0;
+}
+
+bool is_camera_attribute(const std::string &name)
+{
+    static const std::set<std::string> kNames = {attr::kWorldToCamera,
+                                                 attr::kWorldToNDC,
+                                                 attr::kPrevWorldToCamera,
+                                                 attr::kPrevWorldToNDC,
+                                                 attr::kAperture,
+                                                 attr::kFocus,
+                                                 attr::kFocalLength,
+                                                 attr::kSensorWidth,
+                                                 attr::kSensorHeight,
+                                                 attr::kShutter,
+                                                 attr::kNearClip,
+                                                 attr::kFarClip,
+                                                 attr::kFrameNumber,
+                                                 "FNumber"};
+    return kNames.count(name) != 0;
+}
+
+std::string type_name(OIIO::TypeDesc t)
+{
+    if (t == OIIO::TypeDesc::HALF) {
+        return "half";
+    }
+    if (t == OIIO::TypeDesc::FLOAT) {
+        return "float";
+    }
+    if (t == OIIO::TypeDesc::UINT) {
+        return "uint";
+    }
+    return t.c_str();
+}
+
+bool is_integer_type(OIIO::TypeDesc t)
+{
+    return t.basetype == OIIO::TypeDesc::UINT8 || t.basetype == OIIO::TypeDesc::UINT16 ||
+           t.basetype == OIIO::TypeDesc::INT8 || t.basetype == OIIO::TypeDesc::INT16;
+}
+
+namespace {
+
+// The camera's header attributes, each once: read and write walk the same tables.
+struct MatrixAttribute {
+    const char *name;
+    std::optional<glm::mat4> Camera::*member;
+};
+struct ScalarAttribute {
+    const char *name;
+    std::optional<float> Camera::*member;
+};
+constexpr MatrixAttribute kMatrixAttributes[] = {
+    {attr::kWorldToCamera, &Camera::world_to_camera},
+    {attr::kWorldToNDC, &Camera::world_to_ndc},
+    {attr::kPrevWorldToCamera, &Camera::prev_world_to_camera},
+    {attr::kPrevWorldToNDC, &Camera::prev_world_to_ndc},
+};
+constexpr ScalarAttribute kScalarAttributes[] = {
+    {attr::kAperture, &Camera::fstop},
+    {attr::kFocus, &Camera::focus_distance},
+    {attr::kFocalLength, &Camera::focal_length_mm},
+    {attr::kSensorWidth, &Camera::sensor_width_mm},
+    {attr::kSensorHeight, &Camera::sensor_height_mm},
+    {attr::kShutter, &Camera::shutter},
+    {attr::kNearClip, &Camera::near_clip},
+    {attr::kFarClip, &Camera::far_clip},
+};
+
+}  // namespace
+
+void read_camera(const OIIO::ImageSpec &spec, Camera &cam)
+{
+    for (const MatrixAttribute &a : kMatrixAttributes) {
+        if (const OIIO::ParamValue *p = spec.find_attribute(a.name, OIIO::TypeMatrix44)) {
+            glm::mat4 m;
+            std::memcpy(&m, p->data(), sizeof(m));  // Imath and GLM share the layout
+            cam.*a.member = m;
+        }
+    }
+    auto scalar = [&](const char *name, std::optional<float> &out) {
+        const OIIO::ParamValue *p = spec.find_attribute(name);
+        if (p && (p->type() == OIIO::TypeFloat || p->type() == OIIO::TypeInt ||
+                  p->type() == OIIO::TypeDesc::DOUBLE)) {
+            out = p->get_float();
+        }
+    };
+    for (const ScalarAttribute &a : kScalarAttributes) {
+        scalar(a.name, cam.*a.member);
+    }
+    if (!cam.fstop) {
+        scalar("FNumber", cam.fstop);  // OIIO reads EXR's standard "aperture" as Exif FNumber
+    }
+}
+
+void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before)
+{
+    for (const MatrixAttribute &a : kMatrixAttributes) {
+        if (const auto &m = cam.*a.member) {
+            if (!before || before->*a.member != m) {
+                spec.attribute(a.name, OIIO::TypeMatrix44, &*m);
+            }
+        } else if (before && before->*a.member) {
+            spec.erase_attribute(a.name);
+        }
+    }
+    for (const ScalarAttribute &a : kScalarAttributes) {
+        if (const auto &v = cam.*a.member) {
+            if (!before || before->*a.member != v) {
+                spec.attribute(a.name, *v);
+            }
+        } else if (before && before->*a.member) {
+            spec.erase_attribute(a.name);
+        }
+    }
+}
+
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
+{
+    std::error_code ec;
+    if (!fs::exists(path, ec)) {
+        throw_runtime(path, ": no such file");
+    }
+    if (fs::is_directory(path, ec)) {
+        throw_runtime(path, ": is a directory, not an image");
+    }
+    if (fs::file_size(path, ec) == 0) {
+        throw_runtime(path, ": empty file");
+    }
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) {
+        std::string err = OIIO::geterror();
+        std::replace(err.begin(), err.end(), '\n', ' ');
+        throw_runtime(path, ": cannot read image: ", err.empty() ? "unknown format" : err);
+    }
+    return in;
+}
+
+namespace {
+
+/// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
+/// dst + i * dst_stride. Rounds to nearest even, like Imath::half.
+void floats_to_halves_portable(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+{
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+        for (int c = 0; c < channels; ++c) {
+            const Imath::half h(src[c]);
+            std::memcpy(dst + std::size_t(c) * 2, &h, 2);
+        }
+    }
+}
+
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("f16c"))) void floats_to_halves_f16c(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+{
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+        if (channels == 4) {
+            const __m128i h = _mm_cvtps_ph(_mm_loadu_ps(src), _MM_FROUND_TO_NEAREST_INT);
+            _mm_storel_epi64(reinterpret_cast<__m128i *>(dst), h);
+            continue;
+        }
+        for (int c = 0; c < channels; ++c) {
+            const unsigned short h = _cvtss_sh(src[c], _MM_FROUND_TO_NEAREST_INT);
+            std::memcpy(dst + std::size_t(c) * 2, &h, 2);
+        }
+    }
+}
+#endif
+
+}  // namespace
+
+/// floats_to_halves_portable, with the CPU's F16C instructions where it has them (the software
+/// conversion was a quarter of a 1080p all-pass write).
+void floats_to_halves(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    static const bool has_f16c = __builtin_cpu_supports("f16c");
+    if (has_f16c) {
+        floats_to_halves_f16c(src, channels, count, dst, dst_stride);
+        return;
+    }
+#endif
+    floats_to_halves_portable(src, channels, count, dst, dst_stride);
+}
+
+namespace {
+
+/// Copy `count` pixels of `channels` floats to dst + i * dst_stride. The per-pixel copy has a
+/// size known at compile time so it inlines (a libc memmove per pixel dominated the write).
+template <int N>
+void scatter_floats_n(const float *src, int count, unsigned char *dst, std::size_t dst_stride)
+{
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += N) {
+        std::memcpy(dst, src, N * sizeof(float));
+    }
+}
+
+}  // namespace
+
+void scatter_floats(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+{
+    switch (channels) {
+        case 1:
+            return scatter_floats_n<1>(src, count, dst, dst_stride);
+        case 2:
+            return scatter_floats_n<2>(src, count, dst, dst_stride);
+        case 3:
+            return scatter_floats_n<3>(src, count, dst, dst_stride);
+        case 4:
+            return scatter_floats_n<4>(src, count, dst, dst_stride);
+        default:
+            for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+                std::memcpy(dst, src, std::size_t(channels) * sizeof(float));
+            }
+    }
+}
+
+float srgb_to_linear(float v)
+{
+    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+void convert_channel(const unsigned char *src,
+                     std::size_t stride,
+                     OIIO::TypeDesc type,
+                     float *dst,
+                     std::size_t dst_stride,
+                     int count)
+{
+    switch (type.basetype) {
+        case OIIO::TypeDesc::HALF:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                Imath::half h;
+                std::memcpy(&h, src, sizeof(h));
+                *dst = float(h);
+            }
+            break;
+        case OIIO::TypeDesc::FLOAT:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::memcpy(dst, src, sizeof(float));
+            }
+            break;
+        case OIIO::TypeDesc::DOUBLE:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                double d;
+                std::memcpy(&d, src, sizeof(d));
+                *dst = float(d);
+            }
+            break;
+        case OIIO::TypeDesc::UINT:  // ids: integers, not normalised
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::uint32_t u;
+                std::memcpy(&u, src, sizeof(u));
+                *dst = float(u);
+            }
+            break;
+        case OIIO::TypeDesc::UINT8:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                *dst = float(*src) * (1.0f / 255.0f);
+            }
+            break;
+        case OIIO::TypeDesc::UINT16:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::uint16_t u;
+                std::memcpy(&u, src, sizeof(u));
+                *dst = float(u) * (1.0f / 65535.0f);
+            }
+            break;
+        case OIIO::TypeDesc::INT8:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                *dst = std::max(-1.0f, float(std::int8_t(*src)) * (1.0f / 127.0f));
+            }
+            break;
+        case OIIO::TypeDesc::INT16:
+            for (int i = 0; i < count; ++i, src += stride, dst += dst_stride) {
+                std::int16_t v;
+                std::memcpy(&v, src, sizeof(v));
+                *dst = std::max(-1.0f, float(v) * (1.0f / 32767.0f));
+            }
+            break;
+        default:
+            for (int i = 0; i < count; ++i, dst += dst_stride) {
+                *dst = 0.0f;  // types refused when the part is read
+            }
+            break;
+    }
+}
+
+bool supported_native(OIIO::TypeDesc t)
+{
+    switch (t.basetype) {
+        case OIIO::TypeDesc::HALF:
+        case OIIO::TypeDesc::FLOAT:
+        case OIIO::TypeDesc::DOUBLE:
+        case OIIO::TypeDesc::UINT:
+        case OIIO::TypeDesc::UINT8:
+        case OIIO::TypeDesc::UINT16:
+        case OIIO::TypeDesc::INT8:
+        case OIIO::TypeDesc::INT16:
+            return t.aggregate == OIIO::TypeDesc::SCALAR;
+        default:
+            return false;
+    }
+}
+
+}  // namespace posthaste::io_detail

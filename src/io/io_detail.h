@@ -1,0 +1,49 @@
+#pragma once
+// Internal to src/io: header attribute tables, the camera's attributes, and pixel conversions
+// between a file's native types and float passes, shared by the reader and the writer.
+
+#include <OpenImageIO/imageio.h>
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "core/camera.h"
+
+namespace posthaste::io_detail {
+
+/// Attributes that describe the file's structure rather than the picture: not carried over.
+bool is_structural_attribute(const std::string &name);
+/// The camera's header attributes (read into Camera, written from it).
+bool is_camera_attribute(const std::string &name);
+/// "half", "float", "uint", or OIIO's name for other types.
+std::string type_name(OIIO::TypeDesc t);
+/// 8/16-bit integer types (normalised on read).
+bool is_integer_type(OIIO::TypeDesc t);
+/// Parse the camera attributes of `spec` into `cam` (absent ones stay unset).
+void read_camera(const OIIO::ImageSpec &spec, Camera &cam);
+/// Write every set camera value into `spec`; with `only_changed`, a value that `before` already
+/// has bit for bit is left as the spec has it (its attribute type and bits kept).
+void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before = nullptr);
+/// Open an image for reading; throws Error (exit 1) naming the file.
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path);
+/// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
+/// dst + i * dst_stride. Rounds to nearest even (F16C where the CPU has it).
+void floats_to_halves(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride);
+/// Copy `count` pixels of `channels` floats to dst + i * dst_stride.
+void scatter_floats(
+    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride);
+/// Convert `count` values of one native channel to float, `src` stepping `stride` bytes.
+void convert_channel(const unsigned char *src,
+                     std::size_t stride,
+                     OIIO::TypeDesc type,
+                     float *dst,
+                     std::size_t dst_stride,
+                     int count);
+/// Pixel types the reader converts.
+bool supported_native(OIIO::TypeDesc t);
+/// The sRGB decoding curve.
+float srgb_to_linear(float v);
+
+}  // namespace posthaste::io_detail

@@ -1,0 +1,60 @@
+#pragma once
+// SourceFile: what a frame keeps of the EXR file it was read from, so that a write puts every
+// channel no node changed back as it was: the parts in order with their headers (names, views,
+// windows, tiling, attributes, channel names and pixel types), the view the canonical passes came
+// from, the native samples that a float pass cannot hold exactly, and the lower mip levels.
+
+#include <OpenImageIO/imageio.h>
+
+#include <map>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/image.h"
+
+namespace posthaste {
+
+/// One mip level of a part as read, at native pixel types (every channel of the part).
+struct SourceLevel {
+    OIIO::ImageSpec spec;
+    std::shared_ptr<const std::vector<unsigned char>> pixels;
+};
+
+struct SourcePart {
+    /// The part's header as OpenImageIO read it (windows, channels, formats, tiles, attributes).
+    OIIO::ImageSpec spec;
+    std::string name;  ///< Part name ("" for a single-part file without one).
+    std::string view;  ///< The part's view ("" when it has none).
+    /// Per channel: its view (single-part multi-view files name other views' channels
+    /// "layer.view.channel"; multi-part files give the view per part).
+    std::vector<std::string> channel_views;
+    int mip_levels = 1;
+    /// Levels 1.. as read (only for tiled mip-mapped parts that were read whole).
+    std::vector<SourceLevel> levels;
+    Rect data_window() const
+    {
+        return {spec.x, spec.y, spec.x + spec.width, spec.y + spec.height};
+    }
+};
+
+struct SourceFile {
+    std::string path;
+    std::vector<SourcePart> parts;
+    /// The file's views, in order ("multiView" first); empty when it has none.
+    std::vector<std::string> views;
+    /// The view the canonical passes came from ("" for a file without views).
+    std::string view;
+    /// One part whose channels carry the view in their names (OpenEXR's single-part multi-view).
+    bool single_part_views = false;
+    /// The camera as the header had it (a write touches the camera attributes only if it changed).
+    Camera camera;
+    /// Native samples of channels whose float pass cannot reproduce the file's bits (32-bit uint
+    /// ids beyond 2^24; channels an alias rule scaled, offset, clipped or decoded), keyed by
+    /// (part, channel), over the part's data window, row-major.
+    std::map<std::pair<int, int>, std::shared_ptr<const std::vector<unsigned char>>> raw;
+};
+
+}  // namespace posthaste

@@ -1,0 +1,404 @@
+// EXR fidelity: a generated corpus of files as other tools write them (windows of every kind,
+// tiled and mip-mapped environments, every compression, channel sets, multi-part and stereo
+// files, luminance/chroma and deep files) goes through read -> write and comes out unchanged,
+// checked with OpenEXR's own reader (exr_corpus.cpp), or equal to the conversion computed there.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "core/error.h"
+#include "exr_corpus.h"
+#include "graph/node_registry.h"
+#include "io/image_file.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+namespace corpus = test::corpus;
+
+/// The scratch folder, emptied once per process.
+const std::string &scratch()
+{
+    static const std::string kDir = test::scratch_dir("exr_corpus");
+    return kDir;
+}
+
+const std::vector<corpus::Entry> &the_corpus()
+{
+    static const std::vector<corpus::Entry> kEntries = corpus::write_corpus(scratch() + "/in");
+    return kEntries;
+}
+
+const corpus::Entry &entry(const std::string &name)
+{
+    for (const corpus::Entry &e : the_corpus()) {
+        if (e.name == name) {
+            return e;
+        }
+    }
+    throw std::runtime_error("no corpus entry " + name);
+}
+
+std::string out_path(const std::string &name)
+{
+    return scratch() + "/out/" + name + ".exr";
+}
+
+TEST(ExrFidelity, EveryFlatFileComesThroughUnchanged)
+{
+    int checked = 0;
+    for (const corpus::Entry &e : the_corpus()) {
+        if (e.kind != corpus::Kind::Flat && e.kind != corpus::Kind::LumaOnly) {
+            continue;
+        }
+        SCOPED_TRACE(e.name + ": " + e.what);
+        const std::string out = out_path(e.name);
+        const Frame f = read_frame(e.path, nullptr, 1);
+        write_exr(f, out, {});
+        if (e.name == "ripmap") {
+            // OpenImageIO 2.4 cannot read ripmap levels: level 0 alone comes through.
+            EXPECT_NE(corpus::compare_exr(e.path, out).find("RIPMAP_LEVELS"), std::string::npos);
+            EXPECT_TRUE(read_frame(out, nullptr, 1).image("color").bit_equal(f.image("color")));
+            continue;
+        }
+        EXPECT_EQ(corpus::compare_exr(e.path, out), "");
+        ++checked;
+    }
+    EXPECT_GE(checked, 25);
+}
+
+TEST(ExrFidelity, GraphReadWriteIsAPassThrough)
+{
+    // The user's path: `posthaste run` with a read -> write graph and default parameters.
+    const std::string dir = scratch() + "/cli";
+    std::filesystem::create_directories(dir);
+    for (const char *name : {"overscan_around", "stereo_multipart", "cube_mip", "types_mixed",
+                             "negative_origin", "single_g", "comp_dwaa"}) {
+        SCOPED_TRACE(name);
+        const std::string graph = dir + "/" + name + ".json";
+        std::ofstream(graph) << R"({"nodes": [
+            {"id": "in", "type": "read", "params": {"path": ")"
+                             << entry(name).path << R"("}},
+            {"id": "out", "type": "write", "inputs": {"image": "in"},
+             "params": {"path": ")" << dir
+                             << "/" << name << R"(.exr"}}]})";
+        std::string log;
+        ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph +
+                                        " --frames 1 --quiet",
+                                    &log),
+                  0)
+            << log;
+        EXPECT_EQ(corpus::compare_exr(entry(name).path, dir + "/" + name + ".exr"), "");
+    }
+}
+
+TEST(ExrFidelity, WindowsAreKept)
+{
+    const Frame f = read_frame(entry("overscan_around").path, nullptr, 1);
+    EXPECT_EQ(f.display_window, (Rect{30, 20, 400, 300}));
+    EXPECT_EQ(f.data_window, (Rect{0, 0, 400, 300}));
+    EXPECT_EQ(f.image("color").width(), 400);
+    const Frame g = read_frame(entry("negative_origin").path, nullptr, 1);
+    EXPECT_EQ(g.display_window, (Rect{-16, -8, 48, 40}));
+    EXPECT_EQ(g.data_window, (Rect{-20, -10, 31, 31}));
+    const Frame c = read_frame(entry("cube_mip").path, nullptr, 1);
+    EXPECT_EQ(c.data_window.height(), 192);  // all six faces
+    EXPECT_EQ(c.display_window.height(), 32);
+}
+
+TEST(ExrFidelity, ChannelsKeepNamesAndAlphaIsNotAdded)
+{
+    // RGB without alpha: the color pass has A = 1 for the nodes, but no A is written.
+    const Frame rgb = read_frame(entry("rgb_no_alpha").path, nullptr, 1);
+    ASSERT_EQ(rgb.image("color").channels(), 4);
+    EXPECT_EQ(rgb.image("color").at(0, 0, 3), 1.0f);
+    write_exr(rgb, out_path("rgb_again"), {});
+    const FileInfo info = read_file_info(out_path("rgb_again"));
+    ASSERT_EQ(info.parts[0].channels.size(), 3u);
+    // A node that makes alpha vary gets it written, next to R, G, B.
+    Frame changed = rgb;
+    Image color = rgb.image("color");
+    color.at(0, 0, 3) = 0.5f;
+    changed.set("color", std::move(color));
+    write_exr(changed, out_path("rgb_alpha"), {});
+    EXPECT_EQ(read_file_info(out_path("rgb_alpha")).parts[0].channels.size(), 4u);
+    // A single channel "G" stays "G".
+    write_exr(read_frame(entry("single_g").path, nullptr, 1), out_path("g_again"), {});
+    const FileInfo g = read_file_info(out_path("g_again"));
+    ASSERT_EQ(g.parts[0].channels.size(), 1u);
+    EXPECT_EQ(g.parts[0].channels[0].name, "G");
+}
+
+TEST(ExrFidelity, TouchedPassGoesBackToItsChannelsAndTypes)
+{
+    // types_mixed: half color, float depth, uint id. Scaling the color keeps half and the
+    // channel names; the untouched uint id keeps its bits beyond 2^24.
+    const Frame f = read_frame(entry("types_mixed").path, nullptr, 1);
+    Frame g = f;
+    Image color = f.image("color");
+    for (std::size_t i = 0; i < color.pixel_count(); ++i) {
+        for (int c = 0; c < 3; ++c) {
+            color.data()[i * 4 + std::size_t(c)] *= 2.0f;  // alpha (made up: 1) stays
+        }
+    }
+    g.set("color", std::move(color));
+    write_exr(g, out_path("types_touched"), {});
+    const FileInfo in = read_file_info(entry("types_mixed").path);
+    const FileInfo out = read_file_info(out_path("types_touched"));
+    ASSERT_EQ(out.parts.size(), 1u);
+    ASSERT_EQ(in.parts[0].channels.size(), out.parts[0].channels.size());
+    for (std::size_t c = 0; c < in.parts[0].channels.size(); ++c) {
+        EXPECT_EQ(in.parts[0].channels[c].name, out.parts[0].channels[c].name);
+        EXPECT_EQ(in.parts[0].channels[c].type, out.parts[0].channels[c].type);
+    }
+    const Frame back = read_frame(out_path("types_touched"), nullptr, 1);
+    const Image &a = f.image("color"), &b = back.image("color");
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            const float v = a.at(x, y, 0);
+            if (std::isfinite(v) && std::abs(v) < 16000.0f) {
+                ASSERT_EQ(b.at(x, y, 0), 2.0f * v) << x << "," << y;
+            }
+        }
+    }
+}
+
+TEST(ExrFidelity, TouchedMipMapGetsItsLevelsAgain)
+{
+    const Frame f = read_frame(entry("cube_mip").path, nullptr, 1);
+    Frame g = f;
+    Image color = f.image("color");
+    color.fill(0.5f);
+    g.set("color", std::move(color));
+    write_exr(g, out_path("cube_touched"), {});
+    const FileInfo info = read_file_info(out_path("cube_touched"));
+    EXPECT_EQ(info.parts[0].mip_levels, read_file_info(entry("cube_mip").path).parts[0].mip_levels);
+    EXPECT_EQ(info.parts[0].envmap, "cube");
+    EXPECT_EQ(info.data_window, f.data_window);
+    EXPECT_EQ(info.display_window, f.display_window);
+}
+
+TEST(ExrFidelity, ViewsComeFromOneEye)
+{
+    const std::string path = entry("stereo_multipart").path;
+    const FileInfo info = read_file_info(path);
+    EXPECT_EQ(info.views, (std::vector<std::string>{"left", "right"}));
+    EXPECT_EQ(info.view, "left");
+    ReadOptions right;
+    right.view = "right";
+    const Frame l = read_frame(path, nullptr, 1);
+    const Frame r = read_frame(path, nullptr, 1, right);
+    // Every canonical pass of the right view comes from the right view's parts: the default
+    // frame's color@right and depth@right are the right frame's color and depth.
+    ASSERT_TRUE(l.has("color@right"));
+    ASSERT_TRUE(l.has("depth@right"));
+    EXPECT_TRUE(l.image("color@right").bit_equal(r.image("color")));
+    EXPECT_TRUE(l.image("depth@right").bit_equal(r.image("depth")));
+    EXPECT_TRUE(r.image("color@left").bit_equal(l.image("color")));
+    EXPECT_FALSE(l.image("color").bit_equal(r.image("color")));
+    // Written from the right view, the file is still the same file.
+    write_exr(r, out_path("stereo_right"), {});
+    EXPECT_EQ(corpus::compare_exr(path, out_path("stereo_right")), "");
+    // Single-part multi-view: right.R is the right view's R.
+    const std::string sp = entry("stereo_singlepart").path;
+    const Frame sr = read_frame(sp, nullptr, 1, right);
+    const Frame sl = read_frame(sp, nullptr, 1);
+    EXPECT_TRUE(sl.image("color@right").bit_equal(sr.image("color")));
+    EXPECT_FALSE(sl.image("color").bit_equal(sr.image("color")));
+}
+
+TEST(ExrFidelity, LuminanceChromaReadsAsRgb)
+{
+    const corpus::Entry &e = entry("luma_chroma");
+    const corpus::Rgba expected = corpus::rgba_of(e.path);
+    const Frame f = read_frame(e.path, nullptr, 1);
+    const Image &c = f.image("color");
+    ASSERT_EQ(c.width(), expected.width);
+    ASSERT_EQ(c.height(), expected.height);
+    EXPECT_EQ(f.data_window.x0, expected.x0);
+    for (int y = 0; y < c.height(); ++y) {
+        for (int x = 0; x < c.width(); ++x) {
+            for (int k = 0; k < 4; ++k) {
+                ASSERT_EQ(c.at(x, y, k),
+                          expected.rgba[(std::size_t(y) * std::size_t(c.width()) + std::size_t(x)) *
+                                            4 +
+                                        std::size_t(k)])
+                    << x << "," << y << "," << k;
+            }
+        }
+    }
+    // Written back as RGBA half: the same values.
+    write_exr(f, out_path("luma_chroma_rgb"), {});
+    EXPECT_TRUE(read_frame(out_path("luma_chroma_rgb"), nullptr, 1).image("color").bit_equal(c));
+    // Luminance only: one channel Y, gray for the nodes, Y again when written.
+    const Frame y = read_frame(entry("y_only").path, nullptr, 1);
+    EXPECT_EQ(y.image("color").at(3, 2, 0), y.image("color").at(3, 2, 2));
+}
+
+TEST(ExrFidelity, DeepFilesFlattenFrontToBack)
+{
+    for (const char *name : {"deep_scanline", "deep_tiled"}) {
+        SCOPED_TRACE(name);
+        const corpus::Entry &e = entry(name);
+        const corpus::Flat expected = corpus::flatten_deep(e.path);
+        const Frame f = read_frame(e.path, nullptr, 1);
+        const Image &c = f.image("color"), &z = f.image("depth");
+        ASSERT_EQ(c.width(), expected.width);
+        ASSERT_EQ(f.data_window.x0, expected.x0);
+        ASSERT_EQ(f.data_window.y0, expected.y0);
+        for (int y = 0; y < c.height(); ++y) {
+            for (int x = 0; x < c.width(); ++x) {
+                const float *ex =
+                    &expected.rgbaz[(std::size_t(y) * std::size_t(c.width()) + std::size_t(x)) * 5];
+                for (int k = 0; k < 4; ++k) {
+                    ASSERT_NEAR(c.at(x, y, k), ex[k], 1e-6f) << x << "," << y << "," << k;
+                }
+                ASSERT_EQ(z.at(x, y, 0), ex[4]) << x << "," << y;
+            }
+        }
+        ReadOptions refuse;
+        refuse.deep = DeepMode::Error;
+        try {
+            read_frame(e.path, nullptr, 1, refuse);
+            ADD_FAILURE() << "deep: error accepted a deep file";
+        } catch (const Error &err) {
+            EXPECT_NE(std::string(err.what()).find("deep"), std::string::npos) << err.what();
+        }
+    }
+}
+
+TEST(ExrFidelity, BadViewAndAbsurdWindowsAreOneLineErrors)
+{
+    ReadOptions o;
+    o.view = "middle";
+    try {
+        read_frame(entry("stereo_multipart").path, nullptr, 1, o);
+        ADD_FAILURE() << "unknown view accepted";
+    } catch (const Error &e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("no view \"middle\""), std::string::npos) << m;
+        EXPECT_NE(m.find("left, right"), std::string::npos) << m;
+        EXPECT_EQ(m.find('\n'), std::string::npos);
+    }
+    o.view = "left";
+    EXPECT_THROW(read_frame(entry("window_inside").path, nullptr, 1, o), Error);  // no views
+
+    // A header whose data window is absurd: patch the dataWindow attribute of a tiny file.
+    const std::string path = out_path("absurd");
+    {
+        Frame f;
+        f.set("color", Image(4, 4, 4));
+        write_exr(f, path, {});
+    }
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    const std::string key = std::string("dataWindow\0box2i\0", 17);
+    const auto at = bytes.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const std::int32_t huge[4] = {0, 0, 200000, 3};  // xmax far beyond the limit
+    std::memcpy(&bytes[at + key.size() + 4], huge, sizeof(huge));
+    std::ofstream(path, std::ios::binary) << bytes;
+    try {
+        read_frame(path, nullptr, 1);
+        ADD_FAILURE() << "absurd window accepted";
+    } catch (const Error &e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("absurd"), std::string::npos) << m;  // the file
+        EXPECT_NE(m.find("part 0"), std::string::npos) << m;
+        EXPECT_NE(m.find("200001"), std::string::npos) << m;
+    }
+}
+
+// Every node on a frame whose data window is offset from the display window and larger than it
+// gives the pixels it gives on the same data placed at the origin (with the camera seen from the
+// data window), and keeps both windows.
+TEST(ExrFidelity, NodesWorkInTheDataWindow)
+{
+    const int w = 61, h = 37;
+    Frame base = test::make_sample_frame(w, h, 3);
+    Image tangent(w, h, 3);
+    for (std::size_t i = 0; i < tangent.pixel_count(); ++i) {
+        tangent.data()[i * 3] = 1.0f;
+    }
+    base.set("tangent", std::move(tangent));
+    base.camera.prev_world_to_camera = base.camera.world_to_camera;
+    base.camera.prev_world_to_ndc = base.camera.world_to_ndc;
+    Frame offset = base;
+    offset.data_window = {-7, -4, w - 7, h - 4};
+    offset.display_window = {0, 0, w - 14, h - 9};
+    Frame origin = base;
+    origin.camera = offset.pixel_camera();  // what the data window's pixels see
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"dof", "{}"},
+        {"motion_blur", "{}"},
+        {"motion_blur", R"({"source": "camera"})"},
+        {"fog", R"({"model": "exp", "density": 0.05})"},
+        {"fog", R"({"model": "height"})"},
+        {"relight", R"({"lights": [{"type": "point", "position": [0, 3, 0], "intensity": 20}]})"},
+        {"hatching", "{}"},
+        {"ocio", R"({"to": "srgb"})"},
+        {"channels", R"({"keep": "color"})"},
+    };
+    for (const auto &[type, params] : cases) {
+        SCOPED_TRACE(type + " " + params);
+        const Frame a = test::run_node(type, offset, params);
+        const Frame b = test::run_node(type, origin, params);
+        EXPECT_EQ(a.data_window, offset.data_window);
+        EXPECT_EQ(a.display_window, offset.display_window);
+        for (const auto &[name, p] : b.passes()) {
+            ASSERT_TRUE(a.has(name)) << name;
+            EXPECT_TRUE(a.image(name).bit_equal(*p.image)) << name;
+        }
+    }
+    // A preview shows the display window.
+    const std::string png = scratch() + "/out/preview_window.png";
+    write_preview(place_in_window(offset.image("color"), offset.data_window, offset.display_window),
+                  png,
+                  false);
+    EXPECT_EQ(read_file_info(png).display_window.width(), w - 14);
+}
+
+TEST(ExrFidelity, MergeWorksInBsWindow)
+{
+    Frame b = test::make_sample_frame(16, 8, 1);
+    Frame a = test::make_sample_frame(4, 4, 1);
+    a.data_window = {10, 2, 14, 6};
+    a.display_window = b.display_window;
+    Image ones(4, 4, 4);
+    ones.fill(1.0f);
+    a.set("color", std::move(ones));
+    // Over: A is opaque white inside its window, B elsewhere.
+    const NodeType *merge = find_node_type("merge");
+    ASSERT_NE(merge, nullptr);
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "a.exr"}},
+        {"id": "b", "type": "read", "params": {"path": "b.exr"}},
+        {"id": "m", "type": "merge", "inputs": {"a": "a", "b": "b"}, "params": {}},
+        {"id": "out", "type": "write", "inputs": {"image": "m"}, "params": {"path": "x.exr"}}]})",
+                           "merge windows");
+    const GraphNode &gn = g.nodes()[std::size_t(g.find("m"))];
+    NodeContext ctx(gn.identity,
+                    gn.params,
+                    {std::make_shared<const Frame>(b), std::make_shared<const Frame>(a)},
+                    {"b", "a"},
+                    gn.requested,
+                    1,
+                    *gn.state);
+    merge->execute(ctx);
+    const Frame out = ctx.take_output();
+    EXPECT_EQ(out.data_window, b.data_window);
+    const Image &c = out.image("color");
+    EXPECT_EQ(c.at(11, 3, 0), 1.0f);
+    EXPECT_EQ(c.at(2, 3, 0), b.image("color").at(2, 3, 0));
+    EXPECT_EQ(c.at(10, 6, 0), b.image("color").at(10, 6, 0));  // below A's window
+}
+
+}  // namespace
+}  // namespace posthaste
