@@ -541,24 +541,50 @@ std::unique_ptr<unsigned char[]> pack_part(const OutPart &part, const Frame &fra
     const std::size_t row_bytes = pixel_bytes * std::size_t(dw.width());
     auto buf = std::make_unique_for_overwrite<unsigned char[]>(row_bytes * std::size_t(dw.height()));
     const Rect fw = frame.data_window;
+    // Runs of channels that are consecutive channels of one image, same type, written as they
+    // are: converted together (four halves at once for RGBA).
+    std::vector<std::size_t> run(part.channels.size(), 1);
+    for (std::size_t ci = part.channels.size(); ci-- > 1;) {
+        const OutChannel &a = part.channels[ci - 1], &b = part.channels[ci];
+        if (!a.raw && !b.raw && a.image && a.image == b.image && b.k == a.k + 1 &&
+            a.type == b.type && a.scale == 1.0f && a.offset == 0.0f && b.scale == 1.0f &&
+            b.offset == 0.0f) {
+            run[ci - 1] = run[ci] + 1;
+        }
+    }
+    const bool inside = fw.x0 <= dw.x0 && dw.x1 <= fw.x1 && fw.y0 <= dw.y0 && dw.y1 <= fw.y1;
     parallel_for(0, dw.height(), [&](int y) {
         unsigned char *row = buf.get() + std::size_t(y) * row_bytes;
         std::vector<float> tmp(std::size_t(dw.width()));
         const int ay = y + dw.y0;
-        for (std::size_t ci = 0; ci < part.channels.size(); ++ci) {
+        for (std::size_t ci = 0; ci < part.channels.size();) {
             const OutChannel &c = part.channels[ci];
             unsigned char *dst = row + offsets[ci];
             const std::size_t size = c.type.size();
             if (c.raw) {
-                const unsigned char *src = c.raw->data() + std::size_t(y) * std::size_t(dw.width()) * size;
+                const unsigned char *src =
+                    c.raw->data() + std::size_t(y) * std::size_t(dw.width()) * size;
                 for (int x = 0; x < dw.width(); ++x) {
-                    std::memcpy(dst + std::size_t(x) * pixel_bytes, src + std::size_t(x) * size, size);
+                    std::memcpy(
+                        dst + std::size_t(x) * pixel_bytes, src + std::size_t(x) * size, size);
                 }
+                ++ci;
                 continue;
             }
             const Image &img = *c.image;
-            const bool whole_row = ay >= fw.y0 && ay < fw.y1;
             const bool identity = c.scale == 1.0f && c.offset == 0.0f;
+            if (inside && identity && c.type.basetype != OIIO::TypeDesc::UINT) {
+                const int n = int(run[ci]);
+                const float *src = img.pixel(dw.x0 - fw.x0, ay - fw.y0) + c.k;
+                if (c.type.basetype == OIIO::TypeDesc::HALF) {
+                    floats_to_halves(src, n, dw.width(), dst, pixel_bytes, img.channels());
+                } else {
+                    scatter_floats(src, n, dw.width(), dst, pixel_bytes, img.channels());
+                }
+                ci += std::size_t(n);
+                continue;
+            }
+            const bool whole_row = ay >= fw.y0 && ay < fw.y1;
             for (int x = 0; x < dw.width(); ++x) {
                 const int ax = x + dw.x0;
                 float v = 0.0f;
@@ -568,6 +594,7 @@ std::unique_ptr<unsigned char[]> pack_part(const OutPart &part, const Frame &fra
                 tmp[std::size_t(x)] = identity ? v : (v - c.offset) / c.scale;
             }
             store_values(tmp.data(), dw.width(), c.type, dst, pixel_bytes);
+            ++ci;
         }
     });
     return buf;

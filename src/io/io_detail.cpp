@@ -189,10 +189,14 @@ namespace {
 
 /// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
 /// dst + i * dst_stride. Rounds to nearest even, like Imath::half.
-void floats_to_halves_portable(
-    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+void floats_to_halves_portable(const float *src,
+                               int channels,
+                               int count,
+                               unsigned char *dst,
+                               std::size_t dst_stride,
+                               int src_stride)
 {
-    for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += src_stride) {
         for (int c = 0; c < channels; ++c) {
             const Imath::half h(src[c]);
             std::memcpy(dst + std::size_t(c) * 2, &h, 2);
@@ -201,10 +205,14 @@ void floats_to_halves_portable(
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-__attribute__((target("f16c"))) void floats_to_halves_f16c(
-    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+__attribute__((target("f16c"))) void floats_to_halves_f16c(const float *src,
+                                                           int channels,
+                                                           int count,
+                                                           unsigned char *dst,
+                                                           std::size_t dst_stride,
+                                                           int src_stride)
 {
-    for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += src_stride) {
         if (channels == 4) {
             const __m128i h = _mm_cvtps_ph(_mm_loadu_ps(src), _MM_FROUND_TO_NEAREST_INT);
             _mm_storel_epi64(reinterpret_cast<__m128i *>(dst), h);
@@ -222,17 +230,24 @@ __attribute__((target("f16c"))) void floats_to_halves_f16c(
 
 /// floats_to_halves_portable, with the CPU's F16C instructions where it has them (the software
 /// conversion was a quarter of a 1080p all-pass write).
-void floats_to_halves(
-    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+void floats_to_halves(const float *src,
+                      int channels,
+                      int count,
+                      unsigned char *dst,
+                      std::size_t dst_stride,
+                      int src_stride)
 {
+    if (src_stride <= 0) {
+        src_stride = channels;
+    }
 #if defined(__x86_64__) && defined(__GNUC__)
     static const bool has_f16c = __builtin_cpu_supports("f16c");
     if (has_f16c) {
-        floats_to_halves_f16c(src, channels, count, dst, dst_stride);
+        floats_to_halves_f16c(src, channels, count, dst, dst_stride, src_stride);
         return;
     }
 #endif
-    floats_to_halves_portable(src, channels, count, dst, dst_stride);
+    floats_to_halves_portable(src, channels, count, dst, dst_stride, src_stride);
 }
 
 namespace {
@@ -240,29 +255,37 @@ namespace {
 /// Copy `count` pixels of `channels` floats to dst + i * dst_stride. The per-pixel copy has a
 /// size known at compile time so it inlines (a libc memmove per pixel dominated the write).
 template <int N>
-void scatter_floats_n(const float *src, int count, unsigned char *dst, std::size_t dst_stride)
+void scatter_floats_n(
+    const float *src, int count, unsigned char *dst, std::size_t dst_stride, int src_stride)
 {
-    for (int x = 0; x < count; ++x, dst += dst_stride, src += N) {
+    for (int x = 0; x < count; ++x, dst += dst_stride, src += src_stride) {
         std::memcpy(dst, src, N * sizeof(float));
     }
 }
 
 }  // namespace
 
-void scatter_floats(
-    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride)
+void scatter_floats(const float *src,
+                    int channels,
+                    int count,
+                    unsigned char *dst,
+                    std::size_t dst_stride,
+                    int src_stride)
 {
+    if (src_stride <= 0) {
+        src_stride = channels;
+    }
     switch (channels) {
         case 1:
-            return scatter_floats_n<1>(src, count, dst, dst_stride);
+            return scatter_floats_n<1>(src, count, dst, dst_stride, src_stride);
         case 2:
-            return scatter_floats_n<2>(src, count, dst, dst_stride);
+            return scatter_floats_n<2>(src, count, dst, dst_stride, src_stride);
         case 3:
-            return scatter_floats_n<3>(src, count, dst, dst_stride);
+            return scatter_floats_n<3>(src, count, dst, dst_stride, src_stride);
         case 4:
-            return scatter_floats_n<4>(src, count, dst, dst_stride);
+            return scatter_floats_n<4>(src, count, dst, dst_stride, src_stride);
         default:
-            for (int x = 0; x < count; ++x, dst += dst_stride, src += channels) {
+            for (int x = 0; x < count; ++x, dst += dst_stride, src += src_stride) {
                 std::memcpy(dst, src, std::size_t(channels) * sizeof(float));
             }
     }

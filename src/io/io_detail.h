@@ -27,13 +27,22 @@ void read_camera(const OIIO::ImageSpec &spec, Camera &cam);
 void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before = nullptr);
 /// Open an image for reading; throws Error (exit 1) naming the file.
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path);
-/// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
-/// dst + i * dst_stride. Rounds to nearest even (F16C where the CPU has it).
-void floats_to_halves(
-    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride);
-/// Copy `count` pixels of `channels` floats to dst + i * dst_stride.
-void scatter_floats(
-    const float *src, int channels, int count, unsigned char *dst, std::size_t dst_stride);
+/// Convert `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels)
+/// to halves at dst + i * dst_stride. Rounds to nearest even (F16C where the CPU has it).
+void floats_to_halves(const float *src,
+                      int channels,
+                      int count,
+                      unsigned char *dst,
+                      std::size_t dst_stride,
+                      int src_stride = 0);
+/// Copy `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels) to
+/// dst + i * dst_stride.
+void scatter_floats(const float *src,
+                    int channels,
+                    int count,
+                    unsigned char *dst,
+                    std::size_t dst_stride,
+                    int src_stride = 0);
 /// Convert `count` values of one native channel to float, `src` stepping `stride` bytes.
 void convert_channel(const unsigned char *src,
                      std::size_t stride,

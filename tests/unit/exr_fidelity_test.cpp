@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -93,6 +94,47 @@ TEST(ExrFidelity, GraphReadWriteIsAPassThrough)
                   0)
             << log;
         EXPECT_EQ(corpus::compare_exr(entry(name).path, dir + "/" + name + ".exr"), "");
+    }
+}
+
+TEST(ExrFidelity, GraphErrorsAndInfo)
+{
+    const std::string dir = scratch() + "/cli_errors";
+    std::filesystem::create_directories(dir);
+    auto run = [&](const std::string &file, const std::string &read_params, std::string &log) {
+        const std::string graph = dir + "/g.json";
+        std::ofstream(graph) << R"({"nodes": [
+            {"id": "in", "type": "read", "params": {"path": ")"
+                             << file << "\", " << read_params << R"(}},
+            {"id": "out", "type": "write", "inputs": {"image": "in"},
+             "params": {"path": ")" << dir
+                             << R"(/out.exr"}}]})";
+        return test::run_command(
+            std::string(POSTHASTE_BINARY) + " run " + graph + " --frames 1 --quiet", &log);
+    };
+    std::string log;
+    EXPECT_EQ(run(entry("stereo_multipart").path, R"("view": "middle")", log), 1);
+    EXPECT_NE(log.find("no view \"middle\" (have: left, right)"), std::string::npos) << log;
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+    EXPECT_EQ(run(entry("deep_scanline").path, R"("deep": "error")", log), 1);
+    EXPECT_NE(log.find("deep_scanline.exr: part 0 is deep"), std::string::npos) << log;
+    EXPECT_FALSE(std::filesystem::exists(dir + "/out.exr"));
+    EXPECT_EQ(run(entry("deep_scanline").path, R"("deep": "flatten")", log), 0) << log;
+
+    // info: windows, views, tiling, levels, deep samples.
+    ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " +
+                                    entry("stereo_multipart").path + " " +
+                                    entry("cube_mip").path + " " + entry("deep_tiled").path,
+                                &log),
+              0)
+        << log;
+    for (const char *want : {"views              left, right; passes from \"left\"",
+                             "display window     (0,0)-(31,31) 32x32",
+                             "data window        (0,0)-(31,191) 32x192",
+                             "tiled 16x16, mipmap 8 levels, cube environment",
+                             "deep samples:",
+                             "color@right"}) {
+        EXPECT_NE(log.find(want), std::string::npos) << want << "\n" << log;
     }
 }
 
