@@ -160,6 +160,32 @@ void add_channel(OutPart &part, OutChannel c, const std::string &path)
     part.channels.push_back(std::move(c));
 }
 
+/// Add the pass `name` to `part` under canonical channel names ("N.X"; with `view`, OpenEXR's
+/// single-part multi-view names "N.right.X").
+void add_canonical(OutPart &part,
+                   const std::string &name,
+                   const Pass &p,
+                   const WriteOptions &options,
+                   const std::string &view,
+                   const std::string &path)
+{
+    PixelStorage s = asked_storage(name, p, options);
+    if (s == PixelStorage::Auto) {
+        s = default_storage(name);
+    }
+    const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+    for (std::size_t k = 0; k < exr.size(); ++k) {
+        OutChannel c;
+        c.name = view.empty() ? exr[k] : with_view(exr[k], view);
+        c.type = storage_type(s);
+        c.pass = name;
+        c.data_pass = is_data_pass(name);
+        c.image = p.image.get();
+        c.k = int(k);
+        add_channel(part, std::move(c), path);
+    }
+}
+
 /// Rebuilt layout: canonical channel names, one part or one part per pass.
 std::vector<OutPart> rebuilt_layout(const Frame &frame,
                                     const std::vector<std::string> &names,
@@ -179,21 +205,7 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
             }
             parts.push_back(std::move(part));
         }
-        PixelStorage s = asked_storage(name, p, options);
-        if (s == PixelStorage::Auto) {
-            s = default_storage(name);
-        }
-        const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
-        for (std::size_t k = 0; k < exr.size(); ++k) {
-            OutChannel c;
-            c.name = exr[k];
-            c.type = storage_type(s);
-            c.pass = name;
-            c.data_pass = is_data_pass(name);
-            c.image = p.image.get();
-            c.k = int(k);
-            add_channel(parts.back(), std::move(c), path);
-        }
+        add_canonical(parts.back(), name, p, options, "", path);
     }
     return parts;
 }
@@ -320,24 +332,8 @@ std::vector<OutPart> source_layout(const Frame &frame,
             parts.push_back(std::move(np));
             part = &parts.back();
         }
-        PixelStorage s = asked_storage(name, p, options);
-        if (s == PixelStorage::Auto) {
-            s = default_storage(name);
-        }
-        const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
-        for (std::size_t k = 0; k < exr.size(); ++k) {
-            OutChannel c;
-            c.name = exr[k];
-            if (src.single_part_views && !default_view && part->source) {
-                c.name = with_view(c.name, src.view);
-            }
-            c.type = storage_type(s);
-            c.pass = name;
-            c.data_pass = is_data_pass(name);
-            c.image = p.image.get();
-            c.k = int(k);
-            add_channel(*part, std::move(c), path);
-        }
+        const bool view_in_name = src.single_part_views && !default_view && part->source;
+        add_canonical(*part, name, p, options, view_in_name ? src.view : "", path);
     }
     // Parts nothing is written to are left out.
     parts.erase(std::remove_if(parts.begin(),
