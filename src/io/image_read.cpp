@@ -269,9 +269,14 @@ struct Opened {
 Opened open_file(const std::string &path, const ReadOptions &options)
 {
     Opened o;
-    std::error_code ec;
-    if (fs::exists(path, ec) && !fs::is_directory(path, ec) && fs::file_size(path, ec) > 0 &&
-        has_exr_magic(path) && is_luminance_chroma(path)) {
+    // OpenImageIO refuses luminance/chroma files (subsampled channels); only then is the file
+    // asked whether it is one (opening it through OpenEXR's RGBA interface costs a header read).
+    try {
+        o.in = open_input(path);
+    } catch (const Error &) {
+        if (!has_exr_magic(path) || !is_luminance_chroma(path)) {
+            throw;
+        }
         o.info = luminance_chroma_info(path);
         std::vector<PartChannels> parts(1);
         for (const FileChannel &c : o.info.parts[0].channels) {
@@ -280,7 +285,6 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         o.info.passes = map_channels(parts, options.aliases);
         return o;
     }
-    o.in = open_input(path);
     FileInfo &info = o.info;
     info.path = path;
     info.format = o.in->format_name();
@@ -419,8 +423,15 @@ struct PartPixels {
         OIIO::TypeDesc type;
     };
     std::vector<Channel> channels;  ///< By channel - chbegin.
-    std::shared_ptr<std::vector<unsigned char>> data;
+    std::shared_ptr<unsigned char[]> data;  ///< Not zero-filled: every byte is read into.
+    std::size_t bytes = 0;
 };
+
+/// An uninitialised byte buffer (a zero fill of a 1080p all-pass frame cost a third of a read).
+std::shared_ptr<unsigned char[]> raw_bytes(std::size_t n)
+{
+    return std::shared_ptr<unsigned char[]>(new unsigned char[n]);
+}
 
 /// Every channel of part 0 of a luminance/chroma file, as RGB(A) floats.
 PartPixels read_luminance_chroma(const std::string &path, const FilePart &part)
@@ -445,8 +456,9 @@ PartPixels read_luminance_chroma(const std::string &path, const FilePart &part)
         std::replace(err.begin(), err.end(), '\n', ' ');
         throw_runtime(path, ": cannot read pixels (truncated or corrupt?): ", err);
     }
-    pd.data = std::make_shared<std::vector<unsigned char>>(npix * pd.pixel_bytes);
-    auto *out = reinterpret_cast<float *>(pd.data->data());
+    pd.bytes = npix * pd.pixel_bytes;
+    pd.data = raw_bytes(pd.bytes);
+    auto *out = reinterpret_cast<float *>(pd.data.get());
     for (std::size_t i = 0; i < npix; ++i) {
         const float v[4] = {float(rgba[i].r), float(rgba[i].g), float(rgba[i].b), float(rgba[i].a)};
         std::copy(v, v + pd.chend, out + i * std::size_t(pd.chend));
@@ -484,8 +496,9 @@ PartPixels flatten_deep(OIIO::ImageInput &in, int sub, const std::string &path)
         }
     }
     const std::int64_t npix = std::int64_t(spec.width) * spec.height;
-    pd.data = std::make_shared<std::vector<unsigned char>>(std::size_t(npix) * pd.pixel_bytes);
-    auto *out = reinterpret_cast<float *>(pd.data->data());
+    pd.bytes = std::size_t(npix) * pd.pixel_bytes;
+    pd.data = raw_bytes(pd.bytes);
+    auto *out = reinterpret_cast<float *>(pd.data.get());
     parallel_for(0, spec.height, [&](int y) {
         std::vector<int> order;
         for (int x = 0; x < spec.width; ++x) {
@@ -684,8 +697,9 @@ Frame read_frame(const std::string &path,
             pd.pixel_bytes += t.size();
         }
         const std::size_t npix = std::size_t(spec.width) * std::size_t(spec.height);
-        pd.data = std::make_shared<std::vector<unsigned char>>(npix * pd.pixel_bytes);
-        if (!o.in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeUnknown, pd.data->data())) {
+        pd.bytes = npix * pd.pixel_bytes;
+        pd.data = raw_bytes(pd.bytes);
+        if (!o.in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeUnknown, pd.data.get())) {
             std::string err = o.in->geterror();
             std::replace(err.begin(), err.end(), '\n', ' ');
             throw_runtime(
@@ -763,7 +777,7 @@ Frame read_frame(const std::string &path,
                 const auto &nc = pd.channels[std::size_t(cs.channel - pd.chbegin)];
                 const std::size_t first =
                     std::size_t(y - dw.y0) * std::size_t(dw.width()) + std::size_t(x0 - dw.x0);
-                convert_channel(pd.data->data() + first * pd.pixel_bytes + nc.offset,
+                convert_channel(pd.data.get() + first * pd.pixel_bytes + nc.offset,
                                 pd.pixel_bytes,
                                 nc.type,
                                 out + std::size_t(x0) * step,
@@ -831,11 +845,11 @@ Frame read_frame(const std::string &path,
                     continue;
                 }
                 // Keep the file's bits for this channel (one native plane).
-                const std::size_t n = pd.data->size() / pd.pixel_bytes, size = nc.type.size();
+                const std::size_t n = pd.bytes / pd.pixel_bytes, size = nc.type.size();
                 auto plane = std::make_shared<std::vector<unsigned char>>(n * size);
                 for (std::size_t i = 0; i < n; ++i) {
                     std::memcpy(plane->data() + i * size,
-                                pd.data->data() + i * pd.pixel_bytes + nc.offset,
+                                pd.data.get() + i * pd.pixel_bytes + nc.offset,
                                 size);
                 }
                 source->raw[key] = std::move(plane);
