@@ -168,13 +168,38 @@ int info(const std::vector<std::string> &files)
 
 }  // namespace
 
+/// Read every pixel of each file; one line per damaged file on stderr, exit 1 if any.
+int verify(const std::vector<std::string> &files, bool quiet)
+{
+    int damaged = 0;
+    for (const std::string &path : files) {
+        const std::string problem = verify_image_file(path);
+        if (!problem.empty()) {
+            std::fprintf(stderr, "error: %s\n", problem.c_str());
+            ++damaged;
+        } else if (!quiet) {
+            std::printf("%s: ok\n", path.c_str());
+        }
+    }
+    return damaged ? 1 : 0;
+}
+
 void add_info_command(CLI::App &app, int &exit_code)
 {
     auto files = std::make_shared<std::vector<std::string>>();
+    auto check = std::make_shared<bool>(false);
+    auto quiet = std::make_shared<bool>(false);
     CLI::App *cmd = app.add_subcommand(
         "info", "Describe image files: parts, channels, camera, attributes, pass mapping");
     cmd->add_option("files", *files, "Image files")->required();
-    cmd->callback([files, &exit_code] { exit_code = info(*files); });
+    cmd->add_flag("--verify",
+                  *check,
+                  "Read every pixel of every part and level instead (like exrcheck): one line "
+                  "per damaged file, exit 1 if any");
+    cmd->add_flag("--quiet,-q", *quiet, "With --verify: print nothing for whole files");
+    cmd->callback([files, check, quiet, &exit_code] {
+        exit_code = *check ? verify(*files, *quiet) : info(*files);
+    });
 }
 
 }  // namespace posthaste::cli

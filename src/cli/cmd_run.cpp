@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <filesystem>
 #include <cstdio>
 #include <map>
 #include <mutex>
@@ -14,6 +15,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
+#include "io/image_file.h"
 
 namespace posthaste::cli {
 namespace {
@@ -36,12 +38,37 @@ std::string format_seconds(double s)
 
 }  // namespace
 
+std::vector<int> frames_done(const Graph &graph, const std::vector<int> &frames)
+{
+    std::vector<int> done;
+    for (int f : frames) {
+        const std::vector<std::string> outputs = graph.outputs(f);
+        bool whole = !outputs.empty();
+        for (const std::string &path : outputs) {
+            std::error_code ec;
+            whole = whole && std::filesystem::exists(path, ec) && verify_image_file(path).empty();
+        }
+        if (whole) {
+            done.push_back(f);
+        }
+    }
+    return done;
+}
+
 int run_graph(Graph &graph, const RunSettings &o)
 {
     set_thread_count(o.threads);
-    const std::vector<int> frames =
+    std::vector<int> frames =
         o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
     graph.check(frames);
+    if (o.skip_existing) {
+        const std::vector<int> done = frames_done(graph, frames);
+        std::erase_if(frames,
+                      [&](int f) { return std::find(done.begin(), done.end(), f) != done.end(); });
+        if (!o.quiet && !done.empty()) {
+            std::fprintf(stderr, "%zu frame(s) already written and whole, skipped\n", done.size());
+        }
+    }
     if (o.dry_run) {
         if (!o.quiet) {
             std::printf("%s: valid; %zu frame(s)\n", graph.origin().c_str(), frames.size());
@@ -89,10 +116,18 @@ int run_graph(Graph &graph, const RunSettings &o)
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
                 std::lock_guard lock(mutex);
                 const int n = ++done;
+                if (o.on_frame) {
+                    const double started =
+                        std::chrono::duration<double>(
+                            std::chrono::system_clock::now().time_since_epoch())
+                            .count() -
+                        dt;
+                    o.on_frame(frame, started, dt, error);
+                }
                 if (!error.empty()) {
                     failures[frame] = error;
                     failure_codes[frame] = code;
-                    if (!o.skip_bad_frames) {
+                    if (!o.skip_bad_frames && !o.keep_going) {
                         stop = true;
                     } else {
                         std::fprintf(stderr,
@@ -128,8 +163,20 @@ int run_graph(Graph &graph, const RunSettings &o)
         std::fprintf(stderr, "\n");
     }
     const double wall = elapsed();
+    if (o.node_seconds) {
+        for (int i : graph.order()) {
+            const GraphNode &gn = graph.nodes()[std::size_t(i)];
+            (*o.node_seconds)[gn.identity.id + " (" + gn.identity.type + ")"] =
+                double(*times.nanoseconds[std::size_t(i)]) * 1e-9;
+        }
+    }
     if (!failures.empty() && !o.skip_bad_frames) {
         const auto &[frame, message] = *failures.begin();
+        if (o.keep_going && failures.size() > 1) {
+            throw Error(ExitCode(failure_codes[frame]),
+                        message + " (and " + std::to_string(failures.size() - 1) +
+                            " more failed frame(s))");
+        }
         throw Error(ExitCode(failure_codes[frame]), message);
     }
     if (!o.quiet) {
@@ -175,6 +222,12 @@ void add_run_command(CLI::App &app, int &exit_code)
                   opts->skip_bad_frames,
                   "Carry on past frames that fail (missing or unreadable input), with a warning");
     cmd->add_flag("--dry-run", opts->dry_run, "Validate the graph and its inputs, compute nothing");
+    cmd->add_flag("--skip-existing",
+                  opts->skip_existing,
+                  "Skip frames whose outputs all exist and read back whole (resume a run)");
+    cmd->add_flag("--keep-going",
+                  opts->keep_going,
+                  "Carry on past failing frames, then exit non-zero naming the first");
     cmd->callback([opts, &exit_code] {
         set_thread_count(opts->threads);
         Graph graph = Graph::load(opts->graph, opts->sets);

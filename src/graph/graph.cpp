@@ -10,6 +10,7 @@
 
 #include "core/error.h"
 #include "graph/node_registry.h"
+#include "io/sequence.h"
 
 namespace posthaste {
 
@@ -726,6 +727,21 @@ void Graph::plan()
             }
         }
     }
+}
+
+std::vector<std::string> Graph::outputs(int frame) const
+{
+    std::vector<std::string> paths;
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+        const GraphNode &gn = nodes_[i];
+        if (!live_[i] || gn.identity.type != "write") {
+            continue;
+        }
+        if (auto it = gn.params.values().find("path"); it != gn.params.values().end()) {
+            paths.push_back(expand_frame_pattern(it->second.text, frame));
+        }
+    }
+    return paths;
 }
 
 std::vector<int> Graph::default_frames() const

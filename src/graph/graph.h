@@ -55,6 +55,8 @@ class Graph {
     /// The frames to run when the command line gives none: the graph's "frames", else the
     /// frames a source finds on disk, else {1}.
     std::vector<int> default_frames() const;
+    /// The files the graph's live `write` nodes make for `frame` (their paths expanded).
+    std::vector<std::string> outputs(int frame) const;
     /// Run every node's check hook for these frames (files exist, passes exist, ...).
     void check(const std::vector<int> &frames) const;
     /// Evaluate one frame through the whole graph. Sinks write their files. Thread-safe for

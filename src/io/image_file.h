@@ -74,6 +74,10 @@ struct ReadOptions {
     bool count_deep_samples = false;  ///< read_file_info: fill FilePart::deep_samples.
 };
 
+/// Read every pixel of every part and level of an image file (deep samples too), like OpenEXR's
+/// exrcheck. Returns "" for a whole file, else one line saying what is wrong (never throws).
+std::string verify_image_file(const std::string &path);
+
 /// Largest data window area accepted from a file (pixels), beside kMaxImageSide per side.
 inline constexpr std::int64_t kMaxFilePixels = std::int64_t(1) << 28;
 

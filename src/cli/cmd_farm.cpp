@@ -1,0 +1,731 @@
+// posthaste farm: run a frame sequence on a Slurm cluster. `submit` validates the graph as `run`
+// does, writes a job directory (the graph with --set applied, the frame list, the chunk table,
+// the batch scripts) and submits one job array (a task per chunk) plus a check job that depends
+// on it. Each task runs its chunk's frames, logs one line per frame and prints Open Job
+// Description progress lines. `status` tells per frame done (outputs read back whole) / failed /
+// running / queued / missing from the disk and squeue; `resubmit` submits what is not done;
+// `check` (the check job) writes report.json and report.html. docs/FARM.md has the rules.
+
+#include <nlohmann/json.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "cli/commands.h"
+#include "core/error.h"
+#include "graph/graph.h"
+#include "io/image_file.h"
+
+namespace posthaste::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+struct SlurmOptions {
+    int max_running = 0;
+    std::string partition;
+    int cpus_per_task = 0;
+    std::string mem;
+    std::string time;
+};
+
+struct SubmitOptions {
+    std::string graph;
+    std::string frames;
+    int chunk = 8;
+    std::string job_dir;
+    std::vector<std::string> sets;
+    SlurmOptions slurm;
+    bool dry_run = false;
+    bool force = false;
+};
+
+std::string shell_quote(const std::string &s)
+{
+    std::string q = "'";
+    for (char c : s) {
+        q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    }
+    return q + "'";
+}
+
+/// Run a command; its stdout, and whether it exited 0.
+bool capture(const std::string &command, std::string &out)
+{
+    out.clear();
+    FILE *pipe = ::popen((command + " 2>&1").c_str(), "r");
+    if (!pipe) {
+        return false;
+    }
+    char buf[4096];
+    while (std::size_t n = std::fread(buf, 1, sizeof(buf), pipe)) {
+        out.append(buf, n);
+    }
+    return ::pclose(pipe) == 0;
+}
+
+bool on_path(const std::string &program)
+{
+    const char *path = std::getenv("PATH");
+    std::stringstream ss(path ? path : "");
+    std::string dir;
+    while (std::getline(ss, dir, ':')) {
+        if (!dir.empty() && ::access((dir + "/" + program).c_str(), X_OK) == 0) {
+            return true;
+        }
+    }
+    return false;
+}
+
+void require_slurm(const std::string &program)
+{
+    if (!on_path(program)) {
+        throw_runtime("farm: ",
+                      program,
+                      " is not on PATH: run on a Slurm submit host, or install Slurm's client "
+                      "(Debian: apt-get install --no-install-recommends slurm-client; a local "
+                      "cluster also needs slurmctld slurmd munge, see tests/slurm-local.sh)");
+    }
+}
+
+std::string self_binary()
+{
+    std::error_code ec;
+    const fs::path p = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? std::string("posthaste") : p.string();
+}
+
+json read_json(const fs::path &path)
+{
+    std::ifstream in(path);
+    if (!in) {
+        throw_runtime(path.string(), ": cannot read (not a farm job directory?)");
+    }
+    try {
+        return json::parse(in);
+    } catch (const json::exception &e) {
+        throw_runtime(path.string(), ": malformed job file: ", e.what());
+    }
+}
+
+void write_text(const fs::path &path, const std::string &text)
+{
+    atomic_write(path.string(), [&](const std::string &tmp) {
+        std::ofstream out(tmp);
+        out << text;
+        if (!out.flush()) {
+            throw_runtime(path.string(), ": cannot write");
+        }
+    });
+}
+
+/// The graph file with the --set values written into its node params (values parsed as JSON
+/// when they are JSON, else taken as strings), validated by loading it back.
+std::string apply_sets(const std::string &graph_path, const std::vector<std::string> &sets)
+{
+    std::ifstream in(graph_path);
+    json g = json::parse(in, nullptr, false);
+    if (g.is_discarded() || !g.contains("nodes")) {
+        throw_usage(graph_path, ": not a graph file");
+    }
+    for (const std::string &s : sets) {
+        const auto eq = s.find('='), dot = s.find('.');
+        const std::string id = s.substr(0, dot), name = s.substr(dot + 1, eq - dot - 1);
+        const std::string text = s.substr(eq + 1);
+        json value = json::parse(text, nullptr, false);
+        if (value.is_discarded()) {
+            value = text;
+        }
+        for (json &node : g["nodes"]) {
+            if (node.value("id", "") == id) {
+                node["params"][name] = value;
+            }
+        }
+    }
+    return g.dump(2) + "\n";
+}
+
+std::string join_frames(const std::vector<int> &frames)
+{
+    std::string s;
+    for (int f : frames) {
+        s += (s.empty() ? "" : ",") + std::to_string(f);
+    }
+    return s;
+}
+
+std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames, int chunk)
+{
+    std::vector<std::vector<int>> chunks;
+    for (std::size_t i = 0; i < frames.size(); i += std::size_t(chunk)) {
+        chunks.emplace_back(frames.begin() + std::ptrdiff_t(i),
+                            frames.begin() +
+                                std::ptrdiff_t(std::min(frames.size(), i + std::size_t(chunk))));
+    }
+    return chunks;
+}
+
+std::string batch_script(const json &job, const fs::path &dir, int submission, int chunks)
+{
+    const json &s = job["slurm"];
+    std::ostringstream o;
+    o << "#!/bin/bash\n"
+      << "#SBATCH --job-name=posthaste-" << dir.filename().string() << "\n"
+      << "#SBATCH --array=0-" << chunks - 1;
+    if (s.value("max_running", 0) > 0) {
+        o << "%" << s["max_running"].get<int>();
+    }
+    o << "\n#SBATCH --output=" << (dir / "logs").string() << "/slurm-s" << submission << "-%a.out\n";
+    if (!s.value("partition", "").empty()) {
+        o << "#SBATCH --partition=" << s["partition"].get<std::string>() << "\n";
+    }
+    if (s.value("cpus_per_task", 0) > 0) {
+        o << "#SBATCH --cpus-per-task=" << s["cpus_per_task"].get<int>() << "\n";
+    }
+    if (!s.value("mem", "").empty()) {
+        o << "#SBATCH --mem=" << s["mem"].get<std::string>() << "\n";
+    }
+    if (!s.value("time", "").empty()) {
+        o << "#SBATCH --time=" << s["time"].get<std::string>() << "\n";
+    }
+    o << "# One task per chunk; the task index selects the chunk (chunks.json).\n"
+      << "cd " << shell_quote(job["cwd"]) << " || exit 1\n"
+      << "exec " << shell_quote(job["binary"]) << " farm task " << shell_quote(dir.string())
+      << " --submission " << submission
+      << " --chunk \"$SLURM_ARRAY_TASK_ID\" --threads \"${SLURM_CPUS_PER_TASK:-0}\"\n";
+    return o.str();
+}
+
+std::string check_script(const json &job, const fs::path &dir, int submission)
+{
+    std::ostringstream o;
+    o << "#!/bin/bash\n"
+      << "#SBATCH --job-name=posthaste-check-" << dir.filename().string() << "\n"
+      << "#SBATCH --output=" << (dir / "logs").string() << "/check-s" << submission << ".out\n";
+    if (!job["slurm"].value("partition", "").empty()) {
+        o << "#SBATCH --partition=" << job["slurm"]["partition"].get<std::string>() << "\n";
+    }
+    o << "cd " << shell_quote(job["cwd"]) << " || exit 1\n"
+      << "exec " << shell_quote(job["binary"]) << " farm check " << shell_quote(dir.string())
+      << "\n";
+    return o.str();
+}
+
+std::string sbatch(const std::string &args)
+{
+    std::string out;
+    if (!capture("sbatch --parsable " + args, out)) {
+        std::replace(out.begin(), out.end(), '\n', ' ');
+        throw_runtime("farm: sbatch failed: ", out);
+    }
+    const std::string id = out.substr(0, out.find_first_of(";\n"));
+    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
+        throw_runtime("farm: sbatch printed no job id: ", out);
+    }
+    return id;
+}
+
+/// Write the scripts of submission `s` (chunks in job["submissions"][s]) and submit them.
+void submit(json &job, const fs::path &dir, int s)
+{
+    json &sub = job["submissions"][std::size_t(s)];
+    const int chunks = int(sub["chunks"].size());
+    const fs::path run = dir / ("run-s" + std::to_string(s) + ".sbatch");
+    const fs::path check = dir / ("check-s" + std::to_string(s) + ".sbatch");
+    write_text(run, batch_script(job, dir, s, chunks));
+    write_text(check, check_script(job, dir, s));
+    sub["array_job"] = sbatch(shell_quote(run.string()));
+    sub["check_job"] = sbatch("--dependency=afterany:" + sub["array_job"].get<std::string>() +
+                              " --kill-on-invalid-dep=yes " + shell_quote(check.string()));
+    write_text(dir / "job.json", job.dump(2) + "\n");
+}
+
+/// Load the job's graph from its working directory (graph paths are relative to it).
+Graph load_job_graph(const json &job, const fs::path &dir)
+{
+    std::error_code ec;
+    fs::current_path(job["cwd"].get<std::string>(), ec);
+    if (ec) {
+        throw_runtime(dir.string(), ": cannot enter the job's working directory ", job["cwd"]);
+    }
+    return Graph::load((dir / "graph.json").string());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Status
+
+struct FrameState {
+    std::string state = "missing";  ///< done, failed, running, queued, missing
+    std::string error;
+    double seconds = -1.0;
+    int submission = -1, chunk = -1;
+};
+
+/// squeue's view of the job's tasks: "JOB_TASK" -> state (RUNNING, PENDING...).
+std::map<std::string, std::string> scheduler_states(const json &job)
+{
+    std::map<std::string, std::string> states;
+    if (!on_path("squeue")) {
+        return states;
+    }
+    std::string ids;
+    for (const json &sub : job["submissions"]) {
+        if (sub.contains("array_job")) {
+            ids += (ids.empty() ? "" : ",") + sub["array_job"].get<std::string>();
+        }
+    }
+    if (ids.empty()) {
+        return states;
+    }
+    std::string out;
+    capture("squeue -h -r -j " + ids + " -o '%i %T'", out);
+    std::istringstream lines(out);
+    std::string id, state;
+    while (lines >> id >> state) {
+        states[id] = state;
+    }
+    return states;
+}
+
+std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, const Graph &graph)
+{
+    std::map<int, FrameState> states;
+    for (int f : job["frames"].get<std::vector<int>>()) {
+        states[f];
+    }
+    // The latest submission holding each frame, and the log lines (in submission order).
+    const json &subs = job["submissions"];
+    for (std::size_t s = 0; s < subs.size(); ++s) {
+        for (std::size_t k = 0; k < subs[s]["chunks"].size(); ++k) {
+            for (int f : subs[s]["chunks"][k].get<std::vector<int>>()) {
+                FrameState &st = states[f];
+                st = FrameState{};
+                st.submission = int(s);
+                st.chunk = int(k);
+            }
+            std::ifstream log(dir / "logs" / ("s" + std::to_string(s) + "-chunk" +
+                                              std::to_string(k) + ".jsonl"));
+            std::string line;
+            while (std::getline(log, line)) {
+                const json l = json::parse(line, nullptr, false);
+                if (l.is_discarded() || !l.contains("frame")) {
+                    continue;  // a line cut by a killed task
+                }
+                FrameState &st = states[l["frame"].get<int>()];
+                if (st.submission != int(s)) {
+                    continue;
+                }
+                st.seconds = l.value("seconds", -1.0);
+                st.error = l.value("error", "");
+                st.state = l.value("status", "") == "failed" ? "failed" : "logged";
+            }
+        }
+    }
+    const std::map<std::string, std::string> sched = scheduler_states(job);
+    for (auto &[f, st] : states) {
+        const std::vector<std::string> outputs = graph.outputs(f);
+        std::string damaged;
+        bool whole = !outputs.empty();
+        for (const std::string &p : outputs) {
+            std::error_code ec;
+            if (!fs::exists(p, ec)) {
+                whole = false;
+                continue;
+            }
+            if (const std::string problem = verify_image_file(p); !problem.empty()) {
+                whole = false;
+                damaged = problem;
+            }
+        }
+        if (whole) {
+            st.state = "done";
+            st.error.clear();
+            continue;
+        }
+        if (st.state == "failed") {
+            continue;
+        }
+        st.state = "missing";
+        st.error = damaged;
+        if (st.submission >= 0 && subs[std::size_t(st.submission)].contains("array_job")) {
+            const std::string task = subs[std::size_t(st.submission)]["array_job"].get<std::string>() +
+                                     "_" + std::to_string(st.chunk);
+            if (auto it = sched.find(task); it != sched.end()) {
+                const std::string &s = it->second;
+                st.state = s == "RUNNING" || s == "COMPLETING" ? "running"
+                           : s == "PENDING" || s == "CONFIGURING" || s == "REQUEUED" ? "queued"
+                                                                                     : "missing";
+            }
+        }
+    }
+    return states;
+}
+
+json status_json(const std::map<int, FrameState> &states)
+{
+    json frames = json::array();
+    std::map<std::string, int> counts = {
+        {"done", 0}, {"failed", 0}, {"running", 0}, {"queued", 0}, {"missing", 0}};
+    for (const auto &[f, st] : states) {
+        ++counts[st.state];
+        json j = {{"frame", f}, {"state", st.state}};
+        if (!st.error.empty()) {
+            j["error"] = st.error;
+        }
+        if (st.seconds >= 0.0) {
+            j["seconds"] = st.seconds;
+        }
+        frames.push_back(std::move(j));
+    }
+    return {{"frames", frames}, {"counts", counts}, {"total", states.size()}};
+}
+
+std::string summary_line(const json &status)
+{
+    const json &c = status["counts"];
+    std::ostringstream o;
+    o << c["done"].get<int>() << "/" << status["total"].get<std::size_t>() << " done, "
+      << c["failed"].get<int>() << " failed, " << c["running"].get<int>() << " running, "
+      << c["queued"].get<int>() << " queued, " << c["missing"].get<int>() << " missing";
+    return o.str();
+}
+
+int status_command(const std::string &dir_text, bool as_json)
+{
+    const fs::path dir = fs::absolute(dir_text);
+    const json job = read_json(dir / "job.json");
+    const Graph graph = load_job_graph(job, dir);
+    const json status = status_json(frame_states(job, dir, graph));
+    if (as_json) {
+        std::printf("%s\n", status.dump(2).c_str());
+    } else {
+        for (const json &f : status["frames"]) {
+            if (f["state"] != "done") {
+                std::printf("frame %d: %s%s%s\n",
+                            f["frame"].get<int>(),
+                            f["state"].get<std::string>().c_str(),
+                            f.contains("error") ? ": " : "",
+                            f.value("error", "").c_str());
+            }
+        }
+        std::printf("%s\n", summary_line(status).c_str());
+    }
+    return status["counts"]["done"].get<int>() == int(status["total"].get<std::size_t>()) ? 0 : 1;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Submit, resubmit, task, check
+
+int submit_command(const SubmitOptions &o)
+{
+    if (o.chunk < 1) {
+        throw_usage("farm submit: --chunk must be at least 1, got ", o.chunk);
+    }
+    const fs::path dir = fs::absolute(o.job_dir);
+    std::error_code ec;
+    if (fs::exists(dir, ec) && !o.force) {
+        throw_usage("farm submit: job directory ",
+                    dir.string(),
+                    " exists (choose another, or --force to replace it)");
+    }
+    // Validate exactly as `run` does: a typo fails here, before anything is queued.
+    Graph graph = Graph::load(o.graph, o.sets);
+    const std::vector<int> frames =
+        o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
+    graph.check(frames);
+    if (!o.dry_run) {
+        require_slurm("sbatch");
+    }
+    json job;
+    job["graph"] = "graph.json";
+    job["source_graph"] = fs::absolute(o.graph).string();
+    job["sets"] = o.sets;
+    job["cwd"] = fs::current_path().string();
+    job["binary"] = self_binary();
+    job["frames"] = frames;
+    job["chunk"] = o.chunk;
+    job["slurm"] = {{"max_running", o.slurm.max_running},
+                    {"partition", o.slurm.partition},
+                    {"cpus_per_task", o.slurm.cpus_per_task},
+                    {"mem", o.slurm.mem},
+                    {"time", o.slurm.time}};
+    json sub;
+    sub["chunks"] = make_chunks(frames, o.chunk);
+    job["submissions"] = json::array({sub});
+    const std::string graph_text = apply_sets(o.graph, o.sets);
+    if (o.dry_run) {
+        std::printf("# %s/graph.json: %s with %zu --set value(s); %zu frame(s) in %zu chunk(s)\n",
+                    dir.string().c_str(),
+                    o.graph.c_str(),
+                    o.sets.size(),
+                    frames.size(),
+                    sub["chunks"].size());
+        std::printf("# run-s0.sbatch\n%s", batch_script(job, dir, 0, int(sub["chunks"].size())).c_str());
+        std::printf("# check-s0.sbatch (afterany on the array, --kill-on-invalid-dep=yes)\n%s",
+                    check_script(job, dir, 0).c_str());
+        return 0;
+    }
+    if (o.force) {
+        fs::remove_all(dir, ec);
+    }
+    fs::create_directories(dir / "logs", ec);
+    if (ec) {
+        throw_runtime(dir.string(), ": cannot create the job directory: ", ec.message());
+    }
+    write_text(dir / "graph.json", graph_text);
+    Graph::load((dir / "graph.json").string());  // the written graph is the same graph
+    write_text(dir / "frames.txt", join_frames(frames) + "\n");
+    submit(job, dir, 0);
+    std::printf("%s %s\n", job["submissions"][0]["array_job"].get<std::string>().c_str(), dir.string().c_str());
+    return 0;
+}
+
+int resubmit_command(const std::string &dir_text, bool dry_run)
+{
+    const fs::path dir = fs::absolute(dir_text);
+    json job = read_json(dir / "job.json");
+    const std::string cwd = fs::current_path().string();
+    const Graph graph = load_job_graph(job, dir);
+    std::vector<int> todo;
+    for (const auto &[f, st] : frame_states(job, dir, graph)) {
+        if (st.state == "missing" || st.state == "failed") {
+            todo.push_back(f);
+        }
+    }
+    if (todo.empty()) {
+        std::printf("nothing to resubmit: every frame is done, running or queued\n");
+        return 0;
+    }
+    json sub;
+    sub["chunks"] = make_chunks(todo, job["chunk"].get<int>());
+    const int s = int(job["submissions"].size());
+    if (dry_run) {
+        std::printf("# would resubmit frames %s in %zu chunk(s)\n",
+                    join_frames(todo).c_str(),
+                    sub["chunks"].size());
+        return 0;
+    }
+    require_slurm("sbatch");
+    job["submissions"].push_back(sub);
+    submit(job, dir, s);
+    std::printf("%s %s (frames %s)\n",
+                job["submissions"][std::size_t(s)]["array_job"].get<std::string>().c_str(),
+                dir.string().c_str(),
+                join_frames(todo).c_str());
+    std::error_code ec;
+    fs::current_path(cwd, ec);
+    return 0;
+}
+
+int task_command(const std::string &dir_text, int submission, int chunk, int threads)
+{
+    const fs::path dir = fs::absolute(dir_text);
+    const json job = read_json(dir / "job.json");
+    const json &subs = job["submissions"];
+    if (submission < 0 || submission >= int(subs.size()) || chunk < 0 ||
+        chunk >= int(subs[std::size_t(submission)]["chunks"].size())) {
+        throw_usage("farm task: no chunk ", chunk, " in submission ", submission);
+    }
+    const std::vector<int> frames =
+        subs[std::size_t(submission)]["chunks"][std::size_t(chunk)].get<std::vector<int>>();
+    Graph graph = load_job_graph(job, dir);
+    const fs::path log_path =
+        dir / "logs" / ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".jsonl");
+    std::ofstream log(log_path, std::ios::app);
+    RunSettings rs;
+    rs.frames = join_frames(frames);
+    rs.threads = threads;
+    rs.quiet = true;
+    rs.keep_going = true;
+    std::map<std::string, double> node_seconds;
+    rs.node_seconds = &node_seconds;
+    int finished = 0;
+    rs.on_frame = [&](int frame, double start, double seconds, const std::string &error) {
+        json line = {{"frame", frame},
+                     {"start", start},
+                     {"seconds", seconds},
+                     {"status", error.empty() ? "done" : "failed"}};
+        if (!error.empty()) {
+            line["error"] = error;
+        }
+        log << line.dump() << "\n" << std::flush;
+        ++finished;
+        std::printf("openjd_status: frame %d %s\nopenjd_progress: %.1f\n",
+                    frame,
+                    error.empty() ? "done" : "failed",
+                    100.0 * finished / double(frames.size()));
+        std::fflush(stdout);
+    };
+    std::printf("openjd_status: chunk %d of submission %d, frames %s\n",
+                chunk,
+                submission,
+                rs.frames.c_str());
+    std::fflush(stdout);
+    int code = 0;
+    std::string failure;
+    try {
+        code = run_graph(graph, rs);
+    } catch (const Error &e) {
+        code = e.exit_code();
+        failure = e.what();
+    }
+    json times(node_seconds);
+    std::ofstream(dir / "logs" / ("s" + std::to_string(submission) + "-chunk" +
+                                  std::to_string(chunk) + ".nodes.json"))
+        << times.dump() << "\n";
+    if (!failure.empty()) {
+        throw Error(ExitCode(code), failure);
+    }
+    return code;
+}
+
+std::string html_escape(const std::string &s)
+{
+    std::string o;
+    for (char c : s) {
+        o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
+    }
+    return o;
+}
+
+int check_command(const std::string &dir_text)
+{
+    const fs::path dir = fs::absolute(dir_text);
+    const json job = read_json(dir / "job.json");
+    const Graph graph = load_job_graph(job, dir);
+    json report = status_json(frame_states(job, dir, graph));
+    // Time per frame, the slowest frames, and node times summed over every chunk's log.
+    std::vector<std::pair<double, int>> times;
+    for (const json &f : report["frames"]) {
+        if (f.contains("seconds")) {
+            times.emplace_back(f["seconds"].get<double>(), f["frame"].get<int>());
+        }
+    }
+    std::sort(times.rbegin(), times.rend());
+    json slowest = json::array();
+    for (std::size_t i = 0; i < std::min<std::size_t>(5, times.size()); ++i) {
+        slowest.push_back({{"frame", times[i].second}, {"seconds", times[i].first}});
+    }
+    std::map<std::string, double> nodes;
+    for (const auto &entry : fs::directory_iterator(dir / "logs")) {
+        if (entry.path().string().ends_with(".nodes.json")) {
+            std::ifstream in(entry.path());
+            const json n = json::parse(in, nullptr, false);
+            if (n.is_object()) {
+                for (auto it = n.begin(); it != n.end(); ++it) {
+                    nodes[it.key()] += it.value().get<double>();
+                }
+            }
+        }
+    }
+    double total = 0.0;
+    for (const auto &[t, f] : times) {
+        total += t;
+    }
+    report["seconds_per_frame"] = times.empty() ? 0.0 : total / double(times.size());
+    report["slowest"] = slowest;
+    report["node_seconds"] = nodes;
+    write_text(dir / "report.json", report.dump(2) + "\n");
+
+    std::ostringstream h;
+    h << "<!doctype html><meta charset=utf-8><title>posthaste farm report</title>"
+      << "<style>body{font-family:sans-serif}td,th{padding:2px 8px;text-align:left}"
+      << ".failed{color:#b00}.missing{color:#a60}</style>"
+      << "<h1>" << html_escape(dir.filename().string()) << "</h1><p>" << summary_line(report)
+      << "; " << report["seconds_per_frame"].get<double>() << " s per frame</p>"
+      << "<h2>Frames not done</h2><table><tr><th>frame<th>state<th>error";
+    for (const json &f : report["frames"]) {
+        if (f["state"] != "done") {
+            h << "<tr class=" << f["state"].get<std::string>() << "><td>" << f["frame"].get<int>()
+              << "<td>" << f["state"].get<std::string>() << "<td>"
+              << html_escape(f.value("error", ""));
+        }
+    }
+    h << "</table><h2>Slowest frames</h2><table><tr><th>frame<th>seconds";
+    for (const json &s : slowest) {
+        h << "<tr><td>" << s["frame"].get<int>() << "<td>" << s["seconds"].get<double>();
+    }
+    h << "</table><h2>Node time, summed</h2><table><tr><th>node<th>seconds";
+    for (const auto &[n, s] : nodes) {
+        h << "<tr><td>" << html_escape(n) << "<td>" << s;
+    }
+    h << "</table>\n";
+    write_text(dir / "report.html", h.str());
+    std::printf("%s\n", summary_line(report).c_str());
+    const bool all_done =
+        report["counts"]["done"].get<int>() == int(report["total"].get<std::size_t>());
+    return all_done ? 0 : 1;
+}
+
+}  // namespace
+
+void add_farm_command(CLI::App &app, int &exit_code)
+{
+    CLI::App *farm = app.add_subcommand("farm", "Run a sequence on a Slurm cluster");
+    farm->require_subcommand(1);
+
+    auto so = std::make_shared<SubmitOptions>();
+    CLI::App *sub = farm->add_subcommand(
+        "submit", "Validate a graph, write a job directory, submit a job array and a check job");
+    sub->add_option("graph", so->graph, "Graph file (JSON)")->required();
+    sub->add_option("--frames,-f", so->frames, "Frames: 1-480, 1-48x2, 1,5,10-20");
+    sub->add_option("--chunk", so->chunk, "Frames per array task (default 8)")
+        ->check(CLI::Range(1, 1000000));
+    sub->add_option("--job-dir", so->job_dir, "Job directory (must not exist)")->required();
+    sub->add_option("--max-running", so->slurm.max_running, "Array tasks running at once")
+        ->check(CLI::Range(0, 100000));
+    sub->add_option("--partition", so->slurm.partition, "Slurm partition");
+    sub->add_option("--cpus-per-task", so->slurm.cpus_per_task, "CPUs per task (the threads)")
+        ->check(CLI::Range(0, 4096));
+    sub->add_option("--mem", so->slurm.mem, "Memory per task (Slurm syntax: 8G)");
+    sub->add_option("--time", so->slurm.time, "Time limit per task (Slurm syntax: 1:00:00)");
+    sub->add_option("--set,-s", so->sets, "Override a parameter: node.param=value")
+        ->allow_extra_args(false);
+    sub->add_flag("--dry-run", so->dry_run, "Validate and print the scripts; submit nothing");
+    sub->add_flag("--force", so->force, "Replace an existing job directory");
+    sub->callback([so, &exit_code] { exit_code = submit_command(*so); });
+
+    auto dir = std::make_shared<std::string>();
+    auto as_json = std::make_shared<bool>(false);
+    CLI::App *st = farm->add_subcommand(
+        "status", "Per frame: done (read back whole), failed, running, queued or missing");
+    st->add_option("job_dir", *dir, "Job directory")->required();
+    st->add_flag("--json", *as_json, "Machine-readable output");
+    st->callback([dir, as_json, &exit_code] { exit_code = status_command(*dir, *as_json); });
+
+    auto rdir = std::make_shared<std::string>();
+    auto rdry = std::make_shared<bool>(false);
+    CLI::App *re = farm->add_subcommand(
+        "resubmit", "Submit the missing and failed frames again, with a new check job");
+    re->add_option("job_dir", *rdir, "Job directory")->required();
+    re->add_flag("--dry-run", *rdry, "Print what would be resubmitted");
+    re->callback([rdir, rdry, &exit_code] { exit_code = resubmit_command(*rdir, *rdry); });
+
+    auto tdir = std::make_shared<std::string>();
+    auto tsub = std::make_shared<int>(0);
+    auto tchunk = std::make_shared<int>(-1);
+    auto tthreads = std::make_shared<int>(0);
+    CLI::App *task = farm->add_subcommand("task", "Run one chunk (what an array task runs)");
+    task->add_option("job_dir", *tdir, "Job directory")->required();
+    task->add_option("--submission", *tsub, "Submission index");
+    task->add_option("--chunk", *tchunk, "Chunk index (the array task id)")->required();
+    task->add_option("--threads", *tthreads, "Worker threads (0: all cores)");
+    task->callback([tdir, tsub, tchunk, tthreads, &exit_code] {
+        exit_code = task_command(*tdir, *tsub, *tchunk, *tthreads);
+    });
+
+    auto cdir = std::make_shared<std::string>();
+    CLI::App *check = farm->add_subcommand(
+        "check", "Write report.json and report.html; exit 1 unless every frame is done");
+    check->add_option("job_dir", *cdir, "Job directory")->required();
+    check->callback([cdir, &exit_code] { exit_code = check_command(*cdir); });
+}
+
+}  // namespace posthaste::cli
