@@ -19,6 +19,7 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/parallel.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
 
@@ -329,9 +330,15 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
         }
     }
     const std::map<std::string, std::string> sched = scheduler_states(job);
-    for (auto &[f, st] : states) {
-        const std::vector<std::string> outputs = graph.outputs(f);
-        std::string damaged;
+    // Read every output back, frames in parallel (the check job's main cost).
+    std::vector<int> numbers;
+    for (const auto &[f, st] : states) {
+        numbers.push_back(f);
+    }
+    std::vector<std::string> damaged_of(numbers.size());
+    std::vector<char> whole_of(numbers.size(), 0);
+    parallel_for(0, int(numbers.size()), [&](int i) {
+        const std::vector<std::string> outputs = graph.outputs(numbers[std::size_t(i)]);
         bool whole = !outputs.empty();
         for (const std::string &p : outputs) {
             std::error_code ec;
@@ -341,9 +348,15 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
             }
             if (const std::string problem = verify_image_file(p); !problem.empty()) {
                 whole = false;
-                damaged = problem;
+                damaged_of[std::size_t(i)] = problem;
             }
         }
+        whole_of[std::size_t(i)] = whole;
+    });
+    for (std::size_t i = 0; i < numbers.size(); ++i) {
+        FrameState &st = states[numbers[i]];
+        const bool whole = whole_of[i] != 0;
+        const std::string &damaged = damaged_of[i];
         if (whole) {
             st.state = "done";
             st.error.clear();
