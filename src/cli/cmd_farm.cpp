@@ -453,6 +453,31 @@ int submit_command(const SubmitOptions &o)
     const std::vector<int> frames =
         o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
     graph.check(frames);
+    // Every frame must be one the graph's sources have (a sequence on disk, a scene's range).
+    for (const GraphNode &gn : graph.nodes()) {
+        if (!gn.inputs.empty() || !gn.type->discover_frames) {
+            continue;
+        }
+        const std::vector<int> have = gn.type->discover_frames(gn.params);
+        std::vector<int> outside;
+        for (int f : frames) {
+            if (!std::binary_search(have.begin(), have.end(), f)) {
+                outside.push_back(f);
+            }
+        }
+        if (!outside.empty() && !have.empty()) {
+            throw_usage("farm submit: --frames: ",
+                        outside.size(),
+                        " frame(s) outside what ",
+                        gn.identity.describe(),
+                        " has (",
+                        have.front(),
+                        "-",
+                        have.back(),
+                        "), first ",
+                        outside.front());
+        }
+    }
     if (!o.dry_run) {
         require_slurm("sbatch");
     }

@@ -93,6 +93,9 @@ before=$(squeue -h | wc -l)
     grep -q 'unknown param "nosuch"' err.txt && ok "bad graph: $(cat err.txt)" || fail "bad graph: rc $rc $(cat err.txt)"
 "$P" farm submit "$graph" --frames 1-4 --job-dir job1 $(sets 160 90 x) 2>err.txt
 [[ $? -eq 2 ]] && grep -q "exists" err.txt && ok "existing job dir refused" || fail "job dir: $(cat err.txt)"
+"$P" farm submit "$graph" --frames 40-60 --job-dir job6 $(sets 160 90 x) 2>err.txt
+[[ $? -eq 2 && ! -e job6 ]] && grep -q "12 frame(s) outside" err.txt && ok "frames outside: $(cat err.txt)" ||
+    fail "frames outside the scene: $(cat err.txt)"
 "$P" farm submit "$graph" --frames 1-4 --chunk 0 --job-dir job4 2>err.txt
 [[ $? -ne 0 && ! -e job4 ]] && ok "chunk 0 refused" || fail "chunk 0 accepted"
 PATH=/nonexistent "$P" farm submit "$graph" --frames 1-4 --job-dir job5 $(sets 160 90 x) 2>err.txt
