@@ -47,7 +47,16 @@ constexpr ParamSpec kView = ParamSpec::string("view", "Standard").doc("Preview: 
 constexpr ParamSpec kAlpha =
     ParamSpec::boolean("alpha", false)
         .doc("Preview: write alpha (unpremultiplied) as a fourth channel.");
+constexpr ParamSpec kPngLevel =
+    ParamSpec::integer("png_compression", 1)
+        .range(0, 9)
+        .doc("Preview: zlib level of a PNG (1: fast, 6: zlib's default, about 10 % smaller).");
+constexpr ParamSpec kDither =
+    ParamSpec::boolean("dither", true)
+        .doc("Preview: 8x8 ordered dither before 8-bit quantisation (no bands in gradients).");
 constexpr ParamSpec kParams[] = {kPath,
+                                 kPngLevel,
+                                 kDither,
                                  kPasses,
                                  kCompression,
                                  kLayout,
@@ -75,7 +84,8 @@ ColorProcessor make_display(const NodeParams &params, const NodeIdentity &node)
     return ColorProcessor::display_view(params.get_string(kColorSpace),
                                         params.get_string(kDisplay),
                                         params.get_string(kView),
-                                        node.json_path + "/params: " + node.describe());
+                                        node.json_path + "/params: " + node.describe(),
+                                        /*for_8bit=*/true);
 }
 
 void execute(NodeContext &ctx)
@@ -89,13 +99,16 @@ void execute(NodeContext &ctx)
                 [&] { return make_display(params, ctx.node()); });
             // A preview shows the display window (the delivered format); outside the data
             // window it is transparent black.
-            Image rgba = frame.data_window == frame.display_window
-                             ? frame.image(pass::kColor, ctx.where())
-                             : place_in_window(frame.image(pass::kColor, ctx.where()),
-                                               frame.data_window,
-                                               frame.display_window);
-            display.apply(rgba, /*unpremultiply=*/true);
-            write_preview(rgba, path, params.get_bool(kAlpha));
+            PreviewOptions po;
+            po.alpha = params.get_bool(kAlpha);
+            po.png_level = params.get_int(kPngLevel);
+            po.dither = params.get_bool(kDither);
+            write_display_preview(frame.image(pass::kColor, ctx.where()),
+                                  frame.data_window,
+                                  frame.display_window,
+                                  display,
+                                  path,
+                                  po);
             return;
         }
         WriteOptions options;

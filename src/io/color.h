@@ -28,14 +28,19 @@ class ColorProcessor {
                                   const std::string &to,
                                   const std::string &where);
     /// From a color space to a display and view.
+    /// `for_8bit`: the result feeds 8-bit output, so OpenColorIO may approximate (look-up
+    /// tables; within one 8-bit code).
     static ColorProcessor display_view(const std::string &from,
                                        const std::string &display,
                                        const std::string &view,
-                                       const std::string &where);
+                                       const std::string &where,
+                                       bool for_8bit = false);
 
     /// Apply to the first three channels of every pixel. With `unpremultiply`, color is divided
     /// by alpha (channel 3) where alpha > 0 before, and multiplied after.
     void apply(Image &image, bool unpremultiply) const;
+    /// The same on one row of `width` pixels of `nch` interleaved floats.
+    void apply_row(float *row, int width, int nch, bool unpremultiply) const;
     /// Apply to one RGB triple (tests, single values).
     void apply_rgb(float rgb[3]) const;
     bool is_noop() const;

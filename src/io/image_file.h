@@ -125,6 +125,27 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
 /// are already display-encoded in [0,1]; atomic.
 void write_preview(const Image &display_rgba, const std::string &path, bool with_alpha);
 
+class ColorProcessor;
+
+struct PreviewOptions {
+    bool alpha = false;   ///< Write alpha as a fourth channel.
+    int png_level = 1;    ///< zlib level of a PNG, 0-9.
+    bool dither = true;   ///< 8x8 ordered dither before quantising to 8 bits.
+};
+
+/// Write an 8-bit display-referred preview of a linear, premultiplied RGB(A) pass `color`
+/// (covering the absolute rectangle `data`) over the display window `display` (transparent
+/// black outside the data): each row is placed, transformed by `to_display` (unpremultiplied
+/// around the transform) and quantised, rows in parallel, with no full-size float copy; atomic.
+/// The dither is a fixed 8x8 Bayer pattern in display-window coordinates: deterministic, and it
+/// breaks the bands that 8 bits leave in fog and sky gradients.
+void write_display_preview(const Image &color,
+                           const Rect &data,
+                           const Rect &display,
+                           const ColorProcessor &to_display,
+                           const std::string &path,
+                           const PreviewOptions &options);
+
 /// Run `write(temporary_path)` and rename the result onto `path`; the temporary is removed if
 /// `write` throws. The directory of `path` is created if missing.
 void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write);

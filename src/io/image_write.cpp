@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "io/color.h"
 #include "io/image_file.h"
 #include "io/io_detail.h"
 #include "io/source_file.h"
@@ -774,6 +775,65 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
         }
         if (!out->close()) {
             throw_runtime(path, ": cannot finish writing: ", out->geterror());
+        }
+    });
+}
+
+void write_display_preview(const Image &color,
+                           const Rect &data,
+                           const Rect &display,
+                           const ColorProcessor &to_display,
+                           const std::string &path,
+                           const PreviewOptions &options)
+{
+    static constexpr int kBayer[8][8] = {{0, 32, 8, 40, 2, 34, 10, 42},
+                                         {48, 16, 56, 24, 50, 18, 58, 26},
+                                         {12, 44, 4, 36, 14, 46, 6, 38},
+                                         {60, 28, 52, 20, 62, 30, 54, 22},
+                                         {3, 35, 11, 43, 1, 33, 9, 41},
+                                         {51, 19, 59, 27, 49, 17, 57, 25},
+                                         {15, 47, 7, 39, 13, 45, 5, 37},
+                                         {63, 31, 55, 23, 61, 29, 53, 21}};
+    const int in_ch = color.channels();
+    const int nch = options.alpha && in_ch >= 4 ? 4 : 3;
+    const int w = display.width(), h = display.height();
+    std::vector<std::uint8_t> buf(std::size_t(w) * std::size_t(h) * std::size_t(nch));
+    const Rect inside = data.intersect(display);
+    parallel_for(0, h, [&](int y) {
+        thread_local std::vector<float> row;
+        row.assign(std::size_t(w) * std::size_t(in_ch), 0.0f);
+        const int ay = y + display.y0;
+        if (!inside.empty() && ay >= inside.y0 && ay < inside.y1) {
+            std::copy_n(color.pixel(inside.x0 - data.x0, ay - data.y0),
+                        std::size_t(inside.width()) * std::size_t(in_ch),
+                        row.data() + std::size_t(inside.x0 - display.x0) * std::size_t(in_ch));
+        }
+        to_display.apply_row(row.data(), w, in_ch, /*unpremultiply=*/true);
+        std::uint8_t *out = buf.data() + std::size_t(y) * std::size_t(w) * std::size_t(nch);
+        const int *pattern = kBayer[ay & 7];
+        for (int x = 0; x < w; ++x) {
+            const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
+            const float t = options.dither ? (float(pattern[(x + display.x0) & 7]) + 0.5f) / 64.0f
+                                           : 0.5f;
+            for (int c = 0; c < nch; ++c) {
+                const float v = c < in_ch ? p[c] : 1.0f;
+                const float q = std::isfinite(v) ? std::floor(v * 255.0f + t) : 0.0f;
+                out[std::size_t(x) * std::size_t(nch) + std::size_t(c)] =
+                    std::uint8_t(std::clamp(q, 0.0f, 255.0f));
+            }
+        }
+    });
+    atomic_write(path, [&](const std::string &tmp) {
+        auto out = OIIO::ImageOutput::create(path);
+        if (!out) {
+            throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
+        }
+        OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
+        spec.attribute("oiio:ColorSpace", "sRGB");
+        spec.attribute("png:compressionLevel", std::clamp(options.png_level, 0, 9));
+        if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
+            !out->close()) {
+            throw_runtime(path, ": cannot write preview: ", out->geterror());
         }
     });
 }

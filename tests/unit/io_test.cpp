@@ -10,9 +10,11 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <limits>
 
 #include "core/error.h"
+#include "io/color.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "test_util.h"
@@ -548,4 +550,94 @@ TEST(IoWrite, HalfConversionRoundsLikeImath)
 }
 
 }  // namespace
+
+namespace {
+
+/// The 8-bit red channel of a PNG, row-major.
+std::vector<unsigned char> png_red(const std::string &path, int &w, int &h)
+{
+    auto in = OIIO::ImageInput::open(path);
+    EXPECT_TRUE(in);
+    w = in->spec().width;
+    h = in->spec().height;
+    const int nch = in->spec().nchannels;
+    std::vector<unsigned char> all(std::size_t(w) * std::size_t(h) * std::size_t(nch));
+    EXPECT_TRUE(in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, all.data()));
+    std::vector<unsigned char> red(std::size_t(w) * std::size_t(h));
+    for (std::size_t i = 0; i < red.size(); ++i) {
+        red[i] = all[i * std::size_t(nch)];
+    }
+    return red;
+}
+
+}  // namespace
+
+TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
+{
+    // A smooth, slow ramp (a sky or fog gradient): 1024 px spanning a few 8-bit codes.
+    const int w = 1024, h = 16;
+    Image ramp(w, h, 4);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const float v = 0.20f + 0.02f * float(x) / float(w - 1);
+            ramp.at(x, y, 0) = ramp.at(x, y, 1) = ramp.at(x, y, 2) = v;
+            ramp.at(x, y, 3) = 1.0f;
+        }
+    }
+    const std::string dir = scratch_dir("dither");
+    const ColorProcessor srgb =
+        ColorProcessor::display_view("lin_rec709", "sRGB", "Standard", "test", true);
+    PreviewOptions plain;
+    plain.dither = false;
+    PreviewOptions dithered;
+    const Rect window{0, 0, w, h};
+    write_display_preview(ramp, window, window, srgb, dir + "/plain.png", plain);
+    write_display_preview(ramp, window, window, srgb, dir + "/dither.png", dithered);
+    write_display_preview(ramp, window, window, srgb, dir + "/dither2.png", dithered);
+    int pw = 0, ph = 0;
+    const auto a = png_red(dir + "/plain.png", pw, ph);
+    const auto b = png_red(dir + "/dither.png", pw, ph);
+    ASSERT_EQ(pw, w);
+    // Banding: the longest run of equal values along a row.
+    auto longest_run = [&](const std::vector<unsigned char> &v, int y) {
+        int best = 1, run = 1;
+        for (int x = 1; x < w; ++x) {
+            run = v[std::size_t(y * w + x)] == v[std::size_t(y * w + x - 1)] ? run + 1 : 1;
+            best = std::max(best, run);
+        }
+        return best;
+    };
+    const int plain_run = longest_run(a, 3), dither_run = longest_run(b, 3);
+    EXPECT_GE(plain_run, 100);  // about 1024 / 7 codes
+    // An ordered dither leaves a row alone only where the value sits within a row's lowest or
+    // highest threshold of a code (about a third of each code's width).
+    EXPECT_LE(dither_run * 2, plain_run);
+    std::cout << "longest run of equal values: " << plain_run << " plain, " << dither_run
+              << " dithered\n";
+    // The dither keeps the mean: over each 8x8 block, the average code equals the exact value
+    // (the plain rounding's error is up to half a code; the dither's mean is within 1/8 code).
+    double worst_plain = 0.0, worst_dither = 0.0;
+    for (int bx = 0; bx < w / 8; ++bx) {
+        double exact = 0.0, sa = 0.0, sb = 0.0;
+        for (int y = 0; y < 8; ++y) {
+            for (int x = bx * 8; x < bx * 8 + 8; ++x) {
+                float rgb[3] = {ramp.at(x, y, 0), ramp.at(x, y, 1), ramp.at(x, y, 2)};
+                srgb.apply_rgb(rgb);
+                exact += rgb[0] * 255.0;
+                sa += a[std::size_t(y * w + x)];
+                sb += b[std::size_t(y * w + x)];
+            }
+        }
+        worst_plain = std::max(worst_plain, std::abs(sa - exact) / 64.0);
+        worst_dither = std::max(worst_dither, std::abs(sb - exact) / 64.0);
+    }
+    EXPECT_LT(worst_dither, 0.13);
+    EXPECT_GT(worst_plain, 0.3);
+    // Deterministic: the same frame gives the same bytes.
+    std::ifstream f1(dir + "/dither.png", std::ios::binary), f2(dir + "/dither2.png", std::ios::binary);
+    const std::string s1((std::istreambuf_iterator<char>(f1)), {});
+    const std::string s2((std::istreambuf_iterator<char>(f2)), {});
+    EXPECT_EQ(s1, s2);
+}
+
 }  // namespace posthaste
