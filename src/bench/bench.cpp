@@ -208,6 +208,10 @@ BenchSpec parse_spec(const std::string &text,
         j = json::parse(text);
     } catch (const json::parse_error &e) {
         throw_usage(origin, ": invalid JSON: ", e.what());
+    } catch (const json::exception &e) {
+        std::string what = e.what();
+        what = what.substr(what.find(']') + 2);
+        throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
     if (!j.is_object()) {
         throw_usage(origin, ": expected a JSON object");

@@ -5,6 +5,12 @@
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
+#include <csignal>
+#include <cerrno>
+#include <chrono>
+#include <mutex>
+#include <set>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -631,6 +637,55 @@ void check_compression(const std::string &compression, const std::string &where)
     }
 }
 
+namespace {
+
+/// Remove temporary files of posthaste's naming (".NAME.tmpPID-N.ext") that a killed write left
+/// in `dir`: those whose process is not alive here and that are over 10 minutes old (the age
+/// keeps a live write of another host on a shared file system safe). Once per directory and
+/// process; failures are ignored (the directory is someone else's to tidy).
+void remove_stale_temporaries(const fs::path &dir)
+{
+    static std::mutex mutex;
+    static std::set<std::string> done;
+    {
+        std::lock_guard lock(mutex);
+        if (!done.insert(dir.string()).second) {
+            return;
+        }
+    }
+    std::error_code ec;
+    const auto now = fs::file_time_type::clock::now();
+    for (fs::directory_iterator it(dir.empty() ? fs::path(".") : dir, ec), end; !ec && it != end;
+         it.increment(ec)) {
+        const std::string name = it->path().filename().string();
+        const auto tmp = name.rfind(".tmp");
+        if (name.size() < 6 || name[0] != '.' || tmp == std::string::npos || tmp == 0) {
+            continue;
+        }
+        const auto dash = name.find('-', tmp);
+        if (dash == std::string::npos) {
+            continue;
+        }
+        const std::string pid_text = name.substr(tmp + 4, dash - tmp - 4);
+        if (pid_text.empty() || pid_text.find_first_not_of("0123456789") != std::string::npos ||
+            pid_text.size() > 9) {
+            continue;
+        }
+        const int pid = std::stoi(pid_text);
+        if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) {
+            continue;  // alive (or not ours to judge)
+        }
+        std::error_code age_ec;
+        const auto mtime = fs::last_write_time(it->path(), age_ec);
+        if (age_ec || now - mtime < std::chrono::minutes(10)) {
+            continue;
+        }
+        fs::remove(it->path(), age_ec);
+    }
+}
+
+}  // namespace
+
 void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write)
 {
     const fs::path target(path);
@@ -645,6 +700,7 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
                           ec.message());
         }
     }
+    remove_stale_temporaries(target.parent_path());
     // Keep the extension last: OIIO picks the writer from it.
     thread_local std::mt19937 rng(std::random_device{}());
     const std::string tmp =

@@ -641,3 +641,36 @@ TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
 }
 
 }  // namespace posthaste
+
+namespace posthaste {
+namespace {
+
+TEST(IoWrite, StaleTemporariesOfKilledWritesAreRemoved)
+{
+    namespace fs = std::filesystem;
+    const std::string dir = test::scratch_dir("stale_tmp");
+    // A dead process's temporary, an hour old; a live process's (this test's parent, pid 1);
+    // a fresh dead one (a write of another host on a shared disk might own it); a user's file.
+    const std::string dead_old = dir + "/.shot.0001.tmp999999998-123.exr";
+    const std::string live = dir + "/.shot.0002.tmp1-5.exr";
+    const std::string dead_new = dir + "/.shot.0003.tmp999999997-7.exr";
+    const std::string user = dir + "/.notes.tmp.txt";
+    for (const std::string &p : {dead_old, live, dead_new, user}) {
+        std::ofstream(p) << "x";
+    }
+    const auto hour_ago = fs::file_time_type::clock::now() - std::chrono::hours(1);
+    for (const std::string &p : {dead_old, live, user}) {
+        fs::last_write_time(p, hour_ago);
+    }
+    Frame f;
+    f.set("color", Image(4, 4, 4));
+    write_exr(f, dir + "/shot.0004.exr", {});
+    EXPECT_FALSE(fs::exists(dead_old));
+    EXPECT_TRUE(fs::exists(live));
+    EXPECT_TRUE(fs::exists(dead_new));
+    EXPECT_TRUE(fs::exists(user));
+    EXPECT_TRUE(fs::exists(dir + "/shot.0004.exr"));
+}
+
+}  // namespace
+}  // namespace posthaste
