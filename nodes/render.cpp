@@ -4,6 +4,7 @@
 
 #include "raster/render.h"
 
+#include "core/memory.h"
 #include "nodes/node.h"
 #include "raster/scene.h"
 #include "raster/sky.h"
@@ -122,6 +123,32 @@ void check(CheckContext &ctx)
     const int ss = ctx.params.get_int(kSupersample);
     if (ss == 3) {
         throw_usage(where, ": param \"supersample\": expected 1, 2 or 4, got 3");
+    }
+    // What a frame will allocate, before any is: the requested passes plus the rasterizer's
+    // own buffers (G-buffer, depth, ids, about 16 floats a pixel), at the supersampled size.
+    if (const std::size_t budget = image_memory_budget(); budget != 0) {
+        std::size_t channels = 16;
+        const std::set<std::string> all = raster::render_pass_names();
+        for (const std::string &p : ctx.downstream.all ? all : ctx.downstream.names) {
+            const pass::CanonicalPass *cp = pass::find_canonical(p);
+            channels += cp ? cp->channels.size() : 4;
+        }
+        const std::size_t pixels = std::size_t(ctx.params.get_int(kWidth)) *
+                                   std::size_t(ctx.params.get_int(kHeight)) * std::size_t(ss * ss);
+        const std::size_t estimate = pixels * channels * sizeof(float);
+        if (estimate > budget) {
+            throw_runtime(where,
+                          ": a ",
+                          ctx.params.get_int(kWidth),
+                          "x",
+                          ctx.params.get_int(kHeight),
+                          " frame (supersample ",
+                          ss,
+                          ") needs about ",
+                          format_bytes(estimate),
+                          ", over --max-memory ",
+                          format_bytes(budget));
+        }
     }
     try {
         raster::load_scene(ctx.params.get_string(kScene));

@@ -24,6 +24,7 @@ struct BenchCliOptions {
     int warmup = -1;
     int threads = -1;
     bool quiet = false;
+    std::string max_memory;
 };
 
 void write_text(const std::string &path, const std::string &text)
@@ -57,6 +58,7 @@ void chart_stability(const std::string &record, const std::string &out, bool qui
 
 int run(const BenchCliOptions &o)
 {
+    apply_memory_budget(o.max_memory);
     if (o.spec.empty() && o.stability.empty()) {
         throw_usage("bench: give a spec file, or --stability RECORD.json");
     }
@@ -133,6 +135,9 @@ void add_bench_command(CLI::App &app, int &exit_code)
                     o->stability,
                     "Also chart a stability record (build/stability.json from the tests)");
     cmd->add_flag("--quiet,-q", o->quiet, "No progress and no table");
+    cmd->add_option("--max-memory",
+                    o->max_memory,
+                    "Budget for pass images (8G, 512M; 0: none; default 80 % of available)");
     cmd->callback([o, &exit_code] { exit_code = run(*o); });
 }
 

@@ -98,6 +98,9 @@ void add_render_command(CLI::App &app, int &exit_code)
     cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")->check(CLI::Range(0, 1 << 30));
     cmd->add_option("--compression", o->compression, "EXR compression (default piz)");
     cmd->add_option("--jobs,-j", o->jobs, "Frames rendered at once")->check(CLI::Range(0, 256));
+    cmd->add_option("--max-memory",
+                    o->max_memory,
+                    "Budget for pass images (8G, 512M; 0: none; default 80 % of available)");
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "No progress and no summary");

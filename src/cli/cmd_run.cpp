@@ -13,6 +13,7 @@
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
@@ -55,9 +56,19 @@ std::vector<int> frames_done(const Graph &graph, const std::vector<int> &frames)
     return done;
 }
 
+void apply_memory_budget(const std::string &max_memory)
+{
+    if (max_memory.empty()) {
+        set_image_memory_budget(available_memory_bytes() / 10 * 8);
+        return;
+    }
+    set_image_memory_budget(parse_memory_size(max_memory, "--max-memory"));
+}
+
 int run_graph(Graph &graph, const RunSettings &o)
 {
     set_thread_count(o.threads);
+    apply_memory_budget(o.max_memory);
     std::vector<int> frames =
         o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
     graph.check(frames);
@@ -222,6 +233,10 @@ void add_run_command(CLI::App &app, int &exit_code)
                   opts->skip_bad_frames,
                   "Carry on past frames that fail (missing or unreadable input), with a warning");
     cmd->add_flag("--dry-run", opts->dry_run, "Validate the graph and its inputs, compute nothing");
+    cmd->add_option("--max-memory",
+                    opts->max_memory,
+                    "Budget for pass images, all frames in flight (8G, 512M; 0: none; default 80 "
+                    "% of available memory)");
     cmd->add_flag("--skip-existing",
                   opts->skip_existing,
                   "Skip frames whose outputs all exist and read back whole (resume a run)");

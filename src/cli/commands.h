@@ -22,6 +22,8 @@ struct RunSettings {
     bool quiet = false;
     bool skip_bad_frames = false;
     bool dry_run = false;
+    /// --max-memory: "" = a share of the machine's available memory (see memory_budget_from).
+    std::string max_memory;
     /// Skip frames whose outputs all exist and read back whole (resume an interrupted run).
     bool skip_existing = false;
     /// Carry on past failing frames, then fail (exit code of the first failure) at the end.
@@ -32,6 +34,9 @@ struct RunSettings {
     /// When set, filled with each node's total seconds ("id (type)" -> s) after the run.
     std::map<std::string, double> *node_seconds = nullptr;
 };
+
+/// Apply --max-memory: "0" = no budget, "" = 80 % of MemAvailable, else a size ("8G").
+void apply_memory_budget(const std::string &max_memory);
 
 /// Frames of `frames` whose outputs in `graph` all exist and read back whole.
 std::vector<int> frames_done(const Graph &graph, const std::vector<int> &frames);

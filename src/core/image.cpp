@@ -20,11 +20,25 @@ void Image::allocate(int width, int height, int channels)
     if (n > kMaxImageFloats) {
         throw_runtime("image of ", width, "x", height, "x", channels, " floats is too large");
     }
+    reserve_image_memory(n * sizeof(float), width, height, channels);
+    float *p = nullptr;
+    try {
+        p = new float[n];
+    } catch (...) {
+        release_image_memory(n * sizeof(float));
+        throw;
+    }
     width_ = width;
     height_ = height;
     channels_ = channels;
-    data_ = std::make_unique_for_overwrite<float[]>(n);
+    data_ = std::unique_ptr<float[], ImageRelease>(p, ImageRelease{n * sizeof(float)});
     advise_huge_pages(data_.get(), n * sizeof(float));
+}
+
+void ImageRelease::operator()(float *p) const
+{
+    delete[] p;
+    release_image_memory(bytes);
 }
 
 Image::Image(int width, int height, int channels)

@@ -47,6 +47,12 @@ inline constexpr int kMaxImageSide = 65536;
 inline constexpr int kMaxChannels = 64;
 inline constexpr std::size_t kMaxImageFloats = std::size_t(1) << 32;
 
+/// Frees an image's pixels and gives their bytes back to the memory budget (core/memory.h).
+struct ImageRelease {
+    std::size_t bytes = 0;
+    void operator()(float *p) const;
+};
+
 class Image {
    public:
     Image() = default;
@@ -108,7 +114,7 @@ class Image {
     void allocate(int width, int height, int channels);
 
     int width_ = 0, height_ = 0, channels_ = 0;
-    std::unique_ptr<float[]> data_;
+    std::unique_ptr<float[], ImageRelease> data_;
 };
 
 using ImagePtr = std::shared_ptr<const Image>;

@@ -1,5 +1,11 @@
 #include "core/memory.h"
 
+#include <cctype>
+
+#include <fstream>
+
+#include <atomic>
+
 #include <cstdint>
 #include <cstdlib>
 #include <mutex>
@@ -8,6 +14,7 @@
 
 #if defined(__linux__)
 #include <sys/mman.h>
+#include "core/error.h"
 #endif
 
 namespace posthaste {
@@ -106,6 +113,102 @@ void scratch_give(void *block, std::size_t bytes)
     if (block) {
         ScratchPool::instance().give(block, bytes);
     }
+}
+
+namespace {
+std::atomic<std::size_t> g_budget{0};
+std::atomic<std::size_t> g_in_use{0};
+}  // namespace
+
+void set_image_memory_budget(std::size_t bytes)
+{
+    g_budget = bytes;
+}
+
+std::size_t image_memory_budget()
+{
+    return g_budget.load();
+}
+
+std::size_t image_memory_in_use()
+{
+    return g_in_use.load();
+}
+
+void reserve_image_memory(std::size_t bytes, int width, int height, int channels)
+{
+    const std::size_t before = g_in_use.fetch_add(bytes);
+    const std::size_t budget = g_budget.load();
+    if (budget != 0 && before + bytes > budget) {
+        g_in_use.fetch_sub(bytes);
+        throw_runtime("memory budget: a ",
+                      width,
+                      "x",
+                      height,
+                      "x",
+                      channels,
+                      " image (",
+                      format_bytes(bytes),
+                      ") would take pass images to ",
+                      format_bytes(before + bytes),
+                      ", over --max-memory ",
+                      format_bytes(budget),
+                      " (fewer --jobs, a smaller frame, or a larger budget)");
+    }
+}
+
+std::string format_bytes(std::size_t bytes)
+{
+    return bytes < (std::size_t(1) << 20) ? std::to_string(bytes >> 10) + " KiB"
+                                          : std::to_string(bytes >> 20) + " MiB";
+}
+
+void release_image_memory(std::size_t bytes)
+{
+    g_in_use.fetch_sub(bytes);
+}
+
+std::size_t available_memory_bytes()
+{
+    std::ifstream in("/proc/meminfo");
+    std::string key;
+    std::size_t value = 0;
+    std::string unit;
+    while (in >> key >> value >> unit) {
+        if (key == "MemAvailable:") {
+            return value * 1024;
+        }
+    }
+    return 0;
+}
+
+std::size_t parse_memory_size(const std::string &text, const std::string &where)
+{
+    char *end = nullptr;
+    const double v = std::strtod(text.c_str(), &end);
+    std::string unit = end ? std::string(end) : "";
+    for (char &c : unit) {
+        c = char(std::tolower(static_cast<unsigned char>(c)));
+    }
+    if (unit.size() == 2 && unit[1] == 'b') {
+        unit.resize(1);
+    }
+    double scale = 0.0;
+    if (unit.empty() || unit == "b") {
+        scale = 1.0;
+    } else if (unit == "k") {
+        scale = 1024.0;
+    } else if (unit == "m") {
+        scale = 1024.0 * 1024.0;
+    } else if (unit == "g") {
+        scale = 1024.0 * 1024.0 * 1024.0;
+    } else if (unit == "t") {
+        scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
+    }
+    if (text.empty() || end == text.c_str() || scale == 0.0 || !(v >= 0.0) || v * scale > 1e18) {
+        throw_usage(where, ": expected a size such as 8G, 512M or 0 (no budget), got \"", text, "\"");
+    }
+    return std::size_t(v * scale);
 }
 
 }  // namespace posthaste

@@ -6,6 +6,7 @@
 // does nothing. The contents are unaffected.
 
 #include <cstddef>
+#include <string>
 #include <memory>
 
 namespace posthaste {
@@ -15,6 +16,25 @@ inline constexpr std::size_t kHugePageAdviceMinBytes = std::size_t(4) << 20;
 
 /// Advise huge pages for the 2 MiB-aligned part of [data, data + bytes). Never fails.
 void advise_huge_pages(void *data, std::size_t bytes);
+
+/// The memory budget for pass images, process-wide (every frame in flight together): 0 means
+/// none. Set from --max-memory (default: a share of the machine's available memory).
+void set_image_memory_budget(std::size_t bytes);
+std::size_t image_memory_budget();
+/// Bytes held by live pass images now.
+std::size_t image_memory_in_use();
+/// Count `bytes` against the budget; throws Error (exit 1) naming the image, what is in use and
+/// the budget when it would be exceeded, instead of letting the kernel's OOM killer end the run.
+void reserve_image_memory(std::size_t bytes, int width, int height, int channels);
+/// Give back what reserve_image_memory counted.
+void release_image_memory(std::size_t bytes);
+/// "64 KiB", "512 MiB", "39936 MiB": whole units, KiB below 1 MiB.
+std::string format_bytes(std::size_t bytes);
+/// MemAvailable from /proc/meminfo, in bytes (0 when unknown).
+std::size_t available_memory_bytes();
+/// Parse "8G", "512M", "1.5g", "0" (bytes, K, M, G, T; powers of 1024); throws a usage Error
+/// naming `where`.
+std::size_t parse_memory_size(const std::string &text, const std::string &where);
 
 /// Scratch blocks kept between frames. A filter's per-pixel scratch is tens of megabytes written
 /// once per frame, and fresh memory costs the kernel a page clear (and a fault) per page on first

@@ -121,6 +121,42 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_EQ(run_command("POSTHASTE_SIMD=avx2 " + kBin + " nodes merge", &out), 0) << out;
 }
 
+TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
+{
+    const std::string dir = test::scratch_dir("cli_budget");
+    const std::string bin = POSTHASTE_BINARY;
+    std::string out;
+    // A 16384x16384 all-pass render (inside the declared size range) under a 1 GiB budget: an
+    // error from the estimate, before any pixel is allocated, nothing written.
+    const int rc = run_command(bin + " render " + std::string(POSTHASTE_TEST_DIR) +
+                                   "/../samples/scenes/minecrappy.json -o " + dir +
+                                   "/big.####.exr --frames 1 --size 16384x16384 --max-memory 1G",
+                               &out);
+    EXPECT_EQ(rc, 1) << out;
+    EXPECT_NE(out.find("a 16384x16384 frame (supersample 1) needs about"), std::string::npos)
+        << out;
+    EXPECT_NE(out.find("over --max-memory 1024 MiB"), std::string::npos) << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+    EXPECT_FALSE(fs::exists(dir + "/big.0001.exr"));
+    // The allocation itself is budgeted too: a read -> dof graph under 64 KiB.
+    Frame f = test::make_sample_frame(64, 64, 1);
+    write_exr(f, dir + "/in.0001.exr", {});
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")"
+                                   << dir << R"(/in.####.exr"}},
+        {"id": "d", "type": "dof", "inputs": {"image": "in"}, "params": {}},
+        {"id": "out", "type": "write", "inputs": {"image": "d"},
+         "params": {"path": ")" << dir << R"(/out.####.exr"}}]})";
+    EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 64K", &out), 1)
+        << out;
+    EXPECT_NE(out.find("memory budget: a 64x64x"), std::string::npos) << out;
+    EXPECT_NE(out.find("over --max-memory 64 KiB"), std::string::npos) << out;
+    EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory lots", &out), 2)
+        << out;
+    EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 1G", &out), 0)
+        << out;
+}
+
 TEST(Cli, InfoShowsTheMapping)
 {
     const std::string dir = test::scratch_dir("cli_info");
