@@ -7,7 +7,9 @@
 // CoC, no depth test.
 
 #include <cmath>
+#include <limits>
 
+#include "core/sanitize.h"
 #include "nodes/node.h"
 #include "shading/dof_gather.h"
 
@@ -98,8 +100,14 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
 void execute(NodeContext &ctx)
 {
     const Frame &in = ctx.input("image");
-    const Image &color = ctx.input_pass("image", pass::kColor);
-    const Image &depth = ctx.input_pass("image", pass::kDepth);
+    // Non-finite input never spreads over a blur footprint nor reaches the output: NaN/Inf color
+    // reads as 0, NaN/-inf depth as the sky (+inf); no copy when everything is finite.
+    Image color_storage, depth_storage;
+    const Image &color = finite_view(ctx.input_pass("image", pass::kColor), 0.0f, color_storage);
+    const Image &depth = finite_view(ctx.input_pass("image", pass::kDepth),
+                                     std::numeric_limits<float>::infinity(),
+                                     depth_storage,
+                                     /*allow_positive_inf=*/true);
     if (depth.width() != color.width() || depth.height() != color.height()) {
         throw_runtime(ctx.where(),
                       ": depth is ",
@@ -122,6 +130,13 @@ void execute(NodeContext &ctx)
     s.half_res = ctx.get_choice(kResolution) == 1;
     Image out;
     if (!shading::apply_dof(color, depth, lens, s, out)) {
+        if (&color == &color_storage) {  // in focus, but non-finite values were replaced
+            const Pass &cp = in.pass(pass::kColor, ctx.where());
+            ctx.output().set(pass::kColor,
+                             std::make_shared<const Image>(std::move(color_storage)),
+                             cp.channels,
+                             cp.storage);
+        }
         return;  // everything in focus: the output frame already shares the input's color
     }
     const Pass &cp = in.pass(pass::kColor, ctx.where());

@@ -14,6 +14,7 @@
 #include <limits>
 #include <mutex>
 
+#include "core/sanitize.h"
 #include "nodes/node.h"
 #include "shading/atmosphere.h"
 #include "shading/camera_rays.h"
@@ -216,7 +217,12 @@ void execute(NodeContext &ctx)
 {
     const Frame &in = ctx.input("image");
     const Pass &color_pass = in.pass(pass::kColor, ctx.where());
-    const Image &depth_in = in.image(pass::kDepth, ctx.where());
+    // Non-finite input never reaches the output: NaN/Inf color reads as 0, NaN/-inf depth as 0
+    // (no fog: the pixel is left as it is); no copy when everything is finite.
+    Image color_storage, depth_storage;
+    const Image &color_in = finite_view(*color_pass.image, 0.0f, color_storage);
+    const Image &depth_in = finite_view(
+        in.image(pass::kDepth, ctx.where()), 0.0f, depth_storage, /*allow_positive_inf=*/true);
     const Model model = Model(ctx.get_choice(kModel));
     const float density = ctx.get_float(kDensity);
     if ((model == Exp || model == Exp2 || model == Height) && density == 0.0f) {
@@ -265,7 +271,7 @@ void execute(NodeContext &ctx)
 
     // The height fog and atmosphere kernels read the input and write the output in one sweep;
     // the other models work on a copy.
-    const Image &source = *color_pass.image;
+    const Image &source = color_in;
     Image out = model == Height || model == Atmo
                     ? Image::uninitialized(source.width(), source.height(), source.channels())
                     : source;

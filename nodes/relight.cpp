@@ -28,6 +28,7 @@
 #include "core/hash.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
+#include "core/sanitize.h"
 #include "nodes/node.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
@@ -1412,16 +1413,32 @@ void execute(NodeContext &ctx)
     const Setup &setup = ctx.state().get_or_create<Setup>([&] {
         return parse_setup(ctx.params(), ctx.node().json_path + "/params", ctx.node().describe());
     });
-    const Image &color = ctx.input_pass("image", pass::kColor);
-    const Image &normal = ctx.input_pass("image", pass::kNormal);
-    const Image &albedo = ctx.input_pass("image", pass::kAlbedo);
-    const Image &material = ctx.input_pass("image", pass::kMaterial);
+    // Non-finite input never reaches the output (NaN/Inf read as 0; depth's as the sky, below);
+    // no copy when everything is finite.
+    Image color_storage, normal_storage, albedo_storage, material_storage, position_storage,
+        depth_storage, tangent_storage;
+    const Image &color = finite_view(ctx.input_pass("image", pass::kColor), 0.0f, color_storage);
+    const Image &normal =
+        finite_view(ctx.input_pass("image", pass::kNormal), 0.0f, normal_storage);
+    const Image &albedo =
+        finite_view(ctx.input_pass("image", pass::kAlbedo), 0.0f, albedo_storage);
+    const Image &material =
+        finite_view(ctx.input_pass("image", pass::kMaterial), 0.0f, material_storage);
     const bool from_depth = ctx.get_choice(kPositionFrom) == 1;
-    const Image *position = from_depth ? nullptr : &ctx.input_pass("image", pass::kPosition);
+    const Image *position =
+        from_depth ? nullptr
+                   : &finite_view(ctx.input_pass("image", pass::kPosition), 0.0f, position_storage);
     const bool shadows = ctx.get_bool(kShadows);
-    const Image *depth = from_depth || shadows ? &ctx.input_pass("image", pass::kDepth) : nullptr;
+    const Image *depth = from_depth || shadows
+                             ? &finite_view(ctx.input_pass("image", pass::kDepth),
+                                            std::numeric_limits<float>::infinity(),
+                                            depth_storage,
+                                            /*allow_positive_inf=*/true)
+                             : nullptr;
     const Image *tangent =
-        ctx.get_bool(kAnisotropic) ? &ctx.input_pass("image", pass::kTangent) : nullptr;
+        ctx.get_bool(kAnisotropic)
+            ? &finite_view(ctx.input_pass("image", pass::kTangent), 0.0f, tangent_storage)
+            : nullptr;
     const Image *id = setup.toon_ids.empty() ? nullptr : &ctx.input_pass("image", pass::kId);
     if (color.channels() < 3 || normal.channels() < 3 || albedo.channels() < 3 ||
         material.channels() < 3 || (position && position->channels() < 3) ||

@@ -1,0 +1,77 @@
+// The non-finite policy (docs/ARCHITECTURE.md, "Non-finite input"): spatial nodes never spread
+// a NaN or infinity to a neighbour and never output one, whatever their input holds; point
+// nodes pass values through. Every spatial node runs on a frame with NaN, +Inf and -Inf in
+// color (one pixel in ten) and in the data passes it reads.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "core/passes.h"
+#include "graph/node_registry.h"
+#include "stability/stability.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+/// `f` with one value in ten of every pass replaced by NaN, +Inf or -Inf (depth keeps +inf,
+/// the sky, as a legal value and gets NaN and -inf).
+Frame poisoned(Frame f)
+{
+    const float bad[3] = {std::numeric_limits<float>::quiet_NaN(),
+                          std::numeric_limits<float>::infinity(),
+                          -std::numeric_limits<float>::infinity()};
+    for (const std::string &name : f.pass_names()) {
+        Image img = f.image(name);
+        for (std::size_t i = 0; i < img.value_count(); ++i) {
+            if (i % 10 == 3) {
+                img.data()[i] = bad[(i / 10) % 3];
+            }
+        }
+        f.set(name, std::move(img));
+    }
+    return f;
+}
+
+std::size_t non_finite(const Image &img)
+{
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < img.value_count(); ++i) {
+        n += !std::isfinite(img.data()[i]);
+    }
+    return n;
+}
+
+TEST(NonFinitePolicy, SpatialNodesNeverOutputNaNOrInf)
+{
+    const Frame in = poisoned(stability::plain_frame(48, 32));
+    ASSERT_GT(non_finite(in.image("color")), 100u);
+    const std::vector<std::pair<std::string, std::string>> cases = {
+        {"dof", "{}"},
+        {"dof", R"({"resolution": "half"})"},
+        {"motion_blur", "{}"},
+        {"motion_blur", R"({"source": "camera"})"},
+        {"fog", R"({"model": "exp", "density": 0.05})"},
+        {"fog", R"({"model": "height"})"},
+        {"fog", R"({"model": "atmosphere"})"},
+        {"relight", R"({"lights": [{"type": "point", "position": [0, 3, 0], "intensity": 20}]})"},
+        {"hatching", "{}"},
+    };
+    for (const auto &[type, params] : cases) {
+        SCOPED_TRACE(type + " " + params);
+        const Frame out = test::run_node(type, in, params);
+        EXPECT_EQ(non_finite(out.image("color")), 0u);
+    }
+}
+
+TEST(NonFinitePolicy, PointNodesPassValuesThrough)
+{
+    const Frame in = poisoned(stability::plain_frame(16, 8));
+    const Frame out = test::run_node("channels", in, R"({"keep": "color"})");
+    EXPECT_TRUE(out.image("color").bit_equal(in.image("color")));
+}
+
+}  // namespace
+}  // namespace posthaste
