@@ -3,6 +3,9 @@
 #   ./posthaste.sh demo    install dependencies, build, render the bundled sequence and run the
 #                          demo graph into out/
 #   ./posthaste.sh test    install dependencies, build, run every test (ctest, all labels)
+#   ./posthaste.sh sanitize  clang-14 build with AddressSanitizer + UndefinedBehaviorSanitizer
+#                          (build-asan/): the unit and invalid-graph tests under the sanitizers,
+#                          then each libFuzzer target for POSTHASTE_FUZZ_SECONDS (default 40)
 #   ./posthaste.sh deps | build | bench | accuracy (re-measure the charts in docs/accuracy/)
 # Idempotent: packages are installed only when missing, and the build is incremental.
 set -euo pipefail
@@ -53,6 +56,54 @@ test_all() {
     ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
 }
 
+install_packages() {
+    local missing=()
+    for p in "$@"; do
+        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
+            missing+=("$p")
+    done
+    if ((${#missing[@]})); then
+        echo "posthaste.sh: installing ${missing[*]}"
+        local sudo=""
+        [[ $(id -u) -ne 0 ]] && sudo=sudo
+        $sudo apt-get update -qq
+        DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
+            "${missing[@]}" >/dev/null
+    fi
+}
+
+# The sanitizer build (clang, -O1, ASan + UBSan, the fuzz targets) and its runs. Leak checking is
+# off: the third-party libraries' process-lifetime caches read as leaks.
+sanitize() {
+    deps
+    install_packages clang-14 libclang-rt-14-dev
+    local dir=${POSTHASTE_SANITIZE_DIR:-build-asan}
+    if [[ ! -f $dir/build.ninja ]]; then
+        cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+            -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
+            -DPOSTHASTE_FUZZ=ON -DPOSTHASTE_BENCHMARKS=OFF
+    fi
+    cmake --build "$dir" -j "$JOBS"
+    export ASAN_OPTIONS=detect_leaks=0:abort_on_error=1:allocator_may_return_null=1
+    export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+    ctest --test-dir "$dir" -L "unit|invalid" --output-on-failure -j "$JOBS"
+    local seconds=${POSTHASTE_FUZZ_SECONDS:-40}
+    for target in exr_read graph scene bench_spec; do
+        local scratch
+        scratch=$(mktemp -d)
+        echo "posthaste.sh: fuzzing $target for ${seconds}s"
+        "$dir/tests/fuzz/fuzz_$target" -max_total_time="$seconds" -rss_limit_mb=4096 \
+            -timeout=30 -print_final_stats=1 -artifact_prefix="$dir/fuzz-$target-" \
+            "$scratch" "tests/fuzz/corpus/$target" 2>&1 | grep -E "^(stat::|Done|==|SUMMARY)" ||
+            true
+        rm -rf "$scratch"
+        if ls "$dir"/fuzz-"$target"-* >/dev/null 2>&1; then
+            echo "posthaste.sh: fuzz_$target found a crash: $(ls "$dir"/fuzz-"$target"-*)" >&2
+            return 1
+        fi
+    done
+}
+
 bench() {
     deps
     build
@@ -80,5 +131,6 @@ case "${1:-}" in
     test) test_all ;;
     bench) bench ;;
     accuracy) accuracy ;;
-    *) echo "usage: $0 demo|test|deps|build|bench|accuracy" >&2; exit 2 ;;
+    sanitize) sanitize ;;
+    *) echo "usage: $0 demo|test|deps|build|bench|accuracy|sanitize" >&2; exit 2 ;;
 esac

@@ -2,7 +2,9 @@
 // Produces exactly the passes that nodes downstream read, mapped from other tools' channel names
 // by the alias rules (io/aliases.h); camera and header attributes come along.
 
+#include <cstdio>
 #include <filesystem>
+#include <map>
 
 #include "io/image_file.h"
 #include "io/sequence.h"
@@ -62,8 +64,22 @@ void execute(NodeContext &ctx)
         expand_frame_pattern(ctx.get_string(kPath), ctx.frame_number() + ctx.get_int(kFrameOffset));
     const PassSet &wanted = ctx.requested();
     try {
-        ctx.output() =
-            read_frame(path, wanted.all ? nullptr : &wanted.names, ctx.frame_number(), options);
+        std::map<std::string, std::size_t> non_finite;
+        ctx.output() = read_frame(
+            path, wanted.all ? nullptr : &wanted.names, ctx.frame_number(), options, &non_finite);
+        if (!non_finite.empty()) {
+            // One line per frame, not one per pixel (the spatial nodes never spread them).
+            std::string counts;
+            for (const auto &[pass, n] : non_finite) {
+                counts += (counts.empty() ? "" : ", ") + pass + " " + std::to_string(n);
+            }
+            std::fprintf(stderr,
+                         "warning: %s: %s: NaN or infinite values kept: %s (bad_pixels: zero "
+                         "replaces them, error refuses them)\n",
+                         ctx.where().c_str(),
+                         path.c_str(),
+                         counts.c_str());
+        }
     } catch (const Error &e) {
         throw Error(e.code(), ctx.where() + ": " + e.what());
     }

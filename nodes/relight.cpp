@@ -808,8 +808,10 @@ using simd::v8::V;
 // No FMA contraction here: the reference (shading::evaluate, the rasterizer) rounds every
 // product, and the GGX peak amplifies a one-ulp change of n.h by about 1 / alpha^2; fused
 // multiply-adds raised the relit-vs-beauty RMSE by a fifth.
+#if !defined(__clang__)  // clang builds pass -ffp-contract=off (CMakeLists.txt)
 #pragma GCC push_options
 #pragma GCC optimize("fp-contract=off")
+#endif
 
 POSTHASTE_AVX2_INLINE V vset(float x)
 {
@@ -1405,7 +1407,9 @@ POSTHASTE_AVX2 void shade_row_avx2(const Shading &sh, int x0, int x1, int y, Ima
         _mm_sfence();  // order the streaming stores before the loop's join
     }
 }
+#if !defined(__clang__)
 #pragma GCC pop_options
+#endif
 #endif
 
 void execute(NodeContext &ctx)

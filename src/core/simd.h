@@ -13,6 +13,10 @@
 
 namespace posthaste::simd {
 
+/// True when the CPU has F16C (half-float conversions); cpuid, so that GCC and clang agree
+/// (clang 14's __builtin_cpu_supports does not know "f16c").
+bool cpu_has_f16c();
+
 enum class Level { Scalar = 0, Avx2 = 1 };
 
 /// The best level this CPU (and build) supports.

@@ -622,7 +622,8 @@ FileInfo read_file_info(const std::string &path, const ReadOptions &options)
 Frame read_frame(const std::string &path,
                  const std::set<std::string> *wanted,
                  int frame_number,
-                 const ReadOptions &options)
+                 const ReadOptions &options,
+                 std::map<std::string, std::size_t> *non_finite)
 {
     Opened o = open_file(path, options);
     const FileInfo &info = o.info;
@@ -790,6 +791,9 @@ Frame read_frame(const std::string &path,
         const bool linearize = srgb_encoded && ps->pass == pass::kColor;
         // First bad value per row (x, channel), for BadPixels::Error; -1 when none.
         std::vector<std::pair<int, int>> bad(std::size_t(height), {-1, -1});
+        // Non-finite values kept, per row (summed in row order: thread-count independent).
+        std::vector<std::size_t> kept(std::size_t(height), 0);
+        const bool count_kept = non_finite && options.bad_pixels == BadPixels::Keep;
         parallel_for(0, height, [&](int y) {
             float *row = img.pixel(0, y);
             for (int k = 0; k < nch; ++k) {
@@ -834,6 +838,12 @@ Frame read_frame(const std::string &path,
                 const bool lin = linearize && k < 3;
                 const bool clip_inf = ps->infinite_above > 0.0f;
                 const bool check_bad = options.bad_pixels != BadPixels::Keep;
+                if (count_kept) {
+                    for (int x = x0; x < x1; ++x) {
+                        const float v = out[std::size_t(x) * step];
+                        kept[std::size_t(y)] += !std::isfinite(v) && !(is_depth && v > 0.0f);
+                    }
+                }
                 if (!(affine || lin || clip_inf || check_bad)) {
                     continue;
                 }
@@ -872,6 +882,15 @@ Frame read_frame(const std::string &path,
                               ", ",
                               y + window.y0,
                               ")");
+            }
+        }
+        if (count_kept) {
+            std::size_t n = 0;
+            for (std::size_t k : kept) {
+                n += k;
+            }
+            if (n) {
+                (*non_finite)[ps->pass] = n;
             }
         }
         Pass pass;

@@ -12,6 +12,7 @@
 #endif
 
 #include "core/error.h"
+#include "core/simd.h"
 
 namespace posthaste::io_detail {
 namespace fs = std::filesystem;
@@ -241,7 +242,7 @@ void floats_to_halves(const float *src,
         src_stride = channels;
     }
 #if defined(__x86_64__) && defined(__GNUC__)
-    static const bool has_f16c = __builtin_cpu_supports("f16c");
+    static const bool has_f16c = simd::cpu_has_f16c();
     if (has_f16c) {
         floats_to_halves_f16c(src, channels, count, dst, dst_stride, src_stride);
         return;

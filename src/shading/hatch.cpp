@@ -132,8 +132,10 @@ struct KernelCtx {
 // intrinsics into FMA (its C++ default is -ffp-contract=fast, and the scalar path, built for
 // baseline x86-64, has no FMA), which rounds differently: keep the two paths equal.
 #if defined(__GNUC__) && !defined(__clang__)
+#if !defined(__clang__)  // clang builds pass -ffp-contract=off (CMakeLists.txt)
 #pragma GCC push_options
 #pragma GCC optimize("fp-contract=off")
+#endif
 #endif
 namespace v8 = simd::v8;
 using v8::V;
@@ -846,7 +848,9 @@ POSTHASTE_AVX2 void hatch_tile_avx2(const KernelCtx &k, const Rect &t)
     _mm_sfence();  // order the streaming stores before the tile counts as done
 }
 #if defined(__GNUC__) && !defined(__clang__)
+#if !defined(__clang__)
 #pragma GCC pop_options
+#endif
 #endif
 #endif
 

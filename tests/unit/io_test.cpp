@@ -6,7 +6,9 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -398,9 +400,24 @@ TEST(IoBadInput, NanAndInfPixels)
     write_exr(f, dir + "/nan.exr", o);
 
     ReadOptions keep;
-    const Frame k = read_frame(dir + "/nan.exr", nullptr, 1, keep);
+    std::map<std::string, std::size_t> counts;
+    const Frame k = read_frame(dir + "/nan.exr", nullptr, 1, keep, &counts);
     EXPECT_TRUE(std::isnan(k.image("color").at(3, 4, 1)));
     EXPECT_TRUE(std::isinf(k.image("depth").at(0, 0, 0)));  // sky depth is legitimate
+    // The per-frame report: two values in color, none in depth (+inf is the sky).
+    EXPECT_EQ(counts, (std::map<std::string, std::size_t>{{"color", 2}}));
+    // Through a graph: one warning line for the frame.
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")"
+                                   << dir << R"(/nan.exr"}},
+        {"id": "out", "type": "write", "inputs": {"image": "in"},
+         "params": {"path": ")" << dir << R"(/out.exr"}}]})";
+    std::string log;
+    EXPECT_EQ(run_command(std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --quiet", &log),
+              0);
+    EXPECT_NE(log.find("NaN or infinite values kept: color 2 (bad_pixels"), std::string::npos)
+        << log;
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
 
     ReadOptions zero;
     zero.bad_pixels = BadPixels::Zero;

@@ -1,0 +1,25 @@
+// Fuzz target: the image reader (header, every part, every compression, windows, views, deep,
+// luminance/chroma) through read_file_info, read_frame and verify_image_file. The input is
+// written to a file in /dev/shm (the readers take paths), one per process.
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+
+#include "fuzz_common.h"
+#include "io/image_file.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size)
+{
+    using namespace posthaste;
+    static const std::string path = "/dev/shm/posthaste-fuzz-" + std::to_string(::getpid()) + ".exr";
+    {
+        std::ofstream out(path, std::ios::binary | std::ios::trunc);
+        out.write(reinterpret_cast<const char *>(data), std::streamsize(size));
+    }
+    fuzz::expect_clean([&] { read_file_info(path); });
+    fuzz::expect_clean([&] { read_frame(path, nullptr, 1); });
+    (void)verify_image_file(path);
+    return 0;
+}
