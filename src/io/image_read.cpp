@@ -18,6 +18,7 @@
 #include <numeric>
 
 #include "core/error.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "core/passes.h"
 #include "io/image_file.h"
@@ -427,10 +428,20 @@ struct PartPixels {
     std::size_t bytes = 0;
 };
 
-/// An uninitialised byte buffer (a zero fill of a 1080p all-pass frame cost a third of a read).
-std::shared_ptr<unsigned char[]> raw_bytes(std::size_t n)
+/// An uninitialised byte buffer (a zero fill of a 1080p all-pass frame cost a third of a read),
+/// counted against the memory budget like a pass image of `width` x `height` x `channels`.
+std::shared_ptr<unsigned char[]> raw_bytes(std::size_t n, int width, int height, int channels)
 {
-    return std::shared_ptr<unsigned char[]>(new unsigned char[n]);
+    reserve_image_memory(n, width, height, channels);
+    try {
+        return std::shared_ptr<unsigned char[]>(new unsigned char[n], [n](unsigned char *p) {
+            delete[] p;
+            release_image_memory(n);
+        });
+    } catch (...) {
+        release_image_memory(n);
+        throw;
+    }
 }
 
 /// Every channel of part 0 of a luminance/chroma file, as RGB(A) floats.
@@ -457,7 +468,7 @@ PartPixels read_luminance_chroma(const std::string &path, const FilePart &part)
         throw_runtime(path, ": cannot read pixels (truncated or corrupt?): ", err);
     }
     pd.bytes = npix * pd.pixel_bytes;
-    pd.data = raw_bytes(pd.bytes);
+    pd.data = raw_bytes(pd.bytes, dw.width(), dw.height(), pd.chend);
     auto *out = reinterpret_cast<float *>(pd.data.get());
     for (std::size_t i = 0; i < npix; ++i) {
         const float v[4] = {float(rgba[i].r), float(rgba[i].g), float(rgba[i].b), float(rgba[i].a)};
@@ -497,7 +508,7 @@ PartPixels flatten_deep(OIIO::ImageInput &in, int sub, const std::string &path)
     }
     const std::int64_t npix = std::int64_t(spec.width) * spec.height;
     pd.bytes = std::size_t(npix) * pd.pixel_bytes;
-    pd.data = raw_bytes(pd.bytes);
+    pd.data = raw_bytes(pd.bytes, spec.width, spec.height, nch);
     auto *out = reinterpret_cast<float *>(pd.data.get());
     parallel_for(0, spec.height, [&](int y) {
         std::vector<int> order;
@@ -569,13 +580,14 @@ std::string verify_image_file(const std::string &path)
                     throw_runtime(path, ": part ", p, " level ", level, ": cannot seek");
                 }
                 const OIIO::ImageSpec spec = o.in->spec();
-                std::vector<unsigned char> buf(spec.image_bytes(/*native=*/true));
+                const auto buf = raw_bytes(
+                    spec.image_bytes(/*native=*/true), spec.width, spec.height, spec.nchannels);
                 if (!o.in->read_image(int(p),
                                       level,
                                       0,
                                       spec.nchannels,
                                       OIIO::TypeUnknown,
-                                      buf.data())) {
+                                      buf.get())) {
                     std::string err = o.in->geterror();
                     std::replace(err.begin(), err.end(), '\n', ' ');
                     if (part.level_mode == "mipmap" && level > 0 &&
@@ -746,7 +758,7 @@ Frame read_frame(const std::string &path,
         }
         const std::size_t npix = std::size_t(spec.width) * std::size_t(spec.height);
         pd.bytes = npix * pd.pixel_bytes;
-        pd.data = raw_bytes(pd.bytes);
+        pd.data = raw_bytes(pd.bytes, spec.width, spec.height, pd.chend - pd.chbegin);
         if (!o.in->read_image(int(p), 0, pd.chbegin, pd.chend, OIIO::TypeUnknown, pd.data.get())) {
             std::string err = o.in->geterror();
             std::replace(err.begin(), err.end(), '\n', ' ');

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <set>
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -176,6 +177,24 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
     }
     if (fs::file_size(path, ec) == 0) {
         throw_runtime(path, ": empty file");
+    }
+    // A file that starts with OpenEXR's magic number is opened by the EXR reader alone: a
+    // damaged one gets the EXR reader's error instead of every other format being tried (one of
+    // them, LibRaw, clears megabytes per attempt).
+    unsigned char magic[4] = {};
+    {
+        std::ifstream f(path, std::ios::binary);
+        f.read(reinterpret_cast<char *>(magic), 4);
+    }
+    if (magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01) {
+        auto exr = OIIO::ImageInput::create("openexr");
+        OIIO::ImageSpec spec;
+        if (exr && exr->open(path, spec)) {
+            return exr;
+        }
+        std::string err = exr ? exr->geterror() : OIIO::geterror();
+        std::replace(err.begin(), err.end(), '\n', ' ');
+        throw_runtime(path, ": cannot read image: ", err.empty() ? "damaged OpenEXR file" : err);
     }
     auto in = OIIO::ImageInput::open(path);
     if (!in) {
