@@ -710,6 +710,19 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
         target.extension().string();
     try {
         write(tmp);
+    } catch (const Error &e) {
+        // The libraries say "file output failed"; say why when the disk is the reason.
+        std::error_code space_ec;
+        const std::uintmax_t written = fs::file_size(tmp, space_ec);
+        const fs::space_info space =
+            fs::space(target.has_parent_path() ? target.parent_path() : fs::path("."), space_ec);
+        fs::remove(tmp, ec);
+        if (!space_ec && space.available < std::max<std::uintmax_t>(written, 1) + (64u << 10)) {
+            throw Error(e.code(),
+                        std::string(e.what()) + " (no space left on the device: " +
+                            std::to_string(space.available >> 10) + " KiB free)");
+        }
+        throw;
     } catch (...) {
         fs::remove(tmp, ec);
         throw;

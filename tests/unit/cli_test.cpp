@@ -192,3 +192,54 @@ TEST(Cli, NodesDocumentsEveryParameter)
 
 }  // namespace
 }  // namespace posthaste
+
+namespace posthaste {
+namespace {
+
+// A disk that fills up mid-run: a 1 MiB tmpfs (root only; skipped elsewhere). The run stops
+// with one line naming the frame, the path and the cause, exits 1, leaves no file at the final
+// name of the frame that failed, no temporary, and the frames before it whole.
+TEST(Cli, FullDiskStopsTheRunCleanly)
+{
+    namespace fs = std::filesystem;
+    const std::string mnt = test::scratch_dir("full_disk");
+    if (test::run_command("mount -t tmpfs -o size=1m tmpfs " + mnt) != 0) {
+        GTEST_SKIP() << "cannot mount a tmpfs here (not root)";
+    }
+    const std::string dir = test::scratch_dir("full_disk_graph");
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "scene", "type": "render", "params": {"scene": ")"
+                                   << POSTHASTE_TEST_DIR << R"(/../samples/scenes/minecrappy.json",
+         "width": 64, "height": 36}},
+        {"id": "out", "type": "write", "inputs": {"image": "scene"},
+         "params": {"path": ")" << mnt << R"(/f.####.exr", "passes": "color,depth",
+                    "compression": "none"}}]})";
+    std::string log;
+    const int rc = test::run_command(std::string(POSTHASTE_BINARY) + " run " + dir +
+                                         "/g.json --frames 1-48 --jobs 1 --quiet",
+                                     &log);
+    std::vector<std::string> names;
+    for (const auto &e : fs::directory_iterator(mnt)) {
+        names.push_back(e.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+    int whole = 0;
+    for (const std::string &n : names) {
+        EXPECT_EQ(n[0] == '.', false) << "a temporary was left: " << n;
+        whole += verify_image_file(mnt + "/" + n).empty();
+    }
+    test::run_command("umount " + mnt);
+    EXPECT_EQ(rc, 1) << log;
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+    EXPECT_NE(log.find("no space left on the device"), std::string::npos) << log;
+    const std::string failed = "frame " + std::to_string(names.size() + 1) + ": " + mnt + "/f." +
+                               (names.size() + 1 < 10 ? "000" : "00") +
+                               std::to_string(names.size() + 1) + ".exr";
+    EXPECT_NE(log.find(failed), std::string::npos) << log;
+    EXPECT_GT(names.size(), 3u);
+    EXPECT_LT(names.size(), 48u);
+    EXPECT_EQ(whole, int(names.size()));  // every frame before the failure reads back whole
+}
+
+}  // namespace
+}  // namespace posthaste
