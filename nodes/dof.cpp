@@ -70,9 +70,8 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
     // The data window's camera: its sensor spans the pass images (the display window's sensor
     // width, given or from the header, scaled by data width / display width).
     const Camera cam = in.pixel_camera();
-    const double window_scale = in.display_window.empty()
-                                    ? 1.0
-                                    : double(in.width()) / double(in.display_window.width());
+    const double window_scale =
+        in.display_window.empty() ? 1.0 : double(in.width()) / double(in.display_window.width());
     const std::string who = ctx.where();
     shading::DofLens l;
     const double fstop = ctx.get_real(kFstop), focus = ctx.get_real(kFocus);

@@ -6,7 +6,6 @@
 // running / queued / missing from the disk and squeue; `resubmit` submits what is not done;
 // `check` (the check job) writes report.json and report.html. docs/FARM.md has the rules.
 
-#include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
 
@@ -166,9 +166,9 @@ std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames, int ch
 {
     std::vector<std::vector<int>> chunks;
     for (std::size_t i = 0; i < frames.size(); i += std::size_t(chunk)) {
-        chunks.emplace_back(frames.begin() + std::ptrdiff_t(i),
-                            frames.begin() +
-                                std::ptrdiff_t(std::min(frames.size(), i + std::size_t(chunk))));
+        chunks.emplace_back(
+            frames.begin() + std::ptrdiff_t(i),
+            frames.begin() + std::ptrdiff_t(std::min(frames.size(), i + std::size_t(chunk))));
     }
     return chunks;
 }
@@ -183,7 +183,8 @@ std::string batch_script(const json &job, const fs::path &dir, int submission, i
     if (s.value("max_running", 0) > 0) {
         o << "%" << s["max_running"].get<int>();
     }
-    o << "\n#SBATCH --output=" << (dir / "logs").string() << "/slurm-s" << submission << "-%a.out\n";
+    o << "\n#SBATCH --output=" << (dir / "logs").string() << "/slurm-s" << submission
+      << "-%a.out\n";
     if (!s.value("partition", "").empty()) {
         o << "#SBATCH --partition=" << s["partition"].get<std::string>() << "\n";
     }
@@ -311,8 +312,8 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
                 st.submission = int(s);
                 st.chunk = int(k);
             }
-            std::ifstream log(dir / "logs" / ("s" + std::to_string(s) + "-chunk" +
-                                              std::to_string(k) + ".jsonl"));
+            std::ifstream log(dir / "logs" /
+                              ("s" + std::to_string(s) + "-chunk" + std::to_string(k) + ".jsonl"));
             std::string line;
             while (std::getline(log, line)) {
                 const json l = json::parse(line, nullptr, false);
@@ -368,11 +369,12 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
         st.state = "missing";
         st.error = damaged;
         if (st.submission >= 0 && subs[std::size_t(st.submission)].contains("array_job")) {
-            const std::string task = subs[std::size_t(st.submission)]["array_job"].get<std::string>() +
-                                     "_" + std::to_string(st.chunk);
+            const std::string task =
+                subs[std::size_t(st.submission)]["array_job"].get<std::string>() + "_" +
+                std::to_string(st.chunk);
             if (auto it = sched.find(task); it != sched.end()) {
                 const std::string &s = it->second;
-                st.state = s == "RUNNING" || s == "COMPLETING" ? "running"
+                st.state = s == "RUNNING" || s == "COMPLETING"                       ? "running"
                            : s == "PENDING" || s == "CONFIGURING" || s == "REQUEUED" ? "queued"
                                                                                      : "missing";
             }
@@ -505,7 +507,8 @@ int submit_command(const SubmitOptions &o)
                     o.sets.size(),
                     frames.size(),
                     sub["chunks"].size());
-        std::printf("# run-s0.sbatch\n%s", batch_script(job, dir, 0, int(sub["chunks"].size())).c_str());
+        std::printf("# run-s0.sbatch\n%s",
+                    batch_script(job, dir, 0, int(sub["chunks"].size())).c_str());
         std::printf("# check-s0.sbatch (afterany on the array, --kill-on-invalid-dep=yes)\n%s",
                     check_script(job, dir, 0).c_str());
         return 0;
@@ -521,7 +524,9 @@ int submit_command(const SubmitOptions &o)
     Graph::load((dir / "graph.json").string());  // the written graph is the same graph
     write_text(dir / "frames.txt", join_frames(frames) + "\n");
     submit(job, dir, 0);
-    std::printf("%s %s\n", job["submissions"][0]["array_job"].get<std::string>().c_str(), dir.string().c_str());
+    std::printf("%s %s\n",
+                job["submissions"][0]["array_job"].get<std::string>().c_str(),
+                dir.string().c_str());
     return 0;
 }
 
@@ -575,7 +580,8 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
         subs[std::size_t(submission)]["chunks"][std::size_t(chunk)].get<std::vector<int>>();
     Graph graph = load_job_graph(job, dir);
     const fs::path log_path =
-        dir / "logs" / ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".jsonl");
+        dir / "logs" /
+        ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".jsonl");
     std::ofstream log(log_path, std::ios::app);
     RunSettings rs;
     rs.frames = join_frames(frames);
@@ -615,8 +621,9 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
         failure = e.what();
     }
     json times(node_seconds);
-    std::ofstream(dir / "logs" / ("s" + std::to_string(submission) + "-chunk" +
-                                  std::to_string(chunk) + ".nodes.json"))
+    std::ofstream(
+        dir / "logs" /
+        ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".nodes.json"))
         << times.dump() << "\n";
     if (!failure.empty()) {
         throw Error(ExitCode(code), failure);

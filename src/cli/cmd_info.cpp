@@ -71,8 +71,9 @@ int info(const std::vector<std::string> &files)
                         views.c_str(),
                         fi.view.c_str());
         }
-        std::printf("  nodes work on      the data window of the parts read (every pass is its "
-                    "size);\n                     NDC and the sensor span the display window\n");
+        std::printf(
+            "  nodes work on      the data window of the parts read (every pass is its "
+            "size);\n                     NDC and the sensor span the display window\n");
         for (std::size_t p = 0; p < fi.parts.size(); ++p) {
             const FilePart &part = fi.parts[p];
             std::string kind = part.deep ? "deep " : "";
@@ -97,12 +98,12 @@ int info(const std::vector<std::string> &files)
                         part.compression.empty() ? "" : ", ",
                         part.compression.c_str());
             if (part.deep && part.deep_samples >= 0) {
-                std::printf("    deep samples: %lld (%.3g per pixel, at most %d)\n",
-                            static_cast<long long>(part.deep_samples),
-                            double(part.deep_samples) /
-                                double(std::int64_t(part.data_window.width()) *
-                                       part.data_window.height()),
-                            part.deep_max_samples);
+                std::printf(
+                    "    deep samples: %lld (%.3g per pixel, at most %d)\n",
+                    static_cast<long long>(part.deep_samples),
+                    double(part.deep_samples) /
+                        double(std::int64_t(part.data_window.width()) * part.data_window.height()),
+                    part.deep_max_samples);
             }
             std::string line;
             for (const FileChannel &c : part.channels) {

@@ -6,8 +6,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <mutex>
 
@@ -128,11 +128,10 @@ int run_graph(Graph &graph, const RunSettings &o)
                 std::lock_guard lock(mutex);
                 const int n = ++done;
                 if (o.on_frame) {
-                    const double started =
-                        std::chrono::duration<double>(
-                            std::chrono::system_clock::now().time_since_epoch())
-                            .count() -
-                        dt;
+                    const double started = std::chrono::duration<double>(
+                                               std::chrono::system_clock::now().time_since_epoch())
+                                               .count() -
+                                           dt;
                     o.on_frame(frame, started, dt, error);
                 }
                 if (!error.empty()) {

@@ -1,19 +1,17 @@
 #include "core/memory.h"
 
-#include <cctype>
-
-#include <fstream>
-
 #include <atomic>
-
+#include <cctype>
 #include <cstdint>
 #include <cstdlib>
+#include <fstream>
 #include <mutex>
 #include <new>
 #include <vector>
 
 #if defined(__linux__)
 #include <sys/mman.h>
+
 #include "core/error.h"
 #endif
 
@@ -206,7 +204,8 @@ std::size_t parse_memory_size(const std::string &text, const std::string &where)
         scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
     }
     if (text.empty() || end == text.c_str() || scale == 0.0 || !(v >= 0.0) || v * scale > 1e18) {
-        throw_usage(where, ": expected a size such as 8G, 512M or 0 (no budget), got \"", text, "\"");
+        throw_usage(
+            where, ": expected a size such as 8G, 512M or 0 (no budget), got \"", text, "\"");
     }
     return std::size_t(v * scale);
 }

@@ -6,8 +6,8 @@
 // does nothing. The contents are unaffected.
 
 #include <cstddef>
-#include <string>
 #include <memory>
+#include <string>
 
 namespace posthaste {
 

@@ -109,8 +109,8 @@ struct WriteOptions {
     /// nothing degrades twice), piz for frames not read from an EXR.
     std::string compression = "auto";
     ExrLayout layout = ExrLayout::Auto;
-    bool multipart = false;           ///< Deprecated spelling of layout = Multipart.
-    std::vector<std::string> passes;  ///< Empty: every pass of the frame.
+    bool multipart = false;                       ///< Deprecated spelling of layout = Multipart.
+    std::vector<std::string> passes;              ///< Empty: every pass of the frame.
     std::map<std::string, PixelStorage> storage;  ///< Per pass; default: the source's, else
                                                   ///< half for color/albedo, float otherwise.
     bool allow_lossy_data = false;                ///< Permit DWAA/DWAB/PXR24 on data passes.
@@ -131,9 +131,9 @@ void write_preview(const Image &display_rgba, const std::string &path, bool with
 class ColorProcessor;
 
 struct PreviewOptions {
-    bool alpha = false;   ///< Write alpha as a fourth channel.
-    int png_level = 1;    ///< zlib level of a PNG, 0-9.
-    bool dither = true;   ///< 8x8 ordered dither before quantising to 8 bits.
+    bool alpha = false;  ///< Write alpha as a fourth channel.
+    int png_level = 1;   ///< zlib level of a PNG, 0-9.
+    bool dither = true;  ///< 8x8 ordered dither before quantising to 8 bits.
 };
 
 /// Write an 8-bit display-referred preview of a linear, premultiplied RGB(A) pass `color`

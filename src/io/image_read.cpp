@@ -2,9 +2,9 @@
 // types), OpenEXR's RGBA interface for luminance/chroma files, and deep files flattened front to
 // back. Windows, views and the file's layout come along (io/source_file.h).
 
-#include <ImfRgbaFile.h>
 #include <ImfHeader.h>
 #include <ImfMatrixAttribute.h>
+#include <ImfRgbaFile.h>
 #include <ImfStandardAttributes.h>
 #include <OpenImageIO/deepdata.h>
 #include <OpenImageIO/imageio.h>
@@ -199,9 +199,8 @@ std::vector<PassSource> map_views(const FileInfo &info,
             for (ChannelSource &cs : ps.sources) {
                 if (cs.part >= 0) {
                     cs.channel = index[std::size_t(cs.part)][std::size_t(cs.channel)];
-                    cs.name = info.parts[std::size_t(cs.part)]
-                                  .channels[std::size_t(cs.channel)]
-                                  .name;
+                    cs.name =
+                        info.parts[std::size_t(cs.part)].channels[std::size_t(cs.channel)].name;
                 }
             }
             if (view != info.view) {
@@ -314,7 +313,8 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         check_window(path, sub, "data", part.data_window);
         check_window(path, sub, "display", part.display_window);
         for (int c = 0; c < spec.nchannels; ++c) {
-            part.channels.push_back({spec.channel_name(c), type_name(spec.channelformat(c)), "", 1, 1});
+            part.channels.push_back(
+                {spec.channel_name(c), type_name(spec.channelformat(c)), "", 1, 1});
         }
         while (o.in->seek_subimage(sub, part.mip_levels)) {
             ++part.mip_levels;
@@ -351,8 +351,8 @@ Opened open_file(const std::string &path, const ReadOptions &options)
     if (info.parts.empty()) {
         throw_runtime(path, ": no image in file");
     }
-    const bool deep = std::any_of(
-        info.parts.begin(), info.parts.end(), [](const FilePart &p) { return p.deep; });
+    const bool deep =
+        std::any_of(info.parts.begin(), info.parts.end(), [](const FilePart &p) { return p.deep; });
     if (deep) {
         if (options.deep == DeepMode::Error) {
             throw_runtime(path, ": part 0 is deep and the read's deep mode is \"error\"");
@@ -368,13 +368,13 @@ Opened open_file(const std::string &path, const ReadOptions &options)
     assign_views(o.specs, info, channels, o.single_part_views);
     if (!options.view.empty()) {
         if (std::find(info.views.begin(), info.views.end(), options.view) == info.views.end()) {
-            throw_runtime(path,
-                          ": no view \"",
-                          options.view,
-                          "\" (",
-                          info.views.empty() ? "the file has no views"
-                                             : "have: " + join(info.views),
-                          ")");
+            throw_runtime(
+                path,
+                ": no view \"",
+                options.view,
+                "\" (",
+                info.views.empty() ? "the file has no views" : "have: " + join(info.views),
+                ")");
         }
         info.view = options.view;
     } else if (!info.views.empty()) {
@@ -423,7 +423,7 @@ struct PartPixels {
         std::size_t offset = 0;  ///< Byte offset within a pixel.
         OIIO::TypeDesc type;
     };
-    std::vector<Channel> channels;  ///< By channel - chbegin.
+    std::vector<Channel> channels;          ///< By channel - chbegin.
     std::shared_ptr<unsigned char[]> data;  ///< Not zero-filled: every byte is read into.
     std::size_t bytes = 0;
 };
@@ -458,9 +458,8 @@ PartPixels read_luminance_chroma(const std::string &path, const FilePart &part)
     std::vector<Imf::Rgba> rgba(npix);
     try {
         Imf::RgbaInputFile f(path.c_str());
-        f.setFrameBuffer(rgba.data() - dw.x0 - std::ptrdiff_t(dw.y0) * dw.width(),
-                         1,
-                         std::size_t(dw.width()));
+        f.setFrameBuffer(
+            rgba.data() - dw.x0 - std::ptrdiff_t(dw.y0) * dw.width(), 1, std::size_t(dw.width()));
         f.readPixels(dw.y0, dw.y1 - 1);
     } catch (const std::exception &e) {
         std::string err = e.what();
@@ -582,12 +581,8 @@ std::string verify_image_file(const std::string &path)
                 const OIIO::ImageSpec spec = o.in->spec();
                 const auto buf = raw_bytes(
                     spec.image_bytes(/*native=*/true), spec.width, spec.height, spec.nchannels);
-                if (!o.in->read_image(int(p),
-                                      level,
-                                      0,
-                                      spec.nchannels,
-                                      OIIO::TypeUnknown,
-                                      buf.get())) {
+                if (!o.in->read_image(
+                        int(p), level, 0, spec.nchannels, OIIO::TypeUnknown, buf.get())) {
                     std::string err = o.in->geterror();
                     std::replace(err.begin(), err.end(), '\n', ' ');
                     if (part.level_mode == "mipmap" && level > 0 &&

@@ -5,17 +5,16 @@
 #include <OpenImageIO/imageio.h>
 #include <unistd.h>
 
-#include <csignal>
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
-#include <mutex>
-#include <set>
-
-#include <algorithm>
 #include <cmath>
+#include <csignal>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 #include <random>
+#include <set>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -265,6 +264,18 @@ std::vector<OutPart> source_layout(const Frame &frame,
                 first_sourced = int(k);
             }
         }
+        // A made-up channel a node made vary joins its pass's part, which must then hold the
+        // whole frame window (else the pass goes out whole under canonical names).
+        for (std::size_t k = 0; k < p.origin.size() && mappable && first_sourced >= 0 && !untouched;
+             ++k) {
+            const ChannelOrigin &o = p.origin[k];
+            const Rect &anchor_window =
+                parts[std::size_t(p.origin[std::size_t(first_sourced)].part)].data_window;
+            if (o.part < 0 && !channel_is(*p.image, int(k), o.offset) &&
+                frame.data_window != anchor_window) {
+                mappable = false;
+            }
+        }
         if (!mappable || first_sourced < 0) {
             fresh.push_back(name);
             continue;
@@ -288,10 +299,6 @@ std::vector<OutPart> source_layout(const Frame &frame,
                 OutPart &part = parts[std::size_t(anchor.part)];
                 c.name = sibling_name(part.spec.channel_name(anchor.channel), p.channels[k]);
                 c.type = storage_type(asked == PixelStorage::Auto ? default_storage(name) : asked);
-                if (frame.data_window != part.data_window) {
-                    fresh.push_back(name);  // would be cropped to the part's window
-                    break;
-                }
                 add_channel(part, std::move(c), path);
                 continue;
             }
@@ -343,10 +350,10 @@ std::vector<OutPart> source_layout(const Frame &frame,
         add_canonical(*part, name, p, options, view_in_name ? src.view : "", path);
     }
     // Parts nothing is written to are left out.
-    parts.erase(std::remove_if(parts.begin(),
-                               parts.end(),
-                               [](const OutPart &p) { return p.channels.empty(); }),
-                parts.end());
+    parts.erase(
+        std::remove_if(
+            parts.begin(), parts.end(), [](const OutPart &p) { return p.channels.empty(); }),
+        parts.end());
     return parts;
 }
 
@@ -430,13 +437,13 @@ void finish_specs(std::vector<OutPart> &parts,
                                    c.type == part.source->spec.channelformat(i);
             }
         }
-        part.make_levels = !part.copy_levels && part.source && part.source->mip_levels > 1 &&
-                           spec.tile_width > 0;
+        part.make_levels =
+            !part.copy_levels && part.source && part.source->mip_levels > 1 && spec.tile_width > 0;
         if (!part.copy_levels && !part.make_levels) {
             spec.attribute("openexr:levelmode", 0);  // one level (OIIO would make textures MIP)
         }
-        const bool chosen_view = !src || !part.source || part.source->view == src->view ||
-                                 part.source->view.empty();
+        const bool chosen_view =
+            !src || !part.source || part.source->view == src->view || part.source->view.empty();
         if (chosen_view) {
             write_camera(frame.camera, spec, src && part.source ? &src->camera : nullptr);
             if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {
@@ -453,15 +460,17 @@ void finish_specs(std::vector<OutPart> &parts,
 }
 
 /// Convert `count` floats to `type` at dst + i * stride.
-void store_values(const float *v, int count, OIIO::TypeDesc type, unsigned char *dst, std::size_t stride)
+void store_values(
+    const float *v, int count, OIIO::TypeDesc type, unsigned char *dst, std::size_t stride)
 {
     if (type.basetype == OIIO::TypeDesc::HALF) {
         floats_to_halves(v, 1, count, dst, stride);
     } else if (type.basetype == OIIO::TypeDesc::UINT) {
         for (int i = 0; i < count; ++i, dst += stride) {
             const float f = v[i];
-            const std::uint32_t u =
-                !(f > 0.0f) ? 0u : f >= 4294967295.0f ? 0xffffffffu : std::uint32_t(std::lround(f));
+            const std::uint32_t u = !(f > 0.0f)          ? 0u
+                                    : f >= 4294967295.0f ? 0xffffffffu
+                                                         : std::uint32_t(std::lround(f));
             std::memcpy(dst, &u, sizeof(u));
         }
     } else {
@@ -542,7 +551,8 @@ std::unique_ptr<unsigned char[]> pack_part(const OutPart &part, const Frame &fra
         pixel_bytes += c.type.size();
     }
     const std::size_t row_bytes = pixel_bytes * std::size_t(dw.width());
-    auto buf = std::make_unique_for_overwrite<unsigned char[]>(row_bytes * std::size_t(dw.height()));
+    auto buf =
+        std::make_unique_for_overwrite<unsigned char[]>(row_bytes * std::size_t(dw.height()));
     const Rect fw = frame.data_window;
     // Runs of channels that are consecutive channels of one image, same type, written as they
     // are: converted together (four halves at once for RGBA).
@@ -838,7 +848,8 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
                 ls.channelformats = level.spec.channelformats;
                 if (!out->open(tmp, ls, OIIO::ImageOutput::AppendMIPLevel) ||
                     !out->write_image(OIIO::TypeUnknown, level.pixels->data())) {
-                    throw_runtime(path, ": cannot write mip level of part ", i, ": ", out->geterror());
+                    throw_runtime(
+                        path, ": cannot write mip level of part ", i, ": ", out->geterror());
                 }
             }
         }
@@ -882,8 +893,8 @@ void write_display_preview(const Image &color,
         const int *pattern = kBayer[ay & 7];
         for (int x = 0; x < w; ++x) {
             const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
-            const float t = options.dither ? (float(pattern[(x + display.x0) & 7]) + 0.5f) / 64.0f
-                                           : 0.5f;
+            const float t =
+                options.dither ? (float(pattern[(x + display.x0) & 7]) + 0.5f) / 64.0f : 0.5f;
             for (int c = 0; c < nch; ++c) {
                 const float v = c < in_ch ? p[c] : 1.0f;
                 const float q = std::isfinite(v) ? std::floor(v * 255.0f + t) : 0.0f;

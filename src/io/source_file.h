@@ -34,10 +34,7 @@ struct SourcePart {
     int mip_levels = 1;
     /// Levels 1.. as read (only for tiled mip-mapped parts that were read whole).
     std::vector<SourceLevel> levels;
-    Rect data_window() const
-    {
-        return {spec.x, spec.y, spec.x + spec.width, spec.y + spec.height};
-    }
+    Rect data_window() const { return {spec.x, spec.y, spec.x + spec.width, spec.y + spec.height}; }
 };
 
 struct SourceFile {

@@ -17,7 +17,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
     // A header may claim a large window (up to the documented limits, legitimately); the budget
     // turns those into clean errors instead of gigabyte allocations on every run.
     set_image_memory_budget(std::size_t(256) << 20);
-    static const std::string path = "/dev/shm/posthaste-fuzz-" + std::to_string(::getpid()) + ".exr";
+    static const std::string path =
+        "/dev/shm/posthaste-fuzz-" + std::to_string(::getpid()) + ".exr";
     {
         std::ofstream out(path, std::ios::binary | std::ios::trunc);
         out.write(reinterpret_cast<const char *>(data), std::streamsize(size));

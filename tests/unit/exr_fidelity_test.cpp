@@ -77,21 +77,26 @@ TEST(ExrFidelity, GraphReadWriteIsAPassThrough)
     // The user's path: `posthaste run` with a read -> write graph and default parameters.
     const std::string dir = scratch() + "/cli";
     std::filesystem::create_directories(dir);
-    for (const char *name : {"overscan_around", "stereo_multipart", "cube_mip", "types_mixed",
-                             "negative_origin", "single_g", "comp_dwaa"}) {
+    for (const char *name : {"overscan_around",
+                             "stereo_multipart",
+                             "cube_mip",
+                             "types_mixed",
+                             "negative_origin",
+                             "single_g",
+                             "comp_dwaa"}) {
         SCOPED_TRACE(name);
         const std::string graph = dir + "/" + name + ".json";
         std::ofstream(graph) << R"({"nodes": [
             {"id": "in", "type": "read", "params": {"path": ")"
                              << entry(name).path << R"("}},
             {"id": "out", "type": "write", "inputs": {"image": "in"},
-             "params": {"path": ")" << dir
-                             << "/" << name << R"(.exr"}}]})";
+             "params": {"path": ")"
+                             << dir << "/" << name << R"(.exr"}}]})";
         std::string log;
-        ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph +
-                                        " --frames 1 --quiet",
-                                    &log),
-                  0)
+        ASSERT_EQ(
+            test::run_command(
+                std::string(POSTHASTE_BINARY) + " run " + graph + " --frames 1 --quiet", &log),
+            0)
             << log;
         EXPECT_EQ(corpus::compare_exr(entry(name).path, dir + "/" + name + ".exr"), "");
     }
@@ -107,8 +112,8 @@ TEST(ExrFidelity, GraphErrorsAndInfo)
             {"id": "in", "type": "read", "params": {"path": ")"
                              << file << "\", " << read_params << R"(}},
             {"id": "out", "type": "write", "inputs": {"image": "in"},
-             "params": {"path": ")" << dir
-                             << R"(/out.exr"}}]})";
+             "params": {"path": ")"
+                             << dir << R"(/out.exr"}}]})";
         return test::run_command(
             std::string(POSTHASTE_BINARY) + " run " + graph + " --frames 1 --quiet", &log);
     };
@@ -123,8 +128,8 @@ TEST(ExrFidelity, GraphErrorsAndInfo)
 
     // info: windows, views, tiling, levels, deep samples.
     ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " +
-                                    entry("stereo_multipart").path + " " +
-                                    entry("cube_mip").path + " " + entry("deep_tiled").path,
+                                    entry("stereo_multipart").path + " " + entry("cube_mip").path +
+                                    " " + entry("deep_tiled").path,
                                 &log),
               0)
         << log;
@@ -265,10 +270,10 @@ TEST(ExrFidelity, LuminanceChromaReadsAsRgb)
     for (int y = 0; y < c.height(); ++y) {
         for (int x = 0; x < c.width(); ++x) {
             for (int k = 0; k < 4; ++k) {
-                ASSERT_EQ(c.at(x, y, k),
-                          expected.rgba[(std::size_t(y) * std::size_t(c.width()) + std::size_t(x)) *
-                                            4 +
-                                        std::size_t(k)])
+                ASSERT_EQ(
+                    c.at(x, y, k),
+                    expected.rgba[(std::size_t(y) * std::size_t(c.width()) + std::size_t(x)) * 4 +
+                                  std::size_t(k)])
                     << x << "," << y << "," << k;
             }
         }
