@@ -12,6 +12,7 @@
 
 #include "bench/chart.h"
 #include "core/error.h"
+#include "core/json_error.h"
 #include "core/parallel.h"
 #include "core/timing.h"
 #include "graph/graph.h"
@@ -209,8 +210,7 @@ BenchSpec parse_spec(const std::string &text,
     } catch (const json::parse_error &e) {
         throw_usage(origin, ": invalid JSON: ", e.what());
     } catch (const json::exception &e) {
-        std::string what = e.what();
-        what = what.substr(what.find(']') + 2);
+        const std::string what = json_error_text(e.what());
         throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
     if (!j.is_object()) {

@@ -8,6 +8,7 @@
 
 #include "bench/chart.h"
 #include "core/error.h"
+#include "core/json_error.h"
 
 namespace posthaste::bench {
 namespace {
@@ -26,6 +27,9 @@ std::vector<Case> parse_cases(const std::string &text, const std::string &origin
         j = nlohmann::json::parse(text);
     } catch (const nlohmann::json::parse_error &e) {
         throw_usage(origin, ": invalid JSON: ", e.what());
+    } catch (const nlohmann::json::exception &e) {  // a number that overflows, say
+        const std::string what = json_error_text(e.what());
+        throw_usage(origin, ": ", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
     if (!j.is_object() || !j.contains("cases") || !j["cases"].is_array()) {
         throw_usage(origin, ": expected a stability record {\"cases\": [...]}");

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json_error.h"
 #include "graph/node_registry.h"
 #include "io/sequence.h"
 
@@ -306,35 +307,6 @@ Graph Graph::load(const std::string &path, const std::vector<std::string> &overr
     return parse(read_text_file(path), path, overrides);
 }
 
-std::string json_overflow_where(const std::string &text, const std::string &message)
-{
-    const auto q0 = message.find('\''), q1 = message.rfind('\'');
-    if (q0 == std::string::npos || q1 <= q0) {
-        return "";
-    }
-    const std::string literal = message.substr(q0 + 1, q1 - q0 - 1);
-    const auto at = text.find(literal);
-    if (at == std::string::npos) {
-        return "";
-    }
-    // Parse again with the literal replaced by a marker string, and find the marker's path.
-    const std::string marker = "\\u0001posthaste-overflow";  // JSON escape of 0x01
-    const json doc = json::parse(text.substr(0, at) + "\"" + marker + "\"" +
-                                     text.substr(at + literal.size()),
-                                 nullptr,
-                                 false);
-    std::string pointer;
-    if (!doc.is_discarded()) {
-        const json flat = doc.flatten();
-        for (auto it = flat.begin(); it != flat.end(); ++it) {
-            if (it->is_string() && it->get<std::string>() == "\x01posthaste-overflow") {
-                pointer = it.key();
-            }
-        }
-    }
-    return line_column(text, at) + (pointer.empty() ? "" : ": " + pointer);
-}
-
 Graph Graph::parse(const std::string &text,
                    const std::string &origin,
                    const std::vector<std::string> &overrides)
@@ -358,8 +330,7 @@ Graph Graph::parse(const std::string &text,
                     ": invalid JSON: ",
                     what);
     } catch (const json::exception &e) {
-        std::string what = e.what();
-        what = what.substr(what.find(']') + 2);
+        const std::string what = json_error_text(e.what());
         throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
     if (!doc.is_object()) {

@@ -83,10 +83,6 @@ class Graph {
 };
 
 /// Parse a frame list ("1-48", "1-48x2", "1,5,10-20"); throws a usage Error naming `what`.
-/// Where a JSON number that overflows a double sits: "LINE:COL: /json/pointer" for the error
-/// "[json.exception.out_of_range.406] number overflow parsing '1e999'" (nlohmann gives neither).
-std::string json_overflow_where(const std::string &text, const std::string &message);
-
 std::vector<int> parse_frame_list(const std::string &text, const std::string &what = "--frames");
 
 /// Levenshtein distance, for "did you mean" hints.

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/json_error.h"
 #include "core/hash.h"
 
 namespace posthaste::raster {
@@ -490,6 +491,9 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         j = Json::parse(text);
     } catch (const Json::parse_error &e) {
         throw_usage("error: ", origin, ": invalid JSON: ", e.what());
+    } catch (const Json::exception &e) {  // a number that overflows, say
+        const std::string what = json_error_text(e.what());
+        throw_usage(origin, ": ", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
     Scene s;
     s.path = origin;

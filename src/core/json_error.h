@@ -1,0 +1,18 @@
+#pragma once
+// Where a JSON reader error sits when nlohmann's exception does not say: its
+// "[json.exception.out_of_range.406] number overflow parsing '1e999'" carries neither a position
+// nor a path. Shared by the graph, scene and bench spec readers.
+
+#include <string>
+
+namespace posthaste {
+
+/// "line L, column C: /json/pointer" of the literal quoted in `message` (nlohmann's text after
+/// its "[json.exception...]" prefix), or "" when it cannot be found.
+std::string json_overflow_where(const std::string &text, const std::string &message);
+
+/// The one-line reason of a nlohmann exception: its text without the "[json.exception.x.n] "
+/// prefix.
+std::string json_error_text(const std::string &what);
+
+}  // namespace posthaste
