@@ -17,9 +17,10 @@ PACKAGES=(build-essential cmake ninja-build pkg-config
 BUILD_DIR=${POSTHASTE_BUILD_DIR:-build}
 JOBS=$(nproc 2>/dev/null || echo 2)
 
-deps() {
+# Install the Debian packages named that are missing (one apt-get for all of them).
+install_packages() {
     local missing=()
-    for p in "${PACKAGES[@]}"; do
+    for p in "$@"; do
         dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
             missing+=("$p")
     done
@@ -31,6 +32,10 @@ deps() {
         DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
             "${missing[@]}" >/dev/null
     fi
+}
+
+deps() {
+    install_packages "${PACKAGES[@]}"
 }
 
 build() {
@@ -54,22 +59,6 @@ test_all() {
     deps
     build
     ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
-}
-
-install_packages() {
-    local missing=()
-    for p in "$@"; do
-        dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
-            missing+=("$p")
-    done
-    if ((${#missing[@]})); then
-        echo "posthaste.sh: installing ${missing[*]}"
-        local sudo=""
-        [[ $(id -u) -ne 0 ]] && sudo=sudo
-        $sudo apt-get update -qq
-        DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends \
-            "${missing[@]}" >/dev/null
-    fi
 }
 
 # The sanitizer build (clang, -O1, ASan + UBSan, the fuzz targets) and its runs. Leak checking is
