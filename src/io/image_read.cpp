@@ -68,6 +68,7 @@ bool has_exr_magic(const std::string &path)
 bool is_luminance_chroma(const std::string &path)
 {
     try {
+        io_detail::check_exr_header(path);
         Imf::RgbaInputFile f(path.c_str());
         return (f.channels() & Imf::WRITE_C) != 0;
     } catch (const std::exception &) {

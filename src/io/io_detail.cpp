@@ -166,6 +166,88 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
     }
 }
 
+std::string exr_header_problem(std::istream &in, std::uint64_t file_size)
+{
+    // Layout: magic (4), version and flags (4), then one header (single part) or several
+    // headers ended by an empty one (multi-part); a header is attributes ended by a 0 byte, an
+    // attribute is name\0 type\0 int32 size, then size bytes.
+    unsigned char version[8] = {};
+    if (!in.read(reinterpret_cast<char *>(version), 8)) {
+        return "truncated before the header";
+    }
+    const bool multipart = (version[5] & 0x10) != 0;
+    const std::size_t max_name = (version[5] & 0x04) != 0 ? 255 : 31;
+    std::uint64_t pos = 8;
+    auto read_name = [&](std::string &name) -> bool {
+        name.clear();
+        for (;;) {
+            const int c = in.get();
+            if (c == std::char_traits<char>::eof()) {
+                return false;
+            }
+            ++pos;
+            if (c == 0) {
+                return true;
+            }
+            if (name.size() >= max_name) {
+                return false;
+            }
+            name.push_back(char(c));
+        }
+    };
+    for (int header = 0;; ++header) {
+        std::string name;
+        std::string type;
+        int attributes = 0;
+        for (;; ++attributes) {
+            if (!read_name(name)) {
+                return "header " + std::to_string(header) +
+                       " is truncated or has an over-long name";
+            }
+            if (name.empty()) {
+                break;
+            }
+            if (!read_name(type)) {
+                return "attribute \"" + name + "\" has no readable type name";
+            }
+            unsigned char b[4];
+            if (!in.read(reinterpret_cast<char *>(b), 4)) {
+                return "attribute \"" + name + "\" is truncated";
+            }
+            pos += 4;
+            const std::int32_t size =
+                std::int32_t(std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 |
+                             std::uint32_t(b[2]) << 16 | std::uint32_t(b[3]) << 24);
+            if (size < 0 || std::uint64_t(size) > file_size - pos) {
+                return "attribute \"" + name + "\" claims " + std::to_string(size) +
+                       " bytes, more than the file's remaining " + std::to_string(file_size - pos);
+            }
+            in.seekg(std::streamoff(size), std::ios::cur);
+            pos += std::uint64_t(size);
+        }
+        // A single-part file has one header; in a multi-part file an empty header ends the list.
+        if (!multipart || (attributes == 0 && header > 0)) {
+            return {};
+        }
+    }
+}
+
+void check_exr_header(const std::string &path)
+{
+    std::error_code ec;
+    const std::uint64_t size = fs::file_size(path, ec);
+    std::ifstream f(path, std::ios::binary);
+    if (ec || !f) {
+        throw_runtime(path, ": cannot open file");
+    }
+    // Bytes 0-3 are the magic number, checked by the caller.
+    f.seekg(4);
+    const std::string problem = exr_header_problem(f, size);
+    if (!problem.empty()) {
+        throw_runtime(path, ": cannot read image: damaged OpenEXR header: ", problem);
+    }
+}
+
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
 {
     std::error_code ec;
@@ -187,6 +269,7 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
         f.read(reinterpret_cast<char *>(magic), 4);
     }
     if (magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01) {
+        check_exr_header(path);
         auto exr = OIIO::ImageInput::create("openexr");
         OIIO::ImageSpec spec;
         if (exr && exr->open(path, spec)) {

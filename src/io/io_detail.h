@@ -5,6 +5,8 @@
 #include <OpenImageIO/imageio.h>
 
 #include <cstddef>
+#include <cstdint>
+#include <istream>
 #include <memory>
 #include <string>
 
@@ -26,6 +28,15 @@ void read_camera(const OIIO::ImageSpec &spec, Camera &cam);
 /// has bit for bit is left as the spec has it (its attribute type and bits kept).
 void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before = nullptr);
 /// Open an image for reading; throws Error (exit 1) naming the file.
+/// Walk an OpenEXR header (the stream is just past the magic number) without allocating what it
+/// claims: "" if every attribute's size fits in the file, else what is wrong. OpenEXR 3.1
+/// allocates an attribute's claimed size before reading it, so a 100-byte file could ask for
+/// 2 GB.
+std::string exr_header_problem(std::istream &in, std::uint64_t file_size);
+
+/// Throws a one-line error naming the file when exr_header_problem finds something.
+void check_exr_header(const std::string &path);
+
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path);
 /// Convert `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels)
 /// to halves at dst + i * dst_stride. Rounds to nearest even (F16C where the CPU has it).

@@ -16,7 +16,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
     using namespace posthaste;
     // A header may claim a large window (up to the documented limits, legitimately); the budget
     // turns those into clean errors instead of gigabyte allocations on every run.
-    set_image_memory_budget(std::size_t(256) << 20);
+    set_image_memory_budget(std::size_t(16) << 20);
     static const std::string path =
         "/dev/shm/posthaste-fuzz-" + std::to_string(::getpid()) + ".exr";
     {

@@ -8,12 +8,12 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <map>
 
 #include "core/error.h"
 #include "io/color.h"
@@ -382,6 +382,46 @@ TEST(IoBadInput, TruncatedEmptyMisnamedAndMissing)
     }
 }
 
+TEST(IoBadInput, HeaderAttributeLargerThanTheFile)
+{
+    // OpenEXR allocates an attribute's claimed size before reading it; posthaste walks the header
+    // first, so a small file claiming a 2 GB attribute is a one-line error, not a 2 GB allocation.
+    const std::string dir = scratch_dir("bigattr");
+    const std::string path = dir + "/bigattr.exr";
+    {
+        OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::HALF);
+        spec.attribute("comment", "a comment");
+        auto out = OIIO::ImageOutput::create(path);
+        ASSERT_TRUE(out->open(path, spec));
+        std::vector<float> px(48, 0.5f);
+        ASSERT_TRUE(out->write_image(OIIO::TypeFloat, px.data()));
+        ASSERT_TRUE(out->close());
+    }
+    EXPECT_NO_THROW(read_frame(path, nullptr, 1));
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    const std::string key("comment\0string\0", 15);
+    const auto at = bytes.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const unsigned char claim[4] = {0x00, 0x00, 0x00, 0x7f};  // 2,130,706,432 bytes
+    bytes.replace(at + key.size(), 4, reinterpret_cast<const char *>(claim), 4);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    try {
+        read_frame(path, nullptr, 1);
+        FAIL() << "no error";
+    } catch (const Error &e) {
+        const std::string what = e.what();
+        EXPECT_EQ(e.code(), ExitCode::Runtime);
+        EXPECT_NE(what.find("bigattr.exr"), std::string::npos) << what;
+        EXPECT_NE(what.find("\"comment\" claims 2130706432 bytes"), std::string::npos) << what;
+        EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+    EXPECT_NE(verify_image_file(path), "");
+}
+
 TEST(IoBadInput, NanAndInfPixels)
 {
     const std::string dir = scratch_dir("nan");
@@ -406,7 +446,8 @@ TEST(IoBadInput, NanAndInfPixels)
         {"id": "in", "type": "read", "params": {"path": ")"
                                    << dir << R"(/nan.exr"}},
         {"id": "out", "type": "write", "inputs": {"image": "in"},
-         "params": {"path": ")" << dir << R"(/out.exr"}}]})";
+         "params": {"path": ")" << dir
+                                   << R"(/out.exr"}}]})";
     std::string log;
     EXPECT_EQ(run_command(std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --quiet", &log),
               0);
@@ -646,7 +687,8 @@ TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
     EXPECT_LT(worst_dither, 0.13);
     EXPECT_GT(worst_plain, 0.3);
     // Deterministic: the same frame gives the same bytes.
-    std::ifstream f1(dir + "/dither.png", std::ios::binary), f2(dir + "/dither2.png", std::ios::binary);
+    std::ifstream f1(dir + "/dither.png", std::ios::binary),
+        f2(dir + "/dither2.png", std::ios::binary);
     const std::string s1((std::istreambuf_iterator<char>(f1)), {});
     const std::string s2((std::istreambuf_iterator<char>(f2)), {});
     EXPECT_EQ(s1, s2);
