@@ -15,6 +15,7 @@ namespace {
 
 constexpr ParamSpec kPath =
     ParamSpec::string("path", "")
+        .file_path()
         .mandatory()
         .doc("File or frame pattern: '#' or '@' is one digit (shot.####.exr), or %04d.");
 constexpr ParamSpec kFrameOffset =

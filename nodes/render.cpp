@@ -13,6 +13,7 @@ namespace posthaste::nodes {
 namespace {
 
 constexpr ParamSpec kScene = ParamSpec::string("scene", "samples/scenes/minecrappy.json")
+                                 .file_path()
                                  .doc("Scene file (JSON, samples/scenes/README.md).");
 constexpr ParamSpec kWidth =
     ParamSpec::integer("width", 1920).range(1, 16384).units("px").doc("Image width.");

@@ -14,6 +14,7 @@ namespace {
 
 constexpr ParamSpec kPath =
     ParamSpec::string("path", "")
+        .file_path()
         .mandatory()
         .doc("Output file or frame pattern; .exr writes passes, other extensions write a preview.");
 constexpr ParamSpec kPasses =

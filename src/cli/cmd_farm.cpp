@@ -128,8 +128,13 @@ void write_text(const fs::path &path, const std::string &text)
 }
 
 /// The graph file with the --set values written into its node params (values parsed as JSON
-/// when they are JSON, else taken as strings), validated by loading it back.
-std::string apply_sets(const std::string &graph_path, const std::vector<std::string> &sets)
+/// when they are JSON, else taken as strings), validated by loading it back. The copy lives in
+/// the job folder, so it says where its relative paths point: "base_dir" is the original
+/// graph's folder, and relative --set file paths (relative to the current folder, as on the
+/// command line) become absolute.
+std::string apply_sets(const std::string &graph_path,
+                       const Graph &graph,
+                       const std::vector<std::string> &sets)
 {
     std::ifstream in(graph_path);
     json g = json::parse(in, nullptr, false);
@@ -144,12 +149,23 @@ std::string apply_sets(const std::string &graph_path, const std::vector<std::str
         if (value.is_discarded()) {
             value = text;
         }
+        if (const int n = graph.find(id); n >= 0) {
+            for (const ParamSpec &ps : graph.nodes()[std::size_t(n)].type->spec.params) {
+                if (ps.name == name && ps.file && value.is_string() &&
+                    !value.get<std::string>().empty() &&
+                    fs::path(value.get<std::string>()).is_relative()) {
+                    value = fs::absolute(value.get<std::string>()).lexically_normal().string();
+                }
+            }
+        }
         for (json &node : g["nodes"]) {
             if (node.value("id", "") == id) {
                 node["params"][name] = value;
             }
         }
     }
+    g["base_dir"] =
+        fs::absolute(graph.base_dir().empty() ? "." : graph.base_dir()).lexically_normal().string();
     return g.dump(2) + "\n";
 }
 
@@ -499,7 +515,7 @@ int submit_command(const SubmitOptions &o)
     json sub;
     sub["chunks"] = make_chunks(frames, o.chunk);
     job["submissions"] = json::array({sub});
-    const std::string graph_text = apply_sets(o.graph, o.sets);
+    const std::string graph_text = apply_sets(o.graph, graph, o.sets);
     if (o.dry_run) {
         std::printf("# %s/graph.json: %s with %zu --set value(s); %zu frame(s) in %zu chunk(s)\n",
                     dir.string().c_str(),

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -304,15 +305,18 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
 
 Graph Graph::load(const std::string &path, const std::vector<std::string> &overrides)
 {
-    return parse(read_text_file(path), path, overrides);
+    const std::string folder = std::filesystem::path(path).parent_path().string();
+    return parse(read_text_file(path), path, overrides, folder.empty() ? "." : folder);
 }
 
 Graph Graph::parse(const std::string &text,
                    const std::string &origin,
-                   const std::vector<std::string> &overrides)
+                   const std::vector<std::string> &overrides,
+                   const std::string &base_dir)
 {
     Graph g;
     g.origin_ = origin;
+    g.base_dir_ = base_dir;
     json doc;
     try {
         doc = json::parse(text);
@@ -337,7 +341,7 @@ Graph Graph::parse(const std::string &text,
         throw_usage(origin, ": expected a JSON object with a \"nodes\" array");
     }
     static const std::vector<std::string> kTopKeys = {
-        "nodes", "frames", "aliases", "description", "comment"};
+        "nodes", "frames", "aliases", "base_dir", "description", "comment"};
     for (auto it = doc.begin(); it != doc.end(); ++it) {
         if (std::find(kTopKeys.begin(), kTopKeys.end(), it.key()) == kTopKeys.end()) {
             throw_usage(origin,
@@ -363,6 +367,16 @@ Graph Graph::parse(const std::string &text,
                 origin, ":/frames: expected a frame list string like \"1-48\", got ", json_kind(f));
         }
         parse_frame_list(g.frames_, origin + ":/frames");
+    }
+    if (doc.contains("base_dir")) {
+        const json &b = doc["base_dir"];
+        if (!b.is_string() || b.get<std::string>().empty()) {
+            throw_usage(origin, ":/base_dir: expected a folder path string, got ", json_kind(b));
+        }
+        const std::filesystem::path dir(b.get<std::string>());
+        g.base_dir_ = dir.is_absolute() || base_dir.empty()
+                          ? dir.string()
+                          : (std::filesystem::path(base_dir) / dir).lexically_normal().string();
     }
     json aliases = json::array();
     if (doc.contains("aliases")) {
@@ -546,8 +560,13 @@ Graph Graph::parse(const std::string &text,
                             "\"",
                             did_you_mean(it.key(), param_names(*gn.type)));
             }
-            values[it.key()] =
+            ParamValue v =
                 convert_param(*ps, it.value(), ppath + ": " + who + ": param \"" + it.key() + "\"");
+            if (ps->file && !v.text.empty() && !g.base_dir_.empty() &&
+                std::filesystem::path(v.text).is_relative()) {
+                v.text = (std::filesystem::path(g.base_dir_) / v.text).lexically_normal().string();
+            }
+            values[it.key()] = std::move(v);
         }
         gn.params = NodeParams(gn.type, std::move(values));
     }

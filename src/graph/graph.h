@@ -37,18 +37,24 @@ struct NodeTimes {
 class Graph {
    public:
     /// Read, parse and validate a graph file; `overrides` are "node.param=value" strings.
+    /// Relative file parameters in the file resolve against the graph's folder (or its
+    /// "base_dir"); --set values stay relative to the current folder.
     /// Throws Error (exit code 2) naming the file, JSON path, node and parameter.
     static Graph load(const std::string &path, const std::vector<std::string> &overrides = {});
-    /// As load, from JSON text; `origin` names it in messages.
+    /// As load, from JSON text; `origin` names it in messages. Relative file parameters resolve
+    /// against `base_dir` ("" leaves them relative to the current folder).
     static Graph parse(const std::string &text,
                        const std::string &origin,
-                       const std::vector<std::string> &overrides = {});
+                       const std::vector<std::string> &overrides = {},
+                       const std::string &base_dir = "");
 
     Graph(Graph &&) noexcept = default;
     Graph &operator=(Graph &&) noexcept = default;
 
     const std::vector<GraphNode> &nodes() const { return nodes_; }
     const std::string &origin() const { return origin_; }
+    /// The folder relative file parameters of the graph file resolved against ("" for none).
+    const std::string &base_dir() const { return base_dir_; }
     /// Node indices in evaluation (topological) order.
     const std::vector<int> &order() const { return order_; }
 
@@ -75,6 +81,7 @@ class Graph {
     void plan();
 
     std::string origin_;
+    std::string base_dir_;
     std::vector<GraphNode> nodes_;
     std::vector<int> order_;
     std::vector<bool> live_;  ///< Nodes that feed a sink or the capture node.

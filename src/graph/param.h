@@ -34,6 +34,8 @@ struct ParamSpec {
     std::string_view unit;
     std::string_view help;
     bool required = false;  ///< no default: the graph must give it
+    bool file = false;      ///< a file path or pattern: relative values in a graph file resolve
+                            ///< against the graph's folder (its "base_dir")
 
     static constexpr ParamSpec integer(std::string_view n, int def)
     {
@@ -130,6 +132,13 @@ struct ParamSpec {
     {
         ParamSpec p = *this;
         p.help = h;
+        return p;
+    }
+    /// A file path or pattern (String only).
+    constexpr ParamSpec file_path() const
+    {
+        ParamSpec p = *this;
+        p.file = true;
         return p;
     }
     /// No default: the graph (or --set) must give a value.

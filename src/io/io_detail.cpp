@@ -171,12 +171,14 @@ std::string exr_header_problem(std::istream &in, std::uint64_t file_size)
     // Layout: magic (4), version and flags (4), then one header (single part) or several
     // headers ended by an empty one (multi-part); a header is attributes ended by a 0 byte, an
     // attribute is name\0 type\0 int32 size, then size bytes.
-    unsigned char version[8] = {};
-    if (!in.read(reinterpret_cast<char *>(version), 8)) {
+    unsigned char version[4] = {};
+    if (!in.read(reinterpret_cast<char *>(version), 4)) {
         return "truncated before the header";
     }
-    const bool multipart = (version[5] & 0x10) != 0;
-    const std::size_t max_name = (version[5] & 0x04) != 0 ? 255 : 31;
+    // Flags live in bits 8-15 of the version field: 0x10 there is "multi-part". OpenEXR reads
+    // names up to 255 characters whatever the long-names flag says, and so does this walk.
+    const bool multipart = (version[1] & 0x10) != 0;
+    const std::size_t max_name = 255;
     std::uint64_t pos = 8;
     auto read_name = [&](std::string &name) -> bool {
         name.clear();

@@ -69,6 +69,67 @@ TEST(Cli, RunsFramesFoundOnDisk)
     EXPECT_NE(out.find("valid; 3 frame(s)"), std::string::npos) << out;
 }
 
+TEST(Cli, GraphPathsResolveAgainstTheGraphsFolder)
+{
+    // A graph in shot/comp/ reads ../plates/in.####.exr and writes out/o.####.exr: run from
+    // another folder, both resolve against shot/comp/. A --set path stays relative to the
+    // current folder, as everything else on a command line is.
+    const std::string dir = test::scratch_dir("cli_relative");
+    fs::create_directories(dir + "/shot/comp");
+    fs::create_directories(dir + "/shot/plates");
+    fs::create_directories(dir + "/elsewhere");
+    write_inputs(dir + "/shot/plates", {1, 2});
+    std::ofstream(dir + "/shot/comp/g.json") << R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "../plates/in.####.exr"}},
+        {"id": "out", "type": "write", "inputs": {"image": "src"},
+         "params": {"path": "out/o.####.exr", "passes": "color"}},
+        {"id": "png", "type": "write", "inputs": {"image": "src"},
+         "params": {"path": "out/p.####.png"}}]})";
+    std::string out;
+    ASSERT_EQ(run_command("cd " + dir + "/elsewhere && " + kBin + " run ../shot/comp/g.json " +
+                              "--set png.path=previews/p.####.png",
+                          &out),
+              0)
+        << out;
+    for (int f : {1, 2}) {
+        EXPECT_TRUE(fs::exists(expand_frame_pattern(dir + "/shot/comp/out/o.####.exr", f))) << f;
+        EXPECT_TRUE(fs::exists(expand_frame_pattern(dir + "/elsewhere/previews/p.####.png", f)))
+            << f;
+    }
+    // A missing input names the resolved path.
+    fs::remove(dir + "/shot/plates/in.0002.exr");
+    ASSERT_NE(run_command("cd " + dir + "/elsewhere && " + kBin + " run ../shot/comp/g.json " +
+                              "--frames 2",
+                          &out),
+              0);
+    EXPECT_NE(out.find("shot/plates/in.0002.exr"), std::string::npos) << out;
+    // "base_dir" in the graph moves the anchor (the farm's copy of a graph uses it).
+    std::ofstream(dir + "/moved.json") << R"({"base_dir": "shot/comp", "nodes": [
+        {"id": "src", "type": "read", "params": {"path": "../plates/in.####.exr"}},
+        {"id": "out", "type": "write", "inputs": {"image": "src"},
+         "params": {"path": "moved/o.####.exr", "passes": "color"}}]})";
+    ASSERT_EQ(run_command(kBin + " run " + dir + "/moved.json --frames 1", &out), 0) << out;
+    EXPECT_TRUE(fs::exists(dir + "/shot/comp/moved/o.0001.exr"));
+}
+
+TEST(Cli, TheDemoGraphRunsFromAnotherFolder)
+{
+    const std::string dir = test::scratch_dir("cli_demo_elsewhere");
+    const std::string graph =
+        (fs::path(POSTHASTE_TEST_DIR) / "../graphs/minecrappy.json").lexically_normal().string();
+    std::string out;
+    // Outputs go to the scratch folder (--set, relative to the current folder); the scene is
+    // found through the graph's own relative path.
+    ASSERT_EQ(run_command("cd " + dir + " && " + kBin + " run " + graph +
+                              " --frames 1 --set scene.width=64 --set scene.height=36 "
+                              "--set exr.path=a.####.exr --set preview.path=a.####.png "
+                              "--set hatched_preview.path=b.####.png",
+                          &out),
+              0)
+        << out;
+    EXPECT_TRUE(fs::exists(dir + "/a.0001.exr")) << out;
+}
+
 TEST(Cli, MissingFrameIsReportedByNumber)
 {
     const std::string dir = test::scratch_dir("cli_missing");
@@ -146,7 +207,8 @@ TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
                                    << dir << R"(/in.####.exr"}},
         {"id": "d", "type": "dof", "inputs": {"image": "in"}, "params": {}},
         {"id": "out", "type": "write", "inputs": {"image": "d"},
-         "params": {"path": ")" << dir << R"(/out.####.exr"}}]})";
+         "params": {"path": ")" << dir
+                                   << R"(/out.####.exr"}}]})";
     EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 64K", &out), 1)
         << out;
     EXPECT_NE(out.find("memory budget: a 64x64x"), std::string::npos) << out;
@@ -212,12 +274,13 @@ TEST(Cli, FullDiskStopsTheRunCleanly)
                                    << POSTHASTE_TEST_DIR << R"(/../samples/scenes/minecrappy.json",
          "width": 64, "height": 36}},
         {"id": "out", "type": "write", "inputs": {"image": "scene"},
-         "params": {"path": ")" << mnt << R"(/f.####.exr", "passes": "color,depth",
+         "params": {"path": ")" << mnt
+                                   << R"(/f.####.exr", "passes": "color,depth",
                     "compression": "none"}}]})";
     std::string log;
-    const int rc = test::run_command(std::string(POSTHASTE_BINARY) + " run " + dir +
-                                         "/g.json --frames 1-48 --jobs 1 --quiet",
-                                     &log);
+    const int rc = test::run_command(
+        std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --frames 1-48 --jobs 1 --quiet",
+        &log);
     std::vector<std::string> names;
     for (const auto &e : fs::directory_iterator(mnt)) {
         names.push_back(e.path().filename().string());
