@@ -156,14 +156,27 @@ int run_graph(Graph &graph, const RunSettings &o)
                 if (terminal) {
                     const int width = 30;
                     const int filled = int(width * double(n) / double(frames.size()));
+                    // The node that has taken the most time so far, per frame done.
+                    std::string slowest;
+                    double slowest_ns = -1.0;
+                    for (int i : graph.order()) {
+                        const double ns = double(*times.nanoseconds[std::size_t(i)]);
+                        if (ns > slowest_ns) {
+                            slowest_ns = ns;
+                            slowest = graph.nodes()[std::size_t(i)].identity.id;
+                        }
+                    }
                     std::fprintf(stderr,
-                                 "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s\033[K",
+                                 "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s  slowest: %s %.0f "
+                                 "ms/frame\033[K",
                                  std::string(std::size_t(filled), '#').c_str(),
                                  std::string(std::size_t(width - filled), '-').c_str(),
                                  n,
                                  frames.size(),
                                  fps,
-                                 format_seconds(eta).c_str());
+                                 format_seconds(eta).c_str(),
+                                 slowest.c_str(),
+                                 slowest_ns * 1e-6 / n);
                 } else if (error.empty()) {
                     std::fprintf(
                         stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n, frames.size());

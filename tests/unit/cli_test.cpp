@@ -130,6 +130,34 @@ TEST(Cli, TheDemoGraphRunsFromAnotherFolder)
     EXPECT_TRUE(fs::exists(dir + "/a.0001.exr")) << out;
 }
 
+TEST(Cli, ProgressLineOnATerminalPlainLinesOtherwise)
+{
+    const std::string dir = test::scratch_dir("cli_progress");
+    write_inputs(dir, {1, 2, 3});
+    const std::string graph = write_graph(dir);
+    // `script` gives the command a terminal (util-linux, in every Debian).
+    std::string tty;
+    ASSERT_EQ(run_command("script -qec '" + kBin + " run " + graph + " --jobs 1' /dev/null", &tty),
+              0)
+        << tty;
+    EXPECT_NE(tty.find("\r[##########--------------------] 1/3 frames"), std::string::npos) << tty;
+    EXPECT_NE(tty.find("3/3 frames"), std::string::npos) << tty;
+    EXPECT_NE(tty.find(" fps  ETA "), std::string::npos) << tty;
+    EXPECT_NE(tty.find("slowest: "), std::string::npos) << tty;
+    EXPECT_EQ(tty.find("frame 1 done in"), std::string::npos) << tty;
+    // Not a terminal: one plain line per frame, no carriage returns.
+    std::string plain;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --jobs 1", &plain), 0) << plain;
+    EXPECT_NE(plain.find("frame 1 done in"), std::string::npos) << plain;
+    EXPECT_EQ(plain.find('\r'), std::string::npos) << plain;
+    // --quiet: neither.
+    std::string quiet;
+    ASSERT_EQ(run_command("script -qec '" + kBin + " run " + graph + " --jobs 1 --quiet' /dev/null",
+                          &quiet),
+              0);
+    EXPECT_EQ(quiet.find("frames"), std::string::npos) << quiet;
+}
+
 TEST(Cli, MissingFrameIsReportedByNumber)
 {
     const std::string dir = test::scratch_dir("cli_missing");
