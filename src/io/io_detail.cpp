@@ -13,6 +13,7 @@
 #endif
 
 #include "core/error.h"
+#include "core/memory.h"
 #include "core/simd.h"
 
 namespace posthaste::io_detail {
@@ -166,7 +167,9 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
     }
 }
 
-std::string exr_header_problem(std::istream &in, std::uint64_t file_size)
+std::string exr_header_problem(std::istream &in,
+                               std::uint64_t file_size,
+                               std::vector<ExrPartLayout> *parts)
 {
     // Layout: magic (4), version and flags (4), then one header (single part) or several
     // headers ended by an empty one (multi-part); a header is attributes ended by a 0 byte, an
@@ -197,9 +200,14 @@ std::string exr_header_problem(std::istream &in, std::uint64_t file_size)
             name.push_back(char(c));
         }
     };
+    auto le32 = [](const unsigned char *b) {
+        return std::int32_t(std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 |
+                            std::uint32_t(b[2]) << 16 | std::uint32_t(b[3]) << 24);
+    };
     for (int header = 0;; ++header) {
         std::string name;
         std::string type;
+        ExrPartLayout part;
         int attributes = 0;
         for (;; ++attributes) {
             if (!read_name(name)) {
@@ -217,21 +225,81 @@ std::string exr_header_problem(std::istream &in, std::uint64_t file_size)
                 return "attribute \"" + name + "\" is truncated";
             }
             pos += 4;
-            const std::int32_t size =
-                std::int32_t(std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 |
-                             std::uint32_t(b[2]) << 16 | std::uint32_t(b[3]) << 24);
+            const std::int32_t size = le32(b);
             if (size < 0 || std::uint64_t(size) > file_size - pos) {
                 return "attribute \"" + name + "\" claims " + std::to_string(size) +
                        " bytes, more than the file's remaining " + std::to_string(file_size - pos);
             }
-            in.seekg(std::streamoff(size), std::ios::cur);
+            // The few attributes that size OpenEXR's buffers are small: read them; skip the rest.
+            const bool wanted = (name == "dataWindow" && type == "box2i" && size == 16) ||
+                                (name == "channels" && type == "chlist" && size <= 65536) ||
+                                (name == "compression" && size == 1) ||
+                                (name == "tiles" && type == "tiledesc" && size == 9);
+            if (!wanted) {
+                in.seekg(std::streamoff(size), std::ios::cur);
+                pos += std::uint64_t(size);
+                continue;
+            }
+            std::vector<unsigned char> v(std::size_t(size) + 1, 0);
+            if (!in.read(reinterpret_cast<char *>(v.data()), size)) {
+                return "attribute \"" + name + "\" is truncated";
+            }
             pos += std::uint64_t(size);
+            if (name == "dataWindow") {
+                part.x_min = le32(&v[0]);
+                part.y_min = le32(&v[4]);
+                part.x_max = le32(&v[8]);
+                part.y_max = le32(&v[12]);
+            } else if (name == "compression") {
+                part.compression = v[0];
+            } else if (name == "tiles") {
+                part.tile_width = le32(&v[0]);
+                part.tile_height = le32(&v[4]);
+            } else {
+                // chlist: name\0, int32 pixel type (0 uint, 1 half, 2 float), pLinear, 3 reserved,
+                // int32 xSampling, int32 ySampling; a 0 byte ends the list.
+                std::size_t i = 0;
+                while (i < std::size_t(size) && v[i] != 0) {
+                    while (i < std::size_t(size) && v[i] != 0) {
+                        ++i;
+                    }
+                    i += 1;
+                    if (i + 16 > std::size_t(size)) {
+                        break;
+                    }
+                    part.bytes_per_pixel += le32(&v[i]) == 1 ? 2 : 4;
+                    i += 16;
+                }
+            }
+        }
+        if (parts && attributes > 0) {
+            parts->push_back(part);
         }
         // A single-part file has one header; in a multi-part file an empty header ends the list.
         if (!multipart || (attributes == 0 && header > 0)) {
             return {};
         }
     }
+}
+
+std::size_t exr_open_bytes(const ExrPartLayout &part)
+{
+    const std::int64_t width = std::int64_t(part.x_max) - part.x_min + 1;
+    if (width <= 0 || part.bytes_per_pixel <= 0) {
+        return 0;
+    }
+    std::int64_t block_pixels = 0;
+    if (part.tile_width > 0 && part.tile_height > 0) {
+        block_pixels = std::int64_t(part.tile_width) * part.tile_height;
+    } else {
+        // Scan lines per block: none, rle, zips 1; zip, pxr24 16; piz, b44(a), dwaa 32; dwab 256.
+        static constexpr int kLines[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
+        const int lines = part.compression < 10 ? kLines[part.compression] : 256;
+        block_pixels = width * lines;
+    }
+    // A block's pixels, once raw and once in the compressor's buffer, for each of the block
+    // buffers OpenEXR keeps (at least two, more with threads); the estimate stays low on purpose.
+    return std::size_t(block_pixels) * std::size_t(part.bytes_per_pixel) * 4;
 }
 
 void check_exr_header(const std::string &path)
@@ -244,9 +312,27 @@ void check_exr_header(const std::string &path)
     }
     // Bytes 0-3 are the magic number, checked by the caller.
     f.seekg(4);
-    const std::string problem = exr_header_problem(f, size);
+    std::vector<ExrPartLayout> parts;
+    const std::string problem = exr_header_problem(f, size, &parts);
     if (!problem.empty()) {
         throw_runtime(path, ": cannot read image: damaged OpenEXR header: ", problem);
+    }
+    // OpenEXR allocates its block buffers when the file is opened, before any window check of
+    // ours: a header claiming a 2-billion-pixel-wide part must not get that far.
+    const std::size_t budget = image_memory_budget();
+    for (std::size_t i = 0; i < parts.size(); ++i) {
+        const std::size_t need = exr_open_bytes(parts[i]);
+        if (budget != 0 && image_memory_in_use() + need > budget) {
+            throw_runtime(path,
+                          ": part ",
+                          i,
+                          ": opening it would take ",
+                          format_bytes(need),
+                          " of line or tile buffers (data window ",
+                          std::int64_t(parts[i].x_max) - parts[i].x_min + 1,
+                          " pixels wide), over --max-memory ",
+                          format_bytes(budget));
+        }
     }
 }
 

@@ -9,6 +9,7 @@
 #include <istream>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "core/camera.h"
 
@@ -32,7 +33,19 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
 /// claims: "" if every attribute's size fits in the file, else what is wrong. OpenEXR 3.1
 /// allocates an attribute's claimed size before reading it, so a 100-byte file could ask for
 /// 2 GB.
-std::string exr_header_problem(std::istream &in, std::uint64_t file_size);
+struct ExrPartLayout {
+    int x_min = 0, y_min = 0;  ///< data window, inclusive as in the file
+    int x_max = -1, y_max = -1;
+    int bytes_per_pixel = 0;  ///< all channels
+    int compression = 0;      ///< OpenEXR's compression id
+    int tile_width = 0;       ///< 0: scan lines
+    int tile_height = 0;
+};
+std::string exr_header_problem(std::istream &in,
+                               std::uint64_t file_size,
+                               std::vector<ExrPartLayout> *parts = nullptr);
+/// What OpenEXR allocates for a part's block buffers when it opens the file (a low estimate).
+std::size_t exr_open_bytes(const ExrPartLayout &part);
 
 /// Throws a one-line error naming the file when exr_header_problem finds something.
 void check_exr_header(const std::string &path);

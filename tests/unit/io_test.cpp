@@ -17,6 +17,7 @@
 
 #include "core/error.h"
 #include "io/color.h"
+#include "core/memory.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "test_util.h"
@@ -420,6 +421,46 @@ TEST(IoBadInput, HeaderAttributeLargerThanTheFile)
         EXPECT_EQ(what.find('\n'), std::string::npos) << what;
     }
     EXPECT_NE(verify_image_file(path), "");
+}
+
+TEST(IoBadInput, HugeDataWindowIsRefusedBeforeOpenEXRAllocatesIt)
+{
+    // A 4x4 file whose header claims a data window 1,000,000,000 pixels wide: OpenEXR would
+    // allocate its line buffers for that width when opening the file. Under a budget the header
+    // walk refuses it first, naming the part and the estimate.
+    const std::string dir = scratch_dir("hugewindow");
+    const std::string path = dir + "/huge.exr";
+    {
+        OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::HALF);
+        spec.attribute("compression", "zip");
+        auto out = OIIO::ImageOutput::create(path);
+        ASSERT_TRUE(out->open(path, spec));
+        std::vector<float> px(48, 0.5f);
+        ASSERT_TRUE(out->write_image(OIIO::TypeFloat, px.data()));
+        ASSERT_TRUE(out->close());
+    }
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    const std::string key("dataWindow\0box2i\0\x10\0\0\0", 21);
+    const auto at = bytes.find(key);
+    ASSERT_NE(at, std::string::npos);
+    const std::int32_t x_max = 999999999;
+    bytes.replace(at + key.size() + 8, 4, reinterpret_cast<const char *>(&x_max), 4);
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    const std::size_t saved = image_memory_budget();
+    set_image_memory_budget(std::size_t(64) << 20);
+    try {
+        read_frame(path, nullptr, 1);
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("huge.exr: part 0: opening it would take"), std::string::npos) << what;
+        EXPECT_NE(what.find("1000000000 pixels wide"), std::string::npos) << what;
+    }
+    set_image_memory_budget(saved);
 }
 
 TEST(IoBadInput, NanAndInfPixels)
