@@ -125,7 +125,8 @@ void check(CheckContext &ctx)
                                     name,
                                     "\" (have: ",
                                     have,
-                                    "); a node downstream reads it");
+                                    "); a node downstream reads it",
+                                    info.refusal_hint(name));
                     }
                 }
             }

@@ -129,6 +129,26 @@ int info(const std::vector<std::string> &files)
             std::printf(
                 "  %-18s %s = %s\n", p.name().c_str(), p.type().c_str(), p.get_string(8).c_str());
         }
+        // The renderers whose pass names were recognised (mapped or refused).
+        std::vector<std::string> conventions;
+        auto note = [&](const std::string &o) {
+            if (o != "canonical" && o != "layer" && o != "luminance" &&
+                std::find(conventions.begin(), conventions.end(), o) == conventions.end()) {
+                conventions.push_back(o);
+            }
+        };
+        for (const PassSource &s : fi.passes) {
+            note(s.origin);
+        }
+        for (const RefusedPass &r : fi.refused) {
+            note(r.origin);
+        }
+        std::string names;
+        for (const std::string &c : conventions) {
+            names += (names.empty() ? "" : ", ") + c;
+        }
+        std::printf("conventions          %s\n",
+                    names.empty() ? "posthaste (canonical names)" : names.c_str());
         std::printf("passes\n");
         for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
             const PassSource *ps = nullptr;
@@ -138,7 +158,10 @@ int info(const std::vector<std::string> &files)
                 }
             }
             if (!ps) {
-                std::printf("  %-12s absent\n", std::string(cp.name).c_str());
+                const std::string hint = fi.refusal_hint(std::string(cp.name));
+                std::printf("  %-12s absent%s\n",
+                            std::string(cp.name).c_str(),
+                            hint.empty() ? "" : (" (" + hint.substr(2) + ")").c_str());
                 continue;
             }
             std::string from;

@@ -83,9 +83,145 @@ const std::vector<AliasRule> &builtin_alias_rules()
         r.push_back(rule("position", {"P.R", "P.G", "P.B"}, "Arnold"));
         r.push_back(rule("motion", {"motionvector.R", "motionvector.G"}, "Arnold", {1.0f, -1.0f}));
         r.push_back(rule("albedo", {"albedo.X", "albedo.Y", "albedo.Z"}, "Arnold"));
+        // V-Ray: VRayDiffuseFilter is the pure diffuse surface colour. Its depth, velocity and
+        // normals need render settings posthaste cannot see: builtin_refusal_rules.
+        const std::vector<std::vector<std::string>> rgb = {{"R", "G", "B"},
+                                                           {"red", "green", "blue"}};
+        auto layer3 = [](const std::string &layer, const std::vector<std::string> &s) {
+            return std::vector<std::string>{
+                layer + "." + s[0], layer + "." + s[1], layer + "." + s[2]};
+        };
+        for (const auto &s : rgb) {
+            r.push_back(rule("albedo", layer3("VRayDiffuseFilter", s), "V-Ray"));
+        }
+        // Redshift: DiffuseFilter (diffuse colour without lighting), P (World Position), N; the
+        // Depth AOV in its default raw "Z" mode is the canonical Z channel.
+        for (const auto &s : rgb) {
+            r.push_back(rule("albedo", layer3("DiffuseFilter", s), "Redshift"));
+        }
+        r.push_back(rule("position", layer3("P", rgb[1]), "Redshift"));
+        r.push_back(rule("normal", layer3("N", rgb[1]), "Redshift"));
+        // Unreal Movie Render Queue: WorldDepth in centimetres in R (metres here). A 16-bit
+        // post-process material saturates at 65504 cm; from 655 m on, depth is the sky (+inf).
+        r.push_back(rule(
+            "depth", {"FinalImageMovieRenderQueue_WorldDepth.R"}, "Unreal MRQ", {0.01f}, 655.0f));
+        // Karma: C is the beauty, Pz the depth along the view axis (ray:hitPz); its albedo is
+        // the canonical albedo.R/G/B.
+        r.push_back(rule("color", {"C.R", "C.G", "C.B", "C.A"}, "Karma"));
+        r.push_back(rule("depth", {"Pz"}, "Karma"));
+
+        // RenderMan: z is camera-space depth; __Nworld and __Pworld are the world-space normal
+        // and position (Nn and P are camera space).
+        r.push_back(rule("depth", {"z"}, "RenderMan"));
+        for (const auto &s :
+             std::vector<std::vector<std::string>>{{"r", "g", "b"}, {"x", "y", "z"}}) {
+            r.push_back(rule("normal", layer3("__Nworld", s), "RenderMan"));
+            r.push_back(rule("position", layer3("__Pworld", s), "RenderMan"));
+        }
+        r.push_back(rule("albedo", {"albedo.r", "albedo.g", "albedo.b"}, "RenderMan"));
         int priority = 100;
         for (AliasRule &a : r) {
             a.priority = priority++;
+        }
+        return r;
+    }();
+    return kRules;
+}
+
+const std::vector<RefusalRule> &builtin_refusal_rules()
+{
+    static const std::vector<RefusalRule> kRules = [] {
+        std::vector<RefusalRule> r;
+        auto add = [&](std::string pass,
+                       std::vector<std::string> channels,
+                       std::string origin,
+                       std::string message) {
+            r.push_back(
+                {std::move(pass), std::move(channels), std::move(origin), std::move(message)});
+        };
+        const std::string alias_help = " (a graph \"aliases\" rule, docs/CONVENTIONS.md)";
+        // V-Ray (docs.chaos.com, VRayZDepth / Velocity / render element pages).
+        for (const char *c : {"VRayZDepth.R", "VRayZDepth.Z", "VRayZDepth.Y", "VRayZDepth"}) {
+            add("depth",
+                {c},
+                "V-Ray",
+                "{C0} is V-Ray's Z-depth, normalised by default (Clamp on, Black 0 to White 1000, "
+                "filtered): render it with Clamp and Filtering off, Black 0 and White 1, then map "
+                "it with {\"pass\": \"depth\", \"channels\": [\"{C0}\"]}" +
+                    alias_help);
+        }
+        for (const auto &xy : std::vector<std::vector<std::string>>{
+                 {"VRayVelocity.X", "VRayVelocity.Y"}, {"VRayVelocity.R", "VRayVelocity.G"}}) {
+            for (const char *pass : {"motion", "motion_next"}) {
+                add(pass,
+                    xy,
+                    "V-Ray",
+                    "{C0}/{C1} are V-Ray's velocity, clamped and grey-centred by default (Clamp "
+                    "velocity on, Max velocity 1), from this frame to the next, y up: render with "
+                    "Clamp velocity and Filtering off, check the sign on a known move, then map it "
+                    "with {\"pass\": \"motion_next\", \"channels\": [\"{C0}\", \"{C1}\"], "
+                    "\"scale\": [1, -1]}" +
+                        alias_help);
+            }
+        }
+        for (const auto &n : std::vector<std::vector<std::string>>{
+                 {"VRayNormals.X", "VRayNormals.Y", "VRayNormals.Z"},
+                 {"VRayNormals.R", "VRayNormals.G", "VRayNormals.B"}}) {
+            add("normal",
+                n,
+                "V-Ray",
+                "VRayNormals are camera-space and posthaste's normal is world-space: add a "
+                "VRaySamplerInfo render element (Normal, World) and map its channels" +
+                    alias_help);
+        }
+        // Redshift (docs.redshift3d.com, Motion Vectors AOV).
+        for (const auto &xy :
+             std::vector<std::vector<std::string>>{{"MotionVectors.R", "MotionVectors.G"},
+                                                   {"MotionVectors.red", "MotionVectors.green"}}) {
+            add("motion",
+                xy,
+                "Redshift",
+                "{C0}/{C1} are Redshift's motion vectors, encoded into 0..1 by default (Max Motion "
+                "In Pixels, Image Output Min/Max): render with Output Raw Vectors on and "
+                "Filtering off, check direction and sign on a known move, then map them with "
+                "{\"pass\": \"motion\", \"channels\": [\"{C0}\", \"{C1}\"], \"scale\": [1, -1]}" +
+                    alias_help);
+        }
+        // Unreal Movie Render Queue (dev.epicgames.com, Cinematic Render Passes).
+        add("motion",
+            {"FinalImageMovieRenderQueue_MotionVectors.R",
+             "FinalImageMovieRenderQueue_MotionVectors.G"},
+            "Unreal MRQ",
+            "Unreal's MotionVectors are screen-normalised around 0.5 (0.5 = no motion) and "
+            "sources disagree on their factor (1 or 2) and sign: check a known move, then map "
+            "them with {\"pass\": \"motion\", \"channels\": [\"{C0}\", \"{C1}\"], \"scale\": "
+            "[{W}, -{H}], \"offset\": [-{W/2}, {H/2}]} (this file is {W}x{H}; double both if "
+            "your move comes out half as long)" +
+                alias_help);
+        // RenderMan (rmanwiki, Arbitrary Output Variables).
+        for (const auto &v :
+             std::vector<std::vector<std::string>>{{"r", "g"}, {"x", "y"}, {"R", "G"}}) {
+            add("motion",
+                {"motionBack." + v[0], "motionBack." + v[1]},
+                "RenderMan",
+                "{C0}/{C1} are RenderMan's motionBack, whose scale and offset Pixar does not "
+                "document (Nuke's VectorBlur has a PRMan preset for them): measure a known move "
+                "and map them with a scale and offset" +
+                    alias_help);
+            add("motion_next",
+                {"motionFore." + v[0], "motionFore." + v[1]},
+                "RenderMan",
+                "{C0}/{C1} are RenderMan's motionFore, whose scale and offset Pixar does not "
+                "document: measure a known move and map them with a scale and offset" +
+                    alias_help);
+        }
+        for (const auto &v :
+             std::vector<std::vector<std::string>>{{"r", "g", "b"}, {"x", "y", "z"}}) {
+            add("normal",
+                {"Nn." + v[0], "Nn." + v[1], "Nn." + v[2]},
+                "RenderMan",
+                "RenderMan's Nn is camera-space and posthaste's normal is world-space: output "
+                "__Nworld (it maps without an alias)");
         }
         return r;
     }();
@@ -290,6 +426,52 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
     }
     for (const std::string &layer : order) {
         out.push_back(std::move(others[layer]));
+    }
+    return out;
+}
+
+std::vector<RefusedPass> refused_passes(const std::vector<PartChannels> &parts,
+                                        const std::vector<PassSource> &made,
+                                        int width,
+                                        int height)
+{
+    auto has_channel = [&](const std::string &name) {
+        for (const PartChannels &p : parts) {
+            for (const std::string &n : p.names) {
+                if (matches(name, n)) {
+                    return true;
+                }
+            }
+        }
+        return false;
+    };
+    auto replace_all = [](std::string s, const std::string &from, const std::string &to) {
+        for (std::size_t at = s.find(from); at != std::string::npos;
+             at = s.find(from, at + to.size())) {
+            s.replace(at, from.size(), to);
+        }
+        return s;
+    };
+    std::vector<RefusedPass> out;
+    for (const RefusalRule &rule : builtin_refusal_rules()) {
+        const bool have_pass = std::any_of(
+            made.begin(), made.end(), [&](const PassSource &p) { return p.pass == rule.pass; });
+        const bool said = std::any_of(
+            out.begin(), out.end(), [&](const RefusedPass &p) { return p.pass == rule.pass; });
+        if (have_pass || said ||
+            !std::all_of(rule.channels.begin(), rule.channels.end(), has_channel)) {
+            continue;
+        }
+        std::string m = rule.message;
+        for (std::size_t k = 0; k < rule.channels.size(); ++k) {
+            m = replace_all(m, "{C" + std::to_string(k) + "}", rule.channels[k]);
+        }
+        auto half = [](int v) { return std::to_string(v / 2) + (v % 2 ? ".5" : ""); };
+        m = replace_all(m, "{W/2}", half(width));
+        m = replace_all(m, "{H/2}", half(height));
+        m = replace_all(m, "{W}", std::to_string(width));
+        m = replace_all(m, "{H}", std::to_string(height));
+        out.push_back({rule.pass, rule.origin, std::move(m)});
     }
     return out;
 }

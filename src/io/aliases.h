@@ -23,6 +23,25 @@ struct AliasRule {
     int priority = 0;             ///< Lower is tried first.
 };
 
+/// A renderer's channels that would make a canonical pass but whose values cannot be converted
+/// without knowing a render setting (V-Ray's depth normalised between Black and White, Redshift's
+/// encoded motion vectors, Unreal's screen-normalised ones): posthaste does not guess. When the
+/// file has the channels and the pass is not made otherwise, `message` says what to set.
+struct RefusalRule {
+    std::string pass;
+    std::vector<std::string> channels;
+    std::string origin;   ///< The renderer.
+    std::string message;  ///< {W}, {H}, {W/2}, {H/2} become the file's display size.
+};
+struct RefusedPass {
+    std::string pass;
+    std::string origin;
+    std::string message;
+};
+
+/// The built-in refusals (docs/CONVENTIONS.md).
+const std::vector<RefusalRule> &builtin_refusal_rules();
+
 /// The built-in rules, canonical names first.
 const std::vector<AliasRule> &builtin_alias_rules();
 
@@ -60,5 +79,12 @@ struct PartChannels {
 /// pass without alpha gets A = 1; a file with only Y (and A) gets Y copied into R, G and B.
 std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
                                      const std::vector<AliasRule> &graph_rules);
+
+/// The refusals that apply to a file whose channels are `parts`, given the passes it makes and
+/// its display size.
+std::vector<RefusedPass> refused_passes(const std::vector<PartChannels> &parts,
+                                        const std::vector<PassSource> &made,
+                                        int width,
+                                        int height);
 
 }  // namespace posthaste

@@ -56,6 +56,19 @@ struct FileInfo {
     /// How the file's channels map onto passes: the chosen view's passes under their own names,
     /// other views' as "pass@view".
     std::vector<PassSource> passes;
+    /// Canonical passes whose channels a renderer wrote in a form that needs a render setting
+    /// to convert (docs/CONVENTIONS.md): absent, with what to set.
+    std::vector<RefusedPass> refused;
+    /// "; " and the refusal's message when `pass` is refused, else "".
+    std::string refusal_hint(const std::string &pass) const
+    {
+        for (const RefusedPass &r : refused) {
+            if (r.pass == pass) {
+                return "; " + r.message;
+            }
+        }
+        return {};
+    }
     int width() const { return display_window.width(); }
     int height() const { return display_window.height(); }
 };

@@ -174,7 +174,8 @@ void assign_views(const std::vector<OIIO::ImageSpec> &specs,
 /// "pass@view". View-less channels of a multi-view file count as the chosen view's.
 std::vector<PassSource> map_views(const FileInfo &info,
                                   const std::vector<MappedChannel> &channels,
-                                  const std::vector<AliasRule> &rules)
+                                  const std::vector<AliasRule> &rules,
+                                  std::vector<RefusedPass> *refused)
 {
     std::vector<std::string> order = {info.view};
     for (const std::string &v : info.views) {
@@ -196,7 +197,11 @@ std::vector<PassSource> map_views(const FileInfo &info,
                 index[std::size_t(m.part)].push_back(m.channel);
             }
         }
-        for (PassSource ps : map_channels(parts, rules)) {
+        std::vector<PassSource> mapped = map_channels(parts, rules);
+        if (view == info.view) {
+            *refused = refused_passes(parts, mapped, info.width(), info.height());
+        }
+        for (PassSource ps : mapped) {
             for (ChannelSource &cs : ps.sources) {
                 if (cs.part >= 0) {
                     cs.channel = index[std::size_t(cs.part)][std::size_t(cs.channel)];
@@ -407,7 +412,7 @@ Opened open_file(const std::string &path, const ReadOptions &options)
             }
         }
     }
-    info.passes = map_views(info, channels, options.aliases);
+    info.passes = map_views(info, channels, options.aliases, &info.refused);
     info.data_window = {};
     for (const FilePart &p : info.parts) {
         info.data_window = info.data_window.unite(p.data_window);
@@ -646,7 +651,13 @@ Frame read_frame(const std::string &path,
                 for (const PassSource &p : info.passes) {
                     have += (have.empty() ? "" : ", ") + p.pass;
                 }
-                throw_runtime(path, ": no pass \"", name, "\" in file (have: ", have, ")");
+                throw_runtime(path,
+                              ": no pass \"",
+                              name,
+                              "\" in file (have: ",
+                              have,
+                              ")",
+                              info.refusal_hint(name));
             }
             selected.push_back(&*it);
         }

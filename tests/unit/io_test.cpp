@@ -13,11 +13,12 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <set>
 #include <map>
 
 #include "core/error.h"
-#include "io/color.h"
 #include "core/memory.h"
+#include "io/color.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "test_util.h"
@@ -322,6 +323,172 @@ TEST(IoAliases, ArnoldNamesAndGraphRules)
     EXPECT_THROW(parse_alias_rules(R"([{"pass": "depth"}])", "test"), Error);
     EXPECT_THROW(parse_alias_rules(R"([{"pass": "depth", "channels": ["a"], "scal": [1]}])", "t"),
                  Error);
+}
+
+/// The message of the Error `fn` throws ("" if none).
+template <typename Fn>
+std::string error_of(Fn &&fn)
+{
+    try {
+        fn();
+    } catch (const Error &e) {
+        return e.what();
+    }
+    return {};
+}
+
+TEST(IoAliases, VRayRedshiftUnrealKarmaRenderManNames)
+{
+    const std::string dir = scratch_dir("renderers");
+    // V-Ray: VRayDiffuseFilter is albedo; Redshift: DiffuseFilter.red.., P.red.., N.red...
+    const std::string vray = make_named_file(
+        dir,
+        "vray.exr",
+        {"R", "G", "B", "A", "VRayDiffuseFilter.R", "VRayDiffuseFilter.G", "VRayDiffuseFilter.B"},
+        {1, 1, 1, 1, 0.7f, 0.6f, 0.5f});
+    const Frame v = read_frame(vray, nullptr, 1);
+    EXPECT_FLOAT_EQ(v.image("albedo").at(1, 1, 1), 0.6f);
+    const std::string redshift = make_named_file(dir,
+                                                 "redshift.exr",
+                                                 {"R",
+                                                  "G",
+                                                  "B",
+                                                  "Z",
+                                                  "P.red",
+                                                  "P.green",
+                                                  "P.blue",
+                                                  "N.red",
+                                                  "N.green",
+                                                  "N.blue",
+                                                  "DiffuseFilter.red",
+                                                  "DiffuseFilter.green",
+                                                  "DiffuseFilter.blue"},
+                                                 {1, 1, 1, 7, 1, 2, 3, 0, 0, -1, 0.2f, 0.3f, 0.4f});
+    const Frame r = read_frame(redshift, nullptr, 1);
+    EXPECT_FLOAT_EQ(r.image("depth").at(0, 0, 0), 7.0f);
+    EXPECT_FLOAT_EQ(r.image("position").at(0, 0, 2), 3.0f);
+    EXPECT_FLOAT_EQ(r.image("normal").at(0, 0, 2), -1.0f);
+    EXPECT_FLOAT_EQ(r.image("albedo").at(0, 0, 0), 0.2f);
+    // Unreal MRQ: WorldDepth in centimetres (R) -> metres; a saturated half (65504 cm) is sky.
+    const std::string unreal = make_named_file(dir,
+                                               "unreal.exr",
+                                               {"R",
+                                                "G",
+                                                "B",
+                                                "A",
+                                                "FinalImageMovieRenderQueue_WorldDepth.R",
+                                                "FinalImageMovieRenderQueue_WorldDepth.G",
+                                                "FinalImageMovieRenderQueue_WorldDepth.B"},
+                                               {1, 1, 1, 1, 1250.0f, 0, 0});
+    EXPECT_FLOAT_EQ(read_frame(unreal, nullptr, 1).image("depth").at(0, 0, 0), 12.5f);
+    const std::string unreal_sky = make_named_file(
+        dir, "unreal_sky.exr", {"FinalImageMovieRenderQueue_WorldDepth.R"}, {65504});
+    EXPECT_TRUE(std::isinf(read_frame(unreal_sky, nullptr, 1).image("depth").at(0, 0, 0)));
+    // Karma: C is the beauty, Pz the depth.
+    const std::string karma = make_named_file(
+        dir, "karma.exr", {"C.R", "C.G", "C.B", "C.A", "Pz"}, {0.25f, 0.5f, 0.75f, 1, 3.5f});
+    const Frame k = read_frame(karma, nullptr, 1);
+    EXPECT_FLOAT_EQ(k.image("color").at(0, 0, 2), 0.75f);
+    EXPECT_FLOAT_EQ(k.image("depth").at(0, 0, 0), 3.5f);
+    // RenderMan: z, __Nworld, __Pworld (Nn and P are camera space).
+    const std::string rman = make_named_file(dir,
+                                             "rman.exr",
+                                             {"R",
+                                              "G",
+                                              "B",
+                                              "z",
+                                              "__Nworld.r",
+                                              "__Nworld.g",
+                                              "__Nworld.b",
+                                              "__Pworld.r",
+                                              "__Pworld.g",
+                                              "__Pworld.b"},
+                                             {1, 1, 1, 4.25f, 0, 1, 0, -1, -2, -3});
+    const Frame m = read_frame(rman, nullptr, 1);
+    EXPECT_FLOAT_EQ(m.image("depth").at(0, 0, 0), 4.25f);
+    EXPECT_FLOAT_EQ(m.image("normal").at(0, 0, 1), 1.0f);
+    EXPECT_FLOAT_EQ(m.image("position").at(0, 0, 0), -1.0f);
+    for (const auto &[file, convention] :
+         std::vector<std::pair<std::string, std::string>>{{redshift, "Redshift"},
+                                                          {unreal, "Unreal MRQ"},
+                                                          {karma, "Karma"},
+                                                          {rman, "RenderMan"}}) {
+        bool named = false;
+        for (const PassSource &ps : read_file_info(file).passes) {
+            named = named || ps.origin == convention;
+        }
+        EXPECT_TRUE(named) << file << " " << convention;
+    }
+}
+
+TEST(IoAliases, AmbiguousConventionsAreRefusedWithWhatToSet)
+{
+    const std::string dir = scratch_dir("refused");
+    // V-Ray's default Z-depth is normalised: no depth pass, and asking for one says what to set.
+    const std::string vray =
+        make_named_file(dir,
+                        "vray.exr",
+                        {"R", "G", "B", "VRayZDepth.R", "VRayVelocity.X", "VRayVelocity.Y"},
+                        {1, 1, 1, 0.5f, 0.5f, 0.5f});
+    const FileInfo vi = read_file_info(vray);
+    EXPECT_FALSE(std::any_of(vi.passes.begin(), vi.passes.end(), [](const PassSource &p) {
+        return p.pass == "depth" || p.pass == "motion";
+    }));
+    EXPECT_TRUE(std::any_of(vi.passes.begin(), vi.passes.end(), [](const PassSource &p) {
+        return p.pass == "VRayZDepth";  // still passes through under its own name
+    }));
+    const std::set<std::string> depth = {"depth"};
+    std::string what = error_of([&] { read_frame(vray, &depth, 1); });
+    EXPECT_NE(what.find("vray.exr: no pass \"depth\""), std::string::npos) << what;
+    EXPECT_NE(what.find("VRayZDepth.R is V-Ray's Z-depth, normalised by default"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("Clamp and Filtering off, Black 0 and White 1"), std::string::npos) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos);
+    const std::set<std::string> motion = {"motion"};
+    what = error_of([&] { read_frame(vray, &motion, 1); });
+    EXPECT_NE(what.find("from this frame to the next"), std::string::npos) << what;
+    // Unreal's screen-normalised vectors: the suggested alias carries this file's size.
+    const std::string unreal = make_named_file(dir,
+                                               "unreal.exr",
+                                               {"R",
+                                                "G",
+                                                "B",
+                                                "FinalImageMovieRenderQueue_MotionVectors.R",
+                                                "FinalImageMovieRenderQueue_MotionVectors.G"},
+                                               {1, 1, 1, 0.5f, 0.5f});
+    what = error_of([&] { read_frame(unreal, &motion, 1); });
+    EXPECT_NE(what.find("\"scale\": [6, -4], \"offset\": [-3, 2]} (this file is 6x4"),
+              std::string::npos)
+        << what;
+    // Following the advice works: the graph alias makes the pass (0.75 -> +1.5 px right).
+    ReadOptions o;
+    o.aliases = parse_alias_rules(
+        R"([{"pass": "motion", "channels": ["FinalImageMovieRenderQueue_MotionVectors.R",
+             "FinalImageMovieRenderQueue_MotionVectors.G"], "scale": [6, -4], "offset": [-3, 2]}])",
+        "test");
+    const std::string moved = make_named_file(dir,
+                                              "moved.exr",
+                                              {"FinalImageMovieRenderQueue_MotionVectors.R",
+                                               "FinalImageMovieRenderQueue_MotionVectors.G"},
+                                              {0.75f, 0.5f});
+    EXPECT_FLOAT_EQ(read_frame(moved, &motion, 1, o).image("motion").at(0, 0, 0), 1.5f);
+    // Redshift's encoded vectors and RenderMan's camera-space Nn.
+    const std::string rs = make_named_file(dir,
+                                           "rs.exr",
+                                           {"R", "G", "B", "MotionVectors.R", "MotionVectors.G"},
+                                           {1, 1, 1, 0.5f, 0.5f});
+    what = error_of([&] { read_frame(rs, &motion, 1); });
+    EXPECT_NE(what.find("Output Raw Vectors on"), std::string::npos) << what;
+    const std::string rman = make_named_file(
+        dir, "rman.exr", {"R", "G", "B", "Nn.x", "Nn.y", "Nn.z"}, {1, 1, 1, 0, 0, 1});
+    const std::set<std::string> normal = {"normal"};
+    what = error_of([&] { read_frame(rman, &normal, 1); });
+    EXPECT_NE(what.find("output __Nworld"), std::string::npos) << what;
+    // A file without such channels says nothing more than before.
+    const std::string plain = make_named_file(dir, "plain.exr", {"R", "G", "B"}, {1, 1, 1});
+    what = error_of([&] { read_frame(plain, &depth, 1); });
+    EXPECT_EQ(what, plain + ": no pass \"depth\" in file (have: color)");
 }
 
 TEST(IoRead, MultipartWithBareChannelNames)
