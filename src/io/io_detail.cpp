@@ -7,6 +7,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #if defined(__x86_64__)
 #include <immintrin.h>
@@ -167,6 +168,42 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
     }
 }
 
+namespace {
+
+/// The bytes OpenEXR 3.1 reads for a value of a fixed-size attribute type, or -1 (variable:
+/// chlist, preview, string, stringvector, floatvector, unknown types).
+int fixed_attribute_size(const std::string &type)
+{
+    static const std::map<std::string, int> kSizes = {{"box2i", 16},
+                                                      {"box2f", 16},
+                                                      {"chromaticities", 32},
+                                                      {"compression", 1},
+                                                      {"deepImageState", 1},
+                                                      {"double", 8},
+                                                      {"envmap", 1},
+                                                      {"float", 4},
+                                                      {"int", 4},
+                                                      {"keycode", 28},
+                                                      {"lineOrder", 1},
+                                                      {"m33d", 72},
+                                                      {"m33f", 36},
+                                                      {"m44d", 128},
+                                                      {"m44f", 64},
+                                                      {"rational", 8},
+                                                      {"tiledesc", 9},
+                                                      {"timecode", 8},
+                                                      {"v2i", 8},
+                                                      {"v2f", 8},
+                                                      {"v2d", 16},
+                                                      {"v3i", 12},
+                                                      {"v3f", 12},
+                                                      {"v3d", 24}};
+    const auto it = kSizes.find(type);
+    return it == kSizes.end() ? -1 : it->second;
+}
+
+}  // namespace
+
 std::string exr_header_problem(std::istream &in,
                                std::uint64_t file_size,
                                std::vector<ExrPartLayout> *parts)
@@ -230,46 +267,62 @@ std::string exr_header_problem(std::istream &in,
                 return "attribute \"" + name + "\" claims " + std::to_string(size) +
                        " bytes, more than the file's remaining " + std::to_string(file_size - pos);
             }
-            // The few attributes that size OpenEXR's buffers are small: read them; skip the rest.
-            const bool wanted = (name == "dataWindow" && type == "box2i" && size == 16) ||
-                                (name == "channels" && type == "chlist" && size <= 65536) ||
-                                (name == "compression" && size == 1) ||
-                                (name == "tiles" && type == "tiledesc" && size == 9);
-            if (!wanted) {
-                in.seekg(std::streamoff(size), std::ios::cur);
-                pos += std::uint64_t(size);
-                continue;
-            }
-            std::vector<unsigned char> v(std::size_t(size) + 1, 0);
-            if (!in.read(reinterpret_cast<char *>(v.data()), size)) {
-                return "attribute \"" + name + "\" is truncated";
-            }
-            pos += std::uint64_t(size);
-            if (name == "dataWindow") {
-                part.x_min = le32(&v[0]);
-                part.y_min = le32(&v[4]);
-                part.x_max = le32(&v[8]);
-                part.y_max = le32(&v[12]);
-            } else if (name == "compression") {
-                part.compression = v[0];
-            } else if (name == "tiles") {
-                part.tile_width = le32(&v[0]);
-                part.tile_height = le32(&v[4]);
-            } else {
-                // chlist: name\0, int32 pixel type (0 uint, 1 half, 2 float), pLinear, 3 reserved,
-                // int32 xSampling, int32 ySampling; a 0 byte ends the list.
-                std::size_t i = 0;
-                while (i < std::size_t(size) && v[i] != 0) {
-                    while (i < std::size_t(size) && v[i] != 0) {
-                        ++i;
+            // Advance exactly as OpenEXR 3.1 does, or the walk and OpenEXR would read different
+            // attributes from the same bytes: a known fixed-size type reads its own size whatever
+            // the size field says, a channel list reads entries up to an empty name, a preview
+            // reads its width x height pixels; everything else (strings, vectors, unknown
+            // types) reads `size` bytes.
+            const int fixed = fixed_attribute_size(type);
+            if (type == "chlist") {
+                for (;;) {
+                    std::string channel;
+                    if (!read_name(channel)) {
+                        return "attribute \"" + name + "\" has a truncated channel list";
                     }
-                    i += 1;
-                    if (i + 16 > std::size_t(size)) {
+                    if (channel.empty()) {
                         break;
                     }
-                    part.bytes_per_pixel += le32(&v[i]) == 1 ? 2 : 4;
-                    i += 16;
+                    unsigned char c[16];
+                    if (!in.read(reinterpret_cast<char *>(c), 16)) {
+                        return "attribute \"" + name + "\" has a truncated channel list";
+                    }
+                    pos += 16;
+                    part.bytes_per_pixel += le32(c) == 1 ? 2 : 4;
                 }
+            } else if (type == "preview") {
+                unsigned char wh[8];
+                if (!in.read(reinterpret_cast<char *>(wh), 8)) {
+                    return "attribute \"" + name + "\" is truncated";
+                }
+                pos += 8;
+                const std::uint64_t w = std::uint32_t(le32(wh)), h = std::uint32_t(le32(wh + 4));
+                if (w * h * 4 > file_size - pos) {
+                    return "preview attribute \"" + name + "\" claims " + std::to_string(w) + "x" +
+                           std::to_string(h) + " pixels, more than the file holds";
+                }
+                in.seekg(std::streamoff(w * h * 4), std::ios::cur);
+                pos += w * h * 4;
+            } else if (fixed >= 0) {
+                unsigned char v[128] = {};
+                if (std::uint64_t(fixed) > file_size - pos ||
+                    !in.read(reinterpret_cast<char *>(v), fixed)) {
+                    return "attribute \"" + name + "\" is truncated";
+                }
+                pos += std::uint64_t(fixed);
+                if (name == "dataWindow" && type == "box2i") {
+                    part.x_min = le32(&v[0]);
+                    part.y_min = le32(&v[4]);
+                    part.x_max = le32(&v[8]);
+                    part.y_max = le32(&v[12]);
+                } else if (name == "compression" && type == "compression") {
+                    part.compression = v[0];
+                } else if (name == "tiles" && type == "tiledesc") {
+                    part.tile_width = le32(&v[0]);
+                    part.tile_height = le32(&v[4]);
+                }
+            } else {
+                in.seekg(std::streamoff(size), std::ios::cur);
+                pos += std::uint64_t(size);
             }
         }
         if (parts && attributes > 0) {
@@ -285,12 +338,14 @@ std::string exr_header_problem(std::istream &in,
 std::size_t exr_open_bytes(const ExrPartLayout &part)
 {
     const std::int64_t width = std::int64_t(part.x_max) - part.x_min + 1;
-    if (width <= 0 || part.bytes_per_pixel <= 0) {
+    if (part.bytes_per_pixel <= 0) {
         return 0;
     }
     std::int64_t block_pixels = 0;
     if (part.tile_width > 0 && part.tile_height > 0) {
         block_pixels = std::int64_t(part.tile_width) * part.tile_height;
+    } else if (width <= 0) {
+        return 0;
     } else {
         // Scan lines per block: none, rle, zips 1; zip, pxr24 16; piz, b44(a), dwaa 32; dwab 256.
         static constexpr int kLines[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};

@@ -34,11 +34,11 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
 /// allocates an attribute's claimed size before reading it, so a 100-byte file could ask for
 /// 2 GB.
 struct ExrPartLayout {
-    int x_min = 0, y_min = 0;  ///< data window, inclusive as in the file
-    int x_max = -1, y_max = -1;
-    int bytes_per_pixel = 0;  ///< all channels
-    int compression = 0;      ///< OpenEXR's compression id
-    int tile_width = 0;       ///< 0: scan lines
+    int x_min = 0, y_min = 0;    ///< data window, inclusive as in the file; OpenEXR's default
+    int x_max = 63, y_max = 63;  ///< (0,0)-(63,63) when the header has none
+    int bytes_per_pixel = 0;     ///< all channels
+    int compression = 0;         ///< OpenEXR's compression id
+    int tile_width = 0;          ///< 0: scan lines
     int tile_height = 0;
 };
 std::string exr_header_problem(std::istream &in,

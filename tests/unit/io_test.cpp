@@ -13,8 +13,8 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
-#include <set>
 #include <map>
+#include <set>
 
 #include "core/error.h"
 #include "core/memory.h"
@@ -627,6 +627,53 @@ TEST(IoBadInput, HugeDataWindowIsRefusedBeforeOpenEXRAllocatesIt)
         EXPECT_NE(what.find("huge.exr: part 0: opening it would take"), std::string::npos) << what;
         EXPECT_NE(what.find("1000000000 pixels wide"), std::string::npos) << what;
     }
+    set_image_memory_budget(saved);
+}
+
+TEST(IoBadInput, HugeTilesAndMisreadHeadersAreRefusedBeforeOpenEXRAllocates)
+{
+    // Found by fuzz_exr_read: a 4 KB tiled file whose header claims 23824x2048 tiles (780 MB of
+    // tile buffer) and has lost its dataWindow (OpenEXR then assumes 64x64). The walk reads the
+    // header as OpenEXR does (fixed-size types by their own size, the channel list up to its
+    // empty name), so it sees the same tiles and refuses them under the budget.
+    const std::string dir = scratch_dir("hugetiles");
+    const std::string path = dir + "/tiles.exr";
+    {
+        OIIO::ImageSpec spec(16, 16, 4, OIIO::TypeDesc::FLOAT);
+        spec.tile_width = 16;
+        spec.tile_height = 16;
+        spec.attribute("compression", "zips");
+        auto out = OIIO::ImageOutput::create(path);
+        ASSERT_TRUE(out->open(path, spec));
+        std::vector<float> px(16 * 16 * 4, 0.5f);
+        ASSERT_TRUE(out->write_image(OIIO::TypeFloat, px.data()));
+        ASSERT_TRUE(out->close());
+    }
+    std::string bytes;
+    {
+        std::ifstream in(path, std::ios::binary);
+        bytes.assign(std::istreambuf_iterator<char>(in), {});
+    }
+    const std::string tiles("tiles\0tiledesc\0\x09\0\0\0", 19);
+    const auto at = bytes.find(tiles);
+    ASSERT_NE(at, std::string::npos);
+    const std::int32_t size[2] = {23824, 2048};
+    bytes.replace(at + tiles.size(), 8, reinterpret_cast<const char *>(size), 8);
+    const auto dw = bytes.find("dataWindow");
+    ASSERT_NE(dw, std::string::npos);
+    bytes.replace(dw, 10, "dataWnullw");
+    std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+    const std::size_t saved = image_memory_budget();
+    set_image_memory_budget(std::size_t(64) << 20);
+    std::string what;
+    try {
+        read_frame(path, nullptr, 1);
+    } catch (const Error &e) {
+        what = e.what();
+    }
+    EXPECT_NE(what.find("tiles.exr: part 0: opening it would take 2978 MiB"), std::string::npos)
+        << what;
+    EXPECT_NE(verify_image_file(path), "");
     set_image_memory_budget(saved);
 }
 
