@@ -57,6 +57,8 @@ demo() {
 
 test_all() {
     deps
+    # The report test opens the HTML report in headless Chromium and parses JUnit XML in Python.
+    install_packages chromium python3
     build
     ctest --test-dir "$BUILD_DIR" --output-on-failure -j "$JOBS"
 }

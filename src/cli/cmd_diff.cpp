@@ -4,6 +4,7 @@
 // a JSON report covering every frame. The comparison itself is metrics::diff_frames.
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -17,6 +18,7 @@
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "metrics/diff.h"
+#include "metrics/report.h"
 
 namespace posthaste::cli {
 namespace {
@@ -32,6 +34,8 @@ struct DiffCliOptions {
     float diff_scale = 1.0f;
     std::string flip_map;
     std::string json;
+    std::string report_dir;
+    std::string junit;
     int threads = 0;
     bool quiet = false;
 };
@@ -62,44 +66,6 @@ void check_output_pattern(const std::string &pattern, const char *option, std::s
                     quoted(pattern),
                     ": comparing several frames needs a frame placeholder (#### or %04d)");
     }
-}
-
-/// Read a frame for comparison. The reader fills channels a file lacks with constants (color
-/// without alpha gets A = 1); those trailing constants are dropped again, so that stored
-/// channels alone are compared, as idiff does (RGB against RGBA is then a channel mismatch).
-Frame read_for_diff(const std::string &path,
-                    const std::set<std::string> &wanted,
-                    int frame_number,
-                    const ReadOptions &options)
-{
-    Frame frame = read_frame(path, wanted.empty() ? nullptr : &wanted, frame_number, options);
-    for (const PassSource &ps : read_file_info(path, options).passes) {
-        if (!frame.has(ps.pass)) {
-            continue;
-        }
-        std::size_t stored = ps.sources.size();
-        while (stored > 1 && ps.sources[stored - 1].part < 0) {
-            --stored;
-        }
-        const Pass &pass = frame.pass(ps.pass);
-        if (stored == ps.sources.size() || int(stored) >= pass.image->channels()) {
-            continue;
-        }
-        const Image &full = *pass.image;
-        Image trimmed(full.width(), full.height(), int(stored));
-        for (int y = 0; y < full.height(); ++y) {
-            for (int x = 0; x < full.width(); ++x) {
-                std::copy_n(full.pixel(x, y), stored, trimmed.pixel(x, y));
-            }
-        }
-        std::vector<std::string> names(pass.channels.begin(),
-                                       pass.channels.begin() + std::ptrdiff_t(stored));
-        frame.set(ps.pass,
-                  std::make_shared<const Image>(std::move(trimmed)),
-                  std::move(names),
-                  pass.storage);
-    }
-    return frame;
 }
 
 /// The difference images of every compared pass, as one frame (same pass and channel names).
@@ -155,7 +121,9 @@ int run(const DiffCliOptions &o)
                                      : metrics::FlipMode::Hdr;
     options.pixels_per_degree = o.ppd;
     options.difference_scale = o.diff_scale;
-    options.images = !o.diff_image.empty() || !o.flip_map.empty();
+    options.images = !o.diff_image.empty() || !o.flip_map.empty() || !o.report_dir.empty();
+    std::vector<metrics::ReportEntry> entries;
+    const bool collect = !o.report_dir.empty() || !o.junit.empty();
 
     const std::vector<int> frames = frames_to_compare(o);
     check_output_pattern(o.diff_image, "--diff-image", frames.size());
@@ -169,13 +137,14 @@ int run(const DiffCliOptions &o)
     int counts[5] = {};
     nlohmann::json frames_json = nlohmann::json::array();
     for (int frame : frames) {
+        const auto t0 = std::chrono::steady_clock::now();
         const std::string path_a = expand_frame_pattern(o.a, frame);
         const std::string path_b = expand_frame_pattern(o.b, frame);
         Frame fa, fb;
         std::string file_error;
         for (const auto &[path, target] : {std::pair{&path_a, &fa}, std::pair{&path_b, &fb}}) {
             try {
-                *target = read_for_diff(*path, wanted, frame, read_options);
+                *target = metrics::read_for_comparison(*path, wanted, frame, read_options);
             } catch (const Error &e) {
                 file_error = e.what();
                 break;
@@ -195,6 +164,10 @@ int run(const DiffCliOptions &o)
                                    {"verdict", metrics::verdict_name(Verdict::FileError)},
                                    {"exit_code", metrics::exit_code(Verdict::FileError)},
                                    {"messages", {file_error}}});
+            if (collect) {
+                entries.push_back(
+                    metrics::file_error_entry("diff", frame, path_a, path_b, file_error));
+            }
             continue;
         }
         const metrics::DiffReport report = metrics::diff_frames(fa, fb, options);
@@ -211,6 +184,15 @@ int run(const DiffCliOptions &o)
         }
         if (!o.flip_map.empty() && report.flip) {
             write_flip_map(*report.flip, expand_frame_pattern(o.flip_map, frame), frame);
+        }
+        if (collect) {
+            metrics::ReportEntry e = metrics::report_entry("diff", report, path_a, path_b);
+            if (!o.report_dir.empty()) {
+                e.images = metrics::report_images(fa, fb, report);
+            }
+            e.seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            entries.push_back(std::move(e));
         }
         if (!o.json.empty()) {
             nlohmann::json j = nlohmann::json::parse(metrics::to_json(report));
@@ -229,14 +211,20 @@ int run(const DiffCliOptions &o)
             {"frame_count", frames.size()},
             {"frames", frames_json},
         };
-        const std::string text = report.dump(2) + "\n";
-        atomic_write(o.json, [&](const std::string &tmp) {
-            FILE *f = std::fopen(tmp.c_str(), "wb");
-            const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-            if (!f || std::fclose(f) != 0 || !ok) {
-                throw_runtime(o.json, ": cannot write the JSON report");
-            }
-        });
+        metrics::write_report_file(o.json, report.dump(2) + "\n", "JSON report");
+    }
+    if (!o.report_dir.empty()) {
+        const std::string page = (std::filesystem::path(o.report_dir) / "index.html").string();
+        metrics::write_report_file(
+            page,
+            metrics::html_report("posthaste diff " + o.a + " " + o.b, entries),
+            "HTML report");
+        if (!o.quiet) {
+            std::printf("report: %s\n", page.c_str());
+        }
+    }
+    if (!o.junit.empty()) {
+        metrics::write_report_file(o.junit, metrics::junit_xml("diff", entries), "JUnit report");
     }
     if (!o.quiet && frames.size() > 1) {
         std::printf(
@@ -306,6 +294,13 @@ void add_diff_command(CLI::App &app, int &exit_code)
                     o->flip_map,
                     "Write the FLIP heat map here (PNG: display-encoded; EXR: linear + error)");
     cmd->add_option("--json", o->json, "Write a JSON report of every frame");
+    cmd->add_option("--report",
+                    o->report_dir,
+                    "Write an HTML report (DIR/index.html, self-contained: thumbnails of "
+                    "reference, result, difference and FLIP; failures first)");
+    cmd->add_option("--junit",
+                    o->junit,
+                    "Write JUnit XML: a test case per frame and pass, failures with their metrics");
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "Print nothing but errors");

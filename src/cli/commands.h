@@ -52,6 +52,7 @@ void add_nodes_command(CLI::App &app, int &exit_code);
 void add_diff_command(CLI::App &app, int &exit_code);
 void add_bench_command(CLI::App &app, int &exit_code);
 void add_farm_command(CLI::App &app, int &exit_code);
+void add_test_command(CLI::App &app, int &exit_code);
 
 /// True when stderr is a terminal (progress bars) and NO_COLOR-style plain output is not forced.
 bool stderr_is_terminal();

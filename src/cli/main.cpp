@@ -47,6 +47,7 @@ int main(int argc, char **argv)
     cli::add_diff_command(app, exit_code);
     cli::add_bench_command(app, exit_code);
     cli::add_farm_command(app, exit_code);
+    cli::add_test_command(app, exit_code);
     std::string command_line;
     for (int i = 0; i < argc; ++i) {
         command_line += (i ? " " : "") + std::string(argv[i]);

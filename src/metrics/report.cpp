@@ -1,0 +1,539 @@
+#include "metrics/report.h"
+
+#include <OpenImageIO/filesystem.h>
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
+#include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "core/error.h"
+#include "core/passes.h"
+#include "io/color.h"
+#include "io/image_file.h"
+#include "metrics/flip.h"
+
+namespace posthaste::metrics {
+namespace {
+
+std::string number(double v, const char *format = "%.4g")
+{
+    if (std::isnan(v)) {
+        return "nan";
+    }
+    if (std::isinf(v)) {
+        return v > 0 ? "inf" : "-inf";
+    }
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), format, v);
+    return buf;
+}
+
+std::string thresholds_text(const Thresholds &t)
+{
+    std::string s = "fail " + number(t.fail) + ", failpercent " + number(t.fail_percent);
+    if (t.fail_relative > 0.0f) {
+        s += ", failrelative " + number(t.fail_relative);
+    }
+    if (std::isfinite(t.hard_fail)) {
+        s += ", hardfail " + number(t.hard_fail);
+    }
+    if (t.allow_failures > 0) {
+        s += ", allowfailures " + std::to_string(t.allow_failures);
+    }
+    s += ", warn " + number(t.warn) + ", warnpercent " + number(t.warn_percent);
+    return s;
+}
+
+std::string escape_html(const std::string &s)
+{
+    std::string out;
+    out.reserve(s.size());
+    for (char c : s) {
+        switch (c) {
+            case '&':
+                out += "&amp;";
+                break;
+            case '<':
+                out += "&lt;";
+                break;
+            case '>':
+                out += "&gt;";
+                break;
+            case '"':
+                out += "&quot;";
+                break;
+            case '\'':
+                out += "&#39;";
+                break;
+            default:
+                out += c;
+        }
+    }
+    return out;
+}
+
+/// XML 1.0 text: the markup characters escaped, control characters other than tab and newline
+/// dropped (they are not allowed in XML at all).
+std::string escape_xml(const std::string &s)
+{
+    std::string out;
+    for (char c : s) {
+        if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n') {
+            continue;
+        }
+        switch (c) {
+            case '&':
+                out += "&amp;";
+                break;
+            case '<':
+                out += "&lt;";
+                break;
+            case '>':
+                out += "&gt;";
+                break;
+            case '"':
+                out += "&quot;";
+                break;
+            default:
+                out += c;
+        }
+    }
+    return out;
+}
+
+/// The first `channels` (at most 3) channels of `img`, non-finite values replaced (NaN and -inf
+/// by 0, +inf by `inf_value`), scaled by `scale`, resized to at most `max_width` pixels wide.
+Image thumbnail_source(const Image &img, float scale, float inf_value, int max_width)
+{
+    const int w = img.width(), h = img.height();
+    Image rgb(w, h, 3);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const float *p = img.pixel(x, y);
+            for (int c = 0; c < 3; ++c) {
+                float v = p[std::min(c, img.channels() - 1)];
+                v = std::isnan(v) ? 0.0f : std::isinf(v) ? (v > 0 ? inf_value : 0.0f) : v;
+                rgb.at(x, y, c) = v * scale;
+            }
+        }
+    }
+    if (w <= max_width) {
+        return rgb;
+    }
+    const int tw = max_width;
+    const int th = std::max(1, int(std::lround(double(h) * tw / w)));
+    OIIO::ImageBuf src(OIIO::ImageSpec(w, h, 3, OIIO::TypeDesc::FLOAT), rgb.data());
+    OIIO::ImageBuf dst =
+        OIIO::ImageBufAlgo::resize(src, "box", 0.0f, OIIO::ROI(0, tw, 0, th, 0, 1, 0, 3), 1);
+    Image out(tw, th, 3);
+    dst.get_pixels(OIIO::ROI(0, tw, 0, th, 0, 1, 0, 3), OIIO::TypeDesc::FLOAT, out.data());
+    return out;
+}
+
+/// An 8-bit PNG in memory of display-encoded RGB values in [0, 1].
+std::string png_bytes(const Image &display)
+{
+    const int w = display.width(), h = display.height();
+    std::vector<unsigned char> pixels(std::size_t(w) * std::size_t(h) * 3);
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+        const float v = std::clamp(display.data()[i], 0.0f, 1.0f);
+        pixels[i] = static_cast<unsigned char>(std::lround(v * 255.0f));
+    }
+    OIIO::Filesystem::IOVecOutput vec;
+    auto out = OIIO::ImageOutput::create("png");
+    OIIO::ImageSpec spec(w, h, 3, OIIO::TypeDesc::UINT8);
+    spec.attribute("png:compressionLevel", 6);
+    if (!out || !out->set_ioproxy(&vec) || !out->open("thumbnail.png", spec) ||
+        !out->write_image(OIIO::TypeDesc::UINT8, pixels.data()) || !out->close()) {
+        throw_runtime("report: cannot encode a PNG thumbnail: ",
+                      out ? out->geterror() : OIIO::geterror());
+    }
+    return std::string(vec.buffer().begin(), vec.buffer().end());
+}
+
+const char *verdict_class(Verdict v)
+{
+    switch (v) {
+        case Verdict::Pass:
+            return "pass";
+        case Verdict::Warning:
+            return "warning";
+        case Verdict::Failure:
+            return "failure";
+        case Verdict::SizeMismatch:
+            return "mismatch";
+        case Verdict::FileError:
+            return "error";
+    }
+    return "error";
+}
+
+std::string image_cell(const std::string &png, const std::string &caption)
+{
+    if (png.empty()) {
+        return "<td class=\"img\"><span class=\"none\">" + escape_html(caption) +
+               ": none</span></td>";
+    }
+    return "<td class=\"img\"><img class=\"thumb\" alt=\"" + escape_html(caption) +
+           "\" src=\"data:image/png;base64," + OIIO::Strutil::base64_encode(png) + "\"><br>" +
+           escape_html(caption) + "</td>";
+}
+
+}  // namespace
+
+/// Read a frame for comparison. The reader fills channels a file lacks with constants (color
+/// without alpha gets A = 1); those trailing constants are dropped again, so that stored
+/// channels alone are compared, as idiff does (RGB against RGBA is then a channel mismatch).
+Frame read_for_comparison(const std::string &path,
+                          const std::set<std::string> &wanted,
+                          int frame_number,
+                          const ReadOptions &options)
+{
+    Frame frame = read_frame(path, wanted.empty() ? nullptr : &wanted, frame_number, options);
+    for (const PassSource &ps : read_file_info(path, options).passes) {
+        if (!frame.has(ps.pass)) {
+            continue;
+        }
+        std::size_t stored = ps.sources.size();
+        while (stored > 1 && ps.sources[stored - 1].part < 0) {
+            --stored;
+        }
+        const Pass &pass = frame.pass(ps.pass);
+        if (stored == ps.sources.size() || int(stored) >= pass.image->channels()) {
+            continue;
+        }
+        const Image &full = *pass.image;
+        Image trimmed(full.width(), full.height(), int(stored));
+        for (int y = 0; y < full.height(); ++y) {
+            for (int x = 0; x < full.width(); ++x) {
+                std::copy_n(full.pixel(x, y), stored, trimmed.pixel(x, y));
+            }
+        }
+        std::vector<std::string> names(pass.channels.begin(),
+                                       pass.channels.begin() + std::ptrdiff_t(stored));
+        frame.set(ps.pass,
+                  std::make_shared<const Image>(std::move(trimmed)),
+                  std::move(names),
+                  pass.storage);
+    }
+    return frame;
+}
+
+ReportEntry report_entry(const std::string &test,
+                         const DiffReport &report,
+                         const std::string &a,
+                         const std::string &b)
+{
+    ReportEntry e;
+    e.test = test;
+    e.frame = report.frame;
+    e.a = a;
+    e.b = b;
+    e.verdict = report.verdict;
+    e.messages = report.messages;
+    e.thresholds = thresholds_text(report.thresholds);
+    for (const PassDiff &d : report.passes) {
+        ReportEntry::Pass p;
+        p.name = d.name;
+        p.verdict = d.verdict;
+        if (d.compared) {
+            const ErrorStats &s = d.stats.all;
+            p.metrics = "mean " + number(s.mean_error) + ", rms " + number(s.rms_error) +
+                        ", psnr " + number(s.psnr, "%.2f") + " dB, max " + number(s.max_error) +
+                        " at (" + std::to_string(s.max_x) + ", " + std::to_string(s.max_y) +
+                        ") channel " +
+                        (std::size_t(s.max_channel) < d.channels.size()
+                             ? d.channels[std::size_t(s.max_channel)]
+                             : std::to_string(s.max_channel)) +
+                        ", " + std::to_string(s.fail_count) + " pixels over fail (" +
+                        number(d.stats.fail_percent(), "%.3f") + " %)";
+            e.worst_rms = std::max(e.worst_rms, std::isfinite(s.rms_error) ? s.rms_error : 1e30);
+        } else {
+            p.metrics = d.note.empty() ? "not compared" : d.note;
+        }
+        e.passes.push_back(std::move(p));
+    }
+    if (report.flip) {
+        e.flip_mean = report.flip->result.mean;
+    }
+    return e;
+}
+
+ReportEntry file_error_entry(const std::string &test,
+                             int frame,
+                             const std::string &a,
+                             const std::string &b,
+                             const std::string &message)
+{
+    ReportEntry e;
+    e.test = test;
+    e.frame = frame;
+    e.a = a;
+    e.b = b;
+    e.verdict = Verdict::FileError;
+    e.messages = {message};
+    e.worst_rms = 1e30;
+    return e;
+}
+
+ReportImages report_images(const Frame &a, const Frame &b, const DiffReport &report, int max_width)
+{
+    ReportImages out;
+    // The color pass when both have it, else the first compared pass.
+    const PassDiff *shown = nullptr;
+    for (const PassDiff &d : report.passes) {
+        if (d.compared && (!shown || d.name == pass::kColor)) {
+            shown = &d;
+        }
+    }
+    if (!shown || !a.has(shown->name) || !b.has(shown->name)) {
+        return out;
+    }
+    out.shown_pass = shown->name;
+    const Image &ia = a.image(shown->name);
+    const Image &ib = b.image(shown->name);
+    if (shown->name == pass::kColor) {
+        const ColorProcessor display =
+            ColorProcessor::display_view("lin_rec709", "sRGB", "Standard", "report", true);
+        for (const auto &[img, dst] :
+             {std::pair{&ia, &out.reference}, std::pair{&ib, &out.result}}) {
+            Image t = thumbnail_source(*img, 1.0f, 1.0f, max_width);
+            display.apply(t, false);
+            *dst = png_bytes(t);
+        }
+    } else {
+        // Data passes: |value| / the largest finite |value| of the reference.
+        float peak = 0.0f;
+        for (std::size_t i = 0; i < ia.value_count(); ++i) {
+            const float v = std::fabs(ia.data()[i]);
+            if (std::isfinite(v)) {
+                peak = std::max(peak, v);
+            }
+        }
+        const float scale = peak > 0.0f ? 1.0f / peak : 1.0f;
+        out.reference = png_bytes(thumbnail_source(ia, scale, 1.0f / scale, max_width));
+        out.result = png_bytes(thumbnail_source(ib, scale, 1.0f / scale, max_width));
+    }
+    if (!shown->difference.empty()) {
+        // |a - b| normalised by its largest value (black where the frames agree).
+        const double peak = shown->stats.all.max_error;
+        const float unit = std::isfinite(peak) && peak > 0.0 ? float(1.0 / peak) : 1.0f;
+        out.difference_scale = unit;
+        out.difference =
+            png_bytes(thumbnail_source(shown->difference, unit, 1.0f / unit, max_width));
+    }
+    if (report.flip && !report.flip->result.error_map.empty()) {
+        out.flip = png_bytes(thumbnail_source(
+            flip_heatmap(report.flip->result.error_map, false), 1.0f, 1.0f, max_width));
+    }
+    return out;
+}
+
+std::string html_report(const std::string &title, std::vector<ReportEntry> entries)
+{
+    std::stable_sort(
+        entries.begin(), entries.end(), [](const ReportEntry &x, const ReportEntry &y) {
+            if (x.verdict != y.verdict) {
+                return int(x.verdict) > int(y.verdict);
+            }
+            return x.worst_rms > y.worst_rms;
+        });
+    int counts[5] = {};
+    for (const ReportEntry &e : entries) {
+        ++counts[int(e.verdict)];
+    }
+    Verdict worst = Verdict::Pass;
+    for (const ReportEntry &e : entries) {
+        worst = metrics::worse(worst, e.verdict);
+    }
+    std::string h;
+    h += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" +
+         escape_html(title) + "</title>\n";
+    h += R"(<style>
+body { font-family: sans-serif; margin: 16px; background: #fafafa; color: #222; }
+table { border-collapse: collapse; }
+td, th { border: 1px solid #ccc; padding: 4px 6px; vertical-align: top; font-size: 13px; }
+td.verdict { width: 90px; font-weight: bold; text-align: center; }
+tr.failure td.verdict, tr.mismatch td.verdict, tr.error td.verdict { background: #ff0000; color: #fff; }
+tr.warning td.verdict { background: #ffaa00; }
+tr.pass td.verdict { background: #00c000; color: #fff; }
+td.img { text-align: center; font-size: 11px; }
+img.thumb { max-width: 240px; image-rendering: pixelated; }
+.summary span { margin-right: 16px; }
+pre { margin: 0; white-space: pre-wrap; }
+</style>
+<script>
+window.addEventListener('load', function () {
+  var images = document.querySelectorAll('img.thumb'), decoded = 0;
+  for (var i = 0; i < images.length; ++i) {
+    if (images[i].complete && images[i].naturalWidth > 0) { ++decoded; }
+  }
+  document.getElementById('decoded').textContent = decoded + ' of ' + images.length;
+});
+</script>
+</head><body>
+)";
+    h += "<h1>" + escape_html(title) + "</h1>\n<p class=\"summary\">";
+    h += "<span>verdict: <b>" + std::string(verdict_name(worst)) + "</b></span>";
+    const char *names[5] = {"pass", "warning", "failure", "size mismatch", "file error"};
+    for (int v = 0; v < 5; ++v) {
+        h += "<span>" + std::string(names[v]) + ": <b id=\"count-" + verdict_class(Verdict(v)) +
+             "\">" + std::to_string(counts[v]) + "</b></span>";
+    }
+    h += "<span>images decoded: <b id=\"decoded\">(script not run)</b></span></p>\n";
+    h += "<table>\n<tr><th>verdict</th><th>test / frame</th><th>passes</th><th>reference</th>"
+         "<th>result</th><th>|difference|</th><th>FLIP</th></tr>\n";
+    for (const ReportEntry &e : entries) {
+        h += "<tr class=\"entry " + std::string(verdict_class(e.verdict)) + "\">";
+        h += "<td class=\"verdict\">" + std::string(verdict_name(e.verdict)) + "</td>";
+        h += "<td><b>" + escape_html(e.test) + "</b><br>frame " + std::to_string(e.frame) +
+             "<br><small>" + escape_html(e.a) + "<br>" + escape_html(e.b) +
+             "</small></td><td><pre>";
+        for (const ReportEntry::Pass &p : e.passes) {
+            h += escape_html(p.name + " [" + verdict_name(p.verdict) + "]: " + p.metrics) + "\n";
+        }
+        if (e.flip_mean >= 0.0) {
+            h += "FLIP mean " + number(e.flip_mean) + "\n";
+        }
+        for (const std::string &m : e.messages) {
+            h += escape_html(m) + "\n";
+        }
+        if (!e.thresholds.empty()) {
+            h += "<small>" + escape_html(e.thresholds) + "</small>";
+        }
+        h += "</pre></td>";
+        const std::string pass =
+            e.images.shown_pass.empty() ? "" : " (" + e.images.shown_pass + ")";
+        h += image_cell(e.images.reference, "reference" + pass);
+        h += image_cell(e.images.result, "result" + pass);
+        h += image_cell(e.images.difference,
+                        "|a - b| x " + number(e.images.difference_scale, "%.3g"));
+        h += image_cell(e.images.flip, "FLIP");
+        h += "</tr>\n";
+    }
+    h += "</table>\n</body></html>\n";
+    return h;
+}
+
+std::string junit_xml(const std::string &name, const std::vector<ReportEntry> &entries)
+{
+    // Group by test, in first-seen order.
+    std::vector<std::string> order;
+    std::map<std::string, std::vector<const ReportEntry *>> by_test;
+    for (const ReportEntry &e : entries) {
+        if (!by_test.count(e.test)) {
+            order.push_back(e.test);
+        }
+        by_test[e.test].push_back(&e);
+    }
+    struct Case {
+        std::string name;
+        double seconds = 0.0;
+        std::string kind;  // "", "failure", "error"
+        std::string message, text, out;
+    };
+    std::string body;
+    int all_tests = 0, all_failures = 0, all_errors = 0;
+    double all_seconds = 0.0;
+    for (const std::string &test : order) {
+        std::vector<Case> cases;
+        for (const ReportEntry *e : by_test[test]) {
+            char frame[32];
+            std::snprintf(frame, sizeof(frame), "frame %04d", e->frame);
+            const double share = e->seconds / double(std::max<std::size_t>(1, e->passes.size()));
+            if (e->passes.empty() || e->verdict == Verdict::FileError ||
+                e->verdict == Verdict::SizeMismatch) {
+                Case c;
+                c.name = frame;
+                c.seconds = e->seconds;
+                std::string all;
+                for (const std::string &m : e->messages) {
+                    all += (all.empty() ? "" : "; ") + m;
+                }
+                if (e->verdict == Verdict::FileError) {
+                    c.kind = "error";
+                } else if (e->verdict == Verdict::SizeMismatch || e->verdict == Verdict::Failure) {
+                    c.kind = "failure";
+                }
+                c.message = std::string(verdict_name(e->verdict)) + ": " + all;
+                c.text = e->a + " vs " + e->b + "\n" + all;
+                cases.push_back(std::move(c));
+                continue;
+            }
+            for (const ReportEntry::Pass &p : e->passes) {
+                Case c;
+                c.name = std::string(frame) + " " + p.name;
+                c.seconds = share;
+                const std::string detail =
+                    p.name + ": " + p.metrics + " (thresholds: " + e->thresholds + ")";
+                if (p.verdict == Verdict::Failure || p.verdict == Verdict::SizeMismatch) {
+                    c.kind = "failure";
+                    c.message = std::string(verdict_name(p.verdict)) + ": " + detail;
+                    c.text = e->a + " vs " + e->b + "\n" + detail;
+                } else if (p.verdict == Verdict::FileError) {
+                    c.kind = "error";
+                    c.message = detail;
+                    c.text = detail;
+                } else {
+                    c.out = std::string(verdict_name(p.verdict)) + ": " + detail;
+                }
+                cases.push_back(std::move(c));
+            }
+        }
+        int failures = 0, errors = 0;
+        double seconds = 0.0;
+        for (const Case &c : cases) {
+            failures += c.kind == "failure";
+            errors += c.kind == "error";
+            seconds += c.seconds;
+        }
+        body += "  <testsuite name=\"" + escape_xml(test) + "\" tests=\"" +
+                std::to_string(cases.size()) + "\" failures=\"" + std::to_string(failures) +
+                "\" errors=\"" + std::to_string(errors) + "\" skipped=\"0\" time=\"" +
+                number(seconds, "%.3f") + "\">\n";
+        for (const Case &c : cases) {
+            body += "    <testcase classname=\"" + escape_xml(name + "." + test) + "\" name=\"" +
+                    escape_xml(c.name) + "\" time=\"" + number(c.seconds, "%.3f") + "\"";
+            if (c.kind.empty() && c.out.empty()) {
+                body += "/>\n";
+                continue;
+            }
+            body += ">\n";
+            if (!c.kind.empty()) {
+                body += "      <" + c.kind + " message=\"" + escape_xml(c.message) + "\" type=\"" +
+                        c.kind + "\">" + escape_xml(c.text) + "</" + c.kind + ">\n";
+            }
+            if (!c.out.empty()) {
+                body += "      <system-out>" + escape_xml(c.out) + "</system-out>\n";
+            }
+            body += "    </testcase>\n";
+        }
+        body += "  </testsuite>\n";
+        all_tests += int(cases.size());
+        all_failures += failures;
+        all_errors += errors;
+        all_seconds += seconds;
+    }
+    return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"" + escape_xml(name) +
+           "\" tests=\"" + std::to_string(all_tests) + "\" failures=\"" +
+           std::to_string(all_failures) + "\" errors=\"" + std::to_string(all_errors) +
+           "\" time=\"" + number(all_seconds, "%.3f") + "\">\n" + body + "</testsuites>\n";
+}
+
+void write_report_file(const std::string &path, const std::string &text, const std::string &what)
+{
+    atomic_write(path, [&](const std::string &tmp) {
+        FILE *f = std::fopen(tmp.c_str(), "wb");
+        const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+        if (!f || std::fclose(f) != 0 || !ok) {
+            throw_runtime(path, ": cannot write the ", what);
+        }
+    });
+}
+
+}  // namespace posthaste::metrics
