@@ -241,6 +241,7 @@ std::string exr_header_problem(std::istream &in,
         return std::int32_t(std::uint32_t(b[0]) | std::uint32_t(b[1]) << 8 |
                             std::uint32_t(b[2]) << 16 | std::uint32_t(b[3]) << 24);
     };
+    std::vector<ExrPartLayout> found;
     for (int header = 0;; ++header) {
         std::string name;
         std::string type;
@@ -287,7 +288,13 @@ std::string exr_header_problem(std::istream &in,
                         return "attribute \"" + name + "\" has a truncated channel list";
                     }
                     pos += 16;
-                    part.bytes_per_pixel += le32(c) == 1 ? 2 : 4;
+                    // OpenImageIO 2.4 aborts the process on a pixel type it does not know.
+                    const std::int32_t pixel_type = le32(c);
+                    if (pixel_type < 0 || pixel_type > 2) {
+                        return "channel \"" + channel + "\" has pixel type " +
+                               std::to_string(pixel_type) + " (0 uint, 1 half and 2 float exist)";
+                    }
+                    part.bytes_per_pixel += pixel_type == 1 ? 2 : 4;
                 }
             } else if (type == "preview") {
                 unsigned char wh[8];
@@ -325,36 +332,74 @@ std::string exr_header_problem(std::istream &in,
                 pos += std::uint64_t(size);
             }
         }
-        if (parts && attributes > 0) {
-            parts->push_back(part);
+        if (attributes > 0) {
+            found.push_back(part);
         }
         // A single-part file has one header; in a multi-part file an empty header ends the list.
         if (!multipart || (attributes == 0 && header > 0)) {
-            return {};
+            break;
         }
     }
+    // The chunk offset tables follow the headers, 8 bytes a chunk: a window whose table cannot
+    // fit in the file is damaged (and OpenEXR would allocate the table before finding out).
+    std::uint64_t offsets = 0;
+    for (const ExrPartLayout &p : found) {
+        offsets += std::uint64_t(exr_chunk_count(p)) * 8;
+    }
+    if (offsets > file_size - pos) {
+        return "its data window" + std::string(found.size() > 1 ? "s need " : " needs ") +
+               std::to_string(offsets / 8) + " chunk offsets (" + std::to_string(offsets) +
+               " bytes), more than the " + std::to_string(file_size - pos) +
+               " bytes after the header";
+    }
+    if (parts) {
+        *parts = std::move(found);
+    }
+    return {};
+}
+
+namespace {
+
+/// Scan lines per chunk of a compression: none, rle, zips 1; zip, pxr24 16; piz, b44(a), dwaa 32;
+/// dwab 256 (and 256 for anything newer).
+int lines_per_chunk(int compression)
+{
+    static constexpr int kLines[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
+    return compression >= 0 && compression < 10 ? kLines[compression] : 256;
+}
+
+}  // namespace
+
+std::int64_t exr_chunk_count(const ExrPartLayout &part)
+{
+    const std::int64_t width = std::int64_t(part.x_max) - part.x_min + 1;
+    const std::int64_t height = std::int64_t(part.y_max) - part.y_min + 1;
+    if (width <= 0 || height <= 0) {
+        return 0;
+    }
+    if (part.tile_width > 0 && part.tile_height > 0) {
+        // Level 0 only: mip levels add more, so this is a lower bound.
+        return ((width + part.tile_width - 1) / part.tile_width) *
+               ((height + part.tile_height - 1) / part.tile_height);
+    }
+    const int lines = lines_per_chunk(part.compression);
+    return (height + lines - 1) / lines;
 }
 
 std::size_t exr_open_bytes(const ExrPartLayout &part)
 {
     const std::int64_t width = std::int64_t(part.x_max) - part.x_min + 1;
-    if (part.bytes_per_pixel <= 0) {
+    if (part.bytes_per_pixel <= 0 || width <= 0) {
         return 0;
     }
-    std::int64_t block_pixels = 0;
-    if (part.tile_width > 0 && part.tile_height > 0) {
-        block_pixels = std::int64_t(part.tile_width) * part.tile_height;
-    } else if (width <= 0) {
-        return 0;
-    } else {
-        // Scan lines per block: none, rle, zips 1; zip, pxr24 16; piz, b44(a), dwaa 32; dwab 256.
-        static constexpr int kLines[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
-        const int lines = part.compression < 10 ? kLines[part.compression] : 256;
-        block_pixels = width * lines;
-    }
+    const std::int64_t block_pixels = part.tile_width > 0 && part.tile_height > 0
+                                          ? std::int64_t(part.tile_width) * part.tile_height
+                                          : width * lines_per_chunk(part.compression);
     // A block's pixels, once raw and once in the compressor's buffer, for each of the block
-    // buffers OpenEXR keeps (at least two, more with threads); the estimate stays low on purpose.
-    return std::size_t(block_pixels) * std::size_t(part.bytes_per_pixel) * 4;
+    // buffers OpenEXR keeps (at least two), plus the table of chunk offsets (deep parts keep
+    // more per chunk): a low estimate on purpose.
+    return std::size_t(block_pixels) * std::size_t(part.bytes_per_pixel) * 4 +
+           std::size_t(exr_chunk_count(part)) * 16;
 }
 
 void check_exr_header(const std::string &path)
@@ -373,19 +418,26 @@ void check_exr_header(const std::string &path)
         throw_runtime(path, ": cannot read image: damaged OpenEXR header: ", problem);
     }
     // OpenEXR allocates its block buffers when the file is opened, before any window check of
-    // ours: a header claiming a 2-billion-pixel-wide part must not get that far.
+    // ours: a header claiming a 2-billion-pixel-wide part must not get that far. These buffers
+    // live only while the file is read, so up to 16 MiB always opens; past that, what the
+    // budget has left decides.
     const std::size_t budget = image_memory_budget();
+    const std::size_t in_use = image_memory_in_use();
+    const std::size_t allowed =
+        std::max(std::size_t(16) << 20, budget > in_use ? budget - in_use : std::size_t(0));
     for (std::size_t i = 0; i < parts.size(); ++i) {
         const std::size_t need = exr_open_bytes(parts[i]);
-        if (budget != 0 && image_memory_in_use() + need > budget) {
+        if (budget != 0 && need > allowed) {
             throw_runtime(path,
                           ": part ",
                           i,
                           ": opening it would take ",
                           format_bytes(need),
-                          " of line or tile buffers (data window ",
+                          " of line or tile buffers and offset tables (data window ",
                           std::int64_t(parts[i].x_max) - parts[i].x_min + 1,
-                          " pixels wide), over --max-memory ",
+                          "x",
+                          std::int64_t(parts[i].y_max) - parts[i].y_min + 1,
+                          "), over --max-memory ",
                           format_bytes(budget));
         }
     }

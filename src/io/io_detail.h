@@ -44,6 +44,8 @@ struct ExrPartLayout {
 std::string exr_header_problem(std::istream &in,
                                std::uint64_t file_size,
                                std::vector<ExrPartLayout> *parts = nullptr);
+/// Chunks (scan-line blocks or level-0 tiles) of a part: its offset table has that many entries.
+std::int64_t exr_chunk_count(const ExrPartLayout &part);
 /// What OpenEXR allocates for a part's block buffers when it opens the file (a low estimate).
 std::size_t exr_open_bytes(const ExrPartLayout &part);
 
