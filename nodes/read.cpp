@@ -37,13 +37,20 @@ constexpr ParamSpec kView =
             "Stereo/multi-view files: the view the canonical passes come from (\"\": the file's "
             "default, the first of its multiView list). Other views' passes travel as "
             "pass@view and are written back as views.");
+constexpr ParamSpec kConvention =
+    ParamSpec::choice("convention",
+                      "auto|canonical|blender|nuke|arnold|vray|redshift|unreal|karma|renderman",
+                      "auto")
+        .doc(
+            "Whose pass names to recognise: auto (every renderer's, docs/CONVENTIONS.md), or one "
+            "renderer's (with posthaste's canonical names), when names of two renderers clash.");
 constexpr ParamSpec kDeep =
     ParamSpec::choice("deep", "flatten|error", "flatten")
         .doc(
             "Deep files: composite each pixel's samples front to back (depth = the nearest "
             "sample), or refuse them.");
 constexpr ParamSpec kParams[] = {
-    kPath, kFrameOffset, kBadPixels, kLinearize, kAliases, kView, kDeep};
+    kPath, kFrameOffset, kBadPixels, kLinearize, kAliases, kView, kDeep, kConvention};
 
 ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
 {
@@ -54,6 +61,7 @@ ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
     o.linearize = params.get_bool(kLinearize);
     o.view = params.get_string(kView);
     o.deep = DeepMode(params.get_choice(kDeep));
+    o.convention = params.get_string(kConvention);
     return o;
 }
 

@@ -47,10 +47,11 @@ std::string window_text(const Rect &r)
            std::to_string(r.width()) + "x" + std::to_string(r.height());
 }
 
-int info(const std::vector<std::string> &files)
+int info(const std::vector<std::string> &files, const std::string &convention)
 {
     ReadOptions options;
     options.count_deep_samples = true;
+    options.convention = convention;
     for (const std::string &path : files) {
         const FileInfo fi = read_file_info(path, options);
         std::printf("%s\n", path.c_str());
@@ -213,6 +214,7 @@ void add_info_command(CLI::App &app, int &exit_code)
     auto files = std::make_shared<std::vector<std::string>>();
     auto check = std::make_shared<bool>(false);
     auto quiet = std::make_shared<bool>(false);
+    auto convention = std::make_shared<std::string>("auto");
     CLI::App *cmd = app.add_subcommand(
         "info", "Describe image files: parts, channels, camera, attributes, pass mapping");
     cmd->add_option("files", *files, "Image files")->required();
@@ -221,8 +223,17 @@ void add_info_command(CLI::App &app, int &exit_code)
                   "Read every pixel of every part and level instead (like exrcheck): one line "
                   "per damaged file, exit 1 if any");
     cmd->add_flag("--quiet,-q", *quiet, "With --verify: print nothing for whole files");
-    cmd->callback([files, check, quiet, &exit_code] {
-        exit_code = *check ? verify(*files, *quiet) : info(*files);
+    std::vector<std::string> names = {"auto", "canonical"};
+    for (const auto &[name, origin] : known_conventions()) {
+        names.push_back(name);
+    }
+    cmd->add_option("--convention",
+                    *convention,
+                    "Whose pass names to recognise (as the read node's convention parameter)")
+        ->check(CLI::IsMember(names))
+        ->capture_default_str();
+    cmd->callback([files, check, quiet, convention, &exit_code] {
+        exit_code = *check ? verify(*files, *quiet) : info(*files, *convention);
     });
 }
 

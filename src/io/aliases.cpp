@@ -298,8 +298,41 @@ std::vector<AliasRule> parse_alias_rules(const std::string &json_text, const std
     return rules;
 }
 
+const std::vector<std::pair<std::string, std::string>> &known_conventions()
+{
+    static const std::vector<std::pair<std::string, std::string>> kNames = {
+        {"blender", "Blender"},
+        {"nuke", "Nuke"},
+        {"arnold", "Arnold"},
+        {"vray", "V-Ray"},
+        {"redshift", "Redshift"},
+        {"unreal", "Unreal MRQ"},
+        {"karma", "Karma"},
+        {"renderman", "RenderMan"}};
+    return kNames;
+}
+
+namespace {
+
+/// Whether a built-in rule of `origin` applies under `convention` ("" / "auto": all).
+bool in_convention(const std::string &origin, const std::string &convention)
+{
+    if (convention.empty() || convention == "auto" || origin == "canonical") {
+        return true;
+    }
+    for (const auto &[name, o] : known_conventions()) {
+        if (name == convention) {
+            return o == origin;
+        }
+    }
+    return false;
+}
+
+}  // namespace
+
 std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
-                                     const std::vector<AliasRule> &graph_rules)
+                                     const std::vector<AliasRule> &graph_rules,
+                                     const std::string &convention)
 {
     struct Ref {
         int part, channel;
@@ -326,7 +359,11 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
     };
 
     std::vector<AliasRule> rules = graph_rules;
-    rules.insert(rules.end(), builtin_alias_rules().begin(), builtin_alias_rules().end());
+    for (const AliasRule &r : builtin_alias_rules()) {
+        if (in_convention(r.origin, convention)) {
+            rules.push_back(r);
+        }
+    }
     for (const AliasRule &rule : rules) {
         if (made.count(rule.pass)) {
             continue;
@@ -433,7 +470,8 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
 std::vector<RefusedPass> refused_passes(const std::vector<PartChannels> &parts,
                                         const std::vector<PassSource> &made,
                                         int width,
-                                        int height)
+                                        int height,
+                                        const std::string &convention)
 {
     auto has_channel = [&](const std::string &name) {
         for (const PartChannels &p : parts) {
@@ -454,6 +492,9 @@ std::vector<RefusedPass> refused_passes(const std::vector<PartChannels> &parts,
     };
     std::vector<RefusedPass> out;
     for (const RefusalRule &rule : builtin_refusal_rules()) {
+        if (!in_convention(rule.origin, convention)) {
+            continue;
+        }
         const bool have_pass = std::any_of(
             made.begin(), made.end(), [&](const PassSource &p) { return p.pass == rule.pass; });
         const bool said = std::any_of(

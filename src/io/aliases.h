@@ -4,6 +4,7 @@
 // A graph adds its own rules; they are tried before the built-in ones.
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace posthaste {
@@ -77,14 +78,22 @@ struct PartChannels {
 /// built-in), then every remaining layer as a pass of its own name (channels grouped by the
 /// prefix before the last '.'; a channel without a prefix is a pass of its own name). A color
 /// pass without alpha gets A = 1; a file with only Y (and A) gets Y copied into R, G and B.
+/// The renderer conventions the built-in rules know (lower-case names for a `convention`
+/// setting) and the origin each stands for: "blender" -> "Blender", "unreal" -> "Unreal MRQ".
+const std::vector<std::pair<std::string, std::string>> &known_conventions();
+
+/// `convention` "" or "auto": every built-in rule; else only the canonical names and that
+/// renderer's (a name from known_conventions, checked by the caller).
 std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
-                                     const std::vector<AliasRule> &graph_rules);
+                                     const std::vector<AliasRule> &graph_rules,
+                                     const std::string &convention = "");
 
 /// The refusals that apply to a file whose channels are `parts`, given the passes it makes and
 /// its display size.
 std::vector<RefusedPass> refused_passes(const std::vector<PartChannels> &parts,
                                         const std::vector<PassSource> &made,
                                         int width,
-                                        int height);
+                                        int height,
+                                        const std::string &convention = "");
 
 }  // namespace posthaste

@@ -164,10 +164,10 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
         impl->noop = proc->isNoOp();
         // An 8-bit preview lets OpenColorIO replace curves by look-up tables (draft
         // optimisation): measured within one 8-bit code of the exact transform.
-        impl->cpu = for_8bit ? proc->getOptimizedCPUProcessor(OCIO::BIT_DEPTH_F32,
-                                                              OCIO::BIT_DEPTH_F32,
-                                                              OCIO::OPTIMIZATION_DRAFT)
-                             : proc->getDefaultCPUProcessor();
+        impl->cpu = for_8bit
+                        ? proc->getOptimizedCPUProcessor(
+                              OCIO::BIT_DEPTH_F32, OCIO::BIT_DEPTH_F32, OCIO::OPTIMIZATION_DRAFT)
+                        : proc->getDefaultCPUProcessor();
     } catch (const OCIO::Exception &e) {
         throw_usage(where, ": OpenColorIO: ", e.what());
     }

@@ -84,6 +84,9 @@ struct ReadOptions {
     bool linearize = true;  ///< sRGB-encoded integer files (PNG, JPEG) are decoded to linear.
     std::string view;       ///< "" = the file's default view.
     DeepMode deep = DeepMode::Flatten;
+    /// "" or "auto": every renderer's pass names; else one of known_conventions() (plus the
+    /// canonical names).
+    std::string convention;
     bool count_deep_samples = false;  ///< read_file_info: fill FilePart::deep_samples.
 };
 

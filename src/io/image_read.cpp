@@ -175,6 +175,7 @@ void assign_views(const std::vector<OIIO::ImageSpec> &specs,
 std::vector<PassSource> map_views(const FileInfo &info,
                                   const std::vector<MappedChannel> &channels,
                                   const std::vector<AliasRule> &rules,
+                                  const std::string &convention,
                                   std::vector<RefusedPass> *refused)
 {
     std::vector<std::string> order = {info.view};
@@ -197,9 +198,9 @@ std::vector<PassSource> map_views(const FileInfo &info,
                 index[std::size_t(m.part)].push_back(m.channel);
             }
         }
-        std::vector<PassSource> mapped = map_channels(parts, rules);
+        std::vector<PassSource> mapped = map_channels(parts, rules, convention);
         if (view == info.view) {
-            *refused = refused_passes(parts, mapped, info.width(), info.height());
+            *refused = refused_passes(parts, mapped, info.width(), info.height(), convention);
         }
         for (PassSource ps : mapped) {
             for (ChannelSource &cs : ps.sources) {
@@ -288,7 +289,7 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         for (const FileChannel &c : o.info.parts[0].channels) {
             parts[0].names.push_back(c.name);
         }
-        o.info.passes = map_channels(parts, options.aliases);
+        o.info.passes = map_channels(parts, options.aliases, options.convention);
         return o;
     }
     FileInfo &info = o.info;
@@ -412,7 +413,7 @@ Opened open_file(const std::string &path, const ReadOptions &options)
             }
         }
     }
-    info.passes = map_views(info, channels, options.aliases, &info.refused);
+    info.passes = map_views(info, channels, options.aliases, options.convention, &info.refused);
     info.data_window = {};
     for (const FilePart &p : info.parts) {
         info.data_window = info.data_window.unite(p.data_window);

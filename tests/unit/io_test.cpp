@@ -408,6 +408,15 @@ TEST(IoAliases, VRayRedshiftUnrealKarmaRenderManNames)
     EXPECT_FLOAT_EQ(m.image("depth").at(0, 0, 0), 4.25f);
     EXPECT_FLOAT_EQ(m.image("normal").at(0, 0, 1), 1.0f);
     EXPECT_FLOAT_EQ(m.image("position").at(0, 0, 0), -1.0f);
+    // Asked for one renderer's names, the others' are not recognised (canonical ones still are).
+    ReadOptions only_vray;
+    only_vray.convention = "vray";
+    const FileInfo kv = read_file_info(karma, only_vray);
+    EXPECT_FALSE(std::any_of(
+        kv.passes.begin(), kv.passes.end(), [](const PassSource &p) { return p.pass == "depth"; }));
+    ReadOptions only_karma;
+    only_karma.convention = "karma";
+    EXPECT_FLOAT_EQ(read_frame(karma, nullptr, 1, only_karma).image("depth").at(0, 0, 0), 3.5f);
     for (const auto &[file, convention] :
          std::vector<std::pair<std::string, std::string>>{{redshift, "Redshift"},
                                                           {unreal, "Unreal MRQ"},
