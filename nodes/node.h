@@ -15,6 +15,7 @@ namespace posthaste::nodes {
 extern const NodeType kRead;
 extern const NodeType kWrite;
 extern const NodeType kOcio;
+extern const NodeType kGrade;
 extern const NodeType kMerge;
 extern const NodeType kChannels;
 extern const NodeType kRender;

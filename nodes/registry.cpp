@@ -14,6 +14,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kHatching,
         &nodes::kWrite,
         &nodes::kOcio,
+        &nodes::kGrade,
         &nodes::kMerge,
         &nodes::kChannels,
         &nodes::kFog,

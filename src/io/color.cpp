@@ -2,6 +2,8 @@
 
 #include <OpenColorIO/OpenColorIO.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
@@ -174,6 +176,191 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
     ColorProcessor p;
     p.impl_ = std::move(impl);
     return p;
+}
+
+ColorProcessor ColorProcessor::grade(const Grade &g, const std::string &where)
+{
+    auto impl = std::make_shared<Impl>();
+    try {
+        auto group = OCIO::GroupTransform::Create();
+        auto matrix = OCIO::MatrixTransform::Create();
+        const double m44[16] = {g.matrix[0],
+                                g.matrix[1],
+                                g.matrix[2],
+                                0,
+                                g.matrix[3],
+                                g.matrix[4],
+                                g.matrix[5],
+                                0,
+                                g.matrix[6],
+                                g.matrix[7],
+                                g.matrix[8],
+                                0,
+                                0,
+                                0,
+                                0,
+                                1};
+        matrix->setMatrix(m44);
+        group->appendTransform(matrix);
+        auto cdl = OCIO::CDLTransform::Create();
+        cdl->setStyle(OCIO::CDL_NO_CLAMP);
+        cdl->setSlope(g.slope);
+        cdl->setOffset(g.offset);
+        cdl->setPower(g.power);
+        cdl->setSat(g.saturation);
+        group->appendTransform(cdl);
+        auto lift_gain = OCIO::MatrixTransform::Create();
+        const double lg[16] = {g.gain[0] - g.lift[0],
+                               0,
+                               0,
+                               0,
+                               0,
+                               g.gain[1] - g.lift[1],
+                               0,
+                               0,
+                               0,
+                               0,
+                               g.gain[2] - g.lift[2],
+                               0,
+                               0,
+                               0,
+                               0,
+                               1};
+        const double lg_offset[4] = {g.lift[0], g.lift[1], g.lift[2], 0};
+        lift_gain->setMatrix(lg);
+        lift_gain->setOffset(lg_offset);
+        group->appendTransform(lift_gain);
+        auto gamma = OCIO::ExponentTransform::Create();
+        const double inverse[4] = {1.0 / g.gamma[0], 1.0 / g.gamma[1], 1.0 / g.gamma[2], 1.0};
+        gamma->setValue(inverse);
+        gamma->setNegativeStyle(OCIO::NEGATIVE_PASS_THRU);
+        group->appendTransform(gamma);
+        if (!g.lut.empty()) {
+            auto file = OCIO::FileTransform::Create();
+            file->setSrc(g.lut.c_str());
+            file->setInterpolation(g.interpolation == "nearest"       ? OCIO::INTERP_NEAREST
+                                   : g.interpolation == "linear"      ? OCIO::INTERP_LINEAR
+                                   : g.interpolation == "tetrahedral" ? OCIO::INTERP_TETRAHEDRAL
+                                                                      : OCIO::INTERP_BEST);
+            group->appendTransform(file);
+        }
+        auto proc = config_holder().config->getProcessor(group);
+        impl->noop = proc->isNoOp();
+        impl->cpu = proc->getDefaultCPUProcessor();
+    } catch (const OCIO::Exception &e) {
+        std::string what = e.what();
+        std::replace(what.begin(), what.end(), '\n', ' ');
+        throw_usage(where, ": OpenColorIO: ", what);
+    }
+    ColorProcessor p;
+    p.impl_ = std::move(impl);
+    return p;
+}
+
+void planckian_xy(double kelvin, double tint, double &x, double &y)
+{
+    auto locus = [](double t, double &lx, double &ly) {
+        const double t1 = 1e3 / t, t2 = t1 * t1, t3 = t2 * t1;  // in thousands of kelvin
+        lx = t <= 4000.0 ? -0.2661239 * t3 - 0.2343589 * t2 + 0.8776956 * t1 + 0.179910
+                         : -3.0258469 * t3 + 2.1070379 * t2 + 0.2226347 * t1 + 0.240390;
+        const double x2 = lx * lx, x3 = x2 * lx;
+        ly = t <= 2222.0   ? -1.1063814 * x3 - 1.34811020 * x2 + 2.18555832 * lx - 0.20219683
+             : t <= 4000.0 ? -0.9549476 * x3 - 1.37418593 * x2 + 2.09137015 * lx - 0.16748867
+                           : 3.0817580 * x3 - 5.87338670 * x2 + 3.75112997 * lx - 0.37001483;
+    };
+    auto to_uv = [](double px, double py, double &u, double &v) {
+        const double d = -2.0 * px + 12.0 * py + 3.0;
+        u = 4.0 * px / d;
+        v = 6.0 * py / d;
+    };
+    const double t = std::clamp(kelvin, 1667.0, 25000.0);
+    locus(t, x, y);
+    if (tint == 0.0) {
+        return;
+    }
+    // The isotherm: perpendicular to the locus in uv, oriented toward green (+v).
+    double xa, ya, xb, yb, ua, va, ub, vb, u, v;
+    locus(std::max(1667.0, t - 10.0), xa, ya);
+    locus(std::min(25000.0, t + 10.0), xb, yb);
+    to_uv(xa, ya, ua, va);
+    to_uv(xb, yb, ub, vb);
+    to_uv(x, y, u, v);
+    double nu = -(vb - va), nv = ub - ua;
+    const double len = std::sqrt(nu * nu + nv * nv);
+    nu /= len;
+    nv /= len;
+    if (nv < 0.0) {
+        nu = -nu;
+        nv = -nv;
+    }
+    u += nu * tint * 1e-3;
+    v += nv * tint * 1e-3;
+    const double d = 2.0 * u - 8.0 * v + 4.0;
+    x = 3.0 * u / d;
+    y = 2.0 * v / d;
+}
+
+std::array<double, 9> white_balance_matrix(double kelvin,
+                                           double tint,
+                                           double target_kelvin,
+                                           double target_tint)
+{
+    if (kelvin == target_kelvin && tint == target_tint) {
+        return {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    }
+    using M = std::array<double, 9>;
+    auto mul = [](const M &a, const M &b) {
+        M c{};
+        for (int r = 0; r < 3; ++r) {
+            for (int k = 0; k < 3; ++k) {
+                for (int j = 0; j < 3; ++j) {
+                    c[r * 3 + j] += a[r * 3 + k] * b[k * 3 + j];
+                }
+            }
+        }
+        return c;
+    };
+    auto inverse = [](const M &m) {
+        const double a = m[0], b = m[1], c = m[2], d = m[3], e = m[4], f = m[5], g = m[6], h = m[7],
+                     i = m[8];
+        const double det = a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g);
+        return M{(e * i - f * h) / det,
+                 (c * h - b * i) / det,
+                 (b * f - c * e) / det,
+                 (f * g - d * i) / det,
+                 (a * i - c * g) / det,
+                 (c * d - a * f) / det,
+                 (d * h - e * g) / det,
+                 (b * g - a * h) / det,
+                 (a * e - b * d) / det};
+    };
+    // Linear Rec.709 (D65) to CIE XYZ, and Bradford's cone response.
+    const M rgb_to_xyz = {0.4124564,
+                          0.3575761,
+                          0.1804375,
+                          0.2126729,
+                          0.7151522,
+                          0.0721750,
+                          0.0193339,
+                          0.1191920,
+                          0.9503041};
+    const M bradford = {0.8951, 0.2664, -0.1614, -0.7502, 1.7135, 0.0367, 0.0389, -0.0685, 1.0296};
+    auto white = [&](double k, double t) {
+        double x, y;
+        planckian_xy(k, t, x, y);
+        const double xyz[3] = {x / y, 1.0, (1.0 - x - y) / y};
+        std::array<double, 3> lms{};
+        for (int r = 0; r < 3; ++r) {
+            lms[std::size_t(r)] = bradford[std::size_t(r) * 3] * xyz[0] +
+                                  bradford[std::size_t(r) * 3 + 1] * xyz[1] +
+                                  bradford[std::size_t(r) * 3 + 2] * xyz[2];
+        }
+        return lms;
+    };
+    const auto src = white(kelvin, tint), dst = white(target_kelvin, target_tint);
+    const M scale = {dst[0] / src[0], 0, 0, 0, dst[1] / src[1], 0, 0, 0, dst[2] / src[2]};
+    const M adapt = mul(inverse(bradford), mul(scale, bradford));
+    return mul(inverse(rgb_to_xyz), mul(adapt, rgb_to_xyz));
 }
 
 bool ColorProcessor::is_noop() const

@@ -2,6 +2,7 @@
 // OpenColorIO 2.1: the active config ($OCIO, else the config shipped in samples/ocio/, built in)
 // and processors applied to RGBA images in place.
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -17,6 +18,19 @@ std::vector<std::string> color_space_names();
 /// Display names and the views of one display.
 std::vector<std::string> color_display_names();
 std::vector<std::string> color_view_names(const std::string &display);
+
+/// CIE 1931 xy of the light at `kelvin` (1667-25000) on the Planckian locus (Kim et al. 2002's
+/// cubic fit), moved `tint` thousandths of a CIE 1960 uv unit (Duv x 1000) off the locus,
+/// positive toward green.
+void planckian_xy(double kelvin, double tint, double &x, double &y);
+
+/// A row-major 3x3 matrix on linear Rec.709 that adapts colors seen under the light
+/// (kelvin, tint) to how they would look under (target_kelvin, target_tint): Bradford chromatic
+/// adaptation between the two whites. Identity when the two lights are the same.
+std::array<double, 9> white_balance_matrix(double kelvin,
+                                           double tint,
+                                           double target_kelvin,
+                                           double target_tint);
 
 /// A CPU color processor over the RGB channels of an image (alpha untouched). Immutable and
 /// thread-safe once made.
@@ -35,6 +49,21 @@ class ColorProcessor {
                                        const std::string &view,
                                        const std::string &where,
                                        bool for_8bit = false);
+
+    /// A grade as one OpenColorIO group, in this order: `matrix` (white balance and exposure,
+    /// row-major 3x3 on linear RGB), the ASC CDL (slope, offset, power, saturation; OCIO's
+    /// CDLTransform, no clamping), then x * (gain - lift) + lift per channel, then x^(1/gamma)
+    /// with negatives passed through, then a LUT file through OCIO's FileTransform ("" for
+    /// none). Throws a usage Error naming `where` for a LUT OpenColorIO cannot read.
+    struct Grade {
+        double matrix[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+        double slope[3] = {1, 1, 1}, offset[3] = {0, 0, 0}, power[3] = {1, 1, 1};
+        double saturation = 1.0;
+        double lift[3] = {0, 0, 0}, gamma[3] = {1, 1, 1}, gain[3] = {1, 1, 1};
+        std::string lut;
+        std::string interpolation = "best";  ///< nearest, linear, tetrahedral, best
+    };
+    static ColorProcessor grade(const Grade &grade, const std::string &where);
 
     /// Apply to the first three channels of every pixel. With `unpremultiply`, color is divided
     /// by alpha (channel 3) where alpha > 0 before, and multiplied after.

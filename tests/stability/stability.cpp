@@ -67,8 +67,17 @@ ParamValue parse_value(const ParamSpec &spec, const std::string &text)
         case ParamType::Json:
             v.text = text;
             break;
-        case ParamType::Vec:
-            throw std::invalid_argument("vector parameters are not supported here yet");
+        case ParamType::Vec: {
+            const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+            if (!j.is_array() || int(j.size()) != spec.vec_size) {
+                throw std::invalid_argument(std::string(spec.name) + " needs " +
+                                            std::to_string(spec.vec_size) + " numbers: " + text);
+            }
+            for (const nlohmann::json &x : j) {
+                v.vec.push_back(x.get<double>());
+            }
+            break;
+        }
     }
     return v;
 }

@@ -27,6 +27,19 @@ NodeCases node_cases(const std::string &type)
         for (const char *model : {"linear", "exp", "exp2", "atmosphere"}) {
             c.param_sets.push_back({model, {std::string("model=") + model}});
         }
+    } else if (type == "grade") {
+        c.param_sets.push_back({"full_grade",
+                                {"exposure=1.5",
+                                 "temperature=3200",
+                                 "tint=10",
+                                 "slope=[1.2, 1, 0.9]",
+                                 "offset=[0.01, 0, -0.01]",
+                                 "power=[0.8, 1, 1.25]",
+                                 "saturation=1.5",
+                                 "lift=[0.02, 0, 0]",
+                                 "gamma=[1.2, 1, 0.8]",
+                                 "gain=[1.1, 1, 1]"}});
+        c.param_sets.push_back({"keep_premultiplied", {"exposure=-3", "unpremultiply=false"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",

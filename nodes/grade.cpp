@@ -1,0 +1,152 @@
+// nodes/grade.cpp: a color grade of one scene-linear Rec.709 pass, as one OpenColorIO group
+// (io/color.h, ColorProcessor::grade): white balance (Bradford adaptation from the light at
+// `temperature`/`tint` to the light at `target_temperature`/`target_tint`) and exposure in
+// stops, the ASC CDL (slope, offset, power, saturation; OCIO's CDLTransform without clamping),
+// lift/gamma/gain (Nuke's Grade with black point 0 and white point 1: x * (gain - lift) + lift,
+// then x^(1/gamma) with negatives passed through), then a LUT file (.cube, .spi3d, .csp, any
+// format OCIO reads). A point operation: a NaN or infinite value stays in its pixel. At the
+// defaults the node passes its input through untouched.
+
+#include <cmath>
+#include <filesystem>
+
+#include "io/color.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kExposure = ParamSpec::real("exposure", 0.0)
+                                    .range(-32.0, 32.0)
+                                    .units("stops")
+                                    .doc("Multiply by 2^exposure.");
+constexpr ParamSpec kTemperature =
+    ParamSpec::real("temperature", 6504.0)
+        .range(1667.0, 25000.0)
+        .units("K")
+        .doc("White balance: the color temperature of the light the image was lit or shot under.");
+constexpr ParamSpec kTint =
+    ParamSpec::real("tint", 0.0)
+        .range(-100.0, 100.0)
+        .doc("White balance: that light's offset from the Planckian locus (Duv x 1000, + green).");
+constexpr ParamSpec kTargetTemperature =
+    ParamSpec::real("target_temperature", 6504.0)
+        .range(1667.0, 25000.0)
+        .units("K")
+        .doc("White balance: the light the image is adapted to.");
+constexpr ParamSpec kTargetTint =
+    ParamSpec::real("target_tint", 0.0).range(-100.0, 100.0).doc("White balance: its tint.");
+constexpr ParamSpec kSlope = ParamSpec::vec3("slope", 1, 1, 1).doc("ASC CDL slope per channel.");
+constexpr ParamSpec kOffset = ParamSpec::vec3("offset", 0, 0, 0).doc("ASC CDL offset.");
+constexpr ParamSpec kPower =
+    ParamSpec::vec3("power", 1, 1, 1).doc("ASC CDL power (negatives pass through).");
+constexpr ParamSpec kSaturation =
+    ParamSpec::real("saturation", 1.0).range(0.0, 10.0).doc("ASC CDL saturation (Rec.709 luma).");
+constexpr ParamSpec kLift = ParamSpec::vec3("lift", 0, 0, 0).doc("Lift: the new black.");
+constexpr ParamSpec kGamma =
+    ParamSpec::vec3("gamma", 1, 1, 1).doc("Gamma: x^(1/gamma) after lift and gain (> 0).");
+constexpr ParamSpec kGain = ParamSpec::vec3("gain", 1, 1, 1).doc("Gain: the new white.");
+constexpr ParamSpec kLut = ParamSpec::string("lut", "").file_path().doc(
+    "A LUT or look file OpenColorIO reads (.cube, .spi1d, .spi3d, .csp, .cc, ...), last.");
+constexpr ParamSpec kInterpolation =
+    ParamSpec::choice("lut_interpolation", "best|nearest|linear|tetrahedral", "best")
+        .doc("How the LUT is interpolated.");
+constexpr ParamSpec kUnpremultiply =
+    ParamSpec::boolean("unpremultiply", true)
+        .doc("Divide color by alpha before the grade and multiply after.");
+constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to grade.");
+constexpr ParamSpec kParams[] = {kExposure,
+                                 kTemperature,
+                                 kTint,
+                                 kTargetTemperature,
+                                 kTargetTint,
+                                 kSlope,
+                                 kOffset,
+                                 kPower,
+                                 kSaturation,
+                                 kLift,
+                                 kGamma,
+                                 kGain,
+                                 kLut,
+                                 kInterpolation,
+                                 kUnpremultiply,
+                                 kPass};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grade."}};
+
+ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node)
+{
+    const std::string where = node.json_path + "/params: " + node.describe();
+    ColorProcessor::Grade g;
+    const std::array<double, 9> wb = white_balance_matrix(params.get_real(kTemperature),
+                                                          params.get_real(kTint),
+                                                          params.get_real(kTargetTemperature),
+                                                          params.get_real(kTargetTint));
+    const double scale = std::exp2(params.get_real(kExposure));
+    for (int i = 0; i < 9; ++i) {
+        g.matrix[i] = wb[std::size_t(i)] * scale;
+    }
+    for (int c = 0; c < 3; ++c) {
+        g.slope[c] = params.get_vec(kSlope)[std::size_t(c)];
+        g.offset[c] = params.get_vec(kOffset)[std::size_t(c)];
+        g.power[c] = params.get_vec(kPower)[std::size_t(c)];
+        g.lift[c] = params.get_vec(kLift)[std::size_t(c)];
+        g.gamma[c] = params.get_vec(kGamma)[std::size_t(c)];
+        g.gain[c] = params.get_vec(kGain)[std::size_t(c)];
+        if (!(g.gamma[c] > 0.0) || !(g.power[c] > 0.0)) {
+            throw_usage(where, ": gamma and power must be > 0 (channel ", c, ")");
+        }
+    }
+    g.saturation = params.get_real(kSaturation);
+    g.lut = params.get_string(kLut);
+    g.interpolation = params.get_string(kInterpolation);
+    if (!g.lut.empty() && !std::filesystem::exists(g.lut)) {
+        throw_usage(where, ": param \"lut\": ", g.lut, ": no such file");
+    }
+    return ColorProcessor::grade(g, where);
+}
+
+void execute(NodeContext &ctx)
+{
+    const ColorProcessor &proc = ctx.state().get_or_create<ColorProcessor>(
+        [&] { return make_processor(ctx.params(), ctx.node()); });
+    const std::string &name = ctx.get_string(kPass);
+    const Pass &in = ctx.input("image").pass(name, ctx.where());
+    if (proc.is_noop()) {
+        return;  // the output already shares the input pass
+    }
+    if (in.image->channels() < 3) {
+        throw_runtime(ctx.where(),
+                      ": pass \"",
+                      name,
+                      "\" has ",
+                      in.image->channels(),
+                      " channels; a grade needs 3 or 4");
+    }
+    Image out = *in.image;
+    proc.apply(out, ctx.get_bool(kUnpremultiply));
+    ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
+}
+
+void plan(PlanContext &ctx)
+{
+    ctx.inputs[0].add(ctx.params.get_string(kPass));
+}
+
+void check(CheckContext &ctx)
+{
+    make_processor(ctx.params, ctx.node);
+}
+
+}  // namespace
+
+extern const NodeType kGrade{
+    {"grade",
+     "Color grade: white balance, exposure, ASC CDL, lift/gamma/gain, LUT (OpenColorIO).",
+     kInputs,
+     kParams,
+     ""},
+    &execute,
+    &plan,
+    &check};
+
+}  // namespace posthaste::nodes
