@@ -52,11 +52,17 @@ constexpr ParamSpec kPngLevel =
     ParamSpec::integer("png_compression", 1)
         .range(0, 9)
         .doc("Preview: zlib level of a PNG (1: fast, 6: zlib's default, about 10 % smaller).");
+constexpr ParamSpec kPngFilter =
+    ParamSpec::choice("png_filter", "none|sub|up|average|paeth|adaptive", "none")
+        .doc(
+            "Preview: the PNG row filter (adaptive tries all five per row, as libpng's default; "
+            "none was both faster and smaller on rendered frames, docs/PERFORMANCE.md).");
 constexpr ParamSpec kDither =
     ParamSpec::boolean("dither", true)
         .doc("Preview: 8x8 ordered dither before 8-bit quantisation (no bands in gradients).");
 constexpr ParamSpec kParams[] = {kPath,
                                  kPngLevel,
+                                 kPngFilter,
                                  kDither,
                                  kPasses,
                                  kCompression,
@@ -103,6 +109,7 @@ void execute(NodeContext &ctx)
             PreviewOptions po;
             po.alpha = params.get_bool(kAlpha);
             po.png_level = params.get_int(kPngLevel);
+            po.png_filter = params.get_string(kPngFilter);
             po.dither = params.get_bool(kDither);
             write_display_preview(frame.image(pass::kColor, ctx.where()),
                                   frame.data_window,

@@ -670,6 +670,48 @@ Graph Graph::parse(const std::string &text,
             visit(i);
         }
     }
+    // Evaluation order: of the nodes whose inputs are ready, the one with the fewest nodes
+    // downstream runs first, so short branches (a preview of the render, a hatching pass)
+    // finish and free their frames before the long chain holds them (peak memory).
+    {
+        std::vector<int> downstream(std::size_t(count), 0);
+        for (int i = 0; i < count; ++i) {
+            std::vector<char> seen(std::size_t(count), 0);
+            std::vector<int> todo = g.nodes_[std::size_t(i)].consumers;
+            while (!todo.empty()) {
+                const int c = todo.back();
+                todo.pop_back();
+                if (!seen[std::size_t(c)]) {
+                    seen[std::size_t(c)] = 1;
+                    ++downstream[std::size_t(i)];
+                    for (int d : g.nodes_[std::size_t(c)].consumers) {
+                        todo.push_back(d);
+                    }
+                }
+            }
+        }
+        std::vector<char> done(std::size_t(count), 0);
+        std::vector<int> order;
+        while (int(order.size()) < count) {
+            int best = -1;
+            for (int i = 0; i < count; ++i) {
+                if (done[std::size_t(i)]) {
+                    continue;
+                }
+                bool ready = true;
+                for (int src : g.nodes_[std::size_t(i)].inputs) {
+                    ready = ready && (src < 0 || done[std::size_t(src)]);
+                }
+                if (ready && (best < 0 || downstream[std::size_t(i)] <
+                                              downstream[std::size_t(best)])) {
+                    best = i;
+                }
+            }
+            done[std::size_t(best)] = 1;
+            order.push_back(best);
+        }
+        g.order_ = std::move(order);
+    }
     bool has_sink = false;
     for (const GraphNode &gn : g.nodes_) {
         has_sink = has_sink || gn.type->spec.sink;
@@ -855,7 +897,19 @@ Frame Graph::evaluate(int frame, NodeTimes *times) const
             captured = ctx.output();
         }
         if (remaining[std::size_t(i)] > 0) {
-            results[std::size_t(i)] = std::make_shared<const Frame>(ctx.take_output());
+            // Keep only the passes some consumer asked for (a view's "pass@view" goes with its
+            // pass): a G-buffer pass nobody downstream reads is freed now, not when the last
+            // frame that carried it along is.
+            Frame out = ctx.take_output();
+            if (!gn.requested.all) {
+                for (const std::string &name : out.pass_names()) {
+                    const std::string base = name.substr(0, name.find('@'));
+                    if (!gn.requested.contains(name) && !gn.requested.contains(base)) {
+                        out.erase(name);
+                    }
+                }
+            }
+            results[std::size_t(i)] = std::make_shared<const Frame>(std::move(out));
         }
         // Free each input after its last consumer.
         for (int src : gn.inputs) {

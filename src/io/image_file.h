@@ -149,6 +149,8 @@ class ColorProcessor;
 struct PreviewOptions {
     bool alpha = false;  ///< Write alpha as a fourth channel.
     int png_level = 1;   ///< zlib level of a PNG, 0-9.
+    /// PNG row filter: none, sub, up, average, paeth, or adaptive (libpng tries all per row).
+    std::string png_filter = "none";
     bool dither = true;  ///< 8x8 ordered dither before quantising to 8 bits.
 };
 

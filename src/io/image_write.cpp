@@ -911,6 +911,14 @@ void write_display_preview(const Image &color,
         OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
         spec.attribute("oiio:ColorSpace", "sRGB");
         spec.attribute("png:compressionLevel", std::clamp(options.png_level, 0, 9));
+        // libpng's PNG_FILTER_* flags.
+        const int filter = options.png_filter == "sub"       ? 0x10
+                           : options.png_filter == "up"      ? 0x20
+                           : options.png_filter == "average" ? 0x40
+                           : options.png_filter == "paeth"   ? 0x80
+                           : options.png_filter == "none"    ? 0x08
+                                                             : 0xF8;
+        spec.attribute("png:filter", filter);
         if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
             !out->close()) {
             throw_runtime(path, ": cannot write preview: ", out->geterror());
