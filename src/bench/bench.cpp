@@ -177,18 +177,6 @@ json json_number(double v)
     return std::isfinite(v) ? json(v) : json(number_text(v));
 }
 
-void write_text(const std::string &path, const std::string &text)
-{
-    atomic_write(path, [&](const std::string &tmp) {
-        std::ofstream out(tmp, std::ios::binary);
-        out << text;
-        out.close();
-        if (!out) {
-            throw_runtime(path, ": cannot write");
-        }
-    });
-}
-
 std::string join(const std::vector<std::string> &items, const char *sep)
 {
     std::string s;
@@ -669,9 +657,9 @@ std::string results_html(const BenchResult &result)
 void write_results(const BenchResult &result, const std::string &dir)
 {
     const fs::path d(dir);
-    write_text((d / "results.csv").string(), results_csv(result));
-    write_text((d / "chart.svg").string(), results_svg(result));
-    write_text((d / "index.html").string(), results_html(result));
+    write_text_file((d / "results.csv").string(), results_csv(result));
+    write_text_file((d / "chart.svg").string(), results_svg(result));
+    write_text_file((d / "index.html").string(), results_html(result));
     json j = {{"spec", result.spec.origin},
               {"node", result.spec.node},
               {"frames", result.frames},
@@ -696,7 +684,7 @@ void write_results(const BenchResult &result, const std::string &dir)
             r.difference, (d / "thumbs" / (std::to_string(i) + "_diff.png")).string(), false);
     }
     j["settings"] = settings;
-    write_text((d / "results.json").string(), j.dump(2) + "\n");
+    write_text_file((d / "results.json").string(), j.dump(2) + "\n");
 }
 
 }  // namespace posthaste::bench

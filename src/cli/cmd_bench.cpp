@@ -27,18 +27,6 @@ struct BenchCliOptions {
     std::string max_memory;
 };
 
-void write_text(const std::string &path, const std::string &text)
-{
-    atomic_write(path, [&](const std::string &tmp) {
-        std::ofstream out(tmp, std::ios::binary);
-        out << text;
-        out.close();
-        if (!out) {
-            throw_runtime(path, ": cannot write");
-        }
-    });
-}
-
 /// Chart a stability record (tests/stability writes build/stability.json).
 void chart_stability(const std::string &record, const std::string &out, bool quiet)
 {
@@ -49,8 +37,8 @@ void chart_stability(const std::string &record, const std::string &out, bool qui
     std::stringstream text;
     text << in.rdbuf();
     const std::filesystem::path dir(out);
-    write_text((dir / "stability.svg").string(), bench::stability_svg(text.str(), record));
-    write_text((dir / "stability.html").string(), bench::stability_html(text.str(), record));
+    write_text_file((dir / "stability.svg").string(), bench::stability_svg(text.str(), record));
+    write_text_file((dir / "stability.html").string(), bench::stability_html(text.str(), record));
     if (!quiet) {
         std::printf("wrote %s/{stability.svg,stability.html}\n", out.c_str());
     }

@@ -211,20 +211,17 @@ int run(const DiffCliOptions &o)
             {"frame_count", frames.size()},
             {"frames", frames_json},
         };
-        metrics::write_report_file(o.json, report.dump(2) + "\n", "JSON report");
+        write_text_file(o.json, report.dump(2) + "\n");
     }
     if (!o.report_dir.empty()) {
         const std::string page = (std::filesystem::path(o.report_dir) / "index.html").string();
-        metrics::write_report_file(
-            page,
-            metrics::html_report("posthaste diff " + o.a + " " + o.b, entries),
-            "HTML report");
+        write_text_file(page, metrics::html_report("posthaste diff " + o.a + " " + o.b, entries));
         if (!o.quiet) {
             std::printf("report: %s\n", page.c_str());
         }
     }
     if (!o.junit.empty()) {
-        metrics::write_report_file(o.junit, metrics::junit_xml("diff", entries), "JUnit report");
+        write_text_file(o.junit, metrics::junit_xml("diff", entries));
     }
     if (!o.quiet && frames.size() > 1) {
         std::printf(

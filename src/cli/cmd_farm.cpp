@@ -116,17 +116,6 @@ json read_json(const fs::path &path)
     }
 }
 
-void write_text(const fs::path &path, const std::string &text)
-{
-    atomic_write(path.string(), [&](const std::string &tmp) {
-        std::ofstream out(tmp);
-        out << text;
-        if (!out.flush()) {
-            throw_runtime(path.string(), ": cannot write");
-        }
-    });
-}
-
 /// The graph file with the --set values written into its node params (values parsed as JSON
 /// when they are JSON, else taken as strings), validated by loading it back. The copy lives in
 /// the job folder, so it says where its relative paths point: "base_dir" is the original
@@ -257,12 +246,12 @@ void submit(json &job, const fs::path &dir, int s)
     const int chunks = int(sub["chunks"].size());
     const fs::path run = dir / ("run-s" + std::to_string(s) + ".sbatch");
     const fs::path check = dir / ("check-s" + std::to_string(s) + ".sbatch");
-    write_text(run, batch_script(job, dir, s, chunks));
-    write_text(check, check_script(job, dir, s));
+    write_text_file(run.string(), batch_script(job, dir, s, chunks));
+    write_text_file(check.string(), check_script(job, dir, s));
     sub["array_job"] = sbatch(shell_quote(run.string()));
     sub["check_job"] = sbatch("--dependency=afterany:" + sub["array_job"].get<std::string>() +
                               " --kill-on-invalid-dep=yes " + shell_quote(check.string()));
-    write_text(dir / "job.json", job.dump(2) + "\n");
+    write_text_file((dir / "job.json").string(), job.dump(2) + "\n");
 }
 
 /// Load the job's graph from its working directory (graph paths are relative to it).
@@ -536,9 +525,9 @@ int submit_command(const SubmitOptions &o)
     if (ec) {
         throw_runtime(dir.string(), ": cannot create the job directory: ", ec.message());
     }
-    write_text(dir / "graph.json", graph_text);
+    write_text_file((dir / "graph.json").string(), graph_text);
     Graph::load((dir / "graph.json").string());  // the written graph is the same graph
-    write_text(dir / "frames.txt", join_frames(frames) + "\n");
+    write_text_file((dir / "frames.txt").string(), join_frames(frames) + "\n");
     submit(job, dir, 0);
     std::printf("%s %s\n",
                 job["submissions"][0]["array_job"].get<std::string>().c_str(),
@@ -693,7 +682,7 @@ int check_command(const std::string &dir_text)
     report["seconds_per_frame"] = times.empty() ? 0.0 : total / double(times.size());
     report["slowest"] = slowest;
     report["node_seconds"] = nodes;
-    write_text(dir / "report.json", report.dump(2) + "\n");
+    write_text_file((dir / "report.json").string(), report.dump(2) + "\n");
 
     std::ostringstream h;
     h << "<!doctype html><meta charset=utf-8><title>posthaste farm report</title>"
@@ -718,7 +707,7 @@ int check_command(const std::string &dir_text)
         h << "<tr><td>" << html_escape(n) << "<td>" << s;
     }
     h << "</table>\n";
-    write_text(dir / "report.html", h.str());
+    write_text_file((dir / "report.html").string(), h.str());
     std::printf("%s\n", summary_line(report).c_str());
     const bool all_done =
         report["counts"]["done"].get<int>() == int(report["total"].get<std::size_t>());

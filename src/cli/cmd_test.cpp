@@ -300,15 +300,13 @@ int run(const TestOptions &o)
     const std::string suite_name = fs::path(o.suite).lexically_normal().filename().string();
     if (!o.report_dir.empty()) {
         const std::string page = (fs::path(o.report_dir) / "index.html").string();
-        metrics::write_report_file(
-            page, metrics::html_report("posthaste test " + o.suite, entries), "HTML report");
+        write_text_file(page, metrics::html_report("posthaste test " + o.suite, entries));
         if (!o.quiet) {
             std::printf("report: %s\n", page.c_str());
         }
     }
     if (!o.junit.empty()) {
-        metrics::write_report_file(
-            o.junit, metrics::junit_xml(suite_name, entries), "JUnit report");
+        write_text_file(o.junit, metrics::junit_xml(suite_name, entries));
     }
     if (!o.quiet) {
         std::printf(

@@ -171,6 +171,10 @@ void write_display_preview(const Image &color,
 /// `write` throws. The directory of `path` is created if missing.
 void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write);
 
+/// Write `text` to `path` atomically (atomic_write); a one-line error naming the path (and the
+/// free space when the disk is full) otherwise.
+void write_text_file(const std::string &path, const std::string &text);
+
 /// True if `path` has an EXR extension.
 bool is_exr_path(const std::string &path);
 

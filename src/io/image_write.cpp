@@ -744,6 +744,17 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
     }
 }
 
+void write_text_file(const std::string &path, const std::string &text)
+{
+    atomic_write(path, [&](const std::string &tmp) {
+        std::FILE *f = std::fopen(tmp.c_str(), "wb");
+        const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+        if (!f || std::fclose(f) != 0 || !ok) {
+            throw_runtime(path, ": cannot write");
+        }
+    });
+}
+
 void write_exr(const Frame &frame, const std::string &path, const WriteOptions &options)
 {
     check_compression(options.compression, path);

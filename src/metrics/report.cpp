@@ -525,15 +525,4 @@ std::string junit_xml(const std::string &name, const std::vector<ReportEntry> &e
            "\" time=\"" + number(all_seconds, "%.3f") + "\">\n" + body + "</testsuites>\n";
 }
 
-void write_report_file(const std::string &path, const std::string &text, const std::string &what)
-{
-    atomic_write(path, [&](const std::string &tmp) {
-        FILE *f = std::fopen(tmp.c_str(), "wb");
-        const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-        if (!f || std::fclose(f) != 0 || !ok) {
-            throw_runtime(path, ": cannot write the ", what);
-        }
-    });
-}
-
 }  // namespace posthaste::metrics

@@ -84,7 +84,4 @@ std::string html_report(const std::string &title, std::vector<ReportEntry> entri
 /// could not be compared); failures and size mismatches as <failure>, file errors as <error>.
 std::string junit_xml(const std::string &name, const std::vector<ReportEntry> &entries);
 
-/// Write `text` to `path` atomically; a one-line error naming `what` and the path otherwise.
-void write_report_file(const std::string &path, const std::string &text, const std::string &what);
-
 }  // namespace posthaste::metrics
