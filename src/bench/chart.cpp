@@ -114,33 +114,6 @@ std::vector<std::size_t> pareto_front(const std::vector<ChartPoint> &points,
     return front;
 }
 
-std::string xml_escape(const std::string &text)
-{
-    std::string out;
-    for (char c : text) {
-        switch (c) {
-            case '&':
-                out += "&amp;";
-                break;
-            case '<':
-                out += "&lt;";
-                break;
-            case '>':
-                out += "&gt;";
-                break;
-            case '"':
-                out += "&quot;";
-                break;
-            case '\'':
-                out += "&#39;";
-                break;
-            default:
-                out += c;
-        }
-    }
-    return out;
-}
-
 std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions &o)
 {
     const double left = 80, right = 30, top = 40, bottom = 60;

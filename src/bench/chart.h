@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "core/text.h"
+
 namespace posthaste::bench {
 
 /// One measured setting: x is time (its median), x_lo / x_hi its spread, y its error.
@@ -43,6 +45,5 @@ struct ChartOptions {
 std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions &options);
 
 /// Escape &, <, >, " and ' for XML or HTML text and attributes.
-std::string xml_escape(const std::string &text);
 
 }  // namespace posthaste::bench

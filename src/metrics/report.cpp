@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/passes.h"
+#include "core/text.h"
 #include "io/color.h"
 #include "io/image_file.h"
 #include "metrics/flip.h"
@@ -47,63 +48,6 @@ std::string thresholds_text(const Thresholds &t)
     }
     s += ", warn " + number(t.warn) + ", warnpercent " + number(t.warn_percent);
     return s;
-}
-
-std::string escape_html(const std::string &s)
-{
-    std::string out;
-    out.reserve(s.size());
-    for (char c : s) {
-        switch (c) {
-            case '&':
-                out += "&amp;";
-                break;
-            case '<':
-                out += "&lt;";
-                break;
-            case '>':
-                out += "&gt;";
-                break;
-            case '"':
-                out += "&quot;";
-                break;
-            case '\'':
-                out += "&#39;";
-                break;
-            default:
-                out += c;
-        }
-    }
-    return out;
-}
-
-/// XML 1.0 text: the markup characters escaped, control characters other than tab and newline
-/// dropped (they are not allowed in XML at all).
-std::string escape_xml(const std::string &s)
-{
-    std::string out;
-    for (char c : s) {
-        if (static_cast<unsigned char>(c) < 0x20 && c != '\t' && c != '\n') {
-            continue;
-        }
-        switch (c) {
-            case '&':
-                out += "&amp;";
-                break;
-            case '<':
-                out += "&lt;";
-                break;
-            case '>':
-                out += "&gt;";
-                break;
-            case '"':
-                out += "&quot;";
-                break;
-            default:
-                out += c;
-        }
-    }
-    return out;
 }
 
 /// The first `channels` (at most 3) channels of `img`, non-finite values replaced (NaN and -inf
@@ -176,12 +120,12 @@ const char *verdict_class(Verdict v)
 std::string image_cell(const std::string &png, const std::string &caption)
 {
     if (png.empty()) {
-        return "<td class=\"img\"><span class=\"none\">" + escape_html(caption) +
+        return "<td class=\"img\"><span class=\"none\">" + xml_escape(caption) +
                ": none</span></td>";
     }
-    return "<td class=\"img\"><img class=\"thumb\" alt=\"" + escape_html(caption) +
+    return "<td class=\"img\"><img class=\"thumb\" alt=\"" + xml_escape(caption) +
            "\" src=\"data:image/png;base64," + OIIO::Strutil::base64_encode(png) + "\"><br>" +
-           escape_html(caption) + "</td>";
+           xml_escape(caption) + "</td>";
 }
 
 }  // namespace
@@ -353,7 +297,7 @@ std::string html_report(const std::string &title, std::vector<ReportEntry> entri
     }
     std::string h;
     h += "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<title>" +
-         escape_html(title) + "</title>\n";
+         xml_escape(title) + "</title>\n";
     h += R"(<style>
 body { font-family: sans-serif; margin: 16px; background: #fafafa; color: #222; }
 table { border-collapse: collapse; }
@@ -378,7 +322,7 @@ window.addEventListener('load', function () {
 </script>
 </head><body>
 )";
-    h += "<h1>" + escape_html(title) + "</h1>\n<p class=\"summary\">";
+    h += "<h1>" + xml_escape(title) + "</h1>\n<p class=\"summary\">";
     h += "<span>verdict: <b>" + std::string(verdict_name(worst)) + "</b></span>";
     const char *names[5] = {"pass", "warning", "failure", "size mismatch", "file error"};
     for (int v = 0; v < 5; ++v) {
@@ -391,20 +335,19 @@ window.addEventListener('load', function () {
     for (const ReportEntry &e : entries) {
         h += "<tr class=\"entry " + std::string(verdict_class(e.verdict)) + "\">";
         h += "<td class=\"verdict\">" + std::string(verdict_name(e.verdict)) + "</td>";
-        h += "<td><b>" + escape_html(e.test) + "</b><br>frame " + std::to_string(e.frame) +
-             "<br><small>" + escape_html(e.a) + "<br>" + escape_html(e.b) +
-             "</small></td><td><pre>";
+        h += "<td><b>" + xml_escape(e.test) + "</b><br>frame " + std::to_string(e.frame) +
+             "<br><small>" + xml_escape(e.a) + "<br>" + xml_escape(e.b) + "</small></td><td><pre>";
         for (const ReportEntry::Pass &p : e.passes) {
-            h += escape_html(p.name + " [" + verdict_name(p.verdict) + "]: " + p.metrics) + "\n";
+            h += xml_escape(p.name + " [" + verdict_name(p.verdict) + "]: " + p.metrics) + "\n";
         }
         if (e.flip_mean >= 0.0) {
             h += "FLIP mean " + number(e.flip_mean) + "\n";
         }
         for (const std::string &m : e.messages) {
-            h += escape_html(m) + "\n";
+            h += xml_escape(m) + "\n";
         }
         if (!e.thresholds.empty()) {
-            h += "<small>" + escape_html(e.thresholds) + "</small>";
+            h += "<small>" + xml_escape(e.thresholds) + "</small>";
         }
         h += "</pre></td>";
         const std::string pass =
@@ -492,24 +435,24 @@ std::string junit_xml(const std::string &name, const std::vector<ReportEntry> &e
             errors += c.kind == "error";
             seconds += c.seconds;
         }
-        body += "  <testsuite name=\"" + escape_xml(test) + "\" tests=\"" +
+        body += "  <testsuite name=\"" + xml_escape(test) + "\" tests=\"" +
                 std::to_string(cases.size()) + "\" failures=\"" + std::to_string(failures) +
                 "\" errors=\"" + std::to_string(errors) + "\" skipped=\"0\" time=\"" +
                 number(seconds, "%.3f") + "\">\n";
         for (const Case &c : cases) {
-            body += "    <testcase classname=\"" + escape_xml(name + "." + test) + "\" name=\"" +
-                    escape_xml(c.name) + "\" time=\"" + number(c.seconds, "%.3f") + "\"";
+            body += "    <testcase classname=\"" + xml_escape(name + "." + test) + "\" name=\"" +
+                    xml_escape(c.name) + "\" time=\"" + number(c.seconds, "%.3f") + "\"";
             if (c.kind.empty() && c.out.empty()) {
                 body += "/>\n";
                 continue;
             }
             body += ">\n";
             if (!c.kind.empty()) {
-                body += "      <" + c.kind + " message=\"" + escape_xml(c.message) + "\" type=\"" +
-                        c.kind + "\">" + escape_xml(c.text) + "</" + c.kind + ">\n";
+                body += "      <" + c.kind + " message=\"" + xml_escape(c.message) + "\" type=\"" +
+                        c.kind + "\">" + xml_escape(c.text) + "</" + c.kind + ">\n";
             }
             if (!c.out.empty()) {
-                body += "      <system-out>" + escape_xml(c.out) + "</system-out>\n";
+                body += "      <system-out>" + xml_escape(c.out) + "</system-out>\n";
             }
             body += "    </testcase>\n";
         }
@@ -519,7 +462,7 @@ std::string junit_xml(const std::string &name, const std::vector<ReportEntry> &e
         all_errors += errors;
         all_seconds += seconds;
     }
-    return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"" + escape_xml(name) +
+    return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites name=\"" + xml_escape(name) +
            "\" tests=\"" + std::to_string(all_tests) + "\" failures=\"" +
            std::to_string(all_failures) + "\" errors=\"" + std::to_string(all_errors) +
            "\" time=\"" + number(all_seconds, "%.3f") + "\">\n" + body + "</testsuites>\n";
