@@ -10,8 +10,7 @@
 #include <cmath>
 #include <filesystem>
 
-#include "io/color.h"
-#include "nodes/node.h"
+#include "nodes/color_pass.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -109,22 +108,7 @@ void execute(NodeContext &ctx)
 {
     const ColorProcessor &proc = ctx.state().get_or_create<ColorProcessor>(
         [&] { return make_processor(ctx.params(), ctx.node()); });
-    const std::string &name = ctx.get_string(kPass);
-    const Pass &in = ctx.input("image").pass(name, ctx.where());
-    if (proc.is_noop()) {
-        return;  // the output already shares the input pass
-    }
-    if (in.image->channels() < 3) {
-        throw_runtime(ctx.where(),
-                      ": pass \"",
-                      name,
-                      "\" has ",
-                      in.image->channels(),
-                      " channels; a grade needs 3 or 4");
-    }
-    Image out = *in.image;
-    proc.apply(out, ctx.get_bool(kUnpremultiply));
-    ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
+    apply_to_pass(ctx, proc, ctx.get_string(kPass), ctx.get_bool(kUnpremultiply), "a grade");
 }
 
 void plan(PlanContext &ctx)

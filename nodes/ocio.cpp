@@ -2,8 +2,7 @@
 // to another, or to a display and view. Premultiplied color is unpremultiplied around the
 // transform. Config: $OCIO, else samples/ocio/config.ocio (built in). Linear 0.18 -> sRGB 0.461356.
 
-#include "io/color.h"
-#include "nodes/node.h"
+#include "nodes/color_pass.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -37,22 +36,8 @@ void execute(NodeContext &ctx)
 {
     const ColorProcessor &proc = ctx.state().get_or_create<ColorProcessor>(
         [&] { return make_processor(ctx.params(), ctx.node()); });
-    const std::string &name = ctx.get_string(kPass);
-    const Pass &in = ctx.input("image").pass(name, ctx.where());
-    if (proc.is_noop()) {
-        return;  // output already shares the input pass
-    }
-    if (in.image->channels() < 3) {
-        throw_runtime(ctx.where(),
-                      ": pass \"",
-                      name,
-                      "\" has ",
-                      in.image->channels(),
-                      " channels; a color transform needs 3 or 4");
-    }
-    Image out = *in.image;
-    proc.apply(out, ctx.get_bool(kUnpremultiply));
-    ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
+    apply_to_pass(
+        ctx, proc, ctx.get_string(kPass), ctx.get_bool(kUnpremultiply), "a color transform");
 }
 
 void plan(PlanContext &ctx)
