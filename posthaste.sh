@@ -13,7 +13,8 @@ cd "$(dirname "$0")"
 
 PACKAGES=(build-essential cmake ninja-build pkg-config
           libopenimageio-dev openimageio-tools libopenexr-dev libopencolorio-dev
-          libglm-dev nlohmann-json3-dev libcli11-dev libtbb-dev libgtest-dev libbenchmark-dev)
+          libglm-dev nlohmann-json3-dev libcli11-dev libtbb-dev libgtest-dev libbenchmark-dev
+          libfftw3-dev)
 BUILD_DIR=${POSTHASTE_BUILD_DIR:-build}
 JOBS=$(nproc 2>/dev/null || echo 2)
 
@@ -107,7 +108,7 @@ bench() {
 accuracy() {
     deps
     build
-    for spec in motion_blur dof fog full_stack; do
+    for spec in motion_blur dof fog full_stack bloom; do
         "$BUILD_DIR"/posthaste bench "graphs/bench/$spec.json" --out "out/bench/$spec" -q
         mkdir -p "docs/accuracy/$spec"
         cp "out/bench/$spec/chart.svg" "out/bench/$spec/results.csv" "docs/accuracy/$spec/"

@@ -30,6 +30,9 @@ if(NOT TARGET OpenColorIO::OpenColorIO)
   add_library(OpenColorIO::OpenColorIO ALIAS PkgConfig::OCIO)
 endif()
 
+# FFTW 3, single precision (bloom's exact convolution, the lens's diffraction pattern).
+pkg_check_modules(FFTW3F REQUIRED IMPORTED_TARGET fftw3f>=3.3)
+
 if(POSTHASTE_TESTS)
   find_package(GTest CONFIG REQUIRED)
 endif()

@@ -24,5 +24,6 @@ extern const NodeType kRelight;
 extern const NodeType kMotionBlur;
 extern const NodeType kHatching;
 extern const NodeType kDof;
+extern const NodeType kBloom;
 
 }  // namespace posthaste::nodes

@@ -21,6 +21,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kRelight,
         &nodes::kMotionBlur,
         &nodes::kDof,
+        &nodes::kBloom,
     };
     return kAllNodes;
 }

@@ -58,6 +58,8 @@ TEST(NonFinitePolicy, SpatialNodesNeverOutputNaNOrInf)
         {"fog", R"({"model": "atmosphere"})"},
         {"relight", R"({"lights": [{"type": "point", "position": [0, 3, 0], "intensity": 20}]})"},
         {"hatching", "{}"},
+        {"bloom", "{}"},
+        {"bloom", R"({"method": "fft", "diffraction_scale": 10})"},
     };
     for (const auto &[type, params] : cases) {
         SCOPED_TRACE(type + " " + params);

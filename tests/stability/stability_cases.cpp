@@ -40,6 +40,10 @@ NodeCases node_cases(const std::string &type)
                                  "gamma=[1.2, 1, 0.8]",
                                  "gain=[1.1, 1, 1]"}});
         c.param_sets.push_back({"keep_premultiplied", {"exposure=-3", "unpremultiply=false"}});
+    } else if (type == "bloom") {
+        c.param_sets.push_back({"fft", {"method=fft", "diffraction_scale=20", "blades=5"}});
+        c.param_sets.push_back(
+            {"wide_tail", {"intensity=1", "size=0.2", "falloff=1.05", "radius=1"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",
