@@ -25,5 +25,6 @@ extern const NodeType kMotionBlur;
 extern const NodeType kHatching;
 extern const NodeType kDof;
 extern const NodeType kBloom;
+extern const NodeType kExposure;
 
 }  // namespace posthaste::nodes

@@ -22,6 +22,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kMotionBlur,
         &nodes::kDof,
         &nodes::kBloom,
+        &nodes::kExposure,
     };
     return kAllNodes;
 }

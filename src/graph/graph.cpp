@@ -1,5 +1,7 @@
 #include "graph/graph.h"
 
+#include <tbb/task_arena.h>
+
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -702,8 +704,8 @@ Graph Graph::parse(const std::string &text,
                 for (int src : g.nodes_[std::size_t(i)].inputs) {
                     ready = ready && (src < 0 || done[std::size_t(src)]);
                 }
-                if (ready && (best < 0 || downstream[std::size_t(i)] <
-                                              downstream[std::size_t(best)])) {
+                if (ready &&
+                    (best < 0 || downstream[std::size_t(i)] < downstream[std::size_t(best)])) {
                     best = i;
                 }
             }
@@ -851,20 +853,57 @@ NodeTimes Graph::make_times() const
     return t;
 }
 
+const std::vector<int> &Graph::sequence_frames() const
+{
+    std::call_once(sequence_->once, [&] { sequence_->frames = default_frames(); });
+    return sequence_->frames;
+}
+
 Frame Graph::evaluate(int frame, NodeTimes *times) const
 {
+    Frame captured;
+    run_nodes(frame, times, -1, &captured);
+    return captured;
+}
+
+std::shared_ptr<const Frame> Graph::run_nodes(int frame,
+                                              NodeTimes *times,
+                                              int target,
+                                              Frame *captured) const
+{
     const std::size_t count = nodes_.size();
+    // The nodes to run: the live ones, or the target and its ancestors.
+    std::vector<bool> run = live_;
+    if (target >= 0) {
+        run.assign(count, false);
+        std::vector<int> stack = {target};
+        while (!stack.empty()) {
+            const int i = stack.back();
+            stack.pop_back();
+            if (run[std::size_t(i)]) {
+                continue;
+            }
+            run[std::size_t(i)] = true;
+            for (int src : nodes_[std::size_t(i)].inputs) {
+                if (src >= 0) {
+                    stack.push_back(src);
+                }
+            }
+        }
+    }
     std::vector<std::shared_ptr<const Frame>> results(count);
     std::vector<int> remaining(count, 0);
     for (std::size_t i = 0; i < count; ++i) {
         for (int c : nodes_[i].consumers) {
-            remaining[i] += live_[std::size_t(c)] ? 1 : 0;
+            remaining[i] += run[std::size_t(c)] ? 1 : 0;
         }
     }
-    Frame captured;
+    if (target >= 0) {
+        ++remaining[std::size_t(target)];  // kept for the caller
+    }
     for (int i : order_) {
         const GraphNode &gn = nodes_[std::size_t(i)];
-        if (!live_[std::size_t(i)]) {
+        if (!run[std::size_t(i)]) {
             continue;
         }
         std::vector<std::shared_ptr<const Frame>> inputs;
@@ -880,21 +919,39 @@ Frame Graph::evaluate(int frame, NodeTimes *times) const
                         gn.requested,
                         frame,
                         *gn.state);
+        const FrameHistory history{
+            [this]() -> const std::vector<int> & { return sequence_frames(); },
+            [this, i](std::size_t port, int other) -> std::shared_ptr<const Frame> {
+                const int src = nodes_[std::size_t(i)].inputs[port];
+                if (src < 0) {
+                    return nullptr;
+                }
+                // Isolated: while this thread waits inside the upstream nodes' parallel loops it
+                // must not pick up another frame's task, which could wait on what this one is
+                // computing (a node's cache of earlier frames).
+                std::shared_ptr<const Frame> out;
+                tbb::this_task_arena::isolate(
+                    [&] { out = run_nodes(other, nullptr, src, nullptr); });
+                return out;
+            }};
+        ctx.set_history(&history);
         const auto t0 = std::chrono::steady_clock::now();
-        try {
-            gn.type->execute(ctx);
-        } catch (const Error &) {
-            throw;
-        } catch (const std::exception &e) {
-            throw_runtime(ctx.where(), ": ", e.what());
+        if (target < 0 || !gn.type->spec.sink) {
+            try {
+                gn.type->execute(ctx);
+            } catch (const Error &) {
+                throw;
+            } catch (const std::exception &e) {
+                throw_runtime(ctx.where(), ": ", e.what());
+            }
         }
         const auto t1 = std::chrono::steady_clock::now();
         if (times) {
             *times->nanoseconds[std::size_t(i)] +=
                 std::chrono::duration_cast<std::chrono::nanoseconds>(t1 - t0).count();
         }
-        if (i == capture_) {
-            captured = ctx.output();
+        if (captured && i == capture_) {
+            *captured = ctx.output();
         }
         if (remaining[std::size_t(i)] > 0) {
             // Keep only the passes some consumer asked for (a view's "pass@view" goes with its
@@ -918,7 +975,7 @@ Frame Graph::evaluate(int frame, NodeTimes *times) const
             }
         }
     }
-    return captured;
+    return target >= 0 ? results[std::size_t(target)] : nullptr;
 }
 
 }  // namespace posthaste

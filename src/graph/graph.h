@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -61,6 +62,8 @@ class Graph {
     /// The frames to run when the command line gives none: the graph's "frames", else the
     /// frames a source finds on disk, else {1}.
     std::vector<int> default_frames() const;
+    /// default_frames(), computed once: the sequence nodes that look at earlier frames see.
+    const std::vector<int> &sequence_frames() const;
     /// The files the graph's live `write` nodes make for `frame` (their paths expanded).
     std::vector<std::string> outputs(int frame) const;
     /// Run every node's check hook for these frames (files exist, passes exist, ...).
@@ -79,6 +82,17 @@ class Graph {
    private:
     Graph() = default;
     void plan();
+    /// Evaluate frame `frame`: every live node (target < 0), or only node `target` and what it
+    /// reads, sinks passing their input on (a history request). Returns the target's output.
+    std::shared_ptr<const Frame> run_nodes(int frame,
+                                           NodeTimes *times,
+                                           int target,
+                                           Frame *captured) const;
+
+    struct SequenceCache {
+        std::once_flag once;
+        std::vector<int> frames;
+    };
 
     std::string origin_;
     std::string base_dir_;
@@ -87,6 +101,7 @@ class Graph {
     std::vector<bool> live_;  ///< Nodes that feed a sink or the capture node.
     int capture_ = -1;
     std::string frames_;
+    std::shared_ptr<SequenceCache> sequence_ = std::make_shared<SequenceCache>();
 };
 
 /// Parse a frame list ("1-48", "1-48x2", "1,5,10-20"); throws a usage Error naming `what`.

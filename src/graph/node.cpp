@@ -99,4 +99,36 @@ const Image &NodeContext::input_pass(std::string_view port, const std::string &p
     return input(port).image(pass, where() + ", input \"" + std::string(port) + "\"");
 }
 
+std::vector<int> NodeContext::earlier_frames(int count) const
+{
+    std::vector<int> out;
+    if (!history_ || !history_->sequence || count <= 0) {
+        return out;
+    }
+    for (int f : history_->sequence()) {
+        if (f >= frame_number_ - count && f < frame_number_) {
+            out.push_back(f);
+        }
+    }
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    return out;
+}
+
+std::shared_ptr<const Frame> NodeContext::input_at(std::string_view port, int frame) const
+{
+    const int p = port_index(port);
+    if (p < 0) {
+        throw_runtime(where(), ": no input port \"", port, "\"");
+    }
+    if (!history_ || !history_->input_at) {
+        throw_runtime(where(), ": needs earlier frames, which only a graph run can give");
+    }
+    std::shared_ptr<const Frame> f = history_->input_at(std::size_t(p), frame);
+    if (!f) {
+        throw_runtime(where(), ": input \"", port, "\" is not connected");
+    }
+    return f;
+}
+
 }  // namespace posthaste

@@ -154,6 +154,17 @@ class CheckContext {
     std::vector<bool> connected;
 };
 
+/// What the engine offers a node that looks at earlier frames (auto exposure's adaptation).
+/// Set by Graph::evaluate; absent when a node is run on its own.
+struct FrameHistory {
+    /// The frames of the sequence: the graph's "frames", else what its sources find on disk.
+    /// Independent of the frames a run (or a farm chunk) evaluates.
+    std::function<const std::vector<int> &()> sequence;
+    /// The frame on input port `port` at frame number `frame`, evaluated upstream (sinks
+    /// upstream pass their input on without writing).
+    std::function<std::shared_ptr<const Frame>(std::size_t port, int frame)> input_at;
+};
+
 class NodeContext {
    public:
     NodeContext(const NodeIdentity &node,
@@ -205,6 +216,15 @@ class NodeContext {
 
     NodeState &state() { return state_; }
 
+    /// The engine's history hooks (Graph::evaluate sets them).
+    void set_history(const FrameHistory *history) { history_ = history; }
+    /// The frames of the sequence in [frame_number() - count, frame_number()), ascending;
+    /// empty when the node runs outside a graph.
+    std::vector<int> earlier_frames(int count) const;
+    /// The frame on input `port` at another frame number; throws naming the node when the
+    /// node runs outside a graph or the port is not connected.
+    std::shared_ptr<const Frame> input_at(std::string_view port, int frame) const;
+
    private:
     int port_index(std::string_view port) const;
 
@@ -216,6 +236,7 @@ class NodeContext {
     int frame_number_;
     NodeState &state_;
     Frame output_;
+    const FrameHistory *history_ = nullptr;
 };
 
 /// Split "a,b,c" into words (empty words dropped, spaces trimmed).

@@ -44,6 +44,9 @@ NodeCases node_cases(const std::string &type)
         c.param_sets.push_back({"fft", {"method=fft", "diffraction_scale=20", "blades=5"}});
         c.param_sets.push_back(
             {"wide_tail", {"intensity=1", "size=0.2", "falloff=1.05", "radius=1"}});
+    } else if (type == "exposure") {
+        c.param_sets.push_back({"auto", {"mode=auto"}});
+        c.param_sets.push_back({"photographic", {"mode=photographic", "fstop=1.4", "iso=3200"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",

@@ -1,0 +1,276 @@
+// nodes/exposure.cpp: scale a scene-linear pass by an exposure (src/filter/exposure.h).
+// Modes: `ev` (2^exposure), `photographic` (a camera's f-number, shutter time and ISO: the scale
+// 1 / (1.2 2^EV100), the header's aperture and shutter unless given), and `auto`: each frame is
+// metered (a log-luminance histogram, the mean over a percentile window), the target brings the
+// metered luminance to `key`, and the exposure adapts toward it over the sequence at
+// rates `speed_up` / `speed_down` (per second, exponentially). The adapted value at frame n is
+// defined by the frames of the sequence in [n - adaptation_frames, n] alone (started adapted at
+// the first of them), so a farm chunk gives the same bits as a whole run: the node asks the
+// engine for its input at those earlier frames (FrameHistory) and keeps their meterings. In
+// every mode `exposure` is added (stops); alpha and the other channels pass through; a point
+// operation, so non-finite values stay in their pixel (metering skips them).
+
+#include "filter/exposure.h"
+
+#include <cmath>
+#include <future>
+#include <map>
+#include <mutex>
+
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kMode = ParamSpec::choice("mode", "ev|photographic|auto", "ev")
+                                .doc(
+                                    "ev: 2^exposure; photographic: from the camera; auto: "
+                                    "metered and adapted over the sequence.");
+constexpr ParamSpec kExposure =
+    ParamSpec::real("exposure", 0.0)
+        .range(-32.0, 32.0)
+        .units("stops")
+        .doc("ev: the exposure; photographic and auto: a compensation added to theirs.");
+constexpr ParamSpec kFstop =
+    ParamSpec::real("fstop", 8.0)
+        .range(0.5, 128.0)
+        .doc("photographic: f-number; unless given, the header's aperture, else this.");
+constexpr ParamSpec kShutterTime =
+    ParamSpec::real("shutter_time", 1.0 / 48.0)
+        .range(1e-6, 60.0)
+        .units("s")
+        .doc("photographic: exposure time; unless given, the header's shutter / fps, else this.");
+constexpr ParamSpec kIso =
+    ParamSpec::real("iso", 100.0).range(1.0, 409600.0).doc("photographic: sensitivity.");
+constexpr ParamSpec kFps =
+    ParamSpec::real("fps", 24.0)
+        .range(0.1, 1000.0)
+        .units("frames/s")
+        .doc("Frame rate: the shutter time from the header's shutter, and auto's adaptation time.");
+constexpr ParamSpec kKey =
+    ParamSpec::real("key", 0.18)
+        .range(1e-4, 100.0)
+        .doc("auto: the luminance the metered average is brought to (middle grey).");
+constexpr ParamSpec kLowPercentile = ParamSpec::real("low_percentile", 50.0)
+                                         .range(0.0, 100.0)
+                                         .doc("auto: darkest share of the samples left out.");
+constexpr ParamSpec kHighPercentile = ParamSpec::real("high_percentile", 95.0)
+                                          .range(0.0, 100.0)
+                                          .doc("auto: samples above this rank left out.");
+constexpr ParamSpec kMinEv =
+    ParamSpec::real("min_ev", -10.0)
+        .range(-40.0, 40.0)
+        .doc("auto: the histogram's darkest log2 luminance (and the target's lower clamp).");
+constexpr ParamSpec kMaxEv = ParamSpec::real("max_ev", 20.0)
+                                 .range(-40.0, 40.0)
+                                 .doc("auto: the histogram's brightest log2 luminance.");
+constexpr ParamSpec kSpeedUp =
+    ParamSpec::real("speed_up", 3.0)
+        .at_least(0.0)
+        .units("1/s")
+        .doc("auto: adaptation rate toward a brighter scene (0: at once).");
+constexpr ParamSpec kSpeedDown =
+    ParamSpec::real("speed_down", 1.0)
+        .at_least(0.0)
+        .units("1/s")
+        .doc("auto: adaptation rate toward a darker scene (0: at once).");
+constexpr ParamSpec kAdaptationFrames =
+    ParamSpec::integer("adaptation_frames", 48)
+        .range(0, 100000)
+        .doc("auto: earlier frames the adaptation starts from (0: each frame metered alone).");
+constexpr ParamSpec kMeteringStep =
+    ParamSpec::integer("metering_step", 4)
+        .range(1, 64)
+        .doc("auto: every n-th pixel of every n-th row is metered.");
+constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to expose.");
+constexpr ParamSpec kParams[] = {kMode,
+                                 kExposure,
+                                 kFstop,
+                                 kShutterTime,
+                                 kIso,
+                                 kFps,
+                                 kKey,
+                                 kLowPercentile,
+                                 kHighPercentile,
+                                 kMinEv,
+                                 kMaxEv,
+                                 kSpeedUp,
+                                 kSpeedDown,
+                                 kAdaptationFrames,
+                                 kMeteringStep,
+                                 kPass};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to expose."}};
+
+/// Earlier frames' meterings, shared by the frames in flight: a frame computes its own, and the
+/// first frame to need an earlier one that is missing computes it from the engine's history
+/// while the others wait for it.
+struct MeterCache {
+    std::unique_ptr<std::mutex> mutex = std::make_unique<std::mutex>();
+    mutable std::map<int, std::shared_future<double>> meters;
+};
+
+filter::MeterParams meter_params(const NodeParams &p)
+{
+    filter::MeterParams m;
+    m.min_ev = p.get_real(kMinEv);
+    m.max_ev = p.get_real(kMaxEv);
+    m.low_percentile = p.get_real(kLowPercentile);
+    m.high_percentile = p.get_real(kHighPercentile);
+    m.step = p.get_int(kMeteringStep);
+    return m;
+}
+
+/// The EV a frame's metering asks for: the metered log2 luminance less log2(key).
+double target_ev(const Image &image, const NodeParams &p)
+{
+    return filter::meter_log2_luminance(image, meter_params(p)) - std::log2(p.get_real(kKey));
+}
+
+double metered(NodeContext &ctx, const MeterCache &cache, int frame)
+{
+    std::promise<double> promise;
+    std::shared_future<double> future;
+    bool mine = false;
+    {
+        std::lock_guard lock(*cache.mutex);
+        auto it = cache.meters.find(frame);
+        if (it != cache.meters.end()) {
+            future = it->second;
+        } else {
+            future = promise.get_future().share();
+            cache.meters.emplace(frame, future);
+            mine = true;
+        }
+    }
+    if (mine) {
+        try {
+            const std::shared_ptr<const Frame> in = ctx.input_at("image", frame);
+            promise.set_value(
+                target_ev(in->image(ctx.get_string(kPass), ctx.where()), ctx.params()));
+        } catch (...) {
+            promise.set_exception(std::current_exception());
+        }
+    }
+    return future.get();
+}
+
+double auto_ev(NodeContext &ctx, const Image &image)
+{
+    const MeterCache &cache = ctx.state().get_or_create<MeterCache>([] { return MeterCache{}; });
+    const int n = ctx.frame_number();
+    const double own = target_ev(image, ctx.params());
+    {
+        std::lock_guard lock(*cache.mutex);
+        if (!cache.meters.count(n)) {
+            std::promise<double> done;
+            done.set_value(own);
+            cache.meters.emplace(n, done.get_future().share());
+        }
+    }
+    std::vector<filter::MeterSample> samples;
+    for (int k : ctx.earlier_frames(ctx.get_int(kAdaptationFrames))) {
+        samples.emplace_back(k, metered(ctx, cache, k));
+    }
+    samples.emplace_back(n, own);
+    return filter::adapt_ev(
+        samples, ctx.get_real(kFps), ctx.get_real(kSpeedUp), ctx.get_real(kSpeedDown));
+}
+
+/// log2 of the scale a frame gets.
+double scale_stops(NodeContext &ctx, const Frame &frame, const Image &image)
+{
+    const double compensation = ctx.get_real(kExposure);
+    const std::string &mode = ctx.get_string(kMode);
+    if (mode == "ev") {
+        return compensation;
+    }
+    if (mode == "photographic") {
+        double fstop = ctx.get_real(kFstop);
+        if (!ctx.params().given(kFstop) && frame.camera.fstop && *frame.camera.fstop > 0.0f &&
+            std::isfinite(*frame.camera.fstop)) {
+            fstop = *frame.camera.fstop;
+        }
+        double shutter = ctx.get_real(kShutterTime);
+        if (!ctx.params().given(kShutterTime) && frame.camera.shutter &&
+            *frame.camera.shutter > 0.0f && std::isfinite(*frame.camera.shutter)) {
+            shutter = *frame.camera.shutter / ctx.get_real(kFps);
+        }
+        const double ev = filter::ev100(fstop, shutter, ctx.get_real(kIso));
+        return std::log2(filter::photographic_scale(ev)) + compensation;
+    }
+    return compensation - auto_ev(ctx, image);
+}
+
+void execute(NodeContext &ctx)
+{
+    const std::string &name = ctx.get_string(kPass);
+    const Frame &frame = ctx.input("image");
+    const Pass &in = frame.pass(name, ctx.where());
+    if (in.image->channels() < 3) {
+        throw_runtime(ctx.where(),
+                      ": pass \"",
+                      name,
+                      "\" has ",
+                      in.image->channels(),
+                      " channels; exposure needs 3 or 4");
+    }
+    const double stops = scale_stops(ctx, frame, *in.image);
+    if (stops == 0.0) {
+        return;  // the output shares the input pass
+    }
+    Image out = filter::scale_rgb(*in.image, float(std::exp2(stops)));
+    ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
+}
+
+void plan(PlanContext &ctx)
+{
+    ctx.inputs[0].add(ctx.params.get_string(kPass));
+}
+
+void check(CheckContext &ctx)
+{
+    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
+    const std::string &mode = ctx.params.get_string(kMode);
+    // Parameters of another mode are refused rather than silently ignored.
+    const ParamSpec *photographic[] = {&kFstop, &kShutterTime, &kIso};
+    const ParamSpec *automatic[] = {&kKey,
+                                    &kLowPercentile,
+                                    &kHighPercentile,
+                                    &kMinEv,
+                                    &kMaxEv,
+                                    &kSpeedUp,
+                                    &kSpeedDown,
+                                    &kAdaptationFrames,
+                                    &kMeteringStep};
+    for (const ParamSpec *s : photographic) {
+        if (mode != "photographic" && ctx.params.given(*s)) {
+            throw_usage(
+                where, ": param \"", s->name, "\" applies to mode photographic, not ", mode);
+        }
+    }
+    for (const ParamSpec *s : automatic) {
+        if (mode != "auto" && ctx.params.given(*s)) {
+            throw_usage(where, ": param \"", s->name, "\" applies to mode auto, not ", mode);
+        }
+    }
+    if (ctx.params.get_real(kLowPercentile) >= ctx.params.get_real(kHighPercentile)) {
+        throw_usage(where, ": low_percentile must be below high_percentile");
+    }
+    if (ctx.params.get_real(kMinEv) >= ctx.params.get_real(kMaxEv)) {
+        throw_usage(where, ": min_ev must be below max_ev");
+    }
+}
+
+}  // namespace
+
+extern const NodeType kExposure{{"exposure",
+                                 "Exposure: stops, a camera's f-number/shutter/ISO, or auto "
+                                 "exposure adapted over the sequence.",
+                                 kInputs,
+                                 kParams,
+                                 ""},
+                                &execute,
+                                &plan,
+                                &check};
+
+}  // namespace posthaste::nodes
