@@ -30,6 +30,9 @@ if(NOT TARGET OpenColorIO::OpenColorIO)
   add_library(OpenColorIO::OpenColorIO ALIAS PkgConfig::OCIO)
 endif()
 
+# Google Highway: portable SIMD, one kernel source compiled per target with run-time dispatch.
+find_package(hwy CONFIG REQUIRED)
+
 # FFTW 3, single precision (bloom's exact convolution, the lens's diffraction pattern).
 pkg_check_modules(FFTW3F REQUIRED IMPORTED_TARGET fftw3f>=3.3)
 

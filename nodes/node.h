@@ -26,5 +26,6 @@ extern const NodeType kHatching;
 extern const NodeType kDof;
 extern const NodeType kBloom;
 extern const NodeType kExposure;
+extern const NodeType kGrain;
 
 }  // namespace posthaste::nodes

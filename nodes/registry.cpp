@@ -23,6 +23,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kDof,
         &nodes::kBloom,
         &nodes::kExposure,
+        &nodes::kGrain,
     };
     return kAllNodes;
 }

@@ -83,6 +83,18 @@ void BM_LensFilmExposureAuto(benchmark::State &state)
 }
 BENCHMARK(BM_LensFilmExposureAuto)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+void BM_LensFilmGrainMono(benchmark::State &state)
+{
+    run_node(state, "grain", "{}");
+}
+BENCHMARK(BM_LensFilmGrainMono)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmGrainColor(benchmark::State &state)
+{
+    run_node(state, "grain", R"({"mode": "color"})");
+}
+BENCHMARK(BM_LensFilmGrainColor)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_LensFilmBloomPyramid(benchmark::State &state)
 {
     run_node(state, "bloom", "{}");

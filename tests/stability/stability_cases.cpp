@@ -47,6 +47,9 @@ NodeCases node_cases(const std::string &type)
     } else if (type == "exposure") {
         c.param_sets.push_back({"auto", {"mode=auto"}});
         c.param_sets.push_back({"photographic", {"mode=photographic", "fstop=1.4", "iso=3200"}});
+    } else if (type == "grain") {
+        c.param_sets.push_back(
+            {"strong_color", {"intensity=4", "size=16", "mode=color", "response=0"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",
