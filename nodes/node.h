@@ -27,5 +27,6 @@ extern const NodeType kDof;
 extern const NodeType kBloom;
 extern const NodeType kExposure;
 extern const NodeType kGrain;
+extern const NodeType kLens;
 
 }  // namespace posthaste::nodes

@@ -24,6 +24,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kBloom,
         &nodes::kExposure,
         &nodes::kGrain,
+        &nodes::kLens,
     };
     return kAllNodes;
 }

@@ -1,5 +1,5 @@
 // The lens-and-film nodes as a graph runs them (input frame in, new frame out) at 1920x1080 on
-// the default Minecrappy scene's frame 8, with a copy of the color pass beside them in the same
+// the default Minecrappy scene's frame 8 (color and depth passes), with a copy of the color pass beside them in the same
 // run (what any node that outputs a new image pays at least). Auto exposure runs without a
 // history here (one frame metered alone): its per-frame cost, warm-up frames aside.
 //   build/tests/posthaste_benchmarks --benchmark_filter='LensFilm' --benchmark_repetitions=5
@@ -94,6 +94,24 @@ void BM_LensFilmGrainColor(benchmark::State &state)
     run_node(state, "grain", R"({"mode": "color"})");
 }
 BENCHMARK(BM_LensFilmGrainColor)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmLensBicubic(benchmark::State &state)
+{
+    run_node(state, "lens", R"({"k1": -0.05, "k2": 0.01})");
+}
+BENCHMARK(BM_LensFilmLensBicubic)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmLensBicubicAberration(benchmark::State &state)
+{
+    run_node(state, "lens", R"({"k1": -0.05, "k2": 0.01, "chromatic_aberration": 0.002})");
+}
+BENCHMARK(BM_LensFilmLensBicubicAberration)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmLensBilinear(benchmark::State &state)
+{
+    run_node(state, "lens", R"({"k1": -0.05, "k2": 0.01, "filter": "bilinear"})");
+}
+BENCHMARK(BM_LensFilmLensBilinear)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_LensFilmBloomPyramid(benchmark::State &state)
 {

@@ -59,6 +59,7 @@ TEST(NonFinitePolicy, SpatialNodesNeverOutputNaNOrInf)
         {"relight", R"({"lights": [{"type": "point", "position": [0, 3, 0], "intensity": 20}]})"},
         {"hatching", "{}"},
         {"bloom", "{}"},
+        {"lens", R"({"k1": -0.05, "chromatic_aberration": 0.01})"},
         {"bloom", R"({"method": "fft", "diffraction_scale": 10})"},
     };
     for (const auto &[type, params] : cases) {

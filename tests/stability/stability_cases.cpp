@@ -47,6 +47,12 @@ NodeCases node_cases(const std::string &type)
     } else if (type == "exposure") {
         c.param_sets.push_back({"auto", {"mode=auto"}});
         c.param_sets.push_back({"photographic", {"mode=photographic", "fstop=1.4", "iso=3200"}});
+    } else if (type == "lens") {
+        c.param_sets.push_back(
+            {"barrel_aberration",
+             {"k1=-0.2", "k2=0.02", "chromatic_aberration=0.02", "vignette=1", "stmap=true"}});
+        c.param_sets.push_back({"undistort_pincushion",
+                                {"direction=undistort", "k1=0.3", "p1=0.01", "filter=bilinear"}});
     } else if (type == "grain") {
         c.param_sets.push_back(
             {"strong_color", {"intensity=4", "size=16", "mode=color", "response=0"}});

@@ -1,0 +1,320 @@
+// nodes/lens.cpp: lens distortion and its exact inverse, lateral chromatic aberration, natural
+// (cos^4) and artistic vignetting, and an ST-map of the warp (src/filter/lens.h).
+// `direction: distort` images the input through the lens (each output pixel reads the input at
+// the undistorted position, found by Newton's method); `undistort` removes a lens's distortion
+// (each output pixel reads the input at distort(position)). Every pass is warped the same way:
+// the `filtered` passes (color, albedo) with `filter`, the others (depth, normals, ids, motion...)
+// with nearest neighbour, their values unchanged (motion vectors are not re-projected). Outside
+// the input's data window reads 0 (depth +inf). The data window becomes the input's moved by the
+// lens (it grows for pincushion, shrinks for barrel), within the display window widened by half
+// its size on every side. Chromatic aberration, vignetting: color pass only. Non-finite values
+// read as 0 (NaN and -inf depth as the sky, +inf).
+
+#include "filter/lens.h"
+
+#include <cmath>
+#include <limits>
+#include <mutex>
+
+#include "core/passes.h"
+#include "core/sanitize.h"
+#include "filter/lens_kernels.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kDirection =
+    ParamSpec::choice("direction", "distort|undistort", "distort")
+        .doc("distort: add the lens's distortion; undistort: remove it.");
+constexpr ParamSpec kK1 = ParamSpec::real("k1", 0.0).range(-10.0, 10.0).doc("Radial r^2 term.");
+constexpr ParamSpec kK2 = ParamSpec::real("k2", 0.0).range(-10.0, 10.0).doc("Radial r^4 term.");
+constexpr ParamSpec kK3 = ParamSpec::real("k3", 0.0).range(-10.0, 10.0).doc("Radial r^6 term.");
+constexpr ParamSpec kP1 = ParamSpec::real("p1", 0.0).range(-1.0, 1.0).doc("Tangential p1.");
+constexpr ParamSpec kP2 = ParamSpec::real("p2", 0.0).range(-1.0, 1.0).doc("Tangential p2.");
+constexpr ParamSpec kNormalize =
+    ParamSpec::choice("normalize", "half_width|focal_length", "half_width")
+        .doc(
+            "The unit of the coefficients: half the display width, or the focal length in "
+            "pixels from the header (OpenCV's calibrations).");
+constexpr ParamSpec kCenterX =
+    ParamSpec::real("center_x", 0.0)
+        .units("px")
+        .doc("Optical centre's offset from the display window's centre.");
+constexpr ParamSpec kCenterY =
+    ParamSpec::real("center_y", 0.0)
+        .units("px")
+        .doc("Optical centre's offset from the display window's centre (down).");
+constexpr ParamSpec kChromatic = ParamSpec::real("chromatic_aberration", 0.0)
+                                     .range(-0.1, 0.1)
+                                     .doc(
+                                         "Lateral: red read at (1 + a), blue at (1 - a) times "
+                                         "green's distance from the centre.");
+constexpr ParamSpec kNatural =
+    ParamSpec::real("natural_vignetting", 0.0)
+        .range(0.0, 1.0)
+        .doc("Mix of cos^4 of the field angle (the header's focal length and sensor width).");
+constexpr ParamSpec kVignette = ParamSpec::real("vignette", 0.0)
+                                    .range(0.0, 1.0)
+                                    .doc("Artistic vignette: darkening at the edge.");
+constexpr ParamSpec kVignetteRadius = ParamSpec::real("vignette_radius", 0.75)
+                                          .range(0.0, 2.0)
+                                          .doc("Where it starts, in half-diagonals.");
+constexpr ParamSpec kVignetteSoftness =
+    ParamSpec::real("vignette_softness", 0.5).range(1e-3, 2.0).doc("Its ramp, in half-diagonals.");
+constexpr ParamSpec kFilter = ParamSpec::choice("filter", "nearest|bilinear|bicubic", "bicubic")
+                                  .doc("Resampling of the filtered passes (bicubic: Catmull-Rom).");
+constexpr ParamSpec kFiltered =
+    ParamSpec::string("filtered", "color,albedo")
+        .doc("Passes resampled with `filter`; others take the nearest.");
+constexpr ParamSpec kStmap = ParamSpec::boolean("stmap", false)
+                                 .doc(
+                                     "Also output pass \"stmap\": where each pixel reads the input "
+                                     "(Nuke's STMap convention).");
+constexpr ParamSpec kParams[] = {kDirection,
+                                 kK1,
+                                 kK2,
+                                 kK3,
+                                 kP1,
+                                 kP2,
+                                 kNormalize,
+                                 kCenterX,
+                                 kCenterY,
+                                 kChromatic,
+                                 kNatural,
+                                 kVignette,
+                                 kVignetteRadius,
+                                 kVignetteSoftness,
+                                 kFilter,
+                                 kFiltered,
+                                 kStmap};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to put through the lens."}};
+
+struct Built {
+    std::array<double, 12> key;
+    std::shared_ptr<const filter::LensMap> map;
+};
+
+struct LensCache {
+    std::unique_ptr<std::mutex> mutex = std::make_unique<std::mutex>();
+    mutable std::vector<Built> built;
+};
+
+filter::LensGeometry geometry(NodeContext &ctx, const Frame &frame)
+{
+    filter::LensGeometry g;
+    g.distortion = {ctx.get_real(kK1),
+                    ctx.get_real(kK2),
+                    ctx.get_real(kK3),
+                    ctx.get_real(kP1),
+                    ctx.get_real(kP2)};
+    const Rect &d = frame.display_window;
+    g.centre = glm::dvec2(0.5 * (d.x0 + d.x1) + ctx.get_real(kCenterX),
+                          0.5 * (d.y0 + d.y1) + ctx.get_real(kCenterY));
+    if (ctx.get_string(kNormalize) == "focal_length") {
+        const std::string who = ctx.where() + ": param \"normalize\"";
+        g.unit = double(frame.camera.require_focal_length_mm(who)) /
+                 double(frame.camera.require_sensor_width_mm(who)) * d.width();
+    } else {
+        g.unit = 0.5 * d.width();
+    }
+    g.undistort = ctx.get_string(kDirection) == "undistort";
+    return g;
+}
+
+std::shared_ptr<const filter::LensMap> lens_map(NodeContext &ctx,
+                                                const Frame &frame,
+                                                const filter::LensGeometry &g)
+{
+    const LensCache &cache = ctx.state().get_or_create<LensCache>([] { return LensCache{}; });
+    const Rect &dw = frame.data_window, &disp = frame.display_window;
+    const std::array<double, 12> key = {g.centre.x,
+                                        g.centre.y,
+                                        g.unit,
+                                        double(dw.x0),
+                                        double(dw.y0),
+                                        double(dw.x1),
+                                        double(dw.y1),
+                                        double(disp.x0),
+                                        double(disp.y0),
+                                        double(disp.x1),
+                                        double(disp.y1),
+                                        g.undistort ? 1.0 : 0.0};
+    std::lock_guard lock(*cache.mutex);
+    for (const Built &b : cache.built) {
+        if (b.key == key) {
+            return b.map;
+        }
+    }
+    const Rect limit = disp.expand(std::max(disp.width(), disp.height()) / 2);
+    Built b{key,
+            std::make_shared<const filter::LensMap>(
+                filter::build_lens_map(g, dw, limit, ctx.where() + ": params \"k1\"..\"p2\""))};
+    if (cache.built.size() >= 4) {
+        cache.built.erase(cache.built.begin());
+    }
+    cache.built.push_back(b);
+    return b.map;
+}
+
+float smoothstep(float a, float b, float x)
+{
+    const float t = std::clamp((x - a) / (b - a), 0.0f, 1.0f);
+    return t * t * (3.0f - 2.0f * t);
+}
+
+void execute(NodeContext &ctx)
+{
+    const Frame &frame = ctx.input("image");
+    const filter::LensGeometry g = geometry(ctx, frame);
+    const double ca = ctx.get_real(kChromatic), natural = ctx.get_real(kNatural),
+                 vignette = ctx.get_real(kVignette);
+    const bool stmap = ctx.get_bool(kStmap);
+    if (g.distortion.identity() && ca == 0.0 && natural == 0.0 && vignette == 0.0 && !stmap) {
+        return;  // nothing to do: the output shares every pass
+    }
+    // The natural vignetting's field angle: tan = r px * (sensor / display width) / focal.
+    double mm_per_px = 0.0, focal_mm = 1.0;
+    if (natural > 0.0) {
+        const std::string who = ctx.where() + ": param \"natural_vignetting\"";
+        focal_mm = frame.camera.require_focal_length_mm(who);
+        mm_per_px = frame.camera.require_sensor_width_mm(who) / frame.display_window.width();
+    }
+    const std::shared_ptr<const filter::LensMap> map = lens_map(ctx, frame, g);
+    const Rect out_window = map->window;
+    const int w = out_window.width(), h = out_window.height();
+    const filter::Resample filter = ctx.get_string(kFilter) == "nearest" ? filter::Resample::Nearest
+                                    : ctx.get_string(kFilter) == "bilinear"
+                                        ? filter::Resample::Bilinear
+                                        : filter::Resample::Bicubic;
+    const std::vector<std::string> filtered = split_list(ctx.get_string(kFiltered));
+    // The optical centre relative to the input data window (where the map's coordinates live).
+    const float cx = float(g.centre.x - frame.data_window.x0),
+                cy = float(g.centre.y - frame.data_window.y0);
+    const Rect &disp = frame.display_window;
+    const double half_diag = 0.5 * std::hypot(disp.width(), disp.height());
+
+    Frame &out = ctx.output();
+    out.clear_passes();
+    out.data_window = out_window;
+    for (const auto &[name, in_pass] : frame.passes()) {
+        const bool is_filtered =
+            std::find(filtered.begin(), filtered.end(), name) != filtered.end();
+        // The project's non-finite policy for nodes that move pixels: NaN and infinities read
+        // as 0, in depth NaN and -inf as the sky (+inf).
+        Image storage;
+        const bool depth = name == pass::kDepth;
+        const Image &src = finite_view(*in_pass.image,
+                                       depth ? std::numeric_limits<float>::infinity() : 0.0f,
+                                       storage,
+                                       depth);
+        const bool is_color = name == pass::kColor;
+        const float outside = name == pass::kDepth ? std::numeric_limits<float>::infinity() : 0.0f;
+        const int nc = src.channels();
+        Image dst = Image::uninitialized(w, h, nc);
+        const bool rgba_kernel = nc == 4 && filter != filter::Resample::Nearest;
+        const int taps = filter == filter::Resample::Bicubic ? 4 : 2;
+        parallel_for(0, h, [&](int y) {
+            const float *rsx = map->sx.data() + std::size_t(y) * std::size_t(w);
+            const float *rsy = map->sy.data() + std::size_t(y) * std::size_t(w);
+            float *d = dst.pixel(0, y);
+            if (!is_filtered) {
+                const std::int32_t *near = map->nearest.data() + std::size_t(y) * std::size_t(w);
+                for (int x = 0; x < w; ++x) {
+                    const float *s =
+                        near[x] < 0 ? nullptr : src.data() + std::size_t(near[x]) * std::size_t(nc);
+                    for (int c = 0; c < nc; ++c) {
+                        d[x * nc + c] = s ? s[c] : outside;
+                    }
+                }
+                return;
+            }
+            // One row resampled at positions (xs, ys): RGBA through the vector kernel, the
+            // pixels whose footprint crosses the input's edge (and other layouts) one by one.
+            std::vector<std::uint8_t> edge(std::size_t(w), 1);
+            auto resample = [&](const float *xs, const float *ys, float *row) {
+                if (rgba_kernel) {
+                    filter::lens_resample_rgba_row(
+                        src.data(), src.width(), src.height(), xs, ys, w, taps, row, edge.data());
+                }
+                for (int x = 0; x < w; ++x) {
+                    if (edge[std::size_t(x)]) {
+                        filter::sample_channels(
+                            src, 0, nc, xs[x], ys[x], filter, outside, row + x * nc);
+                    }
+                }
+            };
+            resample(rsx, rsy, d);
+            if (is_color && ca != 0.0) {
+                // Red and blue read at their own magnification about the centre.
+                const std::size_t n = static_cast<std::size_t>(w);
+                std::vector<float> xs(n), ys(n), tmp(n * static_cast<std::size_t>(nc));
+                for (int c : {0, 2}) {
+                    const float m = float(c == 0 ? 1.0 + ca : 1.0 - ca);
+                    for (int x = 0; x < w; ++x) {
+                        xs[std::size_t(x)] = cx + m * (rsx[x] - cx);
+                        ys[std::size_t(x)] = cy + m * (rsy[x] - cy);
+                    }
+                    std::fill(edge.begin(), edge.end(), std::uint8_t(1));
+                    resample(xs.data(), ys.data(), tmp.data());
+                    for (int x = 0; x < w; ++x) {
+                        d[x * nc + c] = tmp[std::size_t(x * nc + c)];
+                    }
+                }
+            }
+            if (is_color && (natural > 0.0 || vignette > 0.0)) {
+                const float radius = float(ctx.get_real(kVignetteRadius));
+                const float softness = float(ctx.get_real(kVignetteSoftness));
+                for (int x = 0; x < w; ++x) {
+                    const double px = out_window.x0 + x + 0.5 - g.centre.x;
+                    const double py = out_window.y0 + y + 0.5 - g.centre.y;
+                    const double r = std::hypot(px, py);
+                    float gain = 1.0f;
+                    if (natural > 0.0) {
+                        const double t = r * mm_per_px / focal_mm;
+                        const double cos4 = 1.0 / ((1.0 + t * t) * (1.0 + t * t));
+                        gain *= float(1.0 - natural + natural * cos4);
+                    }
+                    if (vignette > 0.0) {
+                        gain *=
+                            1.0f - float(vignette) *
+                                       smoothstep(radius, radius + softness, float(r / half_diag));
+                    }
+                    for (int c = 0; c < nc; ++c) {
+                        d[x * nc + c] *= gain;
+                    }
+                }
+            }
+        });
+        out.set(
+            name, std::make_shared<const Image>(std::move(dst)), in_pass.channels, in_pass.storage);
+    }
+    if (stmap) {
+        // Nuke's STMap: s, t in 0..1 across the input's display window, t measured upward.
+        Image st = Image::uninitialized(w, h, 2);
+        const Rect &dw = frame.data_window;
+        parallel_for(0, h, [&](int y) {
+            for (int x = 0; x < w; ++x) {
+                const std::size_t i = std::size_t(y) * std::size_t(w) + std::size_t(x);
+                st.at(x, y, 0) = float((map->sx[i] + dw.x0 - disp.x0) / disp.width());
+                st.at(x, y, 1) = float(1.0 - (map->sy[i] + dw.y0 - disp.y0) / disp.height());
+            }
+        });
+        out.set("stmap", std::make_shared<const Image>(std::move(st)), {"R", "G"});
+    }
+}
+
+}  // namespace
+
+extern const NodeType kLens{
+    {"lens",
+     "Lens: Brown-Conrady distortion and its exact inverse, chromatic aberration, vignetting, "
+     "ST-map.",
+     kInputs,
+     kParams,
+     "stmap"},
+    &execute,
+    nullptr,
+    nullptr};
+
+}  // namespace posthaste::nodes
