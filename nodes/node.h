@@ -28,5 +28,6 @@ extern const NodeType kBloom;
 extern const NodeType kExposure;
 extern const NodeType kGrain;
 extern const NodeType kLens;
+extern const NodeType kTonemap;
 
 }  // namespace posthaste::nodes

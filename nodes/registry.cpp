@@ -25,6 +25,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kExposure,
         &nodes::kGrain,
         &nodes::kLens,
+        &nodes::kTonemap,
     };
     return kAllNodes;
 }

@@ -171,7 +171,8 @@ TEST(Grain, NonFiniteValuesStay)
     img.at(2, 2, 0) = std::numeric_limits<float>::quiet_NaN();
     img.at(3, 3, 1) = std::numeric_limits<float>::infinity();
     in.set("color", std::make_shared<const Image>(img), {"R", "G", "B", "A"});
-    const Image &o = test::run_node("grain", in, "{}").image("color");
+    const Frame out_frame = test::run_node("grain", in, "{}");
+    const Image &o = out_frame.image("color");
     EXPECT_TRUE(std::isnan(o.at(2, 2, 0)));
     EXPECT_TRUE(std::isinf(o.at(3, 3, 1)));
     EXPECT_TRUE(std::isfinite(o.at(3, 3, 0)));
