@@ -2,12 +2,15 @@
 // Highway's foreach_target.h includes it again for each, and HWY_EXPORT/HWY_DYNAMIC_DISPATCH pick
 // the best target the CPU has.
 
+// Highway's foreach_target.h comes first, then highway.h, then any -inl.h.
+// clang-format off
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "filter/grain_kernels.cpp"
-#include "filter/grain_kernels.h"
-
-#include <hwy/foreach_target.h>  // must come before highway.h
+#include <hwy/foreach_target.h>
 #include <hwy/highway.h>
+// clang-format on
+
+#include "filter/grain_kernels.h"
 
 #include <algorithm>
 

@@ -1,11 +1,14 @@
 // The lens node's RGBA resampling over Highway (see lens_kernels.h).
 
+// Highway's foreach_target.h comes first, then highway.h, then any -inl.h.
+// clang-format off
 #undef HWY_TARGET_INCLUDE
 #define HWY_TARGET_INCLUDE "filter/lens_kernels.cpp"
-#include "filter/lens_kernels.h"
-
-#include <hwy/foreach_target.h>  // must come before highway.h
+#include <hwy/foreach_target.h>
 #include <hwy/highway.h>
+// clang-format on
+
+#include "filter/lens_kernels.h"
 
 #include <cmath>
 #include <cstddef>
