@@ -29,8 +29,14 @@ inline void apply_to_pass(NodeContext &ctx,
                       what,
                       " needs 3 or 4");
     }
-    Image out = *in.image;
-    proc.apply(out, unpremultiply);
+    // Copy and transform a row at a time, in parallel (a whole-image copy first is serial).
+    const Image &src = *in.image;
+    Image out = Image::uninitialized(src.width(), src.height(), src.channels());
+    const std::size_t row = std::size_t(src.width()) * std::size_t(src.channels());
+    parallel_for(0, src.height(), [&](int y) {
+        std::copy(src.pixel(0, y), src.pixel(0, y) + row, out.pixel(0, y));
+        proc.apply_row(out.pixel(0, y), src.width(), src.channels(), unpremultiply);
+    });
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
 }
 
