@@ -5,6 +5,7 @@
 
 #include "core/error.h"
 #include "core/memory.h"
+#include "core/parallel.h"
 
 namespace posthaste {
 
@@ -115,23 +116,30 @@ Image place_in_window(const Image &image,
     const int nch = image.channels();
     Image out = Image::uninitialized(to.width(), to.height(), nch);
     const Rect both = from.intersect(to);
-    for (int y = 0; y < out.height(); ++y) {
+    std::vector<float> pixel(std::size_t(nch), 0.0f);
+    for (int c = 0; c < nch && std::size_t(c) < fill.size(); ++c) {
+        pixel[std::size_t(c)] = fill[std::size_t(c)];
+    }
+    const std::size_t n = std::size_t(nch);
+    auto fill_span = [&](float *dst, int count) {
+        for (int x = 0; x < count; ++x, dst += n) {
+            std::copy(pixel.begin(), pixel.end(), dst);
+        }
+    };
+    // Rows in parallel: each is the fill, or the fill either side of one copied span.
+    parallel_for(0, out.height(), [&](int y) {
         float *row = out.pixel(0, y);
         const int ay = y + to.y0;
-        const bool inside_row = ay >= both.y0 && ay < both.y1 && !both.empty();
-        for (int x = 0; x < out.width(); ++x) {
-            const int ax = x + to.x0;
-            float *dst = row + std::size_t(x) * std::size_t(nch);
-            if (inside_row && ax >= both.x0 && ax < both.x1) {
-                const float *src = image.pixel(ax - from.x0, ay - from.y0);
-                std::copy(src, src + nch, dst);
-                continue;
-            }
-            for (int c = 0; c < nch; ++c) {
-                dst[c] = std::size_t(c) < fill.size() ? fill[std::size_t(c)] : 0.0f;
-            }
+        if (both.empty() || ay < both.y0 || ay >= both.y1) {
+            fill_span(row, out.width());
+            return;
         }
-    }
+        const int left = both.x0 - to.x0, span = both.width();
+        fill_span(row, left);
+        const float *src = image.pixel(both.x0 - from.x0, ay - from.y0);
+        std::copy(src, src + std::size_t(span) * n, row + std::size_t(left) * n);
+        fill_span(row + std::size_t(left + span) * n, out.width() - left - span);
+    });
     return out;
 }
 
