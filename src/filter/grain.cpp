@@ -9,9 +9,12 @@
 
 #include "core/hash.h"
 #include "core/parallel.h"
+#include "filter/fir_kernels.h"
 #include "filter/grain_kernels.h"
 
 namespace posthaste::filter {
+
+static_assert(kRowPad >= kFirPad, "grain rows feed the FIR kernels");
 namespace {
 
 /// Rows [0, n) in parallel, in blocks of 16 (one writer per row).
@@ -75,8 +78,12 @@ GrainField grain_field(int w, int h, int x0, int y0, int frame, const GrainParam
             for (int py = b * 16; py < std::min(ph, (b + 1) * 16); ++py) {
                 const std::uint32_t row = pcg_hash(std::uint32_t(y0 + py - r) ^ key);
                 grain_noise_row(row, x0 - r, pw, unit, noise.data());
-                grain_fir_row(
-                    noise.data(), k.data(), taps, w, rows.data() + std::size_t(py) * rows_stride);
+                fir_row(noise.data(),
+                        k.data(),
+                        taps,
+                        1,
+                        w,
+                        rows.data() + std::size_t(py) * rows_stride);
             }
         });
         float *plane = f.data.data() + std::size_t(c) * f.plane;
@@ -85,7 +92,7 @@ GrainField grain_field(int w, int h, int x0, int y0, int frame, const GrainParam
             for (int i = 0; i < taps; ++i) {
                 src[std::size_t(i)] = rows.data() + std::size_t(y + i) * rows_stride;
             }
-            grain_fir_columns(src.data(), k.data(), taps, w, plane + std::size_t(y) * f.stride);
+            fir_columns(src.data(), k.data(), taps, w, plane + std::size_t(y) * f.stride);
         });
     }
     return f;

@@ -49,32 +49,6 @@ void GrainNoiseRow(std::uint32_t row_key, int x0, int n, float unit, float *out)
     }
 }
 
-void GrainFirRow(const float *src, const float *k, int taps, int n, float *out)
-{
-    const hn::ScalableTag<float> df;
-    const int lanes = int(hn::Lanes(df));
-    for (int x = 0; x < n; x += lanes) {
-        auto acc = hn::Mul(hn::Set(df, k[0]), hn::LoadU(df, src + x));
-        for (int i = 1; i < taps; ++i) {
-            acc = hn::MulAdd(hn::Set(df, k[i]), hn::LoadU(df, src + x + i), acc);
-        }
-        hn::StoreU(acc, df, out + x);
-    }
-}
-
-void GrainFirColumns(const float *const *rows, const float *k, int taps, int n, float *out)
-{
-    const hn::ScalableTag<float> df;
-    const int lanes = int(hn::Lanes(df));
-    for (int x = 0; x < n; x += lanes) {
-        auto acc = hn::Mul(hn::Set(df, k[0]), hn::LoadU(df, rows[0] + x));
-        for (int i = 1; i < taps; ++i) {
-            acc = hn::MulAdd(hn::Set(df, k[i]), hn::LoadU(df, rows[i] + x), acc);
-        }
-        hn::StoreU(acc, df, out + x);
-    }
-}
-
 /// 2^y to float precision for |y| <= 100: 2^round(y) times a degree-6 series of e^(f ln 2),
 /// |f| <= 1/2 (relative error under 2e-7).
 template <class DF, class VF>
@@ -185,23 +159,11 @@ HWY_AFTER_NAMESPACE();
 namespace posthaste::filter {
 
 HWY_EXPORT(GrainNoiseRow);
-HWY_EXPORT(GrainFirRow);
-HWY_EXPORT(GrainFirColumns);
 HWY_EXPORT(GrainApplyRgbaRow);
 
 void grain_noise_row(std::uint32_t row_key, int x0, int n, float unit, float *out)
 {
     HWY_DYNAMIC_DISPATCH(GrainNoiseRow)(row_key, x0, n, unit, out);
-}
-
-void grain_fir_row(const float *src, const float *k, int taps, int n, float *out)
-{
-    HWY_DYNAMIC_DISPATCH(GrainFirRow)(src, k, taps, n, out);
-}
-
-void grain_fir_columns(const float *const *rows, const float *k, int taps, int n, float *out)
-{
-    HWY_DYNAMIC_DISPATCH(GrainFirColumns)(rows, k, taps, n, out);
 }
 
 void grain_apply_rgba_row(const float *src,

@@ -14,13 +14,6 @@ inline constexpr int kRowPad = 16;
 /// of pcg_hash(x ^ row_key), centred, times `unit`. `out` holds n + kRowPad floats.
 void grain_noise_row(std::uint32_t row_key, int x0, int n, float unit, float *out);
 
-/// out[x] = sum_i k[i] src[x + i] for x < n (i < taps, summed in order); `src` holds
-/// n + taps - 1 + kRowPad floats and `out` n + kRowPad.
-void grain_fir_row(const float *src, const float *k, int taps, int n, float *out);
-
-/// out[x] = sum_i k[i] rows[i][x] for x < n (summed in order); rows and out hold n + kRowPad.
-void grain_fir_columns(const float *const *rows, const float *k, int taps, int n, float *out);
-
 /// One row of n RGBA pixels from `src` to `dst` (which may be the same): each of R, G, B becomes (v
 /// + offset) 2^(g_c wgt) - offset where wgt = amount (1 - response + response 4 u (1 - u)), u = L /
 /// (L + 0.18) from the pixel's Rec.709 luminance L (clamped at 0; u = 1 when L is not finite);
