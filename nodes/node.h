@@ -29,5 +29,10 @@ extern const NodeType kExposure;
 extern const NodeType kGrain;
 extern const NodeType kLens;
 extern const NodeType kTonemap;
+extern const NodeType kReformat;
+extern const NodeType kTransform;
+extern const NodeType kCrop;
+extern const NodeType kBlur;
+extern const NodeType kSharpen;
 
 }  // namespace posthaste::nodes

@@ -26,6 +26,11 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kGrain,
         &nodes::kLens,
         &nodes::kTonemap,
+        &nodes::kReformat,
+        &nodes::kTransform,
+        &nodes::kCrop,
+        &nodes::kBlur,
+        &nodes::kSharpen,
     };
     return kAllNodes;
 }

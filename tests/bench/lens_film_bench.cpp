@@ -1,7 +1,7 @@
 // The lens-and-film nodes as a graph runs them (input frame in, new frame out) at 1920x1080 on
-// the default Minecrappy scene's frame 8 (color and depth passes), with a copy of the color pass beside them in the same
-// run (what any node that outputs a new image pays at least). Auto exposure runs without a
-// history here (one frame metered alone): its per-frame cost, warm-up frames aside.
+// the default Minecrappy scene's frame 8 (color and depth passes), with a copy of the color pass
+// beside them in the same run (what any node that outputs a new image pays at least). Auto exposure
+// runs without a history here (one frame metered alone): its per-frame cost, warm-up frames aside.
 //   build/tests/posthaste_benchmarks --benchmark_filter='LensFilm' --benchmark_repetitions=5
 //       --benchmark_report_aggregates_only=true   (one command line)
 #include <benchmark/benchmark.h>
@@ -124,6 +124,68 @@ void BM_LensFilmBloomFft(benchmark::State &state)
     run_node(state, "bloom", R"({"method": "fft"})");
 }
 BENCHMARK(BM_LensFilmBloomFft)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmGradeCdl(benchmark::State &state)
+{
+    run_node(
+        state, "grade", R"({"temperature": 5600, "slope": [1.1, 1, 0.95], "saturation": 1.1})");
+}
+BENCHMARK(BM_LensFilmGradeCdl)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmTonemapAgx(benchmark::State &state)
+{
+    run_node(state, "tonemap", "{}");
+}
+BENCHMARK(BM_LensFilmTonemapAgx)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_LensFilmTonemapAces(benchmark::State &state)
+{
+    run_node(state, "tonemap", R"({"curve": "aces"})");
+}
+BENCHMARK(BM_LensFilmTonemapAces)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// The image operations (OpenImageIO's ImageBufAlgo), on the colour and depth passes.
+void BM_ImageOpsReformatHalf(benchmark::State &state)
+{
+    run_node(state, "reformat", R"({"scale": 0.5})");
+}
+BENCHMARK(BM_ImageOpsReformatHalf)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ImageOpsReformatHalfTriangle(benchmark::State &state)
+{
+    run_node(state, "reformat", R"({"scale": 0.5, "filter": "triangle"})");
+}
+BENCHMARK(BM_ImageOpsReformatHalfTriangle)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ImageOpsTransformRotate(benchmark::State &state)
+{
+    run_node(state, "transform", R"({"rotate": 5, "scale": 1.05})");
+}
+BENCHMARK(BM_ImageOpsTransformRotate)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ImageOpsTransformRotateCubic(benchmark::State &state)
+{
+    run_node(state, "transform", R"({"rotate": 5, "scale": 1.05, "filter": "catmull-rom"})");
+}
+BENCHMARK(BM_ImageOpsTransformRotateCubic)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ImageOpsCrop(benchmark::State &state)
+{
+    run_node(state, "crop", R"({"box": [160, 90, 1760, 990]})");
+}
+BENCHMARK(BM_ImageOpsCrop)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ImageOpsBlur(benchmark::State &state)
+{
+    run_node(state, "blur", R"({"sigma": )" + std::to_string(state.range(0)) + "}");
+}
+BENCHMARK(BM_ImageOpsBlur)->Arg(2)->Arg(8)->Arg(32)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ImageOpsSharpen(benchmark::State &state)
+{
+    run_node(state, "sharpen", "{}");
+}
+BENCHMARK(BM_ImageOpsSharpen)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace posthaste

@@ -61,6 +61,10 @@ TEST(NonFinitePolicy, SpatialNodesNeverOutputNaNOrInf)
         {"bloom", "{}"},
         {"lens", R"({"k1": -0.05, "chromatic_aberration": 0.01})"},
         {"bloom", R"({"method": "fft", "diffraction_scale": 10})"},
+        {"reformat", R"({"scale": 0.37})"},
+        {"transform", R"({"rotate": 20, "scale": 1.3})"},
+        {"blur", R"({"sigma": 3})"},
+        {"sharpen", R"({"amount": 2})"},
     };
     for (const auto &[type, params] : cases) {
         SCOPED_TRACE(type + " " + params);

@@ -56,6 +56,25 @@ NodeCases node_cases(const std::string &type)
     } else if (type == "grain") {
         c.param_sets.push_back(
             {"strong_color", {"intensity=4", "size=16", "mode=color", "response=0"}});
+    } else if (type == "reformat") {
+        c.param_sets.push_back({"half_lanczos", {"scale=0.5", "filter=lanczos3"}});
+        c.param_sets.push_back({"odd_upsize", {"width=37", "height=5", "filter=catmull-rom"}});
+        c.param_sets.push_back({"one_pixel", {"width=1", "height=1"}});
+    } else if (type == "transform") {
+        c.param_sets.push_back(
+            {"turn_and_zoom", {"rotate=33", "scale=3", "translate_x=2.5", "filter=lanczos3"}});
+        c.param_sets.push_back({"shrink_nearest", {"scale=0.01", "filter=nearest"}});
+        c.param_sets.push_back({"far_away", {"translate_x=100000"}});
+    } else if (type == "crop") {
+        // The defaults (an empty box) are refused; these cut inside, across and outside.
+        c.param_sets.push_back({"inside", {"box=[2, 3, 9, 11]"}});
+        c.param_sets.push_back({"across_reformat", {"box=[-4, 8, 12, 30]", "reformat=true"}});
+        c.param_sets.push_back({"outside", {"box=[100, 100, 104, 104]"}});
+    } else if (type == "blur") {
+        c.param_sets.push_back({"wide", {"sigma=40", "sigma_y=0.3", "passes=color,depth"}});
+    } else if (type == "sharpen") {
+        c.param_sets.push_back(
+            {"strong", {"amount=16", "sigma=8", "clamp_negative=false", "passes=color,normal"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",

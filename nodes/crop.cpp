@@ -1,0 +1,108 @@
+// nodes/crop.cpp: a new display window (the box, file coordinates, exclusive maximum, y down),
+// and by default the data window cut to it; `reformat` moves the box to the origin. No pixel is
+// resampled: passes are cut or padded (0, depth +inf where the box reaches past the data), so
+// their values and file origins are kept. worldToNDC (and the previous frame's) and the sensor
+// size follow the new display window, so the camera still projects onto the same pixels.
+
+#include <limits>
+
+#include "filter/frame_ops.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kBox =
+    ParamSpec::vec4("box", 0, 0, 0, 0)
+        .mandatory()
+        .units("px")
+        .doc("The new display window: x0, y0, x1, y1 (file coordinates, x1 and y1 excluded).");
+constexpr ParamSpec kCropData = ParamSpec::boolean("crop_data", true)
+                                    .doc(
+                                        "Cut the data window to the box too (false: keep the "
+                                        "pixels outside it as overscan).");
+constexpr ParamSpec kReformat =
+    ParamSpec::boolean("reformat", false).doc("Move the box's corner to (0, 0).");
+constexpr ParamSpec kParams[] = {kBox, kCropData, kReformat};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to crop."}};
+
+/// The box as a rectangle, or a usage error naming the parameter.
+Rect box_of(const NodeParams &p, const std::string &where)
+{
+    const std::vector<double> &b = p.get_vec(kBox);
+    for (double v : b) {
+        if (v != std::floor(v) || std::abs(v) > 1e9) {
+            throw_usage(where, ": param \"box\": expected whole pixel coordinates, got ", v);
+        }
+    }
+    const Rect r{int(b[0]), int(b[1]), int(b[2]), int(b[3])};
+    if (r.empty()) {
+        throw_usage(where,
+                    ": param \"box\": empty (",
+                    r.x0,
+                    ", ",
+                    r.y0,
+                    ", ",
+                    r.x1,
+                    ", ",
+                    r.y1,
+                    "): x1 must exceed x0 and y1 y0");
+    }
+    if (r.width() > kMaxImageSide || r.height() > kMaxImageSide) {
+        throw_usage(where, ": param \"box\": at most ", kMaxImageSide, " pixels a side");
+    }
+    return r;
+}
+
+void execute(NodeContext &ctx)
+{
+    const Frame &in = ctx.input("image");
+    const Rect box = box_of(ctx.params(), ctx.where());
+    Rect window = ctx.get_bool(kCropData) ? in.data_window.intersect(box) : in.data_window;
+    if (window.empty()) {
+        window = {box.x0, box.y0, box.x0 + 1, box.y0 + 1};  // nothing left: one empty pixel
+    }
+    const int dx = ctx.get_bool(kReformat) ? -box.x0 : 0;
+    const int dy = ctx.get_bool(kReformat) ? -box.y0 : 0;
+    filter::Affine shift(1.0);
+    shift[2][0] = dx;
+    shift[2][1] = dy;
+    Frame &out = ctx.output();
+    if (window == in.data_window && box == in.display_window && dx == 0 && dy == 0) {
+        return;
+    }
+    out.camera = filter::moved_camera(in.camera, shift, in.display_window, box.offset(dx, dy));
+    out.display_window = box.offset(dx, dy);
+    out.data_window = window.offset(dx, dy);
+    if (window == in.data_window) {
+        return;  // only the windows moved: the pixels are shared
+    }
+    for (const auto &[name, pass] : in.passes()) {
+        const bool depth = name.substr(0, name.find('@')) == "depth";
+        const float fill = depth ? std::numeric_limits<float>::infinity() : 0.0f;
+        Image cut = place_in_window(*pass.image,
+                                    in.data_window,
+                                    window,
+                                    std::vector<float>(std::size_t(pass.image->channels()), fill));
+        out.set(name, std::make_shared<const Image>(std::move(cut)), pass.channels, pass.storage);
+    }
+}
+
+void check(CheckContext &ctx)
+{
+    box_of(ctx.params, ctx.node.json_path + "/params: " + ctx.node.describe());
+}
+
+}  // namespace
+
+extern const NodeType kCrop{
+    {"crop",
+     "Crop to a box: a new display window, the data window cut to it, optionally at the origin.",
+     kInputs,
+     kParams,
+     ""},
+    &execute,
+    nullptr,
+    &check};
+
+}  // namespace posthaste::nodes

@@ -1,0 +1,59 @@
+#pragma once
+// Parameters and checks shared by the nodes that move every pass (reformat, transform): the
+// resampling filter, which passes it applies to, and the size guard.
+
+#include <string>
+
+#include "filter/image_ops.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+
+/// The filter parameter, with its default per node: `def` is "blackman-harris" or "bicubic".
+constexpr ParamSpec geometry_filter(std::string_view def)
+{
+    return ParamSpec::string("filter", def)
+        .doc(
+            "bicubic (Catmull-Rom) or bilinear: fast point sampling (Highway); an OpenImageIO "
+            "filter (blackman-harris, lanczos3, catmull-rom, mitchell, gaussian, triangle, "
+            "box, ...): its footprint; or nearest.");
+}
+inline constexpr ParamSpec kGeometryFiltered =
+    ParamSpec::string("filtered", "color,albedo")
+        .doc("Passes resampled with `filter`; the others (depth, ids, normals) take the nearest.");
+
+/// A usage error naming the node and parameter when `filter` is not a filter OpenImageIO knows.
+inline void check_filter_name(const CheckContext &ctx)
+{
+    const std::string &f = ctx.params.values().at("filter").text;
+    if (f != "nearest" && f != "bicubic" && f != "bilinear" && !filter::is_filter_name(f)) {
+        throw_usage(ctx.node.json_path,
+                    "/params: ",
+                    ctx.node.describe(),
+                    ": param \"filter\": unknown filter \"",
+                    f,
+                    "\" (bicubic, bilinear, nearest, or OpenImageIO's: blackman-harris, "
+                    "lanczos3, catmull-rom, mitchell, gaussian, triangle, box, ...)");
+    }
+}
+
+/// A runtime error naming the node when an output window would be absurdly large.
+inline void check_window_size(const std::string &where, const Rect &window, const char *param)
+{
+    constexpr double kMaxPixels = double(1 << 28);
+    if (window.width() > kMaxImageSide || window.height() > kMaxImageSide ||
+        double(window.width()) * double(window.height()) > kMaxPixels) {
+        throw_usage(where,
+                    ": param \"",
+                    param,
+                    "\": the output would be ",
+                    window.width(),
+                    "x",
+                    window.height(),
+                    " pixels (at most ",
+                    kMaxImageSide,
+                    " a side and 2^28 in all)");
+    }
+}
+
+}  // namespace posthaste::nodes

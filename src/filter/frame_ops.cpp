@@ -1,0 +1,188 @@
+// Geometric operations on a whole frame (see frame_ops.h).
+
+#include "filter/frame_ops.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/parallel.h"
+#include "core/passes.h"
+#include "core/sanitize.h"
+#include "filter/lens.h"
+#include "filter/lens_kernels.h"
+
+namespace posthaste::filter {
+namespace {
+
+/// Pixels of `r` -> its NDC ([0,1]^2 across the rectangle).
+Affine to_ndc(const Rect &r)
+{
+    Affine m(1.0);
+    m[0][0] = 1.0 / r.width();
+    m[1][1] = 1.0 / r.height();
+    m[2][0] = -double(r.x0) / r.width();
+    m[2][1] = -double(r.y0) / r.height();
+    return m;
+}
+
+/// The pass's name without its "@view" suffix.
+std::string base_name(const std::string &name)
+{
+    return name.substr(0, name.find('@'));
+}
+
+bool is_vector_pass(const std::string &base)
+{
+    return base == pass::kMotion || base == pass::kMotionNext;
+}
+
+/// `src` (covering `src_window`) resampled at to_input(output pixel centre) over `dst_window`
+/// with the lens node's bilinear or Catmull-Rom kernels: RGBA rows through the Highway kernel,
+/// pixels whose footprint crosses the input's edge (and other layouts) one at a time.
+Image warp_resampled(const Image &src,
+                     const Rect &src_window,
+                     const Affine &to_input,
+                     const Rect &dst_window,
+                     Resample filter,
+                     float outside)
+{
+    const int w = dst_window.width(), nc = src.channels();
+    const int taps = filter == Resample::Bicubic ? 4 : 2;
+    Image dst = Image::uninitialized(w, dst_window.height(), nc);
+    parallel_for(0, dst_window.height(), [&](int y) {
+        const std::size_t n = static_cast<std::size_t>(w);
+        std::vector<float> xs(n), ys(n);
+        for (int x = 0; x < w; ++x) {
+            const glm::dvec3 p =
+                to_input * glm::dvec3(dst_window.x0 + x + 0.5, dst_window.y0 + y + 0.5, 1.0);
+            xs[std::size_t(x)] = float(p.x - src_window.x0);
+            ys[std::size_t(x)] = float(p.y - src_window.y0);
+        }
+        std::vector<std::uint8_t> edge(std::size_t(w), 1);
+        float *row = dst.pixel(0, y);
+        if (nc == 4) {
+            lens_resample_rgba_row(src.data(),
+                                   src.width(),
+                                   src.height(),
+                                   xs.data(),
+                                   ys.data(),
+                                   w,
+                                   taps,
+                                   row,
+                                   edge.data());
+        }
+        const float lim_x = float(src.width()) + 2.0f, lim_y = float(src.height()) + 2.0f;
+        for (int x = 0; x < w; ++x) {
+            const float sx = xs[std::size_t(x)], sy = ys[std::size_t(x)];
+            if (edge[std::size_t(x)] && !(sx > -2.0f && sy > -2.0f && sx < lim_x && sy < lim_y)) {
+                // The whole footprint lies outside the input (or the position is not finite).
+                std::fill_n(row + std::size_t(x) * std::size_t(nc), nc, outside);
+            } else if (edge[std::size_t(x)]) {
+                sample_channels(src,
+                                0,
+                                nc,
+                                xs[std::size_t(x)],
+                                ys[std::size_t(x)],
+                                filter,
+                                outside,
+                                row + std::size_t(x) * std::size_t(nc));
+            }
+        }
+    });
+    return dst;
+}
+
+}  // namespace
+
+Camera moved_camera(const Camera &camera,
+                    const Affine &to_output,
+                    const Rect &display,
+                    const Rect &new_display)
+{
+    const Affine a = to_ndc(new_display) * to_output * glm::inverse(to_ndc(display));
+    bool identity = true;
+    for (int c = 0; c < 3; ++c) {
+        for (int r = 0; r < 3; ++r) {
+            identity = identity && std::abs(a[c][r] - (c == r ? 1.0 : 0.0)) < 1e-12;
+        }
+    }
+    if (identity) {
+        return camera;
+    }
+    // u' = a00 u + a01 v + a02 after the divide is x' = a00 x + a01 y + a02 w on clip
+    // coordinates: a 4x4 acting on the clip-space result (glm, column vectors).
+    glm::mat4 remap(1.0f);
+    remap[0][0] = float(a[0][0]);
+    remap[1][0] = float(a[1][0]);
+    remap[3][0] = float(a[2][0]);
+    remap[0][1] = float(a[0][1]);
+    remap[1][1] = float(a[1][1]);
+    remap[3][1] = float(a[2][1]);
+    Camera c = camera;
+    if (c.world_to_ndc) {
+        c.world_to_ndc = remap * *c.world_to_ndc;
+    }
+    if (c.prev_world_to_ndc) {
+        c.prev_world_to_ndc = remap * *c.prev_world_to_ndc;
+    }
+    // The sensor spans the display window: it shrinks as the image is magnified in NDC.
+    const double sx = std::hypot(a[0][0], a[0][1]), sy = std::hypot(a[1][0], a[1][1]);
+    if (c.sensor_width_mm && sx > 0.0) {
+        *c.sensor_width_mm = float(*c.sensor_width_mm / sx);
+    }
+    if (c.sensor_height_mm && sy > 0.0) {
+        *c.sensor_height_mm = float(*c.sensor_height_mm / sy);
+    }
+    return c;
+}
+
+void warp_frame(const Frame &in, const FrameWarp &w, Frame &out)
+{
+    const Affine to_input = glm::inverse(w.to_output);
+    const glm::dmat2 linear(
+        w.to_output[0][0], w.to_output[0][1], w.to_output[1][0], w.to_output[1][1]);
+    out.camera = moved_camera(in.camera, w.to_output, in.display_window, w.display);
+    out.data_window = w.window;
+    out.display_window = w.display;
+    for (const auto &[name, pass] : in.passes()) {
+        const std::string base = base_name(name);
+        const bool depth = base == pass::kDepth;
+        const float outside = depth ? std::numeric_limits<float>::infinity() : 0.0f;
+        Image storage;
+        const Image &src = finite_view(*pass.image, outside, storage, depth);
+        const bool filtered =
+            w.filter != "nearest" &&
+            std::find(w.filtered.begin(), w.filtered.end(), base) != w.filtered.end();
+        Image dst;
+        if (!filtered) {
+            dst = sample_nearest(src, in.data_window, to_input, w.window, outside);
+        } else if (w.filter == "bicubic" || w.filter == "bilinear") {
+            dst = warp_resampled(src,
+                                 in.data_window,
+                                 to_input,
+                                 w.window,
+                                 w.filter == "bicubic" ? Resample::Bicubic : Resample::Bilinear,
+                                 outside);
+        } else if (w.resize) {
+            dst = resize_filtered(
+                src, in.data_window, in.display_window, w.window, w.display, w.filter);
+        } else {
+            dst = warp_filtered(src, in.data_window, w.to_output, w.window, w.filter);
+        }
+        if (is_vector_pass(base) && dst.channels() >= 2) {
+            const int nc = dst.channels();
+            parallel_for(0, dst.height(), [&](int y) {
+                float *p = dst.pixel(0, y);
+                for (int x = 0; x < dst.width(); ++x, p += nc) {
+                    const glm::dvec2 v = linear * glm::dvec2(p[0], p[1]);
+                    p[0] = float(v.x);
+                    p[1] = float(v.y);
+                }
+            });
+        }
+        out.set(name, std::make_shared<const Image>(std::move(dst)), pass.channels, pass.storage);
+    }
+}
+
+}  // namespace posthaste::filter
