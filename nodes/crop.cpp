@@ -1,8 +1,9 @@
-// nodes/crop.cpp: a new display window (the box, file coordinates, exclusive maximum, y down),
-// and by default the data window cut to it; `reformat` moves the box to the origin. No pixel is
-// resampled: passes are cut or padded (0, depth +inf where the box reaches past the data), so
-// their values and file origins are kept. worldToNDC (and the previous frame's) and the sensor
-// size follow the new display window, so the camera still projects onto the same pixels.
+// nodes/crop.cpp: a new display window (the box, file coordinates, exclusive maximum, y down;
+// all zero, the default, keeps the display window), and by default the data window cut to it;
+// `reformat` moves the box to the origin. No pixel is resampled: passes are cut or padded (0,
+// depth +inf where the box reaches past the data), so their values and file origins are kept.
+// worldToNDC (and the previous frame's) and the sensor size follow the new display window, so
+// the camera still projects onto the same pixels.
 
 #include <limits>
 
@@ -12,11 +13,11 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kBox =
-    ParamSpec::vec4("box", 0, 0, 0, 0)
-        .mandatory()
-        .units("px")
-        .doc("The new display window: x0, y0, x1, y1 (file coordinates, x1 and y1 excluded).");
+constexpr ParamSpec kBox = ParamSpec::vec4("box", 0, 0, 0, 0)
+                               .units("px")
+                               .doc(
+                                   "The new display window: x0, y0, x1, y1 (file coordinates, "
+                                   "x1 and y1 excluded); all 0: the display window as it is.");
 constexpr ParamSpec kCropData = ParamSpec::boolean("crop_data", true)
                                     .doc(
                                         "Cut the data window to the box too (false: keep the "
@@ -26,10 +27,13 @@ constexpr ParamSpec kReformat =
 constexpr ParamSpec kParams[] = {kBox, kCropData, kReformat};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to crop."}};
 
-/// The box as a rectangle, or a usage error naming the parameter.
-Rect box_of(const NodeParams &p, const std::string &where)
+/// The box as a rectangle (all zero: `display`), or a usage error naming the parameter.
+Rect box_of(const NodeParams &p, const std::string &where, const Rect &display)
 {
     const std::vector<double> &b = p.get_vec(kBox);
+    if (b[0] == 0 && b[1] == 0 && b[2] == 0 && b[3] == 0) {
+        return display;
+    }
     for (double v : b) {
         if (v != std::floor(v) || std::abs(v) > 1e9) {
             throw_usage(where, ": param \"box\": expected whole pixel coordinates, got ", v);
@@ -57,7 +61,7 @@ Rect box_of(const NodeParams &p, const std::string &where)
 void execute(NodeContext &ctx)
 {
     const Frame &in = ctx.input("image");
-    const Rect box = box_of(ctx.params(), ctx.where());
+    const Rect box = box_of(ctx.params(), ctx.where(), in.display_window);
     Rect window = ctx.get_bool(kCropData) ? in.data_window.intersect(box) : in.data_window;
     if (window.empty()) {
         window = {box.x0, box.y0, box.x0 + 1, box.y0 + 1};  // nothing left: one empty pixel
@@ -90,7 +94,7 @@ void execute(NodeContext &ctx)
 
 void check(CheckContext &ctx)
 {
-    box_of(ctx.params, ctx.node.json_path + "/params: " + ctx.node.describe());
+    box_of(ctx.params, ctx.node.json_path + "/params: " + ctx.node.describe(), Rect{0, 0, 1, 1});
 }
 
 }  // namespace

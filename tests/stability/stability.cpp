@@ -299,7 +299,9 @@ StabilityResult run_case(const NodeType &type,
     const Frame &out = ctx.output();
     for (const auto &[name, pass] : out.passes()) {
         const Image &img = *pass.image;
-        const bool same_size = img.width() == input.width() && img.height() == input.height();
+        // Pixels are matched by file coordinates, so a node that cuts or moves the data window
+        // without resampling (crop) is held to where its values came from.
+        const Rect &in_w = input.data_window, &out_w = out.data_window;
         // +inf depth is the sky (no surface), a valid value: what a node that moves pixels
         // (lens) reads outside its input, as the reader pads a smaller part.
         const bool depth = name == pass::kDepth;
@@ -315,8 +317,11 @@ StabilityResult run_case(const NodeType &type,
                         continue;
                     }
                     ++r.nonfinite_out;
-                    if (!same_size ||
-                        !bad_in[std::size_t(y) * std::size_t(input.width()) + std::size_t(x)]) {
+                    const int ix = x + out_w.x0 - in_w.x0, iy = y + out_w.y0 - in_w.y0;
+                    const bool inside =
+                        ix >= 0 && iy >= 0 && ix < input.width() && iy < input.height();
+                    if (!inside ||
+                        !bad_in[std::size_t(iy) * std::size_t(input.width()) + std::size_t(ix)]) {
                         ++r.spread;
                     }
                 }

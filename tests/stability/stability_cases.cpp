@@ -66,7 +66,7 @@ NodeCases node_cases(const std::string &type)
         c.param_sets.push_back({"shrink_nearest", {"scale=0.01", "filter=nearest"}});
         c.param_sets.push_back({"far_away", {"translate_x=100000"}});
     } else if (type == "crop") {
-        // The defaults (an empty box) are refused; these cut inside, across and outside.
+        // Inside, across the data window (moved to the origin), and wholly outside it.
         c.param_sets.push_back({"inside", {"box=[2, 3, 9, 11]"}});
         c.param_sets.push_back({"across_reformat", {"box=[-4, 8, 12, 30]", "reformat=true"}});
         c.param_sets.push_back({"outside", {"box=[100, 100, 104, 104]"}});
