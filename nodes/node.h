@@ -34,5 +34,6 @@ extern const NodeType kTransform;
 extern const NodeType kCrop;
 extern const NodeType kBlur;
 extern const NodeType kSharpen;
+extern const NodeType kAo;
 
 }  // namespace posthaste::nodes

@@ -31,6 +31,7 @@ std::span<const NodeType *const> all_node_types()
         &nodes::kCrop,
         &nodes::kBlur,
         &nodes::kSharpen,
+        &nodes::kAo,
     };
     return kAllNodes;
 }

@@ -6,6 +6,7 @@
 
 #include "core/memory.h"
 #include "nodes/node.h"
+#include "raster/ray_cast.h"
 #include "raster/scene.h"
 #include "raster/sky.h"
 
@@ -25,15 +26,23 @@ constexpr ParamSpec kSupersample =
         .doc("Beauty supersampling per axis: 1, 2 or 4 (data passes stay one sample per pixel).");
 constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", true).doc("Sun shadow map.");
 constexpr ParamSpec kTruth =
-    ParamSpec::choice("truth", "none|motion|dof|motion_dof", "none")
-        .doc("Replace color by ground truth: accumulated over the shutter, the aperture, or both.");
+    ParamSpec::choice("truth", "none|motion|dof|motion_dof|ao", "none")
+        .doc(
+            "Replace color by ground truth accumulated over the shutter, the aperture, or both; "
+            "ao: add pass \"ao\", ambient occlusion by exact ray casting.");
 constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
                                    .range(1, 65536)
                                    .doc("Renders accumulated for the ground truth.");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Jitter seed for the ground truth.");
+constexpr ParamSpec kAoRadius =
+    ParamSpec::real("ao_radius", 1.0)
+        .range(1e-3, 100.0)
+        .units("m")
+        .doc("truth ao: occluders farther than this from the surface point do not count.");
 constexpr ParamSpec kParams[] = {
-    kScene, kWidth, kHeight, kSupersample, kShadows, kTruth, kSamples, kSeed};
+    kScene, kWidth, kHeight, kSupersample, kShadows, kTruth, kSamples, kSeed, kAoRadius};
+constexpr int kTruthAo = 4;
 
 raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
 {
@@ -80,6 +89,33 @@ void execute(NodeContext &ctx)
     raster::RenderOptions options = render_options(ctx.params(), ctx.requested());
     const int truth = ctx.get_choice(kTruth);
     try {
+        if (truth == kTruthAo) {
+            // The requested passes as usual, plus the exact ambient occlusion (rays per pixel:
+            // `samples`).
+            // A frame needs one pass for its header and windows: depth, the cheapest, when
+            // nothing else was asked for (dropped again below).
+            const bool only_ao = options.passes.empty();
+            if (only_ao) {
+                options.passes.insert(pass::kDepth);
+            }
+            Frame f = raster::render_frame(scene, ctx.frame_number(), options);
+            if (ctx.requested().contains(pass::kAo)) {
+                f.set(pass::kAo,
+                      std::make_shared<const Image>(
+                          raster::render_ao_truth(scene,
+                                                  ctx.frame_number(),
+                                                  options,
+                                                  float(ctx.get_real(kAoRadius)),
+                                                  ctx.get_int(kSamples),
+                                                  std::uint32_t(ctx.get_int(kSeed)))),
+                      {"Y"});
+            }
+            if (only_ao) {
+                f.erase(pass::kDepth);
+            }
+            ctx.output() = std::move(f);
+            return;
+        }
         if (truth == 0) {
             ctx.output() = raster::render_frame(scene, ctx.frame_number(), options);
             return;
@@ -107,6 +143,9 @@ void check(CheckContext &ctx)
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     if (!ctx.downstream.all) {
         for (const std::string &p : ctx.downstream.names) {
+            if (p == pass::kAo && ctx.params.get_choice(kTruth) == kTruthAo) {
+                continue;
+            }
             if (!raster::render_pass_names().count(p)) {
                 std::string have;
                 for (const std::string &n : raster::render_pass_names()) {

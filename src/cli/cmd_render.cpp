@@ -21,6 +21,7 @@ struct RenderCommand : RunSettings {
     std::string truth;
     int samples = 64;
     int seed = 0;
+    double ao_radius = 1.0;
     std::string compression = "piz";
 };
 
@@ -33,19 +34,22 @@ int render(const RenderCommand &o)
         throw_usage("--size: expected WIDTHxHEIGHT, got \"", o.size, "\"");
     }
     std::string truth = "none";
-    if (!o.truth.empty()) {
+    if (o.truth == "ao") {
+        truth = "ao";
+    } else if (!o.truth.empty()) {
         const bool motion = o.truth.find("motion") != std::string::npos;
         const bool dof = o.truth.find("dof") != std::string::npos;
         for (const std::string &w : split_list(o.truth)) {
             if (w != "motion" && w != "dof") {
-                throw_usage("--truth: expected motion, dof or motion,dof, got \"", o.truth, "\"");
+                throw_usage(
+                    "--truth: expected motion, dof, motion,dof or ao, got \"", o.truth, "\"");
             }
         }
         truth = motion && dof ? "motion_dof" : motion ? "motion" : "dof";
     }
     std::string passes = o.passes;
     if (passes == "all") {
-        passes = o.truth.empty() ? "*" : "color";
+        passes = o.truth.empty() ? "*" : o.truth == "ao" ? "ao" : "color";
     }
     nlohmann::json g;
     g["nodes"] = nlohmann::json::array();
@@ -59,7 +63,8 @@ int render(const RenderCommand &o)
                             {"shadows", !o.no_shadows},
                             {"truth", truth},
                             {"samples", o.samples},
-                            {"seed", o.seed}}}});
+                            {"seed", o.seed},
+                            {"ao_radius", o.ao_radius}}}});
     g["nodes"].push_back(
         {{"id", "write"},
          {"type", "write"},
@@ -92,7 +97,9 @@ void add_render_command(CLI::App &app, int &exit_code)
     cmd->add_option("--supersample", o->supersample, "Beauty supersampling per axis: 1, 2 or 4")
         ->check(CLI::IsMember({1, 2, 4}));
     cmd->add_flag("--no-shadows", o->no_shadows, "Turn the sun's shadow map off");
-    cmd->add_option("--truth", o->truth, "Ground truth: motion, dof or motion,dof");
+    cmd->add_option("--truth", o->truth, "Ground truth: motion, dof, motion,dof, or ao");
+    cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")
+        ->check(CLI::Range(1e-3, 100.0));
     cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")
         ->check(CLI::Range(1, 65536));
     cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")->check(CLI::Range(0, 1 << 30));

@@ -19,6 +19,8 @@ inline constexpr const char *kAlbedo = "albedo";           // albedo.R albedo.G 
 inline constexpr const char *kMaterial = "material";  // material.roughness .metallic .anisotropy
 inline constexpr const char *kTangent = "tangent";    // T.X T.Y T.Z: world-space tangent
 inline constexpr const char *kId = "id";              // id: integer id stored as float
+// Made by nodes, not read by alias: ambient occlusion (ao.Y, 0 occluded .. 1 open).
+inline constexpr const char *kAo = "ao";
 
 struct CanonicalPass {
     std::string_view name;

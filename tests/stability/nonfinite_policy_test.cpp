@@ -73,6 +73,15 @@ TEST(NonFinitePolicy, SpatialNodesNeverOutputNaNOrInf)
     }
 }
 
+TEST(NonFinitePolicy, AoPassIsFiniteOnPoisonedDepthAndNormals)
+{
+    // ao gathers depth and normals: its own pass stays finite. Its `apply: multiply` is a point
+    // operation on color, which passes NaN and Inf through like the other point nodes.
+    const Frame in = poisoned(stability::plain_frame(48, 32));
+    const Frame out = test::run_node("ao", in, R"({"apply": "multiply"})");
+    EXPECT_EQ(non_finite(out.image("ao")), 0u);
+}
+
 TEST(NonFinitePolicy, PointNodesPassValuesThrough)
 {
     const Frame in = poisoned(stability::plain_frame(16, 8));

@@ -75,6 +75,10 @@ NodeCases node_cases(const std::string &type)
     } else if (type == "sharpen") {
         c.param_sets.push_back(
             {"strong", {"amount=16", "sigma=8", "clamp_negative=false", "passes=color,normal"}});
+    } else if (type == "ao") {
+        c.param_sets.push_back(
+            {"wide_many", {"radius=50", "slices=8", "steps=32", "apply=multiply"}});
+        c.param_sets.push_back({"tiny_radius", {"radius=0.0001", "denoise=false"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",

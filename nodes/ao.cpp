@@ -1,0 +1,116 @@
+// nodes/ao.cpp: screen-space ambient occlusion from the depth and normal passes and the camera
+// (src/shading/gtao.h: GTAO, Jimenez et al. 2016, with a hard world radius so that it estimates
+// what `render` with truth "ao" computes exactly). Outputs pass "ao" (1 channel); `apply:
+// multiply` also darkens color by it, an approximation (the beauty's direct light is darkened
+// too; a renderer's separate indirect pass would be the right target). Non-finite depth reads as
+// the sky (AO 1), a non-finite normal as facing the camera.
+
+#include <cmath>
+
+#include "core/sanitize.h"
+#include "nodes/node.h"
+#include "shading/camera_rays.h"
+#include "shading/gtao.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kRadius = ParamSpec::real("radius", 1.0)
+                                  .range(1e-4, 1e4)
+                                  .units("scene units")
+                                  .doc("Occluders farther than this from the point do not count.");
+constexpr ParamSpec kSlices =
+    ParamSpec::integer("slices", 2).range(1, 16).doc("Slice directions per pixel.");
+constexpr ParamSpec kSteps =
+    ParamSpec::integer("steps", 4).range(1, 64).doc("Depth samples on each side of a slice.");
+constexpr ParamSpec kDenoise = ParamSpec::boolean("denoise", true)
+                                   .doc("Depth-aware 5x5 blur of the per-pixel rotation noise.");
+constexpr ParamSpec kIntensity = ParamSpec::real("intensity", 1.0)
+                                     .range(0.0, 8.0)
+                                     .doc("Exponent on the AO (0: no occlusion at all).");
+constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 256.0)
+                                       .range(1.0, 4096.0)
+                                       .units("px")
+                                       .doc("Cap on the search's screen radius (close-ups).");
+constexpr ParamSpec kApply = ParamSpec::choice("apply", "none|multiply", "none")
+                                 .doc("none: only the ao pass; multiply: color RGB times ao too.");
+constexpr ParamSpec kSeed =
+    ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
+constexpr ParamSpec kParams[] = {
+    kRadius, kSlices, kSteps, kDenoise, kIntensity, kMaxRadiusPx, kApply, kSeed};
+constexpr PortSpec kInputs[] = {
+    {"image", "depth,normal", false, "Depth, world normals and camera matrices."}};
+
+void execute(NodeContext &ctx)
+{
+    const Frame &in = ctx.input("image");
+    const Image &depth_in = in.image("depth", ctx.where());
+    const Image &normal_in = in.image("normal", ctx.where());
+    const Camera camera = in.pixel_camera();  // NDC spans the data window
+    const shading::CameraRays rays(camera.require_world_to_camera(ctx.where()),
+                                   camera.require_world_to_ndc(ctx.where()));
+    Image depth_storage, normal_storage;
+    const Image &depth =
+        finite_view(depth_in, std::numeric_limits<float>::infinity(), depth_storage, true);
+    const Image &normal = finite_view(normal_in, 0.0f, normal_storage);
+    const float intensity = ctx.get_float(kIntensity);
+    Image ao;
+    if (intensity == 0.0f) {
+        ao = Image(depth.width(), depth.height(), 1);
+        ao.fill(1.0f);
+    } else {
+        shading::GtaoParams p;
+        p.radius = ctx.get_float(kRadius);
+        p.slices = ctx.get_int(kSlices);
+        p.steps = ctx.get_int(kSteps);
+        p.max_radius_px = ctx.get_float(kMaxRadiusPx);
+        p.seed = std::uint32_t(ctx.get_int(kSeed));
+        ao = shading::gtao(depth, normal, rays, p);
+        if (ctx.get_bool(kDenoise)) {
+            ao = shading::gtao_denoise(ao, depth);
+        }
+        parallel_for(0, ao.height(), [&](int y) {
+            for (int x = 0; x < ao.width(); ++x) {
+                const float v = std::clamp(ao.at(x, y, 0), 0.0f, 1.0f);
+                ao.at(x, y, 0) = intensity == 1.0f ? v : std::pow(v, intensity);
+            }
+        });
+    }
+    if (ctx.get_string(kApply) == "multiply") {
+        const Pass &c = in.pass("color", ctx.where());
+        Image color = *c.image;
+        const int nc = color.channels();
+        parallel_for(0, color.height(), [&](int y) {
+            for (int x = 0; x < color.width(); ++x) {
+                float *px = color.pixel(x, y);
+                for (int k = 0; k < std::min(nc, 3); ++k) {
+                    px[k] *= ao.at(x, y, 0);
+                }
+            }
+        });
+        ctx.output().set(
+            "color", std::make_shared<const Image>(std::move(color)), c.channels, c.storage);
+    }
+    ctx.output().set(pass::kAo, std::make_shared<const Image>(std::move(ao)), {"Y"});
+}
+
+void plan(PlanContext &ctx)
+{
+    if (ctx.params.get_string(kApply) == "multiply") {
+        ctx.inputs[0].add("color");
+    }
+}
+
+}  // namespace
+
+extern const NodeType kAo{
+    {"ao",
+     "Screen-space ambient occlusion (GTAO) from depth, normals and the camera; pass \"ao\".",
+     kInputs,
+     kParams,
+     "ao"},
+    &execute,
+    &plan,
+    nullptr};
+
+}  // namespace posthaste::nodes

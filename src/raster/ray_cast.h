@@ -1,0 +1,67 @@
+#pragma once
+// Exact ray queries against a Minecrappy scene at one instant: the voxel grid by 3-D DDA
+// (Amanatides and Woo 1987), the balls as analytic spheres, the moving blocks as boxes. The
+// ground truth of screen-space lighting (ambient occlusion) is built on them.
+
+#include <cstdint>
+#include <glm/vec3.hpp>
+#include <vector>
+
+#include "core/image.h"
+#include "raster/render.h"
+#include "raster/scene.h"
+
+namespace posthaste::raster {
+
+class RayScene {
+   public:
+    /// The scene's geometry at time t (frames): balls and movers placed by their motion.
+    RayScene(const Scene &scene, double t);
+
+    /// True when the ray origin + s dir (dir unit length) meets a surface for 0 < s <= max_dist.
+    /// A ball or block that holds the origin is ignored (rays leave the surface they start on;
+    /// the rendered ball is a tessellation that lies up to 0.2 % of its radius inside the
+    /// sphere).
+    bool occluded(const glm::vec3 &origin, const glm::vec3 &dir, float max_dist) const;
+
+   private:
+    bool voxels_hit(const glm::vec3 &origin, const glm::vec3 &dir, float max_dist) const;
+
+    struct Sphere {
+        glm::vec3 centre;
+        float radius;
+    };
+    struct Box {
+        glm::vec3 lo, hi;
+    };
+    const VoxelGrid &grid_;
+    std::vector<Sphere> spheres_;
+    std::vector<Box> boxes_;
+};
+
+/// The ground truth's estimate at one surface point: the cosine-weighted fraction of `samples`
+/// stratified rays around `normal` (unit) that meet no surface within `radius`; jitter hashed
+/// from (x, y, sample, seed).
+float ao_truth_at(const RayScene &rays,
+                  const glm::vec3 &point,
+                  const glm::vec3 &normal,
+                  float radius,
+                  int samples,
+                  int x,
+                  int y,
+                  std::uint32_t seed);
+
+/// Ground-truth ambient occlusion of frame `frame` at options.width x height: at each pixel
+/// centre (the surface point and normal of the render's data passes), the cosine-weighted
+/// fraction of the hemisphere from which no surface lies within `radius` metres, estimated with
+/// `samples` stratified rays (a sqrt(samples)^2 grid of jittered cells, cosine-mapped; jitter
+/// hashed from pixel, sample and seed: the same bits for any thread count). 1 on the sky. One
+/// channel, in [0, 1].
+Image render_ao_truth(const Scene &scene,
+                      int frame,
+                      const RenderOptions &options,
+                      float radius,
+                      int samples,
+                      std::uint32_t seed);
+
+}  // namespace posthaste::raster

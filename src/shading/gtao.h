@@ -1,0 +1,37 @@
+#pragma once
+// Ground-truth-based ambient occlusion (Jimenez et al. 2016, "Practical Realtime Strategies for
+// Accurate Indirect Occlusion"): per pixel, a few slices through the view vector; in each, the
+// highest horizon on either side within a world radius, found by marching the depth pass, and
+// the cosine-weighted visible arc between them integrated in closed form, weighted by the length
+// of the normal's projection onto the slice. With the radius as a hard cut-off this estimates
+// the same quantity as raster::render_ao_truth: the cosine-weighted fraction of the hemisphere
+// with no surface within the radius, as far as the depth pass shows the surfaces (what lies
+// behind a visible surface counts as solid: the depth buffer's one-layer approximation).
+
+#include <cstdint>
+
+#include "core/image.h"
+#include "shading/camera_rays.h"
+
+namespace posthaste::shading {
+
+struct GtaoParams {
+    float radius = 1.0f;           ///< World units: occluders farther from the point do not count.
+    int slices = 2;                ///< Slice directions per pixel (rotated per pixel).
+    int steps = 4;                 ///< Depth samples on each side of a slice.
+    float max_radius_px = 256.0f;  ///< Cap on the search's screen radius.
+    std::uint32_t seed = 0;        ///< Shifts the 4x4 pattern of slice rotations and step jitter.
+};
+
+/// AO (1 channel, 0 occluded .. 1 open, the estimate itself: a few slices can scatter a little
+/// outside [0, 1], clamped by the caller after any denoising) of a depth pass (camera z, +inf sky)
+/// with world-space normals of the same size, seen through `rays` (NDC [0,1]^2 spanning these
+/// images). Sky and non-finite depth give 1; a zero or non-finite normal uses the view vector. Rows
+/// in parallel, same bits for any thread count.
+Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, const GtaoParams &p);
+
+/// A depth-aware blur of `ao` (5x5 box, neighbours weighted by max(0, 1 - |dz| / (0.1 z)) of the
+/// depth difference): the 4x4 pattern of slice rotations averaged, depth edges kept.
+Image gtao_denoise(const Image &ao, const Image &depth);
+
+}  // namespace posthaste::shading
