@@ -382,50 +382,61 @@ void ColorProcessor::apply_row(float *row, int width, int nch, bool unpremultipl
     const bool unpremult = unpremultiply && nch >= 4;
     // Below this alpha a pixel is left premultiplied: dividing by a near-zero alpha turns any
     // color into huge values that a non-linear transform overflows (found by the stability suite).
+    // Alpha 1 (most pixels) skips the division and the product: the same bits either way.
     constexpr float kMinAlpha = 1e-6f;
-    if (unpremult) {
+    auto divides = [&](float a) { return unpremult && a > kMinAlpha && a != 1.0f; };
+    if (nch == 4) {
+        // Packed RGBA is OpenColorIO's in-place path (no conversion to its working buffer):
+        // several times faster than RGB with a stride. Alpha is put back afterwards bit for
+        // bit (a matrix's 0 * inf in R would otherwise reach it). One pass before, one after.
+        std::vector<float> alpha(static_cast<std::size_t>(width));
         for (int x = 0; x < width; ++x) {
-            float *p = row + std::size_t(x) * std::size_t(nch);
-            if (p[3] > kMinAlpha) {
+            float *p = row + std::size_t(x) * 4;
+            alpha[std::size_t(x)] = p[3];
+            if (divides(p[3])) {
                 p[0] /= p[3];
                 p[1] /= p[3];
                 p[2] /= p[3];
             }
         }
-    }
-    if (nch == 4) {
-        // Packed RGBA is OpenColorIO's in-place path (no conversion to its working buffer):
-        // several times faster than RGB with a stride. Alpha is put back afterwards bit for
-        // bit (a matrix's 0 * inf in R would otherwise reach it).
-        std::vector<float> alpha(static_cast<std::size_t>(width));
-        for (int x = 0; x < width; ++x) {
-            alpha[std::size_t(x)] = row[std::size_t(x) * 4 + 3];
-        }
         OCIO::PackedImageDesc rgba(row, width, 1, 4);
         impl_->cpu->apply(rgba);
         for (int x = 0; x < width; ++x) {
-            row[std::size_t(x) * 4 + 3] = alpha[std::size_t(x)];
-        }
-    } else {
-        // Channels beyond RGB (alpha, extra) are skipped through the strides.
-        OCIO::PackedImageDesc desc(row,
-                                   width,
-                                   1,
-                                   OCIO::CHANNEL_ORDERING_RGB,
-                                   OCIO::BIT_DEPTH_F32,
-                                   sizeof(float),
-                                   std::ptrdiff_t(sizeof(float)) * nch,
-                                   std::ptrdiff_t(sizeof(float)) * nch * width);
-        impl_->cpu->apply(desc);
-    }
-    if (unpremult) {
-        for (int x = 0; x < width; ++x) {
-            float *p = row + std::size_t(x) * std::size_t(nch);
-            if (p[3] > kMinAlpha) {
-                p[0] *= p[3];
-                p[1] *= p[3];
-                p[2] *= p[3];
+            float *p = row + std::size_t(x) * 4;
+            const float a = alpha[std::size_t(x)];
+            p[3] = a;
+            if (divides(a)) {
+                p[0] *= a;
+                p[1] *= a;
+                p[2] *= a;
             }
+        }
+        return;
+    }
+    for (int x = 0; unpremult && x < width; ++x) {
+        float *p = row + std::size_t(x) * std::size_t(nch);
+        if (divides(p[3])) {
+            p[0] /= p[3];
+            p[1] /= p[3];
+            p[2] /= p[3];
+        }
+    }
+    // Channels beyond RGB (alpha, extra) are skipped through the strides.
+    OCIO::PackedImageDesc desc(row,
+                               width,
+                               1,
+                               OCIO::CHANNEL_ORDERING_RGB,
+                               OCIO::BIT_DEPTH_F32,
+                               sizeof(float),
+                               std::ptrdiff_t(sizeof(float)) * nch,
+                               std::ptrdiff_t(sizeof(float)) * nch * width);
+    impl_->cpu->apply(desc);
+    for (int x = 0; unpremult && x < width; ++x) {
+        float *p = row + std::size_t(x) * std::size_t(nch);
+        if (divides(p[3])) {
+            p[0] *= p[3];
+            p[1] *= p[3];
+            p[2] *= p[3];
         }
     }
 }
