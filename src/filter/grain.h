@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "core/memory.h"
 
 namespace posthaste::filter {
 
@@ -23,7 +24,7 @@ struct GrainParams {
 
 /// One or three planes of grain, rows `stride` floats apart, planes `plane` floats apart.
 struct GrainField {
-    std::vector<float> data;
+    ScratchArray<float> data;  ///< uninitialised pool memory: every value read is written
     std::size_t stride = 0, plane = 0;
     float at(int c, int x, int y) const
     {
