@@ -66,9 +66,10 @@ NodeCases node_cases(const std::string &type)
         c.param_sets.push_back({"shrink_nearest", {"scale=0.01", "filter=nearest"}});
         c.param_sets.push_back({"far_away", {"translate_x=100000"}});
     } else if (type == "crop") {
-        // Inside, across the data window (moved to the origin), and wholly outside it.
+        // Inside, across the data window, and wholly outside it (values are matched by file
+        // coordinates, so `reformat`, which moves them, is tested in tests/unit/image_ops_test).
         c.param_sets.push_back({"inside", {"box=[2, 3, 9, 11]"}});
-        c.param_sets.push_back({"across_reformat", {"box=[-4, 8, 12, 30]", "reformat=true"}});
+        c.param_sets.push_back({"across", {"box=[-4, 8, 12, 30]", "crop_data=false"}});
         c.param_sets.push_back({"outside", {"box=[100, 100, 104, 104]"}});
     } else if (type == "blur") {
         c.param_sets.push_back({"wide", {"sigma=40", "sigma_y=0.3", "passes=color,depth"}});
