@@ -310,6 +310,10 @@ void sample_channels(
     const float fx = x - 0.5f, fy = y - 0.5f;
     const int ix = floor_int(fx), iy = floor_int(fy);
     const int i = ix - (taps / 2 - 1), j = iy - (taps / 2 - 1);
+    if (i + taps <= 0 || j + taps <= 0 || i >= img.width() || j >= img.height()) {
+        std::fill(out, out + n, outside);  // every tap outside the image
+        return;
+    }
     if (i < 0 || j < 0 || i + taps > img.width() || j + taps > img.height()) {
         for (int c = c0; c < c1; ++c) {
             out[c - c0] = sample(img, c, x, y, filter, outside);

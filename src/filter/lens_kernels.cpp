@@ -67,13 +67,20 @@ void LensResampleRgbaRow(const float *img,
             wy[1] = b;
         }
         const float *p = img + std::size_t(j) * stride + std::size_t(i) * 4;
+        // The weights broadcast once per pixel (the compiler did not hoist them out of the
+        // loops over rows and channels).
+        const auto vx0 = hn::Set(d4, wx[0]), vx1 = hn::Set(d4, wx[1]);
+        const auto vx2 = hn::Set(d4, taps == 4 ? wx[2] : 0.0f);
+        const auto vx3 = hn::Set(d4, taps == 4 ? wx[3] : 0.0f);
         for (int c = 0; c < 4; c += lanes) {
             auto acc = hn::Zero(d4);
             for (int m = 0; m < taps; ++m) {
                 const float *r = p + std::size_t(m) * stride + c;
-                auto row = hn::Mul(hn::Set(d4, wx[0]), hn::LoadU(d4, r));
-                for (int k = 1; k < taps; ++k) {
-                    row = hn::MulAdd(hn::Set(d4, wx[k]), hn::LoadU(d4, r + 4 * k), row);
+                auto row = hn::Mul(vx0, hn::LoadU(d4, r));
+                row = hn::MulAdd(vx1, hn::LoadU(d4, r + 4), row);
+                if (taps == 4) {
+                    row = hn::MulAdd(vx2, hn::LoadU(d4, r + 8), row);
+                    row = hn::MulAdd(vx3, hn::LoadU(d4, r + 12), row);
                 }
                 acc = hn::MulAdd(hn::Set(d4, wy[m]), row, acc);
             }
