@@ -113,6 +113,12 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
                 float hc[2] = {sin_n, -sin_n};
                 for (int side_i = 0; side_i < 2; ++side_i) {
                     const float sgn = side_i == 0 ? -1.0f : 1.0f;
+                    // The last sample within the radius: the surface between it and a sample
+                    // just beyond is taken as straight, and where it crosses the radius is a
+                    // horizon candidate (discrete samples would otherwise stop short of the
+                    // radius and under-occlude, the more so the fewer the steps).
+                    glm::vec3 prev(0.0f);
+                    bool have_prev = false;
                     for (int k = 0; k < steps; ++k) {
                         // Quadratic spacing: more samples near the pixel, where occluders are
                         // both likelier and more important.
@@ -125,15 +131,36 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
                         }
                         const float sz = depth.at(sx, sy, 0);
                         if (!(sz > 0.0f) || !std::isfinite(sz)) {
+                            have_prev = false;
                             continue;
                         }
                         const glm::vec3 delta = world(sx, sy, sz) - pos;
                         const float len2 = glm::dot(delta, delta);
-                        if (len2 > r2 || len2 < 1e-12f) {
-                            continue;  // beyond the radius: not an occluder
+                        if (len2 < 1e-12f) {
+                            continue;
+                        }
+                        if (len2 > r2) {
+                            // Beyond the radius: not an occluder itself. Within twice the radius
+                            // of a sample inside it, the crossing point stands in for the surface
+                            // in between (a larger jump is a depth edge, not one surface).
+                            if (have_prev && len2 < 4.0f * r2) {
+                                const glm::vec3 a = delta - prev;
+                                const float aa = glm::dot(a, a), b = glm::dot(prev, a);
+                                const float cc = glm::dot(prev, prev) - r2;
+                                const float disc = b * b - aa * cc;
+                                if (aa > 0.0f && disc >= 0.0f) {
+                                    const float u = (-b + std::sqrt(disc)) / aa;
+                                    const glm::vec3 q = prev + u * a;
+                                    hc[side_i] = std::max(hc[side_i], glm::dot(q, view) / p.radius);
+                                }
+                            }
+                            have_prev = false;
+                            continue;
                         }
                         const float c = glm::dot(delta, view) / std::sqrt(len2);
                         hc[side_i] = std::max(hc[side_i], c);
+                        prev = delta;
+                        have_prev = true;
                     }
                 }
                 // Horizon angles (side 0 negative), at most pi/2 from the normal; their cosines
