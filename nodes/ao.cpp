@@ -34,10 +34,13 @@ constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 256.0)
                                        .doc("Cap on the search's screen radius (close-ups).");
 constexpr ParamSpec kApply = ParamSpec::choice("apply", "none|multiply", "none")
                                  .doc("none: only the ao pass; multiply: color RGB times ao too.");
+constexpr ParamSpec kResolution =
+    ParamSpec::choice("resolution", "full|half", "half")
+        .doc("half: every other pixel, then a depth-aware upsample (a quarter of the work).");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
 constexpr ParamSpec kParams[] = {
-    kRadius, kSlices, kSteps, kDenoise, kIntensity, kMaxRadiusPx, kApply, kSeed};
+    kRadius, kSlices, kSteps, kDenoise, kIntensity, kMaxRadiusPx, kApply, kResolution, kSeed};
 constexpr PortSpec kInputs[] = {
     {"image", "depth,normal", false, "Depth, world normals and camera matrices."}};
 
@@ -65,10 +68,12 @@ void execute(NodeContext &ctx)
         p.steps = ctx.get_int(kSteps);
         p.max_radius_px = ctx.get_float(kMaxRadiusPx);
         p.seed = std::uint32_t(ctx.get_int(kSeed));
+        p.stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
         ao = shading::gtao(depth, normal, rays, p);
         if (ctx.get_bool(kDenoise)) {
-            ao = shading::gtao_denoise(ao, depth);
+            ao = shading::gtao_denoise(ao, depth, p.stride);
         }
+        ao = shading::gtao_upsample(ao, depth, p.stride);
         parallel_for(0, ao.height(), [&](int y) {
             for (int x = 0; x < ao.width(); ++x) {
                 const float v = std::clamp(ao.at(x, y, 0), 0.0f, 1.0f);

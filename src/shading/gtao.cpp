@@ -47,7 +47,9 @@ float pattern(int x, int y, int k)
 Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, const GtaoParams &p)
 {
     const int w = depth.width(), h = depth.height();
-    Image out = Image::uninitialized(w, h, 1);
+    const int st = std::max(1, p.stride);
+    const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+    Image out = Image::uninitialized(ow, oh, 1);
     const float inv_w = 1.0f / float(w), inv_h = 1.0f / float(h);
     const glm::vec3 cam = rays.position();
     auto world = [&](int x, int y, float z) {
@@ -65,11 +67,14 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
             dirs[std::size_t(r * slices + s)] = glm::vec2(std::cos(phi), std::sin(phi));
         }
     }
-    parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
+    parallel_for(0, oh, [&](int oy) {
+        for (int ox = 0; ox < ow; ++ox) {
+            // The output pixel is the full-resolution pixel (x, y) = stride (ox, oy); samples are
+            // taken in the full-resolution depth.
+            const int x = ox * st, y = oy * st;
             const float z = depth.at(x, y, 0);
             if (!(z > 0.0f) || !std::isfinite(z)) {
-                out.at(x, y, 0) = 1.0f;
+                out.at(ox, oy, 0) = 1.0f;
                 continue;
             }
             const glm::vec3 pos = world(x, y, z);
@@ -82,10 +87,10 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
             const float radius_px =
                 std::min(p.radius / std::max(px_world, 1e-12f), p.max_radius_px);
             if (radius_px < 1.0f) {
-                out.at(x, y, 0) = 1.0f;  // the radius is under a pixel: nothing to find
+                out.at(ox, oy, 0) = 1.0f;  // the radius is under a pixel: nothing to find
                 continue;
             }
-            const int px = x + int(p.seed & 3u), py = y + int((p.seed >> 2) & 3u);
+            const int px = ox + int(p.seed & 3u), py = oy + int((p.seed >> 2) & 3u);
             const int rot = int(pattern(px, py, 0) * 16.0f);
             const float jitter = pattern(px, py, 1);
             float visibility = 0.0f;
@@ -184,19 +189,20 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
             // The mean over slices (the projected normal's length is the slice's weight in the
             // hemisphere integral: unoccluded, the mean over all slice directions is exactly 1).
             // A few slices scatter around it either way; the node clamps after denoising.
-            out.at(x, y, 0) = visibility / float(slices);
+            out.at(ox, oy, 0) = visibility / float(slices);
         }
     });
     return out;
 }
 
-Image gtao_denoise(const Image &ao, const Image &depth)
+Image gtao_denoise(const Image &ao, const Image &depth, int stride)
 {
-    const int w = ao.width(), h = ao.height();
+    const int w = ao.width(), h = ao.height(), st = std::max(1, stride);
     Image out = Image::uninitialized(w, h, 1);
+    auto depth_of = [&](int i, int j) { return depth.at(i * st, j * st, 0); };
     parallel_for(0, h, [&](int y) {
         for (int x = 0; x < w; ++x) {
-            const float z = depth.at(x, y, 0);
+            const float z = depth_of(x, y);
             if (!(z > 0.0f) || !std::isfinite(z)) {
                 out.at(x, y, 0) = ao.at(x, y, 0);
                 continue;
@@ -205,7 +211,7 @@ Image gtao_denoise(const Image &ao, const Image &depth)
             float sum = 0.0f, wsum = 0.0f;
             for (int j = std::max(0, y - 2); j <= std::min(h - 1, y + 2); ++j) {
                 for (int i = std::max(0, x - 2); i <= std::min(w - 1, x + 2); ++i) {
-                    const float nz = depth.at(i, j, 0);
+                    const float nz = depth_of(i, j);
                     if (!(nz > 0.0f) || !std::isfinite(nz)) {
                         continue;
                     }
@@ -215,6 +221,53 @@ Image gtao_denoise(const Image &ao, const Image &depth)
                 }
             }
             out.at(x, y, 0) = sum / wsum;  // the centre is always in: wsum >= 1
+        }
+    });
+    return out;
+}
+
+Image gtao_upsample(const Image &ao, const Image &depth, int stride)
+{
+    const int w = depth.width(), h = depth.height(), st = std::max(1, stride);
+    if (st == 1) {
+        return ao;
+    }
+    const int lw = ao.width(), lh = ao.height();
+    Image out = Image::uninitialized(w, h, 1);
+    parallel_for(0, h, [&](int y) {
+        const int j0 = std::min(y / st, lh - 1), j1 = std::min(j0 + 1, lh - 1);
+        const float fy = float(y - j0 * st) / float(st);
+        for (int x = 0; x < w; ++x) {
+            const int i0 = std::min(x / st, lw - 1), i1 = std::min(i0 + 1, lw - 1);
+            const float fx = float(x - i0 * st) / float(st);
+            const float z = depth.at(x, y, 0);
+            if (!(z > 0.0f) || !std::isfinite(z)) {
+                out.at(x, y, 0) = 1.0f;
+                continue;
+            }
+            const float inv_scale = 1.0f / (0.1f * z);
+            float sum = 0.0f, wsum = 0.0f, best = HUGE_VALF, nearest = 1.0f;
+            const int is[2] = {i0, i1}, js[2] = {j0, j1};
+            for (int b = 0; b < 2; ++b) {
+                for (int a = 0; a < 2; ++a) {
+                    const float lz = depth.at(is[a] * st, js[b] * st, 0);
+                    if (!(lz > 0.0f) || !std::isfinite(lz)) {
+                        continue;
+                    }
+                    const float dz = std::abs(lz - z);
+                    const float bw = (a ? fx : 1.0f - fx) * (b ? fy : 1.0f - fy);
+                    const float wt = bw * std::max(0.0f, 1.0f - dz * inv_scale);
+                    sum += wt * ao.at(is[a], js[b], 0);
+                    wsum += wt;
+                    if (dz < best) {
+                        best = dz;
+                        nearest = ao.at(is[a], js[b], 0);
+                    }
+                }
+            }
+            // No neighbour on this surface (a thin feature between the samples): the closest in
+            // depth.
+            out.at(x, y, 0) = wsum > 1e-6f ? sum / wsum : nearest;
         }
     });
     return out;

@@ -20,11 +20,15 @@ struct GtaoParams {
     int slices = 2;                ///< Slice directions per pixel (rotated per pixel).
     int steps = 4;                 ///< Depth samples on each side of a slice.
     float max_radius_px = 256.0f;  ///< Cap on the search's screen radius.
-    std::uint32_t seed = 0;        ///< Shifts the 4x4 pattern of slice rotations and step jitter.
+    /// 1: every pixel; 2: every other pixel in x and y (a quarter of the work), brought back
+    /// to full resolution by gtao_upsample.
+    int stride = 1;
+    std::uint32_t seed = 0;  ///< Shifts the 4x4 pattern of slice rotations and step jitter.
 };
 
 /// AO (1 channel, 0 occluded .. 1 open, the estimate itself: a few slices can scatter a little
-/// outside [0, 1], clamped by the caller after any denoising) of a depth pass (camera z, +inf sky)
+/// outside [0, 1], clamped by the caller after any denoising; ceil(size / stride)) of a depth
+/// pass (camera z, +inf sky)
 /// with world-space normals of the same size, seen through `rays` (NDC [0,1]^2 spanning these
 /// images). Sky and non-finite depth give 1; a zero or non-finite normal uses the view vector. Rows
 /// in parallel, same bits for any thread count.
@@ -32,6 +36,13 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
 
 /// A depth-aware blur of `ao` (5x5 box, neighbours weighted by max(0, 1 - |dz| / (0.1 z)) of the
 /// depth difference): the 4x4 pattern of slice rotations averaged, depth edges kept.
-Image gtao_denoise(const Image &ao, const Image &depth);
+/// With `stride` > 1, `ao` is gtao's reduced output and its pixel (i, j) has the depth of the
+/// full-resolution pixel stride (i, j).
+Image gtao_denoise(const Image &ao, const Image &depth, int stride = 1);
+
+/// The reduced AO of gtao with `stride` > 1 brought to the depth pass's resolution: the four
+/// nearest computed pixels, bilinear weights times the depth similarity of the denoise; the
+/// closest in depth where none is on the same surface.
+Image gtao_upsample(const Image &ao, const Image &depth, int stride);
 
 }  // namespace posthaste::shading

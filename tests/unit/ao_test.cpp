@@ -193,6 +193,55 @@ TEST(Ao, GtaoIsOneOnAnOpenPlaneAndFollowsTheCorner)
     }
 }
 
+TEST(Ao, HalfResolutionKeepsThePlaneAndTheCorner)
+{
+    const int w = 320, h = 240;
+    shading::GtaoParams p;
+    p.slices = 4;
+    p.steps = 16;
+    p.stride = 2;
+    const AnalyticGBuffer open = floor_wall_gbuffer(w, h, false);
+    const Image low = shading::gtao(open.depth, open.normal, open.rays, p);
+    EXPECT_EQ(low.width(), 160);
+    EXPECT_EQ(low.height(), 120);
+    const Image up =
+        shading::gtao_upsample(shading::gtao_denoise(low, open.depth, 2), open.depth, 2);
+    ASSERT_EQ(up.width(), w);
+    double sum = 0.0;
+    int n = 0;
+    for (int y = h / 2; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            sum += up.at(x, y, 0);
+            ++n;
+        }
+    }
+    EXPECT_NEAR(sum / n, 1.0, 0.01);
+    // Along the wall's foot, floor pixels 0.25-0.5 m from it against the closed form.
+    const AnalyticGBuffer g = floor_wall_gbuffer(w, h, true);
+    const Image ao = shading::gtao_upsample(
+        shading::gtao_denoise(shading::gtao(g.depth, g.normal, g.rays, p), g.depth, 2), g.depth, 2);
+    const glm::vec3 cam = g.rays.position();
+    double got = 0.0, want = 0.0;
+    int count = 0;
+    for (int y = 0; y < h; ++y) {
+        for (int x = w / 4; x < 3 * w / 4; ++x) {
+            if (g.normal.at(x, y, 1) != 1.0f) {
+                continue;
+            }
+            const glm::vec3 pt =
+                cam + g.depth.at(x, y, 0) * g.rays.depth_ray((x + 0.5f) / w, (y + 0.5f) / h);
+            const double d = 4.0 - pt.x;
+            if (d >= 0.25 && d < 0.5) {
+                got += ao.at(x, y, 0);
+                want += corner_ao(d, 1.0);
+                ++count;
+            }
+        }
+    }
+    ASSERT_GT(count, 50);
+    EXPECT_NEAR(got / count, want / count, 0.06);
+}
+
 TEST(Ao, NodeNamesWhatIsMissing)
 {
     Frame f = test::make_sample_frame(32, 24, 1);
