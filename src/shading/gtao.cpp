@@ -6,33 +6,16 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
+#include <limits>
 #include <vector>
 
 #include "core/parallel.h"
+#include "shading/gtao_kernels.h"
 
 namespace posthaste::shading {
 namespace {
 
 constexpr float kPi = 3.14159265358979f;
-constexpr float kHalfPi = 0.5f * kPi;
-
-/// acos to about 7e-5 rad over [-1, 1] (Abramowitz and Stegun 4.4.45), without a libm call.
-float fast_acos(float c)
-{
-    const float a = std::abs(c);
-    const float p =
-        std::sqrt(1.0f - a) * (1.5707288f + a * (-0.2121144f + a * (0.0742610f - 0.0187293f * a)));
-    return c >= 0.0f ? p : kPi - p;
-}
-
-/// The cosine-weighted visible arc of one side of a slice, between the view vector's angle 0 and
-/// the horizon angle h (cosine ch, sine sh), for a projected normal at angle n (cosine cn, sine
-/// sn): (-cos(2h - n) + cos n + 2 h sin n) / 4 (Jimenez et al. 2016, eq. 10, one side).
-float arc(float h, float ch, float sh, float cn, float sn)
-{
-    const float cos_2h = 2.0f * ch * ch - 1.0f, sin_2h = 2.0f * sh * ch;
-    return 0.25f * (-(cos_2h * cn + sin_2h * sn) + cn + 2.0f * h * sn);
-}
 
 /// A 4x4 interleaved pattern: 16 values in [0, 1) spread over every 4x4 block of pixels, so the
 /// 5x5 denoise averages every rotation (Jimenez et al.'s spatial noise, without the temporal).
@@ -50,147 +33,66 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
     const int st = std::max(1, p.stride);
     const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
     Image out = Image::uninitialized(ow, oh, 1);
-    const float inv_w = 1.0f / float(w), inv_h = 1.0f / float(h);
-    const glm::vec3 cam = rays.position();
-    auto world = [&](int x, int y, float z) {
-        return cam + z * rays.depth_ray((float(x) + 0.5f) * inv_w, (float(y) + 0.5f) * inv_h);
-    };
-    const float r2 = p.radius * p.radius;
+    const float inv_w = 1.0f / float(w);
+    GtaoKernelParams kp;
+    kp.depth = depth.data();
+    kp.w = w;
+    kp.h = h;
+    const glm::vec3 cam = rays.position(), o = rays.depth_ray(0.0f, 0.0f);
+    const glm::vec3 du = rays.depth_ray(1.0f, 0.0f) - o, dv = rays.depth_ray(0.0f, 1.0f) - o;
+    for (int c = 0; c < 3; ++c) {
+        kp.cam[c] = cam[c];
+        kp.origin[c] = o[c];
+        kp.du[c] = du[c];
+        kp.dv[c] = dv[c];
+    }
+    kp.radius = p.radius;
+    kp.max_radius_px = p.max_radius_px;
     // World units per pixel at depth 1 (times z at a pixel's depth).
-    const float px_world_1 = glm::length(rays.depth_ray(inv_w, 0.0f) - rays.depth_ray(0.0f, 0.0f));
-    const int slices = std::max(1, p.slices), steps = std::max(1, p.steps);
+    kp.px_world_1 = glm::length(du) * inv_w;
+    kp.slices = std::max(1, p.slices);
+    kp.steps = std::max(1, p.steps);
+    kp.stride = st;
     // Slice directions for each of the pattern's 16 rotations.
-    std::vector<glm::vec2> dirs(std::size_t(16 * slices));
+    std::vector<float> dir_x(std::size_t(16 * kp.slices)), dir_y(dir_x.size());
     for (int r = 0; r < 16; ++r) {
-        for (int s = 0; s < slices; ++s) {
-            const float phi = (float(s) + (float(r) + 0.5f) / 16.0f) * (kPi / float(slices));
-            dirs[std::size_t(r * slices + s)] = glm::vec2(std::cos(phi), std::sin(phi));
+        for (int s = 0; s < kp.slices; ++s) {
+            const float phi = (float(s) + (float(r) + 0.5f) / 16.0f) * (kPi / float(kp.slices));
+            dir_x[std::size_t(r * kp.slices + s)] = std::cos(phi);
+            dir_y[std::size_t(r * kp.slices + s)] = std::sin(phi);
         }
     }
+    kp.dir_x = dir_x.data();
+    kp.dir_y = dir_y.data();
+    const std::size_t n = std::size_t(ow) + kGtaoPad;
     parallel_for(0, oh, [&](int oy) {
+        // The row's computed pixels as planes for the kernel (the padding: sky, AO 1).
+        std::vector<float> z(n, std::numeric_limits<float>::infinity()), nx(n, 0.0f), ny(n, 0.0f),
+            nz(n, 0.0f), jitter(n, 0.0f), ao(n);
+        std::vector<std::int32_t> rot(n, 0);
+        const int y = oy * st;
         for (int ox = 0; ox < ow; ++ox) {
-            // The output pixel is the full-resolution pixel (x, y) = stride (ox, oy); samples are
-            // taken in the full-resolution depth.
-            const int x = ox * st, y = oy * st;
-            const float z = depth.at(x, y, 0);
-            if (!(z > 0.0f) || !std::isfinite(z)) {
-                out.at(ox, oy, 0) = 1.0f;
-                continue;
-            }
-            const glm::vec3 pos = world(x, y, z);
-            const glm::vec3 view = glm::normalize(cam - pos);
-            glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
-            const float nl = glm::length(n);
-            n = nl > 1e-6f && std::isfinite(nl) ? n / nl : view;
-            // World units per pixel at this depth, and the search radius on screen.
-            const float px_world = z * px_world_1;
-            const float radius_px =
-                std::min(p.radius / std::max(px_world, 1e-12f), p.max_radius_px);
-            if (radius_px < 1.0f) {
-                out.at(ox, oy, 0) = 1.0f;  // the radius is under a pixel: nothing to find
-                continue;
-            }
+            const int x = ox * st;
+            const std::size_t i = std::size_t(ox);
+            z[i] = depth.at(x, y, 0);
+            nx[i] = normal.at(x, y, 0);
+            ny[i] = normal.at(x, y, 1);
+            nz[i] = normal.at(x, y, 2);
             const int px = ox + int(p.seed & 3u), py = oy + int((p.seed >> 2) & 3u);
-            const int rot = int(pattern(px, py, 0) * 16.0f);
-            const float jitter = pattern(px, py, 1);
-            float visibility = 0.0f;
-            for (int s = 0; s < slices; ++s) {
-                const float dx = dirs[std::size_t(rot * slices + s)].x;
-                const float dy = dirs[std::size_t(rot * slices + s)].y;
-                // The slice's world direction: toward the neighbouring pixel along (dx, dy).
-                const glm::vec3 side =
-                    rays.depth_ray(dx * inv_w, dy * inv_h) - rays.depth_ray(0.0f, 0.0f);
-                const glm::vec3 ortho = glm::normalize(side - glm::dot(side, view) * view);
-                const glm::vec3 axis = glm::cross(ortho, view);
-                const glm::vec3 pn = n - axis * glm::dot(n, axis);
-                const float pn_len = glm::length(pn);
-                if (pn_len < 1e-6f) {
-                    continue;  // the normal is perpendicular to the slice: no weight
-                }
-                const float cos_n = std::clamp(glm::dot(pn, view) / pn_len, -1.0f, 1.0f);
-                const float sgn_n = glm::dot(pn, ortho) < 0.0f ? -1.0f : 1.0f;
-                const float ang_n = sgn_n * fast_acos(cos_n);
-                const float sin_n = sgn_n * std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n));
-                // Angles in the slice are measured from the view vector, positive toward +ortho
-                // (side 1); the lowest horizons are the tangent plane, n - pi/2 on side 0 and
-                // n + pi/2 on side 1, kept as cosines from the view vector.
-                // cos(n -/+ pi/2) = +/- sin n.
-                float hc[2] = {sin_n, -sin_n};
-                for (int side_i = 0; side_i < 2; ++side_i) {
-                    const float sgn = side_i == 0 ? -1.0f : 1.0f;
-                    // The last sample within the radius: the surface between it and a sample
-                    // just beyond is taken as straight, and where it crosses the radius is a
-                    // horizon candidate (discrete samples would otherwise stop short of the
-                    // radius and under-occlude, the more so the fewer the steps).
-                    glm::vec3 prev(0.0f);
-                    bool have_prev = false;
-                    for (int k = 0; k < steps; ++k) {
-                        // Quadratic spacing: more samples near the pixel, where occluders are
-                        // both likelier and more important.
-                        const float t = (float(k) + jitter) / float(steps);
-                        const float d = std::max(1.0f, t * t * radius_px);
-                        const int sx = int(std::floor(float(x) + 0.5f + sgn * d * dx));
-                        const int sy = int(std::floor(float(y) + 0.5f + sgn * d * dy));
-                        if (sx < 0 || sy < 0 || sx >= w || sy >= h) {
-                            break;  // off screen: nothing known beyond
-                        }
-                        const float sz = depth.at(sx, sy, 0);
-                        if (!(sz > 0.0f) || !std::isfinite(sz)) {
-                            have_prev = false;
-                            continue;
-                        }
-                        const glm::vec3 delta = world(sx, sy, sz) - pos;
-                        const float len2 = glm::dot(delta, delta);
-                        if (len2 < 1e-12f) {
-                            continue;
-                        }
-                        if (len2 > r2) {
-                            // Beyond the radius: not an occluder itself. Within twice the radius
-                            // of a sample inside it, the crossing point stands in for the surface
-                            // in between (a larger jump is a depth edge, not one surface).
-                            if (have_prev && len2 < 4.0f * r2) {
-                                const glm::vec3 a = delta - prev;
-                                const float aa = glm::dot(a, a), b = glm::dot(prev, a);
-                                const float cc = glm::dot(prev, prev) - r2;
-                                const float disc = b * b - aa * cc;
-                                if (aa > 0.0f && disc >= 0.0f) {
-                                    const float u = (-b + std::sqrt(disc)) / aa;
-                                    const glm::vec3 q = prev + u * a;
-                                    hc[side_i] = std::max(hc[side_i], glm::dot(q, view) / p.radius);
-                                }
-                            }
-                            have_prev = false;
-                            continue;
-                        }
-                        const float c = glm::dot(delta, view) / std::sqrt(len2);
-                        hc[side_i] = std::max(hc[side_i], c);
-                        prev = delta;
-                        have_prev = true;
-                    }
-                }
-                // Horizon angles (side 0 negative), at most pi/2 from the normal; their cosines
-                // and sines from the angle only where the clamp moved them.
-                float h0 = -fast_acos(hc[0]), h1 = fast_acos(hc[1]);
-                float c0 = hc[0], s0 = -std::sqrt(std::max(0.0f, 1.0f - c0 * c0));
-                float c1 = hc[1], s1 = std::sqrt(std::max(0.0f, 1.0f - c1 * c1));
-                if (h0 < ang_n - kHalfPi) {
-                    h0 = ang_n - kHalfPi;
-                    c0 = sin_n;  // cos(n - pi/2)
-                    s0 = -cos_n;
-                }
-                if (h1 > ang_n + kHalfPi) {
-                    h1 = ang_n + kHalfPi;
-                    c1 = -sin_n;  // cos(n + pi/2)
-                    s1 = cos_n;
-                }
-                visibility +=
-                    pn_len * (arc(h0, c0, s0, cos_n, sin_n) + arc(h1, c1, s1, cos_n, sin_n));
-            }
-            // The mean over slices (the projected normal's length is the slice's weight in the
-            // hemisphere integral: unoccluded, the mean over all slice directions is exactly 1).
-            // A few slices scatter around it either way; the node clamps after denoising.
-            out.at(ox, oy, 0) = visibility / float(slices);
+            rot[i] = std::int32_t(pattern(px, py, 0) * 16.0f) * kp.slices;
+            jitter[i] = pattern(px, py, 1);
         }
+        gtao_row(kp,
+                 oy,
+                 z.data(),
+                 nx.data(),
+                 ny.data(),
+                 nz.data(),
+                 rot.data(),
+                 jitter.data(),
+                 ow,
+                 ao.data());
+        std::copy(ao.begin(), ao.begin() + ow, out.pixel(0, oy));
     });
     return out;
 }
