@@ -406,9 +406,11 @@ void run_ready_specs(bool heavy)
         std::ifstream in(entry.path());
         const std::string text((std::istreambuf_iterator<char>(in)),
                                std::istreambuf_iterator<char>());
-        // Specs whose graphs render ground truth take minutes: they run in the Slow suite.
+        // Specs whose graphs render ground truth, or exact 1080p references (bloom's FFT), take
+        // minutes (far more under the sanitizers): they run in the Slow suite.
         const bool renders = text.find("graphs/truth_") != std::string::npos ||
-                             text.find("fog_graph") != std::string::npos;
+                             text.find("fog_graph") != std::string::npos ||
+                             text.find("bloom_graph") != std::string::npos;
         if (renders != heavy) {
             continue;
         }
