@@ -100,29 +100,43 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
 Image gtao_denoise(const Image &ao, const Image &depth, int stride)
 {
     const int w = ao.width(), h = ao.height(), st = std::max(1, stride);
-    Image out = Image::uninitialized(w, h, 1);
-    auto depth_of = [&](int i, int j) { return depth.at(i * st, j * st, 0); };
+    // The depth of each AO pixel, NaN where there is no surface: a NaN weight below is 0.
+    Image ld = Image::uninitialized(w, h, 1);
     parallel_for(0, h, [&](int y) {
         for (int x = 0; x < w; ++x) {
-            const float z = depth_of(x, y);
-            if (!(z > 0.0f) || !std::isfinite(z)) {
-                out.at(x, y, 0) = ao.at(x, y, 0);
-                continue;
-            }
-            const float inv_scale = 1.0f / (0.1f * z);
-            float sum = 0.0f, wsum = 0.0f;
-            for (int j = std::max(0, y - 2); j <= std::min(h - 1, y + 2); ++j) {
-                for (int i = std::max(0, x - 2); i <= std::min(w - 1, x + 2); ++i) {
-                    const float nz = depth_of(i, j);
-                    if (!(nz > 0.0f) || !std::isfinite(nz)) {
-                        continue;
-                    }
-                    const float wt = std::max(0.0f, 1.0f - std::abs(nz - z) * inv_scale);
-                    sum += wt * ao.at(i, j, 0);
-                    wsum += wt;
+            const float z = depth.at(x * st, y * st, 0);
+            ld.at(x, y, 0) =
+                z > 0.0f && std::isfinite(z) ? z : std::numeric_limits<float>::quiet_NaN();
+        }
+    });
+    Image out = Image::uninitialized(w, h, 1);
+    parallel_for(0, h, [&](int y) {
+        // Row at a time, tap by tap: simple loops the compiler vectorises.
+        const std::size_t n = static_cast<std::size_t>(w);
+        std::vector<float> sum(n, 0.0f), wsum(n, 0.0f), inv(n);
+        const float *zr = ld.pixel(0, y);
+        for (int x = 0; x < w; ++x) {
+            inv[std::size_t(x)] = 1.0f / (0.1f * zr[x]);
+        }
+        for (int j = std::max(0, y - 2); j <= std::min(h - 1, y + 2); ++j) {
+            const float *nzr = ld.pixel(0, j);
+            const float *aor = ao.pixel(0, j);
+            for (int dx = -2; dx <= 2; ++dx) {
+                const int x0 = std::max(0, -dx), x1 = std::min(w, w - dx);
+                for (int x = x0; x < x1; ++x) {
+                    const float t = 1.0f - std::abs(nzr[x + dx] - zr[x]) * inv[std::size_t(x)];
+                    const float wt = 0.0f < t ? t : 0.0f;  // NaN (no surface) -> 0
+                    sum[std::size_t(x)] += wt * aor[x + dx];
+                    wsum[std::size_t(x)] += wt;
                 }
             }
-            out.at(x, y, 0) = sum / wsum;  // the centre is always in: wsum >= 1
+        }
+        float *o = out.pixel(0, y);
+        const float *ar = ao.pixel(0, y);
+        for (int x = 0; x < w; ++x) {
+            // Without a surface (or, never, no weight) the pixel keeps its value; the centre's
+            // own weight is 1 otherwise.
+            o[x] = wsum[std::size_t(x)] > 0.0f ? sum[std::size_t(x)] / wsum[std::size_t(x)] : ar[x];
         }
     });
     return out;
@@ -135,41 +149,66 @@ Image gtao_upsample(const Image &ao, const Image &depth, int stride)
         return ao;
     }
     const int lw = ao.width(), lh = ao.height();
+    // The depth of each AO pixel, NaN where there is no surface (its weight below is 0).
+    Image ld = Image::uninitialized(lw, lh, 1);
+    parallel_for(0, lh, [&](int j) {
+        for (int i = 0; i < lw; ++i) {
+            const float z = depth.at(i * st, j * st, 0);
+            ld.at(i, j, 0) =
+                z > 0.0f && std::isfinite(z) ? z : std::numeric_limits<float>::quiet_NaN();
+        }
+    });
+    // Per column: the two AO pixels either side and the bilinear weight of the right one.
+    const std::size_t nw = static_cast<std::size_t>(w);
+    std::vector<int> i0(nw), i1(nw);
+    std::vector<float> fx(nw);
+    for (int x = 0; x < w; ++x) {
+        i0[std::size_t(x)] = std::min(x / st, lw - 1);
+        i1[std::size_t(x)] = std::min(i0[std::size_t(x)] + 1, lw - 1);
+        fx[std::size_t(x)] = float(x - i0[std::size_t(x)] * st) / float(st);
+    }
     Image out = Image::uninitialized(w, h, 1);
     parallel_for(0, h, [&](int y) {
         const int j0 = std::min(y / st, lh - 1), j1 = std::min(j0 + 1, lh - 1);
         const float fy = float(y - j0 * st) / float(st);
+        const float *z0 = ld.pixel(0, j0), *z1 = ld.pixel(0, j1);
+        const float *a0 = ao.pixel(0, j0), *a1 = ao.pixel(0, j1);
+        const float *zr = depth.pixel(0, y);
+        float *o = out.pixel(0, y);
+        // One tap: its weight (bilinear times the depth tent; NaN, no surface, gives 0) added
+        // in, and the closest tap in depth kept for a pixel no tap's surface reaches.
+        auto tap = [](float bw,
+                      float lz,
+                      float lv,
+                      float z,
+                      float inv_scale,
+                      float &sum,
+                      float &wsum,
+                      float &best,
+                      float &nearest) {
+            const float dz = std::abs(lz - z);
+            const float t = 1.0f - dz * inv_scale;
+            const float wt = bw * (0.0f < t ? t : 0.0f);
+            sum += wt * lv;
+            wsum += wt;
+            const bool closer = dz < best;  // false for NaN
+            best = closer ? dz : best;
+            nearest = closer ? lv : nearest;
+        };
+        // Branch-free over the row (sky pixels computed and then replaced), so the compiler
+        // can vectorise it.
         for (int x = 0; x < w; ++x) {
-            const int i0 = std::min(x / st, lw - 1), i1 = std::min(i0 + 1, lw - 1);
-            const float fx = float(x - i0 * st) / float(st);
-            const float z = depth.at(x, y, 0);
-            if (!(z > 0.0f) || !std::isfinite(z)) {
-                out.at(x, y, 0) = 1.0f;
-                continue;
-            }
+            const float z = zr[x];
             const float inv_scale = 1.0f / (0.1f * z);
+            const int l = i0[std::size_t(x)], r = i1[std::size_t(x)];
+            const float ax = fx[std::size_t(x)];
             float sum = 0.0f, wsum = 0.0f, best = HUGE_VALF, nearest = 1.0f;
-            const int is[2] = {i0, i1}, js[2] = {j0, j1};
-            for (int b = 0; b < 2; ++b) {
-                for (int a = 0; a < 2; ++a) {
-                    const float lz = depth.at(is[a] * st, js[b] * st, 0);
-                    if (!(lz > 0.0f) || !std::isfinite(lz)) {
-                        continue;
-                    }
-                    const float dz = std::abs(lz - z);
-                    const float bw = (a ? fx : 1.0f - fx) * (b ? fy : 1.0f - fy);
-                    const float wt = bw * std::max(0.0f, 1.0f - dz * inv_scale);
-                    sum += wt * ao.at(is[a], js[b], 0);
-                    wsum += wt;
-                    if (dz < best) {
-                        best = dz;
-                        nearest = ao.at(is[a], js[b], 0);
-                    }
-                }
-            }
-            // No neighbour on this surface (a thin feature between the samples): the closest in
-            // depth.
-            out.at(x, y, 0) = wsum > 1e-6f ? sum / wsum : nearest;
+            tap((1.0f - ax) * (1.0f - fy), z0[l], a0[l], z, inv_scale, sum, wsum, best, nearest);
+            tap(ax * (1.0f - fy), z0[r], a0[r], z, inv_scale, sum, wsum, best, nearest);
+            tap((1.0f - ax) * fy, z1[l], a1[l], z, inv_scale, sum, wsum, best, nearest);
+            tap(ax * fy, z1[r], a1[r], z, inv_scale, sum, wsum, best, nearest);
+            const bool surface = z > 0.0f && z < HUGE_VALF;
+            o[x] = !surface ? 1.0f : wsum > 1e-6f ? sum / wsum : nearest;
         }
     });
     return out;
