@@ -32,7 +32,7 @@ TEST(PostStack, RunsEveryNodeOnASmallFrame)
     const std::string dir = test::scratch_dir("post_stack");
     const Graph g = post_stack(dir);
     g.check({5, 6});
-    for (const char *type : {"fog", "dof", "motion_blur", "bloom", "exposure", "lens", "grade",
+    for (const char *type : {"ao", "fog", "dof", "motion_blur", "bloom", "exposure", "lens", "grade",
                              "tonemap", "grain"}) {
         bool found = false;
         for (const GraphNode &n : g.nodes()) {
