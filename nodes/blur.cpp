@@ -1,5 +1,5 @@
 // nodes/blur.cpp: Gaussian blur of chosen passes by a standard deviation in pixels, separable,
-// through ImageBufAlgo::convolve (filter/image_ops.h); the image continues beyond its data window
+// through the Highway FIR kernels (filter/image_ops.h); the image continues beyond its data window
 // as its edge pixels, so edges neither darken nor grow (the windows stay, as for every blur here).
 // Color is blurred premultiplied, alpha with it. Non-finite values read as 0 so one bad pixel
 // cannot spread over the kernel.
@@ -52,14 +52,13 @@ void plan(PlanContext &ctx)
 
 }  // namespace
 
-extern const NodeType kBlur{
-    {"blur",
-     "Gaussian blur by sigma in pixels (ImageBufAlgo::convolve, separable).",
-     kInputs,
-     kParams,
-     ""},
-    &execute,
-    &plan,
-    nullptr};
+extern const NodeType kBlur{{"blur",
+                             "Gaussian blur by sigma in pixels (separable, Highway FIR kernels).",
+                             kInputs,
+                             kParams,
+                             ""},
+                            &execute,
+                            &plan,
+                            nullptr};
 
 }  // namespace posthaste::nodes

@@ -72,7 +72,7 @@ void plan(PlanContext &ctx)
 
 extern const NodeType kSharpen{
     {"sharpen",
-     "Unsharp mask: detail above a threshold amplified (Gaussian, ImageBufAlgo).",
+     "Unsharp mask: detail above a threshold amplified (the blur node's Gaussian).",
      kInputs,
      kParams,
      ""},

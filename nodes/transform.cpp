@@ -1,5 +1,6 @@
-// nodes/transform.cpp: translate, rotate and scale the frame's pixels within its format
-// (ImageBufAlgo::warp with a named filter). The map is Nuke's Transform order: scale, then rotate
+// nodes/transform.cpp: translate, rotate and scale the frame's pixels within its format (bicubic
+// or bilinear through the lens node's Highway kernel, or an OpenImageIO filter through
+// ImageBufAlgo::warp). The map is Nuke's Transform order: scale, then rotate
 // (degrees, counter-clockwise on screen), both about the pivot, then translate (pixels, y down).
 // Every pass moves: `filtered` passes with `filter`, the others by nearest neighbour, values
 // unchanged except motion vectors, which turn and scale with the image. The data window becomes

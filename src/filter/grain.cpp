@@ -79,12 +79,8 @@ GrainField grain_field(int w, int h, int x0, int y0, int frame, const GrainParam
             for (int py = b * 16; py < std::min(ph, (b + 1) * 16); ++py) {
                 const std::uint32_t row = pcg_hash(std::uint32_t(y0 + py - r) ^ key);
                 grain_noise_row(row, x0 - r, pw, unit, noise.data());
-                fir_row(noise.data(),
-                        k.data(),
-                        taps,
-                        1,
-                        w,
-                        rows.get() + std::size_t(py) * rows_stride);
+                fir_row(
+                    noise.data(), k.data(), taps, 1, w, rows.get() + std::size_t(py) * rows_stride);
             }
         });
         float *plane = f.data.get() + std::size_t(c) * f.plane;

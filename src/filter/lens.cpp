@@ -145,7 +145,8 @@ LensMap build_lens_map(const LensGeometry &g,
                         "): it has no inverse there; reduce k1..k3, p1, p2");
         }
     };
-    const double step_x = std::max(1.0, in.width() / 64.0), step_y = std::max(1.0, in.height() / 64.0);
+    const double step_x = std::max(1.0, in.width() / 64.0),
+                 step_y = std::max(1.0, in.height() / 64.0);
     for (double y = in.y0; y <= in.y1; y += step_y) {
         for (double x = in.x0; x <= in.x1; x += step_x) {
             check({x, y});

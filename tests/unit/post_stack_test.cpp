@@ -32,8 +32,16 @@ TEST(PostStack, RunsEveryNodeOnASmallFrame)
     const std::string dir = test::scratch_dir("post_stack");
     const Graph g = post_stack(dir);
     g.check({5, 6});
-    for (const char *type : {"ao", "fog", "dof", "motion_blur", "bloom", "exposure", "lens", "grade",
-                             "tonemap", "grain"}) {
+    for (const char *type : {"ao",
+                             "fog",
+                             "dof",
+                             "motion_blur",
+                             "bloom",
+                             "exposure",
+                             "lens",
+                             "grade",
+                             "tonemap",
+                             "grain"}) {
         bool found = false;
         for (const GraphNode &n : g.nodes()) {
             found = found || n.identity.type == type;
