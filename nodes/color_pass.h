@@ -15,20 +15,11 @@ inline void apply_to_pass(NodeContext &ctx,
                           bool unpremultiply,
                           const char *what)
 {
-    const Pass &in = ctx.input("image").pass(name, ctx.where());
     if (proc.is_noop()) {
+        ctx.input("image").pass(name, ctx.where());  // still named when missing
         return;  // the output already shares the input pass
     }
-    if (in.image->channels() < 3) {
-        throw_runtime(ctx.where(),
-                      ": pass \"",
-                      name,
-                      "\" has ",
-                      in.image->channels(),
-                      " channels; ",
-                      what,
-                      " needs 3 or 4");
-    }
+    const Pass &in = rgb_pass(ctx, name, what);
     // Copy and transform a row at a time, in parallel (a whole-image copy first is serial).
     const Image &src = *in.image;
     Image out = Image::uninitialized(src.width(), src.height(), src.channels());

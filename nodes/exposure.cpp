@@ -205,15 +205,7 @@ void execute(NodeContext &ctx)
 {
     const std::string &name = ctx.get_string(kPass);
     const Frame &frame = ctx.input("image");
-    const Pass &in = frame.pass(name, ctx.where());
-    if (in.image->channels() < 3) {
-        throw_runtime(ctx.where(),
-                      ": pass \"",
-                      name,
-                      "\" has ",
-                      in.image->channels(),
-                      " channels; exposure needs 3 or 4");
-    }
+    const Pass &in = rgb_pass(ctx, name, "exposure");
     const double stops = scale_stops(ctx, frame, *in.image);
     if (stops == 0.0) {
         return;  // the output shares the input pass

@@ -42,15 +42,7 @@ void execute(NodeContext &ctx)
 {
     const std::string &name = ctx.get_string(kPass);
     const Frame &frame = ctx.input("image");
-    const Pass &in = frame.pass(name, ctx.where());
-    if (in.image->channels() < 3) {
-        throw_runtime(ctx.where(),
-                      ": pass \"",
-                      name,
-                      "\" has ",
-                      in.image->channels(),
-                      " channels; grain needs 3 or 4");
-    }
+    const Pass &in = rgb_pass(ctx, name, "grain");
     if (ctx.get_real(kIntensity) == 0.0) {
         return;  // the output shares the input pass
     }

@@ -12,6 +12,25 @@
 
 namespace posthaste::nodes {
 
+/// Pass `name` of the frame on input "image", for a node that works on its R, G, B (and alpha):
+/// a runtime error naming the node, the pass and `what` (the node's noun) when it is missing or
+/// has fewer than 3 channels.
+inline const Pass &rgb_pass(const NodeContext &ctx, const std::string &name, const char *what)
+{
+    const Pass &in = ctx.input("image").pass(name, ctx.where());
+    if (in.image->channels() < 3) {
+        throw_runtime(ctx.where(),
+                      ": pass \"",
+                      name,
+                      "\" has ",
+                      in.image->channels(),
+                      " channels; ",
+                      what,
+                      " needs 3 or 4");
+    }
+    return in;
+}
+
 extern const NodeType kRead;
 extern const NodeType kWrite;
 extern const NodeType kOcio;

@@ -35,12 +35,8 @@ constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to tone map."}};
 void execute(NodeContext &ctx)
 {
     const std::string &name = ctx.get_string(kPass);
-    const Pass &in = ctx.input("image").pass(name, ctx.where());
+    const Pass &in = rgb_pass(ctx, name, "tonemap");
     const int nc = in.image->channels();
-    if (nc < 3) {
-        throw_runtime(
-            ctx.where(), ": pass \"", name, "\" has ", nc, " channels; tonemap needs 3 or 4");
-    }
     const auto curve = filter::ToneCurve(ctx.params().get_choice(kCurve));
     const bool luminance = ctx.get_string(kMode) == "luminance";
     const float white = float(ctx.get_real(kWhite));
