@@ -10,6 +10,9 @@
 
 #include "filter/fir_kernels.h"
 
+#include <algorithm>
+#include <cmath>
+
 HWY_BEFORE_NAMESPACE();
 namespace posthaste::filter::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
@@ -45,6 +48,25 @@ HWY_AFTER_NAMESPACE();
 
 #if HWY_ONCE
 namespace posthaste::filter {
+
+std::vector<float> gaussian_kernel(double sigma, double truncate)
+{
+    if (!(sigma > 0.0)) {
+        return {1.0f};
+    }
+    const int r = std::max(1, int(std::ceil(truncate * sigma)));
+    std::vector<float> k(std::size_t(2 * r + 1));
+    double sum = 0.0;
+    for (int i = -r; i <= r; ++i) {
+        const double v = std::exp(-0.5 * i * i / (sigma * sigma));
+        k[std::size_t(i + r)] = float(v);
+        sum += v;
+    }
+    for (float &v : k) {
+        v = float(v / sum);
+    }
+    return k;
+}
 
 HWY_EXPORT(FirRow);
 HWY_EXPORT(FirColumns);

@@ -4,7 +4,14 @@
 // sharpen and grain. Taps are summed in order, the first as a product and the others as fused
 // multiply-adds, so every target gives the same sum order (rounding may differ by target).
 
+#include <vector>
+
 namespace posthaste::filter {
+
+/// The sampled Gaussian of standard deviation `sigma` taps, truncated at radius
+/// max(1, ceil(truncate sigma)) and normalised to sum 1 (2r + 1 taps); sigma <= 0 gives the one
+/// tap 1. The blur truncates at 4 sigma, the grain field at 3.
+std::vector<float> gaussian_kernel(double sigma, double truncate = 4.0);
 
 /// Buffers read or written by these kernels hold their n values rounded up to whole vectors:
 /// n + kFirPad floats.

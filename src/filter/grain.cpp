@@ -28,30 +28,13 @@ void for_rows(int n, const Fn &fn)
     });
 }
 
-/// A 1D Gaussian of standard deviation `sigma`, radius ceil(3 sigma), summing to 1.
-std::vector<float> gaussian(double sigma)
-{
-    const int r = std::max(1, int(std::ceil(3.0 * sigma)));
-    std::vector<float> k(std::size_t(2 * r + 1));
-    double sum = 0.0;
-    for (int i = -r; i <= r; ++i) {
-        const double v = std::exp(-0.5 * i * i / (sigma * sigma));
-        k[std::size_t(i + r)] = float(v);
-        sum += v;
-    }
-    for (float &v : k) {
-        v = float(v / sum);
-    }
-    return k;
-}
-
 }  // namespace
 
 GrainField grain_field(int w, int h, int x0, int y0, int frame, const GrainParams &p)
 {
     const int planes = p.color ? 3 : 1;
     const bool blur = p.size >= 0.3;
-    const std::vector<float> k = blur ? gaussian(p.size) : std::vector<float>{1.0f};
+    const std::vector<float> k = blur ? gaussian_kernel(p.size, 3.0) : std::vector<float>{1.0f};
     const int taps = int(k.size()), r = taps / 2;
     // After the blur the field's variance is (sum k^2)^2 times the white noise's.
     double k2 = 0.0;

@@ -173,25 +173,6 @@ Image sample_nearest(const Image &src,
     return dst;
 }
 
-std::vector<float> gaussian_kernel(double sigma)
-{
-    if (!(sigma > 0.0)) {
-        return {1.0f};
-    }
-    const int r = std::max(1, int(std::ceil(4.0 * sigma)));
-    std::vector<double> w(std::size_t(2 * r + 1));
-    double sum = 0.0;
-    for (int i = -r; i <= r; ++i) {
-        w[std::size_t(i + r)] = std::exp(-0.5 * (i * i) / (sigma * sigma));
-        sum += w[std::size_t(i + r)];
-    }
-    std::vector<float> k(w.size());
-    for (std::size_t i = 0; i < w.size(); ++i) {
-        k[i] = float(w[i] / sum);
-    }
-    return k;
-}
-
 Image gaussian_blur(const Image &src, double sigma_x, double sigma_y, int c0, int c1)
 {
     if (c1 < 0) {

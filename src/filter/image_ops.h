@@ -13,6 +13,7 @@
 #include <string>
 
 #include "core/image.h"
+#include "filter/fir_kernels.h"
 
 namespace posthaste::filter {
 
@@ -55,10 +56,6 @@ Image sample_nearest(const Image &src,
                      const Affine &to_input,
                      const Rect &dst_window,
                      float outside);
-
-/// The normalised, sampled Gaussian of standard deviation `sigma` px, truncated at 4 sigma
-/// (2r + 1 taps); sigma 0 gives the one tap 1.
-std::vector<float> gaussian_kernel(double sigma);
 
 /// Separable Gaussian blur (sigma in pixels per axis) by the FIR kernels of fir_kernels.h (one
 /// source over Highway): ImageBufAlgo::convolve with the same kernels gave the same values 15-25
