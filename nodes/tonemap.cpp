@@ -9,8 +9,7 @@
 // Alpha passes through (color unpremultiplied around the curve); a point operation: non-finite
 // values stay in their pixel.
 
-#include <vector>
-
+#include "filter/rgba_rows.h"
 #include "filter/tonemap_kernels.h"
 #include "nodes/node.h"
 
@@ -42,27 +41,8 @@ void execute(NodeContext &ctx)
     const float white = float(ctx.get_real(kWhite));
     const Image &src = *in.image;
     Image out = Image::uninitialized(src.width(), src.height(), nc);
-    const int w = src.width();
-    parallel_for(0, src.height(), [&](int y) {
-        if (nc == 4) {
-            filter::tonemap_rgba_row(src.pixel(0, y), out.pixel(0, y), w, curve, luminance, white);
-            return;
-        }
-        // Other layouts through an RGBA copy of the row (alpha 1 for RGB), the same kernel.
-        std::vector<float> rgba(std::size_t(w) * 4);
-        for (int x = 0; x < w; ++x) {
-            const float *p = src.pixel(x, y);
-            rgba[std::size_t(x) * 4 + 0] = p[0];
-            rgba[std::size_t(x) * 4 + 1] = p[1];
-            rgba[std::size_t(x) * 4 + 2] = p[2];
-            rgba[std::size_t(x) * 4 + 3] = nc >= 4 ? p[3] : 1.0f;
-        }
-        filter::tonemap_rgba_row(rgba.data(), rgba.data(), w, curve, luminance, white);
-        for (int x = 0; x < w; ++x) {
-            float *d = out.pixel(x, y);
-            std::copy(src.pixel(x, y), src.pixel(x, y) + nc, d);
-            std::copy(rgba.data() + std::size_t(x) * 4, rgba.data() + std::size_t(x) * 4 + 3, d);
-        }
+    filter::for_rgba_rows(src, out, [&](int, const float *s, float *d, int n) {
+        filter::tonemap_rgba_row(s, d, n, curve, luminance, white);
     });
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
 }

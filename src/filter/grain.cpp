@@ -11,6 +11,7 @@
 #include "core/parallel.h"
 #include "filter/fir_kernels.h"
 #include "filter/grain_kernels.h"
+#include "filter/rgba_rows.h"
 
 namespace posthaste::filter {
 
@@ -84,31 +85,11 @@ Image apply_grain(const Image &in, int x0, int y0, int frame, const GrainParams 
     const GrainField field = grain_field(w, h, x0, y0, frame, p);
     Image out = Image::uninitialized(w, h, nc);
     const float amount = float(p.intensity), response = float(p.response), offset = float(p.offset);
-    for_rows(h, [&](int y) {
+    for_rgba_rows(in, out, [&](int y, const float *src, float *dst, int n) {
         const float *fr = field.data.get() + std::size_t(y) * field.stride;
         const float *fg = p.color ? fr + field.plane : fr;
         const float *fb = p.color ? fr + 2 * field.plane : fr;
-        float *d = out.pixel(0, y);
-        if (nc == 4) {
-            grain_apply_rgba_row(in.pixel(0, y), d, fr, fg, fb, w, amount, response, offset);
-            return;
-        }
-        std::copy(in.pixel(0, y), in.pixel(0, y) + std::size_t(w) * std::size_t(nc), d);
-        // Other layouts go through an RGBA copy of the row, with the same kernel.
-        std::vector<float> rgba(std::size_t(w) * 4);
-        for (int x = 0; x < w; ++x) {
-            for (int c = 0; c < 3; ++c) {
-                rgba[std::size_t(x) * 4 + std::size_t(c)] =
-                    d[std::size_t(x) * std::size_t(nc) + std::size_t(c)];
-            }
-        }
-        grain_apply_rgba_row(rgba.data(), rgba.data(), fr, fg, fb, w, amount, response, offset);
-        for (int x = 0; x < w; ++x) {
-            for (int c = 0; c < 3; ++c) {
-                d[std::size_t(x) * std::size_t(nc) + std::size_t(c)] =
-                    rgba[std::size_t(x) * 4 + std::size_t(c)];
-            }
-        }
+        grain_apply_rgba_row(src, dst, fr, fg, fb, n, amount, response, offset);
     });
     return out;
 }
