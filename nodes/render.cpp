@@ -92,12 +92,6 @@ void execute(NodeContext &ctx)
         if (truth == kTruthAo) {
             // The requested passes as usual, plus the exact ambient occlusion (rays per pixel:
             // `samples`).
-            // A frame needs one pass for its header and windows: depth, the cheapest, when
-            // nothing else was asked for (dropped again below).
-            const bool only_ao = options.passes.empty();
-            if (only_ao) {
-                options.passes.insert(pass::kDepth);
-            }
             Frame f = raster::render_frame(scene, ctx.frame_number(), options);
             if (ctx.requested().contains(pass::kAo)) {
                 f.set(pass::kAo,
@@ -109,9 +103,6 @@ void execute(NodeContext &ctx)
                                                   ctx.get_int(kSamples),
                                                   std::uint32_t(ctx.get_int(kSeed)))),
                       {"Y"});
-            }
-            if (only_ao) {
-                f.erase(pass::kDepth);
             }
             ctx.output() = std::move(f);
             return;

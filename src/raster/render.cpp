@@ -1421,8 +1421,10 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     }
     const bool color_here = want_color && o.supersample == 1;
     if (!data && !color_here) {
-        f.set(pass::kColor, std::move(color));
-        return f;
+        if (want_color) {
+            f.set(pass::kColor, std::move(color));
+        }
+        return f;  // no pass asked for: the header and windows alone
     }
     const View v = make_view(cam, o.width, o.height, s.near_clip, glm::vec2(0.0f));
     const Visibility vis = visibility(g, v, stats);
