@@ -70,10 +70,11 @@ void execute(NodeContext &ctx)
         p.seed = std::uint32_t(ctx.get_int(kSeed));
         p.stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
         ao = shading::gtao(depth, normal, rays, p);
+        const Image ao_depth = shading::gtao_depth(depth, p.stride);
         if (ctx.get_bool(kDenoise)) {
-            ao = shading::gtao_denoise(ao, depth, p.stride);
+            ao = shading::gtao_denoise(ao, ao_depth);
         }
-        ao = shading::gtao_upsample(ao, depth, p.stride);
+        ao = shading::gtao_upsample(ao, ao_depth, depth, p.stride);
         parallel_for(0, ao.height(), [&](int y) {
             for (int x = 0; x < ao.width(); ++x) {
                 const float v = std::clamp(ao.at(x, y, 0), 0.0f, 1.0f);

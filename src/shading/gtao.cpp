@@ -25,21 +25,6 @@ float pattern(int x, int y, int k)
     return (float(kBayer[((y & 3) << 2) | (x & 3)] ^ (k * 5 & 15)) + 0.5f) / 16.0f;
 }
 
-/// The depth of each of the w x h AO pixels (full-resolution pixel stride (x, y)), NaN where
-/// there is no surface: the weights of the denoise and the upsample are then 0 there.
-Image surface_depth(const Image &depth, int w, int h, int stride)
-{
-    Image ld = Image::uninitialized(w, h, 1);
-    parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-            const float z = depth.at(x * stride, y * stride, 0);
-            ld.at(x, y, 0) =
-                z > 0.0f && std::isfinite(z) ? z : std::numeric_limits<float>::quiet_NaN();
-        }
-    });
-    return ld;
-}
-
 }  // namespace
 
 Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, const GtaoParams &p)
@@ -112,10 +97,24 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
     return out;
 }
 
-Image gtao_denoise(const Image &ao, const Image &depth, int stride)
+Image gtao_depth(const Image &depth, int stride)
 {
-    const int w = ao.width(), h = ao.height(), st = std::max(1, stride);
-    const Image ld = surface_depth(depth, w, h, st);
+    const int st = std::max(1, stride);
+    const int w = (depth.width() + st - 1) / st, h = (depth.height() + st - 1) / st;
+    Image ld = Image::uninitialized(w, h, 1);
+    parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            const float z = depth.at(x * st, y * st, 0);
+            ld.at(x, y, 0) =
+                z > 0.0f && std::isfinite(z) ? z : std::numeric_limits<float>::quiet_NaN();
+        }
+    });
+    return ld;
+}
+
+Image gtao_denoise(const Image &ao, const Image &ld)
+{
+    const int w = ao.width(), h = ao.height();
     Image out = Image::uninitialized(w, h, 1);
     parallel_for(0, h, [&](int y) {
         // Row at a time, tap by tap: simple loops the compiler vectorises.
@@ -149,14 +148,13 @@ Image gtao_denoise(const Image &ao, const Image &depth, int stride)
     return out;
 }
 
-Image gtao_upsample(const Image &ao, const Image &depth, int stride)
+Image gtao_upsample(const Image &ao, const Image &ld, const Image &depth, int stride)
 {
     const int w = depth.width(), h = depth.height(), st = std::max(1, stride);
     if (st == 1) {
         return ao;
     }
     const int lw = ao.width(), lh = ao.height();
-    const Image ld = surface_depth(depth, lw, lh, st);
     // Per column: the two AO pixels either side and the bilinear weight of the right one.
     const std::size_t nw = static_cast<std::size_t>(w);
     std::vector<int> i0(nw), i1(nw);

@@ -34,15 +34,18 @@ struct GtaoParams {
 /// in parallel, same bits for any thread count.
 Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, const GtaoParams &p);
 
+/// The depth of gtao's output pixels (full-resolution pixel stride (x, y)), NaN where there is
+/// no surface: the weights of the denoise and the upsample are then 0. Made once, used by both.
+Image gtao_depth(const Image &depth, int stride);
+
 /// A depth-aware blur of `ao` (5x5 box, neighbours weighted by max(0, 1 - |dz| / (0.1 z)) of the
-/// depth difference): the 4x4 pattern of slice rotations averaged, depth edges kept.
-/// With `stride` > 1, `ao` is gtao's reduced output and its pixel (i, j) has the depth of the
-/// full-resolution pixel stride (i, j).
-Image gtao_denoise(const Image &ao, const Image &depth, int stride = 1);
+/// depth difference, `ao_depth` from gtao_depth): the 4x4 pattern of slice rotations averaged,
+/// depth edges kept.
+Image gtao_denoise(const Image &ao, const Image &ao_depth);
 
 /// The reduced AO of gtao with `stride` > 1 brought to the depth pass's resolution: the four
 /// nearest computed pixels, bilinear weights times the depth similarity of the denoise; the
 /// closest in depth where none is on the same surface.
-Image gtao_upsample(const Image &ao, const Image &depth, int stride);
+Image gtao_upsample(const Image &ao, const Image &ao_depth, const Image &depth, int stride);
 
 }  // namespace posthaste::shading
