@@ -66,7 +66,8 @@ constexpr ParamSpec kLevels = ParamSpec::integer("levels", 0)
                                       "fewer is faster, the tail shorter).");
 constexpr ParamSpec kPsf = ParamSpec::string("psf", "").file_path().doc(
     "An image file whose color pass is the PSF (centred; each channel normalised). fft only.");
-constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to bloom.");
+constexpr ParamSpec kPass =
+    ParamSpec::string("pass", "color").doc("The pass to bloom.").reads_passes();
 constexpr ParamSpec kParams[] = {kMethod,
                                  kIntensity,
                                  kSize,
@@ -175,11 +176,6 @@ void execute(NodeContext &ctx)
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
 }
 
-void plan(PlanContext &ctx)
-{
-    ctx.inputs[0].add(ctx.params.get_string(kPass));
-}
-
 void check(CheckContext &ctx)
 {
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
@@ -205,7 +201,7 @@ extern const NodeType kBloom{
      kParams,
      ""},
     &execute,
-    &plan,
+    nullptr,
     &check};
 
 }  // namespace posthaste::nodes

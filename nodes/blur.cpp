@@ -20,7 +20,7 @@ constexpr ParamSpec kSigmaY = ParamSpec::real("sigma_y", 0.0)
                                   .units("px")
                                   .doc("Vertical standard deviation, when given (else sigma).");
 constexpr ParamSpec kPasses =
-    ParamSpec::string("passes", "color").doc("Comma-separated passes to blur.");
+    ParamSpec::string("passes", "color").doc("Comma-separated passes to blur.").reads_passes();
 constexpr ParamSpec kParams[] = {kSigma, kSigmaY, kPasses};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to blur."}};
 
@@ -43,13 +43,6 @@ void execute(NodeContext &ctx)
     }
 }
 
-void plan(PlanContext &ctx)
-{
-    for (const std::string &name : split_list(ctx.params.get_string(kPasses))) {
-        ctx.inputs[0].add(name);
-    }
-}
-
 }  // namespace
 
 extern const NodeType kBlur{{"blur",
@@ -58,7 +51,7 @@ extern const NodeType kBlur{{"blur",
                              kParams,
                              ""},
                             &execute,
-                            &plan,
+                            nullptr,
                             nullptr};
 
 }  // namespace posthaste::nodes

@@ -82,7 +82,8 @@ constexpr ParamSpec kMeteringStep =
     ParamSpec::integer("metering_step", 4)
         .range(1, 64)
         .doc("auto: every n-th pixel of every n-th row is metered.");
-constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to expose.");
+constexpr ParamSpec kPass =
+    ParamSpec::string("pass", "color").doc("The pass to expose.").reads_passes();
 constexpr ParamSpec kParams[] = {kMode,
                                  kExposure,
                                  kFstop,
@@ -214,11 +215,6 @@ void execute(NodeContext &ctx)
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
 }
 
-void plan(PlanContext &ctx)
-{
-    ctx.inputs[0].add(ctx.params.get_string(kPass));
-}
-
 void check(CheckContext &ctx)
 {
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
@@ -262,7 +258,7 @@ extern const NodeType kExposure{{"exposure",
                                  kParams,
                                  ""},
                                 &execute,
-                                &plan,
+                                nullptr,
                                 &check};
 
 }  // namespace posthaste::nodes

@@ -53,7 +53,8 @@ constexpr ParamSpec kInterpolation =
 constexpr ParamSpec kUnpremultiply =
     ParamSpec::boolean("unpremultiply", true)
         .doc("Divide color by alpha before the grade and multiply after.");
-constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to grade.");
+constexpr ParamSpec kPass =
+    ParamSpec::string("pass", "color").doc("The pass to grade.").reads_passes();
 constexpr ParamSpec kParams[] = {kExposure,
                                  kTemperature,
                                  kTint,
@@ -111,11 +112,6 @@ void execute(NodeContext &ctx)
     apply_to_pass(ctx, proc, ctx.get_string(kPass), ctx.get_bool(kUnpremultiply), "a grade");
 }
 
-void plan(PlanContext &ctx)
-{
-    ctx.inputs[0].add(ctx.params.get_string(kPass));
-}
-
 void check(CheckContext &ctx)
 {
     make_processor(ctx.params, ctx.node);
@@ -130,7 +126,7 @@ extern const NodeType kGrade{
      kParams,
      ""},
     &execute,
-    &plan,
+    nullptr,
     &check};
 
 }  // namespace posthaste::nodes

@@ -34,7 +34,8 @@ constexpr ParamSpec kOffset =
         .doc("The log space's offset: black gets grain of about this size times intensity.");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Another seed, another grain.");
-constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to grain.");
+constexpr ParamSpec kPass =
+    ParamSpec::string("pass", "color").doc("The pass to grain.").reads_passes();
 constexpr ParamSpec kParams[] = {kIntensity, kSize, kMode, kResponse, kOffset, kSeed, kPass};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grain."}};
 
@@ -58,11 +59,6 @@ void execute(NodeContext &ctx)
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
 }
 
-void plan(PlanContext &ctx)
-{
-    ctx.inputs[0].add(ctx.params.get_string(kPass));
-}
-
 }  // namespace
 
 extern const NodeType kGrain{
@@ -72,7 +68,7 @@ extern const NodeType kGrain{
      kParams,
      ""},
     &execute,
-    &plan,
+    nullptr,
     nullptr};
 
 }  // namespace posthaste::nodes

@@ -18,7 +18,8 @@ constexpr ParamSpec kView = ParamSpec::string("view", "Standard").doc("View (dis
 constexpr ParamSpec kUnpremultiply =
     ParamSpec::boolean("unpremultiply", true)
         .doc("Divide color by alpha before the transform and multiply after.");
-constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to transform.");
+constexpr ParamSpec kPass =
+    ParamSpec::string("pass", "color").doc("The pass to transform.").reads_passes();
 constexpr ParamSpec kParams[] = {kMode, kFrom, kTo, kDisplay, kView, kUnpremultiply, kPass};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to transform."}};
 
@@ -40,11 +41,6 @@ void execute(NodeContext &ctx)
         ctx, proc, ctx.get_string(kPass), ctx.get_bool(kUnpremultiply), "a color transform");
 }
 
-void plan(PlanContext &ctx)
-{
-    ctx.inputs[0].add(ctx.params.get_string(kPass));
-}
-
 void check(CheckContext &ctx)
 {
     make_processor(ctx.params, ctx.node);
@@ -55,7 +51,7 @@ void check(CheckContext &ctx)
 extern const NodeType kOcio{
     {"ocio", "OpenColorIO color space or display transform.", kInputs, kParams, ""},
     &execute,
-    &plan,
+    nullptr,
     &check};
 
 }  // namespace posthaste::nodes

@@ -24,7 +24,7 @@ constexpr ParamSpec kThreshold =
 constexpr ParamSpec kClampNegative =
     ParamSpec::boolean("clamp_negative", true).doc("Clamp sharpened color at 0.");
 constexpr ParamSpec kPasses =
-    ParamSpec::string("passes", "color").doc("Comma-separated passes to sharpen.");
+    ParamSpec::string("passes", "color").doc("Comma-separated passes to sharpen.").reads_passes();
 constexpr ParamSpec kParams[] = {kAmount, kSigma, kThreshold, kClampNegative, kPasses};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to sharpen."}};
 
@@ -61,13 +61,6 @@ void execute(NodeContext &ctx)
     }
 }
 
-void plan(PlanContext &ctx)
-{
-    for (const std::string &name : split_list(ctx.params.get_string(kPasses))) {
-        ctx.inputs[0].add(name);
-    }
-}
-
 }  // namespace
 
 extern const NodeType kSharpen{
@@ -77,7 +70,7 @@ extern const NodeType kSharpen{
      kParams,
      ""},
     &execute,
-    &plan,
+    nullptr,
     nullptr};
 
 }  // namespace posthaste::nodes

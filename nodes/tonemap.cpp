@@ -27,7 +27,8 @@ constexpr ParamSpec kWhite =
             "reinhard: the input that maps to 1; hable: Hable's white W (11.2 in his; with his "
             "exposure "
             "bias of 2 the input W / 2 maps to 1). Beyond, both clip to 1.");
-constexpr ParamSpec kPass = ParamSpec::string("pass", "color").doc("The pass to tone map.");
+constexpr ParamSpec kPass =
+    ParamSpec::string("pass", "color").doc("The pass to tone map.").reads_passes();
 constexpr ParamSpec kParams[] = {kCurve, kMode, kWhite, kPass};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to tone map."}};
 
@@ -47,11 +48,6 @@ void execute(NodeContext &ctx)
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
 }
 
-void plan(PlanContext &ctx)
-{
-    ctx.inputs[0].add(ctx.params.get_string(kPass));
-}
-
 }  // namespace
 
 extern const NodeType kTonemap{
@@ -61,7 +57,7 @@ extern const NodeType kTonemap{
      kParams,
      ""},
     &execute,
-    &plan,
+    nullptr,
     nullptr};
 
 }  // namespace posthaste::nodes

@@ -783,6 +783,13 @@ void Graph::plan()
                 through.remove(made);
             }
             gn.input_passes[0].add(through);
+            for (const ParamSpec &ps : spec.params) {
+                if (ps.passes) {
+                    for (const std::string &pass : split_list(gn.params.get_string(ps))) {
+                        gn.input_passes[0].add(pass);
+                    }
+                }
+            }
         }
         if (gn.type->plan) {
             PlanContext ctx{gn.params, gn.identity, gn.requested, gn.input_passes, connected};

@@ -36,6 +36,7 @@ struct ParamSpec {
     bool required = false;  ///< no default: the graph must give it
     bool file = false;      ///< a file path or pattern: relative values in a graph file resolve
                             ///< against the graph's folder (its "base_dir")
+    bool passes = false;    ///< names passes (comma-separated) the node reads from its first input
 
     static constexpr ParamSpec integer(std::string_view n, int def)
     {
@@ -139,6 +140,14 @@ struct ParamSpec {
     {
         ParamSpec p = *this;
         p.file = true;
+        return p;
+    }
+    /// Names the passes (comma-separated; String only) the node reads from its first input: the
+    /// planner asks that input for them, so the node needs no plan hook of its own for it.
+    constexpr ParamSpec reads_passes() const
+    {
+        ParamSpec p = *this;
+        p.passes = true;
         return p;
     }
     /// No default: the graph (or --set) must give a value.

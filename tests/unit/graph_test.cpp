@@ -129,6 +129,23 @@ TEST(GraphFrames, ListsAndRanges)
     EXPECT_THROW(parse_frame_list("1-99999999"), Error);
 }
 
+TEST(GraphPlan, PassNamingParametersAskTheInputForThosePasses)
+{
+    // `pass` and `passes` parameters declared reads_passes(): the planner asks the first input
+    // for the passes they name, beside what downstream reads.
+    const Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "x.exr"}},
+        {"id": "soft", "type": "blur", "inputs": {"image": "src"},
+         "params": {"passes": "albedo, depth"}},
+        {"id": "tone", "type": "tonemap", "inputs": {"image": "soft"}, "params": {"pass": "spec"}},
+        {"id": "out", "type": "write", "inputs": {"image": "tone"},
+         "params": {"path": "o.exr", "passes": "color"}}]})",
+                                 "g.json");
+    EXPECT_EQ(g.nodes()[2].requested.to_string(), "color");  // what the write reads
+    EXPECT_EQ(g.nodes()[1].requested.to_string(), "color,spec");
+    EXPECT_EQ(g.nodes()[0].requested.to_string(), "albedo,color,depth,spec");
+}
+
 TEST(GraphPlan, SourcesAreAskedOnlyForWhatIsUsed)
 {
     const Graph g = Graph::parse(R"({"nodes": [
