@@ -3,12 +3,15 @@
 // Minecrappy scene rendered on first use and kept for the process, so each benchmark times its
 // node on the same input without rendering it again.
 
+#include <benchmark/benchmark.h>
+
 #include <ctime>
 #include <map>
 #include <set>
 #include <string>
 #include <tuple>
 
+#include "core/parallel.h"
 #include "raster/render.h"
 
 namespace posthaste::bench {
@@ -23,6 +26,27 @@ inline double process_cpu_ms()
 
 /// Frame `frame` of samples/scenes/minecrappy.json at 1920x1080 with `passes`, rendered once.
 /// Benchmarks register and run on one thread, so the cache needs no lock.
+/// The baseline a node that outputs a new image pays at least: a copy of `image` into a fresh
+/// one, rows in parallel on 2 threads; counter cpu_ms as the node benchmarks report it.
+inline void copy_baseline(benchmark::State &state, const Image &image)
+{
+    set_thread_count(2);
+    double cpu = 0.0;
+    for (auto _ : state) {
+        const double c0 = process_cpu_ms();
+        Image out = Image::uninitialized(image.width(), image.height(), image.channels());
+        parallel_for(0, image.height(), [&](int y) {
+            std::copy(image.pixel(0, y),
+                      image.pixel(0, y) + std::size_t(image.width()) * image.channels(),
+                      out.pixel(0, y));
+        });
+        benchmark::DoNotOptimize(out.data());
+        cpu += process_cpu_ms() - c0;
+    }
+    state.counters["cpu_ms"] = cpu / double(state.iterations());
+    set_thread_count(0);
+}
+
 inline const Frame &minecrappy_frame(int frame,
                                      const std::set<std::string> &passes,
                                      bool shadows = true)

@@ -61,22 +61,7 @@ const char *kAtmosphere = R"({"model": "atmosphere"})";
 
 void BM_FogNodeCopyBaseline(benchmark::State &state)
 {
-    set_thread_count(2);
-    const Image &c = fog_input().image("color");
-    double cpu = 0.0;
-    for (auto _ : state) {
-        const double c0 = process_cpu_ms();
-        Image out = Image::uninitialized(c.width(), c.height(), c.channels());
-        parallel_for(0, c.height(), [&](int y) {
-            std::copy(c.pixel(0, y),
-                      c.pixel(0, y) + std::size_t(c.width()) * c.channels(),
-                      out.pixel(0, y));
-        });
-        benchmark::DoNotOptimize(out.data());
-        cpu += process_cpu_ms() - c0;
-    }
-    state.counters["cpu_ms"] = cpu / double(state.iterations());
-    set_thread_count(0);
+    bench::copy_baseline(state, fog_input().image("color"));
 }
 BENCHMARK(BM_FogNodeCopyBaseline)->Unit(benchmark::kMillisecond)->UseRealTime();
 

@@ -52,22 +52,7 @@ void run_node(benchmark::State &state, const std::string &type, const std::strin
 
 void BM_LensFilmCopyBaseline(benchmark::State &state)
 {
-    set_thread_count(2);
-    const Image &c = input_frame().image("color");
-    double cpu = 0.0;
-    for (auto _ : state) {
-        const double c0 = process_cpu_ms();
-        Image out = Image::uninitialized(c.width(), c.height(), c.channels());
-        parallel_for(0, c.height(), [&](int y) {
-            std::copy(c.pixel(0, y),
-                      c.pixel(0, y) + std::size_t(c.width()) * c.channels(),
-                      out.pixel(0, y));
-        });
-        benchmark::DoNotOptimize(out.data());
-        cpu += process_cpu_ms() - c0;
-    }
-    state.counters["cpu_ms"] = cpu / double(state.iterations());
-    set_thread_count(0);
+    bench::copy_baseline(state, input_frame().image("color"));
 }
 BENCHMARK(BM_LensFilmCopyBaseline)->Unit(benchmark::kMillisecond)->UseRealTime();
 
