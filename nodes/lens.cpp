@@ -18,7 +18,6 @@
 
 #include "core/passes.h"
 #include "core/sanitize.h"
-#include "filter/lens_kernels.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -204,16 +203,12 @@ void execute(NodeContext &ctx)
         // as 0, in depth NaN and -inf as the sky (+inf).
         Image storage;
         const bool depth = name == pass::kDepth;
-        const Image &src = finite_view(*in_pass.image,
-                                       depth ? std::numeric_limits<float>::infinity() : 0.0f,
-                                       storage,
-                                       depth);
+        const Image &src = finite_view(
+            *in_pass.image, depth ? std::numeric_limits<float>::infinity() : 0.0f, storage, depth);
         const bool is_color = name == pass::kColor;
         const float outside = name == pass::kDepth ? std::numeric_limits<float>::infinity() : 0.0f;
         const int nc = src.channels();
         Image dst = Image::uninitialized(w, h, nc);
-        const bool rgba_kernel = nc == 4 && filter != filter::Resample::Nearest;
-        const int taps = filter == filter::Resample::Bicubic ? 4 : 2;
         parallel_for(0, h, [&](int y) {
             const float *rsx = map->sx.data() + std::size_t(y) * std::size_t(w);
             const float *rsy = map->sy.data() + std::size_t(y) * std::size_t(w);
@@ -229,20 +224,8 @@ void execute(NodeContext &ctx)
                 }
                 return;
             }
-            // One row resampled at positions (xs, ys): RGBA through the vector kernel, the
-            // pixels whose footprint crosses the input's edge (and other layouts) one by one.
-            std::vector<std::uint8_t> edge(std::size_t(w), 1);
             auto resample = [&](const float *xs, const float *ys, float *row) {
-                if (rgba_kernel) {
-                    filter::lens_resample_rgba_row(
-                        src.data(), src.width(), src.height(), xs, ys, w, taps, row, edge.data());
-                }
-                for (int x = 0; x < w; ++x) {
-                    if (edge[std::size_t(x)]) {
-                        filter::sample_channels(
-                            src, 0, nc, xs[x], ys[x], filter, outside, row + x * nc);
-                    }
-                }
+                filter::resample_row(src, xs, ys, w, filter, outside, row);
             };
             resample(rsx, rsy, d);
             if (is_color && ca != 0.0) {
@@ -255,7 +238,6 @@ void execute(NodeContext &ctx)
                         xs[std::size_t(x)] = cx + m * (rsx[x] - cx);
                         ys[std::size_t(x)] = cy + m * (rsy[x] - cy);
                     }
-                    std::fill(edge.begin(), edge.end(), std::uint8_t(1));
                     resample(xs.data(), ys.data(), tmp.data());
                     for (int x = 0; x < w; ++x) {
                         d[x * nc + c] = tmp[std::size_t(x * nc + c)];

@@ -10,7 +10,6 @@
 #include "core/passes.h"
 #include "core/sanitize.h"
 #include "filter/lens.h"
-#include "filter/lens_kernels.h"
 
 namespace posthaste::filter {
 namespace {
@@ -38,8 +37,7 @@ bool is_vector_pass(const std::string &base)
 }
 
 /// `src` (covering `src_window`) resampled at to_input(output pixel centre) over `dst_window`
-/// with the lens node's bilinear or Catmull-Rom kernels: RGBA rows through the Highway kernel,
-/// pixels whose footprint crosses the input's edge (and other layouts) one at a time.
+/// with the lens node's bilinear or Catmull-Rom resampling (filter::resample_row).
 Image warp_resampled(const Image &src,
                      const Rect &src_window,
                      const Affine &to_input,
@@ -47,9 +45,8 @@ Image warp_resampled(const Image &src,
                      Resample filter,
                      float outside)
 {
-    const int w = dst_window.width(), nc = src.channels();
-    const int taps = filter == Resample::Bicubic ? 4 : 2;
-    Image dst = Image::uninitialized(w, dst_window.height(), nc);
+    const int w = dst_window.width();
+    Image dst = Image::uninitialized(w, dst_window.height(), src.channels());
     parallel_for(0, dst_window.height(), [&](int y) {
         const std::size_t n = static_cast<std::size_t>(w);
         std::vector<float> xs(n), ys(n);
@@ -59,36 +56,7 @@ Image warp_resampled(const Image &src,
             xs[std::size_t(x)] = float(p.x - src_window.x0);
             ys[std::size_t(x)] = float(p.y - src_window.y0);
         }
-        std::vector<std::uint8_t> edge(std::size_t(w), 1);
-        float *row = dst.pixel(0, y);
-        if (nc == 4) {
-            lens_resample_rgba_row(src.data(),
-                                   src.width(),
-                                   src.height(),
-                                   xs.data(),
-                                   ys.data(),
-                                   w,
-                                   taps,
-                                   row,
-                                   edge.data());
-        }
-        const float lim_x = float(src.width()) + 2.0f, lim_y = float(src.height()) + 2.0f;
-        for (int x = 0; x < w; ++x) {
-            const float sx = xs[std::size_t(x)], sy = ys[std::size_t(x)];
-            if (edge[std::size_t(x)] && !(sx > -2.0f && sy > -2.0f && sx < lim_x && sy < lim_y)) {
-                // The whole footprint lies outside the input (or the position is not finite).
-                std::fill_n(row + std::size_t(x) * std::size_t(nc), nc, outside);
-            } else if (edge[std::size_t(x)]) {
-                sample_channels(src,
-                                0,
-                                nc,
-                                xs[std::size_t(x)],
-                                ys[std::size_t(x)],
-                                filter,
-                                outside,
-                                row + std::size_t(x) * std::size_t(nc));
-            }
-        }
+        resample_row(src, xs.data(), ys.data(), w, filter, outside, dst.pixel(0, y));
     });
     return dst;
 }

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "filter/lens_kernels.h"
 
 namespace posthaste::filter {
 
@@ -353,6 +354,34 @@ void sample_channels(
         footprint<2, 1>(img, i, j, c0, n, wx, wy, out);
     } else {
         footprint<2, 0>(img, i, j, c0, n, wx, wy, out);
+    }
+}
+
+void resample_row(const Image &img,
+                  const float *xs,
+                  const float *ys,
+                  int n,
+                  Resample filter,
+                  float outside,
+                  float *out)
+{
+    const int nc = img.channels();
+    std::vector<std::uint8_t> edge(static_cast<std::size_t>(n), 1);
+    if (nc == 4 && filter != Resample::Nearest) {
+        lens_resample_rgba_row(img.data(),
+                               img.width(),
+                               img.height(),
+                               xs,
+                               ys,
+                               n,
+                               filter == Resample::Bicubic ? 4 : 2,
+                               out,
+                               edge.data());
+    }
+    for (int x = 0; x < n; ++x) {
+        if (edge[std::size_t(x)]) {
+            sample_channels(img, 0, nc, xs[x], ys[x], filter, outside, out + std::size_t(x) * nc);
+        }
     }
 }
 

@@ -8,9 +8,9 @@
 //   distort(u) = u (1 + k1 r^2 + k2 r^4 + k3 r^6) + (2 p1 x y + p2 (r^2 + 2 x^2),
 //                                                   p1 (r^2 + 2 y^2) + 2 p2 x y),  r^2 = |u|^2.
 
+#include <cstdint>
 #include <glm/mat2x2.hpp>
 #include <glm/vec2.hpp>
-#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -67,5 +67,17 @@ float sample(const Image &img, int c, float x, float y, Resample filter, float o
 /// filter's weights computed once and an unchecked path where the footprint lies inside.
 void sample_channels(
     const Image &img, int c0, int c1, float x, float y, Resample filter, float outside, float *out);
+
+/// n pixels of `img` at (xs[i], ys[i]) into out (img.channels() floats each), as sample_channels
+/// gives them: RGBA images under bilinear or bicubic through the Highway kernel
+/// (lens_kernels.h), the pixels whose footprint crosses the image's edge, other layouts and
+/// nearest one by one. The lens node and the transform node resample rows with it.
+void resample_row(const Image &img,
+                  const float *xs,
+                  const float *ys,
+                  int n,
+                  Resample filter,
+                  float outside,
+                  float *out);
 
 }  // namespace posthaste::filter
