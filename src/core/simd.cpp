@@ -1,9 +1,12 @@
 #include "core/simd.h"
 
 #include <atomic>
+#include <cstdint>
 #if defined(__x86_64__) || defined(__i386__)
 #include <cpuid.h>
 #endif
+#include <hwy/targets.h>
+
 #include <cstdlib>
 #include <cstring>
 
@@ -41,11 +44,35 @@ Level initial()
     return detected();  // unset, "avx2", or unknown (refused by the CLI: environment_error)
 }
 
+// The Highway kernels follow the level asked for: Scalar leaves them only the portable scalar
+// target (the same source compiled for one lane); otherwise they dispatch to the best target the
+// CPU has (SSE4 on a CPU without AVX2, AVX-512 where it is there), or at most AVX2 when
+// POSTHASTE_SIMD=avx2 says so (to measure that target on an AVX-512 machine).
+void apply_to_highway(Level requested)
+{
+    std::int64_t disabled = 0;
+    if (requested == Level::Scalar) {
+        disabled = ~std::int64_t(HWY_SCALAR | HWY_EMU128);
+    } else if (const char *env = std::getenv("POSTHASTE_SIMD");
+               env && std::strcmp(env, "avx2") == 0) {
+        disabled = std::int64_t(HWY_AVX3) | std::int64_t(HWY_AVX3_DL);
+    }
+    hwy::DisableTargets(disabled);
+}
+
 std::atomic<int> &current()
 {
-    static std::atomic<int> level{int(initial())};
+    static std::atomic<int> level{[] {
+        const Level l = initial();
+        const char *env = std::getenv("POSTHASTE_SIMD");
+        apply_to_highway(env && std::strcmp(env, "scalar") == 0 ? Level::Scalar : Level::Avx2);
+        return int(l);
+    }()};
     return level;
 }
+
+// POSTHASTE_SIMD=scalar reaches the Highway kernels before any of them runs.
+[[maybe_unused]] const int g_initial_level = current().load();
 
 }  // namespace
 
@@ -74,6 +101,7 @@ void set_level(Level level)
 {
     current().store(int(level) < int(detected()) ? int(level) : int(detected()),
                     std::memory_order_relaxed);
+    apply_to_highway(level);
 }
 
 }  // namespace posthaste::simd

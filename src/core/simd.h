@@ -1,13 +1,16 @@
 #pragma once
-// CPU dispatch for the hand-vectorized kernels. The build targets baseline x86-64, so AVX2 code
-// lives in functions marked POSTHASTE_AVX2 (GCC/Clang compile just those for AVX2 + FMA + F16C)
-// and is called only when simd::avx2() says the CPU has it; every such kernel keeps a portable
-// scalar path beside it. Tests force the scalar path with simd::set_level to check that both
-// give the same image within a stated tolerance (the paths round differently, so bits differ
-// between them; each path alone is bit-stable for any thread count).
+// CPU dispatch for the vectorized kernels. The build targets baseline x86-64. New kernels are
+// written once over Google Highway's lane types (the *_kernels.cpp files), compiled for every
+// x86 target and dispatched at run time; older ones keep AVX2 code in functions marked
+// POSTHASTE_AVX2 (GCC/Clang compile just those for AVX2 + FMA + F16C), called only when
+// simd::avx2() says the CPU has it, beside a scalar twin. Tests lower the level with
+// simd::set_level (Scalar: the scalar twins, and Highway's portable one-lane target of the same
+// source) to check that both give the same image within a stated tolerance (rounding differs, so
+// bits differ between levels; each level alone is bit-stable for any thread count).
 //
 // Environment: POSTHASTE_SIMD=scalar disables the vector paths (to compare or to debug);
-// POSTHASTE_SIMD=avx2 (or unset) uses them where the CPU has them.
+// POSTHASTE_SIMD=avx2 uses them up to AVX2 (Highway kernels skip AVX-512); unset, the best the
+// CPU has.
 
 #include <string>
 

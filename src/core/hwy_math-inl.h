@@ -1,0 +1,57 @@
+// Per-lane math shared by the Highway kernels, with the rounding each promises written down, so
+// that a kernel's scalar twin (shading/fast_math.h) and its vector targets compute the same
+// formula. Include it after <hwy/highway.h> inside a kernel file that uses foreach_target.h; like
+// every Highway "-inl.h" it is compiled once per target (the toggle guard below).
+
+// clang-format off
+#if defined(POSTHASTE_CORE_HWY_MATH_INL_H_) == defined(HWY_TARGET_TOGGLE)
+#ifdef POSTHASTE_CORE_HWY_MATH_INL_H_
+#undef POSTHASTE_CORE_HWY_MATH_INL_H_
+#else
+#define POSTHASTE_CORE_HWY_MATH_INL_H_
+#endif
+// clang-format on
+
+#include <hwy/highway.h>
+
+HWY_BEFORE_NAMESPACE();
+namespace posthaste::simd::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
+
+/// exp(x) by shading::fast_exp's method: x clamped to [-87, 88] (so exp(-huge) is 1.6e-38, not
+/// 0, and NaN becomes one of the bounds: callers mask NaN lanes), Cody-Waite reduction
+/// x = n ln2 + r with n rounded to nearest, a degree-6 Taylor polynomial in Horner form (fused
+/// multiply-adds where the target has them), then scaled by 2^n. Relative error < 3e-7.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V FastExp(D d, V x)
+{
+    const hn::RebindToSigned<D> di;
+    x = hn::Min(hn::Max(x, hn::Set(d, -87.0f)), hn::Set(d, 88.0f));
+    const auto n = hn::NearestInt(hn::Mul(x, hn::Set(d, 1.44269504089f)));
+    const V nf = hn::ConvertTo(d, n);
+    const V r = hn::NegMulAdd(nf,
+                              hn::Set(d, 1.428606765330187e-06f),
+                              hn::NegMulAdd(nf, hn::Set(d, 0.693145751953125f), x));
+    V p = hn::Set(d, 1.0f / 720.0f);
+    p = hn::MulAdd(p, r, hn::Set(d, 1.0f / 120.0f));
+    p = hn::MulAdd(p, r, hn::Set(d, 1.0f / 24.0f));
+    p = hn::MulAdd(p, r, hn::Set(d, 1.0f / 6.0f));
+    p = hn::MulAdd(p, r, hn::Set(d, 0.5f));
+    p = hn::MulAdd(p, r, hn::Set(d, 1.0f));
+    p = hn::MulAdd(p, r, hn::Set(d, 1.0f));
+    const V scale = hn::BitCast(d, hn::ShiftLeft<23>(hn::Add(n, hn::Set(di, 127))));
+    return hn::Mul(p, scale);
+}
+
+/// ax * bx + ay * by + az * bz, summed from the z term outwards (glm's dot order when the
+/// target fuses: fma(ax, bx, fma(ay, by, az * bz))).
+template <class V>
+HWY_INLINE V Dot3(V ax, V ay, V az, V bx, V by, V bz)
+{
+    return hn::MulAdd(ax, bx, hn::MulAdd(ay, by, hn::Mul(az, bz)));
+}
+
+}  // namespace posthaste::simd::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#endif  // include guard
