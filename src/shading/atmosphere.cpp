@@ -5,14 +5,9 @@
 #include <cstring>
 #include <limits>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "core/error.h"
 #include "core/parallel.h"
-#include "core/simd.h"
-#include "core/simd_avx2.h"
+#include "shading/atmosphere_kernels.h"
 
 namespace posthaste::shading {
 namespace {
@@ -705,336 +700,50 @@ void AerialPerspective::build(const Atmosphere &atmosphere, const std::vector<in
     });
 }
 
-void AerialPerspective::sample_n(
-    const float *u, float v, const float *distance, int n, ScatteringResult *out) const
-{
-    const float fy = saturate(v) * float(height_) - 0.5f;
-    const int cy = std::max(std::min(int(fy + 1.0f) - 1, height_ - 2), 0);
-    const float ty = saturate(fy - float(cy));
-    int i = 0;
-#if defined(__SSE2__)
-    alignas(16) float tx4[4], w4[4];
-    alignas(16) std::int32_t cx4[4];
-    const __m128 zero = _mm_setzero_ps(), one = _mm_set1_ps(1.0f);
-    for (; i + 4 <= n; i += 4) {
-        const __m128 fx =
-            _mm_sub_ps(_mm_mul_ps(_mm_min_ps(_mm_max_ps(_mm_loadu_ps(u + i), zero), one),
-                                  _mm_set1_ps(float(width_))),
-                       _mm_set1_ps(0.5f));
-        __m128i cx = _mm_sub_epi32(_mm_cvttps_epi32(_mm_add_ps(fx, one)), _mm_set1_epi32(1));
-        // min(max(cx, 0), width - 2) with SSE2 compares.
-        const __m128i hi = _mm_set1_epi32(width_ - 2);
-        cx = _mm_andnot_si128(_mm_cmplt_epi32(cx, _mm_setzero_si128()), cx);
-        const __m128i over = _mm_cmpgt_epi32(cx, hi);
-        cx = _mm_or_si128(_mm_and_si128(over, hi), _mm_andnot_si128(over, cx));
-        const __m128 tx = _mm_min_ps(_mm_max_ps(_mm_sub_ps(fx, _mm_cvtepi32_ps(cx)), zero), one);
-        const __m128 w = _mm_sqrt_ps(_mm_min_ps(
-            _mm_max_ps(_mm_mul_ps(_mm_loadu_ps(distance + i), _mm_set1_ps(inv_max_distance_)),
-                       zero),
-            one));
-        _mm_store_si128(reinterpret_cast<__m128i *>(cx4), cx);
-        _mm_store_ps(tx4, tx);
-        _mm_store_ps(w4, w);
-        for (int k = 0; k < 4; ++k) {
-            out[i + k] = fetch(cx4[k], cy, tx4[k], ty, w4[k]);
-        }
-    }
-#endif
-    for (; i < n; ++i) {
-        out[i] = sample(glm::vec2(u[i], v), distance[i]);
-    }
-}
-
 float AerialPerspective::slice_distance(int k) const
 {
     const float w = (float(k) + 0.5f) / float(slices_);
     return settings_.max_distance * w * w;
 }
 
-#if defined(__SSE2__)
-namespace {
-
-// fast_acos for four lanes (inputs within [-1, 1]; NaN reads as 1).
-__m128 acos4(__m128 x)
-{
-    const __m128 sign = _mm_set1_ps(-0.0f);
-    const __m128 ax = _mm_min_ps(_mm_andnot_ps(sign, x), _mm_set1_ps(1.0f));
-    __m128 p = _mm_set1_ps(-0.0012624911f);
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(0.0066700901f));
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(-0.0170881256f));
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(0.0308918810f));
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(-0.0501743046f));
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(0.0889789874f));
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(-0.2145988016f));
-    p = _mm_add_ps(_mm_mul_ps(p, ax), _mm_set1_ps(1.5707963050f));
-    const __m128 r = _mm_mul_ps(_mm_sqrt_ps(_mm_sub_ps(_mm_set1_ps(1.0f), ax)), p);
-    const __m128 negative = _mm_cmplt_ps(x, _mm_setzero_ps());
-    return _mm_or_ps(_mm_and_ps(negative, _mm_sub_ps(_mm_set1_ps(kPi), r)),
-                     _mm_andnot_ps(negative, r));
-}
-
-__m128 dot4(__m128 x, __m128 y, __m128 z, const glm::vec3 &v)
-{
-    return _mm_add_ps(_mm_add_ps(_mm_mul_ps(x, _mm_set1_ps(v.x)), _mm_mul_ps(y, _mm_set1_ps(v.y))),
-                      _mm_mul_ps(z, _mm_set1_ps(v.z)));
-}
-
-__m128 saturate4(__m128 x)
-{
-    return _mm_min_ps(_mm_max_ps(x, _mm_setzero_ps()), _mm_set1_ps(1.0f));  // NaN -> 0
-}
-
-}  // namespace
-#endif
+/// Fills the kernels' parameters from the classes' private members.
+struct AtmosphereKernels {
+    static SkyCoordParams sky(const SkyView &v)
+    {
+        SkyCoordParams p;
+        p.lut = v.lut_.data();
+        p.lut_width = v.lut_.width();
+        p.lut_height = v.lut_.height();
+        for (int i = 0; i < 3; ++i) {
+            p.up[i] = v.up_[i];
+            p.sun_tangent[i] = v.sun_tangent_[i];
+            p.sun_side[i] = v.sun_side_[i];
+        }
+        p.mu_horizon = v.mu_horizon_;
+        p.theta_horizon = v.theta_horizon_;
+        p.inv_theta_above = v.inv_theta_above_;
+        p.inv_theta_below = v.inv_theta_below_;
+        return p;
+    }
+    static void volume(const AerialPerspective &ap, AtmosphereRowParams &p)
+    {
+        static_assert(sizeof(AerialPerspective::Froxel) == 8 * sizeof(float));
+        p.froxels = ap.froxels_.front().inscatter;
+        p.ap_width = ap.width_;
+        p.ap_height = ap.height_;
+        p.slices = ap.slices_;
+        p.inv_max_distance = ap.inv_max_distance_;
+        p.inv_slices = ap.inv_slices_;
+        p.inv_centre_sum = ap.inv_centre_sum_.data();
+    }
+};
 
 void SkyView::radiance_n(
     const float *x, const float *y, const float *z, int n, glm::vec3 *out) const
 {
-    int i = 0;
-#if defined(__SSE2__)
-    alignas(16) float u4[4], s4[4];
-    for (; i + 4 <= n; i += 4) {
-        const __m128 dx = _mm_loadu_ps(x + i), dy = _mm_loadu_ps(y + i), dz = _mm_loadu_ps(z + i);
-        const __m128 mu = dot4(dx, dy, dz, up_);
-        const __m128 along = dot4(dx, dy, dz, sun_tangent_);
-        const __m128 side = dot4(dx, dy, dz, sun_side_);
-        const __m128 h2 = _mm_add_ps(_mm_mul_ps(along, along), _mm_mul_ps(side, side));
-        const __m128 tiny = _mm_cmple_ps(h2, _mm_set1_ps(1e-24f));
-        const __m128 cos_az = _mm_or_ps(
-            _mm_andnot_ps(tiny,
-                          _mm_div_ps(along, _mm_sqrt_ps(_mm_max_ps(h2, _mm_set1_ps(1e-24f))))),
-            _mm_and_ps(tiny, _mm_set1_ps(1.0f)));
-        const __m128 u = _mm_sqrt_ps(
-            _mm_max_ps(_mm_sub_ps(_mm_set1_ps(0.5f), _mm_mul_ps(_mm_set1_ps(0.5f), cos_az)),
-                       _mm_setzero_ps()));
-        const __m128 theta = acos4(mu);
-        const __m128 s_above =
-            _mm_sub_ps(_mm_set1_ps(1.0f),
-                       _mm_sqrt_ps(saturate4(_mm_sub_ps(
-                           _mm_set1_ps(1.0f), _mm_mul_ps(theta, _mm_set1_ps(inv_theta_above_))))));
-        const __m128 s_below = _mm_sqrt_ps(saturate4(_mm_mul_ps(
-            _mm_sub_ps(theta, _mm_set1_ps(theta_horizon_)), _mm_set1_ps(inv_theta_below_))));
-        const __m128 below_mask = _mm_cmplt_ps(mu, _mm_set1_ps(mu_horizon_));  // NaN: above
-        const int below = _mm_movemask_ps(below_mask);
-        _mm_store_ps(u4, u);
-        _mm_store_ps(
-            s4, _mm_or_ps(_mm_and_ps(below_mask, s_below), _mm_andnot_ps(below_mask, s_above)));
-        for (int k = 0; k < 4; ++k) {
-            out[i + k] = lookup(u4[k], s4[k], !(below & (1 << k)));
-        }
-    }
-#endif
-    for (; i < n; ++i) {
-        out[i] = radiance(glm::vec3(x[i], y[i], z[i]));
-    }
+    static_assert(sizeof(glm::vec3) == 3 * sizeof(float));
+    sky_radiance(AtmosphereKernels::sky(*this), x, y, z, n, &out->x);
 }
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-/// The AVX2 path of apply_frame: one tile row, eight pixels at a time, with the same arithmetic
-/// as AerialPerspective::sample / SkyView::radiance (fused multiply-adds round differently: the
-/// two paths agree to a few ulps, tests/unit/atmosphere_test.cpp).
-struct AtmosphereKernels {
-    struct Row {
-        const Atmosphere *atmosphere;
-        const SkyView *sky;
-        const AerialPerspective *ap;
-        const float *z;  // depth row
-        float *px;       // colour row
-        int channels;
-        float v, inv_w;
-        glm::vec3 origin, du;  // depth_ray(0, v) and depth_ray(1, v) - depth_ray(0, v)
-        bool sun_disc;
-        glm::vec3 sun;
-        float cos_sun;
-    };
-
-    POSTHASTE_AVX2_INLINE static __m256 acos8(__m256 x)
-    {
-        using namespace simd::v8;
-        const __m256 ax = _mm256_min_ps(_mm256_andnot_ps(_mm256_set1_ps(-0.0f), x), set1(1.0f));
-        __m256 p = set1(-0.0012624911f);
-        p = _mm256_fmadd_ps(p, ax, set1(0.0066700901f));
-        p = _mm256_fmadd_ps(p, ax, set1(-0.0170881256f));
-        p = _mm256_fmadd_ps(p, ax, set1(0.0308918810f));
-        p = _mm256_fmadd_ps(p, ax, set1(-0.0501743046f));
-        p = _mm256_fmadd_ps(p, ax, set1(0.0889789874f));
-        p = _mm256_fmadd_ps(p, ax, set1(-0.2145988016f));
-        p = _mm256_fmadd_ps(p, ax, set1(1.5707963050f));
-        const __m256 r = _mm256_mul_ps(_mm256_sqrt_ps(_mm256_sub_ps(set1(1.0f), ax)), p);
-        return _mm256_blendv_ps(
-            r, _mm256_sub_ps(set1(kPi), r), _mm256_cmp_ps(x, _mm256_setzero_ps(), _CMP_LT_OQ));
-    }
-
-    POSTHASTE_AVX2_INLINE static __m256 dot8(__m256 x, __m256 y, __m256 z, const glm::vec3 &v)
-    {
-        return _mm256_fmadd_ps(
-            x,
-            _mm256_set1_ps(v.x),
-            _mm256_fmadd_ps(y, _mm256_set1_ps(v.y), _mm256_mul_ps(z, _mm256_set1_ps(v.z))));
-    }
-
-    POSTHASTE_AVX2_INLINE static __m256 saturate8(__m256 x)
-    {
-        return _mm256_min_ps(_mm256_max_ps(x, _mm256_setzero_ps()), _mm256_set1_ps(1.0f));
-    }
-
-    /// Froxel bilinear in (x, y) of slice z, both halves (in-scatter, transmittance) at once.
-    POSTHASTE_AVX2_INLINE static __m256 bilinear8(
-        const AerialPerspective &ap, int z, int cx, int cy, __m256 tx, __m256 ty)
-    {
-        const float *p = ap.froxels_[(std::size_t(z) * ap.height_ + cy) * ap.width_ + cx].inscatter;
-        const std::size_t row = std::size_t(ap.width_) * 8;
-        const __m256 a = _mm256_loadu_ps(p), b = _mm256_loadu_ps(p + 8);
-        const __m256 c = _mm256_loadu_ps(p + row), d = _mm256_loadu_ps(p + row + 8);
-        const __m256 top = _mm256_fmadd_ps(tx, _mm256_sub_ps(b, a), a);
-        const __m256 bottom = _mm256_fmadd_ps(tx, _mm256_sub_ps(d, c), c);
-        return _mm256_fmadd_ps(ty, _mm256_sub_ps(bottom, top), top);
-    }
-
-    POSTHASTE_AVX2 static void row(const Row &r, int x0, int x1, int cy, float ty)
-    {
-        using namespace simd::v8;
-        const AerialPerspective &ap = *r.ap;
-        const __m256 inf = set1(std::numeric_limits<float>::infinity());
-        const __m256 lane = _mm256_setr_ps(0.5f, 1.5f, 2.5f, 3.5f, 4.5f, 5.5f, 6.5f, 7.5f);
-        const __m256 ty8 = set1(ty);
-        const __m256 camera = _mm256_setr_ps(0, 0, 0, 0, 1, 1, 1, 1);  // (in-scatter, T) at d = 0
-        alignas(32) float txs[8], tzs[8], us[8], ss[8], dxs[8], dys[8], dzs[8];
-        alignas(32) std::int32_t cxs[8], z0s[8];
-        for (int x = x0; x < x1; x += 8) {
-            const int n = std::min(8, x1 - x);
-            __m256 d;
-            if (n == 8) {
-                d = _mm256_loadu_ps(r.z + x);
-            } else {
-                alignas(32) float tmp[8];
-                for (int i = 0; i < 8; ++i) {
-                    tmp[i] = i < n ? r.z[x + i] : std::numeric_limits<float>::quiet_NaN();
-                }
-                d = _mm256_load_ps(tmp);
-            }
-            const __m256 u = _mm256_mul_ps(_mm256_add_ps(set1(float(x)), lane), set1(r.inv_w));
-            const __m256 rx = _mm256_fmadd_ps(u, set1(r.du.x), set1(r.origin.x));
-            const __m256 ry = _mm256_fmadd_ps(u, set1(r.du.y), set1(r.origin.y));
-            const __m256 rz = _mm256_fmadd_ps(u, set1(r.du.z), set1(r.origin.z));
-            const __m256 len = _mm256_sqrt_ps(
-                _mm256_fmadd_ps(rx, rx, _mm256_fmadd_ps(ry, ry, _mm256_mul_ps(rz, rz))));
-            const int finite = _mm256_movemask_ps(_mm256_cmp_ps(d, inf, _CMP_LT_OQ));
-            const int sky = r.sky ? _mm256_movemask_ps(_mm256_cmp_ps(d, inf, _CMP_EQ_OQ)) : 0;
-            if (finite) {
-                // AerialPerspective::sample with distance d * len.
-                const __m256 fx =
-                    _mm256_sub_ps(_mm256_mul_ps(saturate8(u), set1(float(ap.width_))), set1(0.5f));
-                __m256i cx = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(fx, set1(1.0f))),
-                                              _mm256_set1_epi32(1));
-                cx = _mm256_max_epi32(_mm256_min_epi32(cx, _mm256_set1_epi32(ap.width_ - 2)),
-                                      _mm256_setzero_si256());
-                const __m256 tx = saturate8(_mm256_sub_ps(fx, _mm256_cvtepi32_ps(cx)));
-                const __m256 w = _mm256_sqrt_ps(
-                    saturate8(_mm256_mul_ps(_mm256_mul_ps(d, len), set1(ap.inv_max_distance_))));
-                const __m256 fz = _mm256_fmsub_ps(w, set1(float(ap.slices_)), set1(0.5f));
-                const __m256 near = _mm256_cmp_ps(fz, _mm256_setzero_ps(), _CMP_LT_OQ);
-                // Before the first slice centre: the blend from the camera, (2 w slices)^2.
-                const __m256 w0 = _mm256_mul_ps(set1(2.0f * float(ap.slices_)), w);
-                const __m256 tz_near = saturate8(_mm256_mul_ps(w0, w0));
-                const __m256i z0 =
-                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_max_ps(fz, _mm256_setzero_ps())),
-                                     _mm256_set1_epi32(ap.slices_ - 2));
-                const __m256 z0f = _mm256_cvtepi32_ps(z0);
-                const __m256 wa =
-                    _mm256_mul_ps(_mm256_add_ps(z0f, set1(0.5f)), set1(ap.inv_slices_));
-                const __m256 ics = _mm256_i32gather_ps(ap.inv_centre_sum_.data(), z0, 4);
-                const __m256 tz_far = saturate8(_mm256_mul_ps(
-                    _mm256_mul_ps(_mm256_sub_ps(fz, z0f), _mm256_add_ps(w, wa)), ics));
-                _mm256_store_ps(txs, tx);
-                _mm256_store_ps(tzs, _mm256_blendv_ps(tz_far, tz_near, near));
-                _mm256_store_si256(reinterpret_cast<__m256i *>(cxs), cx);
-                // Lanes before the first centre blend from the camera: slice index -1.
-                _mm256_store_si256(reinterpret_cast<__m256i *>(z0s),
-                                   _mm256_or_si256(z0, _mm256_castps_si256(near)));
-                for (int i = 0; i < n; ++i) {
-                    if (!(finite & (1 << i))) {
-                        continue;
-                    }
-                    const __m256 txi = set1(txs[i]), tzi = set1(tzs[i]);
-                    __m256 s;
-                    if (z0s[i] < 0) {
-                        s = bilinear8(ap, 0, cxs[i], cy, txi, ty8);
-                        s = _mm256_fmadd_ps(tzi, _mm256_sub_ps(s, camera), camera);
-                    } else {
-                        const __m256 a = bilinear8(ap, z0s[i], cxs[i], cy, txi, ty8);
-                        const __m256 b = bilinear8(ap, z0s[i] + 1, cxs[i], cy, txi, ty8);
-                        s = _mm256_fmadd_ps(tzi, _mm256_sub_ps(b, a), a);
-                    }
-                    float *p = r.px + std::size_t(x + i) * std::size_t(r.channels);
-                    const __m128 in = _mm256_castps256_ps128(s), t = _mm256_extractf128_ps(s, 1);
-                    if (r.channels == 4) {
-                        // (T, 1) and (S, 0): alpha passes through exactly.
-                        _mm_storeu_ps(p, _mm_fmadd_ps(_mm_loadu_ps(p), t, in));
-                    } else {
-                        alignas(16) float tt[4], ii[4];
-                        _mm_store_ps(tt, t);
-                        _mm_store_ps(ii, in);
-                        for (int c = 0; c < 3; ++c) {
-                            p[c] = std::fma(p[c], tt[c], ii[c]);
-                        }
-                    }
-                }
-            }
-            if (sky) {
-                // SkyView::radiance on the unit direction.
-                const SkyView &sv = *r.sky;
-                const __m256 inv_len = _mm256_div_ps(set1(1.0f), len);
-                const __m256 dx = _mm256_mul_ps(rx, inv_len), dy = _mm256_mul_ps(ry, inv_len),
-                             dz = _mm256_mul_ps(rz, inv_len);
-                const __m256 mu = dot8(dx, dy, dz, sv.up_);
-                const __m256 along = dot8(dx, dy, dz, sv.sun_tangent_);
-                const __m256 side = dot8(dx, dy, dz, sv.sun_side_);
-                const __m256 h =
-                    _mm256_sqrt_ps(_mm256_fmadd_ps(along, along, _mm256_mul_ps(side, side)));
-                const __m256 cos_az =
-                    _mm256_blendv_ps(set1(1.0f),
-                                     _mm256_div_ps(along, _mm256_max_ps(h, set1(1e-12f))),
-                                     _mm256_cmp_ps(h, set1(1e-12f), _CMP_GT_OQ));
-                const __m256 ul = _mm256_sqrt_ps(_mm256_max_ps(
-                    _mm256_fnmadd_ps(set1(0.5f), cos_az, set1(0.5f)), _mm256_setzero_ps()));
-                const __m256 theta = acos8(mu);
-                const __m256 s_above = _mm256_sub_ps(
-                    set1(1.0f),
-                    _mm256_sqrt_ps(
-                        saturate8(_mm256_fnmadd_ps(theta, set1(sv.inv_theta_above_), set1(1.0f)))));
-                const __m256 s_below = _mm256_sqrt_ps(saturate8(_mm256_mul_ps(
-                    _mm256_sub_ps(theta, set1(sv.theta_horizon_)), set1(sv.inv_theta_below_))));
-                const __m256 below = _mm256_cmp_ps(mu, set1(sv.mu_horizon_), _CMP_LT_OQ);
-                const int below_bits = _mm256_movemask_ps(below);
-                const int disc = r.sun_disc
-                                     ? _mm256_movemask_ps(_mm256_cmp_ps(
-                                           dot8(dx, dy, dz, r.sun), set1(r.cos_sun), _CMP_GE_OQ))
-                                     : 0;
-                _mm256_store_ps(us, ul);
-                _mm256_store_ps(ss, _mm256_blendv_ps(s_above, s_below, below));
-                _mm256_store_ps(dxs, dx);
-                _mm256_store_ps(dys, dy);
-                _mm256_store_ps(dzs, dz);
-                for (int i = 0; i < n; ++i) {
-                    if (!(sky & (1 << i))) {
-                        continue;
-                    }
-                    glm::vec3 l = sv.lookup(us[i], ss[i], !(below_bits & (1 << i)));
-                    if (disc & (1 << i)) {
-                        l += r.atmosphere->sun_disc_radiance(glm::vec3(dxs[i], dys[i], dzs[i]),
-                                                             r.ap->rays().position());
-                    }
-                    float *p = r.px + std::size_t(x + i) * std::size_t(r.channels);
-                    p[0] = l.x;
-                    p[1] = l.y;
-                    p[2] = l.z;
-                }
-            }
-        }
-    }
-};
-#endif
 
 namespace {
 
@@ -1058,103 +767,52 @@ void apply_frame(const Atmosphere *atmosphere,
     const CameraRays &rays = ap.rays();
     const glm::vec3 sun = atmosphere ? atmosphere->sun_direction() : glm::vec3(0.0f);
     const float cos_sun = atmosphere ? std::cos(atmosphere->params().sun_angular_radius_rad) : 2.0f;
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
-        // Bands of whole rows: the pass streams through memory, which a 64-pixel tile row (1 KiB
-        // of RGBA) is too short for.
-        const int band = 4, bands = (color.height() + band - 1) / band;
-        parallel_for(0, bands, [&](int b) {
-            for (int y = b * band; y < std::min(color.height(), (b + 1) * band); ++y) {
-                if (copy) {  // then in place, in cache
-                    std::memcpy(color.pixel(0, y),
-                                source.pixel(0, y),
-                                sizeof(float) * std::size_t(color.width()) * std::size_t(channels));
-                }
-                const float v = (float(y) + 0.5f) * inv_h;
-                const glm::vec3 origin = rays.depth_ray(0.0f, v);
-                const AtmosphereKernels::Row r{atmosphere,
-                                               sky,
-                                               &ap,
-                                               depth.pixel(0, y),
-                                               color.pixel(0, y),
-                                               channels,
-                                               v,
-                                               inv_w,
-                                               origin,
-                                               rays.depth_ray(1.0f, v) - origin,
-                                               sun_disc && atmosphere,
-                                               sun,
-                                               cos_sun};
-                int cy;
-                float ty;
-                ap.row_weights(v, cy, ty);
-                AtmosphereKernels::row(r, 0, color.width(), cy, ty);
-            }
-        });
-        return;
+    AtmosphereRowParams base;
+    base.inv_w = inv_w;
+    AtmosphereKernels::volume(ap, base);
+    base.sky = sky != nullptr;
+    if (sky) {
+        base.sky_coords = AtmosphereKernels::sky(*sky);
     }
-#endif
-    parallel_for_tiles(color.bounds(), [&](const Rect &tile) {
-        // Sky pixels of one tile row are gathered and looked up in a batch.
-        float dx[kDefaultTileSize], dy[kDefaultTileSize], dz[kDefaultTileSize];
-        int sky_x[kDefaultTileSize];
-        glm::vec3 sky_l[kDefaultTileSize];
-        float ap_u[kDefaultTileSize], ap_d[kDefaultTileSize];
-        int ap_x[kDefaultTileSize];
-        ScatteringResult ap_s[kDefaultTileSize];
-        for (int y = tile.y0; y < tile.y1; ++y) {
-            const float v = (float(y) + 0.5f) * inv_h;
-            const float *z = depth.pixel(0, y);
+    base.sun_disc = sun_disc && atmosphere;
+    for (int i = 0; i < 3; ++i) {
+        base.sun[i] = sun[i];
+    }
+    base.cos_sun = cos_sun;
+    const int w = color.width();
+    // Bands of whole rows: the pass streams through memory, which a 64-pixel tile row (1 KiB of
+    // RGBA) is too short for.
+    const int band = 4, bands = (color.height() + band - 1) / band;
+    parallel_for(0, bands, [&](int b) {
+        const std::size_t n = std::size_t(w);
+        std::vector<std::int32_t> disc_x(base.sun_disc ? n : 0);
+        std::vector<float> disc_dir(base.sun_disc ? 3 * n : 0);
+        AtmosphereRowParams r = base;
+        for (int y = b * band; y < std::min(color.height(), (b + 1) * band); ++y) {
             float *row = color.pixel(0, y);
-            if (copy) {
-                std::memcpy(row + std::size_t(tile.x0) * std::size_t(channels),
-                            source.pixel(tile.x0, y),
-                            sizeof(float) * std::size_t(tile.width()) * std::size_t(channels));
+            if (copy) {  // then in place, in cache
+                std::memcpy(row, source.pixel(0, y), sizeof(float) * n * std::size_t(channels));
             }
-            int n = 0, m = 0;
-            for (int x = tile.x0; x < tile.x1; ++x) {
-                const float d = z[x];
-                if (!(d == d)) {
-                    continue;  // NaN: left alone
-                }
-                const float u = (float(x) + 0.5f) * inv_w;
-                const glm::vec3 ray = rays.depth_ray(u, v);
-                const float len = glm::length(ray);
-                if (d < std::numeric_limits<float>::infinity()) {
-                    if (m < kDefaultTileSize) {
-                        ap_u[m] = u;
-                        ap_d[m] = d * len;
-                        ap_x[m++] = x;
-                    }
-                } else if (sky && n < kDefaultTileSize) {
-                    const float inv_len = 1.0f / len;
-                    dx[n] = ray.x * inv_len;
-                    dy[n] = ray.y * inv_len;
-                    dz[n] = ray.z * inv_len;
-                    sky_x[n++] = x;
-                }
+            const float v = (float(y) + 0.5f) * inv_h;
+            const glm::vec3 origin = rays.depth_ray(0.0f, v);
+            const glm::vec3 du = rays.depth_ray(1.0f, v) - origin;
+            for (int i = 0; i < 3; ++i) {
+                r.origin[i] = origin[i];
+                r.du[i] = du[i];
             }
-            ap.sample_n(ap_u, v, ap_d, m, ap_s);
-            for (int i = 0; i < m; ++i) {
-                const ScatteringResult &s = ap_s[i];
-                float *px = row + std::size_t(ap_x[i]) * channels;
-                px[0] = px[0] * s.transmittance.x + s.inscatter.x;
-                px[1] = px[1] * s.transmittance.y + s.inscatter.y;
-                px[2] = px[2] * s.transmittance.z + s.inscatter.z;
-            }
-            if (n > 0) {
-                sky->radiance_n(dx, dy, dz, n, sky_l);
-            }
-            for (int i = 0; i < n; ++i) {
-                glm::vec3 l = sky_l[i];
-                const glm::vec3 dir(dx[i], dy[i], dz[i]);
-                if (sun_disc && glm::dot(dir, sun) >= cos_sun) {
-                    l += atmosphere->sun_disc_radiance(dir, rays.position());
-                }
-                float *px = row + std::size_t(sky_x[i]) * channels;
-                px[0] = l.x;
-                px[1] = l.y;
-                px[2] = l.z;
+            ap.row_weights(v, r.cy, r.ty);
+            const int listed = atmosphere_row(
+                r, depth.pixel(0, y), row, channels, w, disc_x.data(), disc_dir.data());
+            // The sun's disc over the sky the kernel wrote.
+            for (int i = 0; i < listed; ++i) {
+                const std::size_t k = std::size_t(i);
+                const glm::vec3 l = atmosphere->sun_disc_radiance(
+                    glm::vec3(disc_dir[3 * k], disc_dir[3 * k + 1], disc_dir[3 * k + 2]),
+                    rays.position());
+                float *px = row + std::size_t(disc_x[k]) * std::size_t(channels);
+                px[0] += l.x;
+                px[1] += l.y;
+                px[2] += l.z;
             }
         }
     });

@@ -99,6 +99,8 @@ class Lut2D {
     }
     int width() const { return width_; }    ///< texels per row
     int height() const { return height_; }  ///< rows
+    /// The texels, row by row, three floats each.
+    const float *data() const { return &texels_.front().x; }
     /// Texel (x, y), unchecked.
     glm::vec3 &at(int x, int y) { return texels_[std::size_t(y) * std::size_t(width_) + x]; }
     /// Texel (x, y), unchecked.
@@ -169,8 +171,8 @@ class SkyView {
         return above ? lut_.sample_rows(u, s, 0, half)
                      : lut_.sample_rows(u, s, half, lut_.height() - half);
     }
-    /// radiance() for n unit directions given as separate x, y, z arrays (4-wide SSE2 where
-    /// available; the same results as radiance() up to float rounding).
+    /// radiance() for n unit directions given as separate x, y, z arrays (a vector at a time,
+    /// shading/atmosphere_kernels; the same results as radiance() up to float rounding).
     void radiance_n(const float *x, const float *y, const float *z, int n, glm::vec3 *out) const;
     /// The table: columns u = sin(azimuth / 2) from the sun, rows as described on the class.
     const Lut2D &lut() const { return lut_; }
@@ -242,10 +244,6 @@ class AerialPerspective {
         cy = std::max(std::min(int(fy + 1.0f) - 1, height_ - 2), 0);
         ty = saturate(fy - float(cy));
     }
-    /// sample() for n points of one pixel row: NDC (u[i], v) at distance[i]; the row's vertical
-    /// weights are computed once and the distance mapping four at a time (SSE2 where available).
-    void sample_n(
-        const float *u, float v, const float *distance, int n, ScatteringResult *out) const;
     /// Distance along the ray of the pixel at NDC uv whose depth pass (camera-space z) is `depth`.
     float distance_from_depth(glm::vec2 uv, float depth) const
     {

@@ -74,9 +74,15 @@ HWY_INLINE void FogVector(
     bad = hn::AndNot(hn::Gt(xk, hn::Set(d, -40.0f)), finite);
 }
 
-int FogRow(
-    const FogRowParams &p, const float *z, float *row, int channels, int n, std::int32_t *fallback)
+int FogRow(const FogRowParams &params,
+           const float *z,
+           float *row,
+           int channels,
+           int n,
+           std::int32_t *fallback)
 {
+    // A local copy: stores to the pixels cannot alias it, so its fields stay in registers.
+    const FogRowParams p = params;
     const hn::ScalableTag<float> d;
     using V = hn::Vec<decltype(d)>;
     const int lanes = int(hn::Lanes(d));
