@@ -21,6 +21,7 @@
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "core/srgb.h"
 #include "io/image_file.h"
 #include "io/io_detail.h"
 #include "io/source_file.h"

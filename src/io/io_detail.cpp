@@ -589,11 +589,6 @@ void scatter_floats(const float *src,
     }
 }
 
-float srgb_to_linear(float v)
-{
-    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
-}
-
 void convert_channel(const unsigned char *src,
                      std::size_t stride,
                      OIIO::TypeDesc type,

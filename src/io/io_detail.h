@@ -78,7 +78,5 @@ void convert_channel(const unsigned char *src,
                      int count);
 /// Pixel types the reader converts.
 bool supported_native(OIIO::TypeDesc t);
-/// The sRGB decoding curve.
-float srgb_to_linear(float v);
 
 }  // namespace posthaste::io_detail

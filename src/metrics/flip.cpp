@@ -31,16 +31,6 @@ const glm::vec3 kWhite = kRgbToXyz * glm::vec3(1.0f);
 
 }  // namespace
 
-float srgb_to_linear(float c)
-{
-    return c <= 0.04045f ? c / 12.92f : std::pow((c + 0.055f) / 1.055f, 2.4f);
-}
-
-float linear_to_srgb(float c)
-{
-    return c <= 0.0031308f ? c * 12.92f : 1.055f * std::pow(c, 1.0f / 2.4f) - 0.055f;
-}
-
 glm::vec3 linear_rgb_to_xyz(glm::vec3 rgb)
 {
     return kRgbToXyz * rgb;

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/image.h"
+#include "core/srgb.h"
 
 namespace posthaste::metrics {
 
@@ -68,8 +69,8 @@ inline constexpr float kQf = 0.5f;           ///< Exponent on the feature differ
 inline constexpr float kW = 0.082f;          ///< Edge detector peak-to-trough width in degrees.
 inline constexpr float kToneTarget = 0.85f;  ///< Tone-mapped value defining the exposures.
 
-float srgb_to_linear(float c);
-float linear_to_srgb(float c);
+using posthaste::linear_to_srgb;  // core/srgb.h
+using posthaste::srgb_to_linear;
 glm::vec3 linear_rgb_to_xyz(glm::vec3 rgb);
 glm::vec3 xyz_to_linear_rgb(glm::vec3 xyz);
 glm::vec3 xyz_to_ycxcz(glm::vec3 xyz);
