@@ -29,10 +29,10 @@
 #include "core/timing.h"
 #include "raster/mesh.h"
 #include "raster/raster.h"
-#include "raster/sky.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
+#include "shading/sky.h"
 
 namespace posthaste::raster {
 
@@ -539,7 +539,7 @@ struct SkyCache {
     };
     std::array<Slot, 16> slots;
 
-    explicit SkyCache(const Scene &s) : sky(&scene_sky(s.sun.direction)) {}
+    explicit SkyCache(const Scene &s) : sky(&shading::scene_sky(s.sun.direction)) {}
     const glm::vec3 &ambient(const glm::vec3 &normal)
     {
         const std::uint32_t h = bits(normal.x) * 0x9E3779B1u + bits(normal.y) * 0x85EBCA77u +
@@ -559,7 +559,7 @@ struct SkyCache {
     }
     glm::vec3 radiance(const glm::vec3 &dir) const
     {
-        return sky->radiance(dir, glm::vec3(0.0f, kSkyCameraY, 0.0f), false);
+        return sky->radiance(dir, glm::vec3(0.0f, shading::kSkyCameraY, 0.0f), false);
     }
 };
 
@@ -882,7 +882,7 @@ class ColorRow {
 #if POSTHASTE_HAVE_AVX2_TARGET
     void finish_vector()
     {
-        const glm::vec3 cam(0.0f, kSkyCameraY, 0.0f);
+        const glm::vec3 cam(0.0f, shading::kSkyCameraY, 0.0f);
         const shading::SkyView &view = sky_.sky->atmosphere().cached_sky_view();
         if (sky_n_ > 0) {
             view.radiance_n(

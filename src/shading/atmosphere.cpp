@@ -742,7 +742,7 @@ void SkyView::radiance_n(
     const float *x, const float *y, const float *z, int n, glm::vec3 *out) const
 {
     static_assert(sizeof(glm::vec3) == 3 * sizeof(float));
-    sky_radiance(AtmosphereKernels::sky(*this), x, y, z, n, &out->x);
+    sky_view_radiance(AtmosphereKernels::sky(*this), x, y, z, n, &out->x);
 }
 
 namespace {

@@ -309,7 +309,7 @@ namespace posthaste::shading {
 HWY_EXPORT(SkyRadianceN);
 HWY_EXPORT(AtmosphereRow);
 
-void sky_radiance(
+void sky_view_radiance(
     const SkyCoordParams &p, const float *x, const float *y, const float *z, int n, float *rgb)
 {
     HWY_DYNAMIC_DISPATCH(SkyRadianceN)(p, x, y, z, n, rgb);

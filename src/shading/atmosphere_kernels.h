@@ -20,7 +20,7 @@ struct SkyCoordParams {
 
 /// SkyView::radiance for n unit directions (x[i], y[i], z[i]) into rgb (3 n floats): the LUT's
 /// coordinates and its bilinear lookup. NaN directions give finite radiance.
-void sky_radiance(
+void sky_view_radiance(
     const SkyCoordParams &p, const float *x, const float *y, const float *z, int n, float *rgb);
 
 /// One image row for the aerial perspective (finite depths) and the sky (infinite ones).

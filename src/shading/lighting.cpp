@@ -4,8 +4,8 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 
-#include "raster/sky.h"
 #include "shading/scene_sky.h"
+#include "shading/sky.h"
 
 namespace posthaste::shading {
 
@@ -60,7 +60,7 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const glm::vec3 &sun_dir,
                         float scale)
 {
-    const SceneSky &sky = raster::scene_sky(sun_dir);
+    const SceneSky &sky = scene_sky(sun_dir);
     return add_sky_light(c, s, n, v, sky, sky.ambient(n), scale);
 }
 
@@ -82,9 +82,8 @@ glm::vec3 add_sky_light(glm::vec3 c,
     const glm::vec3 env =
         gloss < 0.05f
             ? amb
-            : glm::mix(amb,
-                       sky.radiance(r, glm::vec3(0.0f, raster::kSkyCameraY, 0.0f), false) * scale,
-                       gloss);
+            : glm::mix(
+                  amb, sky.radiance(r, glm::vec3(0.0f, kSkyCameraY, 0.0f), false) * scale, gloss);
     c += fresnel_schlick(specular_f0(s), nv) * env;
     return c;
 }

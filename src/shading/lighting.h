@@ -47,8 +47,9 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const glm::vec3 &sun_dir,
                         float scale);
 
-/// add_sky_light for callers that look the sky up once per tile: `sky` is raster::scene_sky
-/// of the sun direction and `ambient` its ambient(n), unscaled. The same result, bit for bit.
+/// add_sky_light for callers that look the sky up once per tile: `sky` is shading::scene_sky
+/// (shading/sky.h) of the sun direction and `ambient` its ambient(n), unscaled. The same result,
+/// bit for bit.
 glm::vec3 add_sky_light(glm::vec3 c,
                         const Surface &s,
                         const glm::vec3 &n,

@@ -1,5 +1,5 @@
 #pragma once
-// The sky seen by the rasterizer, its background and the source of its ambient light: the
+// The scene sky: what the rasterizer sees, its background and the source of its ambient light: the
 // Hillaire 2020 atmosphere (shading/atmosphere.h) with the lit ground below the horizon
 // (shading/scene_sky.h), for a sun of illuminance kSkyIlluminance. The relight node lights with
 // the same functions, and the render node writes that illuminance into the header
@@ -8,10 +8,8 @@
 #include <glm/vec3.hpp>
 
 namespace posthaste::shading {
-class SceneSky;
-}
 
-namespace posthaste::raster {
+class SceneSky;
 
 /// Sun illuminance (per channel) the scene sky is computed for; a brightness choice that keeps
 /// the sky's exposure near the surfaces lit by the scene's sun.
@@ -21,7 +19,7 @@ inline constexpr float kSkyCameraY = 1.7f;
 
 /// The scene sky for a sun toward unit `sun_dir` (a zero vector: the default sun
 /// (0.4, 0.75, 0.3)), built once per direction and kept for the process. Thread-safe.
-const shading::SceneSky &scene_sky(const glm::vec3 &sun_dir);
+const SceneSky &scene_sky(const glm::vec3 &sun_dir);
 
 /// Scene-linear radiance of the sky in unit direction `dir` (world, y up), without the sun disc.
 glm::vec3 sky_radiance(const glm::vec3 &dir, const glm::vec3 &sun_dir);
@@ -30,4 +28,4 @@ glm::vec3 sky_radiance(const glm::vec3 &dir, const glm::vec3 &sun_dir);
 /// by pi (so that albedo * sky_ambient_radiance(n) is the reflected diffuse radiance).
 glm::vec3 sky_ambient_radiance(const glm::vec3 &n, const glm::vec3 &sun_dir);
 
-}  // namespace posthaste::raster
+}  // namespace posthaste::shading

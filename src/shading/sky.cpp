@@ -1,4 +1,4 @@
-#include "raster/sky.h"
+#include "shading/sky.h"
 
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -10,13 +10,13 @@
 #include "shading/atmosphere.h"
 #include "shading/scene_sky.h"
 
-namespace posthaste::raster {
+namespace posthaste::shading {
 namespace {
 
 struct Entry {
     glm::vec3 sun;
-    std::unique_ptr<shading::Atmosphere> atmosphere;
-    std::unique_ptr<shading::SceneSky> sky;
+    std::unique_ptr<Atmosphere> atmosphere;
+    std::unique_ptr<SceneSky> sky;
 };
 
 std::mutex g_mutex;
@@ -24,11 +24,11 @@ std::vector<std::unique_ptr<Entry>> g_entries;  // never erased: references stay
 
 }  // namespace
 
-const shading::SceneSky &scene_sky(const glm::vec3 &sun_dir_in)
+const SceneSky &scene_sky(const glm::vec3 &sun_dir_in)
 {
     // Per-pixel callers hit the same sun again and again: a per-thread memo avoids the lock.
     thread_local glm::vec3 last_sun(std::numeric_limits<float>::quiet_NaN());
-    thread_local const shading::SceneSky *last_sky = nullptr;
+    thread_local const SceneSky *last_sky = nullptr;
     if (last_sky && sun_dir_in == last_sun) {
         return *last_sky;
     }
@@ -47,12 +47,12 @@ const shading::SceneSky &scene_sky(const glm::vec3 &sun_dir_in)
     }
     auto e = std::make_unique<Entry>();
     e->sun = sun;
-    shading::AtmosphereParams p;
+    AtmosphereParams p;
     p.sun_direction = sun;
     p.sun_illuminance = glm::vec3(kSkyIlluminance);
     p.sky_view_y = kSkyCameraY;
-    e->atmosphere = std::make_unique<shading::Atmosphere>(p);
-    e->sky = std::make_unique<shading::SceneSky>(*e->atmosphere);
+    e->atmosphere = std::make_unique<Atmosphere>(p);
+    e->sky = std::make_unique<SceneSky>(*e->atmosphere);
     g_entries.push_back(std::move(e));
     last_sun = sun_dir_in;
     last_sky = g_entries.back()->sky.get();
@@ -69,4 +69,4 @@ glm::vec3 sky_ambient_radiance(const glm::vec3 &n, const glm::vec3 &sun_dir)
     return scene_sky(sun_dir).ambient(n);
 }
 
-}  // namespace posthaste::raster
+}  // namespace posthaste::shading
