@@ -15,9 +15,8 @@
 #include "core/hash.h"
 #include "core/memory.h"
 #include "core/parallel.h"
-#include "core/simd.h"
-#include "core/simd_avx2.h"
 #include "core/timing.h"
+#include "shading/dof_kernels.h"
 
 namespace posthaste::shading {
 namespace {
@@ -50,12 +49,7 @@ float polygon_boundary(float angle, int blades)
 // horizontally adjacent pixels are one contiguous load): colour channels, signed CoC radius (in
 // this level's pixels), 1 / CoC^2 (+inf at 0: the near field's footprint and, clamped to 1, the
 // background's) and size.
-struct Level {
-    const float *ch[4] = {nullptr, nullptr, nullptr, nullptr};
-    const float *coc = nullptr;
-    const float *inv2 = nullptr;
-    int width = 0, height = 0;
-
+struct Level : dof::PlanesView {
     glm::vec4 color(std::size_t i) const { return {ch[0][i], ch[1][i], ch[2][i], ch[3][i]}; }
 };
 
@@ -96,13 +90,10 @@ struct Planes {
 // each pixel by hash(x, y)), so the noise is the same for any thread count.
 constexpr int kVariants = 16;
 
-struct Tap {
-    std::int16_t dx, dy;
-    /// 0.5 - the shape-normalised distance d of the pixel read. How much of that pixel a CoC of
-    /// radius r covers is clamp(r - d + 0.5, 0, 1) = clamp(r + rim, 0, 1): a one-pixel ramp
-    /// centred on the rim, so a CoC under half a pixel reaches no neighbour.
-    float rim;
-};
+// rim = 0.5 - the shape-normalised distance d of the pixel read. How much of that pixel a CoC of
+// radius r covers is clamp(r - d + 0.5, 0, 1) = clamp(r + rim, 0, 1): a one-pixel ramp centred
+// on the rim, so a CoC under half a pixel reaches no neighbour.
+using dof::Tap;
 
 class Patterns {
    public:
@@ -264,37 +255,12 @@ glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
 //   covers the lens (alpha >= 1: the composite would weigh the background by 0), skip it.
 // The spiral variant is hashed from (group, y), so the result does not depend on the thread
 // count. Both paths below sum each pixel's taps in the same order; they differ only in rounding.
-constexpr int kLanes = 8;
-
-// Per-lane state of one group: the pixel's own CoC and background self weight, and the running
-// sums of both layers.
-struct Group {
-    float cp[kLanes], acp[kLanes], w_self[kLanes];
-    float front[4][kLanes], front_w[kLanes], near_w[kLanes];
-    float back[4][kLanes], back_w[kLanes];
-};
-
-void near_pass_scalar(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
-{
-    const int w = lv.width, h = lv.height;
-    for (int i = 0; i < n; ++i) {
-        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
-        for (int j = 0; j < kLanes; ++j) {
-            const std::size_t iq = row + std::size_t(std::clamp(x0 + j + taps[i].dx, 0, w - 1));
-            const float cq = lv.coc[iq];
-            if (!(cq < -0.5f && cq <= g.cp[j] + 1.0f)) {
-                continue;
-            }
-            // Near field in front of p: spreads with its own CoC over whatever is behind.
-            const float wgt = std::clamp(taps[i].rim - cq, 0.0f, 1.0f) * lv.inv2[iq];
-            for (int k = 0; k < 4; ++k) {
-                g.front[k][j] += lv.ch[k][iq] * wgt;
-            }
-            g.front_w[j] += wgt;
-            g.near_w[j] += wgt;
-        }
-    }
-}
+// The group kernels (setup, near pass, background pass, composite, and the rows between the
+// interleaved image and the planes) are in dof_kernels.cpp, written once over Highway.
+using dof::Group;
+using dof::kLanes;
+using dof::merge_row;
+using dof::split_row;
 
 // Background weights. Behind p (c_q > c_p) a sample counts with p's own radius when p is in the
 // near field (the background within p's disc shows through it), else with min(|c_q|, |c_p|): a
@@ -303,192 +269,6 @@ void near_pass_scalar(const Level &lv, int x0, int y, const Tap *taps, int n, Gr
 // with lo_p = |c_p| in the near field and 0 elsewhere, and the weight's 1 / max(r^2, 1) is
 // max(min(1 / c_q^2, hi_p), w_p) with w_p = 1 / max(c_p^2, 1), hi_p = 0 in the near field and 1
 // elsewhere. A lane outside the pass gets hi = w = 0: a zero weight.
-void back_pass_scalar(const Level &lv,
-                      int x0,
-                      int y,
-                      const Tap *taps,
-                      int n,
-                      const float *lo,
-                      const float *hi,
-                      const float *ws,
-                      Group &g)
-{
-    const int w = lv.width, h = lv.height;
-    for (int i = 0; i < n; ++i) {
-        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
-        for (int j = 0; j < kLanes; ++j) {
-            const std::size_t iq = row + std::size_t(std::clamp(x0 + j + taps[i].dx, 0, w - 1));
-            const float cq = lv.coc[iq];
-            if (cq < -0.5f && cq <= g.cp[j] + 1.0f) {
-                continue;  // the near pass
-            }
-            const float r = std::min(std::max(std::fabs(cq), lo[j]), g.acp[j]);
-            const float inv_area = std::max(std::min(lv.inv2[iq], hi[j]), ws[j]);
-            const float wgt = std::clamp(r + taps[i].rim, 0.0f, 1.0f) * inv_area;
-            for (int k = 0; k < 4; ++k) {
-                g.back[k][j] += lv.ch[k][iq] * wgt;
-            }
-            g.back_w[j] += wgt;
-        }
-    }
-}
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-namespace v8 = simd::v8;
-
-// Eight pixels of a plane at columns col0 .. col0 + 7 of a row: one load inside the image, a
-// gather of the edge-clamped columns across its left or right border.
-POSTHASTE_AVX2_INLINE v8::V load_lanes(const float *row, int col0, bool inside, v8::VI cols)
-{
-    return inside ? _mm256_loadu_ps(row + col0) : _mm256_i32gather_ps(row, cols, 4);
-}
-
-POSTHASTE_AVX2_INLINE v8::VI clamped_cols(int col0, int w)
-{
-    const v8::VI c =
-        _mm256_add_epi32(_mm256_set1_epi32(col0), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-    return _mm256_min_epi32(_mm256_max_epi32(c, _mm256_setzero_si256()), _mm256_set1_epi32(w - 1));
-}
-
-POSTHASTE_AVX2 void near_pass_avx2(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
-{
-    const int w = lv.width, h = lv.height;
-    const v8::V cp1 = _mm256_add_ps(_mm256_loadu_ps(g.cp), v8::set1(1.0f));
-    const v8::V lim = v8::set1(-0.5f), zero = _mm256_setzero_ps(), one = v8::set1(1.0f);
-    v8::V f0 = _mm256_loadu_ps(g.front[0]), f1 = _mm256_loadu_ps(g.front[1]);
-    v8::V f2 = _mm256_loadu_ps(g.front[2]), f3 = _mm256_loadu_ps(g.front[3]);
-    v8::V fw = _mm256_loadu_ps(g.front_w), nw = _mm256_loadu_ps(g.near_w);
-    for (int i = 0; i < n; ++i) {
-        const std::size_t row = std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
-        const int col0 = x0 + taps[i].dx;
-        const bool inside = col0 >= 0 && col0 + kLanes <= w;
-        const v8::VI cols = clamped_cols(col0, w);
-        const v8::V cq = load_lanes(lv.coc + row, col0, inside, cols);
-        const v8::V front =
-            _mm256_and_ps(_mm256_cmp_ps(cq, lim, _CMP_LT_OQ), _mm256_cmp_ps(cq, cp1, _CMP_LE_OQ));
-        if (_mm256_movemask_ps(front) == 0) {
-            continue;
-        }
-        // clamp(-cq + 0.5 - dist, 0, 1) * (1 / cq^2), on the near-field lanes only.
-        const v8::V cov = v8::clamp(_mm256_sub_ps(v8::set1(taps[i].rim), cq), zero, one);
-        const v8::V wgt =
-            _mm256_and_ps(_mm256_mul_ps(cov, load_lanes(lv.inv2 + row, col0, inside, cols)), front);
-        f0 = _mm256_fmadd_ps(load_lanes(lv.ch[0] + row, col0, inside, cols), wgt, f0);
-        f1 = _mm256_fmadd_ps(load_lanes(lv.ch[1] + row, col0, inside, cols), wgt, f1);
-        f2 = _mm256_fmadd_ps(load_lanes(lv.ch[2] + row, col0, inside, cols), wgt, f2);
-        f3 = _mm256_fmadd_ps(load_lanes(lv.ch[3] + row, col0, inside, cols), wgt, f3);
-        fw = _mm256_add_ps(fw, wgt);
-        nw = _mm256_add_ps(nw, wgt);
-    }
-    _mm256_storeu_ps(g.front[0], f0);
-    _mm256_storeu_ps(g.front[1], f1);
-    _mm256_storeu_ps(g.front[2], f2);
-    _mm256_storeu_ps(g.front[3], f3);
-    _mm256_storeu_ps(g.front_w, fw);
-    _mm256_storeu_ps(g.near_w, nw);
-}
-
-// One background tap for eight lanes (see back_pass_scalar); Inside: the eight columns are in
-// the image (one load per plane), else edge-clamped (a gather per plane).
-struct BackLanes {
-    v8::V cp1, acp, lo, hi, ws;
-};
-struct Sums {
-    v8::V c[4], w;
-};
-
-template <bool Inside>
-POSTHASTE_AVX2_INLINE v8::V load_at(const float *row, int col0, v8::VI cols)
-{
-    if constexpr (Inside) {
-        return _mm256_loadu_ps(row + col0);
-    } else {
-        return _mm256_i32gather_ps(row, cols, 4);
-    }
-}
-
-// idx: the first lane's element (Inside) or the row's first element (edge-clamped columns).
-template <bool Inside>
-POSTHASTE_AVX2_INLINE void back_tap(
-    const Level &lv, std::size_t idx, v8::VI cols, float rim, const BackLanes &l, Sums &s)
-{
-    const v8::V cq = load_at<Inside>(lv.coc + idx, 0, cols);
-    const v8::V front = _mm256_and_ps(_mm256_cmp_ps(cq, v8::set1(-0.5f), _CMP_LT_OQ),
-                                      _mm256_cmp_ps(cq, l.cp1, _CMP_LE_OQ));
-    const v8::V r =
-        _mm256_min_ps(_mm256_max_ps(_mm256_andnot_ps(v8::set1(-0.0f), cq), l.lo), l.acp);
-    const v8::V inv_area =
-        _mm256_max_ps(_mm256_min_ps(load_at<Inside>(lv.inv2 + idx, 0, cols), l.hi), l.ws);
-    const v8::V cov =
-        v8::clamp(_mm256_add_ps(r, v8::set1(rim)), _mm256_setzero_ps(), v8::set1(1.0f));
-    const v8::V wgt = _mm256_andnot_ps(front, _mm256_mul_ps(cov, inv_area));
-    for (int k = 0; k < 4; ++k) {
-        s.c[k] = _mm256_fmadd_ps(load_at<Inside>(lv.ch[k] + idx, 0, cols), wgt, s.c[k]);
-    }
-    s.w = _mm256_add_ps(s.w, wgt);
-}
-
-POSTHASTE_AVX2 void back_pass_avx2(const Level &lv,
-                                   int x0,
-                                   int y,
-                                   const Tap *taps,
-                                   const std::ptrdiff_t *offsets,
-                                   int n,
-                                   int reach,
-                                   const float *lo_p,
-                                   const float *hi_p,
-                                   const float *ws_p,
-                                   Group &g)
-{
-    const int w = lv.width, h = lv.height;
-    BackLanes l;
-    l.cp1 = _mm256_add_ps(_mm256_loadu_ps(g.cp), v8::set1(1.0f));
-    l.acp = _mm256_loadu_ps(g.acp);
-    l.lo = _mm256_loadu_ps(lo_p);
-    l.hi = _mm256_loadu_ps(hi_p);
-    l.ws = _mm256_loadu_ps(ws_p);
-    Sums s;
-    for (int k = 0; k < 4; ++k) {
-        s.c[k] = _mm256_loadu_ps(g.back[k]);
-    }
-    s.w = _mm256_loadu_ps(g.back_w);
-    const v8::VI none = _mm256_setzero_si256();
-    if (x0 - reach >= 0 && x0 + reach + kLanes <= w && y - reach >= 0 && y + reach < h) {
-        // The whole reach inside the image: each tap is its precomputed offset.
-        const std::ptrdiff_t base = std::ptrdiff_t(y) * w + x0;
-        for (int i = 0; i < n; ++i) {
-            back_tap<true>(lv, std::size_t(base + offsets[i]), none, taps[i].rim, l, s);
-        }
-    } else {
-        for (int i = 0; i < n; ++i) {
-            const std::size_t row =
-                std::size_t(std::clamp(y + taps[i].dy, 0, h - 1)) * std::size_t(w);
-            const int col0 = x0 + taps[i].dx;
-            if (col0 >= 0 && col0 + kLanes <= w) {
-                back_tap<true>(lv, row + std::size_t(col0), none, taps[i].rim, l, s);
-            } else {
-                back_tap<false>(lv, row, clamped_cols(col0, w), taps[i].rim, l, s);
-            }
-        }
-    }
-    for (int k = 0; k < 4; ++k) {
-        _mm256_storeu_ps(g.back[k], s.c[k]);
-    }
-    _mm256_storeu_ps(g.back_w, s.w);
-}
-#endif
-
-void near_pass(const Level &lv, int x0, int y, const Tap *taps, int n, Group &g)
-{
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
-        near_pass_avx2(lv, x0, y, taps, n, g);
-        return;
-    }
-#endif
-    near_pass_scalar(lv, x0, y, taps, n, g);
-}
-
 void back_pass(const Level &lv,
                int x0,
                int y,
@@ -506,203 +286,7 @@ void back_pass(const Level &lv,
         hi[j] = on && !p_near ? 1.0f : 0.0f;
         ws[j] = on ? g.w_self[j] : 0.0f;
     }
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
-        back_pass_avx2(lv, x0, y, taps, offsets, n, reach, lo, hi, ws, g);
-        return;
-    }
-#endif
-    (void)offsets;  // the scalar path clamps each tap instead
-    (void)reach;
-    back_pass_scalar(lv, x0, y, taps, n, lo, hi, ws, g);
-}
-
-// A group's starting sums: each pixel itself, in the near layer when it is in the near field,
-// else in the background, weighed 1 / max(c_p^2, 1). Lanes past the row's end repeat its last
-// pixel; their results are dropped.
-void setup_group_scalar(const Level &lv, int x0, int y, Group &g)
-{
-    const int w = lv.width;
-    for (int j = 0; j < kLanes; ++j) {
-        const std::size_t ip =
-            std::size_t(y) * std::size_t(w) + std::size_t(std::min(x0 + j, w - 1));
-        const float cp = lv.coc[ip];
-        g.cp[j] = cp;
-        g.acp[j] = std::fabs(cp);
-        g.w_self[j] = std::min(lv.inv2[ip], 1.0f);
-        const float wf = cp < -0.5f ? g.w_self[j] : 0.0f, wb = g.w_self[j] - wf;
-        for (int k = 0; k < 4; ++k) {
-            const float v = lv.ch[k][ip];
-            g.front[k][j] = v * wf;
-            g.back[k][j] = v * wb;
-        }
-        g.front_w[j] = wf;
-        g.back_w[j] = wb;
-        g.near_w[j] = 0.0f;
-    }
-}
-
-// The composite back (1 - alpha) + front alpha of each lane, from its sums: front and back are
-// weighted means; alpha = sum cov (R^2 / n) / c_q^2 over the near samples, at most 1; with no
-// background weight at all the near layer stands alone.
-void composite_group_scalar(const Group &g, float sample_area, float (*out)[kLanes])
-{
-    for (int j = 0; j < kLanes; ++j) {
-        float front[4] = {0.0f, 0.0f, 0.0f, 0.0f}, alpha = 0.0f, back[4];
-        if (g.front_w[j] > 0.0f) {
-            const float inv = 1.0f / g.front_w[j];
-            for (int k = 0; k < 4; ++k) {
-                front[k] = g.front[k][j] * inv;
-            }
-            alpha = std::min(g.near_w[j] * sample_area, 1.0f);
-        }
-        if (g.back_w[j] > 0.0f) {
-            const float inv = 1.0f / g.back_w[j];
-            for (int k = 0; k < 4; ++k) {
-                back[k] = g.back[k][j] * inv;
-            }
-        } else {
-            std::copy(front, front + 4, back);
-            alpha = 1.0f;
-        }
-        for (int k = 0; k < 4; ++k) {
-            out[k][j] = back[k] * (1.0f - alpha) + front[k] * alpha;
-        }
-    }
-}
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-POSTHASTE_AVX2 void setup_group_avx2(const Level &lv, int x0, int y, Group &g)
-{
-    const std::size_t ip = std::size_t(y) * std::size_t(lv.width) + std::size_t(x0);
-    const v8::V cp = _mm256_loadu_ps(lv.coc + ip);
-    const v8::V ws = _mm256_min_ps(_mm256_loadu_ps(lv.inv2 + ip), v8::set1(1.0f));
-    const v8::V wf = _mm256_and_ps(ws, _mm256_cmp_ps(cp, v8::set1(-0.5f), _CMP_LT_OQ));
-    const v8::V wb = _mm256_sub_ps(ws, wf);
-    _mm256_storeu_ps(g.cp, cp);
-    _mm256_storeu_ps(g.acp, _mm256_andnot_ps(v8::set1(-0.0f), cp));
-    _mm256_storeu_ps(g.w_self, ws);
-    for (int k = 0; k < 4; ++k) {
-        const v8::V v = _mm256_loadu_ps(lv.ch[k] + ip);
-        _mm256_storeu_ps(g.front[k], _mm256_mul_ps(v, wf));
-        _mm256_storeu_ps(g.back[k], _mm256_mul_ps(v, wb));
-    }
-    _mm256_storeu_ps(g.front_w, wf);
-    _mm256_storeu_ps(g.back_w, wb);
-    _mm256_storeu_ps(g.near_w, _mm256_setzero_ps());
-}
-
-POSTHASTE_AVX2 void composite_group_avx2(const Group &g, float sample_area, float (*out)[kLanes])
-{
-    const v8::V zero = _mm256_setzero_ps(), one = v8::set1(1.0f);
-    const v8::V fw = _mm256_loadu_ps(g.front_w), bw = _mm256_loadu_ps(g.back_w);
-    const v8::V has_front = _mm256_cmp_ps(fw, zero, _CMP_GT_OQ);
-    const v8::V has_back = _mm256_cmp_ps(bw, zero, _CMP_GT_OQ);
-    const v8::V inv_f = _mm256_div_ps(one, fw), inv_b = _mm256_div_ps(one, bw);
-    v8::V alpha = _mm256_and_ps(
-        _mm256_min_ps(_mm256_mul_ps(_mm256_loadu_ps(g.near_w), v8::set1(sample_area)), one),
-        has_front);
-    alpha = _mm256_blendv_ps(one, alpha, has_back);
-    const v8::V keep = _mm256_sub_ps(one, alpha);
-    for (int k = 0; k < 4; ++k) {
-        const v8::V front =
-            _mm256_and_ps(_mm256_mul_ps(_mm256_loadu_ps(g.front[k]), inv_f), has_front);
-        const v8::V back =
-            _mm256_blendv_ps(front, _mm256_mul_ps(_mm256_loadu_ps(g.back[k]), inv_b), has_back);
-        _mm256_storeu_ps(out[k],
-                         _mm256_add_ps(_mm256_mul_ps(back, keep), _mm256_mul_ps(front, alpha)));
-    }
-}
-#endif
-
-// Colour rows between the interleaved RGBA image and the planes (pure data movement and the
-// sanitising of non-finite values, so both paths give the same bits).
-void split_row_scalar(const float *src, int nc, int x0, int x1, float *const *plane)
-{
-    for (int x = x0; x < x1; ++x) {
-        for (int k = 0; k < 4; ++k) {
-            plane[k][x] =
-                k < nc ? sanitize(src[std::size_t(x) * std::size_t(nc) + std::size_t(k)]) : 0.0f;
-        }
-    }
-}
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-// Four channels of eight RGBA pixels: a 4 x 8 transpose either way. In 128-bit halves, pixel
-// pairs (0,1), (2,3), (4,5), (6,7) go to channel vectors ordered (0 2 4 6 | 1 3 5 7), hence the
-// final permute.
-POSTHASTE_AVX2 void split_row_avx2(const float *src, int nc, int x0, int x1, float *const *plane)
-{
-    int x = x0;
-    if (nc == 4) {
-        const v8::VI order = _mm256_setr_epi32(0, 4, 1, 5, 2, 6, 3, 7);
-        const v8::V sign = v8::set1(-0.0f), big = v8::set1(std::numeric_limits<float>::max());
-        for (; x + kLanes <= x1; x += kLanes) {
-            const float *p = src + std::size_t(x) * 4;
-            const v8::V p0 = _mm256_loadu_ps(p), p1 = _mm256_loadu_ps(p + 8);
-            const v8::V p2 = _mm256_loadu_ps(p + 16), p3 = _mm256_loadu_ps(p + 24);
-            const __m256d t0 = _mm256_castps_pd(_mm256_unpacklo_ps(p0, p1));
-            const __m256d t1 = _mm256_castps_pd(_mm256_unpackhi_ps(p0, p1));
-            const __m256d t2 = _mm256_castps_pd(_mm256_unpacklo_ps(p2, p3));
-            const __m256d t3 = _mm256_castps_pd(_mm256_unpackhi_ps(p2, p3));
-            const v8::V c[4] = {_mm256_castpd_ps(_mm256_unpacklo_pd(t0, t2)),
-                                _mm256_castpd_ps(_mm256_unpackhi_pd(t0, t2)),
-                                _mm256_castpd_ps(_mm256_unpacklo_pd(t1, t3)),
-                                _mm256_castpd_ps(_mm256_unpackhi_pd(t1, t3))};
-            for (int k = 0; k < 4; ++k) {
-                const v8::V v = _mm256_permutevar8x32_ps(c[k], order);
-                const v8::V finite = _mm256_cmp_ps(_mm256_andnot_ps(sign, v), big, _CMP_LE_OQ);
-                _mm256_storeu_ps(plane[k] + x, _mm256_and_ps(v, finite));
-            }
-        }
-    }
-    split_row_scalar(src, nc, x, x1, plane);
-}
-
-POSTHASTE_AVX2 void merge_rgba8_avx2(const float (*v)[kLanes], float *dst)
-{
-    const v8::V r = _mm256_loadu_ps(v[0]), g = _mm256_loadu_ps(v[1]);
-    const v8::V b = _mm256_loadu_ps(v[2]), a = _mm256_loadu_ps(v[3]);
-    const __m256d rg_lo = _mm256_castps_pd(_mm256_unpacklo_ps(r, g));  // r0 g0 r1 g1 | r4 g4 r5 g5
-    const __m256d rg_hi = _mm256_castps_pd(_mm256_unpackhi_ps(r, g));  // r2 g2 r3 g3 | r6 ..
-    const __m256d ba_lo = _mm256_castps_pd(_mm256_unpacklo_ps(b, a));
-    const __m256d ba_hi = _mm256_castps_pd(_mm256_unpackhi_ps(b, a));
-    const v8::V q0 = _mm256_castpd_ps(_mm256_unpacklo_pd(rg_lo, ba_lo));  // px 0 | px 4
-    const v8::V q1 = _mm256_castpd_ps(_mm256_unpackhi_pd(rg_lo, ba_lo));  // px 1 | px 5
-    const v8::V q2 = _mm256_castpd_ps(_mm256_unpacklo_pd(rg_hi, ba_hi));  // px 2 | px 6
-    const v8::V q3 = _mm256_castpd_ps(_mm256_unpackhi_pd(rg_hi, ba_hi));  // px 3 | px 7
-    _mm256_storeu_ps(dst, _mm256_permute2f128_ps(q0, q1, 0x20));
-    _mm256_storeu_ps(dst + 8, _mm256_permute2f128_ps(q2, q3, 0x20));
-    _mm256_storeu_ps(dst + 16, _mm256_permute2f128_ps(q0, q1, 0x31));
-    _mm256_storeu_ps(dst + 24, _mm256_permute2f128_ps(q2, q3, 0x31));
-}
-#endif
-
-void split_row(const float *src, int nc, int x0, int x1, float *const *plane)
-{
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
-        split_row_avx2(src, nc, x0, x1, plane);
-        return;
-    }
-#endif
-    split_row_scalar(src, nc, x0, x1, plane);
-}
-
-// The first `count` lanes of four channel rows into `nc`-channel interleaved pixels.
-void merge_row(const float (*v)[kLanes], int count, int nc, float *dst)
-{
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2() && nc == 4 && count == kLanes) {
-        merge_rgba8_avx2(v, dst);
-        return;
-    }
-#endif
-    for (int j = 0; j < count; ++j) {
-        for (int k = 0; k < nc; ++k) {  // nc <= 4
-            dst[j * nc + k] = v[k][j];
-        }
-    }
+    dof::back_pass(lv, x0, y, taps, offsets, n, reach, lo, hi, ws, g);
 }
 
 // Gathers both layers of the pixels x0 .. x0 + 7 of row y (x0 a multiple of 8; lanes from
@@ -710,15 +294,7 @@ void merge_row(const float (*v)[kLanes], int count, int nc, float *dst)
 float gather_group(
     const Context &cx, const Level &lv, int x0, int y, int count, float near_radius, Group &g)
 {
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2() && count == kLanes) {
-        setup_group_avx2(lv, x0, y, g);
-    } else {
-        setup_group_scalar(lv, x0, y, g);
-    }
-#else
-    setup_group_scalar(lv, x0, y, g);
-#endif
+    dof::setup_group(lv, x0, y, count, g);
     const int group = x0 / kLanes;
     float sample_area = 0.0f;
     if (near_radius >= 0.5f) {
@@ -728,7 +304,7 @@ float gather_group(
         // Each sample stands for R^2 / n of the kernel's area (in units of the unit shape's
         // area), a near sample's footprint is |c_q|^2 of them.
         sample_area = r * r / float(n);
-        near_pass(lv, x0, y, cx.patterns.taps(k, variant_of(cx, group, y, 1)), n, g);
+        dof::near_pass(lv, x0, y, cx.patterns.taps(k, variant_of(cx, group, y, 1)), n, g);
     }
     unsigned remaining = 0;
     for (int j = 0; j < count; ++j) {
@@ -776,17 +352,6 @@ float gather_group(
         remaining &= ~lanes;
     }
     return sample_area;
-}
-
-void composite_group(const Group &g, float sample_area, float (*out)[kLanes])
-{
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
-        composite_group_avx2(g, sample_area, out);
-        return;
-    }
-#endif
-    composite_group_scalar(g, sample_area, out);
 }
 
 // The two layers of each of the first `count` lanes (the half-resolution path keeps them apart).
@@ -1017,7 +582,7 @@ bool apply_dof(const Image &color,
                     if (!copy && !simple && !use_half) {
                         Group g;
                         const float area = gather_group(cx, full, x0, y, count, near_radius, g);
-                        composite_group(g, area, v);
+                        dof::composite_group(g, area, v);
                     } else {
                         for (int j = 0; j < count; ++j) {
                             const int x = x0 + j;

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 
 #include "core/error.h"
@@ -197,8 +198,10 @@ TEST(Dof, VectorAndScalarPathsAgree)
             const double a = vec.data()[i], b = sca.data()[i];
             worst = std::max(worst, std::fabs(a - b) / std::max(1.0, std::fabs(b)));
         }
-        // Measured: 4.6e-7 relative at most (float rounding of sums of up to 2 x 64 taps).
+        // The best Highway target against the portable one-lane target of the same source: float
+        // rounding of sums of up to 2 x 64 taps (fused or not).
         EXPECT_LT(worst, 1e-5) << "variant " << variant;
+        std::printf("[ measured ] dof variant %d: vector vs scalar target %.2g\n", variant, worst);
     }
 }
 
