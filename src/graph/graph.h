@@ -80,6 +80,7 @@ class Graph {
     NodeTimes make_times() const;
 
    private:
+    friend struct GraphBuilder;  // the steps of parse (graph_parse.cpp)
     Graph() = default;
     void plan();
     /// Evaluate frame `frame`: every live node (target < 0), or only node `target` and what it

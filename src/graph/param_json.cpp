@@ -1,0 +1,160 @@
+#include "graph/param_json.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "core/error.h"
+#include "graph/graph.h"
+
+namespace posthaste {
+
+using json = nlohmann::json;
+
+std::string json_kind(const json &v)
+{
+    switch (v.type()) {
+        case json::value_t::null:
+            return "null";
+        case json::value_t::boolean:
+            return v.get<bool>() ? "true" : "false";
+        case json::value_t::string: {
+            // Built by appending: GCC 12 warns (-Wrestrict, a false positive) on "\"" + s.
+            std::string quoted(1, '"');
+            quoted += v.get<std::string>();
+            quoted += '"';
+            return quoted;
+        }
+        case json::value_t::number_integer:
+        case json::value_t::number_unsigned:
+        case json::value_t::number_float:
+            return v.dump();
+        case json::value_t::array:
+            return "an array";
+        case json::value_t::object:
+            return "an object";
+        default:
+            return "?";
+    }
+}
+
+ParamValue convert_param(const ParamSpec &spec, const json &v, const std::string &where)
+{
+    ParamValue out;
+    out.given = true;
+    auto fail = [&](const std::string &expected) {
+        throw_usage(where, ": expected ", expected, ", got ", json_kind(v));
+    };
+    auto check_range = [&](double x) {
+        if (x < spec.min || x > spec.max) {
+            const std::string range = describe_range(spec);
+            fail(describe_type(spec) + " in " + (range.empty() ? "range" : range));
+        }
+    };
+    // "integer in [0, 10]" (appended, not "..." + string: GCC 12's -Wrestrict false positive).
+    const auto with_range = [&](const char *kind) {
+        std::string text = kind;
+        const std::string range = describe_range(spec);
+        if (!range.empty()) {
+            text += ' ';
+            text += range;
+        }
+        return text;
+    };
+    switch (spec.type) {
+        case ParamType::Int: {
+            if (!v.is_number()) {
+                fail(with_range("integer"));
+            }
+            const double x = v.get<double>();
+            if (x != std::floor(x) || std::abs(x) > 2147483647.0) {
+                fail("integer");
+            }
+            check_range(x);
+            out.number = x;
+            break;
+        }
+        case ParamType::Real: {
+            if (!v.is_number()) {
+                fail(with_range("number"));
+            }
+            const double x = v.get<double>();
+            if (!std::isfinite(x)) {
+                fail("finite number");
+            }
+            check_range(x);
+            out.number = x;
+            break;
+        }
+        case ParamType::Bool:
+            if (!v.is_boolean()) {
+                fail("true or false");
+            }
+            out.number = v.get<bool>() ? 1.0 : 0.0;
+            break;
+        case ParamType::String:
+            if (!v.is_string()) {
+                fail("string");
+            }
+            out.text = v.get<std::string>();
+            break;
+        case ParamType::Choice: {
+            const std::vector<std::string> words = split_choices(spec.choices);
+            if (!v.is_string()) {
+                fail("one of " + std::string(spec.choices));
+            }
+            out.text = v.get<std::string>();
+            if (std::find(words.begin(), words.end(), out.text) == words.end()) {
+                throw_usage(where,
+                            ": expected one of ",
+                            spec.choices,
+                            ", got \"",
+                            out.text,
+                            "\"",
+                            did_you_mean(out.text, words));
+            }
+            break;
+        }
+        case ParamType::Vec: {
+            const std::string expected = "array of " + std::to_string(spec.vec_size) + " numbers";
+            if (v.is_number() && spec.vec_size > 0) {
+                // A single number broadcasts: "color": 0.5 is [0.5, 0.5, 0.5].
+                const double x = v.get<double>();
+                if (!std::isfinite(x)) {
+                    fail(expected);
+                }
+                check_range(x);
+                out.vec.assign(std::size_t(spec.vec_size), x);
+                break;
+            }
+            if (!v.is_array() || int(v.size()) != spec.vec_size) {
+                fail(expected);
+            }
+            for (const json &e : v) {
+                if (!e.is_number() || !std::isfinite(e.get<double>())) {
+                    fail(expected);
+                }
+                check_range(e.get<double>());
+                out.vec.push_back(e.get<double>());
+            }
+            break;
+        }
+        case ParamType::Json:
+            out.text = v.dump();
+            break;
+    }
+    return out;
+}
+
+ParamValue default_param(const ParamSpec &spec)
+{
+    ParamValue out;
+    out.number = spec.default_number;
+    out.text = std::string(spec.default_text);
+    for (int i = 0; i < spec.vec_size; ++i) {
+        out.vec.push_back(spec.default_vec[std::size_t(i)]);
+    }
+    return out;
+}
+
+}  // namespace posthaste
