@@ -92,14 +92,15 @@ inline float saturate(float x)
 class Lut2D {
    public:
     Lut2D() = default;
-    /// A zero-filled width x height table.
+    /// A zero-filled width x height table (plus one padding texel after the last, so that a
+    /// four-float load of any texel stays inside the storage).
     Lut2D(int width, int height)
-        : width_(width), height_(height), texels_(std::size_t(width) * std::size_t(height))
+        : width_(width), height_(height), texels_(std::size_t(width) * std::size_t(height) + 1)
     {
     }
     int width() const { return width_; }    ///< texels per row
     int height() const { return height_; }  ///< rows
-    /// The texels, row by row, three floats each.
+    /// The texels, row by row, three floats each, then one padding texel.
     const float *data() const { return &texels_.front().x; }
     /// Texel (x, y), unchecked.
     glm::vec3 &at(int x, int y) { return texels_[std::size_t(y) * std::size_t(width_) + x]; }

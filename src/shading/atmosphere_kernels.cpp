@@ -73,8 +73,8 @@ HWY_INLINE void SkyCoords(
 }
 
 /// The sky-view LUT's bilinear lookup (Lut2D::sample_rows on the half above or below the
-/// horizon) at (u, s) of one lane: scalar code, compiled for the target like the rest (a
-/// vector of gathers was slower on AVX2).
+/// horizon) at (u, s) of one lane, its texels read as four-float vectors where the target has
+/// them (the table has a padding texel at its end); a vector of gathers was slower on AVX2.
 HWY_INLINE void SkyLookupLane(const SkyCoordParams &p, float u, float s, bool above, float *rgb)
 {
     const int half = p.lut_height / 2;
@@ -86,10 +86,24 @@ HWY_INLINE void SkyLookupLane(const SkyCoordParams &p, float u, float s, bool ab
     const float tx = fx - float(x0), ty = fy - float(y0);
     const float *t0 = p.lut + (std::size_t(row0 + y0) * std::size_t(p.lut_width) + x0) * 3;
     const float *t1 = t0 + std::size_t(p.lut_width) * 3;
-    for (int c = 0; c < 3; ++c) {
-        const float top = t0[c] + tx * (t0[3 + c] - t0[c]);
-        const float bottom = t1[c] + tx * (t1[3 + c] - t1[c]);
-        rgb[c] = top + ty * (bottom - top);
+    const hn::CappedTag<float, 4> d4;
+    if constexpr (hn::MaxLanes(decltype(d4)()) >= 4) {
+        const auto vtx = hn::Set(d4, tx);
+        const auto a = hn::LoadU(d4, t0), b = hn::LoadU(d4, t0 + 3);
+        const auto c = hn::LoadU(d4, t1), e = hn::LoadU(d4, t1 + 3);
+        const auto top = hn::MulAdd(vtx, hn::Sub(b, a), a);
+        const auto bottom = hn::MulAdd(vtx, hn::Sub(e, c), c);
+        HWY_ALIGN float out[4];
+        hn::Store(hn::MulAdd(hn::Set(d4, ty), hn::Sub(bottom, top), top), d4, out);
+        rgb[0] = out[0];
+        rgb[1] = out[1];
+        rgb[2] = out[2];
+    } else {
+        for (int k = 0; k < 3; ++k) {
+            const float top = t0[k] + tx * (t0[3 + k] - t0[k]);
+            const float bottom = t1[k] + tx * (t1[3 + k] - t1[k]);
+            rgb[k] = top + ty * (bottom - top);
+        }
     }
 }
 
@@ -141,6 +155,101 @@ HWY_INLINE void Bilinear8(
     }
 }
 
+using D8 = hn::CappedTag<float, 8>;
+
+// The froxel at the camera: in-scatter 0, transmittance 1.
+constexpr float kCamera[8] = {0, 0, 0, 0, 1, 1, 1, 1};
+
+/// Bilinear8 in one register (targets with eight-lane vectors).
+template <class D>
+HWY_INLINE hn::Vec<D> Bilinear8V(D d8, const AtmosphereRowParams &p, int z, int cx, float tx)
+{
+    const float *f = p.froxels + ((std::size_t(z) * std::size_t(p.ap_height) + std::size_t(p.cy)) *
+                                      std::size_t(p.ap_width) +
+                                  std::size_t(cx)) *
+                                     8;
+    const std::size_t row = std::size_t(p.ap_width) * 8;
+    const auto vtx = hn::Set(d8, tx);
+    const auto a = hn::LoadU(d8, f), b = hn::LoadU(d8, f + 8);
+    const auto c = hn::LoadU(d8, f + row), e = hn::LoadU(d8, f + row + 8);
+    const auto top = hn::MulAdd(vtx, hn::Sub(b, a), a);
+    const auto bottom = hn::MulAdd(vtx, hn::Sub(e, c), c);
+    return hn::MulAdd(hn::Set(d8, p.ty), hn::Sub(bottom, top), top);
+}
+
+/// The froxels' blend at one pixel q (slice z0, -1 before the first centre; column cx + tx;
+/// weight tz between the slices), then pixel * T + S on its RGB (alpha * 1 + 0 with four
+/// channels).
+template <class D>
+HWY_INLINE void FroxelComposite(
+    D d8, const AtmosphereRowParams &p, int z0, int cx, float tx, float tz, float *q, int channels)
+{
+    const hn::CappedTag<float, 4> d4;
+#if HWY_TARGET != HWY_SCALAR  // (no UpperHalf on the one-lane target)
+    if constexpr (hn::MaxLanes(D()) == 8) {
+        // A froxel in one register: blend there, then pixel * T + S from its halves.
+        const D d8v;
+        const auto vtz = hn::Set(d8v, tz);
+        auto s = Bilinear8V(d8v, p, z0 < 0 ? 0 : z0, cx, tx);
+        if (z0 < 0) {
+            // From (in-scatter 0, transmittance 1) at the camera to slice 0.
+            const auto c = hn::LoadU(d8v, kCamera);
+            s = hn::MulAdd(vtz, hn::Sub(s, c), c);
+        } else {
+            const auto b = Bilinear8V(d8v, p, z0 + 1, cx, tx);
+            s = hn::MulAdd(vtz, hn::Sub(b, s), s);
+        }
+        const hn::Half<D> dh;
+        const auto in = hn::LowerHalf(dh, s), tr = hn::UpperHalf(dh, s);
+        if (channels == 4) {
+            // Alpha * 1 + 0: it passes through exactly.
+            hn::StoreU(hn::MulAdd(hn::LoadU(dh, q), tr, in), dh, q);
+        } else {
+            HWY_ALIGN float o4[4];
+            const float q3[4] = {q[0], q[1], q[2], 0.0f};
+            hn::Store(hn::MulAdd(hn::LoadU(dh, q3), tr, in), dh, o4);
+            q[0] = o4[0];
+            q[1] = o4[1];
+            q[2] = o4[2];
+        }
+        return;
+    }
+#endif
+    HWY_ALIGN float a[8], b[8];
+    const auto vtz = hn::Set(d8, tz);
+    if (z0 < 0) {
+        // From (in-scatter 0, transmittance 1) at the camera to slice 0.
+        Bilinear8(p, 0, cx, tx, p.ty, a);
+        for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
+            const auto c = hn::LoadU(d8, kCamera + o);
+            hn::Store(hn::MulAdd(vtz, hn::Sub(hn::Load(d8, a + o), c), c), d8, a + o);
+        }
+    } else {
+        Bilinear8(p, z0, cx, tx, p.ty, a);
+        Bilinear8(p, z0 + 1, cx, tx, p.ty, b);
+        for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
+            const auto va = hn::Load(d8, a + o);
+            hn::Store(hn::MulAdd(vtz, hn::Sub(hn::Load(d8, b + o), va), va), d8, a + o);
+        }
+    }
+    // pixel * T + S, alpha * 1 + 0 when there are four channels.
+    const int cs = channels == 4 ? 4 : 3;
+    for (int o = 0; o < cs; o += int(hn::Lanes(d4))) {
+        if (o + int(hn::Lanes(d4)) <= cs) {
+            hn::StoreU(
+                hn::MulAdd(hn::LoadU(d4, q + o), hn::Load(d4, a + 4 + o), hn::Load(d4, a + o)),
+                d4,
+                q + o);
+        } else {
+            for (int c = o; c < cs; ++c) {
+                const hn::CappedTag<float, 1> d1;
+                q[c] = hn::GetLane(
+                    hn::MulAdd(hn::Set(d1, q[c]), hn::Set(d1, a[4 + c]), hn::Set(d1, a[c])));
+            }
+        }
+    }
+}
+
 int AtmosphereRow(const AtmosphereRowParams &params,
                   const float *z,
                   float *px,
@@ -160,8 +269,6 @@ int AtmosphereRow(const AtmosphereRowParams &params,
     HWY_ALIGN float txs[kMaxLanes], tzs[kMaxLanes], us[kMaxLanes], ss[kMaxLanes];
     HWY_ALIGN float dxs[kMaxLanes], dys[kMaxLanes], dzs[kMaxLanes];
     HWY_ALIGN std::int32_t cxs[kMaxLanes], z0s[kMaxLanes];
-    const hn::CappedTag<float, 8> d8;
-    const hn::CappedTag<float, 4> d4;
     int listed = 0;
     for (int x = 0; x < n; x += lanes) {
         const int m = n - x < lanes ? n - x : lanes;
@@ -258,43 +365,14 @@ int AtmosphereRow(const AtmosphereRowParams &params,
             if (!((finite_bits[l >> 3] >> (l & 7)) & 1u)) {
                 continue;
             }
-            HWY_ALIGN float a[8], b[8];
-            const float tz = tzs[l];
-            const auto vtz = hn::Set(d8, tz);
-            if (z0s[l] < 0) {
-                // From (in-scatter 0, transmittance 1) at the camera to slice 0.
-                Bilinear8(p, 0, cxs[l], txs[l], p.ty, a);
-                static constexpr float kCamera[8] = {0, 0, 0, 0, 1, 1, 1, 1};
-                for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
-                    const auto c = hn::LoadU(d8, kCamera + o);
-                    hn::Store(hn::MulAdd(vtz, hn::Sub(hn::Load(d8, a + o), c), c), d8, a + o);
-                }
-            } else {
-                Bilinear8(p, z0s[l], cxs[l], txs[l], p.ty, a);
-                Bilinear8(p, z0s[l] + 1, cxs[l], txs[l], p.ty, b);
-                for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
-                    const auto va = hn::Load(d8, a + o);
-                    hn::Store(hn::MulAdd(vtz, hn::Sub(hn::Load(d8, b + o), va), va), d8, a + o);
-                }
-            }
-            // pixel * T + S, alpha * 1 + 0 when there are four channels.
-            float *q = px + std::size_t(x + l) * std::size_t(channels);
-            const int cs = channels == 4 ? 4 : 3;
-            for (int o = 0; o < cs; o += int(hn::Lanes(d4))) {
-                if (o + int(hn::Lanes(d4)) <= cs) {
-                    hn::StoreU(
-                        hn::MulAdd(
-                            hn::LoadU(d4, q + o), hn::Load(d4, a + 4 + o), hn::Load(d4, a + o)),
-                        d4,
-                        q + o);
-                } else {
-                    for (int c = o; c < cs; ++c) {
-                        const hn::CappedTag<float, 1> d1;
-                        q[c] = hn::GetLane(hn::MulAdd(
-                            hn::Set(d1, q[c]), hn::Set(d1, a[4 + c]), hn::Set(d1, a[c])));
-                    }
-                }
-            }
+            FroxelComposite(D8(),
+                            p,
+                            z0s[l],
+                            cxs[l],
+                            txs[l],
+                            tzs[l],
+                            px + std::size_t(x + l) * std::size_t(channels),
+                            channels);
         }
     }
     return listed;
