@@ -243,7 +243,8 @@ TEST(GraphNodes, ChannelsCopyRenameRemoveKeep)
          "params": {"copy": {"mv": ["motion.Y", "motion.X", 1], "n2": "normal"},
                     "rename": {"albedo": "base"}, "remove": "normal",
                     "keep": "mv,n2,base,color"}},
-        {"id": "o", "type": "write", "inputs": {"image": "sh"}, "params": {"path": "x.exr"}}]})",
+        {"id": "o", "type": "write", "inputs": {"image": "sh"}, "params": {"path": ")" +
+                               dir + R"(/x.exr"}}]})",
                            "g.json");
     g.set_capture("sh");
     const Frame f = g.evaluate(2);
@@ -290,7 +291,8 @@ TEST(GraphDeterminism, SameBitsForOneAndManyThreads)
          "params": {"copy": {"color": ["albedo.R", "position.X", "albedo.B", 0.25]}}},
         {"id": "m", "type": "merge", "inputs": {"b": "cc", "a": "a", "mask": "b"},
          "params": {"operation": "over", "mask_pass": "color", "mask_channel": "luminance"}},
-        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": "x.exr"}}]})";
+        {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": ")" +
+                              dir + R"(/x.exr"}}]})";
     Graph g = Graph::parse(graph, "g.json");
     g.set_capture("m");
     set_thread_count(1);
