@@ -26,13 +26,6 @@ using Clock = std::chrono::steady_clock;
 constexpr float kGoldenAngle = 2.39996323f;
 constexpr float kTwoPi = 6.28318531f;
 
-// Non-finite colour (NaN, +-Inf) reads as 0: spreading an Inf, or even the largest half, over
-// a disc would turn one bad pixel into a bright blot.
-inline float sanitize(float v)
-{
-    return std::fabs(v) <= std::numeric_limits<float>::max() ? v : 0.0f;
-}
-
 // A regular n-gon inscribed in the unit circle: its boundary's distance from the centre in
 // direction `angle` (relative to the blade rotation), in (cos(pi/n), 1].
 float polygon_boundary(float angle, int blades)

@@ -247,6 +247,8 @@ void CompositeGroup(const Group &g, float sample_area, float (*out)[kLanes])
     }
 }
 
+// Non-finite colour (NaN, +-Inf) reads as 0: spreading an Inf, or even the largest half, over a
+// disc would turn one bad pixel into a bright blot.
 HWY_INLINE float Sanitize(float v)
 {
     return std::fabs(v) <= std::numeric_limits<float>::max() ? v : 0.0f;
