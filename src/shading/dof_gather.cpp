@@ -17,26 +17,12 @@
 #include "core/parallel.h"
 #include "core/timing.h"
 #include "shading/dof_kernels.h"
+#include "shading/dof_patterns.h"
 
 namespace posthaste::shading {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-constexpr float kGoldenAngle = 2.39996323f;
-constexpr float kTwoPi = 6.28318531f;
-
-// A regular n-gon inscribed in the unit circle: its boundary's distance from the centre in
-// direction `angle` (relative to the blade rotation), in (cos(pi/n), 1].
-float polygon_boundary(float angle, int blades)
-{
-    const float sector = kTwoPi / float(blades);
-    float a = std::fmod(angle, sector);
-    if (a < 0.0f) {
-        a += sector;
-    }
-    return std::cos(0.5f * sector) / std::cos(a - 0.5f * sector);
-}
 
 // One resolution level of the gather's input, as planes (structure of arrays, so that eight
 // horizontally adjacent pixels are one contiguous load): colour channels, signed CoC radius (in
@@ -76,120 +62,8 @@ struct Planes {
     }
 };
 
-// Sample patterns, precomputed per quantised gather radius: kVariants rotated and radially
-// jittered golden-angle spirals of n = clamp(density R^2) taps (disc, or polygon by the blade
-// shape), each tap an integer pixel offset and the shape-normalised distance of the pixel it
-// reads. A group of eight adjacent pixels picks its variant by hash(x / 8, y) (the simple method:
-// each pixel by hash(x, y)), so the noise is the same for any thread count.
-constexpr int kVariants = 16;
-
-// rim = 0.5 - the shape-normalised distance d of the pixel read. How much of that pixel a CoC of
-// radius r covers is clamp(r - d + 0.5, 0, 1) = clamp(r + rim, 0, 1): a one-pixel ramp centred
-// on the rim, so a CoC under half a pixel reaches no neighbour.
+using dof::Patterns;
 using dof::Tap;
-
-class Patterns {
-   public:
-    void build(float max_radius, const DofSettings &st, float density, int width)
-    {
-        radii_.clear();
-        for (float r = 0.25f;; r += std::max(0.25f, r / 32.0f)) {
-            radii_.push_back(r);
-            if (r >= max_radius) {
-                break;
-            }
-        }
-        const int cap = std::max(st.samples, 1);
-        n_.resize(radii_.size());
-        start_.resize(radii_.size());
-        std::size_t total = 0;
-        for (std::size_t k = 0; k < radii_.size(); ++k) {
-            const float r = radii_[k];
-            const float n = std::min(std::ceil(density * r * r), 1e6f);
-            n_[k] = std::clamp(int(n), std::min(6, cap), cap);
-            start_[k] = total;
-            total += std::size_t(n_[k]) * kVariants;
-        }
-        taps_.resize(total);
-        const float rotation = st.rotation_deg * (kTwoPi / 360.0f);
-        parallel_for(0, int(radii_.size()), [&](int k) {
-            const float r = radii_[std::size_t(k)];
-            const int n = n_[std::size_t(k)];
-            for (int v = 0; v < kVariants; ++v) {
-                const float u = (float(v) + 0.5f) / float(kVariants);
-                const float phi = kTwoPi * std::fmod(float(v) * 0.618034f, 1.0f);
-                Tap *t = taps_.data() + start_[std::size_t(k)] + std::size_t(v * n);
-                for (int i = 0; i < n; ++i) {
-                    const float a = kGoldenAngle * float(i) + phi;
-                    const float dx = std::cos(a), dy = std::sin(a);
-                    const float dist = r * std::sqrt((float(i) + u) / float(n));
-                    const float shape =
-                        st.blades >= 3 ? polygon_boundary(a - rotation, st.blades) : 1.0f;
-                    const int ox = int(std::lrint(dist * shape * dx));
-                    const int oy = int(std::lrint(dist * shape * dy));
-                    t[i].dx = std::int16_t(std::clamp(ox, -32767, 32767));
-                    t[i].dy = std::int16_t(std::clamp(oy, -32767, 32767));
-                    t[i].rim = 0.5f - std::sqrt(float(ox * ox + oy * oy)) / shape;
-                }
-                // Row by row: consecutive taps read neighbouring memory (the sums do not depend
-                // on the order but for rounding).
-                std::sort(t, t + n, [](const Tap &a, const Tap &b) {
-                    return a.dy != b.dy ? a.dy < b.dy : a.dx < b.dx;
-                });
-            }
-        });
-        reach_.assign(radii_.size(), 0);
-        offsets_.resize(taps_.size());
-        for (std::size_t k = 0; k < radii_.size(); ++k) {
-            const std::size_t start = start_[k], end = start + std::size_t(n_[k]) * kVariants;
-            for (std::size_t i = start; i < end; ++i) {
-                const Tap &t = taps_[i];
-                reach_[k] = std::max({reach_[k], std::abs(int(t.dx)), std::abs(int(t.dy))});
-                offsets_[i] = std::ptrdiff_t(t.dy) * width + t.dx;
-            }
-        }
-        lut_.resize(std::size_t(std::ceil(4.0f * radii_.back())) + 2);
-        for (std::size_t i = 0; i < lut_.size(); ++i) {
-            const auto it = std::lower_bound(radii_.begin(), radii_.end(), 0.25f * float(i));
-            lut_[i] = it == radii_.end() ? int(radii_.size()) - 1 : int(it - radii_.begin());
-        }
-    }
-    /// The smallest quantised radius >= r (or the largest there is).
-    int level(float r) const
-    {
-        // lut_[i] is the level of i / 4 px, a lower bound; the steps are at least 0.25 px, so
-        // one or two more comparisons at most.
-        const float q = std::clamp(r * 4.0f, 0.0f, float(lut_.size() - 1));
-        int k = lut_[std::size_t(q)];
-        const int last = int(radii_.size()) - 1;
-        while (k < last && radii_[std::size_t(k)] < r) {
-            ++k;
-        }
-        return k;
-    }
-    float radius(int k) const { return radii_[std::size_t(k)]; }
-    int count(int k) const { return n_[std::size_t(k)]; }
-    /// The largest offset (either axis) of any of level k's taps.
-    int reach(int k) const { return reach_[std::size_t(k)]; }
-    /// Each tap's dy * width + dx (width: the level's, given to build), beside taps(k, variant).
-    const std::ptrdiff_t *offsets(int k, int variant) const
-    {
-        return offsets_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
-    }
-    const Tap *taps(int k, int variant) const
-    {
-        return taps_.data() + start_[std::size_t(k)] + std::size_t(variant * n_[std::size_t(k)]);
-    }
-
-   private:
-    std::vector<float> radii_;
-    std::vector<int> n_;
-    std::vector<std::size_t> start_;
-    std::vector<Tap> taps_;
-    std::vector<int> lut_;
-    std::vector<int> reach_;               ///< Largest |dx| or |dy| of a level's taps.
-    std::vector<std::ptrdiff_t> offsets_;  ///< dy * width + dx of each tap.
-};
 
 struct Context {
     const DofSettings *settings = nullptr;
@@ -247,7 +121,7 @@ glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
 //   larger spiral only costs density). Pixels under half a pixel, or whose near field already
 //   covers the lens (alpha >= 1: the composite would weigh the background by 0), skip it.
 // The spiral variant is hashed from (group, y), so the result does not depend on the thread
-// count. Both paths below sum each pixel's taps in the same order; they differ only in rounding.
+// count. Every target sums each pixel's taps in the same order; targets differ only in rounding.
 // The group kernels (setup, near pass, background pass, composite, and the rows between the
 // interleaved image and the planes) are in dof_kernels.cpp, written once over Highway.
 using dof::Group;
