@@ -1,7 +1,8 @@
-// Per-lane math shared by the Highway kernels, with the rounding each promises written down, so
-// that a kernel's scalar twin (shading/fast_math.h) and its vector targets compute the same
-// formula. Include it after <hwy/highway.h> inside a kernel file that uses foreach_target.h; like
-// every Highway "-inl.h" it is compiled once per target (the toggle guard below).
+// Per-lane math shared by the Highway kernels (fog, atmosphere, grain), with the rounding each
+// promises written down, so that a kernel's scalar twin (shading/fast_math.h) and its vector
+// targets compute the same formula. Include it after <hwy/highway.h> inside a kernel file that uses
+// foreach_target.h; like every Highway "-inl.h" it is compiled once per target (the toggle guard
+// below).
 
 // clang-format off
 #if defined(POSTHASTE_CORE_HWY_MATH_INL_H_) == defined(HWY_TARGET_TOGGLE)
@@ -18,29 +19,53 @@ HWY_BEFORE_NAMESPACE();
 namespace posthaste::simd::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
 
-/// exp(x) by shading::fast_exp's method: x clamped to [-87, 88] (so exp(-huge) is 1.6e-38, not
-/// 0, and NaN becomes one of the bounds: callers mask NaN lanes), Cody-Waite reduction
-/// x = n ln2 + r with n rounded to nearest, a degree-6 Taylor polynomial in Horner form (fused
-/// multiply-adds where the target has them), then scaled by 2^n. Relative error < 3e-7.
+/// e^r for |r| <= ln2 / 2 by its degree-6 Taylor series in Horner form (fused multiply-adds
+/// where the target has them); relative error under 2e-7 there.
 template <class D, class V = hn::Vec<D>>
-HWY_INLINE V FastExp(D d, V x)
+HWY_INLINE V ExpTaylor6(D d, V r)
 {
-    const hn::RebindToSigned<D> di;
-    x = hn::Min(hn::Max(x, hn::Set(d, -87.0f)), hn::Set(d, 88.0f));
-    const auto n = hn::NearestInt(hn::Mul(x, hn::Set(d, 1.44269504089f)));
-    const V nf = hn::ConvertTo(d, n);
-    const V r = hn::NegMulAdd(nf,
-                              hn::Set(d, 1.428606765330187e-06f),
-                              hn::NegMulAdd(nf, hn::Set(d, 0.693145751953125f), x));
     V p = hn::Set(d, 1.0f / 720.0f);
     p = hn::MulAdd(p, r, hn::Set(d, 1.0f / 120.0f));
     p = hn::MulAdd(p, r, hn::Set(d, 1.0f / 24.0f));
     p = hn::MulAdd(p, r, hn::Set(d, 1.0f / 6.0f));
     p = hn::MulAdd(p, r, hn::Set(d, 0.5f));
     p = hn::MulAdd(p, r, hn::Set(d, 1.0f));
-    p = hn::MulAdd(p, r, hn::Set(d, 1.0f));
-    const V scale = hn::BitCast(d, hn::ShiftLeft<23>(hn::Add(n, hn::Set(di, 127))));
-    return hn::Mul(p, scale);
+    return hn::MulAdd(p, r, hn::Set(d, 1.0f));
+}
+
+/// 2^n for integer lanes n in [-126, 127], built from the exponent bits.
+template <class D, class VI>
+HWY_INLINE hn::Vec<D> Pow2i(D d, VI n)
+{
+    const hn::RebindToSigned<D> di;
+    return hn::BitCast(d, hn::ShiftLeft<23>(hn::Add(n, hn::Set(di, 127))));
+}
+
+/// exp(x) by shading::fast_exp's method: x clamped to [-87, 88] (so exp(-huge) is 1.6e-38, not
+/// 0, and NaN becomes one of the bounds: callers mask NaN lanes), Cody-Waite reduction
+/// x = n ln2 + r with n rounded to nearest, ExpTaylor6(r), then scaled by 2^n. Relative error
+/// < 3e-7.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V FastExp(D d, V x)
+{
+    x = hn::Min(hn::Max(x, hn::Set(d, -87.0f)), hn::Set(d, 88.0f));
+    const auto n = hn::NearestInt(hn::Mul(x, hn::Set(d, 1.44269504089f)));
+    const V nf = hn::ConvertTo(d, n);
+    const V r = hn::NegMulAdd(nf,
+                              hn::Set(d, 1.428606765330187e-06f),
+                              hn::NegMulAdd(nf, hn::Set(d, 0.693145751953125f), x));
+    return hn::Mul(ExpTaylor6(d, r), Pow2i(d, n));
+}
+
+/// 2^y for |y| <= 100 (clamped there): 2^round(y) times ExpTaylor6 of the fraction times ln 2,
+/// |fraction| <= 1/2 (relative error under 2e-7).
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V Exp2(D d, V y)
+{
+    y = hn::Min(hn::Max(y, hn::Set(d, -100.0f)), hn::Set(d, 100.0f));
+    const auto n = hn::NearestInt(y);
+    const V t = hn::Mul(hn::Sub(y, hn::ConvertTo(d, n)), hn::Set(d, 0.69314718f));
+    return hn::Mul(ExpTaylor6(d, t), Pow2i(d, n));
 }
 
 /// ax * bx + ay * by + az * bz, summed from the z term outwards (glm's dot order when the

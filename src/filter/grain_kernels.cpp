@@ -8,6 +8,7 @@
 #define HWY_TARGET_INCLUDE "filter/grain_kernels.cpp"
 #include <hwy/foreach_target.h>
 #include <hwy/highway.h>
+#include "core/hwy_math-inl.h"
 // clang-format on
 
 #include "filter/grain_kernels.h"
@@ -17,6 +18,7 @@
 HWY_BEFORE_NAMESPACE();
 namespace posthaste::filter::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
+using posthaste::simd::HWY_NAMESPACE::Exp2;
 
 /// pcg_hash (core/hash.h) on every lane.
 template <class DU, class VU>
@@ -47,26 +49,6 @@ void GrainNoiseRow(std::uint32_t row_key, int x0, int n, float unit, float *out)
         const auto centred = hn::Sub(hn::BitCast(di, sum), centre);
         hn::StoreU(hn::Mul(hn::ConvertTo(df, centred), scale), df, out + x);
     }
-}
-
-/// 2^y to float precision for |y| <= 100: 2^round(y) times a degree-6 series of e^(f ln 2),
-/// |f| <= 1/2 (relative error under 2e-7).
-template <class DF, class VF>
-HWY_INLINE VF Exp2(DF df, VF y)
-{
-    const hn::RebindToSigned<DF> di;
-    y = hn::Min(hn::Max(y, hn::Set(df, -100.0f)), hn::Set(df, 100.0f));
-    const auto n = hn::NearestInt(y);
-    const VF t = hn::Mul(hn::Sub(y, hn::ConvertTo(df, n)), hn::Set(df, 0.69314718f));
-    VF p = hn::Set(df, 1.0f / 720);
-    p = hn::MulAdd(p, t, hn::Set(df, 1.0f / 120));
-    p = hn::MulAdd(p, t, hn::Set(df, 1.0f / 24));
-    p = hn::MulAdd(p, t, hn::Set(df, 1.0f / 6));
-    p = hn::MulAdd(p, t, hn::Set(df, 0.5f));
-    p = hn::MulAdd(p, t, hn::Set(df, 1.0f));
-    p = hn::MulAdd(p, t, hn::Set(df, 1.0f));
-    const auto bits = hn::ShiftLeft<23>(hn::Add(n, hn::Set(di, 127)));
-    return hn::Mul(p, hn::BitCast(df, bits));
 }
 
 template <class DF, class VF>
