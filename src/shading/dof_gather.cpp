@@ -129,33 +129,6 @@ using dof::kLanes;
 using dof::merge_row;
 using dof::split_row;
 
-// Background weights. Behind p (c_q > c_p) a sample counts with p's own radius when p is in the
-// near field (the background within p's disc shows through it), else with min(|c_q|, |c_p|): a
-// far field never bleeds over a sharper foreground; not behind p and not in the near field
-// (|c_q| <= 0.5 or |c_q| <= |c_p|) with its own. Both cases are r = min(max(|c_q|, lo_p), |c_p|)
-// with lo_p = |c_p| in the near field and 0 elsewhere, and the weight's 1 / max(r^2, 1) is
-// max(min(1 / c_q^2, hi_p), w_p) with w_p = 1 / max(c_p^2, 1), hi_p = 0 in the near field and 1
-// elsewhere. A lane outside the pass gets hi = w = 0: a zero weight.
-void back_pass(const Level &lv,
-               int x0,
-               int y,
-               const Tap *taps,
-               const std::ptrdiff_t *offsets,
-               int n,
-               int reach,
-               unsigned lanes,
-               Group &g)
-{
-    float lo[kLanes], hi[kLanes], ws[kLanes];
-    for (int j = 0; j < kLanes; ++j) {
-        const bool on = (lanes >> j) & 1u, p_near = g.cp[j] < -0.5f;
-        lo[j] = p_near ? g.acp[j] : 0.0f;
-        hi[j] = on && !p_near ? 1.0f : 0.0f;
-        ws[j] = on ? g.w_self[j] : 0.0f;
-    }
-    dof::back_pass(lv, x0, y, taps, offsets, n, reach, lo, hi, ws, g);
-}
-
 // Gathers both layers of the pixels x0 .. x0 + 7 of row y (x0 a multiple of 8; lanes from
 // `count` on are past the row's end) into g; returns the near samples' area (for alpha).
 float gather_group(
@@ -207,15 +180,15 @@ float gather_group(
                 }
             }
         }
-        back_pass(lv,
-                  x0,
-                  y,
-                  cx.patterns.taps(k, variant),
-                  cx.patterns.offsets(k, variant),
-                  n,
-                  cx.patterns.reach(k),
-                  lanes,
-                  g);
+        dof::back_pass(lv,
+                       x0,
+                       y,
+                       cx.patterns.taps(k, variant),
+                       cx.patterns.offsets(k, variant),
+                       n,
+                       cx.patterns.reach(k),
+                       lanes,
+                       g);
         remaining &= ~lanes;
     }
     return sample_area;

@@ -169,11 +169,17 @@ void BackPass(const PlanesView &lv,
               const std::ptrdiff_t *offsets,
               int n,
               int reach,
-              const float *lo_p,
-              const float *hi_p,
-              const float *ws_p,
+              unsigned lanes,
               Group &g)
 {
+    // Each lane's lo, hi and self weight (see back_pass in dof_kernels.h).
+    float lo_p[kLanes], hi_p[kLanes], ws_p[kLanes];
+    for (int j = 0; j < kLanes; ++j) {
+        const bool on = (lanes >> j) & 1u, p_near = g.cp[j] < -0.5f;
+        lo_p[j] = p_near ? g.acp[j] : 0.0f;
+        hi_p[j] = on && !p_near ? 1.0f : 0.0f;
+        ws_p[j] = on ? g.w_self[j] : 0.0f;
+    }
     const D8 d;
     using V = hn::Vec<D8>;
     const int w = lv.width, h = lv.height;
@@ -329,12 +335,10 @@ void back_pass(const PlanesView &lv,
                const std::ptrdiff_t *offsets,
                int n,
                int reach,
-               const float *lo,
-               const float *hi,
-               const float *ws,
+               unsigned lanes,
                Group &g)
 {
-    HWY_DYNAMIC_DISPATCH(BackPass)(lv, x0, y, taps, offsets, n, reach, lo, hi, ws, g);
+    HWY_DYNAMIC_DISPATCH(BackPass)(lv, x0, y, taps, offsets, n, reach, lanes, g);
 }
 
 void composite_group(const Group &g, float sample_area, float (*out)[kLanes])

@@ -45,10 +45,14 @@ void setup_group(const PlanesView &lv, int x0, int y, int count, Group &g);
 /// CoC, weight clamp(rim - c_q, 0, 1) / c_q^2, into front, front_w and near_w.
 void near_pass(const PlanesView &lv, int x0, int y, const Tap *taps, int n, Group &g);
 
-/// The background's taps (every sample the near pass does not take), weight
-/// clamp(min(max(|c_q|, lo), |c_p|) + rim, 0, 1) * max(min(1 / c_q^2, hi), ws), per lane lo, hi
-/// and ws (a lane outside the pass has hi = ws = 0). offsets[i] is tap i's element offset, used
-/// when the whole reach lies inside the image.
+/// The background's taps (every sample the near pass does not take) for the lanes set in
+/// `lanes`. Behind p (c_q > c_p) a sample counts with p's own radius when p is in the near
+/// field (the background within p's disc shows through it), else with min(|c_q|, |c_p|): a far
+/// field never bleeds over a sharper foreground; not behind p and not in the near field with its
+/// own. Both cases are r = min(max(|c_q|, lo), |c_p|) with lo = |c_p| in the near field and 0
+/// elsewhere, weight clamp(r + rim, 0, 1) * max(min(1 / c_q^2, hi), ws) with ws = the lane's
+/// self weight, hi = 0 in the near field and 1 elsewhere; a lane outside the pass has hi = ws =
+/// 0. offsets[i] is tap i's element offset, used when the whole reach lies inside the image.
 void back_pass(const PlanesView &lv,
                int x0,
                int y,
@@ -56,9 +60,7 @@ void back_pass(const PlanesView &lv,
                const std::ptrdiff_t *offsets,
                int n,
                int reach,
-               const float *lo,
-               const float *hi,
-               const float *ws,
+               unsigned lanes,
                Group &g);
 
 /// back (1 - alpha) + front alpha per lane from the sums: weighted means, alpha = min(near_w
