@@ -134,47 +134,40 @@ void SkyRadianceN(
     }
 }
 
-/// Froxel bilinear at column (cx + tx, row cy + ty) of slice z, eight floats (in-scatter and
-/// transmittance) into out, a capped vector at a time.
-HWY_INLINE void Bilinear8(
-    const AtmosphereRowParams &p, int z, int cx, float tx, float ty, float *out)
-{
-    const hn::CappedTag<float, 8> d8;
-    const float *f = p.froxels + ((std::size_t(z) * std::size_t(p.ap_height) + std::size_t(p.cy)) *
-                                      std::size_t(p.ap_width) +
-                                  std::size_t(cx)) *
-                                     8;
-    const std::size_t row = std::size_t(p.ap_width) * 8;
-    const auto vtx = hn::Set(d8, tx), vty = hn::Set(d8, ty);
-    for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
-        const auto a = hn::LoadU(d8, f + o), b = hn::LoadU(d8, f + 8 + o);
-        const auto c = hn::LoadU(d8, f + row + o), e = hn::LoadU(d8, f + row + 8 + o);
-        const auto top = hn::MulAdd(vtx, hn::Sub(b, a), a);
-        const auto bottom = hn::MulAdd(vtx, hn::Sub(e, c), c);
-        hn::StoreU(hn::MulAdd(vty, hn::Sub(bottom, top), top), d8, out + o);
-    }
-}
-
 using D8 = hn::CappedTag<float, 8>;
 
 // The froxel at the camera: in-scatter 0, transmittance 1.
 constexpr float kCamera[8] = {0, 0, 0, 0, 1, 1, 1, 1};
 
-/// Bilinear8 in one register (targets with eight-lane vectors).
+/// Froxel bilinear at column (cx + tx, row cy + ty) of slice z: floats o .. o + Lanes(d) - 1 of
+/// its eight (in-scatter RGB0, transmittance RGB1).
 template <class D>
-HWY_INLINE hn::Vec<D> Bilinear8V(D d8, const AtmosphereRowParams &p, int z, int cx, float tx)
+HWY_INLINE hn::Vec<D> FroxelBilinear(
+    D d, const AtmosphereRowParams &p, int z, int cx, float tx, int o = 0)
 {
-    const float *f = p.froxels + ((std::size_t(z) * std::size_t(p.ap_height) + std::size_t(p.cy)) *
-                                      std::size_t(p.ap_width) +
-                                  std::size_t(cx)) *
-                                     8;
+    const float *f =
+        p.froxels +
+        ((std::size_t(z) * std::size_t(p.ap_height) + std::size_t(p.cy)) * std::size_t(p.ap_width) +
+         std::size_t(cx)) *
+            8 +
+        o;
     const std::size_t row = std::size_t(p.ap_width) * 8;
-    const auto vtx = hn::Set(d8, tx);
-    const auto a = hn::LoadU(d8, f), b = hn::LoadU(d8, f + 8);
-    const auto c = hn::LoadU(d8, f + row), e = hn::LoadU(d8, f + row + 8);
+    const auto vtx = hn::Set(d, tx);
+    const auto a = hn::LoadU(d, f), b = hn::LoadU(d, f + 8);
+    const auto c = hn::LoadU(d, f + row), e = hn::LoadU(d, f + row + 8);
     const auto top = hn::MulAdd(vtx, hn::Sub(b, a), a);
     const auto bottom = hn::MulAdd(vtx, hn::Sub(e, c), c);
-    return hn::MulAdd(hn::Set(d8, p.ty), hn::Sub(bottom, top), top);
+    return hn::MulAdd(hn::Set(d, p.ty), hn::Sub(bottom, top), top);
+}
+
+/// All eight floats of FroxelBilinear into out, a capped vector at a time (targets narrower
+/// than eight lanes).
+HWY_INLINE void FroxelBilinear8(const AtmosphereRowParams &p, int z, int cx, float tx, float *out)
+{
+    const D8 d8;
+    for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
+        hn::StoreU(FroxelBilinear(d8, p, z, cx, tx, o), d8, out + o);
+    }
 }
 
 /// The froxels' blend at one pixel q (slice z0, -1 before the first centre; column cx + tx;
@@ -190,13 +183,13 @@ HWY_INLINE void FroxelComposite(
         // A froxel in one register: blend there, then pixel * T + S from its halves.
         const D d8v;
         const auto vtz = hn::Set(d8v, tz);
-        auto s = Bilinear8V(d8v, p, z0 < 0 ? 0 : z0, cx, tx);
+        auto s = FroxelBilinear(d8v, p, z0 < 0 ? 0 : z0, cx, tx);
         if (z0 < 0) {
             // From (in-scatter 0, transmittance 1) at the camera to slice 0.
             const auto c = hn::LoadU(d8v, kCamera);
             s = hn::MulAdd(vtz, hn::Sub(s, c), c);
         } else {
-            const auto b = Bilinear8V(d8v, p, z0 + 1, cx, tx);
+            const auto b = FroxelBilinear(d8v, p, z0 + 1, cx, tx);
             s = hn::MulAdd(vtz, hn::Sub(b, s), s);
         }
         const hn::Half<D> dh;
@@ -219,14 +212,14 @@ HWY_INLINE void FroxelComposite(
     const auto vtz = hn::Set(d8, tz);
     if (z0 < 0) {
         // From (in-scatter 0, transmittance 1) at the camera to slice 0.
-        Bilinear8(p, 0, cx, tx, p.ty, a);
+        FroxelBilinear8(p, 0, cx, tx, a);
         for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
             const auto c = hn::LoadU(d8, kCamera + o);
             hn::Store(hn::MulAdd(vtz, hn::Sub(hn::Load(d8, a + o), c), c), d8, a + o);
         }
     } else {
-        Bilinear8(p, z0, cx, tx, p.ty, a);
-        Bilinear8(p, z0 + 1, cx, tx, p.ty, b);
+        FroxelBilinear8(p, z0, cx, tx, a);
+        FroxelBilinear8(p, z0 + 1, cx, tx, b);
         for (int o = 0; o < 8; o += int(hn::Lanes(d8))) {
             const auto va = hn::Load(d8, a + o);
             hn::Store(hn::MulAdd(vtz, hn::Sub(hn::Load(d8, b + o), va), va), d8, a + o);
