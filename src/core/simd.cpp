@@ -1,14 +1,14 @@
 #include "core/simd.h"
 
+#include <hwy/targets.h>
+
 #include <atomic>
 #include <cstdint>
+#include <cstdlib>
+#include <cstring>
 #if defined(__x86_64__) || defined(__i386__)
 #include <cpuid.h>
 #endif
-#include <hwy/targets.h>
-
-#include <cstdlib>
-#include <cstring>
 
 namespace posthaste::simd {
 
@@ -35,13 +35,18 @@ Level detect()
     return Level::Scalar;
 }
 
-Level initial()
+/// Whether POSTHASTE_SIMD is set to `value`.
+bool env_says(const char *value)
 {
     const char *env = std::getenv("POSTHASTE_SIMD");
-    if (env && std::strcmp(env, "scalar") == 0) {
-        return Level::Scalar;
-    }
-    return detected();  // unset, "avx2", or unknown (refused by the CLI: environment_error)
+    return env && std::strcmp(env, value) == 0;
+}
+
+/// The level asked for at start: Scalar for POSTHASTE_SIMD=scalar, otherwise the best there is
+/// (unset, "avx2", or an unknown value, which the CLI refuses: environment_error).
+Level requested_at_start()
+{
+    return env_says("scalar") ? Level::Scalar : Level::Avx2;
 }
 
 // The Highway kernels follow the level asked for: Scalar leaves them only the portable scalar
@@ -53,8 +58,7 @@ void apply_to_highway(Level requested)
     std::int64_t disabled = 0;
     if (requested == Level::Scalar) {
         disabled = ~std::int64_t(HWY_SCALAR | HWY_EMU128);
-    } else if (const char *env = std::getenv("POSTHASTE_SIMD");
-               env && std::strcmp(env, "avx2") == 0) {
+    } else if (env_says("avx2")) {
         disabled = std::int64_t(HWY_AVX3) | std::int64_t(HWY_AVX3_DL);
     }
     hwy::DisableTargets(disabled);
@@ -63,10 +67,9 @@ void apply_to_highway(Level requested)
 std::atomic<int> &current()
 {
     static std::atomic<int> level{[] {
-        const Level l = initial();
-        const char *env = std::getenv("POSTHASTE_SIMD");
-        apply_to_highway(env && std::strcmp(env, "scalar") == 0 ? Level::Scalar : Level::Avx2);
-        return int(l);
+        const Level requested = requested_at_start();
+        apply_to_highway(requested);
+        return int(requested) < int(detected()) ? int(requested) : int(detected());
     }()};
     return level;
 }

@@ -2,8 +2,11 @@
 #include "core/simd.h"
 
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <vector>
 
@@ -125,6 +128,21 @@ TEST(Simd, ScopedLevelForcesScalarAndRestores)
     simd::set_level(simd::Level::Avx2);
     EXPECT_EQ(simd::active(), simd::detected());
     simd::set_level(before);
+}
+
+TEST(Simd, LevelSteersTheHighwayKernels)
+{
+    // Scalar leaves Highway only its portable one-lane target; back at the CPU's level, the
+    // vector targets return (this CPU has at least SSE4 when it has AVX2).
+    const std::int64_t portable = HWY_SCALAR | HWY_EMU128;
+    {
+        simd::ScopedLevel scalar(simd::Level::Scalar);
+        EXPECT_EQ(hwy::SupportedTargets() & ~portable, 0);
+        EXPECT_NE(hwy::SupportedTargets() & portable, 0);
+    }
+    if (simd::detected() == simd::Level::Avx2 && std::getenv("POSTHASTE_SIMD") == nullptr) {
+        EXPECT_NE(hwy::SupportedTargets() & HWY_AVX2, 0);
+    }
 }
 
 }  // namespace
