@@ -14,7 +14,7 @@
 #include "core/camera.h"
 #include "core/frame.h"
 #include "graph/graph.h"
-#include "graph/node_registry.h"
+#include "nodes/registry.h"
 
 namespace posthaste::test {
 
@@ -97,7 +97,8 @@ inline Frame run_node(const std::string &type,
                                type + R"(", "inputs": {")" + port + R"(": "src"}, "params": )" +
                                params_json + R"(},
         {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
-                           "run_node(" + type + ")");
+                           "run_node(" + type + ")",
+                           nodes::catalog());
     const GraphNode &gn = g.nodes()[std::size_t(g.find("n"))];
     NodeContext ctx(gn.identity,
                     gn.params,

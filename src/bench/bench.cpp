@@ -20,6 +20,7 @@
 #include "io/sequence.h"
 #include "metrics/flip.h"
 #include "metrics/metrics.h"
+#include "nodes/registry.h"
 
 namespace posthaste::bench {
 namespace {
@@ -138,7 +139,7 @@ Prepared prepare(const std::string &path,
 {
     Prepared p;
     try {
-        p.graph = std::make_unique<Graph>(Graph::load(path, overrides));
+        p.graph = std::make_unique<Graph>(Graph::load(path, nodes::catalog(), overrides));
     } catch (const Error &e) {
         throw Error(e.code(), origin + ": " + e.what());
     }

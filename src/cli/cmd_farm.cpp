@@ -22,6 +22,7 @@
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
+#include "nodes/registry.h"
 
 namespace posthaste::cli {
 namespace {
@@ -262,7 +263,7 @@ Graph load_job_graph(const json &job, const fs::path &dir)
     if (ec) {
         throw_runtime(dir.string(), ": cannot enter the job's working directory ", job["cwd"]);
     }
-    return Graph::load((dir / "graph.json").string());
+    return Graph::load((dir / "graph.json").string(), nodes::catalog());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -456,7 +457,7 @@ int submit_command(const SubmitOptions &o)
                     " exists (choose another, or --force to replace it)");
     }
     // Validate exactly as `run` does: a typo fails here, before anything is queued.
-    Graph graph = Graph::load(o.graph, o.sets);
+    Graph graph = Graph::load(o.graph, nodes::catalog(), o.sets);
     const std::vector<int> frames =
         o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
     graph.check(frames);
@@ -526,7 +527,8 @@ int submit_command(const SubmitOptions &o)
         throw_runtime(dir.string(), ": cannot create the job directory: ", ec.message());
     }
     write_text_file((dir / "graph.json").string(), graph_text);
-    Graph::load((dir / "graph.json").string());  // the written graph is the same graph
+    // The written graph is the same graph.
+    Graph::load((dir / "graph.json").string(), nodes::catalog());
     write_text_file((dir / "frames.txt").string(), join_frames(frames) + "\n");
     submit(job, dir, 0);
     std::printf("%s %s\n",

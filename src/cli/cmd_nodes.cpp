@@ -5,7 +5,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "graph/graph.h"
-#include "graph/node_registry.h"
+#include "nodes/registry.h"
 
 namespace posthaste::cli {
 namespace {

@@ -7,6 +7,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 
 namespace posthaste::cli {
 namespace {
@@ -75,7 +76,7 @@ int render(const RenderCommand &o)
         g["nodes"][1]["params"]["passes"] =
             "color,depth,normal,position,motion,albedo,material,tangent,id";
     }
-    Graph graph = Graph::parse(g.dump(), "posthaste render " + o.scene);
+    Graph graph = Graph::parse(g.dump(), "posthaste render " + o.scene, nodes::catalog());
     return run_graph(graph, o);
 }
 

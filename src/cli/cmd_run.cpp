@@ -17,6 +17,7 @@
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
+#include "nodes/registry.h"
 
 namespace posthaste::cli {
 namespace {
@@ -257,7 +258,7 @@ void add_run_command(CLI::App &app, int &exit_code)
                   "Carry on past failing frames, then exit non-zero naming the first");
     cmd->callback([opts, &exit_code] {
         set_thread_count(opts->threads);
-        Graph graph = Graph::load(opts->graph, opts->sets);
+        Graph graph = Graph::load(opts->graph, nodes::catalog(), opts->sets);
         exit_code = run_graph(graph, *opts);
     });
 }

@@ -21,6 +21,7 @@
 #include "io/sequence.h"
 #include "metrics/diff.h"
 #include "metrics/report.h"
+#include "nodes/registry.h"
 
 namespace posthaste::cli {
 namespace {
@@ -174,7 +175,7 @@ int run_entry(const TestOptions &o,
     try {
         spec = read_test_spec(spec_path);
         // Load once to find the write nodes, then again with them writing under --out.
-        const Graph probe = Graph::load(graph_path.string(), spec.sets);
+        const Graph probe = Graph::load(graph_path.string(), nodes::catalog(), spec.sets);
         std::vector<std::string> sets = spec.sets;
         for (const GraphNode &gn : probe.nodes()) {
             if (gn.identity.type != "write") {
@@ -190,7 +191,7 @@ int run_entry(const TestOptions &o,
         if (outputs.empty()) {
             throw_usage(graph_path.string(), ": no write node: nothing to compare");
         }
-        Graph graph = Graph::load(graph_path.string(), sets);
+        Graph graph = Graph::load(graph_path.string(), nodes::catalog(), sets);
         frames = spec.frames.empty() ? graph.default_frames()
                                      : parse_frame_list(spec.frames, spec_path.string());
         graph.check(frames);

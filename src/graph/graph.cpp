@@ -13,7 +13,6 @@
 
 #include "core/error.h"
 #include "core/json_error.h"
-#include "graph/node_registry.h"
 #include "io/sequence.h"
 
 namespace posthaste {

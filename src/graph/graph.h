@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "graph/node.h"
+#include "graph/node_catalog.h"
 
 namespace posthaste {
 
@@ -40,12 +41,16 @@ class Graph {
     /// Read, parse and validate a graph file; `overrides` are "node.param=value" strings.
     /// Relative file parameters in the file resolve against the graph's folder (or its
     /// "base_dir"); --set values stay relative to the current folder.
+    /// Node types are looked up in `types` (nodes::catalog() for this build's).
     /// Throws Error (exit code 2) naming the file, JSON path, node and parameter.
-    static Graph load(const std::string &path, const std::vector<std::string> &overrides = {});
+    static Graph load(const std::string &path,
+                      const NodeCatalog &types,
+                      const std::vector<std::string> &overrides = {});
     /// As load, from JSON text; `origin` names it in messages. Relative file parameters resolve
     /// against `base_dir` ("" leaves them relative to the current folder).
     static Graph parse(const std::string &text,
                        const std::string &origin,
+                       const NodeCatalog &types,
                        const std::vector<std::string> &overrides = {},
                        const std::string &base_dir = "");
 

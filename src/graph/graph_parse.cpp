@@ -14,7 +14,7 @@
 #include "core/error.h"
 #include "core/json_error.h"
 #include "graph/graph.h"
-#include "graph/node_registry.h"
+#include "graph/node_catalog.h"
 #include "graph/param_json.h"
 
 namespace posthaste {
@@ -172,7 +172,8 @@ struct GraphBuilder {
     /// Pass 1: every node's id and type, in file order; returns the ids.
     static std::vector<std::string> identities(Graph &g,
                                                const json &nodes,
-                                               const std::string &origin)
+                                               const std::string &origin,
+                                               const NodeCatalog &types)
     {
         // Pass 1: ids and types.
         std::vector<std::string> ids;
@@ -210,10 +211,10 @@ struct GraphBuilder {
                 throw_usage(path, "/type: node \"", id, "\": expected a node type string");
             }
             const std::string type = n["type"].get<std::string>();
-            const NodeType *nt = find_node_type(type);
+            const NodeType *nt = types.find(type);
             if (!nt) {
                 std::vector<std::string> known;
-                for (const NodeType *t : all_node_types()) {
+                for (const NodeType *t : types.all()) {
                     known.emplace_back(t->spec.type);
                 }
                 throw_usage(path,
@@ -533,14 +534,17 @@ struct GraphBuilder {
     }
 };
 
-Graph Graph::load(const std::string &path, const std::vector<std::string> &overrides)
+Graph Graph::load(const std::string &path,
+                  const NodeCatalog &types,
+                  const std::vector<std::string> &overrides)
 {
     const std::string folder = std::filesystem::path(path).parent_path().string();
-    return parse(read_text_file(path), path, overrides, folder.empty() ? "." : folder);
+    return parse(read_text_file(path), path, types, overrides, folder.empty() ? "." : folder);
 }
 
 Graph Graph::parse(const std::string &text,
                    const std::string &origin,
+                   const NodeCatalog &types,
                    const std::vector<std::string> &overrides,
                    const std::string &base_dir)
 {
@@ -550,7 +554,7 @@ Graph Graph::parse(const std::string &text,
     const json doc = GraphBuilder::document(text, origin);
     const json aliases = GraphBuilder::top_level(g, doc, origin);
     const json &nodes = doc["nodes"];
-    const std::vector<std::string> ids = GraphBuilder::identities(g, nodes, origin);
+    const std::vector<std::string> ids = GraphBuilder::identities(g, nodes, origin, types);
     for (std::size_t i = 0; i < nodes.size(); ++i) {
         GraphBuilder::inputs(g.nodes_[i], nodes[i], ids);
         GraphBuilder::params(g, g.nodes_[i], nodes[i], aliases);

@@ -12,7 +12,7 @@
 #include <fstream>
 
 #include "graph/graph.h"
-#include "graph/node_registry.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
 
@@ -26,7 +26,8 @@ Frame run_fog(const Frame &in, const std::string &params, double *ms = nullptr)
         {"id": "fog", "type": "fog", "inputs": {"image": "src"}, "params": )" +
                                params + R"(},
         {"id": "out", "type": "write", "inputs": {"image": "fog"}, "params": {"path": "x.exr"}}]})",
-                           "fog_accuracy");
+                           "fog_accuracy",
+                           nodes::catalog());
     const GraphNode &gn = g.nodes()[std::size_t(g.find("fog"))];
     Frame out;
     std::vector<double> times;

@@ -18,6 +18,7 @@
 #include "core/simd.h"
 #include "graph/graph.h"
 #include "metrics/metrics.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
 #include "shading/reproject.h"
@@ -646,7 +647,7 @@ Frame run_node(const std::string &scene, int frame, int w, int h, const std::str
         {"id": "o", "type": "write", "inputs": {"image": "mb"},
          "params": {"path": ")" +
                               dir + R"(/o.exr", "passes": "color"}}]})";
-    Graph g = Graph::parse(graph, "g.json");
+    Graph g = Graph::parse(graph, "g.json", nodes::catalog());
     g.set_capture("mb");
     return g.evaluate(frame);
 }

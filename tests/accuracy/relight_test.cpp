@@ -14,6 +14,7 @@
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "metrics/metrics.h"
+#include "nodes/registry.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
 #include "test_util.h"
@@ -72,7 +73,7 @@ Frame relight(
         {"id": "o", "type": "write", "inputs": {"image": "l"},
          "params": {"path": ")" +
                               dir + R"(/o.exr", "passes": "color"}}]})";
-    Graph g = Graph::parse(graph, "relight.json");
+    Graph g = Graph::parse(graph, "relight.json", nodes::catalog());
     g.set_capture("l");
     return g.evaluate(1);
 }
@@ -83,7 +84,7 @@ Frame beauty(const std::string &scene, int w, int h, const std::string &dir)
         {"id": "o", "type": "write", "inputs": {"image": "r"},
          "params": {"path": ")" +
                               dir + R"(/b.exr", "passes": "color"}}]})";
-    Graph g = Graph::parse(graph, "beauty.json");
+    Graph g = Graph::parse(graph, "beauty.json", nodes::catalog());
     g.set_capture("r");
     return g.evaluate(1);
 }

@@ -14,6 +14,7 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 
 namespace posthaste {
@@ -35,7 +36,8 @@ void run_fog(benchmark::State &state, const std::string &params, bool scalar)
         {"id": "f", "type": "fog", "inputs": {"image": "src"}, "params": )" +
                                      params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "f"}, "params": {"path": "x.exr"}}]})",
-                                 "bench.json");
+                                 "bench.json",
+                                 nodes::catalog());
     const GraphNode &gn = g.nodes()[1];
     const auto input = std::make_shared<const Frame>(fog_input());
     {

@@ -15,6 +15,7 @@
 #include "graph/graph.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
+#include "nodes/registry.h"
 
 namespace posthaste {
 namespace {
@@ -187,7 +188,7 @@ void BM_IoEngineGraph100(benchmark::State &state)
         {"id": "out", "type": "write", "inputs": {"image": "src"},
          "params": {"path": ")" +
                              bench_dir() + R"(/small_out.####.exr"}}]})";
-    const Graph g = Graph::parse(json, "bench");
+    const Graph g = Graph::parse(json, "bench", nodes::catalog());
     for (auto _ : state) {
         for (int f = 1; f <= 100; ++f) {
             g.evaluate(f);

@@ -11,6 +11,7 @@
 #include "bench_util.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 
 namespace posthaste {
 namespace {
@@ -30,7 +31,8 @@ void run_node(benchmark::State &state, const std::string &type, const std::strin
         {"id": "n", "type": ")" + type +
                                      R"(", "inputs": {"image": "src"}, "params": )" + params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
-                                 "bench.json");
+                                 "bench.json",
+                                 nodes::catalog());
     const GraphNode &gn = g.nodes()[1];
     const auto input = std::make_shared<const Frame>(input_frame());
     {

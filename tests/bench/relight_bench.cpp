@@ -17,6 +17,7 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 
 namespace posthaste {
@@ -46,7 +47,8 @@ void run_node(benchmark::State &state, const std::string &options)
          "params": {"mode": "add", "toon_ids": "6", )" +
                                      std::string(kLights) + options + R"(}},
         {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
-                                 "bench.json");
+                                 "bench.json",
+                                 nodes::catalog());
     const GraphNode &gn = g.nodes()[1];
     const auto input = std::make_shared<const Frame>(in);
     double cpu = 0.0;

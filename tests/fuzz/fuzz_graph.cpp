@@ -4,6 +4,7 @@
 
 #include "fuzz_common.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size)
 {
@@ -13,7 +14,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t *data, std::size_t size
     const std::string first = text.substr(0, newline);
     const std::string graph = newline == std::string::npos ? text : text.substr(newline + 1);
     fuzz::expect_clean([&] { parse_frame_list(first, "--frames"); });
-    fuzz::expect_clean([&] { Graph::parse(graph, "fuzz.json"); });
-    fuzz::expect_clean([&] { Graph::parse(graph, "fuzz.json", {first}); });
+    fuzz::expect_clean([&] { Graph::parse(graph, "fuzz.json", nodes::catalog()); });
+    fuzz::expect_clean([&] { Graph::parse(graph, "fuzz.json", nodes::catalog(), {first}); });
     return 0;
 }

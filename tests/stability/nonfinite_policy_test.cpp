@@ -9,7 +9,7 @@
 #include <limits>
 
 #include "core/passes.h"
-#include "graph/node_registry.h"
+#include "nodes/registry.h"
 #include "stability/stability.h"
 #include "test_util.h"
 

@@ -16,6 +16,7 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 #include "shading/brdf.h"
 
 namespace posthaste {
@@ -29,7 +30,8 @@ Frame run_relight(const Frame &in, const std::string &params)
         {"id": "l", "type": "relight", "inputs": {"image": "src"}, "params": )" +
                                      params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
-                                 "stability.json");
+                                 "stability.json",
+                                 nodes::catalog());
     const GraphNode &gn = g.nodes()[1];
     NodeContext ctx(gn.identity,
                     gn.params,

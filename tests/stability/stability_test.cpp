@@ -9,7 +9,7 @@
 #include <limits>
 
 #include "core/error.h"
-#include "graph/node_registry.h"
+#include "nodes/registry.h"
 
 namespace posthaste::stability {
 namespace {

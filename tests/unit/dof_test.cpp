@@ -15,6 +15,7 @@
 #include "core/simd.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 #include "shading/dof_coc.h"
 #include "shading/dof_gather.h"
@@ -248,16 +249,19 @@ std::string render_dof_graph(const std::string &dof_params)
 
 TEST(Dof, NodeLargeFstopGivesInputBack)
 {
-    Graph src = Graph::parse(render_dof_graph("{}"), "g.json");
+    Graph src = Graph::parse(render_dof_graph("{}"), "g.json", nodes::catalog());
     src.set_capture("src");
     const Frame in = src.evaluate(1);
-    Graph g = Graph::parse(render_dof_graph(R"({"fstop": 1e6, "focus_distance": 3})"), "g.json");
+    Graph g = Graph::parse(
+        render_dof_graph(R"({"fstop": 1e6, "focus_distance": 3})"), "g.json", nodes::catalog());
     g.set_capture("d");
     const Frame out = g.evaluate(1);
     EXPECT_TRUE(out.image("color").bit_equal(in.image("color")));
     // A wide aperture on the same frame does change it.
     Graph open = Graph::parse(
-        render_dof_graph(R"({"fstop": 1, "focus_distance": 3, "focal_length_mm": 200})"), "g.json");
+        render_dof_graph(R"({"fstop": 1, "focus_distance": 3, "focal_length_mm": 200})"),
+        "g.json",
+        nodes::catalog());
     open.set_capture("d");
     EXPECT_FALSE(open.evaluate(1).image("color").bit_equal(in.image("color")));
 }
@@ -279,7 +283,7 @@ TEST(Dof, NodeReportsMissingLensAttributeAndUsesOverride)
             {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" +
                dir + R"(/o.exr"}}]})";
     };
-    Graph g = Graph::parse(graph("{}"), "g.json");
+    Graph g = Graph::parse(graph("{}"), "g.json", nodes::catalog());
     g.set_capture("d");
     try {
         g.evaluate(1);
@@ -288,7 +292,7 @@ TEST(Dof, NodeReportsMissingLensAttributeAndUsesOverride)
         EXPECT_NE(std::string(e.what()).find("focalLength"), std::string::npos) << e.what();
         EXPECT_NE(std::string(e.what()).find("dof"), std::string::npos) << e.what();
     }
-    Graph ok = Graph::parse(graph(R"({"focal_length_mm": 35})"), "g.json");
+    Graph ok = Graph::parse(graph(R"({"focal_length_mm": 35})"), "g.json", nodes::catalog());
     ok.set_capture("d");
     const Frame out = ok.evaluate(1);
     EXPECT_EQ(out.image("color").width(), 32);

@@ -14,6 +14,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "io/image_file.h"
+#include "nodes/registry.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -128,7 +129,8 @@ class ExposureSequence : public ::testing::Test {
             {"id": "out", "type": "write", "inputs": {"image": "x"},
              "params": {"path": ")" +
                                    dir + R"(/out.###.exr"}}]})",
-                               "exposure_sequence.json");
+                               "exposure_sequence.json",
+                               nodes::catalog());
         g.set_capture("x");
         return g;
     }

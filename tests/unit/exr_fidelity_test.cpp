@@ -12,8 +12,8 @@
 
 #include "core/error.h"
 #include "exr_corpus.h"
-#include "graph/node_registry.h"
 #include "io/image_file.h"
+#include "nodes/registry.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -429,7 +429,8 @@ TEST(ExrFidelity, MergeWorksInBsWindow)
         {"id": "b", "type": "read", "params": {"path": "b.exr"}},
         {"id": "m", "type": "merge", "inputs": {"a": "a", "b": "b"}, "params": {}},
         {"id": "out", "type": "write", "inputs": {"image": "m"}, "params": {"path": "x.exr"}}]})",
-                           "merge windows");
+                           "merge windows",
+                           nodes::catalog());
     const GraphNode &gn = g.nodes()[std::size_t(g.find("m"))];
     NodeContext ctx(gn.identity,
                     gn.params,

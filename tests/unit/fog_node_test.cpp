@@ -13,7 +13,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
-#include "graph/node_registry.h"
+#include "nodes/registry.h"
 #include "shading/camera_rays.h"
 #include "shading/height_fog.h"
 #include "test_util.h"

@@ -4,6 +4,7 @@
 
 #include "graph/graph.h"
 
+#include <algorithm>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,6 +14,7 @@
 #include "core/parallel.h"
 #include "io/color.h"
 #include "io/image_file.h"
+#include "nodes/registry.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -24,7 +26,7 @@ using test::scratch_dir;
 std::string error_of(const std::string &json, const std::vector<std::string> &sets = {})
 {
     try {
-        Graph::parse(json, "g.json", sets);
+        Graph::parse(json, "g.json", nodes::catalog(), sets);
     } catch (const Error &e) {
         EXPECT_EQ(e.code(), ExitCode::Usage) << e.what();
         return e.what();
@@ -104,8 +106,8 @@ TEST(GraphValidation, LocatedMessages)
 
 TEST(GraphValidation, SetOverridesUseTheSameChecks)
 {
-    const Graph g =
-        Graph::parse(kReadWrite, "g.json", {"out.compression=zip", "src.frame_offset=3"});
+    const Graph g = Graph::parse(
+        kReadWrite, "g.json", nodes::catalog(), {"out.compression=zip", "src.frame_offset=3"});
     EXPECT_EQ(g.nodes()[0].params.values().at("frame_offset").number, 3.0);
     EXPECT_EQ(g.nodes()[1].params.values().at("compression").text, "zip");
     EXPECT_CONTAINS(error_of(kReadWrite, {"src.frame_offset=abc"}),
@@ -140,7 +142,8 @@ TEST(GraphPlan, PassNamingParametersAskTheInputForThosePasses)
         {"id": "tone", "type": "tonemap", "inputs": {"image": "soft"}, "params": {"pass": "spec"}},
         {"id": "out", "type": "write", "inputs": {"image": "tone"},
          "params": {"path": "o.exr", "passes": "color"}}]})",
-                                 "g.json");
+                                 "g.json",
+                                 nodes::catalog());
     EXPECT_EQ(g.nodes()[2].requested.to_string(), "color");  // what the write reads
     EXPECT_EQ(g.nodes()[1].requested.to_string(), "color,spec");
     EXPECT_EQ(g.nodes()[0].requested.to_string(), "albedo,color,depth,spec");
@@ -156,7 +159,8 @@ TEST(GraphPlan, SourcesAreAskedOnlyForWhatIsUsed)
         {"id": "out", "type": "write", "inputs": {"image": "sh"},
          "params": {"path": "o.exr", "passes": "color,zz,base"}},
         {"id": "png", "type": "write", "inputs": {"image": "src"}, "params": {"path": "p.png"}}]})",
-                                 "g.json");
+                                 "g.json",
+                                 nodes::catalog());
     EXPECT_EQ(g.nodes()[0].requested.to_string(), "albedo,color,depth");
     EXPECT_EQ(g.nodes()[1].requested.to_string(), "albedo,color,depth");
     EXPECT_EQ(g.nodes()[2].requested.to_string(), "base,color,zz");
@@ -169,7 +173,8 @@ TEST(GraphPlan, SourcesAreAskedOnlyForWhatIsUsed)
          "params": {"mask_pass": "id", "mask_channel": "r"}},
         {"id": "out", "type": "write", "inputs": {"image": "m"},
          "params": {"path": "o.exr", "passes": "color,depth"}}]})",
-                                 "g.json");
+                                 "g.json",
+                                 nodes::catalog());
     EXPECT_EQ(m.nodes()[0].requested.to_string(), "color");
     EXPECT_EQ(m.nodes()[1].requested.to_string(), "color,depth");
     EXPECT_EQ(m.nodes()[2].requested.to_string(), "id");
@@ -201,7 +206,7 @@ TEST(GraphNodes, MergeOperationsOnHandComputedPixels)
         {"id": "m", "type": "merge", "inputs": {"b": "b", "a": "a"}, "params": {"operation": "over"}},
         {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": ")" +
                               dir + R"(/o.exr", "passes": "color"}}]})";
-    Graph g = Graph::parse(graph, "g.json");
+    Graph g = Graph::parse(graph, "g.json", nodes::catalog());
     g.set_capture("m");
     const Frame out = g.evaluate(1);
     const Image &c = out.image("color");
@@ -224,11 +229,11 @@ TEST(GraphNodes, MergeOperationsOnHandComputedPixels)
                                                     {"under", 2.0f * (0.5f / 8.0f) + 0.5f * 0.0f},
                                                     {"max", 0.5f},
                                                     {"mix", 0.5f}}) {
-        Graph h = Graph::parse(graph, "g.json", {"m.operation=" + op});
+        Graph h = Graph::parse(graph, "g.json", nodes::catalog(), {"m.operation=" + op});
         h.set_capture("m");
         EXPECT_FLOAT_EQ(h.evaluate(1).image("color").at(0, 0, 0), r) << op;
     }
-    Graph half = Graph::parse(graph, "g.json", {"m.operation=mix", "m.mix=0.25"});
+    Graph half = Graph::parse(graph, "g.json", nodes::catalog(), {"m.operation=mix", "m.mix=0.25"});
     half.set_capture("m");
     EXPECT_FLOAT_EQ(half.evaluate(1).image("color").at(0, 0, 0), 0.125f + (0.5f - 0.125f) * 0.25f);
 }
@@ -245,7 +250,8 @@ TEST(GraphNodes, ChannelsCopyRenameRemoveKeep)
                     "keep": "mv,n2,base,color"}},
         {"id": "o", "type": "write", "inputs": {"image": "sh"}, "params": {"path": ")" +
                                dir + R"(/x.exr"}}]})",
-                           "g.json");
+                           "g.json",
+                           nodes::catalog());
     g.set_capture("sh");
     const Frame f = g.evaluate(2);
     EXPECT_EQ(f.pass_names(), (std::vector<std::string>{"base", "color", "mv", "n2"}));
@@ -293,7 +299,7 @@ TEST(GraphDeterminism, SameBitsForOneAndManyThreads)
          "params": {"operation": "over", "mask_pass": "color", "mask_channel": "luminance"}},
         {"id": "o", "type": "write", "inputs": {"image": "m"}, "params": {"path": ")" +
                               dir + R"(/x.exr"}}]})";
-    Graph g = Graph::parse(graph, "g.json");
+    Graph g = Graph::parse(graph, "g.json", nodes::catalog());
     g.set_capture("m");
     set_thread_count(1);
     const Frame one = g.evaluate(2);

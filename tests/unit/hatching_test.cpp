@@ -13,6 +13,7 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 #include "shading/hatch.h"
 #include "shading/tam.h"
@@ -376,7 +377,8 @@ TEST(HatchingNode, RenderHatchGraph)
          "params": {"ids": "1, 2,3", "tam_size": "128"}},
         {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" +
                                out + R"("}}]})",
-                           "g.json");
+                           "g.json",
+                           nodes::catalog());
     g.set_capture("ink");
     const Frame f = g.evaluate(3);
     ASSERT_TRUE(f.has("color"));
@@ -395,7 +397,8 @@ TEST(HatchingNode, RenderHatchGraph)
              "params": {"ids": "1,x"}},
             {"id": "o", "type": "write", "inputs": {"image": "ink"}, "params": {"path": ")" +
                                      out + R"("}}]})",
-                                 "g.json");
+                                 "g.json",
+                                 nodes::catalog());
         bad.check({1});
         ADD_FAILURE() << "bad ids accepted";
     } catch (const Error &e) {

@@ -10,6 +10,7 @@
 #include <filesystem>
 
 #include "graph/graph.h"
+#include "nodes/registry.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -18,6 +19,7 @@ namespace {
 Graph post_stack(const std::string &dir)
 {
     Graph g = Graph::load(std::string(POSTHASTE_SOURCE_DIR) + "/graphs/post_stack.json",
+                          nodes::catalog(),
                           {"scene.width=96",
                            "scene.height=54",
                            "exposure.adaptation_frames=3",

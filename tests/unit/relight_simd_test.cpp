@@ -13,6 +13,7 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "graph/graph.h"
+#include "nodes/registry.h"
 #include "raster/render.h"
 
 namespace posthaste {
@@ -40,7 +41,8 @@ Image run_relight(const std::string &params)
         {"id": "l", "type": "relight", "inputs": {"image": "src"}, "params": )" +
                                      params + R"(},
         {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
-                                 "relight_simd.json");
+                                 "relight_simd.json",
+                                 nodes::catalog());
     const GraphNode &gn = g.nodes()[1];
     NodeContext ctx(gn.identity,
                     gn.params,
