@@ -43,29 +43,38 @@ constexpr ParamSpec kRadius =
 constexpr ParamSpec kBlades =
     ParamSpec::integer("blades", 6)
         .range(0, 32)
-        .doc("Aperture blades of the diffraction pattern (0-2: a circular aperture).");
+        .doc("Aperture blades of the diffraction pattern (0-2: a circular aperture).")
+        .only_when("method", "fft");
 constexpr ParamSpec kBladeRotation = ParamSpec::real("blade_rotation", 0.0)
                                          .range(-360.0, 360.0)
                                          .units("degrees")
-                                         .doc("Rotation of the aperture polygon.");
+                                         .doc("Rotation of the aperture polygon.")
+                                         .only_when("method", "fft");
 constexpr ParamSpec kFstop = ParamSpec::real("fstop", 8.0)
                                  .range(0.5, 128.0)
                                  .doc(
                                      "f-number for the diffraction pattern; unless given: the "
-                                     "header's aperture, else this.");
+                                     "header's aperture, else this.")
+                                 .only_when("method", "fft");
 constexpr ParamSpec kDiffractionScale =
     ParamSpec::real("diffraction_scale", 0.0)
         .range(0.0, 1000.0)
         .doc(
             "fft: the aperture's diffraction pattern at 1 its physical size, larger exaggerated; "
-            "0: none (the core is a point).");
+            "0: none (the core is a point).")
+        .only_when("method", "fft");
 constexpr ParamSpec kLevels = ParamSpec::integer("levels", 0)
                                   .range(0, 14)
                                   .doc(
                                       "pyramid: coarse levels mixed (0: enough for the radius; "
-                                      "fewer is faster, the tail shorter).");
-constexpr ParamSpec kPsf = ParamSpec::string("psf", "").file_path().doc(
-    "An image file whose color pass is the PSF (centred; each channel normalised). fft only.");
+                                      "fewer is faster, the tail shorter).")
+                                  .only_when("method", "pyramid");
+constexpr ParamSpec kPsf = ParamSpec::string("psf", "")
+                               .file_path()
+                               .doc(
+                                   "An image file whose color pass is the PSF (centred; each "
+                                   "channel normalised). fft only.")
+                               .only_when("method", "fft");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to bloom.").reads_passes();
 constexpr ParamSpec kParams[] = {kMethod,
@@ -181,11 +190,6 @@ void check(CheckContext &ctx)
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     const std::string &path = ctx.params.get_string(kPsf);
     if (!path.empty()) {
-        if (ctx.params.get_string(kMethod) != "fft") {
-            throw_usage(where,
-                        ": param \"psf\" needs \"method\": \"fft\" (the pyramid fits only the "
-                        "built-in tail)");
-        }
         if (!std::filesystem::exists(path)) {
             throw_usage(where, ": param \"psf\": ", path, ": no such file");
         }

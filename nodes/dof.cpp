@@ -59,7 +59,8 @@ constexpr ParamSpec kResolution =
         .doc(
             "full: gather every pixel at full resolution; half: gather blurs of 3 px radius and "
             "more at "
-            "half resolution and composite at full (faster, noisier highlights).");
+            "half resolution and composite at full (faster, noisier highlights).")
+        .only_when("method", "gather");
 constexpr ParamSpec kParams[] = {
     kFstop, kFocus, kFocal, kSensor, kMaxCoc, kSamples, kBlades, kRotation, kMethod, kResolution};
 constexpr PortSpec kInputs[] = {

@@ -34,54 +34,67 @@ constexpr ParamSpec kExposure =
 constexpr ParamSpec kFstop =
     ParamSpec::real("fstop", 8.0)
         .range(0.5, 128.0)
-        .doc("photographic: f-number; unless given, the header's aperture, else this.");
+        .doc("photographic: f-number; unless given, the header's aperture, else this.")
+        .only_when("mode", "photographic");
 constexpr ParamSpec kShutterTime =
     ParamSpec::real("shutter_time", 1.0 / 48.0)
         .range(1e-6, 60.0)
         .units("s")
-        .doc("photographic: exposure time; unless given, the header's shutter / fps, else this.");
-constexpr ParamSpec kIso =
-    ParamSpec::real("iso", 100.0).range(1.0, 409600.0).doc("photographic: sensitivity.");
+        .doc("photographic: exposure time; unless given, the header's shutter / fps, else this.")
+        .only_when("mode", "photographic");
+constexpr ParamSpec kIso = ParamSpec::real("iso", 100.0)
+                               .range(1.0, 409600.0)
+                               .doc("photographic: sensitivity.")
+                               .only_when("mode", "photographic");
 constexpr ParamSpec kFps =
     ParamSpec::real("fps", 24.0)
         .range(0.1, 1000.0)
         .units("frames/s")
-        .doc("Frame rate: the shutter time from the header's shutter, and auto's adaptation time.");
+        .doc("Frame rate: the shutter time from the header's shutter, and auto's adaptation time.")
+        .only_when("mode", "photographic|auto");
 constexpr ParamSpec kKey =
     ParamSpec::real("key", 0.18)
         .range(1e-4, 100.0)
-        .doc("auto: the luminance the metered average is brought to (middle grey).");
+        .doc("auto: the luminance the metered average is brought to (middle grey).")
+        .only_when("mode", "auto");
 constexpr ParamSpec kLowPercentile = ParamSpec::real("low_percentile", 50.0)
                                          .range(0.0, 100.0)
-                                         .doc("auto: darkest share of the samples left out.");
+                                         .doc("auto: darkest share of the samples left out.")
+                                         .only_when("mode", "auto");
 constexpr ParamSpec kHighPercentile = ParamSpec::real("high_percentile", 95.0)
                                           .range(0.0, 100.0)
-                                          .doc("auto: samples above this rank left out.");
+                                          .doc("auto: samples above this rank left out.")
+                                          .only_when("mode", "auto");
 constexpr ParamSpec kMinEv =
     ParamSpec::real("min_ev", -10.0)
         .range(-40.0, 40.0)
-        .doc("auto: the histogram's darkest log2 luminance (and the target's lower clamp).");
+        .doc("auto: the histogram's darkest log2 luminance (and the target's lower clamp).")
+        .only_when("mode", "auto");
 constexpr ParamSpec kMaxEv = ParamSpec::real("max_ev", 20.0)
                                  .range(-40.0, 40.0)
-                                 .doc("auto: the histogram's brightest log2 luminance.");
+                                 .doc("auto: the histogram's brightest log2 luminance.")
+                                 .only_when("mode", "auto");
 constexpr ParamSpec kSpeedUp =
     ParamSpec::real("speed_up", 3.0)
         .at_least(0.0)
         .units("1/s")
-        .doc("auto: adaptation rate toward a brighter scene (0: at once).");
+        .doc("auto: adaptation rate toward a brighter scene (0: at once).")
+        .only_when("mode", "auto");
 constexpr ParamSpec kSpeedDown =
     ParamSpec::real("speed_down", 1.0)
         .at_least(0.0)
         .units("1/s")
-        .doc("auto: adaptation rate toward a darker scene (0: at once).");
+        .doc("auto: adaptation rate toward a darker scene (0: at once).")
+        .only_when("mode", "auto");
 constexpr ParamSpec kAdaptationFrames =
     ParamSpec::integer("adaptation_frames", 48)
         .range(0, 100000)
-        .doc("auto: earlier frames the adaptation starts from (0: each frame metered alone).");
-constexpr ParamSpec kMeteringStep =
-    ParamSpec::integer("metering_step", 4)
-        .range(1, 64)
-        .doc("auto: every n-th pixel of every n-th row is metered.");
+        .doc("auto: earlier frames the adaptation starts from (0: each frame metered alone).")
+        .only_when("mode", "auto");
+constexpr ParamSpec kMeteringStep = ParamSpec::integer("metering_step", 4)
+                                        .range(1, 64)
+                                        .doc("auto: every n-th pixel of every n-th row is metered.")
+                                        .only_when("mode", "auto");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to expose.").reads_passes();
 constexpr ParamSpec kParams[] = {kMode,
@@ -218,29 +231,6 @@ void execute(NodeContext &ctx)
 void check(CheckContext &ctx)
 {
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
-    const std::string &mode = ctx.params.get_string(kMode);
-    // Parameters of another mode are refused rather than silently ignored.
-    const ParamSpec *photographic[] = {&kFstop, &kShutterTime, &kIso};
-    const ParamSpec *automatic[] = {&kKey,
-                                    &kLowPercentile,
-                                    &kHighPercentile,
-                                    &kMinEv,
-                                    &kMaxEv,
-                                    &kSpeedUp,
-                                    &kSpeedDown,
-                                    &kAdaptationFrames,
-                                    &kMeteringStep};
-    for (const ParamSpec *s : photographic) {
-        if (mode != "photographic" && ctx.params.given(*s)) {
-            throw_usage(
-                where, ": param \"", s->name, "\" applies to mode photographic, not ", mode);
-        }
-    }
-    for (const ParamSpec *s : automatic) {
-        if (mode != "auto" && ctx.params.given(*s)) {
-            throw_usage(where, ": param \"", s->name, "\" applies to mode auto, not ", mode);
-        }
-    }
     if (ctx.params.get_real(kLowPercentile) >= ctx.params.get_real(kHighPercentile)) {
         throw_usage(where, ": low_percentile must be below high_percentile");
     }

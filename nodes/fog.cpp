@@ -29,73 +29,91 @@ constexpr ParamSpec kModel =
         .doc("Fog model; atmosphere_raymarch is the slow per-pixel reference of atmosphere.");
 constexpr ParamSpec kColor = ParamSpec::vec3("color", 0.6, 0.7, 0.8)
                                  .at_least(0.0)
-                                 .doc("Fog radiance, scene-linear (linear, exp, exp2, height).");
+                                 .doc("Fog radiance, scene-linear (linear, exp, exp2, height).")
+                                 .only_when("model", "linear|exp|exp2|height");
 constexpr ParamSpec kStart =
     ParamSpec::real("start", 0.0)
         .at_least(0.0)
         .units("scene units")
-        .doc("Linear: distance where fog begins; height: no fog closer than this.");
+        .doc("Linear: distance where fog begins; height: no fog closer than this.")
+        .only_when("model", "linear|height");
 constexpr ParamSpec kEnd = ParamSpec::real("end", 200.0)
                                .at_least(0.0)
                                .units("scene units")
-                               .doc("Linear: distance of full fog.");
+                               .doc("Linear: distance of full fog.")
+                               .only_when("model", "linear");
 constexpr ParamSpec kDensity =
     ParamSpec::real("density", 0.01)
         .at_least(0.0)
         .units("1/unit")
-        .doc(
-            "exp, exp2: density; height: extinction at base_height. 0 leaves the frame untouched.");
+        .doc("exp, exp2: density; height: extinction at base_height. 0 leaves the frame untouched.")
+        .only_when("model", "exp|exp2|height");
 constexpr ParamSpec kFalloff =
     ParamSpec::real("falloff", 0.1)
         .at_least(0.0)
         .units("1/unit")
-        .doc("Height: density falls by exp(-falloff) per unit of height above base_height.");
+        .doc("Height: density falls by exp(-falloff) per unit of height above base_height.")
+        .only_when("model", "height");
 constexpr ParamSpec kBaseHeight = ParamSpec::real("base_height", 0.0)
                                       .units("scene units")
-                                      .doc("Height: world y where the density equals `density`.");
+                                      .doc("Height: world y where the density equals `density`.")
+                                      .only_when("model", "height");
 constexpr ParamSpec kSky =
     ParamSpec::choice("sky", "fog|ray", "fog")
-        .doc("Height: sky pixels get the fog color (fog) or the fog of the infinite ray (ray).");
-constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
-                                        .doc(
-                                            "World direction towards the sun; default: the "
-                                            "header's posthaste:sunDirection if present.");
+        .doc("Height: sky pixels get the fog color (fog) or the fog of the infinite ray (ray).")
+        .only_when("model", "height");
+constexpr ParamSpec kSunDirection =
+    ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
+        .doc(
+            "World direction towards the sun; default: the "
+            "header's posthaste:sunDirection if present.")
+        .only_when("model", "height|atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kSunColor =
     ParamSpec::vec3("sun_color", 0.0, 0.0, 0.0)
         .at_least(0.0)
-        .doc("Height: radiance scale of the sun in-scatter lobe (0: no lobe).");
+        .doc("Height: radiance scale of the sun in-scatter lobe (0: no lobe).")
+        .only_when("model", "height");
 constexpr ParamSpec kSunG = ParamSpec::real("sun_g", 0.7)
                                 .range(-0.99, 0.99)
-                                .doc("Height: Henyey-Greenstein asymmetry of the sun lobe.");
+                                .doc("Height: Henyey-Greenstein asymmetry of the sun lobe.")
+                                .only_when("model", "height");
 constexpr ParamSpec kIlluminance = ParamSpec::vec3("sun_illuminance", 1.0, 1.0, 1.0)
                                        .at_least(0.0)
                                        .doc(
                                            "Atmosphere: sun illuminance; default: the header's "
-                                           "posthaste:sunIlluminance if present.");
+                                           "posthaste:sunIlluminance if present.")
+                                       .only_when("model", "atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kMetresPerUnit = ParamSpec::real("metres_per_unit", 1.0)
                                          .range(1e-6, 1e6)
-                                         .doc("Atmosphere: scene units to metres.");
+                                         .doc("Atmosphere: scene units to metres.")
+                                         .only_when("model", "atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kGroundAltitude = ParamSpec::real("ground_altitude", 0.0)
                                           .range(0.0, 90000.0)
                                           .units("m")
-                                          .doc("Atmosphere: altitude of world y = 0.");
+                                          .doc("Atmosphere: altitude of world y = 0.")
+                                          .only_when("model", "atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kFroxels =
     ParamSpec::integer("froxels", 32)
         .range(2, 256)
-        .doc("Atmosphere: aerial-perspective volume resolution across the screen (per axis).");
+        .doc("Atmosphere: aerial-perspective volume resolution across the screen (per axis).")
+        .only_when("model", "atmosphere");
 constexpr ParamSpec kSlices = ParamSpec::integer("slices", 32)
                                   .range(2, 256)
-                                  .doc("Atmosphere: aerial-perspective depth slices.");
+                                  .doc("Atmosphere: aerial-perspective depth slices.")
+                                  .only_when("model", "atmosphere");
 constexpr ParamSpec kMaxDistance =
     ParamSpec::real("max_distance", 32000.0)
         .range(1.0, 1e9)
         .units("scene units")
-        .doc("Atmosphere: depth range of the aerial-perspective volume.");
-constexpr ParamSpec kSunDisc =
-    ParamSpec::boolean("sun_disc", true).doc("Atmosphere: draw the sun disc in the sky.");
+        .doc("Atmosphere: depth range of the aerial-perspective volume.")
+        .only_when("model", "atmosphere");
+constexpr ParamSpec kSunDisc = ParamSpec::boolean("sun_disc", true)
+                                   .doc("Atmosphere: draw the sun disc in the sky.")
+                                   .only_when("model", "atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64)
                                  .range(1, 4096)
-                                 .doc("atmosphere_raymarch: integration steps per pixel.");
+                                 .doc("atmosphere_raymarch: integration steps per pixel.")
+                                 .only_when("model", "atmosphere_raymarch");
 constexpr ParamSpec kParams[] = {kModel,
                                  kColor,
                                  kStart,

@@ -25,16 +25,20 @@ constexpr ParamSpec kMode =
 constexpr ParamSpec kProjection = ParamSpec::choice("projection", "dominant|triplanar", "dominant")
                                       .doc(
                                           "dominant: the plane of N's largest axis (voxels); "
-                                          "triplanar: three planes blended by |N|.");
+                                          "triplanar: three planes blended by |N|.")
+                                      .only_when("mode", "surface");
 constexpr ParamSpec kScale =
     ParamSpec::real("scale", 2.0).range(1e-3, 1e4).units("m").doc("World size of one TAM tile.");
 constexpr ParamSpec kTone =
     ParamSpec::choice("tone", "luminance|light", "luminance")
         .doc("Tone from the input color's luminance, or from n.l with light_dir.");
 constexpr ParamSpec kLightDir = ParamSpec::vec3("light_dir", 0.4, 1.0, 0.3)
-                                    .doc("World direction towards the light (tone=light).");
-constexpr ParamSpec kAmbient =
-    ParamSpec::real("ambient", 0.15).range(0.0, 1.0).doc("Tone floor for tone=light.");
+                                    .doc("World direction towards the light (tone=light).")
+                                    .only_when("tone", "light");
+constexpr ParamSpec kAmbient = ParamSpec::real("ambient", 0.15)
+                                   .range(0.0, 1.0)
+                                   .doc("Tone floor for tone=light.")
+                                   .only_when("tone", "light");
 constexpr ParamSpec kExposure = ParamSpec::real("exposure", 1.0)
                                     .range(0.0, 1e6)
                                     .doc("Multiplies luminance (or n.l) before the tone curve.");

@@ -11,10 +11,14 @@ constexpr ParamSpec kMode =
     ParamSpec::choice("mode", "colorspace|display", "colorspace")
         .doc("Convert between color spaces, or apply a display + view transform.");
 constexpr ParamSpec kFrom = ParamSpec::string("from", "lin_rec709").doc("Input color space.");
-constexpr ParamSpec kTo =
-    ParamSpec::string("to", "srgb").doc("Output color space (colorspace mode).");
-constexpr ParamSpec kDisplay = ParamSpec::string("display", "sRGB").doc("Display (display mode).");
-constexpr ParamSpec kView = ParamSpec::string("view", "Standard").doc("View (display mode).");
+constexpr ParamSpec kTo = ParamSpec::string("to", "srgb")
+                              .doc("Output color space (colorspace mode).")
+                              .only_when("mode", "colorspace");
+constexpr ParamSpec kDisplay = ParamSpec::string("display", "sRGB")
+                                   .doc("Display (display mode).")
+                                   .only_when("mode", "display");
+constexpr ParamSpec kView =
+    ParamSpec::string("view", "Standard").doc("View (display mode).").only_when("mode", "display");
 constexpr ParamSpec kUnpremultiply =
     ParamSpec::boolean("unpremultiply", true)
         .doc("Divide color by alpha before the transform and multiply after.");

@@ -26,9 +26,9 @@
 #include <nlohmann/json.hpp>
 
 #include "core/hash.h"
+#include "core/sanitize.h"
 #include "core/simd.h"
 #include "core/simd_avx2.h"
-#include "core/sanitize.h"
 #include "nodes/node.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
@@ -94,20 +94,25 @@ constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", false)
                                    .doc(
                                        "Screen-space shadows: march the depth buffer toward each "
                                        "light (needs the depth pass).");
-constexpr ParamSpec kShadowSteps =
-    ParamSpec::integer("shadow_steps", 16).range(1, 256).doc("Ray-march steps per light.");
+constexpr ParamSpec kShadowSteps = ParamSpec::integer("shadow_steps", 16)
+                                       .range(1, 256)
+                                       .doc("Ray-march steps per light.")
+                                       .only_when("shadows", "true");
 constexpr ParamSpec kShadowDistance = ParamSpec::real("shadow_distance", 2.0)
                                           .range(0.001, 1e6)
                                           .units("m")
-                                          .doc("Longest march toward a light.");
+                                          .doc("Longest march toward a light.")
+                                          .only_when("shadows", "true");
 constexpr ParamSpec kShadowThickness = ParamSpec::real("shadow_thickness", 0.5)
                                            .range(0.0, 1e6)
                                            .units("m")
-                                           .doc("Assumed depth of every surface in the buffer.");
+                                           .doc("Assumed depth of every surface in the buffer.")
+                                           .only_when("shadows", "true");
 constexpr ParamSpec kShadowBias = ParamSpec::real("shadow_bias", 0.02)
                                       .range(0.0, 1e6)
                                       .units("m")
-                                      .doc("Start offset along the normal and depth tolerance.");
+                                      .doc("Start offset along the normal and depth tolerance.")
+                                      .only_when("shadows", "true");
 constexpr ParamSpec kClamp =
     ParamSpec::real("clamp", 0.0)
         .range(0.0, 1e30)
@@ -1422,10 +1427,8 @@ void execute(NodeContext &ctx)
     Image color_storage, normal_storage, albedo_storage, material_storage, position_storage,
         depth_storage, tangent_storage;
     const Image &color = finite_view(ctx.input_pass("image", pass::kColor), 0.0f, color_storage);
-    const Image &normal =
-        finite_view(ctx.input_pass("image", pass::kNormal), 0.0f, normal_storage);
-    const Image &albedo =
-        finite_view(ctx.input_pass("image", pass::kAlbedo), 0.0f, albedo_storage);
+    const Image &normal = finite_view(ctx.input_pass("image", pass::kNormal), 0.0f, normal_storage);
+    const Image &albedo = finite_view(ctx.input_pass("image", pass::kAlbedo), 0.0f, albedo_storage);
     const Image &material =
         finite_view(ctx.input_pass("image", pass::kMaterial), 0.0f, material_storage);
     const bool from_depth = ctx.get_choice(kPositionFrom) == 1;

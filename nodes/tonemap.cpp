@@ -26,7 +26,8 @@ constexpr ParamSpec kWhite =
         .doc(
             "reinhard: the input that maps to 1; hable: Hable's white W (11.2 in his; with his "
             "exposure "
-            "bias of 2 the input W / 2 maps to 1). Beyond, both clip to 1.");
+            "bias of 2 the input W / 2 maps to 1). Beyond, both clip to 1.")
+        .only_when("curve", "reinhard|hable");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to tone map.").reads_passes();
 constexpr ParamSpec kParams[] = {kCurve, kMode, kWhite, kPass};

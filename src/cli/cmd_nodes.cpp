@@ -30,7 +30,8 @@ void print_type(const NodeType &t)
     }
     for (const ParamSpec &p : s.params) {
         const std::string range = describe_range(p);
-        std::printf("  %-18s %-28s default %s%s%s%s%s\n      %s\n",
+        const std::string condition = describe_condition(p);
+        std::printf("  %-18s %-28s default %s%s%s%s%s%s%s\n      %s\n",
                     std::string(p.name).c_str(),
                     describe_type(p).c_str(),
                     describe_default(p).c_str(),
@@ -38,6 +39,8 @@ void print_type(const NodeType &t)
                     range.c_str(),
                     p.unit.empty() ? "" : ", ",
                     std::string(p.unit).c_str(),
+                    condition.empty() ? "" : "; only when ",
+                    condition.c_str(),
                     std::string(p.help).c_str());
     }
 }

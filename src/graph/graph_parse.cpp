@@ -433,6 +433,44 @@ struct GraphBuilder {
         }
     }
 
+    /// Parameters given where they do not apply (ParamSpec::only_when): refused, naming the
+    /// parameter that rules it out and its value.
+    static void applicable(const Graph &g)
+    {
+        for (const GraphNode &gn : g.nodes_) {
+            for (const ParamSpec &p : gn.type->spec.params) {
+                if (p.when_param.empty() || !gn.params.given(p)) {
+                    continue;
+                }
+                const ParamSpec *control = find_param(*gn.type, std::string(p.when_param));
+                if (!control) {
+                    throw_runtime(gn.identity.describe(),
+                                  ": internal: param \"",
+                                  p.name,
+                                  "\" depends on an undeclared param \"",
+                                  p.when_param,
+                                  "\"");
+                }
+                const std::string word =
+                    condition_word(*control, gn.params.values().at(std::string(control->name)));
+                const std::vector<std::string> words = split_choices(p.when_values);
+                if (std::find(words.begin(), words.end(), word) == words.end()) {
+                    throw_usage(gn.identity.json_path,
+                                "/params/",
+                                p.name,
+                                ": ",
+                                gn.identity.describe(),
+                                ": param \"",
+                                p.name,
+                                "\" applies only when ",
+                                describe_condition(p),
+                                ", not ",
+                                word);
+                }
+            }
+        }
+    }
+
     /// Consumers, the cycle check, and the evaluation order; a graph must have a sink.
     static void order(Graph &g, const std::string &origin)
     {
@@ -561,6 +599,7 @@ Graph Graph::parse(const std::string &text,
     }
     GraphBuilder::overrides(g, overrides, ids);
     GraphBuilder::required(g);
+    GraphBuilder::applicable(g);
     GraphBuilder::order(g, origin);
     g.plan();
     return g;

@@ -101,4 +101,29 @@ std::string describe_range(const ParamSpec &spec)
     return "";
 }
 
+std::string describe_condition(const ParamSpec &spec)
+{
+    if (spec.when_param.empty()) {
+        return "";
+    }
+    std::string text(spec.when_param);
+    text += " is ";
+    const std::vector<std::string> words = split_choices(spec.when_values);
+    for (std::size_t i = 0; i < words.size(); ++i) {
+        if (i > 0) {
+            text += i + 1 == words.size() ? " or " : ", ";
+        }
+        text += words[i];
+    }
+    return text;
+}
+
+std::string condition_word(const ParamSpec &spec, const ParamValue &value)
+{
+    if (spec.type == ParamType::Bool) {
+        return value.number != 0.0 ? "true" : "false";
+    }
+    return value.text;
+}
+
 }  // namespace posthaste

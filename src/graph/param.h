@@ -37,6 +37,12 @@ struct ParamSpec {
     bool file = false;      ///< a file path or pattern: relative values in a graph file resolve
                             ///< against the graph's folder (its "base_dir")
     bool passes = false;    ///< names passes (comma-separated) the node reads from its first input
+    /// Applies only while the node's parameter `when_param` (a Choice or a Bool of the same node)
+    /// has one of `when_values` ("a|b"; "true" or "false" for a Bool). Giving it otherwise is an
+    /// error: a value that would be ignored is a mistake in the graph (pbrt's unused-parameter
+    /// rule).
+    std::string_view when_param;
+    std::string_view when_values;
 
     static constexpr ParamSpec integer(std::string_view n, int def)
     {
@@ -150,6 +156,15 @@ struct ParamSpec {
         p.passes = true;
         return p;
     }
+    /// Applies only while parameter `param` of the same node is one of `values` ("a|b"; "true" or
+    /// "false" for a boolean): given with any other, the graph is refused.
+    constexpr ParamSpec only_when(std::string_view param, std::string_view values) const
+    {
+        ParamSpec p = *this;
+        p.when_param = param;
+        p.when_values = values;
+        return p;
+    }
     /// No default: the graph (or --set) must give a value.
     constexpr ParamSpec mandatory() const
     {
@@ -175,5 +190,9 @@ std::string describe_type(const ParamSpec &spec);
 std::string describe_default(const ParamSpec &spec);
 /// The range as text ("1..256", ">= 0", "" when unbounded).
 std::string describe_range(const ParamSpec &spec);
+/// When the parameter applies, as text ("model is linear or height"; "" when always).
+std::string describe_condition(const ParamSpec &spec);
+/// The value of a Choice or Bool parameter as only_when() names it ("linear", "true").
+std::string condition_word(const ParamSpec &spec, const ParamValue &value);
 
 }  // namespace posthaste

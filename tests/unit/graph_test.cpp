@@ -4,9 +4,9 @@
 
 #include "graph/graph.h"
 
-#include <algorithm>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -117,6 +117,76 @@ TEST(GraphValidation, SetOverridesUseTheSameChecks)
                     "unknown node \"sr\" (did you mean \"src\"?)");
     EXPECT_CONTAINS(error_of(kReadWrite, {"src.pat=x"}), "unknown param \"pat\"");
     EXPECT_CONTAINS(error_of(kReadWrite, {"srcpath"}), "expected node.param=value");
+}
+
+// A parameter that applies only in some modes (ParamSpec::only_when) is refused in the others,
+// from the file and from --set, naming the parameter, the mode that rules it out and its value.
+TEST(GraphValidation, ParamsOfAnotherModeAreRefused)
+{
+    const auto fog = [](const std::string &params) {
+        return R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": "in.####.exr"}},
+            {"id": "f", "type": "fog", "inputs": {"image": "src"}, "params": )" +
+               params + R"(},
+            {"id": "out", "type": "write", "inputs": {"image": "f"}, "params": {"path": "o.####.exr"}}]})";
+    };
+    EXPECT_EQ(error_of(fog(R"({"model": "atmosphere", "froxels": 8})")), "");
+    EXPECT_EQ(error_of(fog(R"({"model": "linear", "start": 1, "end": 9})")), "");
+    EXPECT_CONTAINS(error_of(fog(R"({"model": "linear", "froxels": 8})")),
+                    "g.json:/nodes/1/params/froxels: node \"f\" (fog): param \"froxels\" applies "
+                    "only when model is atmosphere, not linear");
+    // The default mode counts too (height), and a list of modes is spelled out.
+    EXPECT_CONTAINS(error_of(fog(R"({"end": 50})")),
+                    "param \"end\" applies only when model is linear, not height");
+    EXPECT_CONTAINS(error_of(fog(R"({"model": "atmosphere", "color": [1, 1, 1]})")),
+                    "param \"color\" applies only when model is linear, exp, exp2 or height, "
+                    "not atmosphere");
+    // --set is held to the same rule, in both directions.
+    EXPECT_CONTAINS(error_of(fog(R"({"model": "height"})"), {"f.steps=8"}),
+                    "param \"steps\" applies only when model is atmosphere_raymarch, not height");
+    EXPECT_EQ(error_of(fog(R"({"model": "height"})"), {"f.model=atmosphere_raymarch", "f.steps=8"}),
+              "");
+    // A boolean mode.
+    const std::string relight = R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "in.####.exr"}},
+        {"id": "r", "type": "relight", "inputs": {"image": "src"}, "params": {"shadow_steps": 4}},
+        {"id": "out", "type": "write", "inputs": {"image": "r"}, "params": {"path": "o.####.exr"}}]})";
+    EXPECT_CONTAINS(error_of(relight),
+                    "param \"shadow_steps\" applies only when shadows is true, not false");
+    EXPECT_EQ(error_of(relight, {"r.shadows=true"}), "");
+}
+
+// Every only_when names a choice or boolean parameter of the same node and values it can take,
+// so no condition is dead or refers to nothing.
+TEST(GraphValidation, ModeConditionsNameRealModes)
+{
+    int conditions = 0;
+    for (const NodeType *t : nodes::catalog().all()) {
+        for (const ParamSpec &p : t->spec.params) {
+            if (p.when_param.empty()) {
+                continue;
+            }
+            ++conditions;
+            const ParamSpec *control = nullptr;
+            for (const ParamSpec &c : t->spec.params) {
+                if (c.name == p.when_param) {
+                    control = &c;
+                }
+            }
+            ASSERT_NE(control, nullptr) << t->spec.type << "." << p.name << ": " << p.when_param;
+            ASSERT_TRUE(control->type == ParamType::Choice || control->type == ParamType::Bool)
+                << t->spec.type << "." << p.when_param;
+            const std::vector<std::string> allowed = control->type == ParamType::Bool
+                                                         ? std::vector<std::string>{"true", "false"}
+                                                         : split_choices(control->choices);
+            for (const std::string &w : split_choices(p.when_values)) {
+                EXPECT_NE(std::find(allowed.begin(), allowed.end(), w), allowed.end())
+                    << t->spec.type << "." << p.name << ": " << w;
+            }
+            EXPECT_FALSE(describe_condition(p).empty());
+        }
+    }
+    EXPECT_GE(conditions, 30);  // fog, exposure, bloom, ocio, relight, hatching, dof, tonemap
 }
 
 TEST(GraphFrames, ListsAndRanges)
