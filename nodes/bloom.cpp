@@ -52,9 +52,8 @@ constexpr ParamSpec kBladeRotation = ParamSpec::real("blade_rotation", 0.0)
                                          .only_when("method", "fft");
 constexpr ParamSpec kFstop = ParamSpec::real("fstop", 8.0)
                                  .range(0.5, 128.0)
-                                 .doc(
-                                     "f-number for the diffraction pattern; unless given: the "
-                                     "header's aperture, else this.")
+                                 .doc("f-number for the diffraction pattern.")
+                                 .from_header(attr::kAperture)
                                  .only_when("method", "fft");
 constexpr ParamSpec kDiffractionScale =
     ParamSpec::real("diffraction_scale", 0.0)

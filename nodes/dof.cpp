@@ -16,23 +16,25 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kFstop =
-    ParamSpec::real("fstop", 0.0)
-        .at_least(0.0)
-        .doc("f-number N (aperture diameter = focal length / N). 0: the header's `aperture`.");
+constexpr ParamSpec kFstop = ParamSpec::real("fstop", 0.0)
+                                 .at_least(0.0)
+                                 .doc("f-number N (aperture diameter = focal length / N).")
+                                 .from_header_only(attr::kAperture);
 constexpr ParamSpec kFocus = ParamSpec::real("focus_distance", 0.0)
                                  .at_least(0.0)
                                  .units("m")
-                                 .doc("Distance of the plane in focus. 0: the header's `focus`.");
+                                 .doc("Distance of the plane in focus.")
+                                 .from_header_only(attr::kFocus);
 constexpr ParamSpec kFocal = ParamSpec::real("focal_length_mm", 0.0)
                                  .at_least(0.0)
                                  .units("mm")
-                                 .doc("Focal length. 0: the header's `focalLength`.");
-constexpr ParamSpec kSensor =
-    ParamSpec::real("sensor_width_mm", 0.0)
-        .at_least(0.0)
-        .units("mm")
-        .doc("Sensor width (maps to the image width). 0: the header's `sensorWidth`.");
+                                 .doc("Focal length.")
+                                 .from_header_only(attr::kFocalLength);
+constexpr ParamSpec kSensor = ParamSpec::real("sensor_width_mm", 0.0)
+                                  .at_least(0.0)
+                                  .units("mm")
+                                  .doc("Sensor width (maps to the image width).")
+                                  .from_header_only(attr::kSensorWidth);
 constexpr ParamSpec kMaxCoc =
     ParamSpec::real("max_coc", 64.0)
         .range(0.0, 4096.0)
@@ -77,10 +79,12 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
     shading::DofLens l;
     const double fstop = ctx.get_real(kFstop), focus = ctx.get_real(kFocus);
     const double focal = ctx.get_real(kFocal), sensor = ctx.get_real(kSensor);
-    l.fstop = fstop > 0.0 ? float(fstop) : cam.require_fstop(who);
-    l.focus_m = focus > 0.0 ? float(focus) : cam.require_focus_distance(who);
-    l.focal_mm = focal > 0.0 ? float(focal) : cam.require_focal_length_mm(who);
-    l.sensor_mm = sensor > 0.0 ? float(sensor * window_scale) : cam.require_sensor_width_mm(who);
+    const NodeParams &p = ctx.params();
+    l.fstop = p.given(kFstop) ? float(fstop) : cam.require_fstop(who);
+    l.focus_m = p.given(kFocus) ? float(focus) : cam.require_focus_distance(who);
+    l.focal_mm = p.given(kFocal) ? float(focal) : cam.require_focal_length_mm(who);
+    l.sensor_mm =
+        p.given(kSensor) ? float(sensor * window_scale) : cam.require_sensor_width_mm(who);
     if (!(l.fstop > 0.0f) || !(l.focus_m > 0.0f) || !(l.focal_mm > 0.0f) || !(l.sensor_mm > 0.0f) ||
         !std::isfinite(l.fstop) || !std::isfinite(l.focus_m) || !std::isfinite(l.focal_mm) ||
         !std::isfinite(l.sensor_mm)) {
@@ -146,6 +150,22 @@ void execute(NodeContext &ctx)
 
 void check(CheckContext &ctx)
 {
+    // A lens value given must be a lens value: 0 once meant "the header's", which is now what
+    // leaving it out means.
+    for (const ParamSpec *s : {&kFstop, &kFocus, &kFocal, &kSensor}) {
+        if (ctx.params.given(*s) && !(ctx.params.get_real(*s) > 0.0)) {
+            throw_usage(ctx.node.json_path,
+                        "/params/",
+                        s->name,
+                        ": ",
+                        ctx.node.describe(),
+                        ": param \"",
+                        s->name,
+                        "\" must be > 0 (leave it out for the header's ",
+                        s->header,
+                        ")");
+        }
+    }
     const int blades = ctx.params.get_int(kBlades);
     if (blades == 1 || blades == 2) {
         throw_usage(ctx.node.json_path,

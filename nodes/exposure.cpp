@@ -31,16 +31,17 @@ constexpr ParamSpec kExposure =
         .range(-32.0, 32.0)
         .units("stops")
         .doc("ev: the exposure; photographic and auto: a compensation added to theirs.");
-constexpr ParamSpec kFstop =
-    ParamSpec::real("fstop", 8.0)
-        .range(0.5, 128.0)
-        .doc("photographic: f-number; unless given, the header's aperture, else this.")
-        .only_when("mode", "photographic");
+constexpr ParamSpec kFstop = ParamSpec::real("fstop", 8.0)
+                                 .range(0.5, 128.0)
+                                 .doc("photographic: f-number.")
+                                 .from_header(attr::kAperture)
+                                 .only_when("mode", "photographic");
 constexpr ParamSpec kShutterTime =
     ParamSpec::real("shutter_time", 1.0 / 48.0)
         .range(1e-6, 60.0)
         .units("s")
-        .doc("photographic: exposure time; unless given, the header's shutter / fps, else this.")
+        .doc("photographic: exposure time (from the header: its shutter / fps).")
+        .from_header(attr::kShutter)
         .only_when("mode", "photographic");
 constexpr ParamSpec kIso = ParamSpec::real("iso", 100.0)
                                .range(1.0, 409600.0)

@@ -64,9 +64,8 @@ constexpr ParamSpec kSky =
         .only_when("model", "height");
 constexpr ParamSpec kSunDirection =
     ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
-        .doc(
-            "World direction towards the sun; default: the "
-            "header's posthaste:sunDirection if present.")
+        .doc("World direction towards the sun.")
+        .from_header("posthaste:sunDirection")
         .only_when("model", "height|atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kSunColor =
     ParamSpec::vec3("sun_color", 0.0, 0.0, 0.0)
@@ -79,9 +78,8 @@ constexpr ParamSpec kSunG = ParamSpec::real("sun_g", 0.7)
                                 .only_when("model", "height");
 constexpr ParamSpec kIlluminance = ParamSpec::vec3("sun_illuminance", 1.0, 1.0, 1.0)
                                        .at_least(0.0)
-                                       .doc(
-                                           "Atmosphere: sun illuminance; default: the header's "
-                                           "posthaste:sunIlluminance if present.")
+                                       .doc("Atmosphere: sun illuminance.")
+                                       .from_header("posthaste:sunIlluminance")
                                        .only_when("model", "atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kMetresPerUnit = ParamSpec::real("metres_per_unit", 1.0)
                                          .range(1e-6, 1e6)
@@ -280,7 +278,7 @@ void execute(NodeContext &ctx)
 
     glm::vec3 sun_dir = vec3_of(ctx.get_vec(kSunDirection));
     if (!ctx.params().given(kSunDirection)) {
-        sun_dir = header_vec3(in, "posthaste:sunDirection").value_or(sun_dir);
+        sun_dir = header_vec3(in, std::string(kSunDirection.header).c_str()).value_or(sun_dir);
     }
     if (!(glm::length(sun_dir) > 0.0f) || !std::isfinite(glm::length(sun_dir))) {
         throw_runtime(who, ": sun direction must be a non-zero finite vector");
@@ -319,7 +317,8 @@ void execute(NodeContext &ctx)
         case AtmoRayMarch: {
             glm::vec3 illuminance = vec3_of(ctx.get_vec(kIlluminance));
             if (!ctx.params().given(kIlluminance)) {
-                illuminance = header_vec3(in, "posthaste:sunIlluminance").value_or(illuminance);
+                illuminance =
+                    header_vec3(in, std::string(kIlluminance.header).c_str()).value_or(illuminance);
             }
             const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
             const auto &atmosphere = built.atmosphere;

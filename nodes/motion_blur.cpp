@@ -20,9 +20,8 @@ namespace {
 constexpr ParamSpec kShutter =
     ParamSpec::real("shutter", 0.5)
         .range(0.0, 2.0)
-        .doc(
-            "Shutter open time as a fraction of the frame interval, centred on the frame. When not "
-            "given: the header's shutter, else this default.");
+        .doc("Shutter open time as a fraction of the frame interval, centred on the frame.")
+        .from_header(attr::kShutter);
 constexpr ParamSpec kSamples =
     ParamSpec::integer("samples", 16)
         .range(1, 256)

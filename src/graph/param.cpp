@@ -56,11 +56,10 @@ std::string describe_type(const ParamSpec &spec)
     return "?";
 }
 
-std::string describe_default(const ParamSpec &spec)
+namespace {
+
+std::string describe_own_default(const ParamSpec &spec)
 {
-    if (spec.required) {
-        return "(required)";
-    }
     switch (spec.type) {
         case ParamType::Int:
         case ParamType::Real:
@@ -84,6 +83,24 @@ std::string describe_default(const ParamSpec &spec)
             return std::string(spec.default_text);
     }
     return "";
+}
+
+}  // namespace
+
+std::string describe_default(const ParamSpec &spec)
+{
+    if (spec.required) {
+        return "(required)";
+    }
+    if (!spec.header.empty()) {
+        std::string text = "the header's ";
+        text += spec.header;
+        if (spec.header_only) {
+            return text + " (required there)";
+        }
+        return text + ", else " + describe_own_default(spec);
+    }
+    return describe_own_default(spec);
 }
 
 std::string describe_range(const ParamSpec &spec)

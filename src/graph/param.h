@@ -43,6 +43,11 @@ struct ParamSpec {
     /// rule).
     std::string_view when_param;
     std::string_view when_values;
+    /// Unless given, the value comes from this header attribute ("aperture"); the node reads
+    /// the header when `NodeParams::given()` is false. `header_only`: there is no fallback, a
+    /// frame without the attribute is an error; otherwise the default stands in for it.
+    std::string_view header;
+    bool header_only = false;
 
     static constexpr ParamSpec integer(std::string_view n, int def)
     {
@@ -163,6 +168,21 @@ struct ParamSpec {
         ParamSpec p = *this;
         p.when_param = param;
         p.when_values = values;
+        return p;
+    }
+    /// Unless given, the frame header's attribute `attribute`, and the default where the header
+    /// has none.
+    constexpr ParamSpec from_header(std::string_view attribute) const
+    {
+        ParamSpec p = *this;
+        p.header = attribute;
+        return p;
+    }
+    /// Unless given, the frame header's attribute `attribute`; a frame without it is an error.
+    constexpr ParamSpec from_header_only(std::string_view attribute) const
+    {
+        ParamSpec p = from_header(attribute);
+        p.header_only = true;
         return p;
     }
     /// No default: the graph (or --set) must give a value.

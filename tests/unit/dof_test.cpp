@@ -298,6 +298,45 @@ TEST(Dof, NodeReportsMissingLensAttributeAndUsesOverride)
     EXPECT_EQ(out.image("color").width(), 32);
 }
 
+TEST(Dof, LensValuesComeFromTheHeaderUnlessGiven)
+{
+    // The declaration says where an ungiven lens value comes from, and posthaste nodes prints it.
+    const NodeType *dof = nodes::catalog().find("dof");
+    ASSERT_NE(dof, nullptr);
+    int from_header = 0;
+    for (const ParamSpec &p : dof->spec.params) {
+        if (!p.header.empty()) {
+            ++from_header;
+            EXPECT_TRUE(p.header_only) << p.name;
+            EXPECT_EQ(describe_default(p),
+                      "the header's " + std::string(p.header) + " (required there)");
+        }
+    }
+    EXPECT_EQ(from_header, 4);  // aperture, focus, focalLength, sensorWidth
+    // 0 once meant "the header's"; given now, it is refused before any pixel work, naming what
+    // leaving it out does.
+    const std::string dir = test::scratch_dir("dof_zero");
+    write_exr(test::make_sample_frame(32, 16, 1), dir + "/in.1.exr", WriteOptions{});
+    const std::string graph = R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                              dir + R"(/in.#.exr"}},
+        {"id": "d", "type": "dof", "inputs": {"image": "src"}, "params": {"fstop": 0}},
+        {"id": "o", "type": "write", "inputs": {"image": "d"}, "params": {"path": ")" +
+                              dir + R"(/o.exr"}}]})";
+    const Graph g = Graph::parse(graph, "g.json", nodes::catalog());
+    try {
+        g.check({1});
+        FAIL() << "expected an error";
+    } catch (const Error &e) {
+        EXPECT_EQ(e.code(), ExitCode::Usage);
+        EXPECT_NE(std::string(e.what()).find(
+                      "g.json:/nodes/1/params/fstop: node \"d\" (dof): param \"fstop\" must be > 0 "
+                      "(leave it out for the header's aperture)"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(Dof, ExtremeInputsStayFiniteAndBounded)
 {
     Image color, depth, out;

@@ -189,6 +189,27 @@ TEST(GraphValidation, ModeConditionsNameRealModes)
     EXPECT_GE(conditions, 30);  // fog, exposure, bloom, ocio, relight, hatching, dof, tonemap
 }
 
+// "The header's value unless given" is one flag on the declaration, printed as the default.
+TEST(GraphValidation, HeaderDefaultsAreDeclared)
+{
+    const auto spec = [](std::string_view type, std::string_view name) -> const ParamSpec & {
+        for (const ParamSpec &p : nodes::catalog().find(type)->spec.params) {
+            if (p.name == name) {
+                return p;
+            }
+        }
+        throw std::runtime_error("no such param");
+    };
+    EXPECT_EQ(describe_default(spec("exposure", "fstop")), "the header's aperture, else 8");
+    EXPECT_EQ(describe_default(spec("motion_blur", "shutter")), "the header's shutter, else 0.5");
+    EXPECT_EQ(describe_default(spec("bloom", "fstop")), "the header's aperture, else 8");
+    EXPECT_EQ(describe_default(spec("fog", "sun_direction")),
+              "the header's posthaste:sunDirection, else [0.4, 0.75, 0.3]");
+    EXPECT_EQ(describe_default(spec("dof", "focus_distance")),
+              "the header's focus (required there)");
+    EXPECT_EQ(describe_default(spec("fog", "density")), "0.01");
+}
+
 TEST(GraphFrames, ListsAndRanges)
 {
     EXPECT_EQ(parse_frame_list("1-5x2"), (std::vector<int>{1, 3, 5}));
