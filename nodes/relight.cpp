@@ -23,7 +23,6 @@
 #include <glm/geometric.hpp>
 #include <glm/mat4x4.hpp>
 #include <glm/matrix.hpp>
-#include <nlohmann/json.hpp>
 
 #include "core/hash.h"
 #include "core/sanitize.h"
@@ -42,16 +41,51 @@ constexpr ParamSpec kMode =
             "add: the lights' contribution is added to the input color; replace: surfaces are "
             "shaded "
             "from albedo alone (lights plus `ambient`), background keeps the input color.");
+// One light: the fields of a record of `lights`.
+constexpr ParamSpec kLightType = ParamSpec::choice("type", "directional|point|spot", "directional")
+                                     .mandatory()
+                                     .doc("The kind of light.");
+constexpr ParamSpec kLightDirection =
+    ParamSpec::vec3("direction", 0.0, 1.0, 0.0)
+        .mandatory()
+        .only_when("type", "directional|spot")
+        .doc("World direction: toward the light (directional), where it points (spot).");
+constexpr ParamSpec kLightPosition = ParamSpec::vec3("position", 0.0, 0.0, 0.0)
+                                         .mandatory()
+                                         .only_when("type", "point|spot")
+                                         .units("m")
+                                         .doc("World position.");
+constexpr ParamSpec kLightColor =
+    ParamSpec::vec3("color", 1.0, 1.0, 1.0).at_least(0.0).doc("Colour, scales the intensity.");
+constexpr ParamSpec kLightIntensity =
+    ParamSpec::real("intensity", 1.0)
+        .range(0.0, 1e12)
+        .doc("Directional: irradiance; point and spot: intensity (irradiance at 1 m).");
+constexpr ParamSpec kLightRadius = ParamSpec::real("radius", 0.05)
+                                       .range(1e-6, 1e6)
+                                       .units("m")
+                                       .only_when("type", "point|spot")
+                                       .doc("Size of the emitter (softens the 1/d^2 near it).");
+constexpr ParamSpec kLightInner = ParamSpec::real("inner_deg", 20.0)
+                                      .range(0.0, 90.0)
+                                      .units("deg")
+                                      .only_when("type", "spot")
+                                      .doc("Half-angle of the full-intensity cone.");
+constexpr ParamSpec kLightOuter = ParamSpec::real("outer_deg", 30.0)
+                                      .range(0.0, 90.0)
+                                      .units("deg")
+                                      .only_when("type", "spot")
+                                      .doc("Half-angle where the light reaches 0 (> inner_deg).");
+constexpr ParamSpec kLightFields[] = {kLightType,
+                                      kLightDirection,
+                                      kLightPosition,
+                                      kLightColor,
+                                      kLightIntensity,
+                                      kLightRadius,
+                                      kLightInner,
+                                      kLightOuter};
 constexpr ParamSpec kLights =
-    ParamSpec::json("lights", "[]")
-        .doc(
-            "Array of lights: {\"type\": \"directional\", \"direction\": [x, y, z] (toward the "
-            "light), "
-            "\"color\": [r, g, b], \"intensity\": irradiance}, {\"type\": \"point\", \"position\", "
-            "\"color\", \"intensity\": intensity (irradiance at 1 m), \"radius\": m (0.05)}, or "
-            "{\"type\": \"spot\", point keys plus \"direction\" (where it points), \"inner_deg\" "
-            "(20), "
-            "\"outer_deg\" (30)}. World space, metres.");
+    ParamSpec::records("lights", kLightFields).doc("The lights, in world space and metres.");
 constexpr ParamSpec kAmbient = ParamSpec::real("ambient", 0.0)
                                    .range(0.0, 1000.0)
                                    .doc(
@@ -161,131 +195,33 @@ struct Setup {
 // Lights and toon ids, validated. `where` is "<file>:/nodes/<i>/params", `who` the node.
 Setup parse_setup(const NodeParams &params, const std::string &where, const std::string &who)
 {
-    using json = nlohmann::json;
     Setup s;
-    const json lights = json::parse(params.get_json(kLights));
-    const std::string at = where + "/lights";
-    if (!lights.is_array()) {
-        throw_usage(at, ": ", who, ": expected an array of lights, got ", lights.dump());
-    }
+    // The graph has checked every field's type, range and mode; what is left are the values
+    // that depend on each other.
+    const std::vector<NodeParams> &lights = params.get_records(kLights);
     for (std::size_t i = 0; i < lights.size(); ++i) {
-        const json &e = lights[i];
-        const std::string li = at + "/" + std::to_string(i);
-        if (!e.is_object()) {
-            throw_usage(li, ": ", who, ": expected a light object, got ", e.dump());
-        }
+        const NodeParams &r = lights[i];
+        const std::string li = where + "/lights/" + std::to_string(i);
+        const auto vec3 = [&](const ParamSpec &f) {
+            const std::vector<double> &v = r.get_vec(f);
+            return glm::vec3(float(v[0]), float(v[1]), float(v[2]));
+        };
         Light l;
-        const json type = e.value("type", json());
-        if (!type.is_string()) {
-            throw_usage(li,
-                        "/type: ",
-                        who,
-                        ": expected \"directional\", \"point\" or \"spot\", got ",
-                        type.is_null() ? std::string("nothing") : type.dump());
-        }
-        const std::string t = type.get<std::string>();
-        if (t == "directional") {
-            l.type = LightType::Directional;
-        } else if (t == "point") {
-            l.type = LightType::Point;
-        } else if (t == "spot") {
-            l.type = LightType::Spot;
-        } else {
-            throw_usage(li,
-                        "/type: ",
-                        who,
-                        ": expected \"directional\", \"point\" or \"spot\", got ",
-                        type.dump());
-        }
-        std::set<std::string> allowed = {"type", "color", "intensity"};
-        if (l.type == LightType::Directional) {
-            allowed.insert("direction");
-        } else {
-            allowed.insert({"position", "radius"});
-        }
-        if (l.type == LightType::Spot) {
-            allowed.insert({"direction", "inner_deg", "outer_deg"});
-        }
-        for (auto it = e.begin(); it != e.end(); ++it) {
-            if (!allowed.count(it.key())) {
-                std::string keys;
-                for (const std::string &k : allowed) {
-                    keys += (keys.empty() ? "" : ", ") + k;
-                }
-                throw_usage(li,
-                            "/",
-                            it.key(),
-                            ": ",
-                            who,
-                            ": unknown key for a ",
-                            t,
-                            " light (have: ",
-                            keys,
-                            ")");
-            }
-        }
-        auto vec3 = [&](const char *key, glm::vec3 def, bool required) {
-            if (!e.contains(key)) {
-                if (required) {
-                    throw_usage(li, "/", key, ": ", who, ": ", t, " light needs \"", key, "\"");
-                }
-                return def;
-            }
-            const json &v = e[key];
-            bool ok = v.is_array() && v.size() == 3;
-            for (std::size_t k = 0; ok && k < 3; ++k) {
-                ok = v[k].is_number() && std::isfinite(v[k].get<double>());
-            }
-            if (!ok) {
-                throw_usage(
-                    li, "/", key, ": ", who, ": expected [x, y, z] numbers, got ", v.dump());
-            }
-            return glm::vec3(v[0].get<float>(), v[1].get<float>(), v[2].get<float>());
-        };
-        auto number = [&](const char *key, double def, double lo, double hi) {
-            if (!e.contains(key)) {
-                return float(def);
-            }
-            const json &v = e[key];
-            if (!v.is_number() || !(v.get<double>() >= lo && v.get<double>() <= hi)) {
-                throw_usage(li,
-                            "/",
-                            key,
-                            ": ",
-                            who,
-                            ": expected a number in [",
-                            lo,
-                            ", ",
-                            hi,
-                            "], got ",
-                            v.dump());
-            }
-            return v.get<float>();
-        };
-        const glm::vec3 color = vec3("color", glm::vec3(1.0f), false);
-        if (color.x < 0.0f || color.y < 0.0f || color.z < 0.0f) {
-            throw_usage(
-                li, "/color: ", who, ": expected non-negative numbers, got ", e["color"].dump());
-        }
-        l.power = color * number("intensity", 1.0, 0.0, 1e12);
+        l.type = LightType(r.get_choice(kLightType));
+        l.power = vec3(kLightColor) * r.get_float(kLightIntensity);
         if (l.type != LightType::Point) {
-            const glm::vec3 d = vec3("direction", glm::vec3(0.0f), true);
+            const glm::vec3 d = vec3(kLightDirection);
             if (!(glm::length(d) > 1e-12f)) {
-                throw_usage(li,
-                            "/direction: ",
-                            who,
-                            ": expected a non-zero vector, got ",
-                            e["direction"].dump());
+                throw_usage(li, "/direction: ", who, ": expected a non-zero vector, got [0, 0, 0]");
             }
             l.direction = glm::normalize(d);
         }
         if (l.type != LightType::Directional) {
-            l.position = vec3("position", glm::vec3(0.0f), true);
-            l.radius = number("radius", 0.05, 1e-6, 1e6);
+            l.position = vec3(kLightPosition);
+            l.radius = r.get_float(kLightRadius);
         }
         if (l.type == LightType::Spot) {
-            const float inner = number("inner_deg", 20.0, 0.0, 90.0);
-            const float outer = number("outer_deg", 30.0, 0.0, 90.0);
+            const float inner = r.get_float(kLightInner), outer = r.get_float(kLightOuter);
             if (!(outer > inner)) {
                 throw_usage(li,
                             "/outer_deg: ",

@@ -10,6 +10,33 @@
 namespace posthaste::cli {
 namespace {
 
+/// One parameter's line and help, indented by `indent`; a Records parameter's fields follow,
+/// indented further.
+void print_param(const ParamSpec &p, int indent)
+{
+    const std::string range = describe_range(p);
+    const std::string condition = describe_condition(p);
+    const std::string pad(std::size_t(indent), ' ');
+    const int width = 20 - indent;
+    std::printf("%s%-*s %-28s default %s%s%s%s%s%s%s\n%s    %s\n",
+                pad.c_str(),
+                width,
+                std::string(p.name).c_str(),
+                describe_type(p).c_str(),
+                describe_default(p).c_str(),
+                range.empty() ? "" : ", range ",
+                range.c_str(),
+                p.unit.empty() ? "" : ", ",
+                std::string(p.unit).c_str(),
+                condition.empty() ? "" : "; only when ",
+                condition.c_str(),
+                pad.c_str(),
+                std::string(p.help).c_str());
+    for (std::size_t i = 0; i < p.field_count; ++i) {
+        print_param(p.fields[i], indent + 4);
+    }
+}
+
 void print_type(const NodeType &t)
 {
     const NodeSpec &s = t.spec;
@@ -29,19 +56,7 @@ void print_type(const NodeType &t)
         std::printf("  makes: %s\n", std::string(s.makes).c_str());
     }
     for (const ParamSpec &p : s.params) {
-        const std::string range = describe_range(p);
-        const std::string condition = describe_condition(p);
-        std::printf("  %-18s %-28s default %s%s%s%s%s%s%s\n      %s\n",
-                    std::string(p.name).c_str(),
-                    describe_type(p).c_str(),
-                    describe_default(p).c_str(),
-                    range.empty() ? "" : ", range ",
-                    range.c_str(),
-                    p.unit.empty() ? "" : ", ",
-                    std::string(p.unit).c_str(),
-                    condition.empty() ? "" : "; only when ",
-                    condition.c_str(),
-                    std::string(p.help).c_str());
+        print_param(p, 2);
     }
 }
 

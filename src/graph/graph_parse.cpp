@@ -358,8 +358,7 @@ struct GraphBuilder {
                             "\"",
                             did_you_mean(it.key(), param_names(*gn.type)));
             }
-            ParamValue v =
-                convert_param(*ps, it.value(), ppath + ": " + who + ": param \"" + it.key() + "\"");
+            ParamValue v = convert_param(*ps, it.value(), ppath, who);
             if (ps->file && !v.text.empty() && !g.base_dir_.empty() &&
                 std::filesystem::path(v.text).is_relative()) {
                 v.text = (std::filesystem::path(g.base_dir_) / v.text).lexically_normal().string();
@@ -409,8 +408,7 @@ struct GraphBuilder {
                 }
             }
             std::map<std::string, ParamValue> values = gn.params.values();
-            values[name] = convert_param(
-                *ps, v, where + ": " + gn.identity.describe() + ": param \"" + name + "\"");
+            values[name] = convert_param(*ps, v, where, gn.identity.describe());
             gn.params = NodeParams(gn.type, std::move(values));
         }
     }
@@ -421,7 +419,13 @@ struct GraphBuilder {
         // Required parameters.
         for (const GraphNode &gn : g.nodes_) {
             for (const ParamSpec &p : gn.type->spec.params) {
-                if (p.required && !gn.params.given(p)) {
+                const ParamSpec *control = p.when_param.empty()
+                                               ? nullptr
+                                               : find_param(*gn.type, std::string(p.when_param));
+                const bool applies =
+                    !control ||
+                    condition_holds(p, *control, gn.params.values().at(std::string(control->name)));
+                if (p.required && applies && !gn.params.given(p)) {
                     throw_usage(gn.identity.json_path,
                                 "/params: ",
                                 gn.identity.describe(),

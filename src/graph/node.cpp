@@ -56,6 +56,13 @@ const ParamValue &NodeParams::value(const ParamSpec &spec) const
     return it->second;
 }
 
+const std::vector<NodeParams> &NodeParams::get_records(const ParamSpec &spec) const
+{
+    static const std::vector<NodeParams> kNone;
+    const ParamValue &v = value(spec);
+    return v.records ? *v.records : kNone;
+}
+
 int NodeParams::get_choice(const ParamSpec &spec) const
 {
     const std::vector<std::string> words = split_choices(spec.choices);

@@ -99,6 +99,9 @@ class NodeParams {
     const std::vector<double> &get_vec(const ParamSpec &spec) const { return value(spec).vec; }
     /// JSON text of a Json parameter.
     const std::string &get_json(const ParamSpec &spec) const { return value(spec).text; }
+    /// The records of a Records parameter, each read with the same getters and its fields'
+    /// specs (validated and defaulted by the graph).
+    const std::vector<NodeParams> &get_records(const ParamSpec &spec) const;
     /// True if the graph or --set gave this parameter (false: the default is in force).
     bool given(const ParamSpec &spec) const { return value(spec).given; }
     const std::map<std::string, ParamValue> &values() const { return values_; }

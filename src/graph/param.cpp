@@ -1,5 +1,6 @@
 #include "graph/param.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -52,6 +53,8 @@ std::string describe_type(const ParamSpec &spec)
             return "array of " + std::to_string(spec.vec_size) + " numbers";
         case ParamType::Json:
             return "JSON";
+        case ParamType::Records:
+            return "list of records";
     }
     return "?";
 }
@@ -80,6 +83,7 @@ std::string describe_own_default(const ParamSpec &spec)
             return s + "]";
         }
         case ParamType::Json:
+        case ParamType::Records:
             return std::string(spec.default_text);
     }
     return "";
@@ -141,6 +145,15 @@ std::string condition_word(const ParamSpec &spec, const ParamValue &value)
         return value.number != 0.0 ? "true" : "false";
     }
     return value.text;
+}
+
+bool condition_holds(const ParamSpec &spec, const ParamSpec &control, const ParamValue &value)
+{
+    if (spec.when_param.empty()) {
+        return true;
+    }
+    const std::vector<std::string> words = split_choices(spec.when_values);
+    return std::find(words.begin(), words.end(), condition_word(control, value)) != words.end();
 }
 
 }  // namespace posthaste

@@ -4,7 +4,9 @@
 // no default exists anywhere else.
 
 #include <array>
+#include <cstddef>
 #include <limits>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -12,14 +14,17 @@
 namespace posthaste {
 
 enum class ParamType {
-    Int,     ///< integer number
-    Real,    ///< floating-point number
-    Bool,    ///< true / false
-    String,  ///< free text (paths, color-space names, ...)
-    Choice,  ///< one of a fixed list of words
-    Vec,     ///< fixed-size array of numbers (colors, directions)
-    Json,    ///< structured value (lists of lights, mappings), checked by the node
+    Int,      ///< integer number
+    Real,     ///< floating-point number
+    Bool,     ///< true / false
+    String,   ///< free text (paths, color-space names, ...)
+    Choice,   ///< one of a fixed list of words
+    Vec,      ///< fixed-size array of numbers (colors, directions)
+    Json,     ///< structured value (mappings), checked by the node
+    Records,  ///< a list of records, each field declared as a ParamSpec (lights)
 };
+
+class NodeParams;
 
 struct ParamSpec {
     std::string_view name;
@@ -48,6 +53,10 @@ struct ParamSpec {
     /// frame without the attribute is an error; otherwise the default stands in for it.
     std::string_view header;
     bool header_only = false;
+    /// Records: the fields of each record, each declared like a parameter (type, default,
+    /// range, choices, mandatory, only_when another field of the same record).
+    const ParamSpec *fields = nullptr;
+    std::size_t field_count = 0;
 
     static constexpr ParamSpec integer(std::string_view n, int def)
     {
@@ -118,6 +127,21 @@ struct ParamSpec {
         p.name = n;
         p.type = ParamType::Json;
         p.default_text = def;
+        return p;
+    }
+
+    /// A list of records (JSON objects) whose fields are `f`: validated, defaulted, shown by
+    /// `posthaste nodes` and read by the node through NodeParams::get_records. The default is
+    /// the empty list.
+    template <std::size_t N>
+    static constexpr ParamSpec records(std::string_view n, const ParamSpec (&f)[N])
+    {
+        ParamSpec p;
+        p.name = n;
+        p.type = ParamType::Records;
+        p.default_text = "[]";
+        p.fields = f;
+        p.field_count = N;
         return p;
     }
 
@@ -200,6 +224,8 @@ struct ParamValue {
     std::string text;         ///< String, Choice; JSON text for Json
     std::vector<double> vec;  ///< Vec
     bool given = false;       ///< set by the graph or --set (not the default)
+    /// Records: each record's fields, validated and defaulted (null for none).
+    std::shared_ptr<const std::vector<NodeParams>> records;
 };
 
 /// The words of a Choice spec, in order.
@@ -214,5 +240,8 @@ std::string describe_range(const ParamSpec &spec);
 std::string describe_condition(const ParamSpec &spec);
 /// The value of a Choice or Bool parameter as only_when() names it ("linear", "true").
 std::string condition_word(const ParamSpec &spec, const ParamValue &value);
+/// Whether `spec`'s only_when holds when its controlling parameter `control` has `value`
+/// (true for a spec without a condition).
+bool condition_holds(const ParamSpec &spec, const ParamSpec &control, const ParamValue &value);
 
 }  // namespace posthaste

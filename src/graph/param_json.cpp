@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
+#include <span>
 #include <string>
+#include <vector>
 
 #include "core/error.h"
 #include "graph/graph.h"
@@ -38,8 +42,130 @@ std::string json_kind(const json &v)
     }
 }
 
-ParamValue convert_param(const ParamSpec &spec, const json &v, const std::string &where)
+namespace {
+
+ParamValue convert_value(const ParamSpec &spec,
+                         const json &v,
+                         const std::string &path,
+                         const std::string &who,
+                         const std::string &label);
+
+/// A Records value: an array of objects, each field converted by its declaration, defaults
+/// filled, mandatory fields and the fields' only_when conditions checked.
+std::shared_ptr<const std::vector<NodeParams>> convert_records(const ParamSpec &spec,
+                                                               const json &v,
+                                                               const std::string &path,
+                                                               const std::string &who,
+                                                               const std::string &label)
 {
+    const std::span<const ParamSpec> fields(spec.fields, spec.field_count);
+    const auto field = [&](std::string_view name) -> const ParamSpec * {
+        for (const ParamSpec &f : fields) {
+            if (f.name == name) {
+                return &f;
+            }
+        }
+        return nullptr;
+    };
+    if (!v.is_array()) {
+        throw_usage(path,
+                    ": ",
+                    who,
+                    ": param \"",
+                    label,
+                    "\": expected a list of records, got ",
+                    json_kind(v));
+    }
+    auto records = std::make_shared<std::vector<NodeParams>>();
+    for (std::size_t i = 0; i < v.size(); ++i) {
+        const json &e = v[i];
+        const std::string at = path + "/" + std::to_string(i);
+        std::string name = label;
+        name += '[';
+        name += std::to_string(i);
+        name += ']';
+        if (!e.is_object()) {
+            throw_usage(at,
+                        ": ",
+                        who,
+                        ": param \"",
+                        name,
+                        "\": expected a record (an object), got ",
+                        json_kind(e));
+        }
+        std::map<std::string, ParamValue> values;
+        for (const ParamSpec &f : fields) {
+            values[std::string(f.name)] = default_param(f);
+        }
+        for (auto it = e.begin(); it != e.end(); ++it) {
+            const ParamSpec *f = field(it.key());
+            if (!f) {
+                std::vector<std::string> names;
+                for (const ParamSpec &k : fields) {
+                    names.emplace_back(k.name);
+                }
+                throw_usage(at,
+                            "/",
+                            it.key(),
+                            ": ",
+                            who,
+                            ": param \"",
+                            name,
+                            "\": unknown field \"",
+                            it.key(),
+                            "\"",
+                            did_you_mean(it.key(), names));
+            }
+            values[it.key()] =
+                convert_value(*f, it.value(), at + "/" + it.key(), who, name + "." + it.key());
+        }
+        for (const ParamSpec &f : fields) {
+            const ParamValue &value = values.at(std::string(f.name));
+            const ParamSpec *control = f.when_param.empty() ? nullptr : field(f.when_param);
+            const bool applies =
+                !control || condition_holds(f, *control, values.at(std::string(control->name)));
+            if (applies && f.required && !value.given) {
+                std::string needs = "needs \"";
+                needs += f.name;
+                needs += '"';
+                if (control) {
+                    needs += " when " + describe_condition(f);
+                }
+                throw_usage(at, ": ", who, ": param \"", name, "\": ", needs);
+            }
+            if (!applies && value.given) {
+                throw_usage(at,
+                            "/",
+                            f.name,
+                            ": ",
+                            who,
+                            ": param \"",
+                            name,
+                            ".",
+                            f.name,
+                            "\" applies only when ",
+                            describe_condition(f),
+                            ", not ",
+                            condition_word(*control, values.at(std::string(control->name))));
+            }
+        }
+        records->emplace_back(nullptr, std::move(values));
+    }
+    return records;
+}
+
+ParamValue convert_value(const ParamSpec &spec,
+                         const json &v,
+                         const std::string &path,
+                         const std::string &who,
+                         const std::string &label)
+{
+    std::string where = path;
+    where += ": ";
+    where += who;
+    where += ": param \"";
+    where += label;
+    where += '"';
     ParamValue out;
     out.given = true;
     auto fail = [&](const std::string &expected) {
@@ -142,8 +268,22 @@ ParamValue convert_param(const ParamSpec &spec, const json &v, const std::string
         case ParamType::Json:
             out.text = v.dump();
             break;
+        case ParamType::Records:
+            out.records = convert_records(spec, v, path, who, label);
+            out.text = v.dump();
+            break;
     }
     return out;
+}
+
+}  // namespace
+
+ParamValue convert_param(const ParamSpec &spec,
+                         const json &v,
+                         const std::string &path,
+                         const std::string &who)
+{
+    return convert_value(spec, v, path, who, std::string(spec.name));
 }
 
 ParamValue default_param(const ParamSpec &spec)

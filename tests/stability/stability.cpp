@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/passes.h"
+#include "graph/param_json.h"
 
 namespace posthaste::stability {
 namespace {
@@ -39,60 +40,27 @@ Frame edited(const Frame &src, Fn &&fn)
     return out;
 }
 
+// A value as `--set` reads it (graph_parse.cpp): text for strings and choices, else JSON, and
+// converted by the graph's own conversion, so records and vectors are checked the same way.
 ParamValue parse_value(const ParamSpec &spec, const std::string &text)
 {
-    ParamValue v;
-    v.given = true;
-    switch (spec.type) {
-        case ParamType::Int:
-        case ParamType::Real:
-            v.number = std::stod(text);
-            break;
-        case ParamType::Bool:
-            if (text != "true" && text != "false") {
-                throw std::invalid_argument("bool parameter needs true or false: " + text);
-            }
-            v.number = text == "true" ? 1.0 : 0.0;
-            break;
-        case ParamType::Choice: {
-            const std::vector<std::string> words = split_choices(spec.choices);
-            if (std::find(words.begin(), words.end(), text) == words.end()) {
-                throw std::invalid_argument("not a choice of " + std::string(spec.name) + ": " +
-                                            text);
-            }
-            v.text = text;
-            break;
-        }
-        case ParamType::String:
-        case ParamType::Json:
-            v.text = text;
-            break;
-        case ParamType::Vec: {
-            const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-            if (!j.is_array() || int(j.size()) != spec.vec_size) {
-                throw std::invalid_argument(std::string(spec.name) + " needs " +
-                                            std::to_string(spec.vec_size) + " numbers: " + text);
-            }
-            for (const nlohmann::json &x : j) {
-                v.vec.push_back(x.get<double>());
-            }
-            break;
+    nlohmann::json v;
+    if (spec.type == ParamType::String || spec.type == ParamType::Choice) {
+        v = text;
+    } else {
+        v = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+        if (v.is_discarded()) {
+            v = text;
         }
     }
-    return v;
+    return convert_param(spec, v, "stability", "param " + std::string(spec.name));
 }
 
 NodeParams make_params(const NodeType &type, const std::vector<std::string> &overrides)
 {
     std::map<std::string, ParamValue> values;
     for (const ParamSpec &spec : type.spec.params) {
-        ParamValue v;
-        v.number = spec.default_number;
-        v.text = std::string(spec.default_text);
-        for (int i = 0; i < spec.vec_size; ++i) {
-            v.vec.push_back(spec.default_vec[std::size_t(i)]);
-        }
-        values[std::string(spec.name)] = v;
+        values[std::string(spec.name)] = default_param(spec);
     }
     for (const std::string &o : overrides) {
         const std::size_t eq = o.find('=');

@@ -189,6 +189,83 @@ TEST(GraphValidation, ModeConditionsNameRealModes)
     EXPECT_GE(conditions, 30);  // fog, exposure, bloom, ocio, relight, hatching, dof, tonemap
 }
 
+// A list-of-records parameter (relight's lights) is declared field by field and checked by the
+// graph like any parameter: types, ranges, choices, mandatory fields, fields of another kind,
+// unknown fields; the node reads the records back with their defaults filled in.
+TEST(GraphValidation, RecordParamsAreCheckedFieldByField)
+{
+    const auto relight = [](const std::string &lights) {
+        return R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": "in.####.exr"}},
+            {"id": "r", "type": "relight", "inputs": {"image": "src"}, "params": {"lights": )" +
+               lights + R"(}},
+            {"id": "out", "type": "write", "inputs": {"image": "r"}, "params": {"path": "o.####.exr"}}]})";
+    };
+    const std::string ok = R"([{"type": "directional", "direction": [0, 1, 0], "intensity": 3},
+                               {"type": "spot", "position": [1, 2, 3], "direction": [0, -1, 0]}])";
+    EXPECT_EQ(error_of(relight(ok)), "");
+    EXPECT_CONTAINS(
+        error_of(relight(R"({"type": "point"})")),
+        "g.json:/nodes/1/params/lights: node \"r\" (relight): param \"lights\": expected "
+        "a list of records, got an object");
+    EXPECT_CONTAINS(
+        error_of(relight(R"([3])")),
+        "/params/lights/0: node \"r\" (relight): param \"lights[0]\": expected a record");
+    EXPECT_CONTAINS(
+        error_of(relight(R"([{"type": "point", "position": [0, 0, 0], "intesity": 2}])")),
+        "/params/lights/0/intesity: node \"r\" (relight): param \"lights[0]\": unknown "
+        "field \"intesity\" (did you mean \"intensity\"?)");
+    EXPECT_CONTAINS(error_of(relight(R"([{"type": "point"}])")),
+                    "/params/lights/0: node \"r\" (relight): param \"lights[0]\": needs "
+                    "\"position\" when type is point or spot");
+    EXPECT_CONTAINS(error_of(relight(R"([{"direction": [0, 1, 0]}])")),
+                    "param \"lights[0]\": needs \"type\"");
+    EXPECT_CONTAINS(
+        error_of(relight(R"([{"type": "directional", "direction": [0, 1, 0], "radius": 1}])")),
+        "/params/lights/0/radius: node \"r\" (relight): param \"lights[0].radius\" applies only "
+        "when type is point or spot, not directional");
+    EXPECT_CONTAINS(
+        error_of(relight(R"([{"type": "point", "position": [0, 0, 0], "intensity": -1}])")),
+        "/params/lights/0/intensity: node \"r\" (relight): param \"lights[0].intensity\": "
+        "expected number in 0..1e+12, got -1");
+    EXPECT_CONTAINS(
+        error_of(relight(R"([{"type": "area"}])")),
+        "param \"lights[0].type\": expected one of directional|point|spot, got \"area\"");
+    // --set takes the whole list as JSON and checks it the same way.
+    EXPECT_EQ(error_of(relight("[]"), {"r.lights=" + std::string(ok)}), "");
+    EXPECT_CONTAINS(error_of(relight("[]"), {R"(r.lights=[{"type": "spot"}])"}),
+                    "param \"lights[0]\": needs \"direction\" when type is directional or spot");
+
+    // Read back: the given values and the declared defaults of the fields left out.
+    const Graph g = Graph::parse(relight(ok), "g.json", nodes::catalog());
+    const NodeType *type = nodes::catalog().find("relight");
+    const ParamSpec *lights = nullptr;
+    for (const ParamSpec &p : type->spec.params) {
+        if (p.name == "lights") {
+            lights = &p;
+        }
+    }
+    ASSERT_NE(lights, nullptr);
+    ASSERT_EQ(lights->type, ParamType::Records);
+    const auto field = [&](std::string_view name) -> const ParamSpec & {
+        for (std::size_t i = 0; i < lights->field_count; ++i) {
+            if (lights->fields[i].name == name) {
+                return lights->fields[i];
+            }
+        }
+        throw std::runtime_error("no field");
+    };
+    const std::vector<NodeParams> &records = g.nodes()[1].params.get_records(*lights);
+    ASSERT_EQ(records.size(), 2u);
+    EXPECT_EQ(records[0].get_choice(field("type")), 0);
+    EXPECT_EQ(records[0].get_real(field("intensity")), 3.0);
+    EXPECT_EQ(records[1].get_choice(field("type")), 2);
+    EXPECT_EQ(records[1].get_real(field("intensity")), 1.0);  // the default
+    EXPECT_FALSE(records[1].given(field("intensity")));
+    EXPECT_EQ(records[1].get_real(field("outer_deg")), 30.0);
+    EXPECT_EQ(records[1].get_vec(field("position")), (std::vector<double>{1, 2, 3}));
+}
+
 // "The header's value unless given" is one flag on the declaration, printed as the default.
 TEST(GraphValidation, HeaderDefaultsAreDeclared)
 {
