@@ -9,6 +9,8 @@
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
+#include <memory>
+#include <stdexcept>
 #include <string>
 
 #include "core/camera.h"
@@ -81,34 +83,66 @@ inline Frame make_sample_frame(int width, int height, int frame)
     return f;
 }
 
-/// Run one node of type `type` with `params_json` on the frame `in` (its first input port), as
-/// the graph engine would, and return its output frame. The node's per-instance state lives as
-/// long as the returned graph would: pass `graph` to reuse caches across calls.
+/// One node of type `type` with `params_json`, run on frames through its first input port as
+/// the graph engine would. Its per-instance state (LUTs, caches, an exposure's adaptation)
+/// lives as long as the runner, so successive runs see what a sequence would.
+class NodeRunner {
+   public:
+    NodeRunner(const std::string &type, const std::string &params_json)
+        : graph_(Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
+        {"id": "n", "type": ")" + type +
+                                  R"(", "inputs": {")" + first_port(type) +
+                                  R"(": "src"}, "params": )" + params_json + R"(},
+        {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
+                              "NodeRunner(" + type + ")",
+                              nodes::catalog())),
+          port_(first_port(type))
+    {
+    }
+
+    /// The node's output frame for input `in`, as frame `frame_number`.
+    Frame run(std::shared_ptr<const Frame> in, int frame_number = 1) const
+    {
+        const GraphNode &gn = node();
+        NodeContext ctx(gn.identity,
+                        gn.params,
+                        {std::move(in)},
+                        {port_},
+                        gn.requested,
+                        frame_number,
+                        *gn.state);
+        gn.type->execute(ctx);
+        return ctx.take_output();
+    }
+    Frame run(const Frame &in, int frame_number = 1) const
+    {
+        return run(std::make_shared<const Frame>(in), frame_number);
+    }
+    /// The node as the graph parsed it (identity, validated params, requested passes).
+    const GraphNode &node() const { return graph_.nodes()[std::size_t(graph_.find("n"))]; }
+
+   private:
+    static std::string first_port(const std::string &type)
+    {
+        const NodeType *nt = find_node_type(type);
+        if (!nt) {
+            throw std::invalid_argument("NodeRunner: unknown node type " + type);
+        }
+        return std::string(nt->spec.inputs.empty() ? "" : nt->spec.inputs[0].name);
+    }
+
+    Graph graph_;
+    std::string port_;
+};
+
+/// NodeRunner(type, params_json).run(in, frame_number): one run with fresh node state.
 inline Frame run_node(const std::string &type,
                       const Frame &in,
                       const std::string &params_json,
                       int frame_number = 1)
 {
-    const NodeType *nt = find_node_type(type);
-    const std::string port(nt->spec.inputs.empty() ? "" : nt->spec.inputs[0].name);
-    Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
-        {"id": "n", "type": ")" +
-                               type + R"(", "inputs": {")" + port + R"(": "src"}, "params": )" +
-                               params_json + R"(},
-        {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
-                           "run_node(" + type + ")",
-                           nodes::catalog());
-    const GraphNode &gn = g.nodes()[std::size_t(g.find("n"))];
-    NodeContext ctx(gn.identity,
-                    gn.params,
-                    {std::make_shared<const Frame>(in)},
-                    {port},
-                    gn.requested,
-                    frame_number,
-                    *gn.state);
-    nt->execute(ctx);
-    return ctx.take_output();
+    return NodeRunner(type, params_json).run(in, frame_number);
 }
 
 /// Run a shell command, capturing stdout+stderr; returns the exit status.

@@ -15,36 +15,23 @@
 #include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
+#include "test_util.h"
 
 namespace posthaste {
 namespace {
 
 Frame run_fog(const Frame &in, const std::string &params, double *ms = nullptr)
 {
-    Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
-        {"id": "fog", "type": "fog", "inputs": {"image": "src"}, "params": )" +
-                               params + R"(},
-        {"id": "out", "type": "write", "inputs": {"image": "fog"}, "params": {"path": "x.exr"}}]})",
-                           "fog_accuracy",
-                           nodes::catalog());
-    const GraphNode &gn = g.nodes()[std::size_t(g.find("fog"))];
+    const test::NodeRunner fog("fog", params);
+    const auto input = std::make_shared<const Frame>(in);
     Frame out;
     std::vector<double> times;
     for (int rep = 0; rep < (ms ? 3 : 1); ++rep) {
-        NodeContext ctx(gn.identity,
-                        gn.params,
-                        {std::make_shared<const Frame>(in)},
-                        {"image"},
-                        gn.requested,
-                        1,
-                        *gn.state);
         const auto t0 = std::chrono::steady_clock::now();
-        find_node_type("fog")->execute(ctx);
+        out = fog.run(input);
         times.push_back(
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
                 .count());
-        out = ctx.take_output();
     }
     if (ms) {
         std::sort(times.begin(), times.end());

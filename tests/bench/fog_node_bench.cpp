@@ -16,6 +16,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
+#include "test_util.h"
 
 namespace posthaste {
 namespace {
@@ -31,26 +32,14 @@ void run_fog(benchmark::State &state, const std::string &params, bool scalar)
 {
     const simd::ScopedLevel level(scalar ? simd::Level::Scalar : simd::detected());
     set_thread_count(2);
-    const Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
-        {"id": "f", "type": "fog", "inputs": {"image": "src"}, "params": )" +
-                                     params + R"(},
-        {"id": "o", "type": "write", "inputs": {"image": "f"}, "params": {"path": "x.exr"}}]})",
-                                 "bench.json",
-                                 nodes::catalog());
-    const GraphNode &gn = g.nodes()[1];
+    const test::NodeRunner fog("fog", params);
     const auto input = std::make_shared<const Frame>(fog_input());
-    {
-        // Once untimed: the atmosphere's LUTs are built on a node's first frame and cached.
-        NodeContext ctx(gn.identity, gn.params, {input}, {"image"}, gn.requested, 8, *gn.state);
-        gn.type->execute(ctx);
-    }
+    fog.run(input, 8);  // once untimed: the atmosphere's LUTs are built on the first frame
     double cpu = 0.0;
     for (auto _ : state) {
         const double c0 = process_cpu_ms();
-        NodeContext ctx(gn.identity, gn.params, {input}, {"image"}, gn.requested, 8, *gn.state);
-        gn.type->execute(ctx);
-        benchmark::DoNotOptimize(ctx.output().image("color").data());
+        const Frame out = fog.run(input, 8);
+        benchmark::DoNotOptimize(out.image("color").data());
         cpu += process_cpu_ms() - c0;
     }
     state.counters["cpu_ms"] = cpu / double(state.iterations());

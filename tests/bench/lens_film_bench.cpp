@@ -12,6 +12,7 @@
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
+#include "test_util.h"
 
 namespace posthaste {
 namespace {
@@ -26,26 +27,14 @@ const Frame &input_frame()
 void run_node(benchmark::State &state, const std::string &type, const std::string &params)
 {
     set_thread_count(2);
-    const Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
-        {"id": "n", "type": ")" + type +
-                                     R"(", "inputs": {"image": "src"}, "params": )" + params + R"(},
-        {"id": "o", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
-                                 "bench.json",
-                                 nodes::catalog());
-    const GraphNode &gn = g.nodes()[1];
+    const test::NodeRunner node(type, params);
     const auto input = std::make_shared<const Frame>(input_frame());
-    {
-        // Once untimed: per-node caches (bloom's fit and FFT plans) are built on the first frame.
-        NodeContext ctx(gn.identity, gn.params, {input}, {"image"}, gn.requested, 8, *gn.state);
-        gn.type->execute(ctx);
-    }
+    node.run(input, 8);  // once untimed: per-node caches (bloom's fit, FFT plans) are built
     double cpu = 0.0;
     for (auto _ : state) {
         const double c0 = process_cpu_ms();
-        NodeContext ctx(gn.identity, gn.params, {input}, {"image"}, gn.requested, 8, *gn.state);
-        gn.type->execute(ctx);
-        benchmark::DoNotOptimize(ctx.output().image("color").data());
+        const Frame out = node.run(input, 8);
+        benchmark::DoNotOptimize(out.image("color").data());
         cpu += process_cpu_ms() - c0;
     }
     state.counters["cpu_ms"] = cpu / double(state.iterations());

@@ -19,6 +19,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
+#include "test_util.h"
 
 namespace posthaste {
 namespace {
@@ -41,22 +42,14 @@ const char *kLights = R"("lights": [
 void run_node(benchmark::State &state, const std::string &options)
 {
     const Frame &in = gbuffer();
-    const Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
-        {"id": "l", "type": "relight", "inputs": {"image": "src"},
-         "params": {"mode": "add", "toon_ids": "6", )" +
-                                     std::string(kLights) + options + R"(}},
-        {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
-                                 "bench.json",
-                                 nodes::catalog());
-    const GraphNode &gn = g.nodes()[1];
+    const test::NodeRunner relight(
+        "relight", R"({"mode": "add", "toon_ids": "6", )" + std::string(kLights) + options + "}");
     const auto input = std::make_shared<const Frame>(in);
     double cpu = 0.0;
     for (auto _ : state) {
         const double c0 = process_cpu_ms();
-        NodeContext ctx(gn.identity, gn.params, {input}, {"image"}, gn.requested, 30, *gn.state);
-        gn.type->execute(ctx);
-        benchmark::DoNotOptimize(ctx.output().image("color").data());
+        const Frame out = relight.run(input, 30);
+        benchmark::DoNotOptimize(out.image("color").data());
         cpu += process_cpu_ms() - c0;
     }
     state.counters["cpu_ms"] = cpu / double(state.iterations());

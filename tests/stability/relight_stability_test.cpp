@@ -18,6 +18,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "shading/brdf.h"
+#include "test_util.h"
 
 namespace posthaste {
 namespace {
@@ -25,23 +26,7 @@ namespace {
 // Run the relight node with `params` (JSON object text) on `in`, outside a graph's evaluation.
 Frame run_relight(const Frame &in, const std::string &params)
 {
-    const Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
-        {"id": "l", "type": "relight", "inputs": {"image": "src"}, "params": )" +
-                                     params + R"(},
-        {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
-                                 "stability.json",
-                                 nodes::catalog());
-    const GraphNode &gn = g.nodes()[1];
-    NodeContext ctx(gn.identity,
-                    gn.params,
-                    {std::make_shared<const Frame>(in)},
-                    {"image"},
-                    gn.requested,
-                    in.number,
-                    *gn.state);
-    gn.type->execute(ctx);
-    return ctx.take_output();
+    return test::run_node("relight", in, params, in.number);
 }
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();

@@ -15,6 +15,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
+#include "test_util.h"
 
 namespace posthaste {
 namespace {
@@ -36,23 +37,7 @@ const Frame &gbuffer()
 
 Image run_relight(const std::string &params)
 {
-    const Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "render", "params": {"width": 8, "height": 8}},
-        {"id": "l", "type": "relight", "inputs": {"image": "src"}, "params": )" +
-                                     params + R"(},
-        {"id": "o", "type": "write", "inputs": {"image": "l"}, "params": {"path": "x.exr"}}]})",
-                                 "relight_simd.json",
-                                 nodes::catalog());
-    const GraphNode &gn = g.nodes()[1];
-    NodeContext ctx(gn.identity,
-                    gn.params,
-                    {std::make_shared<const Frame>(gbuffer())},
-                    {"image"},
-                    gn.requested,
-                    30,
-                    *gn.state);
-    gn.type->execute(ctx);
-    return ctx.output().image("color");
+    return test::run_node("relight", gbuffer(), params, 30).image("color");
 }
 
 const char *kLights = R"("lights": [
