@@ -29,38 +29,13 @@
 #include "core/timing.h"
 #include "raster/mesh.h"
 #include "raster/raster.h"
+#include "raster/scene_cache.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
 #include "shading/sky.h"
 
 namespace posthaste::raster {
-
-// ---- Per-scene cache -----------------------------------------------------------------------
-
-struct ShadowMap {
-    glm::mat4 raster{1.0f};  // world -> (X, Y, Q, 1); Q grows toward the sun
-    int size = 0;
-    float texel_m = 0.0f;  // texel size in metres
-    std::vector<float> keys;
-};
-
-struct SceneMeshes {
-    std::vector<Mesh> chunks;  // static world
-    std::vector<Mesh> balls;   // one per Scene::balls, centred at the origin
-    std::vector<Mesh> movers;  // one per Scene::movers, in world space at offset 0
-};
-
-struct SceneCache {
-    std::mutex mutex;
-    std::map<bool, std::shared_ptr<const SceneMeshes>> meshes;
-    std::map<std::pair<bool, int>, std::shared_ptr<const ShadowMap>> shadows;
-};
-
-std::shared_ptr<SceneCache> make_scene_cache()
-{
-    return std::make_shared<SceneCache>();
-}
 
 namespace {
 
@@ -91,26 +66,6 @@ Image fresh_image(int width, int height, int channels)
     // Image::uninitialized advises huge pages (core/memory.h): every pass of a 1080p frame is
     // ~190 MB, and faulting that in 4 KiB pages cost ~16 % of a frame (perf).
     return Image::uninitialized(width, height, channels);
-}
-
-std::shared_ptr<const SceneMeshes> scene_meshes(const Scene &s, SceneCache &cache, bool greedy)
-{
-    std::lock_guard<std::mutex> lock(cache.mutex);
-    auto &slot = cache.meshes[greedy];
-    if (!slot) {
-        auto m = std::make_shared<SceneMeshes>();
-        // Isolated: while this thread waits inside the parallel loop it must not pick up another
-        // frame's task that would block on the mutex it holds.
-        tbb::this_task_arena::isolate([&] { m->chunks = mesh_chunks(s.world, greedy); });
-        for (const Ball &b : s.balls) {
-            m->balls.push_back(mesh_sphere(b.radius, b.segments, b.material));
-        }
-        for (const Mover &mv : s.movers) {
-            m->movers.push_back(mesh_box(mv.min, mv.size, mv.material));
-        }
-        slot = std::move(m);
-    }
-    return slot;
 }
 
 // One mesh placed in the world at the render time and at the previous frame.

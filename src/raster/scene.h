@@ -135,8 +135,8 @@ struct VoxelGrid {
     }
 };
 
-struct SceneCache;  // meshes and shadow maps built on first render (render.cpp)
-/// A new, empty cache (render.cpp).
+struct SceneCache;  // meshes and shadow maps built on first render (scene_cache.h)
+/// A new, empty cache (scene_cache.cpp).
 std::shared_ptr<SceneCache> make_scene_cache();
 
 struct Scene {
