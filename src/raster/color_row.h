@@ -1,0 +1,189 @@
+#pragma once
+// The colour of a row of surfaces (internal to src/raster/render*.cpp): ColorRow collects a
+// row's sky and surface hits and shades them, eight lanes at a time with AVX2
+// (render_shade.cpp), one at a time through shade() otherwise.
+
+#include "raster/render_detail.h"
+
+namespace posthaste::raster::render_detail {
+
+// Surface pixels of one row in struct-of-arrays form for the AVX2 beauty kernel. Everything per
+// pixel that branches or looks up tables (hit, material, shadow map, memoised ambient) is done
+// by the scalar prelude in ColorRow::add_surface; the kernel does the BRDF and sky light.
+struct SurfaceLanes {
+    std::vector<float> nx, ny, nz, vx, vy, vz, ar, ag, ab, rough, metal, vis, amb_r, amb_g, amb_b,
+        env_r, env_g, env_b, px, py, pz;
+    std::vector<float> out_r, out_g, out_b;
+
+    void resize(std::size_t n)
+    {
+        for (std::vector<float> *a :
+             {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,    &ag,
+              &ab,    &rough, &metal, &vis,   &amb_r, &amb_g, &amb_b, &env_r,
+              &env_g, &env_b, &out_r, &out_g, &out_b, &px,    &py,    &pz}) {
+            a->assign(n, 0.0f);
+        }
+    }
+};
+
+// Sun and sky constants of the kernel.
+struct KernelLight {
+    glm::vec3 l;        // toward the sun
+    glm::vec3 sun_rgb;  // sun colour * illuminance
+    float scale;        // scene sky_ambient
+};
+#if POSTHASTE_HAVE_AVX2_TARGET
+// (render_shadow.cpp)
+// shadow_lookup for eight lanes at a time: vis *= the 2x2 PCF of `sm` where vis > 0. Without
+// fused multiply-adds, so the map coordinates round as in the scalar code: one ulp of a 2048-texel
+// coordinate moves the PCF weights by ~1e-4, which would make the two paths disagree visibly.
+POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void shadow_lanes_avx2(const ShadowMap &sm,
+                                                            SurfaceLanes &s,
+                                                            int count);
+#endif
+
+glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, SkyCache &sky);
+
+#if POSTHASTE_HAVE_AVX2_TARGET
+// The expressions of shading::evaluate (isotropic, height-correlated Smith) and
+// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8).
+POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLight &kl);
+#endif
+
+// The beauty of one row of visibility samples. The scalar path shades each pixel as it is added
+// (shade() and the sky); the AVX2 path defers surfaces to shade_lanes_avx2 and the sky to the
+// 4-wide SkyView::radiance_n. Toon and anisotropic materials always take shade().
+class ColorRow {
+   public:
+    ColorRow(const Lighting &lt, SkyCache &sky, int capacity)
+        : lt_(lt), sky_(sky), vector_(simd::avx2()), out_(std::size_t(capacity))
+    {
+        if (vector_) {
+            const std::size_t padded = std::size_t(capacity + 8);
+            lanes_.resize(padded);
+            lane_slot_.resize(padded);
+            for (std::vector<float> *a : {&sky_x_, &sky_y_, &sky_z_, &env_x_, &env_y_, &env_z_}) {
+                a->resize(padded);
+            }
+            sky_slot_.resize(padded);
+            env_lane_.resize(padded);
+            sky_out_.resize(padded);
+            kl_.l = lt.scene->sun.direction;
+            kl_.sun_rgb = lt.scene->sun.color * lt.scene->sun.illuminance;
+            kl_.scale = lt.scene->sky_ambient;
+        }
+    }
+
+    void add_sky(int slot, const glm::vec3 &dn)
+    {
+        if (!vector_) {
+            out_[std::size_t(slot)] = sky_.radiance(dn);
+            return;
+        }
+        sky_x_[sky_n_] = dn.x;
+        sky_y_[sky_n_] = dn.y;
+        sky_z_[sky_n_] = dn.z;
+        sky_slot_[sky_n_++] = slot;
+    }
+
+    void add_surface(int slot, const Hit &h, const glm::vec3 &dn)
+    {
+        const Material &mat = lt_.materials->m[h.material];
+        if (!vector_ || mat.toon || mat.anisotropy != 0.0f) {
+            out_[std::size_t(slot)] = shade(lt_, h, dn, sky_);
+            return;
+        }
+        // The branchy part of shade(), in the same order.
+        const glm::vec3 v = -dn;
+        glm::vec3 n = h.n;
+        if (glm::dot(n, v) < 0.0f) {
+            n = -n;
+        }
+        const glm::vec3 &l = lt_.scene->sun.direction;
+        const float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;  // shadows: shadow_lanes_avx2
+        const glm::vec3 &amb = sky_.ambient(n);
+        const std::size_t k = lane_n_++;
+        SurfaceLanes &s = lanes_;
+        s.nx[k] = n.x, s.ny[k] = n.y, s.nz[k] = n.z;
+        s.vx[k] = v.x, s.vy[k] = v.y, s.vz[k] = v.z;
+        s.ar[k] = mat.albedo.x, s.ag[k] = mat.albedo.y, s.ab[k] = mat.albedo.z;
+        s.rough[k] = mat.roughness, s.metal[k] = mat.metallic, s.vis[k] = vis;
+        s.px[k] = h.p.x, s.py[k] = h.p.y, s.pz[k] = h.p.z;
+        s.amb_r[k] = amb.x, s.amb_g[k] = amb.y, s.amb_b[k] = amb.z;
+        lane_slot_[k] = slot;
+        const float gloss = (1.0f - mat.roughness) * (1.0f - mat.roughness);
+        if (gloss >= 0.05f) {
+            const glm::vec3 r = glm::reflect(-v, n);
+            env_x_[env_n_] = r.x;
+            env_y_[env_n_] = r.y;
+            env_z_[env_n_] = r.z;
+            env_lane_[env_n_++] = k;
+        }
+    }
+
+    /// Colours of the row's slots (valid for every slot added since the last finish()).
+    const std::vector<glm::vec3> &finish()
+    {
+#if POSTHASTE_HAVE_AVX2_TARGET
+        if (vector_) {
+            finish_vector();
+        }
+#endif
+        return out_;
+    }
+
+   private:
+#if POSTHASTE_HAVE_AVX2_TARGET
+    void finish_vector()
+    {
+        const glm::vec3 cam(0.0f, shading::kSkyCameraY, 0.0f);
+        const shading::SkyView &view = sky_.sky->atmosphere().cached_sky_view();
+        if (sky_n_ > 0) {
+            view.radiance_n(
+                sky_x_.data(), sky_y_.data(), sky_z_.data(), int(sky_n_), sky_out_.data());
+            for (std::size_t i = 0; i < sky_n_; ++i) {
+                const glm::vec3 d(sky_x_[i], sky_y_[i], sky_z_[i]);
+                out_[std::size_t(sky_slot_[i])] = sky_out_[i] + sky_.sky->ground(d, cam);
+            }
+        }
+        if (env_n_ > 0) {
+            view.radiance_n(
+                env_x_.data(), env_y_.data(), env_z_.data(), int(env_n_), sky_out_.data());
+            for (std::size_t i = 0; i < env_n_; ++i) {
+                const glm::vec3 d(env_x_[i], env_y_[i], env_z_[i]);
+                const glm::vec3 e = sky_out_[i] + sky_.sky->ground(d, cam);
+                const std::size_t k = env_lane_[i];
+                lanes_.env_r[k] = e.x, lanes_.env_g[k] = e.y, lanes_.env_b[k] = e.z;
+            }
+        }
+        if (lane_n_ > 0) {
+            if (lt_.static_map) {
+                shadow_lanes_avx2(*lt_.static_map, lanes_, int(lane_n_));
+            }
+            if (lt_.dynamic_map) {
+                shadow_lanes_avx2(*lt_.dynamic_map, lanes_, int(lane_n_));
+            }
+            shade_lanes_avx2(lanes_, int(lane_n_), kl_);
+            for (std::size_t k = 0; k < lane_n_; ++k) {
+                out_[std::size_t(lane_slot_[k])] =
+                    glm::vec3(lanes_.out_r[k], lanes_.out_g[k], lanes_.out_b[k]);
+            }
+        }
+        sky_n_ = env_n_ = lane_n_ = 0;
+    }
+#endif
+
+    const Lighting &lt_;
+    SkyCache &sky_;
+    bool vector_;
+    std::vector<glm::vec3> out_;
+    SurfaceLanes lanes_;
+    KernelLight kl_{};
+    std::vector<int> lane_slot_, sky_slot_;
+    std::vector<std::size_t> env_lane_;
+    std::vector<float> sky_x_, sky_y_, sky_z_, env_x_, env_y_, env_z_;
+    std::vector<glm::vec3> sky_out_;
+    std::size_t sky_n_ = 0, env_n_ = 0, lane_n_ = 0;
+};
+
+}  // namespace posthaste::raster::render_detail
