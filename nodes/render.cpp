@@ -26,10 +26,11 @@ constexpr ParamSpec kSupersample =
         .doc("Beauty supersampling per axis: 1, 2 or 4 (data passes stay one sample per pixel).");
 constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", true).doc("Sun shadow map.");
 constexpr ParamSpec kTruth =
-    ParamSpec::choice("truth", "none|motion|dof|motion_dof|ao", "none")
+    ParamSpec::choice("truth", "none|motion|dof|motion_dof|ao|reflections", "none")
         .doc(
             "Replace color by ground truth accumulated over the shutter, the aperture, or both; "
-            "ao: add pass \"ao\", ambient occlusion by exact ray casting.");
+            "ao: add pass \"ao\", ambient occlusion by exact ray casting; reflections: color "
+            "with exactly traced glossy reflections (samples: GGX rays a pixel; supersample 1).");
 constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
                                    .range(1, 65536)
                                    .doc("Renders accumulated for the ground truth.");
@@ -43,6 +44,7 @@ constexpr ParamSpec kAoRadius =
 constexpr ParamSpec kParams[] = {
     kScene, kWidth, kHeight, kSupersample, kShadows, kTruth, kSamples, kSeed, kAoRadius};
 constexpr int kTruthAo = 4;
+constexpr int kTruthReflections = 5;
 
 raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
 {
@@ -76,6 +78,8 @@ void add_sun_attributes(const raster::Scene &scene, Frame &frame)
     frame.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
     frame.attributes.push_back(
         OIIO::ParamValue("posthaste:sunIlluminance", OIIO::TypeVector, 1, &e));
+    // The scale of the sky light in the beauty (the ssr node's sky fallback defaults to it).
+    frame.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", scene.sky_ambient));
 }
 
 void execute(NodeContext &ctx)
@@ -103,6 +107,22 @@ void execute(NodeContext &ctx)
                                                   ctx.get_int(kSamples),
                                                   std::uint32_t(ctx.get_int(kSeed)))),
                       {"Y"});
+            }
+            ctx.output() = std::move(f);
+            return;
+        }
+        if (truth == kTruthReflections) {
+            // The requested passes (one sample a pixel, as the truth), color replaced.
+            options.supersample = 1;
+            Frame f = raster::render_frame(scene, ctx.frame_number(), options);
+            if (ctx.requested().contains(pass::kColor)) {
+                f.set(pass::kColor,
+                      std::make_shared<const Image>(
+                          raster::render_reflection_truth(scene,
+                                                          ctx.frame_number(),
+                                                          options,
+                                                          ctx.get_int(kSamples),
+                                                          std::uint32_t(ctx.get_int(kSeed)))));
             }
             ctx.output() = std::move(f);
             return;

@@ -35,15 +35,16 @@ int render(const RenderCommand &o)
         throw_usage("--size: expected WIDTHxHEIGHT, got \"", o.size, "\"");
     }
     std::string truth = "none";
-    if (o.truth == "ao") {
-        truth = "ao";
+    if (o.truth == "ao" || o.truth == "reflections") {
+        truth = o.truth;
     } else if (!o.truth.empty()) {
         const bool motion = o.truth.find("motion") != std::string::npos;
         const bool dof = o.truth.find("dof") != std::string::npos;
         for (const std::string &w : split_list(o.truth)) {
             if (w != "motion" && w != "dof") {
-                throw_usage(
-                    "--truth: expected motion, dof, motion,dof or ao, got \"", o.truth, "\"");
+                throw_usage("--truth: expected motion, dof, motion,dof, ao or reflections, got \"",
+                            o.truth,
+                            "\"");
             }
         }
         truth = motion && dof ? "motion_dof" : motion ? "motion" : "dof";
@@ -98,7 +99,8 @@ void add_render_command(CLI::App &app, int &exit_code)
     cmd->add_option("--supersample", o->supersample, "Beauty supersampling per axis: 1, 2 or 4")
         ->check(CLI::IsMember({1, 2, 4}));
     cmd->add_flag("--no-shadows", o->no_shadows, "Turn the sun's shadow map off");
-    cmd->add_option("--truth", o->truth, "Ground truth: motion, dof, motion,dof, or ao");
+    cmd->add_option(
+        "--truth", o->truth, "Ground truth: motion, dof, motion,dof, ao or reflections");
     cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")
         ->check(CLI::Range(1e-3, 100.0));
     cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")

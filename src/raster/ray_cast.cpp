@@ -9,17 +9,20 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "shading/lighting.h"
+#include "shading/scene_sky.h"
+#include "shading/sky.h"
 
 namespace posthaste::raster {
 
 RayScene::RayScene(const Scene &scene, double t) : grid_(scene.world)
 {
     for (const Ball &b : scene.balls) {
-        spheres_.push_back({glm::vec3(b.transform(t)[3]), b.radius});
+        spheres_.push_back({glm::vec3(b.transform(t)[3]), b.radius, b.material});
     }
     for (const Mover &m : scene.movers) {
         const glm::vec3 off(m.transform(t)[3]);
-        boxes_.push_back({m.min + off, m.min + m.size + off});
+        boxes_.push_back({m.min + off, m.min + m.size + off, m.material});
     }
 }
 
@@ -114,6 +117,124 @@ bool RayScene::occluded(const glm::vec3 &o, const glm::vec3 &d, float max_dist) 
     return voxels_hit(o, d, max_dist);
 }
 
+std::optional<RayScene::Hit> RayScene::voxels_first(const glm::vec3 &o,
+                                                    const glm::vec3 &d,
+                                                    float max_dist) const
+{
+    const glm::vec3 lo(0.0f), hi(float(grid_.nx), float(grid_.ny), float(grid_.nz));
+    float t0 = 0.0f, t1 = max_dist;
+    int entry_axis = -1;  // the slab that set t0: the face the ray enters the grid through
+    for (int a = 0; a < 3; ++a) {
+        if (d[a] == 0.0f) {
+            if (o[a] < lo[a] || o[a] > hi[a]) {
+                return std::nullopt;
+            }
+            continue;
+        }
+        float ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
+        if (ta > tb) {
+            std::swap(ta, tb);
+        }
+        if (ta > t0) {
+            t0 = ta;
+            entry_axis = a;
+        }
+        t1 = std::min(t1, tb);
+    }
+    if (t0 > t1) {
+        return std::nullopt;
+    }
+    const glm::vec3 p = o + d * t0;
+    glm::ivec3 cell(int(std::floor(p.x)), int(std::floor(p.y)), int(std::floor(p.z)));
+    glm::ivec3 step;
+    glm::vec3 next, delta;
+    for (int a = 0; a < 3; ++a) {
+        const float inf = std::numeric_limits<float>::infinity();
+        step[a] = d[a] > 0.0f ? 1 : -1;
+        if (a == entry_axis) {
+            cell[a] = d[a] > 0.0f ? int(lo[a]) : int(hi[a]) - 1;  // no rounding across the face
+        }
+        delta[a] = d[a] != 0.0f ? std::abs(1.0f / d[a]) : inf;
+        const float boundary = float(cell[a] + (d[a] > 0.0f ? 1 : 0));
+        next[a] = d[a] != 0.0f ? t0 + (boundary - p[a]) / d[a] : inf;
+    }
+    float t = t0;
+    int axis = entry_axis;
+    while (t <= t1) {
+        if (const std::uint8_t m = grid_.at(cell.x, cell.y, cell.z); m != 0) {
+            glm::vec3 n(0.0f);
+            if (axis >= 0) {
+                n[axis] = d[axis] > 0.0f ? -1.0f : 1.0f;
+            } else {
+                n = -d;  // the ray starts inside a solid cell
+            }
+            return Hit{t, n, int(m)};
+        }
+        axis = next.x < next.y ? (next.x < next.z ? 0 : 2) : (next.y < next.z ? 1 : 2);
+        t = next[axis];
+        next[axis] += delta[axis];
+        cell[axis] += step[axis];
+    }
+    return std::nullopt;
+}
+
+std::optional<RayScene::Hit> RayScene::closest(const glm::vec3 &o,
+                                               const glm::vec3 &d,
+                                               float max_dist) const
+{
+    std::optional<Hit> best = voxels_first(o, d, max_dist);
+    float limit = best ? best->distance : max_dist;
+    for (const Sphere &s : spheres_) {
+        const glm::vec3 oc = o - s.centre;
+        const float c = glm::dot(oc, oc) - s.radius * s.radius;
+        if (c <= 1e-3f * s.radius) {
+            continue;
+        }
+        const float b = glm::dot(oc, d);
+        const float disc = b * b - c;
+        if (b < 0.0f && disc >= 0.0f) {
+            const float hit = -b - std::sqrt(disc);
+            if (hit > 0.0f && hit <= limit) {
+                limit = hit;
+                best = Hit{hit, glm::normalize(oc + d * hit), s.material};
+            }
+        }
+    }
+    for (const Box &bx : boxes_) {
+        constexpr float kEps = 1e-3f;
+        if (glm::all(glm::greaterThan(o, bx.lo - kEps)) &&
+            glm::all(glm::lessThan(o, bx.hi + kEps))) {
+            continue;
+        }
+        float t0 = 0.0f, t1 = limit;
+        int axis = -1;
+        bool miss = false;
+        for (int a = 0; a < 3 && !miss; ++a) {
+            if (d[a] == 0.0f) {
+                miss = o[a] < bx.lo[a] || o[a] > bx.hi[a];
+                continue;
+            }
+            float ta = (bx.lo[a] - o[a]) / d[a], tb = (bx.hi[a] - o[a]) / d[a];
+            if (ta > tb) {
+                std::swap(ta, tb);
+            }
+            if (ta > t0) {
+                t0 = ta;
+                axis = a;
+            }
+            t1 = std::min(t1, tb);
+            miss = t0 > t1;
+        }
+        if (!miss && axis >= 0) {
+            glm::vec3 n(0.0f);
+            n[axis] = d[axis] > 0.0f ? -1.0f : 1.0f;
+            limit = t0;
+            best = Hit{t0, n, bx.material};
+        }
+    }
+    return best;
+}
+
 float ao_truth_at(const RayScene &rays,
                   const glm::vec3 &p,
                   const glm::vec3 &nn,
@@ -167,6 +288,119 @@ Image render_ao_truth(const Scene &scene,
             const glm::vec3 p(pos.at(x, y, 0), pos.at(x, y, 1), pos.at(x, y, 2));
             const glm::vec3 nn(nrm.at(x, y, 0), nrm.at(x, y, 1), nrm.at(x, y, 2));
             out.at(x, y, 0) = ao_truth_at(rays, p, glm::normalize(nn), radius, samples, x, y, seed);
+        }
+    });
+    return out;
+}
+
+namespace {
+
+/// Radiance leaving a surface the truth's reflected ray meets, toward the ray's origin: the
+/// rasterizer's shading (shading::direct_response with toon bands, add_sky_light) with the sun's
+/// shadow from an exact ray instead of a shadow map. Isotropic (a hit has no tangent).
+glm::vec3 shade_hit(const Scene &scene,
+                    const RayScene &rays,
+                    const shading::SceneSky &sky,
+                    const glm::vec3 &p,
+                    const RayScene::Hit &hit,
+                    const glm::vec3 &v)
+{
+    const Material *mat = scene.material(hit.material);
+    if (!mat) {
+        return glm::vec3(0.0f);
+    }
+    shading::Surface surf;
+    surf.albedo = mat->albedo;
+    surf.roughness = mat->roughness;
+    surf.metallic = mat->metallic;
+    const glm::vec3 &n = hit.normal;
+    const glm::vec3 l = scene.sun.direction;
+    glm::vec3 c(0.0f);
+    if (glm::dot(n, l) > 0.0f &&
+        !rays.occluded(p + n * 1e-3f, l, std::numeric_limits<float>::infinity())) {
+        shading::DirectOptions direct;
+        direct.toon_bands = mat->toon ? 3 : 0;
+        c = shading::direct_response(surf, n, v, l, direct) * scene.sun.color *
+            scene.sun.illuminance;
+    }
+    return shading::add_sky_light(c, surf, n, v, sky, sky.ambient(n), scene.sky_ambient);
+}
+
+}  // namespace
+
+Image render_reflection_truth(
+    const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed)
+{
+    RenderOptions o = options;
+    o.supersample = 1;
+    o.passes = {
+        pass::kColor, pass::kPosition, pass::kNormal, pass::kDepth, pass::kAlbedo, pass::kMaterial};
+    const Frame g = render_frame(scene, frame, o);
+    const Image &pos = g.image(pass::kPosition), &nrm = g.image(pass::kNormal),
+                &depth = g.image(pass::kDepth), &albedo = g.image(pass::kAlbedo),
+                &material = g.image(pass::kMaterial);
+    Image out = g.image(pass::kColor);
+    const RayScene rays(scene, double(frame));
+    const shading::SceneSky &sky = shading::scene_sky(scene.sun.direction);
+    const glm::vec3 sky_camera(0.0f, shading::kSkyCameraY, 0.0f);
+    const glm::vec3 eye = scene.camera_at(double(frame)).position;
+    const float max_dist =
+        glm::length(
+            glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
+        1e3f;
+    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    parallel_for(0, out.height(), [&](int y) {
+        for (int x = 0; x < out.width(); ++x) {
+            if (!std::isfinite(depth.at(x, y, 0))) {
+                continue;  // the sky
+            }
+            shading::Surface surf;
+            surf.albedo = glm::vec3(albedo.at(x, y, 0), albedo.at(x, y, 1), albedo.at(x, y, 2));
+            surf.roughness = material.at(x, y, 0);
+            surf.metallic = material.at(x, y, 1);
+            const glm::vec3 p(pos.at(x, y, 0), pos.at(x, y, 1), pos.at(x, y, 2));
+            glm::vec3 n =
+                glm::normalize(glm::vec3(nrm.at(x, y, 0), nrm.at(x, y, 1), nrm.at(x, y, 2)));
+            const glm::vec3 v = glm::normalize(eye - p);
+            if (glm::dot(n, v) < 0.0f) {
+                n = -n;  // as the rasterizer: shade the side we see
+            }
+            const glm::vec3 weight = shading::sky_reflection_weight(surf, n, v);
+            if (weight == glm::vec3(0.0f)) {
+                continue;
+            }
+            const float alpha = shading::roughness_to_alpha(surf.roughness);
+            const glm::vec3 origin = p + n * 1e-3f;
+            glm::vec3 sum(0.0f);
+            float wsum = 0.0f;
+            for (int i = 0; i < strata * strata; ++i) {
+                const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
+                const float u2 =
+                    (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
+                const glm::vec3 l = shading::sample_ggx_reflection(n, v, alpha, u1, u2);
+                const float nl = glm::dot(n, l);
+                if (!(nl > 0.0f)) {
+                    continue;
+                }
+                glm::vec3 radiance;
+                if (const auto hit = rays.closest(origin, l, max_dist)) {
+                    radiance = shade_hit(scene, rays, sky, origin + l * hit->distance, *hit, -l);
+                } else {
+                    radiance = sky.radiance(l, sky_camera, false) * scene.sky_ambient;
+                }
+                sum += radiance * nl;
+                wsum += nl;
+            }
+            if (wsum <= 0.0f) {
+                continue;
+            }
+            const glm::vec3 r = glm::reflect(-v, n);
+            const glm::vec3 d =
+                weight * (sum / wsum - sky.radiance(r, sky_camera, false) * scene.sky_ambient);
+            float *px = out.pixel(x, y);
+            px[0] += d.x;
+            px[1] += d.y;
+            px[2] += d.z;
         }
     });
     return out;

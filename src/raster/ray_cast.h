@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <glm/vec3.hpp>
+#include <optional>
 #include <vector>
 
 #include "core/image.h"
@@ -24,15 +25,30 @@ class RayScene {
     /// sphere).
     bool occluded(const glm::vec3 &origin, const glm::vec3 &dir, float max_dist) const;
 
+    /// The first surface the ray meets for 0 < s <= max_dist, with the same rule for balls and
+    /// blocks that hold the origin: distance, unit normal facing the ray, material id.
+    struct Hit {
+        float distance;
+        glm::vec3 normal;
+        int material;
+    };
+    std::optional<Hit> closest(const glm::vec3 &origin, const glm::vec3 &dir, float max_dist) const;
+
    private:
     bool voxels_hit(const glm::vec3 &origin, const glm::vec3 &dir, float max_dist) const;
+    /// The DDA of voxels_hit, reporting the first solid cell: distance, entry face, material.
+    std::optional<Hit> voxels_first(const glm::vec3 &origin,
+                                    const glm::vec3 &dir,
+                                    float max_dist) const;
 
     struct Sphere {
         glm::vec3 centre;
         float radius;
+        int material;
     };
     struct Box {
         glm::vec3 lo, hi;
+        int material;
     };
     const VoxelGrid &grid_;
     std::vector<Sphere> spheres_;
@@ -63,5 +79,17 @@ Image render_ao_truth(const Scene &scene,
                       float radius,
                       int samples,
                       std::uint32_t seed);
+
+/// Ground-truth reflections of frame `frame` at options.width x height (supersample 1): the
+/// rasterizer's beauty with the sky lookup of its specular term (shading::add_sky_light) replaced
+/// by the radiance the reflected rays really meet. At each pixel of a glossy surface (roughness
+/// up to 0.78), `samples` stratified GGX directions (shading::sample_ggx_reflection) are traced
+/// exactly; a ray that meets a surface sees it shaded as the rasterizer shades (sun with an
+/// exact shadow ray, sky light; one bounce: the hit's own specular reflects the sky, and hits
+/// are shaded isotropic), one that leaves the scene sees the sky times the scene's sky_ambient.
+/// Their n.l-weighted mean replaces the sky lookup (shading::sky_reflection_weight). RGBA,
+/// premultiplied as the beauty; jitter hashed from pixel, sample and seed.
+Image render_reflection_truth(
+    const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed);
 
 }  // namespace posthaste::raster

@@ -88,4 +88,32 @@ glm::vec3 add_sky_light(glm::vec3 c,
     return c;
 }
 
+glm::vec3 sky_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v)
+{
+    const float gloss = (1.0f - s.roughness) * (1.0f - s.roughness);
+    if (gloss < 0.05f) {
+        return glm::vec3(0.0f);  // add_sky_light's rough branch: no sky lookup
+    }
+    const float nv = std::max(glm::dot(n, v), 0.0f);
+    return fresnel_schlick(specular_f0(s), nv) * gloss;
+}
+
+glm::vec3 sample_ggx_reflection(
+    const glm::vec3 &n, const glm::vec3 &v, float alpha, float u1, float u2)
+{
+    // tan^2(theta_h) = alpha^2 u1 / (1 - u1) inverts the CDF of D(h) (n.h).
+    const float a2 = alpha * alpha;
+    const float cos2 = (1.0f - u1) / (1.0f + (a2 - 1.0f) * u1);
+    const float cos_t = std::sqrt(std::clamp(cos2, 0.0f, 1.0f));
+    const float sin_t = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
+    const float phi = 2.0f * kPi * u2;
+    // An orthonormal basis around n (Duff et al. 2017).
+    const float sign = std::copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z), b = n.x * n.y * a;
+    const glm::vec3 t1(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    const glm::vec3 t2(b, sign + n.y * n.y * a, -n.y);
+    const glm::vec3 h = t1 * (sin_t * std::cos(phi)) + t2 * (sin_t * std::sin(phi)) + n * cos_t;
+    return glm::normalize(2.0f * glm::dot(v, h) * h - v);
+}
+
 }  // namespace posthaste::shading

@@ -58,4 +58,19 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const glm::vec3 &ambient,
                         float scale);
 
+/// The weight of the sky lookup in add_sky_light's specular term: Schlick F(n.v) times the
+/// gloss (1 - roughness)^2, zero for rough materials (gloss < 0.05) that reflect the ambient
+/// alone. add_sky_light adds weight * scale * sky(reflect(-v, n)) (plus the ambient's share);
+/// adding weight * (L - scale * sky(reflect(-v, n))) replaces that lookup by the radiance L the
+/// reflected rays really meet (the reflection truth and the ssr node both do so).
+glm::vec3 sky_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v);
+
+/// A reflected direction for GGX roughness `alpha` around unit normal n seen from v: a half
+/// vector drawn with density D(h) (n.h) (Walter et al. 2007) from (u1, u2) in [0, 1)^2,
+/// and v mirrored about it. May point below the surface (n.l <= 0): callers drop those. With
+/// the weights n.l of the drawn directions, the weighted mean of the radiance they meet is the
+/// prefiltered radiance of the split-sum approximation (Karis 2013).
+glm::vec3 sample_ggx_reflection(
+    const glm::vec3 &n, const glm::vec3 &v, float alpha, float u1, float u2);
+
 }  // namespace posthaste::shading
