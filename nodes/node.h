@@ -54,5 +54,6 @@ extern const NodeType kCrop;
 extern const NodeType kBlur;
 extern const NodeType kSharpen;
 extern const NodeType kAo;
+extern const NodeType kSsr;
 
 }  // namespace posthaste::nodes

@@ -1,0 +1,171 @@
+// nodes/ssr.cpp: screen-space reflections from the colour, depth, normal, albedo and material
+// passes and the camera (src/shading/ssr.h): glossy pixels' GGX rays marched through the depth
+// pass, what they meet on screen replacing the sky the renderer reflected; estimates what
+// `render` with truth "reflections" computes exactly. Non-finite depth reads as the sky,
+// non-finite normals and materials leave their pixel alone, non-finite colour reads as black.
+
+#include "shading/ssr.h"
+
+#include <cmath>
+
+#include "core/sanitize.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kRays = ParamSpec::integer("rays", 4).range(1, 64).doc(
+    "GGX rays per pixel at roughness 0.35 and above; ceil(rays roughness / 0.35) "
+    "below (one on a mirror).");
+constexpr ParamSpec kSteps =
+    ParamSpec::integer("steps", 16).range(1, 512).doc("Depth samples along each ray.");
+constexpr ParamSpec kRefine =
+    ParamSpec::integer("refine", 5).range(0, 16).doc("Bisection steps after a hit.");
+constexpr ParamSpec kThickness = ParamSpec::real("thickness", 0.5)
+                                     .range(1e-4, 1e4)
+                                     .units("scene units")
+                                     .doc("How far a surface is taken to extend behind its depth.");
+constexpr ParamSpec kMaxDistance = ParamSpec::real("max_distance", 60.0)
+                                       .range(1e-3, 1e6)
+                                       .units("scene units")
+                                       .doc("How far a reflected ray may travel.");
+constexpr ParamSpec kEdgeFade =
+    ParamSpec::real("edge_fade", 0.02)
+        .range(0.0, 0.5)
+        .doc("Hits within this fraction of the smaller image side from an edge fade to the sky.");
+constexpr ParamSpec kMaxRoughness =
+    ParamSpec::real("max_roughness", 0.78)
+        .range(0.0, 1.0)
+        .doc("Rougher surfaces are left alone (the renderer's glossy cut-off is 0.78).");
+constexpr ParamSpec kSkyScale = ParamSpec::real("sky_scale", 1.0)
+                                    .range(0.0, 1e6)
+                                    .doc("The renderer's sky-light scale (a scene's sky_ambient).")
+                                    .from_header("posthaste:skyAmbient");
+constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
+                                        .doc("World direction towards the sun (picks the sky).")
+                                        .from_header("posthaste:sunDirection");
+constexpr ParamSpec kOffscreen =
+    ParamSpec::choice("offscreen", "sky|extend", "sky")
+        .doc(
+            "A ray leaving the screen in front of the last surface it passed: sees the sky, or "
+            "that surface (taken to go on past the edge).");
+constexpr ParamSpec kDenoise =
+    ParamSpec::integer("denoise", 3)
+        .range(0, 8)
+        .units("px")
+        .doc("Radius of the resolve that averages neighbours' rays on the same surface (0: off).");
+constexpr ParamSpec kResolution =
+    ParamSpec::choice("resolution", "full|half", "half")
+        .doc(
+            "half: rays from every other pixel in x and y (a quarter of the rays); the resolve "
+            "fills the others from traced neighbours on the same surface.");
+constexpr ParamSpec kIntensity =
+    ParamSpec::real("intensity", 1.0)
+        .range(0.0, 1.0)
+        .doc("Share of the change applied (0: the colour unchanged, nothing traced).");
+constexpr ParamSpec kSeed =
+    ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Ray jitter pattern.");
+constexpr ParamSpec kParams[] = {kRays,
+                                 kSteps,
+                                 kRefine,
+                                 kThickness,
+                                 kMaxDistance,
+                                 kEdgeFade,
+                                 kMaxRoughness,
+                                 kSkyScale,
+                                 kSunDirection,
+                                 kOffscreen,
+                                 kDenoise,
+                                 kResolution,
+                                 kIntensity,
+                                 kSeed};
+constexpr PortSpec kInputs[] = {
+    {"image",
+     "color,depth,normal,albedo,material",
+     false,
+     "Colour, depth, world normals, albedo, material and camera matrices."}};
+
+void execute(NodeContext &ctx)
+{
+    const Frame &in = ctx.input("image");
+    const Pass &color_pass = in.pass("color", ctx.where());
+    if (ctx.get_float(kIntensity) == 0.0f) {
+        ctx.output().set("color", color_pass.image, color_pass.channels, color_pass.storage);
+        return;
+    }
+    const Image &color_in = *color_pass.image;
+    const Image &depth_in = in.image("depth", ctx.where());
+    const Image &normal_in = in.image("normal", ctx.where());
+    const Image &albedo_in = in.image("albedo", ctx.where());
+    const Image &material_in = in.image("material", ctx.where());
+    if (color_in.channels() < 3 || normal_in.channels() < 3 || albedo_in.channels() < 3 ||
+        material_in.channels() < 2) {
+        throw_runtime(ctx.where(),
+                      ": expected RGB color, albedo and normal and a two-channel material pass");
+    }
+    const Camera camera = in.pixel_camera();  // NDC spans the data window
+    shading::SsrInputs si;
+    si.world_to_camera = camera.require_world_to_camera(ctx.where());
+    si.world_to_ndc = camera.require_world_to_ndc(ctx.where());
+    Image color_s, depth_s, normal_s, albedo_s, material_s;
+    const float inf = std::numeric_limits<float>::infinity();
+    si.color = &finite_view(color_in, 0.0f, color_s);
+    si.depth = &finite_view(depth_in, inf, depth_s, true);
+    si.normal = &finite_view(normal_in, 0.0f, normal_s);
+    si.albedo = &finite_view(albedo_in, 0.0f, albedo_s);
+    si.material = &finite_view(material_in, 1.0f, material_s);  // rough: left alone
+
+    shading::SsrParams p;
+    p.rays = ctx.get_int(kRays);
+    p.steps = ctx.get_int(kSteps);
+    p.refine = ctx.get_int(kRefine);
+    p.thickness = ctx.get_float(kThickness);
+    p.max_distance = ctx.get_float(kMaxDistance);
+    p.edge_fade = ctx.get_float(kEdgeFade);
+    p.max_roughness = ctx.get_float(kMaxRoughness);
+    p.seed = std::uint32_t(ctx.get_int(kSeed));
+    p.intensity = ctx.get_float(kIntensity);
+    p.extend = ctx.get_string(kOffscreen) == "extend";
+    p.denoise = ctx.get_int(kDenoise);
+    p.stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
+    p.sky_scale = ctx.get_float(kSkyScale);
+    if (!ctx.params().given(kSkyScale)) {
+        p.sky_scale = in.attributes.get_float(std::string(kSkyScale.header), p.sky_scale);
+    }
+    const std::vector<double> &sun = ctx.get_vec(kSunDirection);
+    glm::vec3 sun_dir{float(sun[0]), float(sun[1]), float(sun[2])};
+    if (!ctx.params().given(kSunDirection)) {
+        if (const OIIO::ParamValue *pv = in.attributes.find_pv(std::string(kSunDirection.header));
+            pv && pv->type().basetype == OIIO::TypeDesc::FLOAT && pv->type().basevalues() == 3) {
+            const float *v = static_cast<const float *>(pv->data());
+            sun_dir = glm::vec3(v[0], v[1], v[2]);
+        }
+    }
+    const float len = glm::length(sun_dir);
+    if (!(len > 0.0f) || !std::isfinite(len) || !std::isfinite(p.sky_scale) || p.sky_scale < 0.0f) {
+        throw_runtime(ctx.where(),
+                      ": the sun direction must be a non-zero finite vector and the sky scale "
+                      "finite and >= 0 (header posthaste:sunDirection, posthaste:skyAmbient)");
+    }
+    p.sun_direction = sun_dir / len;
+    Image out = shading::ssr(si, p);
+    ctx.output().set("color",
+                     std::make_shared<const Image>(std::move(out)),
+                     color_pass.channels,
+                     color_pass.storage);
+}
+
+}  // namespace
+
+extern const NodeType kSsr{
+    {"ssr",
+     "Screen-space reflections of glossy surfaces from colour, depth, normals, albedo, material "
+     "and the camera.",
+     kInputs,
+     kParams,
+     "color"},
+    &execute,
+    nullptr,
+    nullptr};
+
+}  // namespace posthaste::nodes

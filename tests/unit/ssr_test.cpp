@@ -1,0 +1,307 @@
+// Reflections: the exact ray caster's first hits (voxels, balls, blocks), the reflection truth
+// (the beauty itself where the rays see only sky; its noise falling with the ray count), the ssr
+// node against that truth on the glossy scene, and its failure cases: non-finite passes,
+// extreme parameters, thread counts, and the refusals (missing pass, no camera, sizes).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "raster/ray_cast.h"
+#include "raster/render.h"
+#include "raster/scene.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+std::string scene_path(const std::string &name)
+{
+    return std::string(POSTHASTE_SOURCE_DIR) + "/samples/scenes/" + name;
+}
+
+/// RMS over RGB of a - b.
+double rms_rgb(const Image &a, const Image &b)
+{
+    double sum = 0.0;
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(a.at(x, y, c)) - double(b.at(x, y, c));
+                sum += d * d;
+            }
+        }
+    }
+    return std::sqrt(sum / (3.0 * double(a.pixel_count())));
+}
+
+raster::RenderOptions small(int w, int h, std::set<std::string> passes)
+{
+    raster::RenderOptions o;
+    o.width = w;
+    o.height = h;
+    o.passes = std::move(passes);
+    return o;
+}
+
+/// The glossy scene's frame with every pass ssr reads, and the header the render node writes.
+Frame glossy_frame(const raster::Scene &s, int w, int h)
+{
+    Frame f = raster::render_frame(
+        s, 1, small(w, h, {"color", "depth", "normal", "albedo", "material", "position"}));
+    const glm::vec3 d = s.sun.direction;
+    f.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
+    f.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", s.sky_ambient));
+    return f;
+}
+
+TEST(Ssr, RayCasterFindsTheFirstSurface)
+{
+    raster::Scene s;
+    s.world.nx = s.world.ny = s.world.nz = 40;
+    s.world.cells.assign(40 * 40 * 40, 0);
+    for (int z = 0; z < 40; ++z) {
+        for (int x = 0; x < 40; ++x) {
+            s.world.set(x, 0, z, 3);  // floor, top at y = 1
+            for (int y = 0; y < 40; ++y) {
+                if (x >= 20) {
+                    s.world.set(x, y, z, 4);  // wall, face at x = 20
+                }
+            }
+        }
+    }
+    raster::Ball ball;
+    ball.center = glm::vec3(10.0f, 3.0f, 10.0f);
+    ball.radius = 1.0f;
+    ball.material = 7;
+    s.balls.push_back(ball);
+    raster::Mover block;
+    block.min = glm::vec3(5.0f, 1.0f, 30.0f);
+    block.size = glm::vec3(1.0f);
+    block.material = 9;
+    s.movers.push_back(block);
+    const raster::RayScene rays(s, 1.0);
+    const glm::vec3 up(0, 1, 0), east(1, 0, 0);
+
+    auto wall = rays.closest({17.5f, 5.0f, 5.0f}, east, 100.0f);
+    ASSERT_TRUE(wall);
+    EXPECT_NEAR(wall->distance, 2.5f, 1e-4f);
+    EXPECT_EQ(wall->normal, glm::vec3(-1, 0, 0));
+    EXPECT_EQ(wall->material, 4);
+    EXPECT_FALSE(rays.closest({17.5f, 5.0f, 5.0f}, east, 2.0f));  // beyond max_dist
+
+    auto floor = rays.closest({3.0f, 4.0f, 3.0f}, glm::normalize(glm::vec3(1, -1, 0)), 100.0f);
+    ASSERT_TRUE(floor);
+    EXPECT_NEAR(floor->distance, 3.0f * std::sqrt(2.0f), 1e-4f);
+    EXPECT_EQ(floor->normal, up);
+    EXPECT_EQ(floor->material, 3);
+
+    auto on_ball = rays.closest({10.0f, 1.001f, 10.0f}, up, 100.0f);  // the ball's underside
+    ASSERT_TRUE(on_ball);
+    EXPECT_NEAR(on_ball->distance, 0.999f, 1e-3f);
+    EXPECT_NEAR(glm::dot(on_ball->normal, -up), 1.0f, 1e-4f);
+    EXPECT_EQ(on_ball->material, 7);
+
+    auto on_block = rays.closest({2.0f, 1.5f, 30.5f}, east, 100.0f);  // the block before the wall
+    ASSERT_TRUE(on_block);
+    EXPECT_NEAR(on_block->distance, 3.0f, 1e-4f);
+    EXPECT_EQ(on_block->normal, glm::vec3(-1, 0, 0));
+    EXPECT_EQ(on_block->material, 9);
+
+    auto entering = rays.closest({-5.0f, 10.0f, 5.0f}, east, 100.0f);  // from outside the grid
+    ASSERT_TRUE(entering);
+    EXPECT_NEAR(entering->distance, 25.0f, 1e-4f);
+    EXPECT_EQ(entering->material, 4);
+    EXPECT_FALSE(rays.closest({10.0f, 5.0f, 5.0f}, up, 1e3f));  // open sky
+}
+
+TEST(Ssr, TruthIsTheBeautyWhereTheRaysSeeOnlySky)
+{
+    // A polished floor and nothing else: every reflected ray leaves the scene, so the truth
+    // differs from the beauty only by the lobe's spread around the mirror direction.
+    raster::Scene s;
+    s.world.nx = s.world.nz = 64;
+    s.world.ny = 4;
+    s.world.cells.assign(64 * 4 * 64, 0);
+    for (int z = 0; z < 64; ++z) {
+        for (int x = 0; x < 64; ++x) {
+            s.world.set(x, 0, z, 1);
+        }
+    }
+    raster::Material m;
+    m.id = 1;
+    m.albedo = glm::vec3(0.05f);
+    m.roughness = 0.06f;
+    s.materials = {m};
+    raster::CameraKey key;
+    key.position = glm::vec3(32.0f, 4.0f, 4.0f);
+    key.pitch_deg = -20.0f;
+    s.camera_keys = {key};
+    const raster::RenderOptions o = small(64, 36, {"color"});
+    const Frame beauty = raster::render_frame(s, 1, o);
+    const Image truth = raster::render_reflection_truth(s, 1, o, 16, 1);
+    const Image &b = beauty.image("color");
+    double diff = 0.0, total = 0.0, worst = 0.0;
+    for (int y = 0; y < b.height(); ++y) {
+        for (int x = 0; x < b.width(); ++x) {
+            for (int c = 0; c < 4; ++c) {
+                ASSERT_TRUE(std::isfinite(truth.at(x, y, c)));
+                const double d = std::abs(double(truth.at(x, y, c) - b.at(x, y, c)));
+                diff += d;
+                total += std::abs(double(b.at(x, y, c)));
+                worst = std::max(worst, d / std::max(0.05, double(b.at(x, y, c))));
+            }
+        }
+    }
+    // On the whole within 1 %; the worst pixels reflect the horizon, where the sky changes
+    // fastest across the lobe.
+    EXPECT_LT(diff / total, 0.01);
+    EXPECT_LT(worst, 0.2);
+}
+
+TEST(Ssr, TruthNoiseFallsWithTheRayCount)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const raster::RenderOptions o = small(96, 54, {"color"});
+    const Image t4 = raster::render_reflection_truth(s, 1, o, 4, 1);
+    const Image t16 = raster::render_reflection_truth(s, 1, o, 16, 2);
+    const Image t64 = raster::render_reflection_truth(s, 1, o, 64, 3);
+    const double coarse = rms_rgb(t4, t16), fine = rms_rgb(t16, t64);
+    EXPECT_GT(coarse, 0.0);
+    EXPECT_LT(fine, 0.75 * coarse) << coarse << " " << fine;
+    const Frame beauty = raster::render_frame(s, 1, o);
+    // The reflections are what the truth adds: far more than its noise.
+    EXPECT_GT(rms_rgb(beauty.image("color"), t64), 2.0 * fine);
+}
+
+TEST(Ssr, RemovesMostOfTheMissingReflectionsOnTheGlossyScene)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 240, 135);
+    const Image truth = raster::render_reflection_truth(s, 1, small(240, 135, {"color"}), 256, 7);
+    const double none = rms_rgb(f.image("color"), truth);
+    const Frame out = test::run_node("ssr", f, "{}");
+    const double ssr = rms_rgb(out.image("color"), truth);
+    EXPECT_LT(ssr, 0.7 * none) << "ssr " << ssr << " nothing " << none;
+    // Only colour changes: alpha and every other pass are the input's.
+    const Image &a = out.image("color"), &b = f.image("color");
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            ASSERT_EQ(a.at(x, y, 3), b.at(x, y, 3));
+        }
+    }
+    EXPECT_EQ(out.pass("depth").image, f.pass("depth").image);
+}
+
+TEST(Ssr, SkyRoughSurfacesAndZeroIntensityAreLeftAlone)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 96, 54);
+    const Frame off = test::run_node("ssr", f, R"({"intensity": 0})");
+    EXPECT_EQ(off.pass("color").image, f.pass("color").image);
+    const Frame out = test::run_node("ssr", f, "{}");
+    const Image &a = out.image("color"), &b = f.image("color");
+    const Image &depth = f.image("depth"), &material = f.image("material");
+    int changed = 0;
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            const bool sky = !std::isfinite(depth.at(x, y, 0));
+            const bool rough = material.at(x, y, 0) > 0.78f;
+            for (int c = 0; c < 4; ++c) {
+                if (sky || rough) {
+                    ASSERT_EQ(a.at(x, y, c), b.at(x, y, c)) << x << "," << y;
+                }
+            }
+            changed += a.at(x, y, 0) != b.at(x, y, 0) ? 1 : 0;
+        }
+    }
+    EXPECT_GT(changed, a.width() * a.height() / 10);
+}
+
+TEST(Ssr, NonFinitePassesAndExtremeParametersGiveFiniteOutput)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame clean = glossy_frame(s, 96, 54);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float inf = std::numeric_limits<float>::infinity();
+    for (const char *pass : {"color", "depth", "normal", "albedo", "material"}) {
+        for (const float bad : {nan, inf, -inf}) {
+            Frame f = clean;
+            Image img = f.image(pass);
+            for (int y = 10; y < 40; y += 3) {
+                for (int x = 0; x < img.width(); x += 2) {
+                    for (int c = 0; c < img.channels(); ++c) {
+                        img.at(x, y, c) = bad;
+                    }
+                }
+            }
+            f.set(pass, std::move(img), f.pass(pass).channels);
+            const Frame out = test::run_node("ssr", f, "{}");
+            const Image &o = out.image("color");
+            for (std::size_t i = 0; i < o.value_count(); ++i) {
+                ASSERT_TRUE(std::isfinite(o.data()[i])) << pass << " " << bad << " at " << i;
+            }
+        }
+    }
+    for (const char *params :
+         {R"({"rays": 64, "steps": 512, "refine": 16, "denoise": 8})",
+          R"({"rays": 1, "steps": 1, "refine": 0, "denoise": 0, "thickness": 0.0001})",
+          R"({"thickness": 10000, "max_distance": 1000000, "edge_fade": 0.5})",
+          R"({"max_distance": 0.001, "max_roughness": 1, "offscreen": "sky"})",
+          R"({"sky_scale": 1000000, "sun_direction": [0, -1, 0]})"}) {
+        const Frame out = test::run_node("ssr", clean, params);
+        const Image &o = out.image("color");
+        for (std::size_t i = 0; i < o.value_count(); ++i) {
+            ASSERT_TRUE(std::isfinite(o.data()[i])) << params;
+        }
+    }
+}
+
+TEST(Ssr, SameBitsForAnyThreadCount)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 128, 72);
+    set_thread_count(1);
+    const Frame one = test::run_node("ssr", f, "{}");
+    set_thread_count(2);
+    const Frame two = test::run_node("ssr", f, "{}");
+    set_thread_count(0);
+    EXPECT_TRUE(one.image("color").bit_equal(two.image("color")));
+}
+
+TEST(Ssr, NodeNamesWhatIsMissing)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 48, 27);
+    auto expect_error = [](const Frame &in, const std::string &needle) {
+        try {
+            test::run_node("ssr", in, "{}");
+            ADD_FAILURE() << "no error for " << needle;
+        } catch (const Error &e) {
+            EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+        }
+    };
+    for (const char *pass : {"material", "albedo", "normal", "depth"}) {
+        Frame missing = f;
+        missing.erase(pass);
+        expect_error(missing, pass);
+    }
+    Frame no_camera = f;
+    no_camera.camera = Camera{};
+    expect_error(no_camera, "worldTo");
+    // Passes of another size never reach the node: the frame refuses them, naming the pass.
+    Frame wrong_size = f;
+    try {
+        wrong_size.set("material", Image(24, 27, 3), f.pass("material").channels);
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("material"), std::string::npos) << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace posthaste
