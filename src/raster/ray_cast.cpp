@@ -5,6 +5,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <utility>
 
 #include "core/hash.h"
 #include "core/parallel.h"
@@ -26,15 +27,45 @@ RayScene::RayScene(const Scene &scene, double t) : grid_(scene.world)
     }
 }
 
-bool RayScene::voxels_hit(const glm::vec3 &o, const glm::vec3 &d, float max_dist) const
+namespace {
+
+/// Distance to a sphere along unit d for 0 < s <= limit; none when the origin is on or in it
+/// (within 1e-3 of its radius: the rendered ball is a tessellation inside the sphere).
+std::optional<float> sphere_distance(
+    const glm::vec3 &centre, float radius, const glm::vec3 &o, const glm::vec3 &d, float limit)
 {
-    // Clip the ray to the grid's bounds (outside is air), then walk the cells it crosses.
-    const glm::vec3 lo(0.0f), hi(float(grid_.nx), float(grid_.ny), float(grid_.nz));
-    float t0 = 0.0f, t1 = max_dist;
+    const glm::vec3 oc = o - centre;
+    const float c = glm::dot(oc, oc) - radius * radius;
+    if (c <= 1e-3f * radius) {
+        return std::nullopt;
+    }
+    const float b = glm::dot(oc, d);
+    const float disc = b * b - c;
+    if (b < 0.0f && disc >= 0.0f) {
+        const float hit = -b - std::sqrt(disc);
+        if (hit > 0.0f && hit <= limit) {
+            return hit;
+        }
+    }
+    return std::nullopt;
+}
+
+/// Entry distance into the box [lo, hi] along d for 0 <= s <= limit and the axis of the face
+/// entered (-1: none crossed, the ray starts in the slab of every axis); none when the origin
+/// is on or in the box (within 1e-3).
+std::optional<std::pair<float, int>> box_entry(
+    const glm::vec3 &lo, const glm::vec3 &hi, const glm::vec3 &o, const glm::vec3 &d, float limit)
+{
+    constexpr float kEps = 1e-3f;
+    if (glm::all(glm::greaterThan(o, lo - kEps)) && glm::all(glm::lessThan(o, hi + kEps))) {
+        return std::nullopt;
+    }
+    float t0 = 0.0f, t1 = limit;
+    int axis = -1;
     for (int a = 0; a < 3; ++a) {
         if (d[a] == 0.0f) {
             if (o[a] < lo[a] || o[a] > hi[a]) {
-                return false;
+                return std::nullopt;
             }
             continue;
         }
@@ -42,75 +73,34 @@ bool RayScene::voxels_hit(const glm::vec3 &o, const glm::vec3 &d, float max_dist
         if (ta > tb) {
             std::swap(ta, tb);
         }
-        t0 = std::max(t0, ta);
-        t1 = std::min(t1, tb);
-    }
-    if (t0 > t1) {
-        return false;
-    }
-    const glm::vec3 p = o + d * t0;
-    glm::ivec3 cell(int(std::floor(p.x)), int(std::floor(p.y)), int(std::floor(p.z)));
-    glm::ivec3 step;
-    glm::vec3 next, delta;
-    for (int a = 0; a < 3; ++a) {
-        const float inf = std::numeric_limits<float>::infinity();
-        step[a] = d[a] > 0.0f ? 1 : -1;
-        delta[a] = d[a] != 0.0f ? std::abs(1.0f / d[a]) : inf;
-        const float boundary = float(cell[a] + (d[a] > 0.0f ? 1 : 0));
-        next[a] = d[a] != 0.0f ? t0 + (boundary - p[a]) / d[a] : inf;
-    }
-    float t = t0;
-    while (t <= t1) {
-        if (grid_.at(cell.x, cell.y, cell.z) != 0) {
-            return true;
+        if (ta > t0) {
+            t0 = ta;
+            axis = a;
         }
-        const int a = next.x < next.y ? (next.x < next.z ? 0 : 2) : (next.y < next.z ? 1 : 2);
-        t = next[a];
-        next[a] += delta[a];
-        cell[a] += step[a];
+        t1 = std::min(t1, tb);
+        if (t0 > t1) {
+            return std::nullopt;
+        }
     }
-    return false;
+    return std::make_pair(t0, axis);
+}
+
+}  // namespace
+
+bool RayScene::voxels_hit(const glm::vec3 &o, const glm::vec3 &d, float max_dist) const
+{
+    return voxels_first(o, d, max_dist).has_value();
 }
 
 bool RayScene::occluded(const glm::vec3 &o, const glm::vec3 &d, float max_dist) const
 {
     for (const Sphere &s : spheres_) {
-        const glm::vec3 oc = o - s.centre;
-        const float c = glm::dot(oc, oc) - s.radius * s.radius;
-        if (c <= 1e-3f * s.radius) {
-            continue;  // the origin is on or in this ball
-        }
-        const float b = glm::dot(oc, d);
-        const float disc = b * b - c;
-        if (b < 0.0f && disc >= 0.0f) {
-            const float hit = -b - std::sqrt(disc);
-            if (hit > 0.0f && hit <= max_dist) {
-                return true;
-            }
+        if (sphere_distance(s.centre, s.radius, o, d, max_dist)) {
+            return true;
         }
     }
     for (const Box &bx : boxes_) {
-        constexpr float kEps = 1e-3f;
-        if (glm::all(glm::greaterThan(o, bx.lo - kEps)) &&
-            glm::all(glm::lessThan(o, bx.hi + kEps))) {
-            continue;  // on or in this block
-        }
-        float t0 = 0.0f, t1 = max_dist;
-        bool miss = false;
-        for (int a = 0; a < 3 && !miss; ++a) {
-            if (d[a] == 0.0f) {
-                miss = o[a] < bx.lo[a] || o[a] > bx.hi[a];
-                continue;
-            }
-            float ta = (bx.lo[a] - o[a]) / d[a], tb = (bx.hi[a] - o[a]) / d[a];
-            if (ta > tb) {
-                std::swap(ta, tb);
-            }
-            t0 = std::max(t0, ta);
-            t1 = std::min(t1, tb);
-            miss = t0 > t1;
-        }
-        if (!miss) {
+        if (box_entry(bx.lo, bx.hi, o, d, max_dist)) {
             return true;
         }
     }
@@ -185,51 +175,17 @@ std::optional<RayScene::Hit> RayScene::closest(const glm::vec3 &o,
     std::optional<Hit> best = voxels_first(o, d, max_dist);
     float limit = best ? best->distance : max_dist;
     for (const Sphere &s : spheres_) {
-        const glm::vec3 oc = o - s.centre;
-        const float c = glm::dot(oc, oc) - s.radius * s.radius;
-        if (c <= 1e-3f * s.radius) {
-            continue;
-        }
-        const float b = glm::dot(oc, d);
-        const float disc = b * b - c;
-        if (b < 0.0f && disc >= 0.0f) {
-            const float hit = -b - std::sqrt(disc);
-            if (hit > 0.0f && hit <= limit) {
-                limit = hit;
-                best = Hit{hit, glm::normalize(oc + d * hit), s.material};
-            }
+        if (const auto hit = sphere_distance(s.centre, s.radius, o, d, limit)) {
+            limit = *hit;
+            best = Hit{*hit, glm::normalize(o + d * *hit - s.centre), s.material};
         }
     }
     for (const Box &bx : boxes_) {
-        constexpr float kEps = 1e-3f;
-        if (glm::all(glm::greaterThan(o, bx.lo - kEps)) &&
-            glm::all(glm::lessThan(o, bx.hi + kEps))) {
-            continue;
-        }
-        float t0 = 0.0f, t1 = limit;
-        int axis = -1;
-        bool miss = false;
-        for (int a = 0; a < 3 && !miss; ++a) {
-            if (d[a] == 0.0f) {
-                miss = o[a] < bx.lo[a] || o[a] > bx.hi[a];
-                continue;
-            }
-            float ta = (bx.lo[a] - o[a]) / d[a], tb = (bx.hi[a] - o[a]) / d[a];
-            if (ta > tb) {
-                std::swap(ta, tb);
-            }
-            if (ta > t0) {
-                t0 = ta;
-                axis = a;
-            }
-            t1 = std::min(t1, tb);
-            miss = t0 > t1;
-        }
-        if (!miss && axis >= 0) {
+        if (const auto entry = box_entry(bx.lo, bx.hi, o, d, limit); entry && entry->second >= 0) {
             glm::vec3 n(0.0f);
-            n[axis] = d[axis] > 0.0f ? -1.0f : 1.0f;
-            limit = t0;
-            best = Hit{t0, n, bx.material};
+            n[entry->second] = d[entry->second] > 0.0f ? -1.0f : 1.0f;
+            limit = entry->first;
+            best = Hit{entry->first, n, bx.material};
         }
     }
     return best;
@@ -295,6 +251,8 @@ Image render_ao_truth(const Scene &scene,
 
 namespace {
 
+constexpr float kHitMinRoughness = 0.3f;
+
 /// Radiance leaving a surface the truth's reflected ray meets, toward the ray's origin: the
 /// rasterizer's shading (shading::direct_response with toon bands, add_sky_light) with the sun's
 /// shadow from an exact ray instead of a shadow map. Isotropic (a hit has no tangent).
@@ -320,7 +278,13 @@ glm::vec3 shade_hit(const Scene &scene,
         !rays.occluded(p + n * 1e-3f, l, std::numeric_limits<float>::infinity())) {
         shading::DirectOptions direct;
         direct.toon_bands = mat->toon ? 3 : 0;
-        c = shading::direct_response(surf, n, v, l, direct) * scene.sun.color *
+        // Path regularisation (Kaplanyan and Dachsbacher 2013): the sun's highlight on a hit is
+        // drawn with roughness at least kHitMinRoughness. A near-mirror hit would otherwise
+        // show the sun's glint to a few rays in thousands (sun -> polished floor -> glossy
+        // ball -> camera), noise that 256 rays do not average away.
+        shading::Surface lobe = surf;
+        lobe.roughness = std::max(lobe.roughness, kHitMinRoughness);
+        c = shading::direct_response(lobe, n, v, l, direct) * scene.sun.color *
             scene.sun.illuminance;
     }
     return shading::add_sky_light(c, surf, n, v, sky, sky.ambient(n), scene.sky_ambient);

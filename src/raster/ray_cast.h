@@ -85,10 +85,12 @@ Image render_ao_truth(const Scene &scene,
 /// by the radiance the reflected rays really meet. At each pixel of a glossy surface (roughness
 /// up to 0.78), `samples` stratified GGX directions (shading::sample_ggx_reflection) are traced
 /// exactly; a ray that meets a surface sees it shaded as the rasterizer shades (sun with an
-/// exact shadow ray, sky light; one bounce: the hit's own specular reflects the sky, and hits
-/// are shaded isotropic), one that leaves the scene sees the sky times the scene's sky_ambient.
-/// Their n.l-weighted mean replaces the sky lookup (shading::sky_reflection_weight). RGBA,
-/// premultiplied as the beauty; jitter hashed from pixel, sample and seed.
+/// exact shadow ray, sky light; one bounce: the hit's own specular reflects the sky, hits
+/// are shaded isotropic, and the sun's highlight on a hit has roughness at least 0.3: path
+/// regularisation, which keeps near-mirror sun glints from turning into fireflies), one that leaves
+/// the scene sees the sky times the scene's sky_ambient. Their n.l-weighted mean replaces the sky
+/// lookup (shading::sky_reflection_weight). RGBA, premultiplied as the beauty; jitter hashed from
+/// pixel, sample and seed.
 Image render_reflection_truth(
     const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed);
 

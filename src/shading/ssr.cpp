@@ -7,6 +7,7 @@
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "core/hash.h"
@@ -26,14 +27,30 @@ struct ScreenPoint {
     float x, y, inv_z;
 };
 
+/// The index of the pixel or cell holding coordinate v, in [0, n): converted after clamping in
+/// float, so that no value (huge, or NaN) reaches the integer conversion out of range.
+int clamp_index(float v, int n)
+{
+    return v > 0.0f ? (v < float(n - 1) ? int(v) : n - 1) : 0;
+}
+
 class Marcher {
    public:
-    Marcher(const SsrInputs &in, const SsrParams &p, const float *inv_depth)
+    /// `inv_depth`: 1 / depth on the traced grid (grid_w x grid_h cells of `stride` pixels).
+    Marcher(const SsrInputs &in,
+            const SsrParams &p,
+            const float *inv_depth,
+            int grid_w,
+            int grid_h,
+            int stride)
         : in_(in),
           p_(p),
           width_(in.depth->width()),
           height_(in.depth->height()),
-          inv_depth_(inv_depth)
+          inv_depth_(inv_depth),
+          grid_w_(grid_w),
+          grid_h_(grid_h),
+          inv_stride_(1.0f / float(stride))
     {
     }
 
@@ -82,7 +99,8 @@ class Marcher {
         // whose one depth stands for a surface that slopes across it.
         const float t_start = std::min(t_end, 1.5f / std::max(length_px, 1e-6f));
         const float pixels = length_px * (t_end - t_start);
-        const int steps = std::max(1, std::min(p_.steps, int(std::ceil(pixels))));
+        // In float first: a segment projected from near the camera plane can be huge.
+        const int steps = std::max(1, int(std::min(float(p_.steps), std::ceil(pixels))));
         float t_prev = 0.0f;
         float inv_prev = a.inv_z;
         for (int i = 0; i < steps; ++i) {
@@ -108,8 +126,8 @@ class Marcher {
                     }
                 }
                 const ScreenPoint h = lerp(a, b, hi);
-                const int hx = std::clamp(int(h.x), 0, width_ - 1);
-                const int hy = std::clamp(int(h.y), 0, height_ - 1);
+                const int hx = clamp_index(h.x, width_);
+                const int hy = clamp_index(h.y, height_);
                 // Where the bisection lands, the ray must lie within the slab too: a long step
                 // that ends behind a surface it never crossed (the ray passed above or beside
                 // it, hidden by it) is not a hit; the march goes on.
@@ -139,8 +157,8 @@ class Marcher {
         // taken to go on past the edge (a wall cut by the frame) and the ray to meet it there.
         if (p_.extend && t_end < 1.0f) {
             const ScreenPoint e = lerp(a, b, t_prev);
-            const int ex = std::clamp(int(e.x), 0, width_ - 1);
-            const int ey = std::clamp(int(e.y), 0, height_ - 1);
+            const int ex = clamp_index(e.x, width_);
+            const int ey = clamp_index(e.y, height_);
             const float scene_z = in_.depth->at(ex, ey, 0);
             if (std::isfinite(scene_z) && 1.0f / e.inv_z < scene_z) {
                 const Image &c = *in_.color;
@@ -151,12 +169,12 @@ class Marcher {
     }
 
    private:
-    /// 1 / the depth pass at the pixel under q (clamped to the image), 0 on the sky.
+    /// 1 / the depth of the traced grid's cell under q (clamped to the grid), 0 on the sky.
     float inv_depth(const ScreenPoint &q) const
     {
-        const int px = std::clamp(int(q.x), 0, width_ - 1);
-        const int py = std::clamp(int(q.y), 0, height_ - 1);
-        return inv_depth_[std::size_t(py) * std::size_t(width_) + std::size_t(px)];
+        const int cx = clamp_index(q.x * inv_stride_, grid_w_);
+        const int cy = clamp_index(q.y * inv_stride_, grid_h_);
+        return inv_depth_[std::size_t(cy) * std::size_t(grid_w_) + std::size_t(cx)];
     }
 
     ScreenPoint project(const glm::vec3 &w) const
@@ -173,82 +191,109 @@ class Marcher {
     const SsrInputs &in_;
     const SsrParams &p_;
     int width_, height_;
-    const float *inv_depth_;  ///< width_ x height_, row-major
+    const float *inv_depth_;  ///< grid_w_ x grid_h_, row-major
+    int grid_w_, grid_h_;
+    float inv_stride_;
 };
+
+/// A pixel the node changes: a finite surface, roughness at most the cut-off, a normal, a
+/// non-zero sky reflection weight.
+struct GlossyPixel {
+    float z, roughness;
+    glm::vec3 point, n, view, weight;
+};
+
+std::optional<GlossyPixel> glossy_pixel(
+    const SsrInputs &in, const CameraRays &rays, const SsrParams &p, int x, int y)
+{
+    const Image &depth = *in.depth, &normal = *in.normal, &albedo = *in.albedo,
+                &material = *in.material;
+    GlossyPixel g;
+    g.z = depth.at(x, y, 0);
+    g.roughness = material.at(x, y, 0);
+    // Sky, and surfaces too rough to reflect more than the ambient: nothing to do.
+    if (!(g.z > 0.0f) || !std::isfinite(g.z) || !(g.roughness <= p.max_roughness)) {
+        return std::nullopt;
+    }
+    g.n = glm::vec3(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
+    const float nlen = glm::length(g.n);
+    if (!(nlen > 0.0f)) {
+        return std::nullopt;
+    }
+    g.n /= nlen;
+    const float u = (float(x) + 0.5f) / float(depth.width());
+    const float v = (float(y) + 0.5f) / float(depth.height());
+    g.point = rays.position() + rays.depth_ray(u, v) * g.z;
+    g.view = -rays.direction(u, v);
+    if (glm::dot(g.n, g.view) < 0.0f) {
+        g.n = -g.n;  // as the renderer: the side we see
+    }
+    Surface surf;
+    surf.albedo = glm::vec3(albedo.at(x, y, 0), albedo.at(x, y, 1), albedo.at(x, y, 2));
+    surf.roughness = g.roughness;
+    surf.metallic = material.at(x, y, 1);
+    g.weight = sky_reflection_weight(surf, g.n, g.view);
+    if (g.weight == glm::vec3(0.0f)) {
+        return std::nullopt;
+    }
+    return g;
+}
 
 }  // namespace
 
 Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
 {
-    const Image &depth = *in.depth, &normal = *in.normal, &albedo = *in.albedo,
-                &material = *in.material;
+    const Image &depth = *in.depth, &normal = *in.normal;
     const int w = depth.width(), h = depth.height();
-    // Per pixel: the change of the reflected radiance (RGB; traced pixels), the weight that turns
-    // it into the colour's change (RGB), and a flag: 0 nothing to do, 1 glossy, 2 glossy and
-    // traced.
-    Image change(w, h, 7);
+    const int st = std::max(1, p.stride);
+    // The traced grid: every st-th pixel in x and y.
+    const int tw = (w + st - 1) / st, th = (h + st - 1) / st;
     const CameraRays rays(in.world_to_camera, in.world_to_ndc);
     const SceneSky &sky = scene_sky(p.sun_direction);
     const glm::vec3 sky_camera(0.0f, kSkyCameraY, 0.0f);
-    // The march compares in 1 / z: no division per step, and the sky (+inf) is 0.
-    std::vector<float> inv_depth(std::size_t(w) * std::size_t(h));
-    parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-            const float z = depth.at(x, y, 0);
-            inv_depth[std::size_t(y) * std::size_t(w) + std::size_t(x)] =
-                z > 0.0f ? 1.0f / z : 0.0f;
+    // The march compares in 1 / z (no division per step; the sky's +inf is 0) on the traced
+    // grid: at half resolution each cell holds its 2x2 block's nearest surface, a quarter of
+    // the memory the rays wander through.
+    std::vector<float> inv_depth(std::size_t(tw) * std::size_t(th));
+    parallel_for(0, th, [&](int ty) {
+        for (int tx = 0; tx < tw; ++tx) {
+            float inv = 0.0f;
+            for (int y = ty * st; y < std::min(h, ty * st + st); ++y) {
+                for (int x = tx * st; x < std::min(w, tx * st + st); ++x) {
+                    const float z = depth.at(x, y, 0);
+                    inv = std::max(inv, z > 0.0f ? 1.0f / z : 0.0f);
+                }
+            }
+            inv_depth[std::size_t(ty) * std::size_t(tw) + std::size_t(tx)] = inv;
         }
     });
-    const Marcher marcher(in, p, inv_depth.data());
+    const Marcher marcher(in, p, inv_depth.data(), tw, th, st);
+    // Per traced cell: the change of the reflected radiance, and whether it holds one.
+    std::vector<glm::vec3> change(std::size_t(tw) * std::size_t(th));
+    std::vector<std::uint8_t> traced(std::size_t(tw) * std::size_t(th), 0);
     std::atomic<long long> n_pixels{0}, n_rays{0}, n_hits{0};
-    parallel_for(0, h, [&](int y) {
+    parallel_for(0, th, [&](int ty) {
         long long row_pixels = 0, row_rays = 0, row_hits = 0;
-        for (int x = 0; x < w; ++x) {
-            const float z = depth.at(x, y, 0);
-            const float roughness = material.at(x, y, 0);
-            // Sky, and surfaces too rough to reflect more than the ambient: nothing to do.
-            if (!(z > 0.0f) || !std::isfinite(z) || !(roughness <= p.max_roughness)) {
+        const int y = ty * st;
+        for (int tx = 0; tx < tw; ++tx) {
+            const int x = tx * st;
+            const std::optional<GlossyPixel> g = glossy_pixel(in, rays, p, x, y);
+            if (!g) {
                 continue;
             }
-            glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
-            const float nlen = glm::length(n);
-            if (!(nlen > 0.0f)) {
-                continue;
-            }
-            n /= nlen;
-            const float u = (float(x) + 0.5f) / float(w), v = (float(y) + 0.5f) / float(h);
-            const glm::vec3 point = rays.position() + rays.depth_ray(u, v) * z;
-            const glm::vec3 view = -rays.direction(u, v);
-            if (glm::dot(n, view) < 0.0f) {
-                n = -n;  // as the renderer: the side we see
-            }
-            Surface surf;
-            surf.albedo = glm::vec3(albedo.at(x, y, 0), albedo.at(x, y, 1), albedo.at(x, y, 2));
-            surf.roughness = roughness;
-            surf.metallic = material.at(x, y, 1);
-            const glm::vec3 weight = sky_reflection_weight(surf, n, view);
-            if (weight == glm::vec3(0.0f)) {
-                continue;
-            }
-            float *px = change.pixel(x, y);
-            px[3] = weight.x, px[4] = weight.y, px[5] = weight.z;
-            px[6] = 1.0f;
-            if (p.stride > 1 && (x % p.stride != 0 || y % p.stride != 0)) {
-                continue;  // half resolution: the resolve fills this pixel from its neighbours
-            }
-            const float alpha = roughness_to_alpha(roughness);
+            const float alpha = roughness_to_alpha(g->roughness);
             const int count =
-                std::clamp(int(std::ceil(float(p.rays) * roughness / 0.35f)), 1, p.rays);
+                std::clamp(int(std::ceil(float(p.rays) * g->roughness / 0.35f)), 1, p.rays);
             // The origin leaves the surface by a fraction of its distance (depth precision).
-            const glm::vec3 origin = point + n * (1e-3f * z + 1e-3f);
+            const glm::vec3 origin = g->point + g->n * (1e-3f * g->z + 1e-3f);
             glm::vec3 sum(0.0f);
             float wsum = 0.0f;
             for (int i = 0; i < count; ++i) {
                 // Stratified in the first coordinate (the lobe's angle from its axis).
                 const float u1 = (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count);
                 const float u2 = hash_unit(x, y, 3 * i + 1, p.seed);
-                const glm::vec3 l = sample_ggx_reflection(n, view, alpha, u1, u2);
-                const float nl = glm::dot(n, l);
+                const glm::vec3 l = sample_ggx_reflection(g->n, g->view, alpha, u1, u2);
+                const float nl = glm::dot(g->n, l);
                 if (!(nl > 0.0f)) {
                     continue;
                 }
@@ -267,47 +312,42 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             if (!(wsum > 0.0f)) {
                 continue;
             }
-            const glm::vec3 r = glm::reflect(-view, n);
-            const glm::vec3 d = sum / wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
-            px[0] = d.x, px[1] = d.y, px[2] = d.z;
-            px[6] = 2.0f;
+            const glm::vec3 r = glm::reflect(-g->view, g->n);
+            const std::size_t cell = std::size_t(ty) * std::size_t(tw) + std::size_t(tx);
+            change[cell] = sum / wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
+            traced[cell] = 1;
         }
         n_pixels += row_pixels;
         n_rays += row_rays;
         n_hits += row_hits;
     });
-    // The resolve: each pixel's change averaged with its neighbours' on the same surface (depth
-    // within 5 %, normals within 25 degrees) over a (2 denoise + 1)^2 window, then weighted by
-    // its own Fresnel and gloss. The rays' noise falls by the number of neighbours; the blur is
-    // that of the window on sharp reflections.
+    // The resolve: each glossy pixel's change is the mean of the traced cells within `denoise`
+    // pixels on the same surface (depth within 5 %, normals within 25 degrees), weighted by the
+    // pixel's own Fresnel and gloss. The rays' noise falls by the number of cells averaged; the
+    // blur is that of the window on sharp reflections.
     Image out = *in.color;
-    const int radius = std::max(p.denoise, p.stride - 1);
+    const int radius = std::max(p.denoise, st - 1);
     parallel_for(0, h, [&](int y) {
         for (int x = 0; x < w; ++x) {
-            const float *c = change.pixel(x, y);
-            if (c[6] == 0.0f) {
+            const std::optional<GlossyPixel> g = glossy_pixel(in, rays, p, x, y);
+            if (!g) {
                 continue;
             }
-            const float z = depth.at(x, y, 0);
             const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
             glm::vec3 sum(0.0f);
             float count = 0.0f;
-            if (c[6] == 2.0f) {
-                sum = glm::vec3(c[0], c[1], c[2]);
-                count = 1.0f;
-            }
-            // Only traced pixels hold rays: at half resolution, every other row and column.
-            const int st = p.stride;
-            const int y_lo = std::max(0, y - radius), x_lo = std::max(0, x - radius);
-            for (int yy = y_lo + (st - y_lo % st) % st; yy <= std::min(h - 1, y + radius);
-                 yy += st) {
-                for (int xx = x_lo + (st - x_lo % st) % st; xx <= std::min(w - 1, x + radius);
-                     xx += st) {
-                    if (xx == x && yy == y) {
+            const int ty0 = (std::max(0, y - radius) + st - 1) / st;
+            const int ty1 = std::min(h - 1, y + radius) / st;
+            const int tx0 = (std::max(0, x - radius) + st - 1) / st;
+            const int tx1 = std::min(w - 1, x + radius) / st;
+            for (int ty = ty0; ty <= ty1; ++ty) {
+                for (int tx = tx0; tx <= tx1; ++tx) {
+                    const std::size_t cell = std::size_t(ty) * std::size_t(tw) + std::size_t(tx);
+                    if (!traced[cell]) {
                         continue;
                     }
-                    const float *o = change.pixel(xx, yy);
-                    if (o[6] != 2.0f || std::abs(depth.at(xx, yy, 0) - z) > 0.05f * z) {
+                    const int xx = tx * st, yy = ty * st;
+                    if (std::abs(depth.at(xx, yy, 0) - g->z) > 0.05f * g->z) {
                         continue;
                     }
                     const glm::vec3 m(
@@ -315,14 +355,14 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                     if (glm::dot(m, n) < 0.9f) {  // unit normals (zero where not finite)
                         continue;
                     }
-                    sum += glm::vec3(o[0], o[1], o[2]);
+                    sum += change[cell];
                     count += 1.0f;
                 }
             }
             if (count == 0.0f) {
                 continue;  // no traced neighbour on this surface
             }
-            const glm::vec3 d = glm::vec3(c[3], c[4], c[5]) * (sum / count) * p.intensity;
+            const glm::vec3 d = g->weight * (sum / count) * p.intensity;
             float *px = out.pixel(x, y);
             px[0] += d.x;
             px[1] += d.y;
