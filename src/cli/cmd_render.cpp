@@ -75,7 +75,9 @@ int render(const RenderCommand &o)
     if (passes == "*") {
         // "every pass the renderer makes": ask for them by name so the planner requests them.
         g["nodes"][1]["params"]["passes"] =
-            "color,depth,normal,position,motion,albedo,material,tangent,id";
+            "color,depth,normal,position,motion,albedo,material,tangent,id,specular,specular_"
+            "motion,"
+            "diffuse_motion";
     }
     Graph graph = Graph::parse(g.dump(), "posthaste render " + o.scene, nodes::catalog());
     return run_graph(graph, o);

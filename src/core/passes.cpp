@@ -27,6 +27,22 @@ std::span<const CanonicalPass> canonical_passes()
          "GGX perceptual roughness, metallic, anisotropy in [-1,1]"},
         {kTangent, "T", {"X", "Y", "Z"}, false, "world-space tangent"},
         {kId, "", {"id"}, false, "material/object id (integer stored as float)"},
+        {kSpecular,
+         "specular",
+         {"R", "G", "B"},
+         true,
+         "the view-dependent share of color (reflections, highlights); color less it moves "
+         "with the surface"},
+        {kSpecularMotion,
+         "specular_motion",
+         {"X", "Y"},
+         false,
+         "how the specular share moves, pixels from the previous frame, y down"},
+        {kDiffuseMotion,
+         "diffuse_motion",
+         {"X", "Y"},
+         false,
+         "how color less the specular share moves, pixels from the previous frame, y down"},
     };
     return kTable;
 }

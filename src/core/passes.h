@@ -19,6 +19,13 @@ inline constexpr const char *kAlbedo = "albedo";           // albedo.R albedo.G 
 inline constexpr const char *kMaterial = "material";  // material.roughness .metallic .anisotropy
 inline constexpr const char *kTangent = "tangent";    // T.X T.Y T.Z: world-space tangent
 inline constexpr const char *kId = "id";              // id: integer id stored as float
+// specular.R .G .B: the view-dependent share of color (color less the diffuse terms)
+inline constexpr const char *kSpecular = "specular";
+// specular_motion.X .Y: how the specular share moves on screen, prev -> this (as motion)
+inline constexpr const char *kSpecularMotion = "specular_motion";
+// diffuse_motion.X .Y: how color less its specular share moves (as motion), where it does not
+// follow the surface points (an untextured ball's shading moves with its centre, not its spin)
+inline constexpr const char *kDiffuseMotion = "diffuse_motion";
 // Made by nodes, not read by alias: ambient occlusion (ao.Y, 0 occluded .. 1 open).
 inline constexpr const char *kAo = "ao";
 

@@ -14,13 +14,14 @@ struct SurfaceLanes {
     std::vector<float> nx, ny, nz, vx, vy, vz, ar, ag, ab, rough, metal, vis, amb_r, amb_g, amb_b,
         env_r, env_g, env_b, px, py, pz;
     std::vector<float> out_r, out_g, out_b;
+    std::vector<float> dif_r, dif_g, dif_b;  // the diffuse share of out (sun and sky)
 
     void resize(std::size_t n)
     {
         for (std::vector<float> *a :
-             {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,    &ag,
-              &ab,    &rough, &metal, &vis,   &amb_r, &amb_g, &amb_b, &env_r,
-              &env_g, &env_b, &out_r, &out_g, &out_b, &px,    &py,    &pz}) {
+             {&nx,    &ny,    &nz,    &vx,    &vy,    &vz,    &ar,    &ag,    &ab,
+              &rough, &metal, &vis,   &amb_r, &amb_g, &amb_b, &env_r, &env_g, &env_b,
+              &out_r, &out_g, &out_b, &px,    &py,    &pz,    &dif_r, &dif_g, &dif_b}) {
             a->assign(n, 0.0f);
         }
     }
@@ -42,11 +43,19 @@ POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void shadow_lanes_avx2(const ShadowMap &sm,
                                                             int count);
 #endif
 
-glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, SkyCache &sky);
+// The beauty of one surface sample; with `specular`, also its view-dependent share: the colour
+// less the diffuse terms (albedo (1 - metallic) times the sun's n.l / pi, or its toon band, and
+// the sky ambient), so that colour - specular moves with the surface.
+glm::vec3 shade(const Lighting &lt,
+                const Hit &h,
+                const glm::vec3 &view_dir,
+                SkyCache &sky,
+                glm::vec3 *specular = nullptr);
 
 #if POSTHASTE_HAVE_AVX2_TARGET
 // The expressions of shading::evaluate (isotropic, height-correlated Smith) and
-// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8).
+// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8);
+// the diffuse share into dif_*.
 POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLight &kl);
 #endif
 
@@ -55,8 +64,13 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
 // 4-wide SkyView::radiance_n. Toon and anisotropic materials always take shade().
 class ColorRow {
    public:
-    ColorRow(const Lighting &lt, SkyCache &sky, int capacity)
-        : lt_(lt), sky_(sky), vector_(simd::avx2()), out_(std::size_t(capacity))
+    /// With `specular`, specular() holds each slot's view-dependent share (shade()).
+    ColorRow(const Lighting &lt, SkyCache &sky, int capacity, bool specular = false)
+        : lt_(lt),
+          sky_(sky),
+          vector_(simd::avx2()),
+          out_(std::size_t(capacity)),
+          spec_(specular ? std::size_t(capacity) : 0)
     {
         if (vector_) {
             const std::size_t padded = std::size_t(capacity + 8);
@@ -76,6 +90,9 @@ class ColorRow {
 
     void add_sky(int slot, const glm::vec3 &dn)
     {
+        if (!spec_.empty()) {
+            spec_[std::size_t(slot)] = glm::vec3(0.0f);
+        }
         if (!vector_) {
             out_[std::size_t(slot)] = sky_.radiance(dn);
             return;
@@ -90,7 +107,8 @@ class ColorRow {
     {
         const Material &mat = lt_.materials->m[h.material];
         if (!vector_ || mat.toon || mat.anisotropy != 0.0f) {
-            out_[std::size_t(slot)] = shade(lt_, h, dn, sky_);
+            out_[std::size_t(slot)] =
+                shade(lt_, h, dn, sky_, spec_.empty() ? nullptr : &spec_[std::size_t(slot)]);
             return;
         }
         // The branchy part of shade(), in the same order.
@@ -131,6 +149,11 @@ class ColorRow {
 #endif
         return out_;
     }
+    /// The view-dependent share of each slot's colour (constructed with `specular`).
+    const std::vector<glm::vec3> &specular() const
+    {
+        return spec_;
+    }
 
    private:
 #if POSTHASTE_HAVE_AVX2_TARGET
@@ -165,8 +188,12 @@ class ColorRow {
             }
             shade_lanes_avx2(lanes_, int(lane_n_), kl_);
             for (std::size_t k = 0; k < lane_n_; ++k) {
-                out_[std::size_t(lane_slot_[k])] =
-                    glm::vec3(lanes_.out_r[k], lanes_.out_g[k], lanes_.out_b[k]);
+                const glm::vec3 c(lanes_.out_r[k], lanes_.out_g[k], lanes_.out_b[k]);
+                out_[std::size_t(lane_slot_[k])] = c;
+                if (!spec_.empty()) {
+                    spec_[std::size_t(lane_slot_[k])] =
+                        c - glm::vec3(lanes_.dif_r[k], lanes_.dif_g[k], lanes_.dif_b[k]);
+                }
             }
         }
         sky_n_ = env_n_ = lane_n_ = 0;
@@ -176,7 +203,7 @@ class ColorRow {
     const Lighting &lt_;
     SkyCache &sky_;
     bool vector_;
-    std::vector<glm::vec3> out_;
+    std::vector<glm::vec3> out_, spec_;
     SurfaceLanes lanes_;
     KernelLight kl_{};
     std::vector<int> lane_slot_, sky_slot_;

@@ -14,6 +14,13 @@
 //             camera and object motion; on sky, from camera rotation alone.
 //   albedo, material (roughness, metallic, anisotropy), tangent (world, unit): 0 on sky.
 //   id        material id of the surface (0 on sky).
+//   specular  R G B, the view-dependent share of color (color less albedo (1 - metallic) times
+//             the sun's n.l / pi and the sky ambient); 0 on sky. Shaded with color, at its
+//             supersampling.
+//   specular_motion, diffuse_motion  X Y as motion: where the specular share and the rest of
+//             color move. On a ball, the virtual image of a distant light (R/2 behind the
+//             surface) and the ball's shape, both carried by its translation, not its spin; on
+//             flat faces and sky, the motion pass itself (render.cpp, specular_point).
 // Header: frame.number, frame.camera (matrices of this and the previous frame, lens, shutter,
 // near/far), attributes "posthaste:scene" (scene name) and "posthaste:fps".
 
@@ -29,7 +36,7 @@ namespace posthaste::raster {
 struct RenderOptions {
     int width = 1920, height = 1080;
     /// Passes to produce; anything else is not computed. Names: color depth normal position
-    /// motion albedo material tangent id.
+    /// motion albedo material tangent id specular specular_motion diffuse_motion.
     std::set<std::string> passes = {"color"};
     /// Beauty supersampling per axis (1, 2 or 4): color is the box-filtered mean of
     /// supersample^2 samples per pixel. Data passes stay one sample per pixel.

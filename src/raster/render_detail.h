@@ -154,6 +154,8 @@ float shadow_lookup(const ShadowMap &sm, const glm::vec3 &p, const glm::vec3 &n)
 struct Hit {
     glm::vec3 p, p_prev, n, t;
     int material;
+    bool curved;                    ///< Smooth-shaded (a ball): a sphere about its object's origin.
+    glm::vec3 origin, origin_prev;  ///< The object's origin now and one frame ago (world).
 };
 
 // Intersects pixel rays with the triangle the rasterizer found (Moller-Trumbore, no culling or
@@ -190,6 +192,9 @@ class SurfaceHitter {
         h.p_prev = moving_
                        ? glm::vec3(mul(prev_, glm::vec4(w * l_[0] + u * l_[1] + v * l_[2], 1.0f)))
                        : h.p;
+        h.curved = !flat_;
+        h.origin = origin_;
+        h.origin_prev = origin_prev_;
         return h;
     }
 
@@ -218,6 +223,8 @@ class SurfaceHitter {
             }
             prev_ = in.m_prev;
         }
+        origin_ = glm::vec3(in.m[3]);
+        origin_prev_ = glm::vec3(in.m_prev[3]);
         // Voxel faces: one normal and tangent, already orthonormal.
         flat_ = n_[0] == n_[1] && n_[0] == n_[2] && t_[0] == t_[1] && t_[0] == t_[2];
         a_ = p[0];
@@ -237,6 +244,7 @@ class SurfaceHitter {
     float plane_ = 0.0f;
     glm::vec3 l_[3], n_[3], t_[3];  // local positions, world normals and tangents
     glm::mat4 prev_{1.0f};
+    glm::vec3 origin_{0.0f}, origin_prev_{0.0f};
     bool moving_ = false, flat_ = false;
     int material_ = 0;
 };
@@ -326,13 +334,14 @@ struct LightingState {
 };
 
 // Beauty of one view into `out` (RGBA), averaging ss x ss samples per pixel when vis is ss times
-// the output size.
+// the output size; with `specular` (RGB, the output size), also its view-dependent share.
 void shade_color(const Geometry &g,
                  const View &v,
                  const Visibility &vis,
                  const Lighting &lt,
                  int ss,
-                 Image &out);
+                 Image &out,
+                 Image *specular = nullptr);
 
 // Render the beauty of the scene at time t through `lens` into out (RGBA, options size).
 void render_color(const Scene &s,

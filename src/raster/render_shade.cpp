@@ -13,7 +13,8 @@
 
 namespace posthaste::raster::render_detail {
 
-glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, SkyCache &sky)
+glm::vec3 shade(
+    const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, SkyCache &sky, glm::vec3 *specular)
 {
     const Scene &s = *lt.scene;
     const Material &mat = lt.materials->m[h.material];
@@ -44,7 +45,18 @@ glm::vec3 shade(const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, Sky
         direct.toon_bands = mat.toon ? 3 : 0;
         c = shading::direct_response(surf, n, v, l, direct) * e_sun;
     }
-    return shading::add_sky_light(c, surf, n, v, *sky.sky, sky.ambient(n), s.sky_ambient);
+    const glm::vec3 &ambient = sky.ambient(n);
+    const glm::vec3 out = shading::add_sky_light(c, surf, n, v, *sky.sky, ambient, s.sky_ambient);
+    if (specular) {
+        const glm::vec3 kd = shading::diffuse_albedo(surf);
+        const float nl = glm::dot(n, l);
+        glm::vec3 diffuse = kd * (ambient * s.sky_ambient);
+        if (vis > 0.0f && nl > 0.0f) {
+            diffuse += kd / shading::kPi * (mat.toon ? shading::toon_band(nl, 3) : nl) * e_sun;
+        }
+        *specular = out - diffuse;
+    }
+    return out;
 }
 
 #if POSTHASTE_HAVE_AVX2_TARGET
@@ -120,6 +132,7 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
                              _mm256_loadu_ps(&s.env_g[i]),
                              _mm256_loadu_ps(&s.env_b[i])};
         float *out[3] = {&s.out_r[i], &s.out_g[i], &s.out_b[i]};
+        float *dif[3] = {&s.dif_r[i], &s.dif_g[i], &s.dif_b[i]};
         for (int c = 0; c < 3; ++c) {
             const V f0 = _mm256_add_ps(_mm256_mul_ps(f0d, one_metal), _mm256_mul_ps(alb[c], metal));
             const V one_f0 = _mm256_sub_ps(one, f0);
@@ -129,7 +142,13 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
                 _mm256_add_ps(_mm256_mul_ps(diffuse, inv_pi), _mm256_mul_ps(f, dv)), nl);
             V col = _mm256_and_ps(_mm256_mul_ps(direct, _mm256_mul_ps(sun[c], vis)), lit);
             const V amb = _mm256_mul_ps(amb_in[c], scale);
-            col = _mm256_add_ps(col, _mm256_mul_ps(diffuse, amb));
+            const V dif_amb = _mm256_mul_ps(diffuse, amb);
+            col = _mm256_add_ps(col, dif_amb);
+            const V dif_sun =
+                _mm256_and_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(diffuse, inv_pi), nl),
+                                            _mm256_mul_ps(sun[c], vis)),
+                              lit);
+            _mm256_storeu_ps(dif[c], _mm256_add_ps(dif_sun, dif_amb));
             const V env_mix = _mm256_add_ps(_mm256_mul_ps(amb, _mm256_sub_ps(one, gloss)),
                                             _mm256_mul_ps(_mm256_mul_ps(env_in[c], scale), gloss));
             const V env = _mm256_blendv_ps(amb, env_mix, glossy);
@@ -143,17 +162,24 @@ POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLig
 
 // Beauty of one view into `out` (RGBA), averaging ss x ss samples per pixel when vis is ss times
 // the output size.
-void shade_color(
-    const Geometry &g, const View &v, const Visibility &vis, const Lighting &lt, int ss, Image &out)
+void shade_color(const Geometry &g,
+                 const View &v,
+                 const Visibility &vis,
+                 const Lighting &lt,
+                 int ss,
+                 Image &out,
+                 Image *specular)
 {
     parallel_for_tiles(out.bounds(), [&](const Rect &tile) {
         SurfaceHitter hitter(g, v.origin);
         SkyCache sky(*lt.scene);
         const int x0 = tile.x0 * ss, x1 = tile.x1 * ss;
-        ColorRow row(lt, sky, x1 - x0);
+        ColorRow row(lt, sky, x1 - x0, specular != nullptr);
         std::vector<glm::vec3> sum(std::size_t(tile.x1 - tile.x0));
+        std::vector<glm::vec3> spec_sum(specular ? sum.size() : 0);
         for (int y = tile.y0; y < tile.y1; ++y) {
             std::fill(sum.begin(), sum.end(), glm::vec3(0.0f));
+            std::fill(spec_sum.begin(), spec_sum.end(), glm::vec3(0.0f));
             for (int sy = 0; sy < ss; ++sy) {
                 const int Y = y * ss + sy;
                 const std::uint32_t *ids = &vis.ids[std::size_t(Y) * std::size_t(vis.width)];
@@ -174,6 +200,11 @@ void shade_color(
                         sum[i] += c[i * std::size_t(ss) + std::size_t(sx)];
                     }
                 }
+                for (std::size_t i = 0; i < spec_sum.size(); ++i) {
+                    for (int sx = 0; sx < ss; ++sx) {
+                        spec_sum[i] += row.specular()[i * std::size_t(ss) + std::size_t(sx)];
+                    }
+                }
             }
             for (int x = tile.x0; x < tile.x1; ++x) {
                 const glm::vec3 c = sum[std::size_t(x - tile.x0)] / float(ss * ss);
@@ -182,6 +213,13 @@ void shade_color(
                 px[1] = c.y;
                 px[2] = c.z;
                 px[3] = 1.0f;
+                if (specular) {
+                    const glm::vec3 sp = spec_sum[std::size_t(x - tile.x0)] / float(ss * ss);
+                    float *q = specular->pixel(x, y);
+                    q[0] = sp.x;
+                    q[1] = sp.y;
+                    q[2] = sp.z;
+                }
             }
         }
     });

@@ -9,8 +9,8 @@
 #include <sstream>
 
 #include "core/error.h"
-#include "core/json_error.h"
 #include "core/hash.h"
+#include "core/json_error.h"
 
 namespace posthaste::raster {
 namespace {
@@ -367,6 +367,9 @@ glm::mat4 Ball::transform(double t) const
         const float angle = glm::dot(off, dir) / radius;
         m = glm::rotate(m, angle, axis);
     }
+    if (spin_deg != 0.0f) {
+        m = glm::rotate(m, float(glm::radians(double(spin_deg) * t)), spin_axis);
+    }
     return m;
 }
 
@@ -575,6 +578,12 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         b.radius = float(o.number("radius", b.radius, 1e-3, 1e4));
         b.material = check_material(o, "material", o.integer("material", 1, 1, 255));
         b.segments = o.integer("segments", b.segments, 4, 180);
+        b.spin_deg = float(o.number("spin_deg", b.spin_deg, -180.0, 180.0));
+        const glm::vec3 axis = o.vec3("spin_axis", b.spin_axis);
+        if (!(glm::length(axis) > 0.0f)) {
+            o.fail("spin_axis", "expected a non-zero vector");
+        }
+        b.spin_axis = glm::normalize(axis);
         o.child("motion", [&](Obj &m) { b.motion = read_motion(m); });
         s.balls.push_back(b);
     });

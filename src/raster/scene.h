@@ -65,9 +65,11 @@ struct Ball {
     float radius = 1.0f;
     int material = 1;
     Motion motion;
-    int segments = 48;  ///< Longitude segments, 4..180 (latitude bands = segments / 2).
+    int segments = 48;      ///< Longitude segments, 4..180 (latitude bands = segments / 2).
+    float spin_deg = 0.0f;  ///< Spin in place, degrees per frame, about spin_axis.
+    glm::vec3 spin_axis{0.0f, 1.0f, 0.0f};  ///< Unit (normalised on load).
 
-    /// Object-to-world transform at time t (frames).
+    /// Object-to-world transform at time t (frames): translation, rolling, then the spin.
     glm::mat4 transform(double t) const;
 };
 
