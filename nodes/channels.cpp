@@ -236,10 +236,15 @@ void check(CheckContext &ctx)
 
 }  // namespace
 
-extern const NodeType kChannels{
-    {"channels", "Select, rename and shuffle passes.", kInputs, kParams, ""},
-    &execute,
-    &plan,
-    &check};
+extern const NodeType kChannels{{"channels",
+                                 "Select, rename and shuffle passes.",
+                                 kInputs,
+                                 kParams,
+                                 "",
+                                 /*sink=*/false,
+                                 /*keeps_specular=*/true},
+                                &execute,
+                                &plan,
+                                &check};
 
 }  // namespace posthaste::nodes

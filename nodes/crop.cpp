@@ -104,7 +104,9 @@ extern const NodeType kCrop{
      "Crop to a box: a new display window, the data window cut to it, optionally at the origin.",
      kInputs,
      kParams,
-     ""},
+     "",
+     /*sink=*/false,
+     /*keeps_specular=*/true},
     &execute,
     nullptr,
     &check};

@@ -74,8 +74,12 @@ void execute(NodeContext &ctx)
     const PassSet &wanted = ctx.requested();
     try {
         std::map<std::string, std::size_t> non_finite;
-        ctx.output() = read_frame(
-            path, wanted.all ? nullptr : &wanted.names, ctx.frame_number(), options, &non_finite);
+        ctx.output() = read_frame(path,
+                                  wanted.all ? nullptr : &wanted.names,
+                                  ctx.frame_number(),
+                                  options,
+                                  &non_finite,
+                                  &wanted.optional);
         if (!non_finite.empty()) {
             // One line per frame, not one per pixel (the spatial nodes never spread them).
             std::string counts;

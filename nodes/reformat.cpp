@@ -90,7 +90,9 @@ extern const NodeType kReformat{
      "Resize to a new format (OpenImageIO filters); every pass, motion vectors scaled.",
      kInputs,
      kParams,
-     ""},
+     "",
+     /*sink=*/false,
+     /*keeps_specular=*/true},
     &execute,
     nullptr,
     &check};

@@ -55,7 +55,7 @@ raster::RenderOptions render_options(const NodeParams &params, const PassSet &re
     o.shadows = params.get_bool(kShadows);
     o.passes.clear();
     for (const std::string &p : raster::render_pass_names()) {
-        if (requested.contains(p)) {
+        if (requested.wants(p)) {
             o.passes.insert(p);
         }
     }
@@ -179,8 +179,16 @@ void check(CheckContext &ctx)
     // own buffers (G-buffer, depth, ids, about 16 floats a pixel), at the supersampled size.
     if (const std::size_t budget = image_memory_budget(); budget != 0) {
         std::size_t channels = 16;
-        const std::set<std::string> all = raster::render_pass_names();
-        for (const std::string &p : ctx.downstream.all ? all : ctx.downstream.names) {
+        std::set<std::string> wanted = raster::render_pass_names();
+        if (!ctx.downstream.all) {
+            wanted = ctx.downstream.names;
+            for (const std::string &p : ctx.downstream.optional) {
+                if (raster::render_pass_names().count(p)) {
+                    wanted.insert(p);
+                }
+            }
+        }
+        for (const std::string &p : wanted) {
             const pass::CanonicalPass *cp = pass::find_canonical(p);
             channels += cp ? cp->channels.size() : 4;
         }

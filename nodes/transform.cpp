@@ -116,7 +116,9 @@ extern const NodeType kTransform{
      "Translate, rotate and scale every pass (OpenImageIO warp); the camera follows.",
      kInputs,
      kParams,
-     ""},
+     "",
+     /*sink=*/false,
+     /*keeps_specular=*/true},
     &execute,
     nullptr,
     &check};

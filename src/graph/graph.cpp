@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/json_error.h"
+#include "core/passes.h"
 #include "io/sequence.h"
 
 namespace posthaste {
@@ -132,6 +133,30 @@ void Graph::set_capture(const std::string &id)
     plan();
 }
 
+namespace {
+
+// The specular pass is the view-dependent share *of the colour it came with*: a node that
+// replaces color and passes specular on unchanged (a grade, fog, relight's added lights) would
+// leave motion_blur splitting a colour by a share that no longer describes it, so the engine
+// drops it there, unless the node declares keeps_specular (dof).
+void drop_stale_specular(const NodeSpec &spec, const Frame *first_input, Frame &out)
+{
+    if (!first_input || spec.keeps_specular) {
+        return;
+    }
+    const Frame &in = *first_input;
+    if (!in.has(pass::kSpecular) || !out.has(pass::kSpecular) || !in.has(pass::kColor) ||
+        !out.has(pass::kColor)) {
+        return;
+    }
+    if (out.pass(pass::kColor).image != in.pass(pass::kColor).image &&
+        out.pass(pass::kSpecular).image == in.pass(pass::kSpecular).image) {
+        out.erase(pass::kSpecular);
+    }
+}
+
+}  // namespace
+
 void Graph::plan()
 {
     const std::size_t count = nodes_.size();
@@ -167,6 +192,15 @@ void Graph::plan()
             PassSet through = gn.requested;
             for (const std::string &made : split_list(spec.makes)) {
                 through.remove(made);
+            }
+            if (!spec.keeps_specular) {
+                // Its output would drop a specular pass as stale (drop_stale_specular) if it
+                // changes color: asking for one optionally, and for the motions that go with it,
+                // would be wasted work.
+                for (const char *p :
+                     {pass::kSpecular, pass::kSpecularMotion, pass::kDiffuseMotion}) {
+                    through.optional.erase(p);
+                }
             }
             gn.input_passes[0].add(through);
             for (const ParamSpec &ps : spec.params) {
@@ -305,6 +339,7 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
             inputs.push_back(gn.inputs[p] >= 0 ? results[std::size_t(gn.inputs[p])] : nullptr);
             ports.emplace_back(gn.type->spec.inputs[p].name);
         }
+        const std::shared_ptr<const Frame> first_input = inputs.empty() ? nullptr : inputs[0];
         NodeContext ctx(gn.identity,
                         gn.params,
                         std::move(inputs),
@@ -338,6 +373,7 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
                 throw_runtime(ctx.where(), ": ", e.what());
             }
         }
+        drop_stale_specular(gn.type->spec, first_input.get(), ctx.output());
         const auto t1 = std::chrono::steady_clock::now();
         if (times) {
             *times->nanoseconds[std::size_t(i)] +=
@@ -354,7 +390,7 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
             if (!gn.requested.all) {
                 for (const std::string &name : out.pass_names()) {
                     const std::string base = name.substr(0, name.find('@'));
-                    if (!gn.requested.contains(name) && !gn.requested.contains(base)) {
+                    if (!gn.requested.wants(name) && !gn.requested.wants(base)) {
                         out.erase(name);
                     }
                 }

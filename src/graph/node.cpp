@@ -15,6 +15,9 @@ std::string PassSet::to_string() const
     for (const std::string &n : names) {
         s += (s.empty() ? "" : ",") + n;
     }
+    for (const std::string &n : optional) {
+        s += (s.empty() ? "" : ",") + n + "?";
+    }
     return s;
 }
 

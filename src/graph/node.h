@@ -20,17 +20,29 @@
 
 namespace posthaste {
 
-/// A set of pass names, or "every pass".
+/// A set of pass names, or "every pass", plus passes wanted only if a source can give them
+/// (`optional`: a read takes them when the file has them, render always makes them; a node that
+/// asks for one this way must work without it).
 struct PassSet {
     bool all = false;
     std::set<std::string> names;
+    std::set<std::string> optional;  ///< Never holds a name of `names`.
 
     bool empty() const { return !all && names.empty(); }
     bool contains(const std::string &n) const { return all || names.count(n) != 0; }
+    /// contains(n), or n asked for optionally.
+    bool wants(const std::string &n) const { return contains(n) || optional.count(n) != 0; }
     void add(const std::string &n)
     {
         if (!all) {
             names.insert(n);
+            optional.erase(n);
+        }
+    }
+    void add_optional(const std::string &n)
+    {
+        if (!all && names.count(n) == 0) {
+            optional.insert(n);
         }
     }
     void add(const PassSet &o)
@@ -38,11 +50,21 @@ struct PassSet {
         if (o.all) {
             all = true;
             names.clear();
+            optional.clear();
         } else if (!all) {
-            names.insert(o.names.begin(), o.names.end());
+            for (const std::string &n : o.names) {
+                add(n);
+            }
+            for (const std::string &n : o.optional) {
+                add_optional(n);
+            }
         }
     }
-    void remove(const std::string &n) { names.erase(n); }
+    void remove(const std::string &n)
+    {
+        names.erase(n);
+        optional.erase(n);
+    }
     std::string to_string() const;
 };
 
@@ -60,6 +82,12 @@ struct NodeSpec {
     std::span<const ParamSpec> params;
     std::string_view makes;  ///< Comma-separated passes it writes into its output frame.
     bool sink = false;       ///< Writes files: evaluated even though nothing reads it.
+    /// Color and the specular pass stay consistent through it: it leaves color alone, maps both
+    /// alike (crop, reformat, transform), or its new color keeps specular a fair share (dof: a
+    /// sharp highlight's share of a defocused colour). Only such nodes pass an optional request
+    /// for the specular shares upstream, and a node without it that replaces color and passes
+    /// specular on unchanged has that pass dropped as stale.
+    bool keeps_specular = false;
 };
 
 class NodeContext;

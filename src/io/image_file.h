@@ -106,12 +106,14 @@ FileInfo read_file_info(const std::string &path, const ReadOptions &options = {}
 /// display window and the union of the read parts' data windows. Throws Error naming the file
 /// and the missing pass (with the passes the file has) if one is absent.
 /// With `non_finite`, also counts per pass the NaN and infinite values read (depth's +inf, the
-/// sky, does not count) that BadPixels::Keep let through.
+/// sky, does not count) that BadPixels::Keep let through. The passes of `optional` are read
+/// too where the file has them (with `wanted` only; no error for one it lacks).
 Frame read_frame(const std::string &path,
                  const std::set<std::string> *wanted,
                  int frame_number,
                  const ReadOptions &options = {},
-                 std::map<std::string, std::size_t> *non_finite = nullptr);
+                 std::map<std::string, std::size_t> *non_finite = nullptr,
+                 const std::set<std::string> *optional = nullptr);
 
 /// How write_exr lays the file out.
 enum class ExrLayout {

@@ -638,7 +638,8 @@ Frame read_frame(const std::string &path,
                  const std::set<std::string> *wanted,
                  int frame_number,
                  const ReadOptions &options,
-                 std::map<std::string, std::size_t> *non_finite)
+                 std::map<std::string, std::size_t> *non_finite,
+                 const std::set<std::string> *optional)
 {
     Opened o = open_file(path, options);
     const FileInfo &info = o.info;
@@ -662,6 +663,11 @@ Frame read_frame(const std::string &path,
                               info.refusal_hint(name));
             }
             selected.push_back(&*it);
+        }
+        for (const PassSource &p : info.passes) {
+            if (optional && optional->count(p.pass) != 0 && wanted->count(p.pass) == 0) {
+                selected.push_back(&p);
+            }
         }
     } else {
         for (const PassSource &p : info.passes) {
