@@ -108,7 +108,7 @@ bench() {
 accuracy() {
     deps
     build
-    for spec in motion_blur dof fog full_stack bloom ao ssr ssr_default; do
+    for spec in motion_blur spin dof fog full_stack bloom ao ssr ssr_default; do
         "$BUILD_DIR"/posthaste bench "graphs/bench/$spec.json" --out "out/bench/$spec" -q
         mkdir -p "docs/accuracy/$spec"
         cp "out/bench/$spec/chart.svg" "out/bench/$spec/results.csv" "docs/accuracy/$spec/"

@@ -8,8 +8,12 @@
 
 #include "shading/motion_blur.h"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
+#include <vector>
 
+#include "core/parallel.h"
 #include "core/sanitize.h"
 #include "nodes/node.h"
 #include "shading/reproject.h"
@@ -71,6 +75,13 @@ constexpr ParamSpec kMethod = ParamSpec::choice("method", "reconstruct|uniform",
                                   .doc(
                                       "reconstruct: tile-max reconstruction with depth; "
                                       "uniform: average along each pixel's own motion.");
+constexpr ParamSpec kSpecular =
+    ParamSpec::choice("specular", "auto|off", "auto")
+        .doc(
+            "auto: where the input has the specular and specular_motion passes (asked for where "
+            "a source can give them), blur the specular share along specular_motion and the rest "
+            "of color along diffuse_motion where the input has it, else along motion (source "
+            "motion only); off: blur color as one.");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Seed of the per-pixel jitter.");
 constexpr ParamSpec kParams[] = {kShutter,
@@ -84,10 +95,147 @@ constexpr ParamSpec kParams[] = {kShutter,
                                  kMotionPass,
                                  kSource,
                                  kMethod,
+                                 kSpecular,
                                  kSeed};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
 };
+
+void check_size(const NodeContext &ctx, const Image &color, const Image &p, const char *name)
+{
+    if (p.width() != color.width() || p.height() != color.height()) {
+        throw_runtime(ctx.where(),
+                      ": pass \"",
+                      name,
+                      "\" is ",
+                      p.width(),
+                      "x",
+                      p.height(),
+                      ", color is ",
+                      color.width(),
+                      "x",
+                      color.height());
+    }
+}
+
+// The lighting split: color less its specular share blurred along the surface motion, plus the
+// specular share blurred along its own (a highlight on a rolling ball moves with the ball's
+// centre, not with its turning surface). Written as color plus what each blur changed, so a
+// still frame keeps its bits.
+Image blur_split(NodeContext &ctx,
+                 const Image &color,
+                 const Image &motion,
+                 const Image &depth,
+                 const shading::MotionBlurOptions &o)
+{
+    Image spec_storage, spec_motion_storage, diffuse_motion_storage;
+    const Image &spec = finite_view(ctx.input_pass("image", pass::kSpecular), 0.0f, spec_storage);
+    const Image &spec_motion =
+        finite_view(ctx.input_pass("image", pass::kSpecularMotion), 0.0f, spec_motion_storage);
+    check_size(ctx, color, spec, pass::kSpecular);
+    check_size(ctx, color, spec_motion, pass::kSpecularMotion);
+    const Image *rest_motion = &motion;
+    if (ctx.input("image").has(pass::kDiffuseMotion)) {
+        rest_motion = &finite_view(
+            ctx.input_pass("image", pass::kDiffuseMotion), 0.0f, diffuse_motion_storage);
+        check_size(ctx, color, *rest_motion, pass::kDiffuseMotion);
+        if (rest_motion->channels() < 2) {
+            throw_runtime(ctx.where(),
+                          ": pass \"diffuse_motion\" has ",
+                          rest_motion->channels(),
+                          " channel(s), expected 2");
+        }
+    }
+    if (spec.channels() < 3 || spec_motion.channels() < 2 || color.channels() < 3) {
+        throw_runtime(ctx.where(),
+                      ": the lighting split needs RGB color and specular and a 2-channel "
+                      "specular_motion (have ",
+                      color.channels(),
+                      ", ",
+                      spec.channels(),
+                      ", ",
+                      spec_motion.channels(),
+                      "; specular: off blurs color as one)");
+    }
+    const int cc = color.channels(), w = color.width(), h = color.height();
+    // Where the specular share moves as the rest does (flat faces), one blur of the two is the
+    // same sum: only the pixels whose shares part ways (balls) keep their specular share apart,
+    // and the second blur runs over their bounding box and what the blur can reach from it.
+    const auto parts_ways = [&](int x, int y) {
+        const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
+        return std::abs(a[0] - b[0]) > 1e-3f || std::abs(a[1] - b[1]) > 1e-3f;
+    };
+    std::vector<int> first(std::size_t(h), w), last(std::size_t(h), -1);
+    parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            if (parts_ways(x, y)) {
+                first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
+                last[std::size_t(y)] = x;
+            }
+        }
+    });
+    Rect box{w, h, 0, 0};
+    for (int y = 0; y < h; ++y) {
+        if (last[std::size_t(y)] >= 0) {
+            box = Rect{std::min(box.x0, first[std::size_t(y)]),
+                       std::min(box.y0, y),
+                       std::max(box.x1, last[std::size_t(y)] + 1),
+                       y + 1};
+        }
+    }
+    if (box.x1 <= box.x0) {
+        return shading::motion_blur(color, *rest_motion, depth, o);
+    }
+    // A parting pixel spreads at most max_radius; what lands there is gathered from as far again,
+    // plus the tiles of the neighbour-max lookup.
+    const int reach = 2 * (int(std::ceil(o.max_radius)) + 2 * o.tile);
+    const Rect crop{std::max(0, box.x0 - reach),
+                    std::max(0, box.y0 - reach),
+                    std::min(w, box.x1 + reach),
+                    std::min(h, box.y1 + reach)};
+    const int cw = crop.x1 - crop.x0, ch = crop.y1 - crop.y0;
+    Image rest = color;                             // color less the parting specular share
+    Image share = Image::uninitialized(cw, ch, 4);  // RGBA: the blur's packed path
+    Image share_motion = Image::uninitialized(cw, ch, 2);
+    Image share_depth = Image::uninitialized(cw, ch, 1);
+    parallel_for(0, ch, [&](int j) {
+        const int y = crop.y0 + j;
+        for (int i = 0; i < cw; ++i) {
+            const int x = crop.x0 + i;
+            const bool parts =
+                x >= first[std::size_t(y)] && x <= last[std::size_t(y)] && parts_ways(x, y);
+            // The other pixels hold no share but keep their motion, so that both blurs see the
+            // same coverage (what passes in front of what, for how long).
+            const float *sp = spec.pixel(x, y),
+                        *sm = parts ? spec_motion.pixel(x, y) : rest_motion->pixel(x, y);
+            float *r = rest.pixel(x, y), *d = share.pixel(i, j), *m = share_motion.pixel(i, j);
+            for (int k = 0; k < 3; ++k) {
+                d[k] = parts ? sp[k] : 0.0f;
+                r[k] = parts ? r[k] - sp[k] : r[k];
+            }
+            d[3] = 0.0f;
+            m[0] = sm[0];
+            m[1] = sm[1];
+            *share_depth.pixel(i, j) = depth.at(x, y, 0);
+        }
+    });
+    Image out = shading::motion_blur(rest, *rest_motion, depth, o);
+    const Image share_blurred = shading::motion_blur(share, share_motion, share_depth, o);
+    // Color plus what each blur changed, so a still frame keeps its bits.
+    parallel_for(0, ch, [&](int j) {
+        const int y = crop.y0 + j;
+        for (int i = 0; i < cw; ++i) {
+            const int x = crop.x0 + i;
+            const float *c = color.pixel(x, y), *r0 = rest.pixel(x, y);
+            const float *s0 = share.pixel(i, j), *s1 = share_blurred.pixel(i, j);
+            float *q = out.pixel(x, y);
+            for (int k = 0; k < cc; ++k) {
+                q[k] = c[k] + (q[k] - r0[k]) + (k < 3 ? s1[k] - s0[k] : 0.0f);
+            }
+        }
+    });
+    return out;
+}
 
 void execute(NodeContext &ctx)
 {
@@ -148,7 +296,11 @@ void execute(NodeContext &ctx)
     o.coherence = ctx.get_float(kCoherence);
     o.group_tolerance = ctx.get_float(kGroupTolerance);
     o.seed = std::uint32_t(ctx.get_int(kSeed));
-    Image out = shading::motion_blur(color, *motion, depth, o);
+    const bool split = ctx.get_choice(kSpecular) == 0 && ctx.get_choice(kSource) == 0 &&
+                       in.has(motion_pass) && in.has(pass::kSpecular) &&
+                       in.has(pass::kSpecularMotion);
+    Image out = split ? blur_split(ctx, color, *motion, depth, o)
+                      : shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());
     ctx.output().set(
         pass::kColor, std::make_shared<const Image>(std::move(out)), cp.channels, cp.storage);
@@ -158,6 +310,11 @@ void plan(PlanContext &ctx)
 {
     if (ctx.params.get_choice(kSource) == 0) {
         ctx.inputs[0].add(ctx.params.get_string(kMotionPass));
+        if (ctx.params.get_choice(kSpecular) == 0) {
+            ctx.inputs[0].add_optional(pass::kSpecular);
+            ctx.inputs[0].add_optional(pass::kSpecularMotion);
+            ctx.inputs[0].add_optional(pass::kDiffuseMotion);
+        }
     }
 }
 

@@ -10,6 +10,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <memory>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -17,6 +18,7 @@
 #include "core/frame.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
+#include "raster/render.h"
 
 namespace posthaste::test {
 
@@ -162,6 +164,37 @@ inline int run_command(const std::string &command, std::string *output = nullptr
         *output = out;
     }
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/// A scene of samples/scenes/.
+inline std::string scene_path(const std::string &name)
+{
+    return std::string(POSTHASTE_SOURCE_DIR) + "/samples/scenes/" + name;
+}
+
+/// Render options of a w x h frame with these passes (the other options default).
+inline raster::RenderOptions render_options(int w, int h, std::set<std::string> passes)
+{
+    raster::RenderOptions o;
+    o.width = w;
+    o.height = h;
+    o.passes = std::move(passes);
+    return o;
+}
+
+/// RMS over RGB of a - b (images of one size, at least 3 channels).
+inline double rms_rgb(const Image &a, const Image &b)
+{
+    double sum = 0.0;
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(a.at(x, y, c)) - double(b.at(x, y, c));
+                sum += d * d;
+            }
+        }
+    }
+    return std::sqrt(sum / (3.0 * double(a.pixel_count())));
 }
 
 }  // namespace posthaste::test

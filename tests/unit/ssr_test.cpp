@@ -18,41 +18,15 @@
 
 namespace posthaste {
 namespace {
-
-std::string scene_path(const std::string &name)
-{
-    return std::string(POSTHASTE_SOURCE_DIR) + "/samples/scenes/" + name;
-}
-
-/// RMS over RGB of a - b.
-double rms_rgb(const Image &a, const Image &b)
-{
-    double sum = 0.0;
-    for (int y = 0; y < a.height(); ++y) {
-        for (int x = 0; x < a.width(); ++x) {
-            for (int c = 0; c < 3; ++c) {
-                const double d = double(a.at(x, y, c)) - double(b.at(x, y, c));
-                sum += d * d;
-            }
-        }
-    }
-    return std::sqrt(sum / (3.0 * double(a.pixel_count())));
-}
-
-raster::RenderOptions small(int w, int h, std::set<std::string> passes)
-{
-    raster::RenderOptions o;
-    o.width = w;
-    o.height = h;
-    o.passes = std::move(passes);
-    return o;
-}
+using test::render_options;
+using test::rms_rgb;
+using test::scene_path;
 
 /// The glossy scene's frame with every pass ssr reads, and the header the render node writes.
 Frame glossy_frame(const raster::Scene &s, int w, int h)
 {
     Frame f = raster::render_frame(
-        s, 1, small(w, h, {"color", "depth", "normal", "albedo", "material", "position"}));
+        s, 1, render_options(w, h, {"color", "depth", "normal", "albedo", "material", "position"}));
     const glm::vec3 d = s.sun.direction;
     f.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
     f.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", s.sky_ambient));
@@ -141,7 +115,7 @@ TEST(Ssr, TruthIsTheBeautyWhereTheRaysSeeOnlySky)
     key.position = glm::vec3(32.0f, 4.0f, 4.0f);
     key.pitch_deg = -20.0f;
     s.camera_keys = {key};
-    const raster::RenderOptions o = small(64, 36, {"color"});
+    const raster::RenderOptions o = render_options(64, 36, {"color"});
     const Frame beauty = raster::render_frame(s, 1, o);
     const Image truth = raster::render_reflection_truth(s, 1, o, 16, 1);
     const Image &b = beauty.image("color");
@@ -166,7 +140,7 @@ TEST(Ssr, TruthIsTheBeautyWhereTheRaysSeeOnlySky)
 TEST(Ssr, TruthNoiseFallsWithTheRayCount)
 {
     raster::Scene s = raster::load_scene(scene_path("glossy.json"));
-    const raster::RenderOptions o = small(96, 54, {"color"});
+    const raster::RenderOptions o = render_options(96, 54, {"color"});
     const Image t4 = raster::render_reflection_truth(s, 1, o, 4, 1);
     const Image t16 = raster::render_reflection_truth(s, 1, o, 16, 2);
     const Image t64 = raster::render_reflection_truth(s, 1, o, 64, 3);
@@ -182,7 +156,8 @@ TEST(Ssr, RemovesMostOfTheMissingReflectionsOnTheGlossyScene)
 {
     raster::Scene s = raster::load_scene(scene_path("glossy.json"));
     const Frame f = glossy_frame(s, 240, 135);
-    const Image truth = raster::render_reflection_truth(s, 1, small(240, 135, {"color"}), 256, 7);
+    const Image truth =
+        raster::render_reflection_truth(s, 1, render_options(240, 135, {"color"}), 256, 7);
     const double none = rms_rgb(f.image("color"), truth);
     const Frame out = test::run_node("ssr", f, "{}");
     const double ssr = rms_rgb(out.image("color"), truth);
