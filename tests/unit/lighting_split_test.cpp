@@ -16,6 +16,7 @@
 #include "core/simd.h"
 #include "graph/graph.h"
 #include "graph/node.h"
+#include "io/image_file.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
@@ -360,6 +361,42 @@ TEST(LightingSplit, TheEngineDropsAShareItsColourNoLongerHas)
     EXPECT_TRUE(through_dof.has("specular"));
     const Frame through_exposure = run("exposure", R"({"exposure": -2})");
     EXPECT_FALSE(through_exposure.has("specular"));
+}
+
+TEST(LightingSplit, ReadTakesTheSharesWhenTheFileHasThem)
+{
+    // A file with the shares splits through read exactly as the renderer's frame does; a file
+    // without them reads without an error and blurs color as one.
+    const std::string dir = test::scratch_dir("lighting_split_read");
+    const Frame in = spin_frame(96, 54);
+    Frame plain = in;
+    for (const char *p : {"specular", "specular_motion", "diffuse_motion"}) {
+        plain.erase(p);
+    }
+    write_exr(in, dir + "/with.0006.exr", WriteOptions{});
+    write_exr(plain, dir + "/without.0006.exr", WriteOptions{});
+    const auto run = [&](const std::string &name) {
+        Graph g = Graph::parse(R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": ")" +
+                                   dir + "/" + name + R"(.####.exr"}},
+            {"id": "mb", "type": "motion_blur", "inputs": {"image": "src"}},
+            {"id": "out", "type": "write", "inputs": {"image": "mb"},
+             "params": {"path": ")" +
+                                   dir + R"(/o.####.exr", "passes": "color"}}]})",
+                               "g.json",
+                               nodes::catalog());
+        g.set_capture("mb");
+        return g.evaluate(6);
+    };
+    // The file holds color as half: compare with the node run on what the file holds.
+    const Frame with = run("with"), without = run("without");
+    const Frame direct =
+        run_node("motion_blur", read_frame(dir + "/with.0006.exr", nullptr, 6), "{}");
+    const Frame as_one = run_node(
+        "motion_blur", read_frame(dir + "/with.0006.exr", nullptr, 6), R"({"specular": "off"})");
+    EXPECT_TRUE(with.image("color").bit_equal(direct.image("color")));
+    EXPECT_TRUE(without.image("color").bit_equal(as_one.image("color")));
+    EXPECT_FALSE(with.image("color").bit_equal(as_one.image("color")));
 }
 
 }  // namespace
