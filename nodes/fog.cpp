@@ -140,17 +140,6 @@ glm::vec3 vec3_of(const std::vector<double> &v)
     return glm::vec3(float(v[0]), float(v[1]), float(v[2]));
 }
 
-/// A float3 header attribute, if present.
-std::optional<glm::vec3> header_vec3(const Frame &f, const char *name)
-{
-    const OIIO::ParamValue *p = f.attributes.find_pv(name);
-    if (!p || p->type().basetype != OIIO::TypeDesc::FLOAT || p->type().basevalues() != 3) {
-        return std::nullopt;
-    }
-    const float *v = static_cast<const float *>(p->data());
-    return glm::vec3(v[0], v[1], v[2]);
-}
-
 /// Atmospheres built so far, keyed by sun direction and illuminance (LUTs are computed once per
 /// parameter set and reused across frames).
 struct AtmosphereCache {
@@ -276,10 +265,7 @@ void execute(NodeContext &ctx)
         }
     }
 
-    glm::vec3 sun_dir = vec3_of(ctx.get_vec(kSunDirection));
-    if (!ctx.params().given(kSunDirection)) {
-        sun_dir = header_vec3(in, std::string(kSunDirection.header).c_str()).value_or(sun_dir);
-    }
+    glm::vec3 sun_dir = param_or_header_vec3(ctx, kSunDirection, in);
     if (!(glm::length(sun_dir) > 0.0f) || !std::isfinite(glm::length(sun_dir))) {
         throw_runtime(who, ": sun direction must be a non-zero finite vector");
     }
@@ -315,11 +301,7 @@ void execute(NodeContext &ctx)
         }
         case Atmo:
         case AtmoRayMarch: {
-            glm::vec3 illuminance = vec3_of(ctx.get_vec(kIlluminance));
-            if (!ctx.params().given(kIlluminance)) {
-                illuminance =
-                    header_vec3(in, std::string(kIlluminance.header).c_str()).value_or(illuminance);
-            }
+            const glm::vec3 illuminance = param_or_header_vec3(ctx, kIlluminance, in);
             const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
             const auto &atmosphere = built.atmosphere;
             const bool disc = ctx.get_bool(kSunDisc);

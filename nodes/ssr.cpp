@@ -128,19 +128,8 @@ void execute(NodeContext &ctx)
     p.extend = ctx.get_string(kOffscreen) == "extend";
     p.denoise = ctx.get_int(kDenoise);
     p.stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
-    p.sky_scale = ctx.get_float(kSkyScale);
-    if (!ctx.params().given(kSkyScale)) {
-        p.sky_scale = in.attributes.get_float(std::string(kSkyScale.header), p.sky_scale);
-    }
-    const std::vector<double> &sun = ctx.get_vec(kSunDirection);
-    glm::vec3 sun_dir{float(sun[0]), float(sun[1]), float(sun[2])};
-    if (!ctx.params().given(kSunDirection)) {
-        if (const OIIO::ParamValue *pv = in.attributes.find_pv(std::string(kSunDirection.header));
-            pv && pv->type().basetype == OIIO::TypeDesc::FLOAT && pv->type().basevalues() == 3) {
-            const float *v = static_cast<const float *>(pv->data());
-            sun_dir = glm::vec3(v[0], v[1], v[2]);
-        }
-    }
+    p.sky_scale = param_or_header_float(ctx, kSkyScale, in);
+    const glm::vec3 sun_dir = param_or_header_vec3(ctx, kSunDirection, in);
     const float len = glm::length(sun_dir);
     if (!(len > 0.0f) || !std::isfinite(len) || !std::isfinite(p.sky_scale) || p.sky_scale < 0.0f) {
         throw_runtime(ctx.where(),
