@@ -50,16 +50,16 @@ std::optional<float> sphere_distance(
     return std::nullopt;
 }
 
-/// Entry distance into the box [lo, hi] along d for 0 <= s <= limit and the axis of the face
-/// entered (-1: none crossed, the ray starts in the slab of every axis); none when the origin
-/// is on or in the box (within 1e-3).
-std::optional<std::pair<float, int>> box_entry(
+// The part t in [enter, exit] of the ray o + t d, t in [0, limit], inside the box [lo, hi]
+// (slabs), and the axis of the face it enters through (-1: the origin is inside); nothing when
+// it misses.
+struct SlabSpan {
+    float enter, exit;
+    int axis;
+};
+std::optional<SlabSpan> slab_span(
     const glm::vec3 &lo, const glm::vec3 &hi, const glm::vec3 &o, const glm::vec3 &d, float limit)
 {
-    constexpr float kEps = 1e-3f;
-    if (glm::all(glm::greaterThan(o, lo - kEps)) && glm::all(glm::lessThan(o, hi + kEps))) {
-        return std::nullopt;
-    }
     float t0 = 0.0f, t1 = limit;
     int axis = -1;
     for (int a = 0; a < 3; ++a) {
@@ -82,7 +82,24 @@ std::optional<std::pair<float, int>> box_entry(
             return std::nullopt;
         }
     }
-    return std::make_pair(t0, axis);
+    return SlabSpan{t0, t1, axis};
+}
+
+/// Entry distance into the box [lo, hi] along d for 0 <= s <= limit and the axis of the face
+/// entered (-1: none crossed, the ray starts in the slab of every axis); none when the origin
+/// is on or in the box (within 1e-3).
+std::optional<std::pair<float, int>> box_entry(
+    const glm::vec3 &lo, const glm::vec3 &hi, const glm::vec3 &o, const glm::vec3 &d, float limit)
+{
+    constexpr float kEps = 1e-3f;
+    if (glm::all(glm::greaterThan(o, lo - kEps)) && glm::all(glm::lessThan(o, hi + kEps))) {
+        return std::nullopt;
+    }
+    const std::optional<SlabSpan> span = slab_span(lo, hi, o, d, limit);
+    if (!span) {
+        return std::nullopt;
+    }
+    return std::make_pair(span->enter, span->axis);
 }
 
 }  // namespace
@@ -112,28 +129,13 @@ std::optional<RayScene::Hit> RayScene::voxels_first(const glm::vec3 &o,
                                                     float max_dist) const
 {
     const glm::vec3 lo(0.0f), hi(float(grid_.nx), float(grid_.ny), float(grid_.nz));
-    float t0 = 0.0f, t1 = max_dist;
-    int entry_axis = -1;  // the slab that set t0: the face the ray enters the grid through
-    for (int a = 0; a < 3; ++a) {
-        if (d[a] == 0.0f) {
-            if (o[a] < lo[a] || o[a] > hi[a]) {
-                return std::nullopt;
-            }
-            continue;
-        }
-        float ta = (lo[a] - o[a]) / d[a], tb = (hi[a] - o[a]) / d[a];
-        if (ta > tb) {
-            std::swap(ta, tb);
-        }
-        if (ta > t0) {
-            t0 = ta;
-            entry_axis = a;
-        }
-        t1 = std::min(t1, tb);
-    }
-    if (t0 > t1) {
+    const std::optional<SlabSpan> span = slab_span(lo, hi, o, d, max_dist);
+    if (!span) {
         return std::nullopt;
     }
+    // entry_axis: the slab that set t0, the face the ray enters the grid through (-1: inside).
+    const float t0 = span->enter, t1 = span->exit;
+    const int entry_axis = span->axis;
     const glm::vec3 p = o + d * t0;
     glm::ivec3 cell(int(std::floor(p.x)), int(std::floor(p.y)), int(std::floor(p.z)));
     glm::ivec3 step;
