@@ -200,11 +200,15 @@ class Marcher {
 /// non-zero sky reflection weight.
 struct GlossyPixel {
     float z, roughness;
-    glm::vec3 point, n, view, weight;
+    glm::vec3 point{0.0f}, n, view, weight;  // point: with_point only
 };
 
-std::optional<GlossyPixel> glossy_pixel(
-    const SsrInputs &in, const CameraRays &rays, const SsrParams &p, int x, int y)
+std::optional<GlossyPixel> glossy_pixel(const SsrInputs &in,
+                                        const CameraRays &rays,
+                                        const SsrParams &p,
+                                        int x,
+                                        int y,
+                                        bool with_point = true)
 {
     const Image &depth = *in.depth, &normal = *in.normal, &albedo = *in.albedo,
                 &material = *in.material;
@@ -223,7 +227,9 @@ std::optional<GlossyPixel> glossy_pixel(
     g.n /= nlen;
     const float u = (float(x) + 0.5f) / float(depth.width());
     const float v = (float(y) + 0.5f) / float(depth.height());
-    g.point = rays.position() + rays.depth_ray(u, v) * g.z;
+    if (with_point) {  // the march's start; the resolve needs only the weight
+        g.point = rays.position() + rays.depth_ray(u, v) * g.z;
+    }
     g.view = -rays.direction(u, v);
     if (glm::dot(g.n, g.view) < 0.0f) {
         g.n = -g.n;  // as the renderer: the side we see
@@ -329,7 +335,8 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     const int radius = std::max(p.denoise, st - 1);
     parallel_for(0, h, [&](int y) {
         for (int x = 0; x < w; ++x) {
-            const std::optional<GlossyPixel> g = glossy_pixel(in, rays, p, x, y);
+            const std::optional<GlossyPixel> g =
+                glossy_pixel(in, rays, p, x, y, /*with_point=*/false);
             if (!g) {
                 continue;
             }
