@@ -77,7 +77,7 @@ int render(const RenderCommand &o)
         g["nodes"][1]["params"]["passes"] =
             "color,depth,normal,position,motion,albedo,material,tangent,id,specular,specular_"
             "motion,"
-            "diffuse_motion";
+            "diffuse_motion,specular_depth";
     }
     Graph graph = Graph::parse(g.dump(), "posthaste render " + o.scene, nodes::catalog());
     return run_graph(graph, o);

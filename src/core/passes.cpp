@@ -43,6 +43,12 @@ std::span<const CanonicalPass> canonical_passes()
          {"X", "Y"},
          false,
          "how color less the specular share moves, pixels from the previous frame, y down"},
+        {kSpecularDepth,
+         "specular_depth",
+         {"Z"},
+         false,
+         "the camera depth of the specular share's image (a highlight's virtual image), +inf on "
+         "the sky"},
     };
     return kTable;
 }

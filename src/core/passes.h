@@ -26,6 +26,9 @@ inline constexpr const char *kSpecularMotion = "specular_motion";
 // diffuse_motion.X .Y: how color less its specular share moves (as motion), where it does not
 // follow the surface points (an untextured ball's shading moves with its centre, not its spin)
 inline constexpr const char *kDiffuseMotion = "diffuse_motion";
+// specular_depth.Z: the camera depth at which the specular share is in focus (the depth of a
+// highlight's virtual image), as depth
+inline constexpr const char *kSpecularDepth = "specular_depth";
 // Made by nodes, not read by alias: ambient occlusion (ao.Y, 0 occluded .. 1 open).
 inline constexpr const char *kAo = "ao";
 

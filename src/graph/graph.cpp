@@ -197,8 +197,10 @@ void Graph::plan()
                 // Its output would drop a specular pass as stale (drop_stale_specular) if it
                 // changes color: asking for one optionally, and for the motions that go with it,
                 // would be wasted work.
-                for (const char *p :
-                     {pass::kSpecular, pass::kSpecularMotion, pass::kDiffuseMotion}) {
+                for (const char *p : {pass::kSpecular,
+                                      pass::kSpecularMotion,
+                                      pass::kDiffuseMotion,
+                                      pass::kSpecularDepth}) {
                     through.optional.erase(p);
                 }
             }

@@ -21,6 +21,8 @@
 //             color move. On a ball, the virtual image of a distant light (R/2 behind the
 //             surface) and the ball's shape, both carried by its translation, not its spin; on
 //             flat faces and sky, the motion pass itself (render.cpp, specular_point).
+//   specular_depth  Z: the camera depth of that image (where a thin lens focuses the
+//             highlight); depth itself on flat faces, +inf on sky.
 // Header: frame.number, frame.camera (matrices of this and the previous frame, lens, shutter,
 // near/far), attributes "posthaste:scene" (scene name) and "posthaste:fps".
 
@@ -36,7 +38,7 @@ namespace posthaste::raster {
 struct RenderOptions {
     int width = 1920, height = 1080;
     /// Passes to produce; anything else is not computed. Names: color depth normal position
-    /// motion albedo material tangent id specular specular_motion diffuse_motion.
+    /// motion albedo material tangent id specular specular_motion diffuse_motion specular_depth.
     std::set<std::string> passes = {"color"};
     /// Beauty supersampling per axis (1, 2 or 4): color is the box-filtered mean of
     /// supersample^2 samples per pixel. Data passes stay one sample per pixel.
