@@ -292,7 +292,8 @@ TEST(LightingSplit, DofWithBadSharesStaysFinite)
             }
         }
         f.set(name, std::move(img));
-        const Image &c = run_node("dof", f, "{}").image("color");
+        const Frame out = run_node("dof", f, "{}");
+        const Image &c = out.image("color");
         for (std::size_t i = 0; i < c.value_count(); ++i) {
             ASSERT_TRUE(std::isfinite(c.data()[i])) << name;
             ASSERT_LE(std::abs(c.data()[i]), 1e4f) << name;
