@@ -14,6 +14,7 @@
 #include "core/sanitize.h"
 #include "nodes/node.h"
 #include "shading/dof_gather.h"
+#include "shading/lighting_split.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -122,10 +123,10 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
 // The lighting split: a highlight's image lies behind the surface that shows it (a ball's
 // convex mirror puts the sun's image R/2 behind its surface), so a thin lens focuses it at
 // specular_depth, not at the surface. Color less the specular share is blurred by the CoC of
-// depth, the share by that of specular_depth, and the two added (color plus what each blur
-// changed). Only the pixels whose two depths differ keep their share apart; the second blur runs
-// over their box plus what can reach it. False when no pixel's depths differ (the caller blurs
-// color as one).
+// depth, the share by that of specular_depth (shading/lighting_split.h). Only the pixels whose
+// two depths differ keep their share apart; the share's blur runs over their box plus what can
+// reach it, and only on the tiles its gather can carry something into. False when no pixel's
+// depths differ (the caller blurs color as one).
 bool blur_split(NodeContext &ctx,
                 const Image &color,
                 const Image &depth,
@@ -136,15 +137,11 @@ bool blur_split(NodeContext &ctx,
     if (!(s.max_coc_px >= 0.5f)) {
         return false;  // nothing is blurred
     }
-    Image spec_storage, spec_depth_storage;
-    const Image &spec = finite_view(ctx.input_pass("image", pass::kSpecular), 0.0f, spec_storage);
-    const Image &spec_depth = finite_view(ctx.input_pass("image", pass::kSpecularDepth),
-                                          std::numeric_limits<float>::infinity(),
-                                          spec_depth_storage,
-                                          /*allow_positive_inf=*/true);
-    const int w = color.width(), h = color.height(), cc = color.channels();
+    const Image &spec = ctx.input_pass("image", pass::kSpecular);
+    const Image &spec_depth = ctx.input_pass("image", pass::kSpecularDepth);
+    const int w = color.width(), h = color.height();
     if (spec.width() != w || spec.height() != h || spec_depth.width() != w ||
-        spec_depth.height() != h || spec.channels() < 3 || cc < 3) {
+        spec_depth.height() != h || spec.channels() < 3 || color.channels() < 3) {
         throw_runtime(ctx.where(),
                       ": the lighting split needs RGB color and specular and a specular_depth of "
                       "color's size (",
@@ -153,82 +150,54 @@ bool blur_split(NodeContext &ctx,
                       h,
                       ")");
     }
-    const auto parts_ways = [&](int x, int y) {
-        const float a = depth.at(x, y, 0), b = spec_depth.at(x, y, 0);
-        // A share whose depth is not a positive finite depth stays with the rest.
-        return a > 0.0f && b > 0.0f && std::isfinite(a) && std::isfinite(b) &&
-               std::abs(a - b) > 1e-4f * a;
-    };
-    std::vector<int> first(std::size_t(h), w), last(std::size_t(h), -1);
-    parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-            if (parts_ways(x, y)) {
-                first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
-                last[std::size_t(y)] = x;
-            }
-        }
-    });
-    Rect box{w, h, 0, 0};
-    for (int y = 0; y < h; ++y) {
-        if (last[std::size_t(y)] >= 0) {
-            box = Rect{std::min(box.x0, first[std::size_t(y)]),
-                       std::min(box.y0, y),
-                       std::max(box.x1, last[std::size_t(y)] + 1),
-                       y + 1};
-        }
-    }
-    if (box.x1 <= box.x0) {
-        return false;
-    }
     // A parting pixel spreads at most the largest CoC; what lands there is gathered from as far
     // again, plus the tiles of the gather's neighbour maximum.
     const int reach = 2 * (int(std::ceil(s.max_coc_px)) + 32);
-    const Rect crop{std::max(0, box.x0 - reach),
-                    std::max(0, box.y0 - reach),
-                    std::min(w, box.x1 + reach),
-                    std::min(h, box.y1 + reach)};
-    const int cw = crop.x1 - crop.x0, ch = crop.y1 - crop.y0;
-    Image rest = color;  // color less the parting specular share
-    Image share = Image::uninitialized(cw, ch, 4);
-    Image share_depth = Image::uninitialized(cw, ch, 1);
-    parallel_for(0, ch, [&](int j) {
-        const int y = crop.y0 + j;
-        for (int i = 0; i < cw; ++i) {
-            const int x = crop.x0 + i;
-            const bool parts =
-                x >= first[std::size_t(y)] && x <= last[std::size_t(y)] && parts_ways(x, y);
-            const float *sp = spec.pixel(x, y);
-            float *r = rest.pixel(x, y), *d = share.pixel(i, j);
-            for (int k = 0; k < 3; ++k) {
-                d[k] = parts ? sp[k] : 0.0f;
-                r[k] = parts ? r[k] - sp[k] : r[k];
+    const shading::SplitRegion region =
+        shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
+            const float *a = depth.pixel(0, y), *b = spec_depth.pixel(0, y);
+            const int ca = depth.channels(), cb = spec_depth.channels();
+            for (int x = 0; x < w; ++x) {
+                const float za = a[std::size_t(x) * std::size_t(ca)],
+                            zb = b[std::size_t(x) * std::size_t(cb)];
+                // A share whose depth is not a positive finite depth (NaN, sky) stays with the
+                // rest.
+                row[x] = za > 0.0f && zb > 0.0f && std::isfinite(za) && std::isfinite(zb) &&
+                         std::abs(za - zb) > 1e-4f * za;
             }
-            d[3] = 0.0f;
-            // The other pixels hold no share but keep their depth: both blurs see the same
-            // occluders.
-            *share_depth.pixel(i, j) = parts ? spec_depth.at(x, y, 0) : depth.at(x, y, 0);
+        });
+    if (region.empty()) {
+        return false;
+    }
+    const Rect &crop = region.crop;
+    const Image share = shading::share_color(spec, region);
+    // The other pixels hold no share but keep their depth: both blurs see the same occluders.
+    Image share_depth = Image::uninitialized(crop.width(), crop.height(), 1);
+    parallel_for(0, crop.height(), [&](int j) {
+        const int y = crop.y0 + j;
+        for (int i = 0; i < crop.width(); ++i) {
+            const int x = crop.x0 + i;
+            *share_depth.pixel(i, j) = region.at(x, y) ? spec_depth.at(x, y, 0) : depth.at(x, y, 0);
         }
     });
-    Image rest_blurred, share_blurred;
-    if (!shading::apply_dof(rest, depth, lens, s, rest_blurred)) {
-        rest_blurred = rest;
-    }
-    if (!shading::apply_dof(share, share_depth, lens, s, share_blurred)) {
+    shading::DofSettings rest_settings = s;
+    rest_settings.subtract = &share;
+    rest_settings.subtract_x0 = crop.x0;
+    rest_settings.subtract_y0 = crop.y0;
+    const bool rest_still = !shading::apply_dof(color, depth, lens, rest_settings, out);
+    shading::DofSettings share_settings = s;
+    share_settings.skip_empty = true;
+    Image share_blurred;
+    if (!shading::apply_dof(share, share_depth, lens, share_settings, share_blurred)) {
+        if (rest_still) {
+            return false;  // neither share is blurred: color as it is
+        }
         share_blurred = share;
     }
-    out = std::move(rest_blurred);
-    parallel_for(0, ch, [&](int j) {
-        const int y = crop.y0 + j;
-        for (int i = 0; i < cw; ++i) {
-            const int x = crop.x0 + i;
-            const float *c = color.pixel(x, y), *r0 = rest.pixel(x, y);
-            const float *s0 = share.pixel(i, j), *s1 = share_blurred.pixel(i, j);
-            float *q = out.pixel(x, y);
-            for (int k = 0; k < cc; ++k) {
-                q[k] = c[k] + (q[k] - r0[k]) + (k < 3 ? s1[k] - s0[k] : 0.0f);
-            }
-        }
-    });
+    if (rest_still) {
+        out = color;
+    }
+    shading::compose_split(color, share, share_blurred, region, rest_still, out);
     return true;
 }
 

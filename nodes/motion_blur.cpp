@@ -16,6 +16,7 @@
 #include "core/parallel.h"
 #include "core/sanitize.h"
 #include "nodes/node.h"
+#include "shading/lighting_split.h"
 #include "shading/reproject.h"
 
 namespace posthaste::nodes {
@@ -120,16 +121,16 @@ void check_size(const NodeContext &ctx, const Image &color, const Image &p, cons
 
 // The lighting split: color less its specular share blurred along the surface motion, plus the
 // specular share blurred along its own (a highlight on a rolling ball moves with the ball's
-// centre, not with its turning surface). Written as color plus what each blur changed, so a
-// still frame keeps its bits.
+// centre, not with its turning surface); shading/lighting_split.h. Written as color plus what
+// each blur changed, so a still frame keeps its bits.
 Image blur_split(NodeContext &ctx,
                  const Image &color,
                  const Image &motion,
                  const Image &depth,
                  const shading::MotionBlurOptions &o)
 {
-    Image spec_storage, spec_motion_storage, diffuse_motion_storage;
-    const Image &spec = finite_view(ctx.input_pass("image", pass::kSpecular), 0.0f, spec_storage);
+    Image spec_motion_storage, diffuse_motion_storage;
+    const Image &spec = ctx.input_pass("image", pass::kSpecular);
     const Image &spec_motion =
         finite_view(ctx.input_pass("image", pass::kSpecularMotion), 0.0f, spec_motion_storage);
     check_size(ctx, color, spec, pass::kSpecular);
@@ -157,83 +158,49 @@ Image blur_split(NodeContext &ctx,
                       spec_motion.channels(),
                       "; specular: off blurs color as one)");
     }
-    const int cc = color.channels(), w = color.width(), h = color.height();
+    const int w = color.width(), h = color.height();
     // Where the specular share moves as the rest does (flat faces), one blur of the two is the
-    // same sum: only the pixels whose shares part ways (balls) keep their specular share apart,
-    // and the second blur runs over their bounding box and what the blur can reach from it.
-    const auto parts_ways = [&](int x, int y) {
-        const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
-        return std::abs(a[0] - b[0]) > 1e-3f || std::abs(a[1] - b[1]) > 1e-3f;
-    };
-    std::vector<int> first(std::size_t(h), w), last(std::size_t(h), -1);
-    parallel_for(0, h, [&](int y) {
-        for (int x = 0; x < w; ++x) {
-            if (parts_ways(x, y)) {
-                first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
-                last[std::size_t(y)] = x;
+    // same sum: only the pixels whose shares part ways (balls) keep their specular share apart.
+    // A parting pixel spreads at most max_radius; what lands there is gathered from as far
+    // again, plus the tiles of the neighbour-max lookup.
+    const int reach = 2 * (int(std::ceil(o.max_radius)) + 2 * o.tile);
+    const shading::SplitRegion region =
+        shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
+            for (int x = 0; x < w; ++x) {
+                const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
+                row[x] = std::abs(a[0] - b[0]) > 1e-3f || std::abs(a[1] - b[1]) > 1e-3f;
             }
-        }
-    });
-    Rect box{w, h, 0, 0};
-    for (int y = 0; y < h; ++y) {
-        if (last[std::size_t(y)] >= 0) {
-            box = Rect{std::min(box.x0, first[std::size_t(y)]),
-                       std::min(box.y0, y),
-                       std::max(box.x1, last[std::size_t(y)] + 1),
-                       y + 1};
-        }
-    }
-    if (box.x1 <= box.x0) {
+        });
+    if (region.empty()) {
         return shading::motion_blur(color, *rest_motion, depth, o);
     }
-    // A parting pixel spreads at most max_radius; what lands there is gathered from as far again,
-    // plus the tiles of the neighbour-max lookup.
-    const int reach = 2 * (int(std::ceil(o.max_radius)) + 2 * o.tile);
-    const Rect crop{std::max(0, box.x0 - reach),
-                    std::max(0, box.y0 - reach),
-                    std::min(w, box.x1 + reach),
-                    std::min(h, box.y1 + reach)};
-    const int cw = crop.x1 - crop.x0, ch = crop.y1 - crop.y0;
-    Image rest = color;                             // color less the parting specular share
-    Image share = Image::uninitialized(cw, ch, 4);  // RGBA: the blur's packed path
-    Image share_motion = Image::uninitialized(cw, ch, 2);
-    Image share_depth = Image::uninitialized(cw, ch, 1);
-    parallel_for(0, ch, [&](int j) {
+    const Rect &crop = region.crop;
+    const Image share = shading::share_color(spec, region);
+    // The other pixels hold no share but keep their motion, so that both blurs see the same
+    // coverage (what passes in front of what, for how long).
+    Image share_motion = Image::uninitialized(crop.width(), crop.height(), 2);
+    Image share_depth = Image::uninitialized(crop.width(), crop.height(), 1);
+    parallel_for(0, crop.height(), [&](int j) {
         const int y = crop.y0 + j;
-        for (int i = 0; i < cw; ++i) {
+        for (int i = 0; i < crop.width(); ++i) {
             const int x = crop.x0 + i;
-            const bool parts =
-                x >= first[std::size_t(y)] && x <= last[std::size_t(y)] && parts_ways(x, y);
-            // The other pixels hold no share but keep their motion, so that both blurs see the
-            // same coverage (what passes in front of what, for how long).
-            const float *sp = spec.pixel(x, y),
-                        *sm = parts ? spec_motion.pixel(x, y) : rest_motion->pixel(x, y);
-            float *r = rest.pixel(x, y), *d = share.pixel(i, j), *m = share_motion.pixel(i, j);
-            for (int k = 0; k < 3; ++k) {
-                d[k] = parts ? sp[k] : 0.0f;
-                r[k] = parts ? r[k] - sp[k] : r[k];
-            }
-            d[3] = 0.0f;
-            m[0] = sm[0];
-            m[1] = sm[1];
+            const float *m = region.at(x, y) ? spec_motion.pixel(x, y) : rest_motion->pixel(x, y);
+            float *d = share_motion.pixel(i, j);
+            d[0] = m[0];
+            d[1] = m[1];
             *share_depth.pixel(i, j) = depth.at(x, y, 0);
         }
     });
-    Image out = shading::motion_blur(rest, *rest_motion, depth, o);
-    const Image share_blurred = shading::motion_blur(share, share_motion, share_depth, o);
-    // Color plus what each blur changed, so a still frame keeps its bits.
-    parallel_for(0, ch, [&](int j) {
-        const int y = crop.y0 + j;
-        for (int i = 0; i < cw; ++i) {
-            const int x = crop.x0 + i;
-            const float *c = color.pixel(x, y), *r0 = rest.pixel(x, y);
-            const float *s0 = share.pixel(i, j), *s1 = share_blurred.pixel(i, j);
-            float *q = out.pixel(x, y);
-            for (int k = 0; k < cc; ++k) {
-                q[k] = c[k] + (q[k] - r0[k]) + (k < 3 ? s1[k] - s0[k] : 0.0f);
-            }
-        }
-    });
+    shading::MotionBlurOptions rest_options = o;
+    rest_options.subtract = &share;
+    rest_options.subtract_x0 = crop.x0;
+    rest_options.subtract_y0 = crop.y0;
+    Image out = shading::motion_blur(color, *rest_motion, depth, rest_options);
+    shading::MotionBlurOptions share_options = o;
+    share_options.skip_empty = true;
+    const Image share_blurred =
+        shading::motion_blur(share, share_motion, share_depth, share_options);
+    shading::compose_split(color, share, share_blurred, region, /*rest_still=*/false, out);
     return out;
 }
 

@@ -18,6 +18,7 @@
 #include "core/timing.h"
 #include "shading/dof_kernels.h"
 #include "shading/dof_patterns.h"
+#include "shading/tiles.h"
 
 namespace posthaste::shading {
 namespace {
@@ -297,6 +298,20 @@ bool apply_dof(const Image &color,
         for (int x = 0; x < w; ++x) {
             inv2[x] = 1.0f / (c[x] * c[x]);  // +inf at 0
         }
+        // The lighting split's rest: colour less the share, in the planes every path reads.
+        const Image *sub = settings.subtract;
+        if (sub && nc >= 3 && y >= settings.subtract_y0 &&
+            y < settings.subtract_y0 + sub->height()) {
+            const int x0 = std::max(settings.subtract_x0, 0),
+                      x1 = std::min(settings.subtract_x0 + sub->width(), w);
+            const int sc = sub->channels();
+            const float *src = sub->pixel(x0 - settings.subtract_x0, y - settings.subtract_y0);
+            for (int x = x0; x < x1; ++x, src += sc) {
+                dst[0][x] -= src[0];
+                dst[1][x] -= src[1];
+                dst[2][x] -= src[2];
+            }
+        }
     });
 
     Context cx;
@@ -406,13 +421,23 @@ bool apply_dof(const Image &color,
     c0 = process_cpu_ms();
     out = Image::uninitialized(w, h, nc);
     std::vector<std::uint8_t> gathered(std::size_t(field.tiles_x * field.tiles_y), 0);
+    // skip_empty: a tile whose gather radius reaches no non-zero colour gathers zeros; copied.
+    std::vector<std::uint8_t> in_reach;
+    if (settings.skip_empty && !simple) {
+        in_reach = tiles_in_reach(
+            occupied_tiles(plane, w, h, field.tile),
+            field.tiles_x,
+            field.tiles_y,
+            [&](std::size_t t) { return int(std::ceil(field.gather[t] / float(field.tile))) + 1; });
+    }
     parallel_for_tiles(
         color.bounds(),
         [&](const Rect &t) {
             const int ti = (t.y0 / field.tile) * field.tiles_x + t.x0 / field.tile;
             const float radius = field.gather[std::size_t(ti)];
             const float near_radius = field.near_gather[std::size_t(ti)];
-            const bool copy = radius < 0.5f && !simple;
+            const bool copy =
+                (radius < 0.5f || (!in_reach.empty() && !in_reach[std::size_t(ti)])) && !simple;
             const bool use_half = half && radius >= settings.half_min_radius;
             gathered[std::size_t(ti)] = copy ? 0 : 1;
             for (int y = t.y0; y < t.y1; ++y) {

@@ -32,6 +32,15 @@ struct DofSettings {
     float half_min_radius = 3.0f;
     float half_density = 8.0f;  ///< Samples per R^2 (half-res px) at half resolution.
     std::uint32_t seed = 0;
+    /// Blur colour less this image's first three channels, placed with its top-left pixel at
+    /// (subtract_x0, subtract_y0) (inside the frame): the lighting split's rest
+    /// (shading/lighting_split.h) without a copy of the frame. Colour needs three channels.
+    const Image *subtract = nullptr;
+    int subtract_x0 = 0, subtract_y0 = 0;
+    /// Tiles out of reach of every non-zero colour value keep their (zero) input instead of
+    /// gathering zeros: the same bits, and a sparse image (the split's share) costs only
+    /// where it holds something.
+    bool skip_empty = false;
 };
 
 /// Milliseconds per pass of the last call: wall time, and process CPU time (all threads).

@@ -57,6 +57,28 @@ void packed_tiles(Packed &packed, int tile, bool want_bounds, Image &tiles, Imag
     }
 }
 
+/// The lighting split's rest: colour less o.subtract over its rectangle, in the records that
+/// the gather and the copies read.
+void subtract_from_records(Packed &packed, int w, int h, const MotionBlurOptions &o)
+{
+    const Image &s = *o.subtract;
+    const Rect r =
+        Rect{o.subtract_x0, o.subtract_y0, o.subtract_x0 + s.width(), o.subtract_y0 + s.height()}
+            .intersect(Rect{0, 0, w, h});
+    const int sc = s.channels();
+    parallel_for(r.y0, r.y1, [&](int y) {
+        const float *src = s.pixel(r.x0 - o.subtract_x0, y - o.subtract_y0);
+        const std::size_t row = std::size_t(y) * std::size_t(w);
+        float *red = packed.plane(kRed) + row, *green = packed.plane(kGreen) + row,
+              *blue = packed.plane(kBlue) + row;
+        for (int x = r.x0; x < r.x1; ++x, src += sc) {
+            red[x] -= src[0];
+            green[x] -= src[1];
+            blue[x] -= src[2];
+        }
+    });
+}
+
 }  // namespace
 
 void motion_blur_tiles(const Image &color,
@@ -89,6 +111,9 @@ Image motion_blur(const Image &color,
     const bool vector = vector_path(color);
     const bool want_bounds = o.coherence > 0.0f && o.method == BlurMethod::Reconstruct;
     Packed packed = pack(color, motion, depth, o, vector, want_bounds);
+    if (o.subtract && color.channels() >= 3) {
+        subtract_from_records(packed, w, h, o);
+    }
     st.pack_ms = ms_since(t0);
     st.pack_cpu_ms = process_cpu_ms() - c0;
 
@@ -129,6 +154,17 @@ Image motion_blur(const Image &color,
     Image out = Image::uninitialized(w, h, color.channels());
     const Gather g(color, packed, nmax, o, std::min(color.channels(), 4));
     const int nt_x = nmax.width(), nt_y = nmax.height();
+    // skip_empty: the tiles no path of the longest vector (and the lookup's jitter) can carry
+    // a non-zero value into gather zeros; they are copied.
+    std::vector<std::uint8_t> in_reach;
+    if (o.skip_empty) {
+        const float *const planes[4] = {
+            packed.plane(kRed), packed.plane(kGreen), packed.plane(kBlue), packed.plane(kAlpha)};
+        in_reach =
+            tiles_in_reach(occupied_tiles(planes, w, h, o.tile), nt_x, nt_y, [&](std::size_t) {
+                return radius + 1;
+            });
+    }
     // Per tile: 1 copied, 2 coherent (uniform path), 0 reconstructed.
     std::vector<unsigned char> kind(std::size_t(nt_x) * std::size_t(nt_y), 0);
     // Per band: the 8-pixel groups gathered, and how many of them shared a run.
@@ -137,6 +173,9 @@ Image motion_blur(const Image &color,
         // Copy a tile outright when no lookup its jitter can reach sees half a pixel of motion
         // (the Uniform method reads the tile max, its own pixels' longest).
         bool still = true;
+        if (!in_reach.empty() && !in_reach[std::size_t(ty) * std::size_t(nt_x) + std::size_t(tx)]) {
+            return 1;
+        }
         if (o.method == BlurMethod::Uniform) {
             still = std::hypot(tiles.at(tx, ty, 0), tiles.at(tx, ty, 1)) < 0.5f;
         } else {
@@ -186,9 +225,15 @@ Image motion_blur(const Image &color,
                 }
                 const int x0 = tx * o.tile, x1 = std::min(w, (tx + tn) * o.tile);
                 if (band[tx] == 1) {
-                    std::memcpy(out.pixel(x0, y),
-                                color.pixel(x0, y),
-                                sizeof(float) * std::size_t((x1 - x0) * color.channels()));
+                    if (o.subtract) {  // the records hold colour less the share
+                        for (int x = x0; x < x1; ++x) {
+                            g.copy_pixel(out, x, y);
+                        }
+                    } else {
+                        std::memcpy(out.pixel(x0, y),
+                                    color.pixel(x0, y),
+                                    sizeof(float) * std::size_t((x1 - x0) * color.channels()));
+                    }
                     continue;
                 }
                 const bool coherent = band[tx] == 2;

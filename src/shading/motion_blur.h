@@ -34,6 +34,15 @@ struct MotionBlurOptions {
     /// much at the ends of its path (0: every pixel samples on its own).
     float group_tolerance = 0.5f;
     std::uint32_t seed = 0;
+    /// Blur colour less this image's first three channels, placed with its top-left pixel at
+    /// (subtract_x0, subtract_y0) (inside the frame): the lighting split's rest
+    /// (shading/lighting_split.h) without a copy of the frame. Colour needs three channels.
+    const Image *subtract = nullptr;
+    int subtract_x0 = 0, subtract_y0 = 0;
+    /// Tiles out of reach of every non-zero colour value keep their (zero) input instead of
+    /// gathering zeros: the same bits, and a sparse image (the split's share) costs only
+    /// where it holds something.
+    bool skip_empty = false;
 };
 
 /// Milliseconds per stage of the last call: wall time, and CPU time of the whole process (all

@@ -125,9 +125,14 @@ struct Gather {
         vy = f[kWy][i] * k;
     }
 
+    /// The pixel's colour as packed (the input's bits, less MotionBlurOptions::subtract).
     void copy_pixel(Image &out, int x, int y) const
     {
-        std::memcpy(out.pixel(x, y), color.pixel(x, y), sizeof(float) * std::size_t(nc));
+        const std::size_t i = index(x, y);
+        float *q = out.pixel(x, y);
+        for (int k = 0; k < nc; ++k) {
+            q[k] = f[kRed + k][i];
+        }
     }
 
     static int sample_count(float len, int most)

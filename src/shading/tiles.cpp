@@ -216,4 +216,66 @@ Image neighbour_bounds(const Image &bounds, int radius)
     return out;
 }
 
+std::vector<std::uint8_t> occupied_tiles(const float *const planes[4],
+                                         int width,
+                                         int height,
+                                         int tile)
+{
+    const int tx = (width + tile - 1) / tile, ty = (height + tile - 1) / tile;
+    std::vector<std::uint8_t> occupied(std::size_t(tx) * std::size_t(ty), 0);
+    parallel_for(0, ty, [&](int j) {
+        const int y1 = std::min(height, (j + 1) * tile);
+        for (int y = j * tile; y < y1; ++y) {
+            const std::size_t row = std::size_t(y) * std::size_t(width);
+            for (int i = 0; i < tx; ++i) {
+                std::uint8_t &o = occupied[std::size_t(j) * std::size_t(tx) + std::size_t(i)];
+                const int x1 = std::min(width, (i + 1) * tile);
+                for (int k = 0; k < 4 && !o; ++k) {
+                    for (int x = i * tile; x < x1; ++x) {
+                        if (planes[k][row + std::size_t(x)] != 0.0f ||
+                            std::isnan(planes[k][row + std::size_t(x)])) {
+                            o = 1;
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+    });
+    return occupied;
+}
+
+std::vector<std::uint8_t> tiles_in_reach(const std::vector<std::uint8_t> &occupied,
+                                         int tiles_x,
+                                         int tiles_y,
+                                         const std::function<int(std::size_t)> &reach)
+{
+    // Summed-area table: each tile's window is four lookups.
+    const std::size_t sx = std::size_t(tiles_x) + 1;
+    std::vector<int> sum(sx * (std::size_t(tiles_y) + 1), 0);
+    for (int y = 0; y < tiles_y; ++y) {
+        for (int x = 0; x < tiles_x; ++x) {
+            sum[std::size_t(y + 1) * sx + std::size_t(x + 1)] =
+                occupied[std::size_t(y) * std::size_t(tiles_x) + std::size_t(x)] +
+                sum[std::size_t(y) * sx + std::size_t(x + 1)] +
+                sum[std::size_t(y + 1) * sx + std::size_t(x)] -
+                sum[std::size_t(y) * sx + std::size_t(x)];
+        }
+    }
+    std::vector<std::uint8_t> out(occupied.size(), 0);
+    for (int y = 0; y < tiles_y; ++y) {
+        for (int x = 0; x < tiles_x; ++x) {
+            const std::size_t t = std::size_t(y) * std::size_t(tiles_x) + std::size_t(x);
+            const int r = std::max(reach(t), 0);
+            const std::size_t x0 = std::size_t(std::max(x - r, 0)),
+                              x1 = std::size_t(std::min(x + r + 1, tiles_x));
+            const std::size_t y0 = std::size_t(std::max(y - r, 0)),
+                              y1 = std::size_t(std::min(y + r + 1, tiles_y));
+            out[t] =
+                sum[y1 * sx + x1] - sum[y0 * sx + x1] - sum[y1 * sx + x0] + sum[y0 * sx + x0] > 0;
+        }
+    }
+    return out;
+}
+
 }  // namespace posthaste::shading

@@ -4,6 +4,10 @@
 // TileMax / NeighborMax; defocus can reuse them with a circle-of-confusion field). A tile image
 // has one pixel per tile (ceil(W / tile) x ceil(H / tile)), 2 channels: the longest vector.
 
+#include <cstdint>
+#include <functional>
+#include <vector>
+
 #include "core/image.h"
 
 namespace posthaste::shading {
@@ -49,5 +53,19 @@ Image tile_bounds(const Image &field, int tile, int first = 0);
 /// For each tile, the union of the boxes of the tiles within `radius` tiles: how far apart the
 /// vectors that can reach into the tile are (a tile whose box is small moves coherently).
 Image neighbour_bounds(const Image &bounds, int radius);
+
+/// Per tile of a width x height frame: whether any of the four planes (row-major, width per
+/// row) holds a non-zero value in it (NaN counts). tiles_x x tiles_y, row-major.
+std::vector<std::uint8_t> occupied_tiles(const float *const planes[4],
+                                         int width,
+                                         int height,
+                                         int tile);
+
+/// Per tile: whether an occupied tile lies within `reach(tile index)` tiles of it (Chebyshev
+/// distance): where a gather of that reach can read anything but zeros.
+std::vector<std::uint8_t> tiles_in_reach(const std::vector<std::uint8_t> &occupied,
+                                         int tiles_x,
+                                         int tiles_y,
+                                         const std::function<int(std::size_t)> &reach);
 
 }  // namespace posthaste::shading

@@ -5,6 +5,8 @@
 // scene), the planner's optional passes, and the failure cases: non-finite passes, sizes, a still
 // frame's bits.
 
+#include "shading/lighting_split.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -20,6 +22,8 @@
 #include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
+#include "shading/dof_gather.h"
+#include "shading/motion_blur.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -28,6 +32,20 @@ using test::render_options;
 using test::rms_rgb;
 using test::run_node;
 using test::scene_path;
+
+// `image` with the values of `bad` written in turn, one channel at a time, on a grid of steps
+// (sx, sy) over `r`: NaN, infinities and non-depths scattered through a pass.
+template <std::size_t N>
+Image sprinkled(Image image, const Rect &r, int sx, int sy, const float (&bad)[N])
+{
+    std::size_t k = 0;
+    for (int y = r.y0; y < r.y1; y += sy) {
+        for (int x = r.x0; x < r.x1; x += sx, ++k) {
+            image.at(x, y, int(k % std::size_t(image.channels()))) = bad[k % N];
+        }
+    }
+    return image;
+}
 
 const std::set<std::string> kSplitPasses = {
     "color", "depth", "motion", "specular", "specular_motion", "diffuse_motion", "id", "position"};
@@ -283,15 +301,7 @@ TEST(LightingSplit, DofWithBadSharesStaysFinite)
                          -5.0f};
     for (const char *name : {"specular", "specular_depth"}) {
         Frame f = in;
-        Image img = f.image(name);
-        int k = 0;
-        for (int y = 5; y < 50; y += 2) {
-            for (int x = 5; x < 90; x += 3) {
-                img.at(x, y, k % img.channels()) = bad[k % 5];
-                ++k;
-            }
-        }
-        f.set(name, std::move(img));
+        f.set(name, sprinkled(f.image(name), Rect{5, 5, 90, 50}, 3, 2, bad));
         const Frame out = run_node("dof", f, "{}");
         const Image &c = out.image("color");
         for (std::size_t i = 0; i < c.value_count(); ++i) {
@@ -312,15 +322,7 @@ TEST(LightingSplit, StillFrameKeepsItsBitsAndBadPassesStayFinite)
                          -std::numeric_limits<float>::infinity()};
     for (const char *name : {"specular", "specular_motion", "diffuse_motion"}) {
         Frame f = in;
-        Image img = f.image(name);
-        int k = 0;
-        for (int y = 10; y < 40; y += 3) {
-            for (int x = 10; x < 80; x += 5) {
-                img.at(x, y, k % img.channels()) = bad[k % 3];
-                ++k;
-            }
-        }
-        f.set(name, std::move(img));
+        f.set(name, sprinkled(f.image(name), Rect{10, 10, 80, 40}, 5, 3, bad));
         const Frame out = run_node("motion_blur", f, "{}");
         const Image &c = out.image("color");
         for (int y = 0; y < c.height(); ++y) {
@@ -454,6 +456,214 @@ TEST(LightingSplit, ReadTakesTheSharesWhenTheFileHasThem)
     EXPECT_TRUE(with.image("color").bit_equal(direct.image("color")));
     EXPECT_TRUE(without.image("color").bit_equal(as_one.image("color")));
     EXPECT_FALSE(with.image("color").bit_equal(as_one.image("color")));
+}
+
+// A small frame for the filters' own split options: colour with structure, a depth step (near
+// block over far ground), motion that is zero on the left third (still tiles) and fast elsewhere.
+struct SmallScene {
+    Image color, depth, motion;
+};
+
+SmallScene small_scene(int w, int h)
+{
+    SmallScene s{Image(w, h, 4), Image(w, h, 1), Image(w, h, 2)};
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            float *c = s.color.pixel(x, y);
+            c[0] = 0.5f + 0.4f * std::sin(0.3f * float(x));
+            c[1] = 0.3f + 0.2f * std::cos(0.2f * float(y));
+            c[2] = float((x / 5 + y / 7) % 2);
+            c[3] = 1.0f;
+            const bool near = x > w / 2 && y > h / 3;
+            s.depth.at(x, y, 0) = near ? 1.5f : 6.0f + 0.05f * float(y);
+            s.motion.at(x, y, 0) = x < w / 3 ? 0.0f : (near ? 14.0f : -6.0f);
+            s.motion.at(x, y, 1) = x < w / 3 ? 0.0f : 3.0f;
+        }
+    }
+    return s;
+}
+
+// The share placed at `at` (RGBA): a bright blob, zero alpha.
+Image blob_share(int w, int h)
+{
+    Image s(w, h, 4);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const float d2 = float((x - w / 2) * (x - w / 2) + (y - h / 2) * (y - h / 2));
+            for (int k = 0; k < 3; ++k) {
+                s.at(x, y, k) = 3.0f * std::exp(-d2 / 30.0f) * float(k + 1) / 3.0f;
+            }
+        }
+    }
+    return s;
+}
+
+// colour less the share, as the node built it before the filters took `subtract`.
+Image minus_placed(const Image &color, const Image &share, int x0, int y0)
+{
+    Image rest = color;
+    for (int y = 0; y < share.height(); ++y) {
+        for (int x = 0; x < share.width(); ++x) {
+            for (int k = 0; k < 3; ++k) {
+                rest.at(x0 + x, y0 + y, k) = color.at(x0 + x, y0 + y, k) - share.at(x, y, k);
+            }
+        }
+    }
+    return rest;
+}
+
+TEST(LightingSplit, FiltersSubtractTheShareWithoutACopy)
+{
+    // The filters' `subtract` gives the bits of blurring colour less the share (the copy it
+    // replaces), in gathered, still (copied) and in-focus tiles alike.
+    const SmallScene sc = small_scene(96, 64);
+    const Image share = blob_share(40, 30);
+    const int x0 = 20, y0 = 17;  // straddles the still third and the moving rest
+    const Image rest = minus_placed(sc.color, share, x0, y0);
+
+    shading::MotionBlurOptions o;
+    o.max_radius = 16.0f;
+    o.tile = 8;
+    const Image want_mb = shading::motion_blur(rest, sc.motion, sc.depth, o);
+    o.subtract = &share;
+    o.subtract_x0 = x0;
+    o.subtract_y0 = y0;
+    shading::MotionBlurStats st;
+    const Image got_mb = shading::motion_blur(sc.color, sc.motion, sc.depth, o, &st);
+    EXPECT_GT(st.tiles_copied, 0);  // the still third is copied: the copy path subtracts too
+    EXPECT_TRUE(got_mb.bit_equal(want_mb));
+    EXPECT_FALSE(got_mb.bit_equal(shading::motion_blur(sc.color, sc.motion, sc.depth, {})));
+
+    shading::DofLens lens;
+    lens.fstop = 1.4f;
+    lens.focus_m = 1.5f;  // the near block in focus (copied tiles), the ground blurred
+    lens.focal_mm = 50.0f;
+    shading::DofSettings d;
+    d.max_coc_px = 12.0f;
+    Image want_dof, got_dof;
+    ASSERT_TRUE(shading::apply_dof(rest, sc.depth, lens, d, want_dof));
+    d.subtract = &share;
+    d.subtract_x0 = x0;
+    d.subtract_y0 = y0;
+    shading::DofTimes t;
+    ASSERT_TRUE(shading::apply_dof(sc.color, sc.depth, lens, d, got_dof, &t));
+    EXPECT_GT(t.tiles_copied, 0);
+    EXPECT_TRUE(got_dof.bit_equal(want_dof));
+}
+
+TEST(LightingSplit, EmptyTilesAreSkippedWithTheSameBits)
+{
+    // A share holding a blob in one corner: skip_empty copies the tiles no gather can carry it
+    // into, and the result keeps every bit of the full gather.
+    const int w = 160, h = 96;
+    const SmallScene sc = small_scene(w, h);
+    Image sparse(w, h, 4);
+    const Image blob = blob_share(24, 20);
+    for (int y = 0; y < blob.height(); ++y) {
+        for (int x = 0; x < blob.width(); ++x) {
+            for (int k = 0; k < 3; ++k) {
+                sparse.at(100 + x, 60 + y, k) = blob.at(x, y, k);
+            }
+        }
+    }
+    shading::MotionBlurOptions o;
+    o.max_radius = 16.0f;
+    o.tile = 8;
+    shading::MotionBlurStats all, skipped;
+    const Image full = shading::motion_blur(sparse, sc.motion, sc.depth, o, &all);
+    o.skip_empty = true;
+    const Image skip = shading::motion_blur(sparse, sc.motion, sc.depth, o, &skipped);
+    EXPECT_TRUE(skip.bit_equal(full));
+    EXPECT_GT(skipped.tiles_copied, all.tiles_copied + all.tiles_total / 4);
+
+    shading::DofLens lens;
+    lens.fstop = 1.4f;
+    lens.focus_m = 3.0f;  // everything out of focus: every tile gathers without the skip
+    lens.focal_mm = 50.0f;
+    shading::DofSettings d;
+    d.max_coc_px = 12.0f;
+    Image dof_full, dof_skip;
+    shading::DofTimes ta, tb;
+    ASSERT_TRUE(shading::apply_dof(sparse, sc.depth, lens, d, dof_full, &ta));
+    d.skip_empty = true;
+    ASSERT_TRUE(shading::apply_dof(sparse, sc.depth, lens, d, dof_skip, &tb));
+    EXPECT_TRUE(dof_skip.bit_equal(dof_full));
+    EXPECT_GT(tb.tiles_copied, ta.tiles_copied + (ta.tiles_copied + ta.tiles_gathered) / 4);
+}
+
+TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChanged)
+{
+    const int w = 40, h = 30;
+    const shading::SplitRegion r = shading::find_split(w, h, 5, [&](int y, std::uint8_t *row) {
+        for (int x = 0; x < w; ++x) {
+            row[x] = (x == 12 && y == 9) || (x == 20 && y == 14);
+        }
+    });
+    EXPECT_EQ(r.box, (Rect{12, 9, 21, 15}));
+    EXPECT_EQ(r.crop, (Rect{7, 4, 26, 20}));
+    EXPECT_TRUE(r.at(20, 14));
+    EXPECT_FALSE(r.at(13, 9));
+    const shading::SplitRegion none =
+        shading::find_split(w, h, 5, [&](int, std::uint8_t *row) { std::fill_n(row, w, 0); });
+    EXPECT_TRUE(none.empty());
+    // Clipped at the frame.
+    const shading::SplitRegion edge = shading::find_split(w, h, 8, [&](int y, std::uint8_t *row) {
+        for (int x = 0; x < w; ++x) {
+            row[x] = x == 1 && y == 28;
+        }
+    });
+    EXPECT_EQ(edge.crop, (Rect{0, 20, 10, 30}));
+
+    Image spec(w, h, 3), color(w, h, 4);
+    spec.at(12, 9, 0) = 2.0f;
+    spec.at(12, 9, 1) = std::numeric_limits<float>::quiet_NaN();  // read as 0
+    spec.at(13, 9, 0) = 7.0f;                                     // not parting: left in color
+    color.fill(1.0f);
+    const Image share = shading::share_color(spec, r);
+    EXPECT_EQ(share.width(), 19);
+    EXPECT_EQ(share.at(5, 5, 0), 2.0f);
+    EXPECT_EQ(share.at(5, 5, 1), 0.0f);
+    EXPECT_EQ(share.at(6, 5, 0), 0.0f);
+    // The rest's blur moved 0.25 of its value from (12, 9) to (13, 9); the share's blur spread
+    // the 2 into 1 + 1 over (12, 9) and (11, 9).
+    Image out = color;
+    out.at(12, 9, 0) = (1.0f - 2.0f) * 0.75f;
+    out.at(13, 9, 0) = 1.0f + 0.25f * (1.0f - 2.0f);
+    Image blurred = share;
+    blurred.at(5, 5, 0) = 1.0f;
+    blurred.at(4, 5, 0) = 1.0f;
+    shading::compose_split(color, share, blurred, r, false, out);
+    EXPECT_FLOAT_EQ(out.at(12, 9, 0),
+                    1.0f + ((1.0f - 2.0f) * 0.75f - (1.0f - 2.0f)) + (1.0f - 2.0f));
+    EXPECT_FLOAT_EQ(out.at(11, 9, 0), 2.0f);
+    EXPECT_FLOAT_EQ(out.at(13, 9, 0), 0.75f);
+    EXPECT_EQ(out.at(30, 25, 0), 1.0f);  // outside the crop: the rest's blur
+    EXPECT_EQ(out.at(12, 9, 3), 1.0f);   // alpha: the rest's blur
+    // A rest whose blur changed nothing (out still holds color): color plus the share's change.
+    Image still = color;
+    shading::compose_split(color, share, blurred, r, true, still);
+    EXPECT_FLOAT_EQ(still.at(12, 9, 0), 1.0f + (1.0f - 2.0f));
+    EXPECT_FLOAT_EQ(still.at(11, 9, 0), 2.0f);
+}
+
+TEST(LightingSplit, DofRefusesAShareWithoutRGB)
+{
+    const raster::Scene s = raster::load_scene(scene_path("minecrappy.json"));
+    Frame in = raster::render_frame(
+        s, 48, render_options(96, 54, {"color", "depth", "specular", "specular_depth"}));
+    Frame odd = in;
+    // A pass of another size cannot enter the frame; a one-channel specular can, and is refused.
+    odd.set("specular", Image(96, 54, 1));
+    try {
+        run_node("dof", odd, "{}");
+        FAIL() << "expected an error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("lighting split needs RGB color and specular"),
+                  std::string::npos)
+            << e.what();
+    }
+    // specular: off does not read the shares.
+    EXPECT_NO_THROW(run_node("dof", odd, R"({"specular": "off"})"));
 }
 
 }  // namespace

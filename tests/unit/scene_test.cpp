@@ -72,6 +72,11 @@ TEST(Scene, ErrorsNameFileAndPath)
     EXPECT_NE(error_of(base + R"(, "boxes": [{"material": 9}]})").find("/boxes/0/material"),
               std::string::npos);
     EXPECT_NE(error_of(R"({"materials": [{"id": 1}]})").find("/camera"), std::string::npos);
+    EXPECT_NE(error_of(base + R"(, "balls": [{"spin_deg": 30, "spin_axis": [0, 0, 0]}]})")
+                  .find("test.json:/balls/0/spin_axis: expected a non-zero vector"),
+              std::string::npos);
+    EXPECT_NE(error_of(base + R"(, "balls": [{"spin_deg": 200}]})").find("/balls/0/spin_deg"),
+              std::string::npos);
     EXPECT_NE(error_of("{nope").find("invalid JSON"), std::string::npos);
     EXPECT_NE(error_of(base + R"(, "world": {"terrain": "procedural"}})").find("grass"),
               std::string::npos);

@@ -1,0 +1,92 @@
+#include "shading/lighting_split.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/parallel.h"
+
+namespace posthaste::shading {
+
+SplitRegion find_split(int width,
+                       int height,
+                       int reach,
+                       const std::function<void(int y, std::uint8_t *row)> &mark_row)
+{
+    SplitRegion r;
+    r.width = width;
+    r.height = height;
+    r.parts.assign(std::size_t(width) * std::size_t(height), 0);
+    std::vector<int> first(std::size_t(height), width), last(std::size_t(height), -1);
+    parallel_for(0, height, [&](int y) {
+        std::uint8_t *row = r.parts.data() + std::size_t(y) * std::size_t(width);
+        mark_row(y, row);
+        for (int x = 0; x < width; ++x) {
+            if (row[x]) {
+                first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
+                last[std::size_t(y)] = x;
+            }
+        }
+    });
+    Rect box{width, height, 0, 0};
+    for (int y = 0; y < height; ++y) {
+        if (last[std::size_t(y)] >= 0) {
+            box = Rect{std::min(box.x0, first[std::size_t(y)]),
+                       std::min(box.y0, y),
+                       std::max(box.x1, last[std::size_t(y)] + 1),
+                       y + 1};
+        }
+    }
+    if (box.empty()) {
+        return r;
+    }
+    r.box = box;
+    r.crop = box.expand(std::max(reach, 0)).intersect(Rect{0, 0, width, height});
+    return r;
+}
+
+Image share_color(const Image &specular, const SplitRegion &region)
+{
+    const Rect &c = region.crop;
+    Image share = Image::uninitialized(c.width(), c.height(), 4);
+    parallel_for(0, c.height(), [&](int j) {
+        const int y = c.y0 + j;
+        for (int i = 0; i < c.width(); ++i) {
+            const int x = c.x0 + i;
+            const bool parts = region.at(x, y);
+            const float *sp = specular.pixel(x, y);
+            float *d = share.pixel(i, j);
+            for (int k = 0; k < 3; ++k) {
+                d[k] = parts && std::isfinite(sp[k]) ? sp[k] : 0.0f;
+            }
+            d[3] = 0.0f;
+        }
+    });
+    return share;
+}
+
+void compose_split(const Image &color,
+                   const Image &share,
+                   const Image &share_blurred,
+                   const SplitRegion &region,
+                   bool rest_still,
+                   Image &out)
+{
+    const Rect &c = region.crop;
+    const int cc = std::min(color.channels(), 3);
+    parallel_for(0, c.height(), [&](int j) {
+        const int y = c.y0 + j;
+        for (int i = 0; i < c.width(); ++i) {
+            const int x = c.x0 + i;
+            const float *col = color.pixel(x, y);
+            const float *s0 = share.pixel(i, j), *s1 = share_blurred.pixel(i, j);
+            float *q = out.pixel(x, y);
+            for (int k = 0; k < cc; ++k) {
+                const float rest = col[k] - s0[k];  // the bits the filter subtracted
+                const float changed = rest_still ? 0.0f : q[k] - rest;
+                q[k] = col[k] + changed + (s1[k] - s0[k]);
+            }
+        }
+    });
+}
+
+}  // namespace posthaste::shading

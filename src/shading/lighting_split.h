@@ -1,0 +1,58 @@
+#pragma once
+// The lighting split's bookkeeping, shared by the dof and motion_blur nodes: a highlight's
+// image moves (and focuses) apart from the surface that shows it, so where a pixel's specular
+// share parts ways with the rest of its colour it is blurred on its own and added back.
+// find_split marks those pixels once and bounds them; share_color lifts the share out of them
+// over the crop where its blur runs; the filter then blurs colour less the share in place
+// (MotionBlurOptions / DofSettings `subtract`, no copy of the frame), and compose_split adds
+// what each blur changed. The node keeps only what is its own: which pixels part ways, and the
+// geometry (motion or depth) the share is blurred with.
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "core/image.h"
+
+namespace posthaste::shading {
+
+/// The pixels whose share parts ways, and where the share's blur runs.
+struct SplitRegion {
+    int width = 0, height = 0;        ///< The frame's size.
+    Rect box;                         ///< Bounds of the parting pixels (empty: none).
+    Rect crop;                        ///< box grown by the reach, clipped to the frame.
+    std::vector<std::uint8_t> parts;  ///< Per frame pixel, row-major: 1 where it parts ways.
+    bool empty() const { return box.empty(); }
+    bool at(int x, int y) const
+    {
+        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] != 0;
+    }
+};
+
+/// Mark the parting pixels of a width x height frame, one row at a time (`mark_row(y, row)`
+/// writes 0 or 1 for each of the row's pixels), and bound them; the crop is the box grown by
+/// `reach` on every side (what a blur spreads from the box and gathers into it). Rows run in
+/// parallel; the result does not depend on the thread count.
+SplitRegion find_split(int width,
+                       int height,
+                       int reach,
+                       const std::function<void(int y, std::uint8_t *row)> &mark_row);
+
+/// The share over the region's crop, RGBA (the filters' packed path): the first three channels
+/// of `specular` at parting pixels (non-finite values as 0), zero elsewhere and in alpha. This
+/// is what the filter subtracts from colour (its rest) and what the second blur spreads.
+Image share_color(const Image &specular, const SplitRegion &region);
+
+/// Add what the share's blur changed to `out`, the blur of colour less the share, over the
+/// crop: out = color + (out - rest) + (share_blurred - share), rest = color - share, so a
+/// pixel both blurs leave alone keeps color's bits. `rest_still`: the rest's blur changed
+/// nothing (a filter that returned its input), and `out` is a copy of color. Channels past the
+/// third keep the rest's blur.
+void compose_split(const Image &color,
+                   const Image &share,
+                   const Image &share_blurred,
+                   const SplitRegion &region,
+                   bool rest_still,
+                   Image &out);
+
+}  // namespace posthaste::shading
