@@ -32,23 +32,27 @@ std::span<const CanonicalPass> canonical_passes()
          {"R", "G", "B"},
          true,
          "the view-dependent share of color (reflections, highlights); color less it moves "
-         "with the surface"},
+         "with the surface",
+         true},
         {kSpecularMotion,
          "specular_motion",
          {"X", "Y"},
          false,
-         "how the specular share moves, pixels from the previous frame, y down"},
+         "how the specular share moves, pixels from the previous frame, y down",
+         true},
         {kDiffuseMotion,
          "diffuse_motion",
          {"X", "Y"},
          false,
-         "how color less the specular share moves, pixels from the previous frame, y down"},
+         "how color less the specular share moves, pixels from the previous frame, y down",
+         true},
         {kSpecularDepth,
          "specular_depth",
          {"Z"},
          false,
          "the camera depth of the specular share's image (a highlight's virtual image), +inf on "
-         "the sky"},
+         "the sky",
+         true},
     };
     return kTable;
 }

@@ -38,6 +38,10 @@ struct CanonicalPass {
     std::vector<std::string_view> channels;  ///< Channel suffixes, in order.
     bool half_by_default;  ///< Written as half unless asked otherwise (color, albedo).
     std::string_view meaning;
+    /// Describes the lighting split of the colour it came with (the specular share, how it
+    /// moves and where it focuses): worth asking for only through nodes that keep that colour's
+    /// split valid (NodeSpec::keeps_specular).
+    bool of_color_split = false;
 };
 
 /// All canonical passes, in a stable order.

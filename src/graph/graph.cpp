@@ -195,13 +195,12 @@ void Graph::plan()
             }
             if (!spec.keeps_specular) {
                 // Its output would drop a specular pass as stale (drop_stale_specular) if it
-                // changes color: asking for one optionally, and for the motions that go with it,
+                // changes color: asking for one optionally, and for the passes that go with it,
                 // would be wasted work.
-                for (const char *p : {pass::kSpecular,
-                                      pass::kSpecularMotion,
-                                      pass::kDiffuseMotion,
-                                      pass::kSpecularDepth}) {
-                    through.optional.erase(p);
+                for (const pass::CanonicalPass &p : pass::canonical_passes()) {
+                    if (p.of_color_split) {
+                        through.optional.erase(std::string(p.name));
+                    }
                 }
             }
             gn.input_passes[0].add(through);
