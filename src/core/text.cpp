@@ -2,6 +2,18 @@
 
 namespace posthaste {
 
+std::string join(const std::vector<std::string> &items, std::string_view sep)
+{
+    std::string s;
+    for (const std::string &i : items) {
+        if (!s.empty()) {
+            s += sep;
+        }
+        s += i;
+    }
+    return s;
+}
+
 std::string xml_escape(const std::string &text)
 {
     std::string out;

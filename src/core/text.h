@@ -1,9 +1,15 @@
 #pragma once
-// Text for the HTML, SVG and XML reports (bench charts, diff and suite reports, JUnit).
+// Text for messages and reports: lists joined for one-line errors, and escaping for the HTML,
+// SVG and XML reports (bench charts, diff and suite reports, JUnit).
 
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace posthaste {
+
+/// The items with `sep` between them ("a, b, c"; empty for none).
+std::string join(const std::vector<std::string> &items, std::string_view sep = ", ");
 
 /// `text` safe inside XML or HTML text and attribute values: & < > " ' escaped, and the control
 /// characters XML 1.0 does not allow (all below 0x20 but tab, newline and carriage return)

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/text.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
@@ -47,15 +48,6 @@ const ConfigHolder &config_holder()
         return h;
     }();
     return holder;
-}
-
-std::string joined(const std::vector<std::string> &v)
-{
-    std::string s;
-    for (const std::string &x : v) {
-        s += (s.empty() ? "" : ", ") + x;
-    }
-    return s;
 }
 
 }  // namespace
@@ -112,7 +104,7 @@ void require_space(const std::string &name, const std::string &where)
                     "\" in ",
                     color_config_source(),
                     " (have: ",
-                    joined(color_space_names()),
+                    join(color_space_names()),
                     ")");
     }
 }
@@ -147,7 +139,7 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
     require_space(from, where);
     const std::vector<std::string> displays = color_display_names();
     if (std::find(displays.begin(), displays.end(), display) == displays.end()) {
-        throw_usage(where, ": unknown display \"", display, "\" (have: ", joined(displays), ")");
+        throw_usage(where, ": unknown display \"", display, "\" (have: ", join(displays), ")");
     }
     const std::vector<std::string> views = color_view_names(display);
     if (std::find(views.begin(), views.end(), view) == views.end()) {
@@ -157,7 +149,7 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
                     "\" for display \"",
                     display,
                     "\" (have: ",
-                    joined(views),
+                    join(views),
                     ")");
     }
     auto impl = std::make_shared<Impl>();

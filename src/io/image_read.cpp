@@ -22,6 +22,7 @@
 #include "core/parallel.h"
 #include "core/passes.h"
 #include "core/srgb.h"
+#include "core/text.h"
 #include "io/image_file.h"
 #include "io/io_detail.h"
 #include "io/source_file.h"
@@ -33,15 +34,6 @@ using namespace io_detail;
 namespace {
 
 namespace fs = std::filesystem;
-
-std::string join(const std::vector<std::string> &v)
-{
-    std::string s;
-    for (const std::string &e : v) {
-        s += (s.empty() ? "" : ", ") + e;
-    }
-    return s;
-}
 
 std::vector<std::string> split_dots(const std::string &name)
 {
