@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include "cli/commands.h"
+#include "cli/farm_job.h"
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
@@ -27,8 +28,16 @@
 namespace posthaste::cli {
 namespace {
 
+using farm::capture;
+using farm::check_command;
+using farm::frame_states;
+using farm::FrameState;
+using farm::json;
+using farm::load_job_graph;
+using farm::on_path;
+using farm::read_json;
+using farm::status_command;
 namespace fs = std::filesystem;
-using json = nlohmann::json;
 
 struct SlurmOptions {
     int max_running = 0;
@@ -58,34 +67,6 @@ std::string shell_quote(const std::string &s)
     return q + "'";
 }
 
-/// Run a command; its stdout, and whether it exited 0.
-bool capture(const std::string &command, std::string &out)
-{
-    out.clear();
-    FILE *pipe = ::popen((command + " 2>&1").c_str(), "r");
-    if (!pipe) {
-        return false;
-    }
-    char buf[4096];
-    while (std::size_t n = std::fread(buf, 1, sizeof(buf), pipe)) {
-        out.append(buf, n);
-    }
-    return ::pclose(pipe) == 0;
-}
-
-bool on_path(const std::string &program)
-{
-    const char *path = std::getenv("PATH");
-    std::stringstream ss(path ? path : "");
-    std::string dir;
-    while (std::getline(ss, dir, ':')) {
-        if (!dir.empty() && ::access((dir + "/" + program).c_str(), X_OK) == 0) {
-            return true;
-        }
-    }
-    return false;
-}
-
 void require_slurm(const std::string &program)
 {
     if (!on_path(program)) {
@@ -102,19 +83,6 @@ std::string self_binary()
     std::error_code ec;
     const fs::path p = fs::read_symlink("/proc/self/exe", ec);
     return ec ? std::string("posthaste") : p.string();
-}
-
-json read_json(const fs::path &path)
-{
-    std::ifstream in(path);
-    if (!in) {
-        throw_runtime(path.string(), ": cannot read (not a farm job directory?)");
-    }
-    try {
-        return json::parse(in);
-    } catch (const json::exception &e) {
-        throw_runtime(path.string(), ": malformed job file: ", e.what());
-    }
 }
 
 /// The graph file with the --set values written into its node params (values parsed as JSON
@@ -253,192 +221,6 @@ void submit(json &job, const fs::path &dir, int s)
     sub["check_job"] = sbatch("--dependency=afterany:" + sub["array_job"].get<std::string>() +
                               " --kill-on-invalid-dep=yes " + shell_quote(check.string()));
     write_text_file((dir / "job.json").string(), job.dump(2) + "\n");
-}
-
-/// Load the job's graph from its working directory (graph paths are relative to it).
-Graph load_job_graph(const json &job, const fs::path &dir)
-{
-    std::error_code ec;
-    fs::current_path(job["cwd"].get<std::string>(), ec);
-    if (ec) {
-        throw_runtime(dir.string(), ": cannot enter the job's working directory ", job["cwd"]);
-    }
-    return Graph::load((dir / "graph.json").string(), nodes::catalog());
-}
-
-// ---------------------------------------------------------------------------------------------
-// Status
-
-struct FrameState {
-    std::string state = "missing";  ///< done, failed, running, queued, missing
-    std::string error;
-    double seconds = -1.0;
-    int submission = -1, chunk = -1;
-};
-
-/// squeue's view of the job's tasks: "JOB_TASK" -> state (RUNNING, PENDING...).
-std::map<std::string, std::string> scheduler_states(const json &job)
-{
-    std::map<std::string, std::string> states;
-    if (!on_path("squeue")) {
-        return states;
-    }
-    std::string ids;
-    for (const json &sub : job["submissions"]) {
-        if (sub.contains("array_job")) {
-            ids += (ids.empty() ? "" : ",") + sub["array_job"].get<std::string>();
-        }
-    }
-    if (ids.empty()) {
-        return states;
-    }
-    std::string out;
-    capture("squeue -h -r -j " + ids + " -o '%i %T'", out);
-    std::istringstream lines(out);
-    std::string id, state;
-    while (lines >> id >> state) {
-        states[id] = state;
-    }
-    return states;
-}
-
-std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, const Graph &graph)
-{
-    std::map<int, FrameState> states;
-    for (int f : job["frames"].get<std::vector<int>>()) {
-        states[f];
-    }
-    // The latest submission holding each frame, and the log lines (in submission order).
-    const json &subs = job["submissions"];
-    for (std::size_t s = 0; s < subs.size(); ++s) {
-        for (std::size_t k = 0; k < subs[s]["chunks"].size(); ++k) {
-            for (int f : subs[s]["chunks"][k].get<std::vector<int>>()) {
-                FrameState &st = states[f];
-                st = FrameState{};
-                st.submission = int(s);
-                st.chunk = int(k);
-            }
-            std::ifstream log(dir / "logs" /
-                              ("s" + std::to_string(s) + "-chunk" + std::to_string(k) + ".jsonl"));
-            std::string line;
-            while (std::getline(log, line)) {
-                const json l = json::parse(line, nullptr, false);
-                if (l.is_discarded() || !l.contains("frame")) {
-                    continue;  // a line cut by a killed task
-                }
-                FrameState &st = states[l["frame"].get<int>()];
-                if (st.submission != int(s)) {
-                    continue;
-                }
-                st.seconds = l.value("seconds", -1.0);
-                st.error = l.value("error", "");
-                st.state = l.value("status", "") == "failed" ? "failed" : "logged";
-            }
-        }
-    }
-    const std::map<std::string, std::string> sched = scheduler_states(job);
-    // Read every output back, frames in parallel (the check job's main cost).
-    std::vector<int> numbers;
-    for (const auto &[f, st] : states) {
-        numbers.push_back(f);
-    }
-    std::vector<std::string> damaged_of(numbers.size());
-    std::vector<char> whole_of(numbers.size(), 0);
-    parallel_for(0, int(numbers.size()), [&](int i) {
-        const std::vector<std::string> outputs = graph.outputs(numbers[std::size_t(i)]);
-        bool whole = !outputs.empty();
-        for (const std::string &p : outputs) {
-            std::error_code ec;
-            if (!fs::exists(p, ec)) {
-                whole = false;
-                continue;
-            }
-            if (const std::string problem = verify_image_file(p); !problem.empty()) {
-                whole = false;
-                damaged_of[std::size_t(i)] = problem;
-            }
-        }
-        whole_of[std::size_t(i)] = whole;
-    });
-    for (std::size_t i = 0; i < numbers.size(); ++i) {
-        FrameState &st = states[numbers[i]];
-        const bool whole = whole_of[i] != 0;
-        const std::string &damaged = damaged_of[i];
-        if (whole) {
-            st.state = "done";
-            st.error.clear();
-            continue;
-        }
-        if (st.state == "failed") {
-            continue;
-        }
-        st.state = "missing";
-        st.error = damaged;
-        if (st.submission >= 0 && subs[std::size_t(st.submission)].contains("array_job")) {
-            const std::string task =
-                subs[std::size_t(st.submission)]["array_job"].get<std::string>() + "_" +
-                std::to_string(st.chunk);
-            if (auto it = sched.find(task); it != sched.end()) {
-                const std::string &s = it->second;
-                st.state = s == "RUNNING" || s == "COMPLETING"                       ? "running"
-                           : s == "PENDING" || s == "CONFIGURING" || s == "REQUEUED" ? "queued"
-                                                                                     : "missing";
-            }
-        }
-    }
-    return states;
-}
-
-json status_json(const std::map<int, FrameState> &states)
-{
-    json frames = json::array();
-    std::map<std::string, int> counts = {
-        {"done", 0}, {"failed", 0}, {"running", 0}, {"queued", 0}, {"missing", 0}};
-    for (const auto &[f, st] : states) {
-        ++counts[st.state];
-        json j = {{"frame", f}, {"state", st.state}};
-        if (!st.error.empty()) {
-            j["error"] = st.error;
-        }
-        if (st.seconds >= 0.0) {
-            j["seconds"] = st.seconds;
-        }
-        frames.push_back(std::move(j));
-    }
-    return {{"frames", frames}, {"counts", counts}, {"total", states.size()}};
-}
-
-std::string summary_line(const json &status)
-{
-    const json &c = status["counts"];
-    std::ostringstream o;
-    o << c["done"].get<int>() << "/" << status["total"].get<std::size_t>() << " done, "
-      << c["failed"].get<int>() << " failed, " << c["running"].get<int>() << " running, "
-      << c["queued"].get<int>() << " queued, " << c["missing"].get<int>() << " missing";
-    return o.str();
-}
-
-int status_command(const std::string &dir_text, bool as_json)
-{
-    const fs::path dir = fs::absolute(dir_text);
-    const json job = read_json(dir / "job.json");
-    const Graph graph = load_job_graph(job, dir);
-    const json status = status_json(frame_states(job, dir, graph));
-    if (as_json) {
-        std::printf("%s\n", status.dump(2).c_str());
-    } else {
-        for (const json &f : status["frames"]) {
-            if (f["state"] != "done") {
-                std::printf("frame %d: %s%s%s\n",
-                            f["frame"].get<int>(),
-                            f["state"].get<std::string>().c_str(),
-                            f.contains("error") ? ": " : "",
-                            f.value("error", "").c_str());
-            }
-        }
-        std::printf("%s\n", summary_line(status).c_str());
-    }
-    return status["counts"]["done"].get<int>() == int(status["total"].get<std::size_t>()) ? 0 : 1;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -636,84 +418,6 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
         throw Error(ExitCode(code), failure);
     }
     return code;
-}
-
-std::string html_escape(const std::string &s)
-{
-    std::string o;
-    for (char c : s) {
-        o += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
-    }
-    return o;
-}
-
-int check_command(const std::string &dir_text)
-{
-    const fs::path dir = fs::absolute(dir_text);
-    const json job = read_json(dir / "job.json");
-    const Graph graph = load_job_graph(job, dir);
-    json report = status_json(frame_states(job, dir, graph));
-    // Time per frame, the slowest frames, and node times summed over every chunk's log.
-    std::vector<std::pair<double, int>> times;
-    for (const json &f : report["frames"]) {
-        if (f.contains("seconds")) {
-            times.emplace_back(f["seconds"].get<double>(), f["frame"].get<int>());
-        }
-    }
-    std::sort(times.rbegin(), times.rend());
-    json slowest = json::array();
-    for (std::size_t i = 0; i < std::min<std::size_t>(5, times.size()); ++i) {
-        slowest.push_back({{"frame", times[i].second}, {"seconds", times[i].first}});
-    }
-    std::map<std::string, double> nodes;
-    for (const auto &entry : fs::directory_iterator(dir / "logs")) {
-        if (entry.path().string().ends_with(".nodes.json")) {
-            std::ifstream in(entry.path());
-            const json n = json::parse(in, nullptr, false);
-            if (n.is_object()) {
-                for (auto it = n.begin(); it != n.end(); ++it) {
-                    nodes[it.key()] += it.value().get<double>();
-                }
-            }
-        }
-    }
-    double total = 0.0;
-    for (const auto &[t, f] : times) {
-        total += t;
-    }
-    report["seconds_per_frame"] = times.empty() ? 0.0 : total / double(times.size());
-    report["slowest"] = slowest;
-    report["node_seconds"] = nodes;
-    write_text_file((dir / "report.json").string(), report.dump(2) + "\n");
-
-    std::ostringstream h;
-    h << "<!doctype html><meta charset=utf-8><title>posthaste farm report</title>"
-      << "<style>body{font-family:sans-serif}td,th{padding:2px 8px;text-align:left}"
-      << ".failed{color:#b00}.missing{color:#a60}</style>"
-      << "<h1>" << html_escape(dir.filename().string()) << "</h1><p>" << summary_line(report)
-      << "; " << report["seconds_per_frame"].get<double>() << " s per frame</p>"
-      << "<h2>Frames not done</h2><table><tr><th>frame<th>state<th>error";
-    for (const json &f : report["frames"]) {
-        if (f["state"] != "done") {
-            h << "<tr class=" << f["state"].get<std::string>() << "><td>" << f["frame"].get<int>()
-              << "<td>" << f["state"].get<std::string>() << "<td>"
-              << html_escape(f.value("error", ""));
-        }
-    }
-    h << "</table><h2>Slowest frames</h2><table><tr><th>frame<th>seconds";
-    for (const json &s : slowest) {
-        h << "<tr><td>" << s["frame"].get<int>() << "<td>" << s["seconds"].get<double>();
-    }
-    h << "</table><h2>Node time, summed</h2><table><tr><th>node<th>seconds";
-    for (const auto &[n, s] : nodes) {
-        h << "<tr><td>" << html_escape(n) << "<td>" << s;
-    }
-    h << "</table>\n";
-    write_text_file((dir / "report.html").string(), h.str());
-    std::printf("%s\n", summary_line(report).c_str());
-    const bool all_done =
-        report["counts"]["done"].get<int>() == int(report["total"].get<std::size_t>());
-    return all_done ? 0 : 1;
 }
 
 }  // namespace
