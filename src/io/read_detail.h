@@ -1,0 +1,73 @@
+#pragma once
+// Internal to the reader (image_read.cpp): how a file's channels map onto views and passes
+// (read_views.cpp), and the files OpenImageIO does not hand over as flat native pixels:
+// luminance/chroma EXRs and deep parts (read_converted.cpp).
+
+#include <OpenImageIO/imageio.h>
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+#include "io/aliases.h"
+#include "io/image_file.h"
+
+namespace posthaste::io_detail {
+
+/// Which part of a file each channel belongs to, and under which view and name it maps.
+struct MappedChannel {
+    int part, channel;
+    std::string view;
+    std::string name;  ///< Name used for pass mapping: view removed, part layer added.
+};
+
+/// The views of a file and each channel's view and mapping name.
+void assign_views(const std::vector<OIIO::ImageSpec> &specs,
+                  FileInfo &info,
+                  std::vector<MappedChannel> &channels,
+                  bool &single_part_views);
+
+/// Map the channels of each view onto passes; the chosen view's keep their names, others become
+/// "pass@view". View-less channels of a multi-view file count as the chosen view's.
+std::vector<PassSource> map_views(const FileInfo &info,
+                                  const std::vector<MappedChannel> &channels,
+                                  const std::vector<AliasRule> &rules,
+                                  const std::string &convention,
+                                  std::vector<RefusedPass> *refused);
+
+/// Throws a one-line error naming the file and part when a window is empty or over the limits.
+void check_window(const std::string &path, int part, const char *which, const Rect &w);
+
+/// A part's needed channel span, at native pixel types (converted by the caller, in parallel,
+/// rather than by OIIO on one thread), or as floats for converted files.
+struct PartPixels {
+    int chbegin = 0, chend = 0;
+    std::size_t pixel_bytes = 0;
+    struct Channel {
+        std::size_t offset = 0;  ///< Byte offset within a pixel.
+        OIIO::TypeDesc type;
+    };
+    std::vector<Channel> channels;          ///< By channel - chbegin.
+    std::shared_ptr<unsigned char[]> data;  ///< Not zero-filled: every byte is read into.
+    std::size_t bytes = 0;
+};
+
+/// An uninitialised byte buffer (a zero fill of a 1080p all-pass frame cost a third of a read),
+/// counted against the memory budget like a pass image of `width` x `height` x `channels`.
+std::shared_ptr<unsigned char[]> raw_bytes(std::size_t n, int width, int height, int channels);
+
+/// True for an EXR whose RGBA interface reports chroma channels (Y, RY, BY).
+bool is_luminance_chroma(const std::string &path);
+/// The header of a luminance/chroma file, read through OpenEXR's RGBA interface.
+FileInfo luminance_chroma_info(const std::string &path);
+/// Every channel of part 0 of a luminance/chroma file, as RGB(A) floats.
+PartPixels read_luminance_chroma(const std::string &path, const FilePart &part);
+
+/// A deep part flattened: per pixel the samples sorted by Z (stable), composited front to back
+/// with `over` on premultiplied values (c += (1 - a_acc) * c_s; alpha likewise), Z the nearest
+/// sample's (+inf for an empty pixel), every other channel composited like a colour. Floats.
+PartPixels flatten_deep(OIIO::ImageInput &in, int sub, const std::string &path);
+
+}  // namespace posthaste::io_detail

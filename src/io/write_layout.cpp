@@ -1,0 +1,407 @@
+// The EXR writer's output layout (io/write_layout.h): which parts and channels a frame is written
+// as, their pixel types, windows and header attributes.
+
+#include "io/write_layout.h"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "core/error.h"
+#include "core/passes.h"
+#include "io/color.h"
+#include "io/io_detail.h"
+
+namespace posthaste::io_detail {
+
+namespace {
+
+bool is_lossy(const std::string &compression)
+{
+    const std::string base = compression.substr(0, compression.find(':'));
+    return base == "dwaa" || base == "dwab" || base == "pxr24" || base == "b44" || base == "b44a";
+}
+
+OIIO::TypeDesc storage_type(PixelStorage s)
+{
+    return s == PixelStorage::Half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
+}
+
+/// The storage asked for a pass: the write's per-pass setting, else the pass's own hint.
+PixelStorage asked_storage(const std::string &name, const Pass &p, const WriteOptions &options)
+{
+    if (auto it = options.storage.find(name); it != options.storage.end()) {
+        return it->second;
+    }
+    return p.storage;
+}
+
+PixelStorage default_storage(const std::string &name)
+{
+    const std::string base = name.substr(0, name.find('@'));
+    const pass::CanonicalPass *cp = pass::find_canonical(base);
+    return cp && cp->half_by_default ? PixelStorage::Half : PixelStorage::Float;
+}
+
+bool is_data_pass(const std::string &name)
+{
+    const std::string base = name.substr(0, name.find('@'));
+    return !(base == pass::kColor || base == pass::kAlbedo);
+}
+
+OIIO::ImageSpec fresh_spec(const Frame &frame)
+{
+    OIIO::ImageSpec spec(1, 1, 1, OIIO::TypeDesc::FLOAT);
+    for (const OIIO::ParamValue &p : frame.attributes) {
+        spec.extra_attribs.push_back(p);
+    }
+    write_camera(frame.camera, spec);
+    return spec;
+}
+
+/// Insert a view into a channel name, OpenEXR's single-part multi-view way ("N.X" -> "N.right.X",
+/// "R" -> "right.R").
+std::string with_view(const std::string &name, const std::string &view)
+{
+    const auto dot = name.rfind('.');
+    return dot == std::string::npos ? view + "." + name
+                                    : name.substr(0, dot) + "." + view + name.substr(dot);
+}
+
+/// The name of a channel next to `sibling` in the same layer: "ViewLayer.Combined.R" + "A" ->
+/// "ViewLayer.Combined.A".
+std::string sibling_name(const std::string &sibling, const std::string &suffix)
+{
+    const auto dot = sibling.rfind('.');
+    return dot == std::string::npos ? suffix : sibling.substr(0, dot + 1) + suffix;
+}
+
+void add_channel(OutPart &part, OutChannel c, const std::string &path)
+{
+    if (part.find(c.name) >= 0) {
+        throw_runtime(path,
+                      ": two passes would write channel \"",
+                      c.name,
+                      "\" (pass \"",
+                      c.pass,
+                      "\" and pass \"",
+                      part.channels[std::size_t(part.find(c.name))].pass,
+                      "\"); rename one with a channels node");
+    }
+    part.channels.push_back(std::move(c));
+}
+
+/// Add the pass `name` to `part` under canonical channel names ("N.X"; with `view`, OpenEXR's
+/// single-part multi-view names "N.right.X").
+void add_canonical(OutPart &part,
+                   const std::string &name,
+                   const Pass &p,
+                   const WriteOptions &options,
+                   const std::string &view,
+                   const std::string &path)
+{
+    PixelStorage s = asked_storage(name, p, options);
+    if (s == PixelStorage::Auto) {
+        s = default_storage(name);
+    }
+    const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+    for (std::size_t k = 0; k < exr.size(); ++k) {
+        OutChannel c;
+        c.name = view.empty() ? exr[k] : with_view(exr[k], view);
+        c.type = storage_type(s);
+        c.pass = name;
+        c.data_pass = is_data_pass(name);
+        c.image = p.image.get();
+        c.k = int(k);
+        add_channel(part, std::move(c), path);
+    }
+}
+
+/// True when every value of channel k equals `v` (a constant channel a node left alone).
+bool channel_is(const Image &img, int k, float v)
+{
+    const std::size_t n = img.pixel_count(), nch = std::size_t(img.channels());
+    for (std::size_t i = 0; i < n; ++i) {
+        if (img.data()[i * nch + std::size_t(k)] != v) {
+            return false;
+        }
+    }
+    return true;
+}
+
+}  // namespace
+
+std::vector<std::string> passes_to_write(const Frame &frame, const WriteOptions &options)
+{
+    std::vector<std::string> names = options.passes;
+    if (!names.empty()) {
+        return names;
+    }
+    names = frame.pass_names();
+    std::stable_sort(names.begin(), names.end(), [](const std::string &a, const std::string &b) {
+        auto rank = [](const std::string &n) {
+            int i = 0;
+            for (const pass::CanonicalPass &cp : pass::canonical_passes()) {
+                if (cp.name == n) {
+                    return i;
+                }
+                ++i;
+            }
+            return 1000;
+        };
+        return rank(a) < rank(b);
+    });
+    return names;
+}
+
+std::vector<OutPart> rebuilt_layout(const Frame &frame,
+                                    const std::vector<std::string> &names,
+                                    bool multipart,
+                                    const WriteOptions &options,
+                                    const std::string &path)
+{
+    std::vector<OutPart> parts;
+    for (const std::string &name : names) {
+        const Pass &p = frame.pass(name, path);
+        if (multipart || parts.empty()) {
+            OutPart part;
+            part.spec = fresh_spec(frame);
+            part.data_window = frame.data_window;
+            if (multipart) {
+                part.spec.attribute("name", name == pass::kColor ? std::string("rgba") : name);
+            }
+            parts.push_back(std::move(part));
+        }
+        add_canonical(parts.back(), name, p, options, "", path);
+    }
+    return parts;
+}
+
+std::vector<OutPart> source_layout(const Frame &frame,
+                                   const std::vector<std::string> &names,
+                                   const WriteOptions &options,
+                                   const std::string &path)
+{
+    const SourceFile &src = *frame.source;
+    std::vector<OutPart> parts(src.parts.size());
+    for (std::size_t i = 0; i < parts.size(); ++i) {
+        parts[i].source = &src.parts[i];
+        parts[i].spec = src.parts[i].spec;
+        parts[i].data_window = src.parts[i].data_window();
+    }
+    std::set<std::pair<int, int>> written;  // source slots already filled
+    std::vector<std::string> fresh;         // passes written under canonical names
+    for (const std::string &name : names) {
+        const Pass &p = frame.pass(name, path);
+        const bool untouched = p.untouched();
+        bool mappable = !p.origin.empty();
+        std::set<std::pair<int, int>> own;
+        int first_sourced = -1;
+        for (std::size_t k = 0; k < p.origin.size() && mappable; ++k) {
+            const ChannelOrigin &o = p.origin[k];
+            if (o.part < 0) {
+                continue;
+            }
+            if (o.part >= int(parts.size()) || !own.insert({o.part, o.channel}).second ||
+                o.scale == 0.0f) {
+                mappable = untouched;  // shared or constant sources map back only untouched
+            }
+            if (first_sourced < 0) {
+                first_sourced = int(k);
+            }
+        }
+        // A made-up channel a node made vary joins its pass's part, which must then hold the
+        // whole frame window (else the pass goes out whole under canonical names).
+        for (std::size_t k = 0; k < p.origin.size() && mappable && first_sourced >= 0 && !untouched;
+             ++k) {
+            const ChannelOrigin &o = p.origin[k];
+            const Rect &anchor_window =
+                parts[std::size_t(p.origin[std::size_t(first_sourced)].part)].data_window;
+            if (o.part < 0 && !channel_is(*p.image, int(k), o.offset) &&
+                frame.data_window != anchor_window) {
+                mappable = false;
+            }
+        }
+        if (!mappable || first_sourced < 0) {
+            fresh.push_back(name);
+            continue;
+        }
+        const PixelStorage asked = asked_storage(name, p, options);
+        const ChannelOrigin &anchor = p.origin[std::size_t(first_sourced)];
+        for (std::size_t k = 0; k < p.origin.size(); ++k) {
+            const ChannelOrigin &o = p.origin[k];
+            OutChannel c;
+            c.pass = name;
+            c.data_pass = is_data_pass(name);
+            c.untouched = untouched;
+            c.image = p.image.get();
+            c.k = int(k);
+            if (o.part < 0) {
+                // A constant the reader made up (alpha of an RGB file): written only when a node
+                // made it vary.
+                if (untouched || channel_is(*p.image, int(k), o.offset)) {
+                    continue;
+                }
+                OutPart &part = parts[std::size_t(anchor.part)];
+                c.name = sibling_name(part.spec.channel_name(anchor.channel), p.channels[k]);
+                c.type = storage_type(asked == PixelStorage::Auto ? default_storage(name) : asked);
+                add_channel(part, std::move(c), path);
+                continue;
+            }
+            if (!written.insert({o.part, o.channel}).second) {
+                continue;  // another pass already put this channel back
+            }
+            OutPart &part = parts[std::size_t(o.part)];
+            const OIIO::TypeDesc file_type = part.spec.channelformat(o.channel);
+            c.name = part.spec.channel_name(o.channel);
+            if (asked != PixelStorage::Auto) {
+                c.type = storage_type(asked);
+            } else if (file_type.basetype == OIIO::TypeDesc::HALF ||
+                       file_type.basetype == OIIO::TypeDesc::FLOAT ||
+                       (file_type.basetype == OIIO::TypeDesc::UINT && untouched)) {
+                c.type = file_type;
+            } else {
+                c.type = OIIO::TypeDesc::FLOAT;  // a node's values in a uint id channel
+            }
+            c.scale = o.scale;
+            c.offset = o.offset;
+            if (untouched && c.type == file_type) {
+                if (auto it = src.raw.find({o.part, o.channel}); it != src.raw.end()) {
+                    c.raw = it->second.get();
+                }
+            }
+            add_channel(part, std::move(c), path);
+        }
+    }
+    // Passes under canonical names: into part 0 of a single-part file (same window), else one
+    // part each, in the chosen view.
+    const bool default_view = src.views.empty() || src.view == src.views[0];
+    for (const std::string &name : fresh) {
+        const Pass &p = frame.pass(name, path);
+        OutPart *part = nullptr;
+        if (parts.size() == 1 && parts[0].data_window == frame.data_window) {
+            part = &parts[0];
+        } else {
+            OutPart np;
+            np.spec = fresh_spec(frame);
+            np.data_window = frame.data_window;
+            np.spec.attribute("name", src.view.empty() ? name : name + "." + src.view);
+            if (!src.view.empty()) {
+                np.spec.attribute("view", src.view);
+            }
+            parts.push_back(std::move(np));
+            part = &parts.back();
+        }
+        const bool view_in_name = src.single_part_views && !default_view && part->source;
+        add_canonical(*part, name, p, options, view_in_name ? src.view : "", path);
+    }
+    // Parts nothing is written to are left out.
+    parts.erase(
+        std::remove_if(
+            parts.begin(), parts.end(), [](const OutPart &p) { return p.channels.empty(); }),
+        parts.end());
+    return parts;
+}
+
+void finish_specs(std::vector<OutPart> &parts,
+                  const Frame &frame,
+                  const WriteOptions &options,
+                  const std::string &path)
+{
+    const SourceFile *src = frame.source.get();
+    // Attributes a node added or changed (compared with the source's chosen-view part).
+    OIIO::ParamValueList changed;
+    const OIIO::ImageSpec *first = nullptr;
+    if (src) {
+        for (const SourcePart &sp : src->parts) {
+            if (sp.view == src->view) {
+                first = &sp.spec;
+                break;
+            }
+        }
+    }
+    for (const OIIO::ParamValue &p : frame.attributes) {
+        const OIIO::ParamValue *old = first ? first->find_attribute(p.name().string()) : nullptr;
+        if (!old || old->type() != p.type() || old->nvalues() != p.nvalues() ||
+            std::memcmp(old->data(), p.data(), p.type().size() * std::size_t(p.nvalues())) != 0) {
+            changed.push_back(p);
+        }
+    }
+    for (OutPart &part : parts) {
+        OIIO::ImageSpec &spec = part.spec;
+        spec.nchannels = int(part.channels.size());
+        spec.channelnames.clear();
+        spec.channelformats.clear();
+        spec.alpha_channel = spec.z_channel = -1;
+        for (const OutChannel &c : part.channels) {
+            spec.channelnames.push_back(c.name);
+            spec.channelformats.push_back(c.type);
+        }
+        spec.format = part.channels[0].type;
+        spec.x = part.data_window.x0;
+        spec.y = part.data_window.y0;
+        spec.width = part.data_window.width();
+        spec.height = part.data_window.height();
+        spec.full_x = frame.display_window.x0;
+        spec.full_y = frame.display_window.y0;
+        spec.full_width = frame.display_window.width();
+        spec.full_height = frame.display_window.height();
+        spec.z = spec.full_z = 0;
+        spec.depth = spec.full_depth = 1;
+        if (spec.tile_width > 0) {
+            spec.tile_depth = 1;
+        }
+        std::string compression = options.compression;
+        if (compression == "auto") {
+            const std::string was =
+                part.source ? part.source->spec.get_string_attribute("compression") : "";
+            compression = was.empty() ? "piz" : is_lossy(was) ? "zip" : was;
+        }
+        const std::string base = compression.substr(0, compression.find(':'));
+        if ((base == "dwaa" || base == "dwab" || base == "pxr24") && !options.allow_lossy_data) {
+            for (const OutChannel &c : part.channels) {
+                if (c.data_pass) {
+                    throw_usage(path,
+                                ": compression \"",
+                                compression,
+                                "\" is lossy on data pass \"",
+                                c.pass,
+                                "\"; choose a lossless compression or allow lossy data passes");
+                }
+            }
+        }
+        spec.attribute("compression", compression);
+        // Mip levels travel only with a part written whole and untouched.
+        part.copy_levels = false;
+        if (part.source && !part.source->levels.empty() &&
+            int(part.channels.size()) == part.source->spec.nchannels) {
+            part.copy_levels = true;
+            for (const OutChannel &c : part.channels) {
+                const int i = part.source->spec.channelindex(c.name);
+                part.copy_levels = part.copy_levels && i >= 0 && c.untouched &&
+                                   c.type == part.source->spec.channelformat(i);
+            }
+        }
+        part.make_levels =
+            !part.copy_levels && part.source && part.source->mip_levels > 1 && spec.tile_width > 0;
+        if (!part.copy_levels && !part.make_levels) {
+            spec.attribute("openexr:levelmode", 0);  // one level (OIIO would make textures MIP)
+        }
+        const bool chosen_view =
+            !src || !part.source || part.source->view == src->view || part.source->view.empty();
+        if (chosen_view) {
+            write_camera(frame.camera, spec, src && part.source ? &src->camera : nullptr);
+            if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {
+                spec.attribute(attr::kFrameNumber, frame.number);
+            }
+        }
+        for (const OIIO::ParamValue &p : changed) {
+            spec.extra_attribs.remove(p.name());
+            spec.extra_attribs.push_back(p);
+        }
+        spec.erase_attribute("oiio:subimages");
+        spec.erase_attribute("openexr:chunkCount");
+    }
+}
+
+}  // namespace posthaste::io_detail
