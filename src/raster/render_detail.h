@@ -434,9 +434,8 @@ struct DepthMotionParams {
     int width, height;
 };
 
-// The reference: pixels [begin, end) of the row, depth to depth[i] and motion to motion[2i]
-// (either may be null).
-
+// The row's n pixels: depth to depth[i] and motion to motion[2i] (either may be null), on the
+// CPU's best Highway target (render_rows.cpp; every target gives the same bits).
 void depth_motion(
     const DepthMotionRow &r, int n, const DepthMotionParams &q, float *depth, float *motion);
 

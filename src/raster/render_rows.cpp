@@ -1,135 +1,156 @@
-// The rasterizer's data-pass rows: depth and motion of the visible surfaces, per pixel or eight
-// lanes at a time with AVX2 (bit-equal: no contraction).
+// The rasterizer's data-pass rows: depth and motion of the visible surfaces, one source over
+// Highway's lane types for every target (compiled without FMA contraction, CMakeLists.txt, so
+// every target gives the same bits: the data passes are compared bit for bit).
+
+// Highway's foreach_target.h comes first, then highway.h.
+// clang-format off
+#undef HWY_TARGET_INCLUDE
+#define HWY_TARGET_INCLUDE "raster/render_rows.cpp"
+#include <hwy/foreach_target.h>
+#include <hwy/highway.h>
+// clang-format on
+
 #include <algorithm>
-#include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "raster/render_detail.h"
 
-namespace posthaste::raster::render_detail {
+HWY_BEFORE_NAMESPACE();
+namespace posthaste::raster::render_detail::HWY_NAMESPACE {
+namespace hn = hwy::HWY_NAMESPACE;
 
-void depth_motion_scalar(const DepthMotionRow &r,
-                         int begin,
-                         int end,
-                         const DepthMotionParams &q,
-                         float *depth,
-                         float *motion)
+using D = hn::ScalableTag<float>;
+using V = hn::Vec<D>;
+constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
+
+/// Row `row` of m times (x, y, z, w) in mul()'s order: (m0 x + m1 y) + (m2 z + m3 w).
+HWY_INLINE V MulRow(const glm::mat4 &m, int row, V x, V y, V z, V w)
 {
-    const float W = float(q.width), H = float(q.height);
-    for (int i = begin; i < end; ++i) {
-        const std::size_t k = std::size_t(i);
-        const glm::vec3 p(r.px[k], r.py[k], r.pz[k]);
-        if (r.sky[k]) {
-            if (depth) {
-                depth[i] = std::numeric_limits<float>::infinity();
-            }
-            if (motion) {
-                // A point at infinity moves with the camera rotation only.
-                const glm::vec4 hc = mul(q.cur, glm::vec4(p, 0.0f));
-                const glm::vec4 hp = mul(q.prev, glm::vec4(p, 0.0f));
-                glm::vec2 mv(0.0f);
-                if (hc.w > 0.0f && hp.w > 0.0f) {
-                    mv = glm::vec2(hc.x / hc.w - hp.x / hp.w, hc.y / hc.w - hp.y / hp.w) *
-                         glm::vec2(W, H);
-                }
-                motion[2 * i] = mv.x;
-                motion[2 * i + 1] = mv.y;
-            }
-            continue;
-        }
-        if (depth) {
-            depth[i] = glm::dot(q.zrow, glm::vec4(p, 1.0f));
-        }
-        if (motion) {
-            glm::vec2 cur, prev;
-            glm::vec2 mv(0.0f);
-            if (to_pixel(q.cur, p, q.width, q.height, cur) &&
-                to_pixel(q.prev, glm::vec3(r.qx[k], r.qy[k], r.qz[k]), q.width, q.height, prev)) {
-                mv = cur - prev;
-            }
-            motion[2 * i] = mv.x;
-            motion[2 * i + 1] = mv.y;
-        }
+    const D d;
+    const V a = hn::Mul(hn::Set(d, m[0][row]), x), b = hn::Mul(hn::Set(d, m[1][row]), y);
+    const V c = hn::Mul(hn::Set(d, m[2][row]), z), e = hn::Mul(hn::Set(d, m[3][row]), w);
+    return hn::Add(hn::Add(a, b), hn::Add(c, e));
+}
+
+/// Depth (to depth[0..], if not null) and motion (x, y interleaved to motion[0..], if not null)
+/// of one vector of pixels: position (surface) or ray direction (sky lanes), previous position.
+HWY_INLINE void DepthMotionVector(const DepthMotionParams &q,
+                                  hn::Mask<D> sky,
+                                  V x,
+                                  V y,
+                                  V z,
+                                  V qx,
+                                  V qy,
+                                  V qz,
+                                  float *depth,
+                                  float *motion)
+{
+    const D d;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
+    if (depth) {
+        const V a = hn::Mul(hn::Set(d, q.zrow.x), x), b = hn::Mul(hn::Set(d, q.zrow.y), y);
+        const V c = hn::Mul(hn::Set(d, q.zrow.z), z), e = hn::Mul(hn::Set(d, q.zrow.w), one);
+        const V dz = hn::Add(hn::Add(a, b), hn::Add(c, e));
+        hn::StoreU(
+            hn::IfThenElse(sky, hn::Set(d, std::numeric_limits<float>::infinity()), dz), d, depth);
     }
+    if (!motion) {
+        return;
+    }
+    // Sky lanes project the direction (w = 0), surface lanes the point (w = 1).
+    const V w = hn::IfThenZeroElse(sky, one);
+    const V cx = MulRow(q.cur, 0, x, y, z, w), cy = MulRow(q.cur, 1, x, y, z, w);
+    const V cw = MulRow(q.cur, 3, x, y, z, w);
+    const V sx = hn::IfThenElse(sky, x, qx), sy = hn::IfThenElse(sky, y, qy);
+    const V sz = hn::IfThenElse(sky, z, qz);
+    const V px = MulRow(q.prev, 0, sx, sy, sz, w), py = MulRow(q.prev, 1, sx, sy, sz, w);
+    const V pw = MulRow(q.prev, 3, sx, sy, sz, w);
+    const auto ok = hn::And(hn::Gt(cw, zero), hn::Gt(pw, zero));
+    const V ncx = hn::Div(cx, cw), ncy = hn::Div(cy, cw);
+    const V npx = hn::Div(px, pw), npy = hn::Div(py, pw);
+    const V W = hn::Set(d, float(q.width)), H = hn::Set(d, float(q.height));
+    // Sky: (cur - prev) * size; surface: cur * size - prev * size.
+    const V sky_x = hn::Mul(hn::Sub(ncx, npx), W), sky_y = hn::Mul(hn::Sub(ncy, npy), H);
+    const V srf_x = hn::Sub(hn::Mul(ncx, W), hn::Mul(npx, W));
+    const V srf_y = hn::Sub(hn::Mul(ncy, H), hn::Mul(npy, H));
+    const V mx = hn::IfThenElseZero(ok, hn::IfThenElse(sky, sky_x, srf_x));
+    const V my = hn::IfThenElseZero(ok, hn::IfThenElse(sky, sky_y, srf_y));
+    hn::StoreInterleaved2(mx, my, d, motion);
 }
 
-#if POSTHASTE_HAVE_AVX2_TARGET
-// Column c of a mat4 times (x, y, z, w) in mul()'s order: (m0 x + m1 y) + (m2 z + m3 w), one row
-// of the result per call.
-POSTHASTE_AVX2_INLINE v8::V mul_row(const glm::mat4 &m, int row, v8::V x, v8::V y, v8::V z, v8::V w)
-{
-    const v8::V a = _mm256_mul_ps(_mm256_set1_ps(m[0][row]), x);
-    const v8::V b = _mm256_mul_ps(_mm256_set1_ps(m[1][row]), y);
-    const v8::V c = _mm256_mul_ps(_mm256_set1_ps(m[2][row]), z);
-    const v8::V d = _mm256_mul_ps(_mm256_set1_ps(m[3][row]), w);
-    return _mm256_add_ps(_mm256_add_ps(a, b), _mm256_add_ps(c, d));
-}
-
-// Eight pixels at a time, the same operations in the same order as depth_motion_scalar and no
-// fused multiply-adds, so the same bits (the data passes are compared bit for bit).
-POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void depth_motion_avx2(
+void DepthMotion(
     const DepthMotionRow &r, int n, const DepthMotionParams &q, float *depth, float *motion)
 {
-    const v8::V zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
-    const v8::V W = _mm256_set1_ps(float(q.width)), H = _mm256_set1_ps(float(q.height));
-    const v8::V inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+    const D d;
+    const hn::RebindToSigned<D> di;
+    const int lanes = int(hn::Lanes(d));
     int i = 0;
-    for (; i + 8 <= n; i += 8) {
+    for (; i + lanes <= n; i += lanes) {
         const std::size_t k = std::size_t(i);
-        const v8::V sky = _mm256_castsi256_ps(
-            _mm256_loadu_si256(reinterpret_cast<const __m256i *>(r.sky.data() + k)));
-        const v8::V x = _mm256_loadu_ps(r.px.data() + k), y = _mm256_loadu_ps(r.py.data() + k);
-        const v8::V z = _mm256_loadu_ps(r.pz.data() + k);
-        if (depth) {
-            const v8::V a = _mm256_mul_ps(_mm256_set1_ps(q.zrow.x), x);
-            const v8::V b = _mm256_mul_ps(_mm256_set1_ps(q.zrow.y), y);
-            const v8::V c = _mm256_mul_ps(_mm256_set1_ps(q.zrow.z), z);
-            const v8::V d = _mm256_mul_ps(_mm256_set1_ps(q.zrow.w), one);
-            const v8::V dz = _mm256_add_ps(_mm256_add_ps(a, b), _mm256_add_ps(c, d));
-            _mm256_storeu_ps(depth + i, _mm256_blendv_ps(dz, inf, sky));
-        }
-        if (!motion) {
-            continue;
-        }
-        // Sky lanes project the direction (w = 0), surface lanes the point (w = 1).
-        const v8::V w = _mm256_blendv_ps(one, zero, sky);
-        const v8::V cx = mul_row(q.cur, 0, x, y, z, w), cy = mul_row(q.cur, 1, x, y, z, w);
-        const v8::V cw = mul_row(q.cur, 3, x, y, z, w);
-        const v8::V sx = _mm256_blendv_ps(_mm256_loadu_ps(r.qx.data() + k), x, sky);
-        const v8::V sy = _mm256_blendv_ps(_mm256_loadu_ps(r.qy.data() + k), y, sky);
-        const v8::V sz = _mm256_blendv_ps(_mm256_loadu_ps(r.qz.data() + k), z, sky);
-        const v8::V px = mul_row(q.prev, 0, sx, sy, sz, w), py = mul_row(q.prev, 1, sx, sy, sz, w);
-        const v8::V pw = mul_row(q.prev, 3, sx, sy, sz, w);
-        const v8::V ok =
-            _mm256_and_ps(_mm256_cmp_ps(cw, zero, _CMP_GT_OQ), _mm256_cmp_ps(pw, zero, _CMP_GT_OQ));
-        const v8::V ncx = _mm256_div_ps(cx, cw), ncy = _mm256_div_ps(cy, cw);
-        const v8::V npx = _mm256_div_ps(px, pw), npy = _mm256_div_ps(py, pw);
-        // Sky: (cur - prev) * size; surface: cur * size - prev * size.
-        const v8::V sky_x = _mm256_mul_ps(_mm256_sub_ps(ncx, npx), W);
-        const v8::V sky_y = _mm256_mul_ps(_mm256_sub_ps(ncy, npy), H);
-        const v8::V srf_x = _mm256_sub_ps(_mm256_mul_ps(ncx, W), _mm256_mul_ps(npx, W));
-        const v8::V srf_y = _mm256_sub_ps(_mm256_mul_ps(ncy, H), _mm256_mul_ps(npy, H));
-        const v8::V mx = _mm256_and_ps(ok, _mm256_blendv_ps(srf_x, sky_x, sky));
-        const v8::V my = _mm256_and_ps(ok, _mm256_blendv_ps(srf_y, sky_y, sky));
-        // Interleave to x0 y0 x1 y1 ...
-        const v8::V lo = _mm256_unpacklo_ps(mx, my), hi = _mm256_unpackhi_ps(mx, my);
-        _mm256_storeu_ps(motion + 2 * i, _mm256_permute2f128_ps(lo, hi, 0x20));
-        _mm256_storeu_ps(motion + 2 * i + 8, _mm256_permute2f128_ps(lo, hi, 0x31));
+        const auto sky = hn::RebindMask(d, hn::Lt(hn::LoadU(di, r.sky.data() + k), hn::Zero(di)));
+        DepthMotionVector(q,
+                          sky,
+                          hn::LoadU(d, r.px.data() + k),
+                          hn::LoadU(d, r.py.data() + k),
+                          hn::LoadU(d, r.pz.data() + k),
+                          hn::LoadU(d, r.qx.data() + k),
+                          hn::LoadU(d, r.qy.data() + k),
+                          hn::LoadU(d, r.qz.data() + k),
+                          depth ? depth + i : nullptr,
+                          motion ? motion + 2 * i : nullptr);
     }
-    depth_motion_scalar(r, i, n, q, depth, motion);
+    if (i == n) {
+        return;
+    }
+    // The row's last pixels through the same vector code on padded copies (the padding is a
+    // surface at the origin; its results are not stored).
+    const int m = n - i;
+    const std::size_t k = std::size_t(i);
+    HWY_ALIGN float in[6][kMaxLanes] = {};
+    HWY_ALIGN std::int32_t sky[kMaxLanes] = {};
+    HWY_ALIGN float out_depth[kMaxLanes], out_motion[2 * kMaxLanes];
+    std::copy_n(r.px.data() + k, m, in[0]);
+    std::copy_n(r.py.data() + k, m, in[1]);
+    std::copy_n(r.pz.data() + k, m, in[2]);
+    std::copy_n(r.qx.data() + k, m, in[3]);
+    std::copy_n(r.qy.data() + k, m, in[4]);
+    std::copy_n(r.qz.data() + k, m, in[5]);
+    std::copy_n(r.sky.data() + k, m, sky);
+    DepthMotionVector(q,
+                      hn::RebindMask(d, hn::Lt(hn::Load(di, sky), hn::Zero(di))),
+                      hn::Load(d, in[0]),
+                      hn::Load(d, in[1]),
+                      hn::Load(d, in[2]),
+                      hn::Load(d, in[3]),
+                      hn::Load(d, in[4]),
+                      hn::Load(d, in[5]),
+                      depth ? out_depth : nullptr,
+                      motion ? out_motion : nullptr);
+    if (depth) {
+        std::copy_n(out_depth, m, depth + i);
+    }
+    if (motion) {
+        std::copy_n(out_motion, 2 * m, motion + 2 * i);
+    }
 }
+
+}  // namespace posthaste::raster::render_detail::HWY_NAMESPACE
+HWY_AFTER_NAMESPACE();
+
+#if HWY_ONCE
+#if defined(__SSE2__)
+#include <emmintrin.h>
 #endif
+
+namespace posthaste::raster::render_detail {
+
+HWY_EXPORT(DepthMotion);
 
 void depth_motion(
     const DepthMotionRow &r, int n, const DepthMotionParams &q, float *depth, float *motion)
 {
-#if POSTHASTE_HAVE_AVX2_TARGET
-    if (simd::avx2()) {
-        depth_motion_avx2(r, n, q, depth, motion);
-        return;
-    }
-#endif
-    depth_motion_scalar(r, 0, n, q, depth, motion);
+    HWY_DYNAMIC_DISPATCH(DepthMotion)(r, n, q, depth, motion);
 }
 
 // Order this thread's streaming stores before the tile is reported done.
@@ -141,3 +162,4 @@ void stream_fence()
 }
 
 }  // namespace posthaste::raster::render_detail
+#endif

@@ -1,11 +1,10 @@
 #pragma once
-// The hatching kernel's per-frame context, shared by the scalar path (hatch.cpp) and the AVX2
-// tile kernel (hatch_avx2.cpp). Internal to src/shading/hatch*.cpp.
+// The hatching kernel's per-frame context, set up by hatch.cpp for the tile kernel
+// (hatch_kernels.cpp). Internal to src/shading/hatch*.
 
 #include <vector>
 
 #include "core/image.h"
-#include "core/simd.h"
 #include "shading/hatch.h"
 
 namespace posthaste::shading::hatch_detail {
@@ -35,10 +34,8 @@ struct KernelCtx {
     const std::vector<int> *ids;          ///< Hatch only these ids; null: everywhere.
 };
 
-#if POSTHASTE_HAVE_AVX2_TARGET
-/// One tile of hatch() with AVX2, eight pixels of a row at a time (mix > 0; the caller checks).
-/// Mirrors the scalar path operation by operation (HatchingSimd checks both give the same values).
-void hatch_tile_avx2(const KernelCtx &k, const Rect &t);
-#endif
+/// One tile of hatch() (mix > 0; the caller copies otherwise), the lanes of the best target the
+/// CPU has (simd.h); HatchingSimd compares the targets.
+void hatch_tile(const KernelCtx &k, const Rect &t);
 
 }  // namespace posthaste::shading::hatch_detail

@@ -50,8 +50,8 @@ void BM_HatchingSurface1080p(benchmark::State &state)
 }
 BENCHMARK(BM_HatchingSurface1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// The same default settings on the portable scalar path (simd::Level::Scalar), as the
-// same-run reference for the AVX2 kernel.
+// The same default settings on Highway's portable one-lane target of the same source
+// (simd::Level::Scalar), as the same-run reference for the vector targets.
 void BM_HatchingSurfaceScalar1080p(benchmark::State &state)
 {
     simd::ScopedLevel scalar(simd::Level::Scalar);

@@ -621,8 +621,9 @@ TEST(RasterFrame, VectorBeautyMatchesScalar)
     }
 }
 
-// The depth and motion rows run eight pixels at a time under AVX2: same bits as the scalar path,
-// also for a width that leaves a scalar tail in each tile row, and with only one of the two passes.
+// The depth and motion rows are one Highway source compiled without contraction: the CPU's best
+// target gives the same bits as the portable one-lane target, also for a width that leaves a
+// partial vector at the end of each tile row, and with only one of the two passes.
 TEST(RasterFrame, VectorDepthMotionMatchScalar)
 {
     if (simd::detected() != simd::Level::Avx2) {
