@@ -27,21 +27,18 @@ struct SurfaceLanes {
     }
 };
 
+// Lanes past a row's count that vector kernels may read: the widest vector (16 floats).
+inline constexpr int kLanePadding = 16;
+
 // Sun and sky constants of the kernel.
 struct KernelLight {
     glm::vec3 l;        // toward the sun
     glm::vec3 sun_rgb;  // sun colour * illuminance
     float scale;        // scene sky_ambient
 };
-#if POSTHASTE_HAVE_AVX2_TARGET
-// (render_shadow.cpp)
-// shadow_lookup for eight lanes at a time: vis *= the 2x2 PCF of `sm` where vis > 0. Without
-// fused multiply-adds, so the map coordinates round as in the scalar code: one ulp of a 2048-texel
-// coordinate moves the PCF weights by ~1e-4, which would make the two paths disagree visibly.
-POSTHASTE_AVX2 POSTHASTE_NO_CONTRACT void shadow_lanes_avx2(const ShadowMap &sm,
-                                                            SurfaceLanes &s,
-                                                            int count);
-#endif
+// shadow_lookup for the lanes [0, count) (arrays padded by kLanePadding): vis *= the 2x2 PCF of
+// `sm` where vis > 0 (render_shadow_kernels.cpp, the CPU's best Highway target).
+void shadow_lanes(const ShadowMap &sm, SurfaceLanes &s, int count);
 
 // The beauty of one surface sample; with `specular`, also its view-dependent share: the colour
 // less the diffuse terms (albedo (1 - metallic) times the sun's n.l / pi, or its toon band, and
@@ -73,7 +70,7 @@ class ColorRow {
           spec_(specular ? std::size_t(capacity) : 0)
     {
         if (vector_) {
-            const std::size_t padded = std::size_t(capacity + 8);
+            const std::size_t padded = std::size_t(capacity + kLanePadding);
             lanes_.resize(padded);
             lane_slot_.resize(padded);
             for (std::vector<float> *a : {&sky_x_, &sky_y_, &sky_z_, &env_x_, &env_y_, &env_z_}) {
@@ -118,7 +115,7 @@ class ColorRow {
             n = -n;
         }
         const glm::vec3 &l = lt_.scene->sun.direction;
-        const float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;  // shadows: shadow_lanes_avx2
+        const float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;  // shadows: shadow_lanes
         const glm::vec3 &amb = sky_.ambient(n);
         const std::size_t k = lane_n_++;
         SurfaceLanes &s = lanes_;
@@ -181,10 +178,10 @@ class ColorRow {
         }
         if (lane_n_ > 0) {
             if (lt_.static_map) {
-                shadow_lanes_avx2(*lt_.static_map, lanes_, int(lane_n_));
+                shadow_lanes(*lt_.static_map, lanes_, int(lane_n_));
             }
             if (lt_.dynamic_map) {
-                shadow_lanes_avx2(*lt_.dynamic_map, lanes_, int(lane_n_));
+                shadow_lanes(*lt_.dynamic_map, lanes_, int(lane_n_));
             }
             shade_lanes_avx2(lanes_, int(lane_n_), kl_);
             for (std::size_t k = 0; k < lane_n_; ++k) {
