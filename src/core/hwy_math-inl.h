@@ -76,6 +76,22 @@ HWY_INLINE V Dot3(V ax, V ay, V az, V bx, V by, V bz)
     return hn::MulAdd(ax, bx, hn::MulAdd(ay, by, hn::Mul(az, bz)));
 }
 
+/// ax * bx + ay * by + az * bz in glm's order without fusing, ((x + y) + z), for kernels that
+/// promise the same bits on every target (compiled without FP contraction).
+template <class V>
+HWY_INLINE V Dot3Unfused(V ax, V ay, V az, V bx, V by, V bz)
+{
+    return hn::Add(hn::Add(hn::Mul(ax, bx), hn::Mul(ay, by)), hn::Mul(az, bz));
+}
+
+/// min(max(x, lo), hi), in that order: on x86 a NaN x gives lo (Highway's Clamp takes
+/// max(lo, x), which keeps the NaN).
+template <class V>
+HWY_INLINE V ClampToRange(V x, V lo, V hi)
+{
+    return hn::Min(hn::Max(x, lo), hi);
+}
+
 }  // namespace posthaste::simd::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 

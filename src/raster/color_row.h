@@ -1,13 +1,14 @@
 #pragma once
 // The colour of a row of surfaces (internal to src/raster/render*.cpp): ColorRow collects a
-// row's sky and surface hits and shades them, eight lanes at a time with AVX2
-// (render_shade.cpp), one at a time through shade() otherwise.
+// row's sky and surface hits and shades them, a vector of lanes at a time where the CPU has
+// AVX2 (render_shade_kernels.cpp, render_shadow_kernels.cpp), one at a time through shade()
+// otherwise.
 
 #include "raster/render_detail.h"
 
 namespace posthaste::raster::render_detail {
 
-// Surface pixels of one row in struct-of-arrays form for the AVX2 beauty kernel. Everything per
+// Surface pixels of one row in struct-of-arrays form for the vector beauty kernel. Everything per
 // pixel that branches or looks up tables (hit, material, shadow map, memoised ambient) is done
 // by the scalar prelude in ColorRow::add_surface; the kernel does the BRDF and sky light.
 struct SurfaceLanes {
@@ -49,16 +50,15 @@ glm::vec3 shade(const Lighting &lt,
                 SkyCache &sky,
                 glm::vec3 *specular = nullptr);
 
-#if POSTHASTE_HAVE_AVX2_TARGET
 // The expressions of shading::evaluate (isotropic, height-correlated Smith) and
-// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8);
-// the diffuse share into dif_*.
-POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLight &kl);
-#endif
+// shading::add_sky_light for lanes [0, count) (arrays padded by kLanePadding), the diffuse share
+// into dif_* (render_shade_kernels.cpp, the CPU's best Highway target).
+void shade_lanes(SurfaceLanes &s, int count, const KernelLight &kl);
 
 // The beauty of one row of visibility samples. The scalar path shades each pixel as it is added
-// (shade() and the sky); the AVX2 path defers surfaces to shade_lanes_avx2 and the sky to the
-// 4-wide SkyView::radiance_n. Toon and anisotropic materials always take shade().
+// (shade() and the sky); the vector path (simd::avx2()) defers surfaces to shadow_lanes and
+// shade_lanes and the sky to the 4-wide SkyView::radiance_n. Toon and anisotropic materials always
+// take shade().
 class ColorRow {
    public:
     /// With `specular`, specular() holds each slot's view-dependent share (shade()).
@@ -183,7 +183,7 @@ class ColorRow {
             if (lt_.dynamic_map) {
                 shadow_lanes(*lt_.dynamic_map, lanes_, int(lane_n_));
             }
-            shade_lanes_avx2(lanes_, int(lane_n_), kl_);
+            shade_lanes(lanes_, int(lane_n_), kl_);
             for (std::size_t k = 0; k < lane_n_; ++k) {
                 const glm::vec3 c(lanes_.out_r[k], lanes_.out_g[k], lanes_.out_b[k]);
                 out_[std::size_t(lane_slot_[k])] = c;

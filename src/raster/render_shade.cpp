@@ -1,5 +1,6 @@
 // The rasterizer's colour: each visible surface shaded with the shared BRDF and sky
-// (shading/lighting.h), eight lanes at a time with AVX2, with the sun's shadow.
+// (shading/lighting.h) with the sun's shadow: shade() per pixel, the vector lanes in
+// render_shade_kernels.cpp.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -58,107 +59,6 @@ glm::vec3 shade(
     }
     return out;
 }
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-POSTHASTE_AVX2_INLINE v8::V dot3(v8::V ax, v8::V ay, v8::V az, v8::V bx, v8::V by, v8::V bz)
-{
-    return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ax, bx), _mm256_mul_ps(ay, by)),
-                         _mm256_mul_ps(az, bz));
-}
-
-// The expressions of shading::evaluate (isotropic, height-correlated Smith) and
-// shading::add_sky_light, eight lanes at a time, for lanes [0, count) (arrays padded to 8).
-POSTHASTE_AVX2 void shade_lanes_avx2(SurfaceLanes &s, int count, const KernelLight &kl)
-{
-    using v8::set1;
-    using v8::V;
-    const V zero = _mm256_setzero_ps(), one = set1(1.0f);
-    const V lx = set1(kl.l.x), ly = set1(kl.l.y), lz = set1(kl.l.z);
-    const V inv_pi = set1(1.0f / shading::kPi), pi = set1(shading::kPi);
-    const V min_cos = set1(shading::kMinCosine), f0d = set1(0.04f), scale = set1(kl.scale);
-    const V sun[3] = {set1(kl.sun_rgb.x), set1(kl.sun_rgb.y), set1(kl.sun_rgb.z)};
-    for (int i = 0; i < count; i += 8) {
-        const V nx = _mm256_loadu_ps(&s.nx[i]), ny = _mm256_loadu_ps(&s.ny[i]),
-                nz = _mm256_loadu_ps(&s.nz[i]);
-        const V vx = _mm256_loadu_ps(&s.vx[i]), vy = _mm256_loadu_ps(&s.vy[i]),
-                vz = _mm256_loadu_ps(&s.vz[i]);
-        const V rough = _mm256_loadu_ps(&s.rough[i]), metal = _mm256_loadu_ps(&s.metal[i]);
-        const V vis = _mm256_loadu_ps(&s.vis[i]);
-        const V alb[3] = {
-            _mm256_loadu_ps(&s.ar[i]), _mm256_loadu_ps(&s.ag[i]), _mm256_loadu_ps(&s.ab[i])};
-
-        const V nl = dot3(nx, ny, nz, lx, ly, lz);
-        const V nv_raw = dot3(nx, ny, nz, vx, vy, vz);
-        const V nv = _mm256_max_ps(nv_raw, min_cos);
-        V hx = _mm256_add_ps(vx, lx), hy = _mm256_add_ps(vy, ly), hz = _mm256_add_ps(vz, lz);
-        const V hlen = _mm256_sqrt_ps(dot3(hx, hy, hz, hx, hy, hz));
-        const V hok = _mm256_cmp_ps(hlen, set1(1e-8f), _CMP_GT_OQ);
-        hx = _mm256_blendv_ps(nx, _mm256_div_ps(hx, hlen), hok);
-        hy = _mm256_blendv_ps(ny, _mm256_div_ps(hy, hlen), hok);
-        hz = _mm256_blendv_ps(nz, _mm256_div_ps(hz, hlen), hok);
-        const V nh = _mm256_max_ps(dot3(nx, ny, nz, hx, hy, hz), zero);
-        const V vh = _mm256_max_ps(dot3(vx, vy, vz, hx, hy, hz), zero);
-        const V r = v8::clamp(rough, set1(shading::kMinRoughness), one);
-        const V alpha = _mm256_mul_ps(r, r);
-        const V a2 = _mm256_mul_ps(alpha, alpha);
-        // D (zero for n.h <= 0) times the correlated Smith V.
-        const V d =
-            _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nh, nh), _mm256_sub_ps(a2, one)), one);
-        V dggx = _mm256_div_ps(a2, _mm256_mul_ps(_mm256_mul_ps(pi, d), d));
-        dggx = _mm256_and_ps(dggx, _mm256_cmp_ps(nh, zero, _CMP_GT_OQ));
-        const V nlc = _mm256_max_ps(nl, min_cos);
-        const V one_a2 = _mm256_sub_ps(one, a2);
-        const V gv = _mm256_mul_ps(
-            nlc, _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nv, nv), one_a2), a2)));
-        const V gl = _mm256_mul_ps(
-            nv, _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(nlc, nlc), one_a2), a2)));
-        const V dv = _mm256_mul_ps(dggx, _mm256_div_ps(set1(0.5f), _mm256_add_ps(gv, gl)));
-        // Schlick at v.h (direct) and at n.v (sky).
-        const V mh = _mm256_sub_ps(one, v8::clamp(vh, zero, one));
-        const V mh5 =
-            _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mh, mh), _mm256_mul_ps(mh, mh)), mh);
-        const V nv2 = _mm256_max_ps(nv_raw, zero);
-        const V mv = _mm256_sub_ps(one, v8::clamp(nv2, zero, one));
-        const V mv5 =
-            _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(mv, mv), _mm256_mul_ps(mv, mv)), mv);
-        const V lit = _mm256_cmp_ps(vis, zero, _CMP_GT_OQ);  // vis > 0 implies n.l > 0
-        const V gloss = _mm256_mul_ps(_mm256_sub_ps(one, rough), _mm256_sub_ps(one, rough));
-        const V glossy = _mm256_cmp_ps(gloss, set1(0.05f), _CMP_GE_OQ);
-        const V one_metal = _mm256_sub_ps(one, metal);
-        const V amb_in[3] = {_mm256_loadu_ps(&s.amb_r[i]),
-                             _mm256_loadu_ps(&s.amb_g[i]),
-                             _mm256_loadu_ps(&s.amb_b[i])};
-        const V env_in[3] = {_mm256_loadu_ps(&s.env_r[i]),
-                             _mm256_loadu_ps(&s.env_g[i]),
-                             _mm256_loadu_ps(&s.env_b[i])};
-        float *out[3] = {&s.out_r[i], &s.out_g[i], &s.out_b[i]};
-        float *dif[3] = {&s.dif_r[i], &s.dif_g[i], &s.dif_b[i]};
-        for (int c = 0; c < 3; ++c) {
-            const V f0 = _mm256_add_ps(_mm256_mul_ps(f0d, one_metal), _mm256_mul_ps(alb[c], metal));
-            const V one_f0 = _mm256_sub_ps(one, f0);
-            const V diffuse = _mm256_mul_ps(alb[c], one_metal);
-            const V f = _mm256_add_ps(f0, _mm256_mul_ps(one_f0, mh5));
-            const V direct = _mm256_mul_ps(
-                _mm256_add_ps(_mm256_mul_ps(diffuse, inv_pi), _mm256_mul_ps(f, dv)), nl);
-            V col = _mm256_and_ps(_mm256_mul_ps(direct, _mm256_mul_ps(sun[c], vis)), lit);
-            const V amb = _mm256_mul_ps(amb_in[c], scale);
-            const V dif_amb = _mm256_mul_ps(diffuse, amb);
-            col = _mm256_add_ps(col, dif_amb);
-            const V dif_sun =
-                _mm256_and_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(diffuse, inv_pi), nl),
-                                            _mm256_mul_ps(sun[c], vis)),
-                              lit);
-            _mm256_storeu_ps(dif[c], _mm256_add_ps(dif_sun, dif_amb));
-            const V env_mix = _mm256_add_ps(_mm256_mul_ps(amb, _mm256_sub_ps(one, gloss)),
-                                            _mm256_mul_ps(_mm256_mul_ps(env_in[c], scale), gloss));
-            const V env = _mm256_blendv_ps(amb, env_mix, glossy);
-            const V fs = _mm256_add_ps(f0, _mm256_mul_ps(one_f0, mv5));
-            col = _mm256_add_ps(col, _mm256_mul_ps(fs, env));
-            _mm256_storeu_ps(out[c], col);
-        }
-    }
-}
-#endif
 
 // Beauty of one view into `out` (RGBA), averaging ss x ss samples per pixel when vis is ss times
 // the output size.

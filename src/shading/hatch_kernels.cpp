@@ -59,7 +59,7 @@ void FillSamples(const KernelCtx &k, const Rect &r, int stride, float *buf, std:
             // hit = finite positive depth and finite position.
             const M hit = hn::And(hn::And(hn::Gt(z, zero), hn::IsFinite(z)),
                                   hn::IsFinite(hn::Add(hn::Add(px, py), pz)));
-            const V len2 = Dot3(nx, ny, nz, nx, ny, nz);
+            const V len2 = Dot3Unfused(nx, ny, nz, nx, ny, nz);
             const M nrm = hn::And(hn::And(hit, hn::Gt(len2, tiny)), hn::IsFinite(len2));
             const M unit = hn::Lt(hn::Abs(hn::Sub(len2, one)), tiny);
             if (!hn::AllFalse(d, hn::AndNot(unit, nrm))) {  // rendered normals are unit already
@@ -227,12 +227,12 @@ void HatchTile(const KernelCtx &k, const Rect &t)
             if (!hn::AllFalse(d, drawn)) {
                 V tone;
                 if (k.tone_from_light) {
-                    const V nl = hn::Max(Dot3(c.nx,
-                                              c.ny,
-                                              c.nz,
-                                              hn::Set(d, k.light.x),
-                                              hn::Set(d, k.light.y),
-                                              hn::Set(d, k.light.z)),
+                    const V nl = hn::Max(Dot3Unfused(c.nx,
+                                                     c.ny,
+                                                     c.nz,
+                                                     hn::Set(d, k.light.x),
+                                                     hn::Set(d, k.light.y),
+                                                     hn::Set(d, k.light.z)),
                                          zero);
                     const V lit = hn::IfThenElse(c.nrm, nl, one);
                     tone = ToneCurveV(table,

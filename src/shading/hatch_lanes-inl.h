@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "core/hwy_math-inl.h"
 #include "shading/hatch_kernel.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -35,16 +36,8 @@ using M = hn::Mask<D>;
 
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
-/// ax bx + ay by + az bz in glm's order: (x + y) + z.
-HWY_INLINE V Dot3(V ax, V ay, V az, V bx, V by, V bz)
-{
-    return hn::Add(hn::Add(hn::Mul(ax, bx), hn::Mul(ay, by)), hn::Mul(az, bz));
-}
-
-HWY_INLINE V Clamp(V x, V lo, V hi)
-{
-    return hn::Min(hn::Max(x, lo), hi);
-}
+using simd::HWY_NAMESPACE::ClampToRange;
+using simd::HWY_NAMESPACE::Dot3Unfused;
 
 /// Truncation to int32 of lanes in [0, 2^23) (NaN and larger lanes give some int32; callers clamp
 /// or mask them): floor, then the bits of floor + 2^23, without ConvertTo's overflow fix-up.
@@ -124,8 +117,8 @@ HWY_INLINE V ToneCurveV(const float *table, V linear)
     const DI di;
     const M nan = hn::IsNaN(linear);
     const V one = hn::Set(d, 1.0f);
-    const V q =
-        hn::Mul(hn::Sqrt(Clamp(linear, hn::Zero(d), one)), hn::Set(d, float(ToneCurve::kSegments)));
+    const V q = hn::Mul(hn::Sqrt(ClampToRange(linear, hn::Zero(d), one)),
+                        hn::Set(d, float(ToneCurve::kSegments)));
     const VI i = hn::Min(TruncSmall(q), hn::Set(di, ToneCurve::kSegments - 1));
     const V f = hn::Sub(q, hn::ConvertTo(d, i));
     V t0, t1;
@@ -189,14 +182,14 @@ HWY_INLINE V RampV(const Tam &tam, M live, V darkness, V u, V v, V lod)
     const V f = hn::Sub(sv, hn::ConvertTo(d, k));
     // ramp_at: a NaN lod reads the coarsest level.
     const V top = hn::Set(d, float(tam.levels() - 1));
-    const V l = hn::IfThenElse(hn::IsNaN(lod), top, Clamp(lod, zero, top));
+    const V l = hn::IfThenElse(hn::IsNaN(lod), top, ClampToRange(lod, zero, top));
     const VI l0 = TruncSmall(l);
     const V fl = hn::Sub(l, hn::ConvertTo(d, l0));
     u = hn::Sub(u, hn::Floor(u));
     v = hn::Sub(v, hn::Floor(v));
     const V fixed = hn::Set(d, float(tam.size()) * 65536.0f);
     const VI fu = hn::ConvertTo(di, hn::Mul(u, fixed)), fv = hn::ConvertTo(di, hn::Mul(v, fixed));
-    const V b = Clamp(hn::Sub(hn::Mul(hn::Set(d, 2.0f), fl), hn::Set(d, 0.5f)), zero, one);
+    const V b = ClampToRange(hn::Sub(hn::Mul(hn::Set(d, 2.0f), fl), hn::Set(d, 0.5f)), zero, one);
     const M only0 = hn::Le(b, zero), only1 = hn::Ge(b, one);
     V c0 = zero, c1 = zero;
     if (!hn::AllFalse(d, hn::AndNot(only1, active))) {
@@ -244,14 +237,14 @@ HWY_INLINE SampleV LoadSample(const float *buf, std::size_t plane, std::size_t i
 /// neighbours.
 HWY_INLINE M IsEdgeV(const SampleV &c, const SampleV &q, bool q_after, V dt_z, V cos_thr)
 {
-    const V dn =
-        Dot3(c.nx, c.ny, c.nz, hn::Sub(q.px, c.px), hn::Sub(q.py, c.py), hn::Sub(q.pz, c.pz));
+    const V dn = Dot3Unfused(
+        c.nx, c.ny, c.nz, hn::Sub(q.px, c.px), hn::Sub(q.py, c.py), hn::Sub(q.pz, c.pz));
     const V gap = hn::IfThenElse(c.nrm, hn::Abs(dn), hn::Abs(hn::Sub(q.z, c.z)));
     const M far = hn::Gt(gap, dt_z);
     const M nearer = hn::Le(c.z, q.z);
     M crease = hn::FirstN(D(), 0);
     if (q_after) {
-        const V cn = Dot3(c.nx, c.ny, c.nz, q.nx, q.ny, q.nz);
+        const V cn = Dot3Unfused(c.nx, c.ny, c.nz, q.nx, q.ny, q.nz);
         crease = hn::And(hn::And(c.nrm, q.nrm), hn::Lt(cn, cos_thr));
     }
     const M gap_or_crease = hn::Or(hn::And(far, nearer), hn::AndNot(far, crease));
@@ -263,12 +256,12 @@ HWY_INLINE M IsEdgeV(const SampleV &c, const SampleV &q, bool q_after, V dt_z, V
 HWY_INLINE M NeighbourStepV(const SampleV &c, const SampleV &q, V &sx, V &sy, V &sz)
 {
     const D d;
-    const V cn = Dot3(c.nx, c.ny, c.nz, q.nx, q.ny, q.nz);
+    const V cn = Dot3Unfused(c.nx, c.ny, c.nz, q.nx, q.ny, q.nz);
     const M ok = hn::AndNot(hn::Lt(cn, hn::Set(d, 0.7f)), hn::And(q.hit, q.nrm));
     sx = hn::Sub(q.px, c.px);
     sy = hn::Sub(q.py, c.py);
     sz = hn::Sub(q.pz, c.pz);
-    return hn::And(ok, hn::Gt(Dot3(sx, sy, sz, sx, sy, sz), hn::Zero(d)));
+    return hn::And(ok, hn::Gt(Dot3Unfused(sx, sy, sz, sx, sy, sz), hn::Zero(d)));
 }
 
 /// The smaller of the forward (a) and backward (b) steps that are usable.
@@ -276,7 +269,7 @@ HWY_INLINE M PickStepV(const SampleV &c, const SampleV &a, const SampleV &b, V &
 {
     V ax, ay, az, bx, by, bz;
     const M ha = NeighbourStepV(c, a, ax, ay, az), hb = NeighbourStepV(c, b, bx, by, bz);
-    const V la = Dot3(ax, ay, az, ax, ay, az), lb = Dot3(bx, by, bz, bx, by, bz);
+    const V la = Dot3Unfused(ax, ay, az, ax, ay, az), lb = Dot3Unfused(bx, by, bz, bx, by, bz);
     const M take_a = hn::And(ha, hn::Or(hn::Not(hb), hn::Le(la, lb)));
     x = hn::IfThenElse(take_a, ax, bx);
     y = hn::IfThenElse(take_a, ay, by);
