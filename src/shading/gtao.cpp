@@ -157,7 +157,7 @@ Image gtao_upsample(const Image &ao, const Image &ld, const Image &depth, int st
     const int lw = ao.width(), lh = ao.height();
     // Per column: the two AO pixels either side and the bilinear weight of the right one.
     const std::size_t nw = static_cast<std::size_t>(w);
-    std::vector<int> i0(nw), i1(nw);
+    std::vector<std::int32_t> i0(nw), i1(nw);
     std::vector<float> fx(nw);
     for (int x = 0; x < w; ++x) {
         i0[std::size_t(x)] = std::min(x / st, lw - 1);
@@ -167,46 +167,16 @@ Image gtao_upsample(const Image &ao, const Image &ld, const Image &depth, int st
     Image out = Image::uninitialized(w, h, 1);
     parallel_for(0, h, [&](int y) {
         const int j0 = std::min(y / st, lh - 1), j1 = std::min(j0 + 1, lh - 1);
-        const float fy = float(y - j0 * st) / float(st);
-        const float *z0 = ld.pixel(0, j0), *z1 = ld.pixel(0, j1);
-        const float *a0 = ao.pixel(0, j0), *a1 = ao.pixel(0, j1);
-        const float *zr = depth.pixel(0, y);
-        float *o = out.pixel(0, y);
-        // One tap: its weight (bilinear times the depth tent; NaN, no surface, gives 0) added
-        // in, and the closest tap in depth kept for a pixel no tap's surface reaches.
-        auto tap = [](float bw,
-                      float lz,
-                      float lv,
-                      float z,
-                      float inv_scale,
-                      float &sum,
-                      float &wsum,
-                      float &best,
-                      float &nearest) {
-            const float dz = std::abs(lz - z);
-            const float t = 1.0f - dz * inv_scale;
-            const float wt = bw * (0.0f < t ? t : 0.0f);
-            sum += wt * lv;
-            wsum += wt;
-            const bool closer = dz < best;  // false for NaN
-            best = closer ? dz : best;
-            nearest = closer ? lv : nearest;
-        };
-        // Branch-free over the row (sky pixels computed and then replaced), so the compiler
-        // can vectorise it.
-        for (int x = 0; x < w; ++x) {
-            const float z = zr[x];
-            const float inv_scale = 1.0f / (0.1f * z);
-            const int l = i0[std::size_t(x)], r = i1[std::size_t(x)];
-            const float ax = fx[std::size_t(x)];
-            float sum = 0.0f, wsum = 0.0f, best = HUGE_VALF, nearest = 1.0f;
-            tap((1.0f - ax) * (1.0f - fy), z0[l], a0[l], z, inv_scale, sum, wsum, best, nearest);
-            tap(ax * (1.0f - fy), z0[r], a0[r], z, inv_scale, sum, wsum, best, nearest);
-            tap((1.0f - ax) * fy, z1[l], a1[l], z, inv_scale, sum, wsum, best, nearest);
-            tap(ax * fy, z1[r], a1[r], z, inv_scale, sum, wsum, best, nearest);
-            const bool surface = z > 0.0f && z < HUGE_VALF;
-            o[x] = !surface ? 1.0f : wsum > 1e-6f ? sum / wsum : nearest;
-        }
+        const GtaoUpsampleRow row{ld.pixel(0, j0),
+                                  ld.pixel(0, j1),
+                                  ao.pixel(0, j0),
+                                  ao.pixel(0, j1),
+                                  depth.pixel(0, y),
+                                  i0.data(),
+                                  i1.data(),
+                                  fx.data(),
+                                  float(y - j0 * st) / float(st)};
+        gtao_upsample_row(row, w, out.pixel(0, y));
     });
     return out;
 }

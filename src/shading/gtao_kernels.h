@@ -38,4 +38,17 @@ void gtao_row(const GtaoKernelParams &p,
               int n,
               float *out);
 
+/// One output row of gtao_upsample: the two reduced rows either side (depth z0, z1 from
+/// gtao_depth, AO a0, a1), the row's full-resolution depth z, per column the left and right
+/// reduced pixels (i0, i1) and the right one's bilinear weight fx, and the lower row's weight fy.
+struct GtaoUpsampleRow {
+    const float *z0, *z1, *a0, *a1, *z;
+    const std::int32_t *i0, *i1;
+    const float *fx;
+    float fy;
+};
+
+/// The w upsampled AO values of a row into out (gtao_upsample_kernels.cpp).
+void gtao_upsample_row(const GtaoUpsampleRow &r, int w, float *out);
+
 }  // namespace posthaste::shading

@@ -10,6 +10,7 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/simd.h"
 #include "raster/ray_cast.h"
 #include "shading/camera_rays.h"
 #include "shading/gtao.h"
@@ -223,6 +224,49 @@ TEST(Ao, HalfResolutionKeepsThePlaneAndTheCorner)
     EXPECT_NEAR(floor_mean(up), 1.0, 0.01);
     const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, true);
     expect_corner_band(g, gtao_denoised(g, p), 0.25, 0.5);
+}
+
+// The upsample is one Highway source compiled without contraction: the CPU's best target and
+// the portable one-lane target give the same bits (odd widths leave a partial vector, stride 3
+// uneven bilinear weights, sky and NaN depths take their own branches), and a pixel between two
+// reduced pixels on the same surface is their bilinear blend, computed by hand.
+TEST(Ao, UpsampleIsTheSameOnEveryTargetAndBlendsByHand)
+{
+    for (const int stride : {2, 3}) {
+        const AnalyticGBuffer g = floor_wall_gbuffer(161, 37, true);
+        Image depth = g.depth;
+        depth.at(5, 3, 0) = std::numeric_limits<float>::quiet_NaN();
+        depth.at(160, 36, 0) = std::numeric_limits<float>::infinity();
+        const Image ao_depth = shading::gtao_depth(depth, stride);
+        Image ao(ao_depth.width(), ao_depth.height(), 1);
+        for (int y = 0; y < ao.height(); ++y) {
+            for (int x = 0; x < ao.width(); ++x) {
+                ao.at(x, y, 0) = 0.3f + 0.01f * float((x * 7 + y * 13) % 50);
+            }
+        }
+        const Image best = shading::gtao_upsample(ao, ao_depth, depth, stride);
+        Image portable;
+        {
+            simd::ScopedLevel level(simd::Level::Scalar);
+            portable = shading::gtao_upsample(ao, ao_depth, depth, stride);
+        }
+        EXPECT_TRUE(best.bit_equal(portable)) << "stride " << stride;
+        EXPECT_EQ(best.at(5, 3, 0), 1.0f);     // NaN depth: no surface
+        EXPECT_EQ(best.at(160, 36, 0), 1.0f);  // sky
+    }
+    // Hand check on a flat depth (every tap on the surface, tent weight 1): pixel (1, 0) at
+    // stride 2 lies halfway between reduced pixels 0 and 1 of row 0: (a0 + a1) / 2.
+    Image depth(8, 4, 1), ao_depth(4, 2, 1), ao(4, 2, 1);
+    depth.fill(2.0f);
+    ao_depth.fill(2.0f);
+    for (int x = 0; x < 4; ++x) {
+        ao.at(x, 0, 0) = 0.2f * float(x + 1);
+        ao.at(x, 1, 0) = 0.9f;
+    }
+    const Image up = shading::gtao_upsample(ao, ao_depth, depth, 2);
+    EXPECT_FLOAT_EQ(up.at(1, 0, 0), 0.5f * (0.2f + 0.4f));
+    EXPECT_FLOAT_EQ(up.at(0, 0, 0), 0.2f);
+    EXPECT_FLOAT_EQ(up.at(0, 1, 0), 0.5f * (0.2f + 0.9f));
 }
 
 TEST(Ao, NodeNamesWhatIsMissing)
