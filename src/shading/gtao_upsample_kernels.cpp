@@ -25,19 +25,33 @@ using V = hn::Vec<D>;
 using M = hn::Mask<D>;
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
-/// One tap: its weight (bilinear times the depth tent; NaN, no surface, gives 0) added in, and
-/// the closest tap in depth kept for a pixel that no tap's surface reaches.
-HWY_INLINE void Tap(V bw, V lz, V lv, V z, V inv_scale, V &sum, V &wsum, V &best, V &nearest)
+/// What the four taps of a pixel add up: the weighted AO and the weights, and the tap closest
+/// in depth with its AO.
+struct TapSums {
+    V sum, wsum, best, nearest;
+};
+
+/// One tap (reduced row zr, ar at indices idx, bilinear weight bw): its weight (bilinear times
+/// the depth tent; NaN, no surface, gives 0) added in, and the closest tap in depth kept for a
+/// pixel that no tap's surface reaches.
+HWY_INLINE void Tap(V bw,
+                    const float *zr,
+                    const float *ar,
+                    hn::Vec<hn::RebindToSigned<D>> idx,
+                    V z,
+                    V inv_scale,
+                    TapSums &s)
 {
     const D d;
+    const V lz = hn::GatherIndex(d, zr, idx), lv = hn::GatherIndex(d, ar, idx);
     const V dz = hn::Abs(hn::Sub(lz, z));
     const V t = hn::Sub(hn::Set(d, 1.0f), hn::Mul(dz, inv_scale));
     const V wt = hn::Mul(bw, hn::IfThenElseZero(hn::Lt(hn::Zero(d), t), t));
-    sum = hn::Add(sum, hn::Mul(wt, lv));
-    wsum = hn::Add(wsum, wt);
-    const M closer = hn::Lt(dz, best);  // false for NaN
-    best = hn::IfThenElse(closer, dz, best);
-    nearest = hn::IfThenElse(closer, lv, nearest);
+    s.sum = hn::Add(s.sum, hn::Mul(wt, lv));
+    s.wsum = hn::Add(s.wsum, wt);
+    const M closer = hn::Lt(dz, s.best);  // false for NaN
+    s.best = hn::IfThenElse(closer, dz, s.best);
+    s.nearest = hn::IfThenElse(closer, lv, s.nearest);
 }
 
 /// The upsampled AO of one vector of pixels.
@@ -49,49 +63,17 @@ HWY_INLINE V UpsampleVector(const GtaoUpsampleRow &r,
 {
     const D d;
     const V one = hn::Set(d, 1.0f), fy = hn::Set(d, r.fy), one_fy = hn::Set(d, 1.0f - r.fy);
+    const V inf = hn::Set(d, std::numeric_limits<float>::infinity());
     const V inv_scale = hn::Div(one, hn::Mul(hn::Set(d, 0.1f), z));
     const V one_ax = hn::Sub(one, ax);
-    V sum = hn::Zero(d), wsum = hn::Zero(d);
-    V best = hn::Set(d, std::numeric_limits<float>::infinity()), nearest = one;
-    Tap(hn::Mul(one_ax, one_fy),
-        hn::GatherIndex(d, r.z0, l),
-        hn::GatherIndex(d, r.a0, l),
-        z,
-        inv_scale,
-        sum,
-        wsum,
-        best,
-        nearest);
-    Tap(hn::Mul(ax, one_fy),
-        hn::GatherIndex(d, r.z0, rt),
-        hn::GatherIndex(d, r.a0, rt),
-        z,
-        inv_scale,
-        sum,
-        wsum,
-        best,
-        nearest);
-    Tap(hn::Mul(one_ax, fy),
-        hn::GatherIndex(d, r.z1, l),
-        hn::GatherIndex(d, r.a1, l),
-        z,
-        inv_scale,
-        sum,
-        wsum,
-        best,
-        nearest);
-    Tap(hn::Mul(ax, fy),
-        hn::GatherIndex(d, r.z1, rt),
-        hn::GatherIndex(d, r.a1, rt),
-        z,
-        inv_scale,
-        sum,
-        wsum,
-        best,
-        nearest);
-    const M surface = hn::And(hn::Gt(z, hn::Zero(d)),
-                              hn::Lt(z, hn::Set(d, std::numeric_limits<float>::infinity())));
-    const V blended = hn::IfThenElse(hn::Gt(wsum, hn::Set(d, 1e-6f)), hn::Div(sum, wsum), nearest);
+    TapSums s{hn::Zero(d), hn::Zero(d), inf, one};
+    Tap(hn::Mul(one_ax, one_fy), r.z0, r.a0, l, z, inv_scale, s);
+    Tap(hn::Mul(ax, one_fy), r.z0, r.a0, rt, z, inv_scale, s);
+    Tap(hn::Mul(one_ax, fy), r.z1, r.a1, l, z, inv_scale, s);
+    Tap(hn::Mul(ax, fy), r.z1, r.a1, rt, z, inv_scale, s);
+    const M surface = hn::And(hn::Gt(z, hn::Zero(d)), hn::Lt(z, inf));
+    const V blended =
+        hn::IfThenElse(hn::Gt(s.wsum, hn::Set(d, 1e-6f)), hn::Div(s.sum, s.wsum), s.nearest);
     return hn::IfThenElse(surface, blended, one);
 }
 
