@@ -7,7 +7,7 @@
 // reproduces Minecrappy's beauty. Optional screen-space shadows march the depth buffer toward
 // each light. Background pixels (no surface) keep their input color. This file declares the
 // parameters, checks them, plans the passes and fills shading::relight::Inputs; the method is in
-// src/shading/relight.{h,cpp} and relight_avx2.cpp.
+// src/shading/relight.{h,cpp} and relight_kernels.cpp.
 
 #include "shading/relight.h"
 
@@ -347,9 +347,7 @@ void execute(NodeContext &ctx)
     sh.from_depth = from_depth;
     sh.shadows = shadows;
     sh.replace = replace;
-    sh.fast_ok = !shadows && !base.burley && !base.energy_compensation &&
-                 base.geometry == shading::Geometry::SmithCorrelated;
-    sh.avx2_ok = !shadows && !base.burley && base.geometry == shading::Geometry::SmithCorrelated;
+    sh.kernel_ok = !shadows && !base.burley && base.geometry == shading::Geometry::SmithCorrelated;
     if (base.energy_compensation) {
         sh.energy = &shading::energy_table(base.geometry);
     }

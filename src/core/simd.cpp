@@ -64,10 +64,17 @@ void apply_to_highway(Level requested)
     hwy::DisableTargets(disabled);
 }
 
+/// The level last asked for (POSTHASTE_SIMD, then set_level), before clamping to the CPU's.
+std::atomic<int> &asked()
+{
+    static std::atomic<int> level{int(requested_at_start())};
+    return level;
+}
+
 std::atomic<int> &current()
 {
     static std::atomic<int> level{[] {
-        const Level requested = requested_at_start();
+        const Level requested = Level(asked().load());
         apply_to_highway(requested);
         return int(requested) < int(detected()) ? int(requested) : int(detected());
     }()};
@@ -95,6 +102,11 @@ Level detected()
     return level;
 }
 
+Level requested()
+{
+    return Level(asked().load(std::memory_order_relaxed));
+}
+
 Level active()
 {
     return Level(current().load(std::memory_order_relaxed));
@@ -102,6 +114,7 @@ Level active()
 
 void set_level(Level level)
 {
+    asked().store(int(level), std::memory_order_relaxed);
     current().store(int(level) < int(detected()) ? int(level) : int(detected()),
                     std::memory_order_relaxed);
     apply_to_highway(level);

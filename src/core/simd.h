@@ -26,6 +26,10 @@ enum class Level { Scalar = 0, Avx2 = 1 };
 Level detected();
 /// The level kernels use: detected(), lowered by POSTHASTE_SIMD=scalar or set_level.
 Level active();
+/// The level asked for (POSTHASTE_SIMD, set_level), whatever the CPU has. A kernel whose vector
+/// path is a Highway kernel (which runs on every CPU, on its best target) and that keeps a
+/// scalar reference checks this instead of active(): Scalar asks for the reference.
+Level requested();
 /// Use at most `level` from now on (clamped to detected()). Not thread-safe against running
 /// kernels: call between frames (tests, the CLI).
 void set_level(Level level);

@@ -1,7 +1,8 @@
 // The rasterizer's vector beauty for a row of surface lanes (color_row.h), one source over
 // Highway's lane types: the expressions of shading::evaluate (isotropic, height-correlated
-// Smith) and shading::add_sky_light. ColorRow::add_surface does everything per pixel that
-// branches or looks up tables; this does the BRDF and the sky light.
+// Smith, from brdf_lanes-inl.h, the relight kernel's too) and shading::add_sky_light.
+// ColorRow::add_surface does everything per pixel that branches or looks up tables; this does the
+// BRDF and the sky light.
 
 // Highway's foreach_target.h comes first, then highway.h.
 // clang-format off
@@ -10,6 +11,7 @@
 #include <hwy/foreach_target.h>
 #include <hwy/highway.h>
 #include "core/hwy_math-inl.h"
+#include "shading/brdf_lanes-inl.h"
 // clang-format on
 
 #include "raster/color_row.h"
@@ -24,21 +26,19 @@ using V = hn::Vec<D>;
 using simd::HWY_NAMESPACE::ClampToRange;
 using simd::HWY_NAMESPACE::Dot3Unfused;
 
-/// (1 - m)^5 written as (m^2 m^2) m, m = 1 - clamp(c, 0, 1).
-HWY_INLINE V SchlickWeight(V c)
-{
-    const D d;
-    const V m = hn::Sub(hn::Set(d, 1.0f), ClampToRange(c, hn::Zero(d), hn::Set(d, 1.0f)));
-    return hn::Mul(hn::Mul(hn::Mul(m, m), hn::Mul(m, m)), m);
-}
+using shading::HWY_NAMESPACE::FresnelSchlick;
+using shading::HWY_NAMESPACE::GgxSmithDV;
+using shading::HWY_NAMESPACE::SchlickWeight;
+using shading::HWY_NAMESPACE::SinSquaredAcross;
+using shading::HWY_NAMESPACE::SmithRoot;
 
 void ShadeLanes(SurfaceLanes &s, int count, const KernelLight &kl)
 {
     const D d;
     const int lanes = int(hn::Lanes(d));
-    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
     const V lx = hn::Set(d, kl.l.x), ly = hn::Set(d, kl.l.y), lz = hn::Set(d, kl.l.z);
-    const V inv_pi = hn::Set(d, 1.0f / shading::kPi), pi = hn::Set(d, shading::kPi);
+    const V inv_pi = hn::Set(d, 1.0f / shading::kPi);
     const V min_cos = hn::Set(d, shading::kMinCosine), f0d = hn::Set(d, 0.04f);
     const V scale = hn::Set(d, kl.scale);
     const V sun[3] = {hn::Set(d, kl.sun_rgb.x), hn::Set(d, kl.sun_rgb.y), hn::Set(d, kl.sun_rgb.z)};
@@ -62,20 +62,23 @@ void ShadeLanes(SurfaceLanes &s, int count, const KernelLight &kl)
         hx = hn::IfThenElse(hok, hn::Div(hx, hlen), nx);
         hy = hn::IfThenElse(hok, hn::Div(hy, hlen), ny);
         hz = hn::IfThenElse(hok, hn::Div(hz, hlen), nz);
-        const V nh = hn::Max(Dot3Unfused(nx, ny, nz, hx, hy, hz), zero);
+        const V nh_raw = Dot3Unfused(nx, ny, nz, hx, hy, hz);
+        const V nh = hn::Max(nh_raw, zero);
         const V vh = hn::Max(Dot3Unfused(vx, vy, vz, hx, hy, hz), zero);
         const V r = ClampToRange(rough, hn::Set(d, shading::kMinRoughness), one);
         const V alpha = hn::Mul(r, r);
         const V a2 = hn::Mul(alpha, alpha);
         // D (zero for n.h <= 0) times the correlated Smith V.
-        const V dd = hn::Add(hn::Mul(hn::Mul(nh, nh), hn::Sub(a2, one)), one);
-        const V dggx =
-            hn::IfThenElseZero(hn::Gt(nh, zero), hn::Div(a2, hn::Mul(hn::Mul(pi, dd), dd)));
         const V nlc = hn::Max(nl, min_cos);
         const V one_a2 = hn::Sub(one, a2);
-        const V gv = hn::Mul(nlc, hn::Sqrt(hn::Add(hn::Mul(hn::Mul(nv, nv), one_a2), a2)));
-        const V gl = hn::Mul(nv, hn::Sqrt(hn::Add(hn::Mul(hn::Mul(nlc, nlc), one_a2), a2)));
-        const V dv = hn::Mul(dggx, hn::Div(half, hn::Add(gv, gl)));
+        const V dv = GgxSmithDV(nh,
+                                SinSquaredAcross(nx, ny, nz, hx, hy, hz, nh_raw),
+                                a2,
+                                one_a2,
+                                nv,
+                                nlc,
+                                SmithRoot(nv, a2, one_a2),
+                                SmithRoot(nlc, a2, one_a2));
         // Schlick at v.h (direct) and at n.v (sky).
         const V mh5 = SchlickWeight(vh);
         const V mv5 = SchlickWeight(hn::Max(nv_raw, zero));
@@ -91,9 +94,8 @@ void ShadeLanes(SurfaceLanes &s, int count, const KernelLight &kl)
         float *dif[3] = {&s.dif_r[k], &s.dif_g[k], &s.dif_b[k]};
         for (int c = 0; c < 3; ++c) {
             const V f0 = hn::Add(hn::Mul(f0d, one_metal), hn::Mul(alb[c], metal));
-            const V one_f0 = hn::Sub(one, f0);
             const V diffuse = hn::Mul(alb[c], one_metal);
-            const V f = hn::Add(f0, hn::Mul(one_f0, mh5));
+            const V f = FresnelSchlick(f0, mh5);
             const V direct = hn::Mul(hn::Add(hn::Mul(diffuse, inv_pi), hn::Mul(f, dv)), nl);
             const V sun_vis = hn::Mul(sun[c], vis);
             V col = hn::IfThenElseZero(lit, hn::Mul(direct, sun_vis));
@@ -106,7 +108,7 @@ void ShadeLanes(SurfaceLanes &s, int count, const KernelLight &kl)
             const V env_mix = hn::Add(hn::Mul(amb, hn::Sub(one, gloss)),
                                       hn::Mul(hn::Mul(env_in[c], scale), gloss));
             const V env = hn::IfThenElse(glossy, env_mix, amb);
-            const V fs = hn::Add(f0, hn::Mul(one_f0, mv5));
+            const V fs = FresnelSchlick(f0, mv5);
             hn::StoreU(hn::Add(col, hn::Mul(fs, env)), d, out[c]);
         }
     }

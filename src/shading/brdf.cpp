@@ -52,6 +52,22 @@ float d_ggx(float n_dot_h, float alpha)
     return a2 / (kPi * d * d);
 }
 
+float d_ggx(float n_dot_h, float sin2_h, float alpha)
+{
+    if (n_dot_h <= 0.0f) {
+        return 0.0f;
+    }
+    const float a2 = alpha * alpha;
+    const float d = sin2_h * (1.0f - a2) + a2;
+    return a2 / (kPi * d * d);
+}
+
+float sin2_across(const glm::vec3 &n, const glm::vec3 &h)
+{
+    const glm::vec3 q = h - n * glm::dot(n, h);
+    return std::min(glm::dot(q, q), 1.0f);
+}
+
 float d_ggx_aniso(float n_dot_h, float t_dot_h, float b_dot_h, float alpha_x, float alpha_y)
 {
     if (n_dot_h <= 0.0f) {
@@ -89,6 +105,21 @@ float v_smith_correlated(float n_dot_v, float n_dot_l, float alpha)
     const float gv = nl * std::sqrt(nv * nv * (1.0f - a2) + a2);
     const float gl = nv * std::sqrt(nl * nl * (1.0f - a2) + a2);
     return 0.5f / (gv + gl);
+}
+
+float dv_ggx_smith_correlated(
+    float n_dot_h, float sin2_h, float n_dot_v, float n_dot_l, float alpha)
+{
+    if (n_dot_h <= 0.0f) {
+        return 0.0f;
+    }
+    const float nv = clamp_cos(n_dot_v);
+    const float nl = clamp_cos(n_dot_l);
+    const float a2 = alpha * alpha;
+    const float d = sin2_h * (1.0f - a2) + a2;
+    const float gv = nl * std::sqrt(nv * nv * (1.0f - a2) + a2);
+    const float gl = nv * std::sqrt(nl * nl * (1.0f - a2) + a2);
+    return (0.5f * a2) / (kPi * d * d * (gv + gl));
 }
 
 float v_smith_correlated_aniso(float n_dot_v,
@@ -184,21 +215,13 @@ glm::vec3 evaluate(
                   (4.0f * nl * nv);
         }
         dv = d * vis;
+    } else if (geometry == Geometry::SmithCorrelated) {
+        dv = dv_ggx_smith_correlated(nh, sin2_across(n, h), nv, nl, alpha);
     } else {
         const float d = d_ggx(nh, alpha);
-        float vis;
-        switch (geometry) {
-            case Geometry::SmithSeparable:
-                vis = g2_smith_separable(nv, nl, alpha) / (4.0f * clamp_cos(nl) * nv);
-                break;
-            case Geometry::CookTorrance:
-                vis = g_cook_torrance(nh, nv, nl, vh) / (4.0f * clamp_cos(nl) * nv);
-                break;
-            default:
-                vis = v_smith_correlated(nv, nl, alpha);
-                break;
-        }
-        dv = d * vis;
+        const float g = geometry == Geometry::SmithSeparable ? g2_smith_separable(nv, nl, alpha)
+                                                             : g_cook_torrance(nh, nv, nl, vh);
+        dv = d * (g / (4.0f * clamp_cos(nl) * nv));
     }
     const glm::vec3 f = fresnel_schlick(specular_f0(s), vh);
     return (lambert(diffuse_albedo(s)) + f * dv) * nl;
@@ -231,7 +254,8 @@ float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
     // Local frame n = z, v in the xz plane. h is drawn from the distribution of visible normals
     // (Heitz 2018, "Sampling the GGX Distribution of Visible Normals"), l = reflect(v, h), so
     // pdf(l) = G1(v) D(h) / (4 n.v). D is evaluated at the h that evaluate() rebuilds from v + l,
-    // so that its float rounding cancels (it matters for alpha ~ 0.002).
+    // in the form evaluate() uses for `geometry`, so that its float rounding cancels (it matters
+    // for alpha ~ 0.002).
     const float nv = std::clamp(mu, kMinCosine, 1.0f);
     const glm::vec3 n(0, 0, 1), v(std::sqrt(1.0f - nv * nv), 0.0f, nv);
     Surface s;
@@ -268,7 +292,9 @@ float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
         }
         glm::vec3 he = v + l;  // exactly as evaluate() rebuilds h
         he = he / glm::length(he);
-        const float d = d_ggx(std::max(glm::dot(n, he), 0.0f), alpha);
+        const float d = geometry == Geometry::SmithCorrelated
+                            ? d_ggx(std::max(glm::dot(n, he), 0.0f), sin2_across(n, he), alpha)
+                            : d_ggx(std::max(glm::dot(n, he), 0.0f), alpha);
         const float pdf = g1v * d / (4.0f * nv);
         if (pdf > 0.0f) {
             sum += double(evaluate(s, n, v, l, geometry).x / pdf);

@@ -34,6 +34,14 @@ void anisotropic_alphas(float alpha, float anisotropy, float &alpha_x, float &al
 /// zero for n.h <= 0. Normalised: integral of D(h) (n.h) over the hemisphere is 1.
 float d_ggx(float n_dot_h, float alpha);
 
+/// d_ggx with 1 - (n.h)^2 given as sin2_h = |h - n (n.h)|^2 (clamped to 1), which does not
+/// cancel at the lobe's peak: a^2 / (pi d^2), d = sin2_h (1 - a^2) + a^2; zero for n.h <= 0.
+/// The D of evaluate()'s default lobe (dv_ggx_smith_correlated).
+float d_ggx(float n_dot_h, float sin2_h, float alpha);
+
+/// |h - n (n.h)|^2 clamped to 1: 1 - (n.h)^2 without cancellation, for unit n and h.
+float sin2_across(const glm::vec3 &n, const glm::vec3 &h);
+
 /// Anisotropic GGX D(h) = 1 / (pi ax ay ((t.h/ax)^2 + (b.h/ay)^2 + (n.h)^2)^2); zero for n.h <= 0.
 /// t and b are the unit tangent and bitangent (t, b, n orthonormal).
 float d_ggx_aniso(float n_dot_h, float t_dot_h, float b_dot_h, float alpha_x, float alpha_y);
@@ -50,6 +58,13 @@ float g2_smith_correlated(float n_dot_v, float n_dot_l, float alpha);
 /// Height-correlated Smith visibility V = G2 / (4 (n.l)(n.v)), in the closed form
 /// 0.5 / (n.l sqrt(n.v^2 (1 - a^2) + a^2) + n.v sqrt(n.l^2 (1 - a^2) + a^2)). The default.
 float v_smith_correlated(float n_dot_v, float n_dot_l, float alpha);
+
+/// d_ggx(n.h, alpha) times v_smith_correlated(n.v, n.l, alpha), evaluate()'s default lobe, with
+/// 1 - (n.h)^2 given as sin2_h = |h - n (n.h)|^2 (clamped to 1): d = sin2_h (1 - a^2) + a^2
+/// does not cancel at the lobe's peak, where D amplifies an error of n.h by about 1 / alpha^2.
+/// One division: (0.5 a^2) / (pi d^2 (n.l sqrt(...) + n.v sqrt(...))). Zero for n.h <= 0.
+float dv_ggx_smith_correlated(
+    float n_dot_h, float sin2_h, float n_dot_v, float n_dot_l, float alpha);
 
 /// Anisotropic height-correlated Smith visibility (Heitz 2014, anisotropic Lambda).
 /// t.v, b.v, t.l, b.l are the tangent/bitangent components of v and l.

@@ -2,9 +2,9 @@
 // The relight node's method (nodes/relight.cpp): a G-buffer shaded under a list of lights with
 // the project's BRDF (brdf.h: Lambert or Burley diffuse, GGX with Smith or Cook-Torrance
 // masking, anisotropic GGX, Kulla & Conty energy compensation) and the rasterizer's toon bands
-// and sky light (lighting.h), with optional screen-space shadows. `shade` runs whole rows eight
-// pixels at a time with AVX2 (relight_avx2.cpp) where the CPU and the options allow, else the
-// portable tiles (relight.cpp), which are the reference.
+// and sky light (lighting.h), with optional screen-space shadows. `shade` runs whole rows a
+// vector of pixels at a time (relight_kernels.cpp, on the best Highway target) where the options
+// allow, else the reference one pixel at a time (relight.cpp); both give the same bits.
 
 #include <array>
 #include <cmath>
@@ -95,8 +95,8 @@ struct Inputs {
     const Image *color = nullptr, *normal = nullptr, *albedo = nullptr, *material = nullptr;
     const Image *position = nullptr, *depth = nullptr, *tangent = nullptr, *id = nullptr;
     bool from_depth = false, shadows = false, replace = false;
-    bool fast_ok = false;  // options the SSE2 kernel covers (per pixel: isotropic, not toon)
-    bool avx2_ok = false;  // options the AVX2 path covers: fast_ok plus energy compensation
+    bool kernel_ok =
+        false;  // options the vector rows cover (no shadows, Lambert, Smith correlated)
     const shading::EnergyTable *energy = nullptr;  // the Kulla-Conty table when compensating
     glm::mat4 c2w{1.0f}, cam_to_ndc{1.0f};
     glm::vec3 eye{0.0f}, sky_sun{0.0f};

@@ -1,6 +1,6 @@
 #pragma once
-// Pieces of the relight method shared by its portable path (relight.cpp) and its AVX2 rows
-// (relight_avx2.cpp), which falls back to them for the lanes it does not cover. Not for other
+// Pieces of the relight method shared by its reference (relight.cpp) and its vector rows
+// (relight_kernels.cpp), which fall back to them for the lanes they do not cover. Not for other
 // callers: shading/relight.h is the interface.
 
 #include "shading/relight.h"
@@ -9,7 +9,7 @@ namespace posthaste::shading::relight {
 
 // One shaded pixel's inputs.
 struct Prepared {
-    bool valid = false, fast = false;
+    bool valid = false;
     glm::vec3 p{0.0f}, n{0.0f, 0.0f, 1.0f}, v{0.0f, 0.0f, 1.0f};
     shading::Surface surf;
     const shading::DirectOptions *opts = nullptr;
@@ -22,8 +22,8 @@ glm::vec3 light_sum_scalar(const Inputs &sh, const Prepared &pr, int x, int y);
 /// The pixel's output color from its lights' sum `c` and its input `in`.
 glm::vec3 finish_pixel(const Inputs &sh, const Prepared &pr, glm::vec3 c, const float *in);
 
-/// Every row of `out` through the AVX2 kernel (sh.avx2_ok options only; the caller checks the
-/// CPU). Defined only when the build has an AVX2 target.
-void shade_rows_avx2(const Inputs &sh, Image &out);
+/// Every row of `out` through the vector kernel on the best Highway target (sh.kernel_ok
+/// options only).
+void shade_rows_vector(const Inputs &sh, Image &out);
 
 }  // namespace posthaste::shading::relight

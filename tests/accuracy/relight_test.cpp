@@ -286,11 +286,14 @@ double furnace(float roughness, float mu, shading::Geometry g, bool compensate)
             if (l.z <= 0) {
                 continue;
             }
-            // D and the cosines at the h that evaluate() rebuilds from v + l (float rounding of
-            // n.h matters for alpha ~ 0.002; the ratio then cancels it).
+            // D and the cosines at the h that evaluate() rebuilds from v + l, with D in the form
+            // evaluate() uses for g (float rounding of n.h matters for alpha ~ 0.002; the ratio
+            // then cancels it).
             glm::vec3 he = v + l;  // as evaluate() rebuilds h
             he = he / glm::length(he);
-            const double pdf = double(d_ggx(he.z, alpha)) * he.z / (4.0 * glm::dot(v, he));
+            const float d = g == Geometry::SmithCorrelated ? d_ggx(he.z, sin2_across(n, he), alpha)
+                                                           : d_ggx(he.z, alpha);
+            const double pdf = double(d) * he.z / (4.0 * glm::dot(v, he));
             sum += double(evaluate(s, n, v, l, g).x) / pdf;
         }
     }

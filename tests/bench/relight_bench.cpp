@@ -8,6 +8,7 @@
 //   build/tests/posthaste_benchmarks --benchmark_filter=Relight --benchmark_repetitions=5
 //       --benchmark_report_aggregates_only=true   (one command line)
 #include <benchmark/benchmark.h>
+#include <hwy/targets.h>
 
 #include <ctime>
 #include <glm/geometric.hpp>
@@ -128,11 +129,19 @@ void BM_Relight4LightsOneThread(benchmark::State &state)
     set_thread_count(0);
 }
 
-// The same work on the portable path (scalar setup, SSE2 kernel): the AVX2 path's baseline.
+// The same work on the reference, one pixel at a time (POSTHASTE_SIMD=scalar; the same bits).
 void BM_Relight4LightsPortable(benchmark::State &state)
 {
     simd::ScopedLevel scalar(simd::Level::Scalar);
     run_node(state, "");
+}
+
+// The same work on the vector rows compiled for Highway's portable one-lane target.
+void BM_Relight4LightsOneLane(benchmark::State &state)
+{
+    hwy::SetSupportedTargetsForTest(HWY_SCALAR | HWY_EMU128);
+    run_node(state, "");
+    hwy::SetSupportedTargetsForTest(0);
 }
 
 void BM_Relight4LightsEnergyCompensation(benchmark::State &state)
@@ -150,6 +159,7 @@ BENCHMARK(BM_RelightBaselineLambert)->Unit(benchmark::kMillisecond)->UseRealTime
 BENCHMARK(BM_Relight4Lights)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsOneThread)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsPortable)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_Relight4LightsOneLane)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsEnergyCompensation)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsScreenShadows)->Unit(benchmark::kMillisecond)->UseRealTime();
 

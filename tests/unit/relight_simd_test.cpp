@@ -1,13 +1,17 @@
-// The relight node's AVX2 path (nodes/relight.cpp, shade_row_avx2) against its portable path
-// (scalar setup, SSE2 kernel, shading::direct_response) on a real frame: the Minecrappy scene's
-// G-buffer at frame 30 with every material kind (rough and glossy dielectrics, metals, the
-// anisotropic ones, toon leaves) under a sun, two point lights and a spot, in both modes and
-// with positions from the position pass or from depth.
+// The relight node's vector rows (shading/relight_kernels.cpp, one Highway source) against its
+// reference (shading/relight.cpp: prepare_pixel and shading::direct_response, one pixel at a
+// time) on a real frame: the Minecrappy scene's G-buffer at frame 30 with every material kind
+// (rough and glossy dielectrics, metals, the anisotropic ones, toon leaves) under a sun, two
+// point lights and a spot, in both modes and with positions from the position pass or from
+// depth. The rows do the reference's operations in its order with exact division and square
+// root, so every value must be the same bits, on every target this CPU has: the best, AVX2,
+// SSE4 and the portable one-lane target.
 #include <gtest/gtest.h>
+#include <hwy/targets.h>
 
-#include <algorithm>
 #include <cmath>
-#include <cstdio>
+#include <cstdint>
+#include <cstring>
 #include <string>
 
 #include "core/parallel.h"
@@ -15,8 +19,8 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
+#include "shading/relight_pixel.h"
 #include "test_util.h"
-
 namespace posthaste {
 namespace {
 
@@ -47,111 +51,148 @@ const char *kLights = R"("lights": [
     {"type": "spot", "position": [64, 30, 64], "direction": [0, -1, 0.2], "intensity": 900,
      "inner_deg": 15, "outer_deg": 35}])";
 
-struct Difference {
-    double worst_rel = 0.0;    // largest |a - b| / max(|b|, 1e-3) outside the band edges
-    std::size_t outliers = 0;  // values beyond the tolerance (toon band edges)
-    std::size_t changed = 0;   // values that differ from the input at all
-};
-
-// Compares the AVX2 and portable outputs value by value; `in` is the input color.
-Difference compare(const Image &fast, const Image &ref, const Image &in, double tolerance)
+/// Values whose bits differ between a and b (the same size).
+std::size_t differing_values(const Image &a, const Image &b)
 {
-    // Surface pixels: a finite position and a normal longer than 0.5 (the node's own test).
-    const Image &normal = gbuffer().image("normal"), &position = gbuffer().image("position");
-    Image surface(ref.width(), ref.height(), 1);
-    for (int y = 0; y < ref.height(); ++y) {
-        for (int x = 0; x < ref.width(); ++x) {
-            float n2 = 0.0f;
-            bool finite = true;
-            for (int c = 0; c < 3; ++c) {
-                n2 += normal.at(x, y, c) * normal.at(x, y, c);
-                finite = finite && std::isfinite(position.at(x, y, c));
-            }
-            surface.at(x, y, 0) = finite && n2 > 0.3f;
-        }
+    EXPECT_EQ(a.value_count(), b.value_count());
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < a.value_count(); ++i) {
+        n += std::memcmp(a.data() + i, b.data() + i, sizeof(float)) != 0;
     }
-    Difference d;
-    EXPECT_EQ(fast.channels(), ref.channels());
-    for (int y = 0; y < ref.height(); ++y) {
-        for (int x = 0; x < ref.width(); ++x) {
-            for (int c = 0; c < ref.channels(); ++c) {
-                const double a = fast.at(x, y, c), b = ref.at(x, y, c);
-                EXPECT_TRUE(std::isfinite(a)) << x << "," << y;
-                d.changed += b != double(in.at(x, y, c));
-                if (c == 3 || !surface.at(x, y, 0)) {
-                    // Alpha and background pass through: the same bits on both paths.
-                    EXPECT_EQ(a, b) << x << "," << y << " channel " << c;
-                    continue;
-                }
-                const double rel = std::abs(a - b) / std::max(std::abs(b), 1e-3);
-                if (rel > tolerance) {
-                    ++d.outliers;
-                } else {
-                    d.worst_rel = std::max(d.worst_rel, rel);
-                }
-            }
-        }
-    }
-    return d;
+    return n;
 }
 
-// Relative tolerance per value. Both paths use rsqrt/rcp with one Newton step (about 5e-7 each);
-// at a glossy highlight the portable path's 1 - (n.h)^2 loses about one ulp / alpha^2 to
-// cancellation (about 1e-4 at roughness 0.25; the AVX2 path avoids it), which dominates: the
-// measured worst is about 8e-5.
-constexpr double kTolerance = 2e-4;
-
-void check_paths_agree(const std::string &params, std::size_t max_outliers)
+/// Values that differ from the input colour: what the lights changed.
+std::size_t changed_values(const Image &out)
 {
-    if (simd::detected() != simd::Level::Avx2) {
-        GTEST_SKIP() << "no AVX2 on this CPU";
+    const Image &in = gbuffer().image("color");
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < out.value_count(); ++i) {
+        n += out.data()[i] != in.data()[i];
     }
+    return n;
+}
+
+struct Target {
+    const char *name;
+    std::int64_t bits;  // 0: the best this CPU has
+};
+constexpr Target kTargets[] = {{"best", 0},
+                               {"AVX-512", HWY_AVX3},
+                               {"AVX2", HWY_AVX2},
+                               {"SSE4", HWY_SSE4},
+                               {"one lane", HWY_SCALAR | HWY_EMU128}};
+
+/// `run` on each Highway target this CPU has; `check` sees each output with the target's name.
+template <class Run, class Check>
+void on_every_target(const Run &run, const Check &check)
+{
+    const std::int64_t cpu = hwy::SupportedTargets();
+    for (const Target &t : kTargets) {
+        if (t.bits != 0 && (cpu & t.bits) == 0) {
+            continue;
+        }
+        hwy::SetSupportedTargetsForTest(t.bits);
+        const Image out = run();
+        hwy::SetSupportedTargetsForTest(0);
+        check(out, t.name);
+    }
+}
+
+/// The node with `params` on the reference (POSTHASTE_SIMD=scalar) and on every target.
+void check_same_bits(const std::string &params)
+{
     Image ref;
     {
         simd::ScopedLevel scalar(simd::Level::Scalar);
         ref = run_relight(params);
     }
-    const Image fast = run_relight(params);
-    const Difference d = compare(fast, ref, gbuffer().image("color"), kTolerance);
-    std::printf(
-        "relight AVX2 vs portable: worst relative difference %.3g, %zu of %zu values "
-        "beyond %.0e\n",
-        d.worst_rel,
-        d.outliers,
-        d.changed,
-        kTolerance);
-    EXPECT_GT(d.changed, std::size_t(ref.width()) * std::size_t(ref.height()));  // it did shade
-    EXPECT_LE(d.worst_rel, kTolerance);
-    EXPECT_LE(d.outliers, max_outliers);
+    EXPECT_GT(changed_values(ref), std::size_t(ref.width()) * std::size_t(ref.height()));
+    on_every_target([&] { return run_relight(params); },
+                    [&](const Image &out, const char *target) {
+                        EXPECT_EQ(differing_values(out, ref), 0u) << target;
+                    });
 }
 
-TEST(RelightSimd, AddModeMatchesPortablePath)
+TEST(RelightSimd, AddModeGivesTheReferenceBitsOnEveryTarget)
 {
-    // Toon leaves: a pixel whose n.l sits on a band edge may fall in the next band on one path
-    // only (a step of albedo / bands / pi times the light), so a few values may differ.
-    check_paths_agree(R"({"mode": "add", "toon_ids": "6", )" + std::string(kLights) + "}", 8);
+    check_same_bits(R"({"mode": "add", "toon_ids": "6", )" + std::string(kLights) + "}");
 }
 
-TEST(RelightSimd, ReplaceWithAmbientAndClampMatchesPortablePath)
+TEST(RelightSimd, ReplaceWithAmbientAndClampGivesTheReferenceBits)
 {
-    check_paths_agree(
-        R"({"mode": "replace", "ambient": 0.6, "clamp": 2.0, )" + std::string(kLights) + "}", 0);
+    check_same_bits(R"({"mode": "replace", "ambient": 0.6, "clamp": 2.0, "toon_ids": "6", )" +
+                    std::string(kLights) + "}");
 }
 
-TEST(RelightSimd, PositionFromDepthMatchesPortablePath)
+TEST(RelightSimd, PositionFromDepthGivesTheReferenceBits)
 {
-    // The AVX2 path's own 2x2 solve for the position against prepare_pixel's.
-    check_paths_agree(R"({"mode": "replace", "position_from": "depth", "toon_ids": "6", )" +
-                          std::string(kLights) + "}",
-                      8);
+    // The rows' own 2x2 solve for the position against prepare_pixel's.
+    check_same_bits(R"({"mode": "replace", "position_from": "depth", "toon_ids": "6", )" +
+                    std::string(kLights) + "}");
 }
 
-TEST(RelightSimd, EnergyCompensationMatchesPortablePath)
+TEST(RelightSimd, EnergyCompensationGivesTheReferenceBits)
 {
     // The Kulla-Conty lobe with the table read per lane (gathers) against multiscatter().
-    check_paths_agree(R"({"mode": "add", "energy_compensation": true, "toon_ids": "6", )" +
-                          std::string(kLights) + "}",
-                      8);
+    check_same_bits(R"({"mode": "add", "energy_compensation": true, "toon_ids": "6", )" +
+                    std::string(kLights) + "}");
+}
+
+TEST(RelightSimd, QuantisedToonHighlightsGiveTheReferenceBits)
+{
+    // Toon lanes with stepped highlights go through the reference inside the rows.
+    check_same_bits(R"({"mode": "add", "toon_ids": "6", "toon_specular_steps": 3, )" +
+                    std::string(kLights) + "}");
+}
+
+TEST(RelightSimd, TheRowsThemselvesGiveTheReferenceBits)
+{
+    // The rows called directly (so this cannot pass by both runs taking the reference), on
+    // Inputs built here: positions from the position pass, an eye above the scene, anisotropic
+    // and toon materials, every light kind.
+    const Frame &f = gbuffer();
+    shading::relight::Setup setup;
+    shading::relight::Light sun, point, spot;
+    sun.direction = glm::normalize(glm::vec3(0.4f, 0.75f, 0.3f));
+    sun.power = glm::vec3(4.0f, 3.8f, 3.5f);
+    point.type = shading::relight::LightType::Point;
+    point.position = glm::vec3(60.0f, 20.0f, 60.0f);
+    point.power = glm::vec3(200.0f, 120.0f, 60.0f);
+    spot.type = shading::relight::LightType::Spot;
+    spot.position = glm::vec3(64.0f, 30.0f, 64.0f);
+    spot.direction = glm::normalize(glm::vec3(0.0f, -1.0f, 0.2f));
+    spot.power = glm::vec3(900.0f);
+    spot.cos_inner = std::cos(0.26f);
+    spot.cos_outer = std::cos(0.61f);
+    setup.lights = {sun, point, spot};
+    setup.is_toon[6] = true;
+    shading::relight::Inputs sh;
+    sh.setup = &setup;
+    sh.color = &f.image("color");
+    sh.normal = &f.image("normal");
+    sh.albedo = &f.image("albedo");
+    sh.material = &f.image("material");
+    sh.position = &f.image("position");
+    sh.tangent = &f.image("tangent");
+    sh.id = &f.image("id");
+    sh.eye = glm::vec3(40.0f, 35.0f, 20.0f);
+    sh.width = sh.color->width();
+    sh.height = sh.color->height();
+    sh.toon.toon_bands = 3;
+    sh.toon_words[0] = 1u << 6;
+    Image ref = Image::uninitialized(sh.width, sh.height, sh.color->channels());
+    shading::relight::shade(sh, ref);  // kernel_ok is false: the reference
+    EXPECT_GT(changed_values(ref), std::size_t(ref.width()) * std::size_t(ref.height()));
+    on_every_target(
+        [&] {
+            Image out = Image::uninitialized(sh.width, sh.height, sh.color->channels());
+            shading::relight::shade_rows_vector(sh, out);
+            return out;
+        },
+        [&](const Image &out, const char *target) {
+            EXPECT_EQ(differing_values(out, ref), 0u) << target;
+        });
 }
 
 TEST(RelightSimd, SameBitsForAnyThreadCount)
