@@ -63,14 +63,14 @@ struct Packed {
     Scratch<float> block;
     std::size_t stride = 0;  ///< floats from one plane to the next (a multiple of 16)
     /// The clamped half-extent vectors (2 channels) for tiles.h's reductions, where the pack
-    /// does not fold them itself (scalar path, tiles not a multiple of 8); else empty. The
+    /// does not fold them itself (scalar path, tiles not a multiple of the lanes); else empty. The
     /// gather recovers a pixel's vector from its planes: v = w 2|v|^2.
     Image velocity;
     /// Per row: every alpha is exactly 1 (RGBA colour). A frame opaque everywhere blurs to
     /// alpha 1, and the gather does not sum its alpha plane.
     std::vector<unsigned char> opaque_rows;
     /// Tile max and tile bounds of the velocities (tiles.h), when the pack reduced them
-    /// (AVX2, tiles a multiple of 8 wide); else empty.
+    /// (vector rows, tiles a multiple of the lanes wide); else empty.
     Image tiles, bounds;
 
     float *plane(int field) const { return block.get() + std::size_t(field) * stride; }
@@ -85,15 +85,11 @@ POSTHASTE_AVX2_INLINE V abs8(V x)
 {
     return _mm256_andnot_ps(set1(-0.0f), x);
 }
-POSTHASTE_AVX2_INLINE V finite8(V x)
-{
-    return _mm256_cmp_ps(abs8(x), set1(std::numeric_limits<float>::infinity()), _CMP_LT_OQ);
-}
 #endif
 
 /// The records of a frame (motion_blur_pack.cpp): the planes, the per-row opacity and, on the
-/// AVX2 path with tiles a multiple of 8 wide, the tile max (and with `bounds`, the tile bounds).
-/// `vector`: the AVX2 path (the caller checked the CPU).
+/// vector path with tiles a multiple of its lanes wide, the tile max (and with `bounds`, the
+/// tile bounds). `vector`: the vector rows (Highway, the CPU's best target).
 Packed pack(const Image &color,
             const Image &motion,
             const Image &depth,
