@@ -32,13 +32,6 @@ using VI = hn::Vec<DI>;
 using M = hn::Mask<D>;
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
-/// Lanes where x is finite.
-HWY_INLINE M Finite(V x)
-{
-    const D d;
-    return hn::Lt(hn::Abs(x), hn::Set(d, kInf));
-}
-
 /// One tile's accumulators in a band, as lanes of tile_max_bounds: the longest vector so far
 /// (length^2, x, y, and its scan index in the tile, for ties) and the box. Stored between rows.
 enum Acc { kL, kX, kY, kLoX, kLoY, kHiX, kHiY, kIndex, kAccs };
@@ -93,11 +86,11 @@ bool PackRow(const Packer &p, int y, float *acc, int r, int tile)
         }
         vx = hn::Mul(vx, scale);
         vy = hn::Mul(vy, scale);
-        const M ok = hn::And(Finite(vx), Finite(vy));
+        const M ok = hn::And(hn::IsFinite(vx), hn::IsFinite(vy));
         vx = hn::IfThenElseZero(ok, vx);
         vy = hn::IfThenElseZero(ok, vy);
         V len = hn::Sqrt(hn::Add(hn::Mul(vx, vx), hn::Mul(vy, vy)));
-        const M lok = Finite(len);
+        const M lok = hn::IsFinite(len);
         vx = hn::IfThenElseZero(lok, vx);
         vy = hn::IfThenElseZero(lok, vy);
         len = hn::IfThenElseZero(lok, len);
@@ -113,7 +106,7 @@ bool PackRow(const Packer &p, int y, float *acc, int r, int tile)
                 dc == 1 ? hn::LoadU(d, p.depth.pixel(x, y))
                         : hn::GatherIndex(d, p.depth.pixel(x, y), hn::Mul(lane, hn::Set(di, dc)));
             // NaN, zero or negative depth is sky.
-            const M good = hn::And(hn::Gt(z, zero), Finite(z));
+            const M good = hn::And(hn::Gt(z, zero), hn::IsFinite(z));
             lz = hn::IfThenElse(
                 good, hn::Log(d, hn::Max(z, hn::Set(d, 1e-30f))), hn::Set(d, kSkyLogZ));
         }

@@ -20,8 +20,6 @@
 
 #include <algorithm>
 #include <cstdint>
-#include <cstring>
-#include <limits>
 
 #include "core/parallel.h"
 #include "shading/relight_pixel.h"
@@ -71,13 +69,14 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
     } else {
         Load3(*sh.position, x, y, n, p.px, p.py, p.pz);
         if (sh.depth) {
-            depth_ok = hn::And(depth_ok, Finite(Load1(*sh.depth, x, y, n)));
+            depth_ok = hn::And(depth_ok, hn::IsFinite(Load1(*sh.depth, x, y, n)));
         }
     }
     Load3(*sh.normal, x, y, n, p.nx, p.ny, p.nz);
     const V nlen = hn::Sqrt(Dot3Unfused(p.nx, p.ny, p.nz, p.nx, p.ny, p.nz));
-    M valid = hn::And(depth_ok, hn::And(Finite(p.px), hn::And(Finite(p.py), Finite(p.pz))));
-    valid = hn::And(valid, hn::And(hn::Gt(nlen, hn::Set(d, 0.5f)), Finite(nlen)));
+    M valid = hn::And(depth_ok,
+                      hn::And(hn::IsFinite(p.px), hn::And(hn::IsFinite(p.py), hn::IsFinite(p.pz))));
+    valid = hn::And(valid, hn::And(hn::Gt(nlen, hn::Set(d, 0.5f)), hn::IsFinite(nlen)));
     const V inv_n = hn::Div(one, hn::IfThenElse(valid, nlen, one));
     p.nx = hn::Mul(p.nx, inv_n);
     p.ny = hn::Mul(p.ny, inv_n);
@@ -103,9 +102,10 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
     V mr, mm, ma;
     Load3(*sh.material, x, y, n, mr, mm, ma);
     Load3(*sh.albedo, x, y, n, p.alb[0], p.alb[1], p.alb[2]);
-    p.rough = hn::IfThenElse(Finite(mr), Clamp(mr, 0.0f, 1.0f), one);
-    p.metal = hn::IfThenElseZero(Finite(mm), Clamp(mm, 0.0f, 1.0f));
-    const M alb_ok = hn::And(Finite(p.alb[0]), hn::And(Finite(p.alb[1]), Finite(p.alb[2])));
+    p.rough = hn::IfThenElse(hn::IsFinite(mr), Clamp(mr, 0.0f, 1.0f), one);
+    p.metal = hn::IfThenElseZero(hn::IsFinite(mm), Clamp(mm, 0.0f, 1.0f));
+    const M alb_ok =
+        hn::And(hn::IsFinite(p.alb[0]), hn::And(hn::IsFinite(p.alb[1]), hn::IsFinite(p.alb[2])));
     for (V &a : p.alb) {
         a = hn::IfThenElseZero(alb_ok, a);
     }
@@ -135,7 +135,7 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
     // Anisotropy: a material value and a tangent with a usable part across n.
     p.aniso = hn::FirstN(d, 0);
     if (sh.tangent) {
-        const M cand = hn::And(valid, hn::And(Finite(ma), hn::Ne(ma, zero)));
+        const M cand = hn::And(valid, hn::And(hn::IsFinite(ma), hn::Ne(ma, zero)));
         if (!hn::AllFalse(d, cand)) {
             V gx, gy, gz;
             Load3(*sh.tangent, x, y, n, gx, gy, gz);
@@ -143,7 +143,8 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
             const V qx = hn::Sub(gx, hn::Mul(p.nx, ndt)), qy = hn::Sub(gy, hn::Mul(p.ny, ndt)),
                     qz = hn::Sub(gz, hn::Mul(p.nz, ndt));
             const V q2 = Dot3Unfused(qx, qy, qz, qx, qy, qz);
-            p.aniso = hn::And(cand, hn::And(Finite(qx), hn::And(Finite(qy), Finite(qz))));
+            p.aniso = hn::And(
+                cand, hn::And(hn::IsFinite(qx), hn::And(hn::IsFinite(qy), hn::IsFinite(qz))));
             p.aniso = hn::And(p.aniso, hn::Gt(q2, hn::Set(d, 1e-8f)));
             if (!hn::AllFalse(d, p.aniso)) {
                 // evaluate(): t = normalize(tangent - n (n.t)) (glm: times 1 / sqrt), b = n x t.

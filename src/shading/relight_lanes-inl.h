@@ -17,7 +17,6 @@
 
 #include <cstdint>
 #include <cstring>
-#include <limits>
 
 #include "shading/relight_pixel.h"
 
@@ -31,13 +30,6 @@ using V = hn::Vec<D>;
 using VI = hn::Vec<DI>;
 using M = hn::Mask<D>;
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
-
-/// Lanes where x is finite (NaN and infinities are not).
-HWY_INLINE M Finite(V x)
-{
-    const D d;
-    return hn::Lt(hn::Abs(x), hn::Set(d, std::numeric_limits<float>::infinity()));
-}
 
 /// std::clamp(x, lo, hi) for the finite x it is used on.
 HWY_INLINE V Clamp(V x, float lo, float hi)
@@ -116,7 +108,7 @@ HWY_INLINE void PositionFromDepth(const Inputs &sh, int x, int y, int n, V &px, 
     const V b1 =
         hn::Neg(hn::Sub(hn::Add(hn::Mul(s(m[2][1] - v * m[2][3]), z), s(m[3][1])), s(v * m[3][3])));
     const V det = hn::Sub(hn::Mul(a00, a11), hn::Mul(a01, a10));
-    ok = hn::And(Finite(z), hn::Ne(det, hn::Zero(d)));
+    ok = hn::And(hn::IsFinite(z), hn::Ne(det, hn::Zero(d)));
     const V qx = hn::Div(hn::Sub(hn::Mul(b0, a11), hn::Mul(a01, b1)), det);
     const V qy = hn::Div(hn::Sub(hn::Mul(a00, b1), hn::Mul(a10, b0)), det);
     px = Transform(sh.c2w, 0, qx, qy, z);
