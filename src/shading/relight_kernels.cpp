@@ -45,7 +45,7 @@ struct Pixels {
     V px, py, pz, nx, ny, nz, vx, vy, vz;
     V rough, metal, alb[3];
     V nv_raw, nv, a2, one_a2, root_v;  // n.v, clamped n.v, alpha^2, 1 - alpha^2, Smith's root
-    V f0[3], kd[3];                    // F0; diffuse albedo / pi (toon: diffuse albedo / pi)
+    V f0[3], kd[3];  // F0; diffuse albedo times 1 / pi (toon: divided by pi, as direct_response)
     // Anisotropic lanes: the tangent frame, the alphas and the view's terms.
     V tx, ty, tz, bx, by, bz, ax, ay, tv, bv, root_va;
     // Energy compensation: (1 - E(n.v)), pi (1 - E_avg), F_ms per channel, the table row.
