@@ -1,9 +1,11 @@
 #pragma once
 // Shared helpers for tests: scratch directories, analytic sample frames, running the CLI.
 
+#include <hwy/targets.h>
 #include <sys/wait.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <glm/glm.hpp>
@@ -21,6 +23,33 @@
 #include "raster/render.h"
 
 namespace posthaste::test {
+
+/// Calls fn(name) once on each Highway target this CPU has (the best it has, AVX-512, AVX2,
+/// SSE4, the portable one-lane target), with Highway's dispatch held to that target
+/// (hwy::SetSupportedTargetsForTest) and restored afterwards: for kernels whose targets must
+/// agree.
+template <class Fn>
+void for_each_highway_target(const Fn &fn)
+{
+    struct Target {
+        const char *name;
+        std::int64_t bits;  // 0: the best this CPU has
+    };
+    static constexpr Target kTargets[] = {{"best", 0},
+                                          {"AVX-512", HWY_AVX3},
+                                          {"AVX2", HWY_AVX2},
+                                          {"SSE4", HWY_SSE4},
+                                          {"one lane", HWY_SCALAR | HWY_EMU128}};
+    const std::int64_t cpu = hwy::SupportedTargets();
+    for (const Target &t : kTargets) {
+        if (t.bits != 0 && (cpu & t.bits) == 0) {
+            continue;
+        }
+        hwy::SetSupportedTargetsForTest(t.bits);
+        fn(t.name);
+        hwy::SetSupportedTargetsForTest(0);
+    }
+}
 
 /// A fresh, empty directory under the system temp dir, unique to the calling test.
 inline std::string scratch_dir(const std::string &name)

@@ -17,6 +17,7 @@
 
 #include <hwy/highway.h>
 
+#include "core/hwy_math-inl.h"
 #include "shading/brdf.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -29,7 +30,7 @@ HWY_INLINE V SchlickWeight(V c)
 {
     const hn::DFromV<V> d;
     const V one = hn::Set(d, 1.0f);
-    const V m = hn::Sub(one, hn::Min(hn::Max(c, hn::Zero(d)), one));
+    const V m = hn::Sub(one, simd::HWY_NAMESPACE::ClampToRange(c, hn::Zero(d), one));
     return hn::Mul(hn::Mul(hn::Mul(m, m), hn::Mul(m, m)), m);
 }
 

@@ -104,7 +104,9 @@ struct Inputs {
     float ambient = 0.0f, clamp = 0.0f;
     shading::DirectOptions base, toon;
     ScreenShadows ss;
-    std::array<std::uint32_t, 8> toon_words{};  // Setup::is_toon as 256 bits
+    // Setup::is_toon as 256 bits in words 0..7; 8..15 stay zero, so that the vector rows load
+    // the set as one vector of up to 16 lanes.
+    std::array<std::uint32_t, 16> toon_words{};
 };
 
 /// Shade every pixel of `out` (the size of sh.color, its channel count): the lights' sum added

@@ -36,6 +36,7 @@ using shading::HWY_NAMESPACE::SinSquaredAcross;
 using shading::HWY_NAMESPACE::SmithCorrelatedV;
 using shading::HWY_NAMESPACE::SmithRoot;
 using shading::HWY_NAMESPACE::SmithRootAniso;
+using simd::HWY_NAMESPACE::ClampToRange;
 using simd::HWY_NAMESPACE::Dot3Unfused;
 
 /// A vector of prepared pixels (prepare_pixel's results, lane by lane) and what the lights'
@@ -102,8 +103,8 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
     V mr, mm, ma;
     Load3(*sh.material, x, y, n, mr, mm, ma);
     Load3(*sh.albedo, x, y, n, p.alb[0], p.alb[1], p.alb[2]);
-    p.rough = hn::IfThenElse(hn::IsFinite(mr), Clamp(mr, 0.0f, 1.0f), one);
-    p.metal = hn::IfThenElseZero(hn::IsFinite(mm), Clamp(mm, 0.0f, 1.0f));
+    p.rough = hn::IfThenElse(hn::IsFinite(mr), ClampToRange(mr, zero, one), one);
+    p.metal = hn::IfThenElseZero(hn::IsFinite(mm), ClampToRange(mm, zero, one));
     const M alb_ok =
         hn::And(hn::IsFinite(p.alb[0]), hn::And(hn::IsFinite(p.alb[1]), hn::IsFinite(p.alb[2])));
     for (V &a : p.alb) {
@@ -115,7 +116,7 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
     // evaluate()'s per-pixel terms.
     p.nv_raw = Dot3Unfused(p.nx, p.ny, p.nz, p.vx, p.vy, p.vz);
     p.nv = hn::Max(p.nv_raw, hn::Set(d, kMinCosine));
-    const V r = Clamp(p.rough, kMinRoughness, 1.0f);
+    const V r = ClampToRange(p.rough, hn::Set(d, kMinRoughness), one);
     const V alpha = hn::Mul(r, r);
     p.a2 = hn::Mul(alpha, alpha);
     p.one_a2 = hn::Sub(one, p.a2);
@@ -155,7 +156,7 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
                 p.bx = hn::Sub(hn::Mul(p.ny, p.tz), hn::Mul(p.ty, p.nz));
                 p.by = hn::Sub(hn::Mul(p.nz, p.tx), hn::Mul(p.tz, p.nx));
                 p.bz = hn::Sub(hn::Mul(p.nx, p.ty), hn::Mul(p.tx, p.ny));
-                const V an = Clamp(ma, -1.0f, 1.0f);
+                const V an = ClampToRange(ma, hn::Set(d, -1.0f), one);
                 const V min_alpha = hn::Set(d, kMinRoughness * kMinRoughness);
                 p.ax = hn::Max(hn::Mul(alpha, hn::Add(one, an)), min_alpha);
                 p.ay = hn::Max(hn::Mul(alpha, hn::Sub(one, an)), min_alpha);
@@ -193,7 +194,7 @@ HWY_INLINE void Prepare(const Inputs &sh, int x, int y, int n, Pixels &p)
             p.ms[c] = hn::Div(hn::Mul(hn::Mul(f_avg, f_avg), e_avg),
                               hn::Sub(one, hn::Mul(f_avg, one_e_avg)));
         }
-        const V fr = hn::Mul(Clamp(p.rough, 0.0f, 1.0f),
+        const V fr = hn::Mul(ClampToRange(p.rough, zero, one),
                              hn::Set(d, float(shading::EnergyTable::kRoughness - 1)));
         const VI j0 =
             hn::Min(hn::ConvertTo(di, fr), hn::Set(di, shading::EnergyTable::kRoughness - 2));
@@ -234,10 +235,10 @@ HWY_INLINE void AddLight(const Inputs &sh, const Light &light, const Pixels &p, 
                                              hn::Set(d, light.direction.x),
                                              hn::Set(d, light.direction.y),
                                              hn::Set(d, light.direction.z)));
-            const V t = Clamp(hn::Div(hn::Sub(cs, hn::Set(d, light.cos_outer)),
-                                      hn::Set(d, light.cos_inner - light.cos_outer)),
-                              0.0f,
-                              1.0f);
+            const V t = ClampToRange(hn::Div(hn::Sub(cs, hn::Set(d, light.cos_outer)),
+                                             hn::Set(d, light.cos_inner - light.cos_outer)),
+                                     zero,
+                                     one);
             falloff = hn::Mul(
                 falloff,
                 hn::Mul(hn::Mul(t, t), hn::Sub(hn::Set(d, 3.0f), hn::Mul(hn::Set(d, 2.0f), t))));

@@ -16,7 +16,6 @@
 #include <hwy/highway.h>
 
 #include <cstdint>
-#include <cstring>
 
 #include "shading/relight_pixel.h"
 
@@ -30,13 +29,6 @@ using V = hn::Vec<D>;
 using VI = hn::Vec<DI>;
 using M = hn::Mask<D>;
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
-
-/// std::clamp(x, lo, hi) for the finite x it is used on.
-HWY_INLINE V Clamp(V x, float lo, float hi)
-{
-    const D d;
-    return hn::Min(hn::Max(x, hn::Set(d, lo)), hn::Set(d, hi));
-}
 
 /// Channels 0..2 of pixels x .. x + n - 1 of row y, de-interleaved; missing lanes are 0.
 HWY_INLINE void Load3(const Image &img, int x, int y, int n, V &a, V &b, V &c)
@@ -117,7 +109,8 @@ HWY_INLINE void PositionFromDepth(const Inputs &sh, int x, int y, int n, V &px, 
 }
 
 /// Lanes whose material id is a toon id, as prepare_pixel: ids in [0.5, 255.5) round to
-/// 1..255 and index the 256-bit set `words`; the rest (and NaN) are not toon.
+/// 1..255 and index the 256-bit set `words` (Inputs::toon_words); the rest (and NaN) are not
+/// toon.
 HWY_INLINE M ToonMask(const Image &id, int x, int y, int n, const std::uint32_t *words)
 {
     const D d;
@@ -126,16 +119,15 @@ HWY_INLINE M ToonMask(const Image &id, int x, int y, int n, const std::uint32_t 
     const M in_range = hn::And(hn::Ge(m, hn::Set(d, 0.5f)), hn::Lt(m, hn::Set(d, 255.5f)));
     const VI k = hn::ConvertTo(di, hn::IfThenElseZero(in_range, hn::Add(m, hn::Set(d, 0.5f))));
     const VI wi = hn::ShiftRight<5>(k);
-    VI word;
+    const std::int32_t *table = reinterpret_cast<const std::int32_t *>(words);
 #if HWY_TARGET == HWY_SCALAR || HWY_TARGET == HWY_EMU128 || HWY_TARGET == HWY_SSE4 || \
     HWY_TARGET == HWY_SSSE3
     // Fewer than 8 lanes: the set does not fit in a vector.
-    word = hn::GatherIndex(di, reinterpret_cast<const std::int32_t *>(words), wi);
+    const VI word = hn::GatherIndex(di, table, wi);
 #else
-    // The 8 words in one vector (zero-padded to its lanes), picked per lane in registers.
-    HWY_ALIGN std::int32_t table[kMaxLanes] = {};
-    std::memcpy(table, words, 8 * sizeof(std::uint32_t));
-    word = hn::TableLookupLanes(hn::Load(di, table), hn::IndicesFromVec(di, wi));
+    // The 8 words in one vector (Inputs::toon_words is zero-padded to 16), picked per lane in
+    // registers.
+    const VI word = hn::TableLookupLanes(hn::LoadU(di, table), hn::IndicesFromVec(di, wi));
 #endif
     const VI bit = hn::And(hn::Shr(word, hn::And(k, hn::Set(di, 31))), hn::Set(di, 1));
     return hn::And(in_range, hn::RebindMask(d, hn::Eq(bit, hn::Set(di, 1))));

@@ -6,7 +6,6 @@
 #include "shading/motion_blur.h"
 
 #include <gtest/gtest.h>
-#include <hwy/targets.h>
 
 #include <algorithm>
 #include <cmath>
@@ -367,28 +366,21 @@ TEST(MotionBlurTiles, PackFoldsTheSameTileMaxAndBounds)
     o.max_radius = 1e6f;
     // The vector pack folds where the tile is a multiple of its lanes: on every target this CPU
     // has (16 lanes on AVX-512, 8 on AVX2, 4 on SSE4), and the scalar rows.
-    const std::int64_t cpu = hwy::SupportedTargets();
-    const std::int64_t targets[] = {0, HWY_AVX3, HWY_AVX2, HWY_SSE4};
     for (const int tile : {8, 12, 16}) {
         o.tile = tile;
         Image want_max, want_bounds;
         shading::tile_max_bounds(motion, tile, 0, &want_max, &want_bounds);
-        for (const std::int64_t target : targets) {
-            if (target != 0 && (cpu & target) == 0) {
-                continue;
-            }
-            hwy::SetSupportedTargetsForTest(target);
+        test::for_each_highway_target([&](const char *target) {
             for (const bool scalar : {false, true}) {
                 const simd::ScopedLevel level(scalar ? simd::Level::Scalar : simd::active());
                 Image tiles, bounds;
                 shading::motion_blur_tiles(color, motion, depth, o, tiles, bounds);
                 EXPECT_TRUE(tiles.bit_equal(want_max))
-                    << "tile " << tile << " target " << target << (scalar ? " scalar" : "");
+                    << "tile " << tile << " " << target << (scalar ? " scalar" : "");
                 EXPECT_TRUE(bounds.bit_equal(want_bounds))
-                    << "tile " << tile << " target " << target << (scalar ? " scalar" : "");
+                    << "tile " << tile << " " << target << (scalar ? " scalar" : "");
             }
-            hwy::SetSupportedTargetsForTest(0);
-        }
+        });
     }
 }
 

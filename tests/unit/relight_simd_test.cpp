@@ -7,7 +7,6 @@
 // root, so every value must be the same bits, on every target this CPU has: the best, AVX2,
 // SSE4 and the portable one-lane target.
 #include <gtest/gtest.h>
-#include <hwy/targets.h>
 
 #include <cmath>
 #include <cstdint>
@@ -73,32 +72,6 @@ std::size_t changed_values(const Image &out)
     return n;
 }
 
-struct Target {
-    const char *name;
-    std::int64_t bits;  // 0: the best this CPU has
-};
-constexpr Target kTargets[] = {{"best", 0},
-                               {"AVX-512", HWY_AVX3},
-                               {"AVX2", HWY_AVX2},
-                               {"SSE4", HWY_SSE4},
-                               {"one lane", HWY_SCALAR | HWY_EMU128}};
-
-/// `run` on each Highway target this CPU has; `check` sees each output with the target's name.
-template <class Run, class Check>
-void on_every_target(const Run &run, const Check &check)
-{
-    const std::int64_t cpu = hwy::SupportedTargets();
-    for (const Target &t : kTargets) {
-        if (t.bits != 0 && (cpu & t.bits) == 0) {
-            continue;
-        }
-        hwy::SetSupportedTargetsForTest(t.bits);
-        const Image out = run();
-        hwy::SetSupportedTargetsForTest(0);
-        check(out, t.name);
-    }
-}
-
 /// The node with `params` on the reference (POSTHASTE_SIMD=scalar) and on every target.
 void check_same_bits(const std::string &params)
 {
@@ -108,10 +81,9 @@ void check_same_bits(const std::string &params)
         ref = run_relight(params);
     }
     EXPECT_GT(changed_values(ref), std::size_t(ref.width()) * std::size_t(ref.height()));
-    on_every_target([&] { return run_relight(params); },
-                    [&](const Image &out, const char *target) {
-                        EXPECT_EQ(differing_values(out, ref), 0u) << target;
-                    });
+    test::for_each_highway_target([&](const char *target) {
+        EXPECT_EQ(differing_values(run_relight(params), ref), 0u) << target;
+    });
 }
 
 TEST(RelightSimd, AddModeGivesTheReferenceBitsOnEveryTarget)
@@ -184,15 +156,11 @@ TEST(RelightSimd, TheRowsThemselvesGiveTheReferenceBits)
     Image ref = Image::uninitialized(sh.width, sh.height, sh.color->channels());
     shading::relight::shade(sh, ref);  // kernel_ok is false: the reference
     EXPECT_GT(changed_values(ref), std::size_t(ref.width()) * std::size_t(ref.height()));
-    on_every_target(
-        [&] {
-            Image out = Image::uninitialized(sh.width, sh.height, sh.color->channels());
-            shading::relight::shade_rows_vector(sh, out);
-            return out;
-        },
-        [&](const Image &out, const char *target) {
-            EXPECT_EQ(differing_values(out, ref), 0u) << target;
-        });
+    test::for_each_highway_target([&](const char *target) {
+        Image out = Image::uninitialized(sh.width, sh.height, sh.color->channels());
+        shading::relight::shade_rows_vector(sh, out);
+        EXPECT_EQ(differing_values(out, ref), 0u) << target;
+    });
 }
 
 TEST(RelightSimd, SameBitsForAnyThreadCount)
