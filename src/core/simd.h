@@ -1,12 +1,12 @@
 #pragma once
-// CPU dispatch for the vectorized kernels. The build targets baseline x86-64. New kernels are
+// CPU dispatch for the vectorized kernels. The build targets baseline x86-64. Every kernel is
 // written once over Google Highway's lane types (the *_kernels.cpp files), compiled for every
-// x86 target and dispatched at run time; older ones keep AVX2 code in functions marked
-// POSTHASTE_AVX2 (GCC/Clang compile just those for AVX2 + FMA + F16C), called only when
-// simd::avx2() says the CPU has it, beside a scalar twin. Tests lower the level with
-// simd::set_level (Scalar: the scalar twins, and Highway's portable one-lane target of the same
-// source) to check that both give the same image within a stated tolerance (rounding differs, so
-// bits differ between levels; each level alone is bit-stable for any thread count).
+// x86 target and dispatched at run time to the best the CPU has. Some keep a scalar reference
+// (a per-pixel loop the vector rows follow, or a different algorithm where the rows lack an
+// option). Tests lower the level with simd::set_level (Scalar: the references, and Highway's
+// portable one-lane target of the same source) or pick a Highway target, and check that the
+// results agree: bit for bit where a kernel promises it, else within a stated tolerance; each
+// level alone is bit-stable for any thread count.
 //
 // Environment: POSTHASTE_SIMD=scalar disables the vector paths (to compare or to debug);
 // POSTHASTE_SIMD=avx2 uses them up to AVX2 (Highway kernels skip AVX-512); unset, the best the
@@ -39,7 +39,7 @@ void set_level(Level level);
 /// unknown value (they use detected()); the CLI refuses it with exit code 2.
 std::string environment_error();
 
-/// Whether kernels should take their AVX2 path.
+/// Whether the CPU has AVX2 + FMA + F16C and the level allows it.
 inline bool avx2()
 {
     return active() == Level::Avx2;
@@ -61,10 +61,6 @@ class ScopedLevel {
 
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define POSTHASTE_HAVE_AVX2_TARGET 1
-/// Marks a function (and every helper it calls that is not force-inlined) to be compiled for
-/// AVX2 + FMA + F16C. Call it only behind simd::avx2().
-#define POSTHASTE_AVX2 __attribute__((target("avx2,fma,f16c")))
 #else
 #define POSTHASTE_HAVE_AVX2_TARGET 0
-#define POSTHASTE_AVX2
 #endif

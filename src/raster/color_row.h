@@ -56,16 +56,16 @@ glm::vec3 shade(const Lighting &lt,
 void shade_lanes(SurfaceLanes &s, int count, const KernelLight &kl);
 
 // The beauty of one row of visibility samples. The scalar path shades each pixel as it is added
-// (shade() and the sky); the vector path (simd::avx2()) defers surfaces to shadow_lanes and
-// shade_lanes and the sky to the 4-wide SkyView::radiance_n. Toon and anisotropic materials always
-// take shade().
+// (shade() and the sky); the vector path (Highway; all but POSTHASTE_SIMD=scalar) defers surfaces
+// to shadow_lanes and shade_lanes and the sky to the 4-wide SkyView::radiance_n. Toon and
+// anisotropic materials always take shade().
 class ColorRow {
    public:
     /// With `specular`, specular() holds each slot's view-dependent share (shade()).
     ColorRow(const Lighting &lt, SkyCache &sky, int capacity, bool specular = false)
         : lt_(lt),
           sky_(sky),
-          vector_(simd::avx2()),
+          vector_(simd::requested() != simd::Level::Scalar),
           out_(std::size_t(capacity)),
           spec_(specular ? std::size_t(capacity) : 0)
     {
@@ -139,21 +139,15 @@ class ColorRow {
     /// Colours of the row's slots (valid for every slot added since the last finish()).
     const std::vector<glm::vec3> &finish()
     {
-#if POSTHASTE_HAVE_AVX2_TARGET
         if (vector_) {
             finish_vector();
         }
-#endif
         return out_;
     }
     /// The view-dependent share of each slot's colour (constructed with `specular`).
-    const std::vector<glm::vec3> &specular() const
-    {
-        return spec_;
-    }
+    const std::vector<glm::vec3> &specular() const { return spec_; }
 
    private:
-#if POSTHASTE_HAVE_AVX2_TARGET
     void finish_vector()
     {
         const glm::vec3 cam(0.0f, shading::kSkyCameraY, 0.0f);
@@ -195,7 +189,6 @@ class ColorRow {
         }
         sky_n_ = env_n_ = lane_n_ = 0;
     }
-#endif
 
     const Lighting &lt_;
     SkyCache &sky_;

@@ -25,7 +25,6 @@
 #include "core/parallel.h"
 #include "core/passes.h"
 #include "core/simd.h"
-#include "core/simd_avx2.h"
 #include "core/timing.h"
 #include "raster/color_row.h"
 #include "raster/mesh.h"

@@ -18,7 +18,6 @@
 
 #include "core/image.h"
 #include "core/simd.h"
-#include "core/simd_avx2.h"
 #include "core/timing.h"
 #include "raster/mesh.h"
 #include "raster/raster.h"
@@ -61,16 +60,6 @@ inline Image fresh_image(int width, int height, int channels)
 {
     return Image::uninitialized(width, height, channels);
 }
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-namespace v8 = simd::v8;
-
-#if defined(__clang__)
-#define POSTHASTE_NO_CONTRACT  // clang fuses a * b + c only within one source expression
-#else
-#define POSTHASTE_NO_CONTRACT __attribute__((optimize("fp-contract=off")))
-#endif
-#endif
 
 // ---- Geometry and views (render_geometry.cpp) ----------------------------------------------
 

@@ -27,7 +27,6 @@
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "core/simd.h"
-#include "core/simd_avx2.h"
 #include "core/timing.h"
 #include "shading/motion_blur_gather.h"
 #include "shading/tiles.h"
@@ -38,11 +37,12 @@ using namespace motion_blur_detail;
 
 namespace {
 
-/// Whether the AVX2 path runs: the CPU has it, and the frame is small enough for its 32-bit
-/// gather offsets.
+/// Whether the vector pack and rows run (Highway, the CPU's best target): not asked for the
+/// reference (POSTHASTE_SIMD=scalar), and the frame is small enough for the rows' 32-bit gather
+/// offsets.
 bool vector_path(const Image &color)
 {
-    return simd::avx2() &&
+    return simd::requested() != simd::Level::Scalar &&
            std::size_t(color.width()) * std::size_t(color.height()) * 4 < (std::size_t(1) << 31);
 }
 
@@ -242,18 +242,14 @@ Image motion_blur(const Image &color,
                 for (int t = tx; t < tx + tn; ++t) {
                     groups[std::size_t(ty)] += (std::min(w, (t + 1) * o.tile) - t * o.tile + 7) / 8;
                 }
-#if POSTHASTE_HAVE_AVX2_TARGET
                 if (vector) {
+                    shared_groups[std::size_t(ty)] += uniform
+                                                          ? uniform_row(g, out, y, x0, x1, coherent)
+                                                          : reconstruct_row(g, out, y, x0, x1);
+                } else {
                     shared_groups[std::size_t(ty)] +=
-                        uniform ? uniform_row_avx2(g, out, y, x0, x1, coherent)
-                                : reconstruct_row_avx2(g, out, y, x0, x1);
-                    continue;
-                }
-#endif
-                for (int x = x0; x < x1; x += 8) {
-                    const int cnt = std::min(8, x1 - x);
-                    shared_groups[std::size_t(ty)] += uniform ? g.uniform(out, x, cnt, y, coherent)
-                                                              : g.reconstruct(out, x, cnt, y);
+                        uniform ? g.uniform_groups(out, y, x0, x1, coherent)
+                                : g.reconstruct_groups(out, y, x0, x1);
                 }
             }
         };

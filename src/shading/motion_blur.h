@@ -68,8 +68,8 @@ Image motion_blur(const Image &color,
                   MotionBlurStats *stats = nullptr);
 
 /// The tile max and tile bounds (shading/tiles.h) of the clamped half-extent vectors
-/// (motion x shutter / 2, at most max_radius long), as motion_blur computes them (the AVX2 path
-/// folds them into its pack); for tests.
+/// (motion x shutter / 2, at most max_radius long), as motion_blur computes them (the vector
+/// pack folds them in); for tests.
 void motion_blur_tiles(const Image &color,
                        const Image &motion,
                        const Image &depth,

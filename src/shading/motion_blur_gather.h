@@ -1,7 +1,8 @@
 #pragma once
 // The motion blur's gather (internal to src/shading/motion_blur*.cpp): the reconstruction and
-// the uniform blur of a group of pixels, one pixel at a time; the reference the AVX2 rows
-// (motion_blur_avx2.cpp) follow, and the path where the CPU has no AVX2.
+// the uniform blur of a group of pixels, one pixel at a time; the reference the vector rows
+// (motion_blur_gather_kernels.cpp) follow, and the path where the CPU's vectors are narrower than
+// a group.
 
 #include <algorithm>
 #include <cmath>
@@ -47,13 +48,13 @@ struct Lane {
     float vx, vy, len, dx, dy;
 };
 
-/// The gather, shared by the scalar and AVX2 paths. Pixels are processed in groups of eight
+/// The gather, shared by the reference and the vector rows. Pixels are processed in groups of eight
 /// adjacent pixels of a row (fewer at a tile's right edge), and a group makes one jittered
 /// neighbour-max lookup. Where the sampling vectors of a group's pixels all lie within
 /// `group_tolerance` px of the middle of their bounding box (95 % of the reconstructed groups of
 /// the default scene's fast translation, all of the fast turn's), the group samples along that
 /// middle vector with one jitter: the sample positions of its pixels are then the same run of
-/// adjacent pixels in one row, shifted, and the AVX2 path reads each field of a sample with one
+/// adjacent pixels in one row, shifted, and the vector rows read each field of a sample with one
 /// load instead of eight. Sample positions move by at most the tolerance (at the ends of the
 /// path); the pixels keep their own depth, motion and weights. Other groups sample per pixel.
 struct Gather {
@@ -518,14 +519,36 @@ struct Gather {
         }
         return true;
     }
+
+    /// Gather::reconstruct for the groups of pixels [x0, x1) of row y, eight at a time; returns
+    /// how many shared a run.
+    int reconstruct_groups(Image &out, int y, int x0, int x1) const
+    {
+        int shared = 0;
+        for (int x = x0; x < x1; x += 8) {
+            shared += reconstruct(out, x, std::min(8, x1 - x), y);
+        }
+        return shared;
+    }
+
+    /// Gather::uniform for the groups of pixels [x0, x1) of row y; returns how many shared a run.
+    int uniform_groups(Image &out, int y, int x0, int x1, bool runs) const
+    {
+        int shared = 0;
+        for (int x = x0; x < x1; x += 8) {
+            shared += uniform(out, x, std::min(8, x1 - x), y, runs);
+        }
+        return shared;
+    }
 };
 
-#if POSTHASTE_HAVE_AVX2_TARGET
-/// The reconstruction of the groups of pixels [x0, x1) of row y, eight pixels at a time
-/// (motion_blur_avx2.cpp); returns how many groups shared a run.
-POSTHASTE_AVX2 int reconstruct_row_avx2(const Gather &g, Image &out, int y, int x0, int x1);
-/// Gather::uniform for the groups of pixels [x0, x1) of row y; returns how many shared a run.
-POSTHASTE_AVX2 int uniform_row_avx2(const Gather &g, Image &out, int y, int x0, int x1, bool runs);
-#endif
+/// The vector rows (motion_blur_gather_kernels.cpp, Highway): reconstruct_groups and
+/// uniform_groups with a group's eight pixels in the lanes of one vector, on the CPU's best
+/// target that holds eight floats; where the best target holds fewer, the reference itself.
+/// The frame must be under 2^29 pixels (32-bit gather offsets).
+int reconstruct_row(const Gather &g, Image &out, int y, int x0, int x1);
+int uniform_row(const Gather &g, Image &out, int y, int x0, int x1, bool runs);
+/// Whether the rows run on vectors (the best target holds a group) rather than the reference.
+bool group_lanes();
 
 }  // namespace posthaste::shading::motion_blur_detail

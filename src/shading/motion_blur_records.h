@@ -10,8 +10,6 @@
 
 #include "core/image.h"
 #include "core/memory.h"
-#include "core/simd.h"
-#include "core/simd_avx2.h"
 #include "shading/motion_blur.h"
 
 namespace posthaste::shading::motion_blur_detail {
@@ -75,17 +73,6 @@ struct Packed {
 
     float *plane(int field) const { return block.get() + std::size_t(field) * stride; }
 };
-
-#if POSTHASTE_HAVE_AVX2_TARGET
-using simd::v8::set1;
-using simd::v8::V;
-using simd::v8::VI;
-
-POSTHASTE_AVX2_INLINE V abs8(V x)
-{
-    return _mm256_andnot_ps(set1(-0.0f), x);
-}
-#endif
 
 /// The records of a frame (motion_blur_pack.cpp): the planes, the per-row opacity and, on the
 /// vector path with tiles a multiple of its lanes wide, the tile max (and with `bounds`, the
