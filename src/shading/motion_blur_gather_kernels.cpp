@@ -325,12 +325,17 @@ int UniformRow(const Gather &g, Image &out, int y, int x0, int x1, bool runs)
         const int n_max = int(MaxLane(n));
         const V step = hn::Div(hn::Set(d, 2.0f), hn::Max(n, hn::Set(d, 1.0f)));
         const V u = Unit(PixelHash(xi, key));
+        // Sample i at a + i b: a the first sample's position, b one step along the path; one
+        // fused step a coordinate (the reference rounds t, then t v, then the sum, so a sample
+        // lands on the next pixel now and then).
+        const V t0 = hn::MulAdd(u, step, hn::Set(d, -1.0f));
+        const V ax = hn::MulAdd(t0, vx, f.xf), ay = hn::MulAdd(t0, vy, f.yf);
+        const V bx = hn::Mul(step, vx), by = hn::Mul(step, vy);
         V acc[4] = {hn::Zero(d), hn::Zero(d), hn::Zero(d), hn::Zero(d)};
         for (int i = 0; i < n_max; ++i) {
             const V fi = hn::Set(d, float(i));
             const M active = hn::Lt(fi, n);
-            const V t = hn::Add(hn::Set(d, -1.0f), hn::Mul(hn::Add(fi, u), step));
-            const VI idx = Offset(f, t, vx, vy);
+            const VI idx = Index(f, hn::MulAdd(fi, bx, ax), hn::MulAdd(fi, by, ay));
             for (int k = 0; k < 4; ++k) {
                 acc[k] = hn::Add(acc[k], hn::IfThenElseZero(active, GatherField(g, kRed + k, idx)));
             }

@@ -137,15 +137,21 @@ HWY_INLINE VU PixelHash(VI xi, VU key)
 {
     return Pcg(hn::Xor(hn::BitCast(DU(), xi), key));
 }
-/// Gather::at on eight lanes: the index of x + 0.5 + t v clamped to the frame, rounded as there
-/// (the product, then the sum; a NaN coordinate clamps to 0). The integer arithmetic wraps.
-HWY_INLINE VI Offset(const Frame &f, V t, V vx, V vy)
+/// The index of the pixel at (px, py) clamped to the frame (a NaN coordinate clamps to 0). The
+/// integer arithmetic wraps.
+HWY_INLINE VI Index(const Frame &f, V px, V py)
 {
     const D d;
     const V zero = hn::Zero(d);
-    const V fx = hn::Min(hn::Max(hn::Add(f.xf, hn::Mul(t, vx)), zero), f.xmax);
-    const V fy = hn::Min(hn::Max(hn::Add(f.yf, hn::Mul(t, vy)), zero), f.ymax);
+    const V fx = hn::Min(hn::Max(px, zero), f.xmax);
+    const V fy = hn::Min(hn::Max(py, zero), f.ymax);
     return hn::Sub(hn::Add(hn::Mul(FloorBits(fy), f.w), FloorBits(fx)), f.bias);
+}
+/// Gather::at on eight lanes: the index of x + 0.5 + t v clamped to the frame, rounded as there
+/// (the product, then the sum).
+HWY_INLINE VI Offset(const Frame &f, V t, V vx, V vy)
+{
+    return Index(f, hn::Add(f.xf, hn::Mul(t, vx)), hn::Add(f.yf, hn::Mul(t, vy)));
 }
 HWY_INLINE V GatherField(const Gather &g, int field, VI idx)
 {
