@@ -84,6 +84,15 @@ HWY_INLINE V Dot3Unfused(V ax, V ay, V az, V bx, V by, V bz)
     return hn::Add(hn::Add(hn::Mul(ax, bx), hn::Mul(ay, by)), hn::Mul(az, bz));
 }
 
+/// Lanes where x is finite, as x - x == 0 (0 for a finite x, NaN for an infinite or NaN one):
+/// two instructions on every x86 target, where Highway's IsFinite takes four on AVX2 (shifts
+/// and an integer compare). The same lanes as IsFinite.
+template <class V>
+HWY_INLINE hn::Mask<hn::DFromV<V>> Finite(V x)
+{
+    return hn::Eq(hn::Sub(x, x), hn::Zero(hn::DFromV<V>()));
+}
+
 /// min(max(x, lo), hi), in that order: on x86 a NaN x gives lo (Highway's Clamp takes
 /// max(lo, x), which keeps the NaN).
 template <class V>

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -57,10 +58,10 @@ void FillSamples(const KernelCtx &k, const Rect &r, int stride, float *buf, std:
                 nz = hn::GatherIndex(d, nr, hn::Add(ni, c2));
             }
             // hit = finite positive depth and finite position.
-            const M hit = hn::And(hn::And(hn::Gt(z, zero), hn::IsFinite(z)),
-                                  hn::IsFinite(hn::Add(hn::Add(px, py), pz)));
+            const M hit =
+                hn::And(hn::And(hn::Gt(z, zero), Finite(z)), Finite(hn::Add(hn::Add(px, py), pz)));
             const V len2 = Dot3Unfused(nx, ny, nz, nx, ny, nz);
-            const M nrm = hn::And(hn::And(hit, hn::Gt(len2, tiny)), hn::IsFinite(len2));
+            const M nrm = hn::And(hn::And(hit, hn::Gt(len2, tiny)), Finite(len2));
             const M unit = hn::Lt(hn::Abs(hn::Sub(len2, one)), tiny);
             if (!hn::AllFalse(d, hn::AndNot(unit, nrm))) {  // rendered normals are unit already
                 const V root = hn::Sqrt(len2);
@@ -193,6 +194,15 @@ void HatchTile(const KernelCtx &k, const Rect &t)
                      hn::Set(d, k.outline_color.y),
                      hn::Set(d, k.outline_color.z)};
     const V mix = hn::Set(d, k.mix), exposure = hn::Set(d, k.exposure);
+    // The line taps as offsets in the tile's edge plane, once per tile: the loop over them runs
+    // for every vector of pixels.
+    thread_local std::vector<std::ptrdiff_t> tls_tap_offsets;
+    tls_tap_offsets.resize(std::size_t(std::max(k.tap_count, 0)));
+    for (int j = 0; j < k.tap_count; ++j) {
+        tls_tap_offsets[std::size_t(j)] =
+            std::ptrdiff_t(k.taps[j].dy) * stride + std::ptrdiff_t(k.taps[j].dx);
+    }
+    const std::ptrdiff_t *const tap_offsets = tls_tap_offsets.data();
     HWY_ALIGN float stage[4][kMaxLanes];
     HWY_ALIGN std::int32_t keep_lane[kMaxLanes];
     for (int y = t.y0; y < t.y1; ++y) {
@@ -265,13 +275,13 @@ void HatchTile(const KernelCtx &k, const Rect &t)
             }
 
             V line = zero;
+            const float *const edge_at = edges + i;
             for (int j = 0; j < k.tap_count; ++j) {
-                const LineTap &tap = k.taps[j];
-                const V e = hn::LoadU(d, edges + index(x + tap.dx, y + tap.dy));
-                line = hn::Max(line, hn::And(e, hn::Set(d, tap.coverage)));
+                const V e = hn::LoadU(d, edge_at + tap_offsets[j]);
+                line = hn::Max(line, hn::And(e, hn::Set(d, k.taps[j].coverage)));
             }
 
-            V alpha = nc >= 4 ? hn::IfThenElse(hn::IsFinite(ca), ca, one) : one;
+            V alpha = nc >= 4 ? hn::IfThenElse(Finite(ca), ca, one) : one;
             const V srcv[3] = {cr, cg, cb};
             V outv[3];
             // Id mask: lanes whose id is not listed keep their input pixel (all channels).
@@ -297,7 +307,7 @@ void HatchTile(const KernelCtx &k, const Rect &t)
                 val = hn::Add(val, hn::Mul(line, hn::Sub(oc[ch], val)));
                 val = hn::Mul(val, alpha);
                 if (k.partial_mix) {
-                    const V base = hn::IfThenElse(hn::IsFinite(srcv[ch]), srcv[ch], val);
+                    const V base = hn::IfThenElse(Finite(srcv[ch]), srcv[ch], val);
                     val = hn::Add(base, hn::Mul(mix, hn::Sub(val, base)));
                 }
                 outv[ch] = hn::IfThenElse(keep, srcv[ch], val);
@@ -307,7 +317,7 @@ void HatchTile(const KernelCtx &k, const Rect &t)
             }
             float *dst = k.out->pixel(x, y);
             if (nc == 4 && n == n_lanes) {
-                hn::StoreInterleaved4(outv[0], outv[1], outv[2], alpha, d, dst);
+                StoreRgba(outv[0], outv[1], outv[2], alpha, dst);
             } else {
                 hn::Store(outv[0], d, stage[0]);
                 hn::Store(outv[1], d, stage[1]);
@@ -331,6 +341,7 @@ void HatchTile(const KernelCtx &k, const Rect &t)
             }
         }
     }
+    hwy::FlushStream();  // order StoreRgba's streaming stores before the tile counts as done
 }
 
 }  // namespace posthaste::shading::hatch_detail::HWY_NAMESPACE

@@ -2,8 +2,8 @@
 // the tone curve and TAM lookups, the edge and footprint tests on sample planes, and the
 // triplanar ink. Like every Highway "-inl.h" it is compiled once per target (the toggle guard).
 //
-// No fused multiply-adds: the project builds GCC in ISO mode (no contraction) and clang with
-// -ffp-contract=off, and these functions use Mul then Add, so every target rounds the same way
+// No fused multiply-adds: hatch_kernels.cpp is compiled with -ffp-contract=off (CMakeLists.txt)
+// and these functions use Mul then Add, so every target rounds the same way
 // and a pixel's thresholds (edges, mip levels, tone segments) fall on the same side everywhere.
 
 // clang-format off
@@ -15,6 +15,7 @@
 #endif
 // clang-format on
 
+#include <hwy/cache_control.h>
 #include <hwy/contrib/math/math-inl.h>
 #include <hwy/highway.h>
 
@@ -38,6 +39,7 @@ constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
 using simd::HWY_NAMESPACE::ClampToRange;
 using simd::HWY_NAMESPACE::Dot3Unfused;
+using simd::HWY_NAMESPACE::Finite;
 
 /// Truncation to int32 of lanes in [0, 2^23) (NaN and larger lanes give some int32; callers clamp
 /// or mask them): floor, then the bits of floor + 2^23, without ConvertTo's overflow fix-up.
@@ -74,9 +76,11 @@ HWY_INLINE void GatherPairs(const float *base, VI idx, V &a, V &b)
     // Eight 64-bit loads put together in registers: on the development machine (AMD EPYC) a
     // tenth faster than two 64-bit gathers here. Pairs 0, 1, 4, 5 go to g0 and 2, 3, 6, 7 to g1,
     // so that de-interleaving stays within 128-bit blocks.
-    const DI di;
-    HWY_ALIGN std::int32_t i[8];
-    hn::Store(idx, di, i);
+    // The indices as unsigned (they are not negative): extracting one to a 32-bit register
+    // then zero-extends it for free, where a signed one took a sign extension per pair.
+    const hn::RebindToUnsigned<D> du;
+    HWY_ALIGN std::uint32_t i[8];
+    hn::Store(hn::BitCast(du, idx), du, i);
     const hn::Full64<float> d2;
     const hn::Full128<float> d4;
     auto two = [&](int l0, int l1) {
@@ -108,6 +112,37 @@ HWY_INLINE void GatherPairs(const float *base, VI idx, V &a, V &b)
     }
     hn::LoadInterleaved2(d, pairs, a, b);
 #endif
+}
+
+/// The lanes' r, g, b, a stored as interleaved RGBA pixels at p. On AVX2, where p is 16-byte
+/// aligned, with non-temporal 16-byte stores (the hand-written kernel before this one did the
+/// same): the output is written once and not read here, so its lines need not be read into the
+/// cache first; the caller ends the tile with hwy::FlushStream(). The same values either way.
+HWY_INLINE void StoreRgba(V r, V g, V b, V a, float *p)
+{
+    const D d;
+#if HWY_TARGET == HWY_AVX2
+    if ((reinterpret_cast<std::uintptr_t>(p) & 15) == 0) {
+        const hn::Repartition<double, D> dd;
+        const hn::Full128<float> d4;
+        // Within each 128-bit block: t0 = r g r g of pixels 0, 1 (4, 5 in the upper block) ...
+        const auto t0 = hn::BitCast(dd, hn::InterleaveLower(d, r, g));
+        const auto t1 = hn::BitCast(dd, hn::InterleaveLower(d, b, a));
+        const auto t2 = hn::BitCast(dd, hn::InterleaveUpper(d, r, g));
+        const auto t3 = hn::BitCast(dd, hn::InterleaveUpper(d, b, a));
+        // ... then q[j] = pixel j in the lower block and pixel j + 4 in the upper.
+        const V q[4] = {hn::BitCast(d, hn::InterleaveLower(dd, t0, t1)),
+                        hn::BitCast(d, hn::InterleaveUpper(dd, t0, t1)),
+                        hn::BitCast(d, hn::InterleaveLower(dd, t2, t3)),
+                        hn::BitCast(d, hn::InterleaveUpper(dd, t2, t3))};
+        for (int j = 0; j < 4; ++j) {
+            hn::Stream(hn::LowerHalf(d4, q[j]), d4, p + 4 * j);
+            hn::Stream(hn::UpperHalf(d4, q[j]), d4, p + 16 + 4 * j);
+        }
+        return;
+    }
+#endif
+    hn::StoreInterleaved4(r, g, b, a, d, p);
 }
 
 /// ToneCurve::operator() on the lanes (NaN reads as 1, paper).
