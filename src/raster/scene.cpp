@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <glm/gtc/matrix_transform.hpp>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -69,7 +71,10 @@ class Obj {
             return def;
         }
         const Json &v = get(key);
-        if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi) {
+        // An unsigned above 2^63 would read as a negative long long.
+        if (!v.is_number_integer() ||
+            (v.is_number_unsigned() && (hi < 0 || v.get<std::uint64_t>() > std::uint64_t(hi))) ||
+            v.get<long long>() < lo || v.get<long long>() > hi) {
             fail(key, str_cat("expected an integer in [", lo, ", ", hi, "], got ", v.dump()));
         }
         return v.get<int>();
@@ -114,9 +119,17 @@ class Obj {
             return def;
         }
         const Json &v = get(key);
-        if (!v.is_array() || v.size() != 3 || !v[0].is_number_integer() ||
-            !v[1].is_number_integer() || !v[2].is_number_integer()) {
-            fail(key, "expected an array of 3 integers, got " + v.dump());
+        // An int each: a larger integer would wrap in get<int>() and read as another value.
+        auto is_int = [](const Json &e) {
+            if (e.is_number_unsigned()) {
+                return e.get<std::uint64_t>() <= std::uint64_t(std::numeric_limits<int>::max());
+            }
+            return e.is_number_integer() &&
+                   e.get<std::int64_t>() >= std::numeric_limits<int>::min() &&
+                   e.get<std::int64_t>() <= std::numeric_limits<int>::max();
+        };
+        if (!v.is_array() || v.size() != 3 || !is_int(v[0]) || !is_int(v[1]) || !is_int(v[2])) {
+            fail(key, "expected an array of 3 integers in int's range, got " + v.dump());
         }
         return {v[0].get<int>(), v[1].get<int>(), v[2].get<int>()};
     }

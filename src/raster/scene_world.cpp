@@ -78,8 +78,9 @@ void generate_procedural(Scene &s)
                 const float bowl = float(p.base_height) - 5.0f + 5.0f * d * d / 2.56f;
                 h = std::min(h, bowl);
             }
+            // Not std::clamp: a grid 1 or 2 cells high has no room between its bounds.
             height[std::size_t(z) * std::size_t(w.nx) + std::size_t(x)] =
-                std::clamp(int(std::lround(h)), 1, w.ny - 2);
+                std::max(1, std::min(int(std::lround(h)), w.ny - 2));
         }
     }
     const int water_level = p.base_height - 2;
@@ -104,8 +105,10 @@ void generate_procedural(Scene &s)
     auto ground = [&](int x, int z) {
         return height[std::size_t(z) * std::size_t(w.nx) + std::size_t(x)];
     };
-    // Trees: trunks of wood with a blob of leaves, avoiding the lake.
-    for (int i = 0; i < p.trees; ++i) {
+    // Trees: trunks of wood with a blob of leaves, avoiding the lake. Their trunks stand 3 cells
+    // inside the edges, so a grid narrower than 7 cells has none.
+    const int trees = w.nx >= 7 && w.nz >= 7 ? p.trees : 0;
+    for (int i = 0; i < trees; ++i) {
         const int x = 3 + int(hash_unit(i, 1, 0, p.seed) * float(w.nx - 6));
         const int z = 3 + int(hash_unit(i, 2, 0, p.seed) * float(w.nz - 6));
         const int g = ground(x, z);
@@ -134,7 +137,8 @@ void generate_procedural(Scene &s)
     }
     // Thin pillars (1 x 1 blocks, tall) and a 1-block-thin beam between pairs: features against
     // the sky at many depths.
-    for (int i = 0; i < p.pillars; ++i) {
+    const int pillars = w.nx >= 5 && w.nz >= 5 ? p.pillars : 0;  // 2 cells inside the edges
+    for (int i = 0; i < pillars; ++i) {
         const int x = 2 + int(hash_unit(i, 4, 0, p.seed) * float(w.nx - 4));
         const int z = 2 + int(hash_unit(i, 5, 0, p.seed) * float(w.nz - 4));
         const int g = ground(x, z);
@@ -167,12 +171,22 @@ void generate_world(Scene &s)
     if (p.terrain == "procedural") {
         generate_procedural(s);
     }
+    // A box may reach past the world (any int corners are accepted, e.g. "everything below y =
+    // 3"): only its part inside the grid is visited, a row at a time, so the cost is bounded by
+    // the grid's size whatever the corners are.
+    const glm::ivec3 grid(s.world.nx, s.world.ny, s.world.nz);
     for (const Box &b : s.boxes) {
-        for (int y = b.min.y; y < b.max.y; ++y) {
-            for (int z = b.min.z; z < b.max.z; ++z) {
-                for (int x = b.min.x; x < b.max.x; ++x) {
-                    s.world.set(x, y, z, std::uint8_t(b.material));
-                }
+        const glm::ivec3 lo = glm::clamp(b.min, glm::ivec3(0), grid);
+        const glm::ivec3 hi = glm::clamp(b.max, glm::ivec3(0), grid);
+        if (lo.x >= hi.x) {
+            continue;
+        }
+        for (int y = lo.y; y < hi.y; ++y) {
+            for (int z = lo.z; z < hi.z; ++z) {
+                std::uint8_t *row =
+                    s.world.cells.data() +
+                    (std::size_t(y) * std::size_t(grid.z) + std::size_t(z)) * std::size_t(grid.x);
+                std::fill(row + lo.x, row + hi.x, std::uint8_t(b.material));
             }
         }
     }

@@ -83,6 +83,62 @@ TEST(Scene, ErrorsNameFileAndPath)
     EXPECT_THROW(load_scene("/nonexistent/scene.json"), Error);
 }
 
+// Boxes may reach past the world; only the part inside is filled, at a cost bounded by the
+// grid (corners at int's limits once made the fill loop run for ~10^28 steps).
+TEST(Scene, BoxesAreClippedToTheWorld)
+{
+    const std::string head = R"({"materials": [{"id": 1}, {"id": 2}], "camera": [{"frame": 1}],
+        "world": {"terrain": "none", "size": [4, 3, 5]}, "boxes": )";
+    auto count = [](const Scene &s, int m) {
+        return std::count(s.world.cells.begin(), s.world.cells.end(), std::uint8_t(m));
+    };
+    const Scene all = parse_scene(head + R"([{"min": [-2147483648, -2147483648, -2147483648],
+                     "max": [2147483647, 2147483647, 2147483647], "material": 2}]})",
+                                  "test.json");
+    EXPECT_EQ(count(all, 2), 4 * 3 * 5);
+    // Partly outside: x in [2, 4), y in [0, 1), z in [0, 5) -> 2 * 1 * 5 cells; then material 0
+    // carves the cell (3, 0, 4); an inverted box and one wholly outside fill nothing.
+    const Scene part = parse_scene(head + R"([{"min": [2, -7, -100], "max": [99, 1, 100]},
+                                              {"min": [3, 0, 4], "max": [4, 1, 5], "material": 0},
+                                              {"min": [3, 2, 4], "max": [1, 3, 5]},
+                                              {"min": [4, 0, 0], "max": [9, 3, 5]}]})",
+                                   "test.json");
+    EXPECT_EQ(count(part, 1), 2 * 1 * 5 - 1);
+    EXPECT_EQ(part.world.at(2, 0, 0), 1);
+    EXPECT_EQ(part.world.at(3, 0, 3), 1);
+    EXPECT_EQ(part.world.at(3, 0, 4), 0);
+    EXPECT_EQ(part.world.at(1, 0, 0), 0);
+    EXPECT_EQ(part.world.at(2, 1, 0), 0);
+    // Integers past int's range are errors, not wrapped values.
+    EXPECT_NE(error_of(head + R"([{"min": [4294967296, 0, 0]}]})").find("/boxes/0/min"),
+              std::string::npos);
+    EXPECT_NE(error_of(head + R"([{"max": [0, -2147483649, 0]}]})").find("/boxes/0/max"),
+              std::string::npos);
+    EXPECT_NE(error_of(head + R"([{"material": 18446744073709551615}]})").find("/boxes/0/material"),
+              std::string::npos);
+}
+
+// Procedural terrain on grids too small for its trees, pillars or a layer between bedrock and
+// sky: every size in range gives a world (ASan checks the indices).
+TEST(Scene, ProceduralTerrainOnTinyWorlds)
+{
+    const std::string materials = R"({"materials": [{"id": 1, "name": "grass"},
+        {"id": 2, "name": "dirt"}, {"id": 3, "name": "stone"}, {"id": 4, "name": "sand"},
+        {"id": 5, "name": "wood"}, {"id": 6, "name": "leaves"}, {"id": 7, "name": "water"}],
+        "camera": [{"frame": 1}], "world": {"terrain": "procedural", "trees": 50, "pillars": 50,
+        "size": )";
+    for (const char *size : {"[1, 1, 1]", "[2, 2, 2]", "[6, 3, 6]", "[7, 4, 7]", "[1, 256, 9]"}) {
+        const Scene s = parse_scene(materials + size + "}}", "test.json");
+        EXPECT_EQ(s.world.cells.size(),
+                  std::size_t(s.world.nx) * std::size_t(s.world.ny) * std::size_t(s.world.nz))
+            << size;
+        // The ground's top layer is at y >= 1 wherever the grid is at least 3 high.
+        if (s.world.ny >= 3) {
+            EXPECT_NE(s.world.at(0, 0, 0), 0) << size;
+        }
+    }
+}
+
 TEST(Scene, CameraInterpolationIsSmoothAndHitsKeys)
 {
     const Scene s = parse_scene(R"({"materials": [{"id": 1}], "world": {"terrain": "none"},
