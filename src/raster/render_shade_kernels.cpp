@@ -59,9 +59,11 @@ void ShadeLanes(SurfaceLanes &s, int count, const KernelLight &kl)
         V hx = hn::Add(vx, lx), hy = hn::Add(vy, ly), hz = hn::Add(vz, lz);
         const V hlen = hn::Sqrt(Dot3Unfused(hx, hy, hz, hx, hy, hz));
         const auto hok = hn::Gt(hlen, hn::Set(d, 1e-8f));
-        hx = hn::IfThenElse(hok, hn::Div(hx, hlen), nx);
-        hy = hn::IfThenElse(hok, hn::Div(hy, hlen), ny);
-        hz = hn::IfThenElse(hok, hn::Div(hz, hlen), nz);
+        // Times 1 / |v + l|, as evaluate() for the default masking term.
+        const V inv_h = hn::Div(one, hlen);
+        hx = hn::IfThenElse(hok, hn::Mul(hx, inv_h), nx);
+        hy = hn::IfThenElse(hok, hn::Mul(hy, inv_h), ny);
+        hz = hn::IfThenElse(hok, hn::Mul(hz, inv_h), nz);
         const V nh_raw = Dot3Unfused(nx, ny, nz, hx, hy, hz);
         const V nh = hn::Max(nh_raw, zero);
         const V vh = hn::Max(Dot3Unfused(vx, vy, vz, hx, hy, hz), zero);

@@ -177,6 +177,16 @@ glm::vec3 diffuse_albedo(const Surface &s)
     return s.albedo * (1.0f - s.metallic);
 }
 
+namespace {
+
+// evaluate() takes the anisotropic D for this surface and masking term.
+bool aniso_lobe(const Surface &s, Geometry geometry)
+{
+    return s.anisotropy != 0.0f && geometry != Geometry::CookTorrance;
+}
+
+}  // namespace
+
 glm::vec3 evaluate(
     const Surface &s, const glm::vec3 &n, const glm::vec3 &v, const glm::vec3 &l, Geometry geometry)
 {
@@ -187,13 +197,23 @@ glm::vec3 evaluate(
     const float nv = clamp_cos(glm::dot(n, v));
     glm::vec3 h = v + l;
     const float hlen = glm::length(h);
-    h = hlen > 1e-8f ? h / hlen : n;
+    // The default lobe takes 1 - (n.h)^2 as |h - n (n.h)|^2 and the anisotropic D adds (n.h)^2,
+    // so neither amplifies h's rounding: one division and three products serve. The separable
+    // and V-cavity lobes take D from n.h alone, whose 1 - (n.h)^2 cancels at a glossy peak: the
+    // exactly rounded components keep that error at its least.
+    if (!(hlen > 1e-8f)) {
+        h = n;
+    } else if (geometry == Geometry::SmithCorrelated || aniso_lobe(s, geometry)) {
+        h *= 1.0f / hlen;
+    } else {
+        h /= hlen;
+    }
     const float nh = std::max(glm::dot(n, h), 0.0f);
     const float vh = std::max(glm::dot(v, h), 0.0f);
     const float alpha = roughness_to_alpha(s.roughness);
 
     float dv = 0.0f;  // D * V, with V = G / (4 n.l n.v)
-    const bool aniso = s.anisotropy != 0.0f && geometry != Geometry::CookTorrance;
+    const bool aniso = aniso_lobe(s, geometry);
     if (aniso) {
         const glm::vec3 t = glm::normalize(s.tangent - n * glm::dot(n, s.tangent));
         const glm::vec3 b = glm::cross(n, t);

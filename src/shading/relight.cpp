@@ -46,12 +46,12 @@ bool light_at(const Light &light, const glm::vec3 &p, glm::vec3 &l, glm::vec3 &e
     if (!(max_t > 0.0f)) {
         return false;
     }
-    l = d / max_t;
+    l = d * (1.0f / max_t);  // one division: an ulp more in l is far below what it feeds needs
     float falloff = 1.0f / std::max(d2, light.radius * light.radius);
     if (light.type == LightType::Spot) {
         const float cs = -glm::dot(l, light.direction);
-        const float t =
-            std::clamp((cs - light.cos_outer) / (light.cos_inner - light.cos_outer), 0.0f, 1.0f);
+        const float t = std::clamp(
+            (cs - light.cos_outer) * (1.0f / (light.cos_inner - light.cos_outer)), 0.0f, 1.0f);
         falloff *= t * t * (3.0f - 2.0f * t);  // smoothstep
     }
     e = light.power * falloff;

@@ -224,9 +224,10 @@ HWY_INLINE void AddLight(const Inputs &sh, const Light &light, const Pixels &p, 
         const V dist = hn::Sqrt(d2);
         reached = hn::And(reached, hn::Gt(dist, zero));  // not at the light
         const V safe = hn::IfThenElse(reached, dist, one);
-        lx = hn::Div(dx, safe);
-        ly = hn::Div(dy, safe);
-        lz = hn::Div(dz, safe);
+        const V inv_dist = hn::Div(one, safe);  // light_at: d times 1 / |d|
+        lx = hn::Mul(dx, inv_dist);
+        ly = hn::Mul(dy, inv_dist);
+        lz = hn::Mul(dz, inv_dist);
         falloff = hn::Div(one, hn::Max(d2, hn::Set(d, light.radius * light.radius)));
         if (light.type == LightType::Spot) {
             const V cs = hn::Neg(Dot3Unfused(lx,
@@ -235,10 +236,11 @@ HWY_INLINE void AddLight(const Inputs &sh, const Light &light, const Pixels &p, 
                                              hn::Set(d, light.direction.x),
                                              hn::Set(d, light.direction.y),
                                              hn::Set(d, light.direction.z)));
-            const V t = ClampToRange(hn::Div(hn::Sub(cs, hn::Set(d, light.cos_outer)),
-                                             hn::Set(d, light.cos_inner - light.cos_outer)),
-                                     zero,
-                                     one);
+            const V t =
+                ClampToRange(hn::Mul(hn::Sub(cs, hn::Set(d, light.cos_outer)),
+                                     hn::Set(d, 1.0f / (light.cos_inner - light.cos_outer))),
+                             zero,
+                             one);
             falloff = hn::Mul(
                 falloff,
                 hn::Mul(hn::Mul(t, t), hn::Sub(hn::Set(d, 3.0f), hn::Mul(hn::Set(d, 2.0f), t))));
@@ -255,13 +257,11 @@ HWY_INLINE void AddLight(const Inputs &sh, const Light &light, const Pixels &p, 
     V hx = hn::Add(p.vx, lx), hy = hn::Add(p.vy, ly), hz = hn::Add(p.vz, lz);
     const V hlen = hn::Sqrt(Dot3Unfused(hx, hy, hz, hx, hy, hz));
     const M hok = hn::Gt(hlen, hn::Set(d, 1e-8f));
-    // Each component divided, as evaluate(): a product with 1 / |v + l| rounds twice, and the
-    // masking terms other than the default one take D with 1 - (n.h)^2 from n.h, which then
-    // cancels at a glossy peak.
-    const V hsafe = hn::IfThenElse(hok, hlen, one);
-    hx = hn::IfThenElse(hok, hn::Div(hx, hsafe), p.nx);
-    hy = hn::IfThenElse(hok, hn::Div(hy, hsafe), p.ny);
-    hz = hn::IfThenElse(hok, hn::Div(hz, hsafe), p.nz);
+    // Times 1 / |v + l|, as evaluate() for the default masking term (the rows run no other).
+    const V inv_h = hn::Div(one, hn::IfThenElse(hok, hlen, one));
+    hx = hn::IfThenElse(hok, hn::Mul(hx, inv_h), p.nx);
+    hy = hn::IfThenElse(hok, hn::Mul(hy, inv_h), p.ny);
+    hz = hn::IfThenElse(hok, hn::Mul(hz, inv_h), p.nz);
     const V nh_raw = Dot3Unfused(p.nx, p.ny, p.nz, hx, hy, hz);
     const V nh = hn::Max(nh_raw, zero);
     const V vh = hn::Max(Dot3Unfused(p.vx, p.vy, p.vz, hx, hy, hz), zero);

@@ -289,8 +289,12 @@ double furnace(float roughness, float mu, shading::Geometry g, bool compensate)
             // D and the cosines at the h that evaluate() rebuilds from v + l, with D in the form
             // evaluate() uses for g (float rounding of n.h matters for alpha ~ 0.002; the ratio
             // then cancels it).
-            glm::vec3 he = v + l;  // as evaluate() rebuilds h
-            he = he / glm::length(he);
+            glm::vec3 he = v + l;  // as evaluate() rebuilds h: a reciprocal for the default lobe
+            if (g == Geometry::SmithCorrelated) {
+                he *= 1.0f / glm::length(he);
+            } else {
+                he = he / glm::length(he);
+            }
             const float d = g == Geometry::SmithCorrelated ? d_ggx(he.z, sin2_across(n, he), alpha)
                                                            : d_ggx(he.z, alpha);
             const double pdf = double(d) * he.z / (4.0 * glm::dot(v, he));
