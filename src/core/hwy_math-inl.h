@@ -101,6 +101,34 @@ HWY_INLINE V ClampToRange(V x, V lo, V hi)
     return hn::Min(hn::Max(x, lo), hi);
 }
 
+/// Three interleaved floats a pixel (x y z x y z ...) from p into planes: hn::LoadInterleaved3,
+/// with a shorter sequence on AVX2. There Highway's version loads three 32-byte vectors and
+/// moves 16-byte blocks across them (three block permutes, four blends, five shuffles); here
+/// each 32-byte register is two 16-byte loads (pixels 0-3 and 4-7 side by side) and five
+/// in-block shuffles sort them. The same values either way.
+template <class D>
+HWY_INLINE void LoadXyz(
+    D d, const float *HWY_RESTRICT p, hn::Vec<D> &x, hn::Vec<D> &y, hn::Vec<D> &z)
+{
+#if HWY_TARGET == HWY_AVX2
+    if constexpr (hn::MaxLanes(D()) == 8) {
+        const hn::Full128<float> d4;
+        // Per block: m03 = x0 y0 z0 x1, m14 = y1 z1 x2 y2, m25 = z2 x3 y3 z3 (the lower block
+        // pixels 0-3, the upper 4-7).
+        const __m256 m03 = hn::Combine(d, hn::LoadU(d4, p + 12), hn::LoadU(d4, p)).raw;
+        const __m256 m14 = hn::Combine(d, hn::LoadU(d4, p + 16), hn::LoadU(d4, p + 4)).raw;
+        const __m256 m25 = hn::Combine(d, hn::LoadU(d4, p + 20), hn::LoadU(d4, p + 8)).raw;
+        const __m256 xy = _mm256_shuffle_ps(m14, m25, _MM_SHUFFLE(2, 1, 3, 2));  // x2 y2 x3 y3
+        const __m256 yz = _mm256_shuffle_ps(m03, m14, _MM_SHUFFLE(1, 0, 2, 1));  // y0 z0 y1 z1
+        x = hn::Vec<D>{_mm256_shuffle_ps(m03, xy, _MM_SHUFFLE(2, 0, 3, 0))};
+        y = hn::Vec<D>{_mm256_shuffle_ps(yz, xy, _MM_SHUFFLE(3, 1, 2, 0))};
+        z = hn::Vec<D>{_mm256_shuffle_ps(yz, m25, _MM_SHUFFLE(3, 0, 3, 1))};
+        return;
+    }
+#endif
+    hn::LoadInterleaved3(d, p, x, y, z);
+}
+
 }  // namespace posthaste::simd::HWY_NAMESPACE
 HWY_AFTER_NAMESPACE();
 

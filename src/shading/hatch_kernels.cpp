@@ -41,8 +41,8 @@ void FillSamples(const KernelCtx &k, const Rect &r, int stride, float *buf, std:
             V z, px, py, pz, nx, ny, nz;
             if (x >= 0 && x + n <= w && zs == 1 && ps == 3 && ns == 3) {
                 z = hn::LoadU(d, zr + x);
-                hn::LoadInterleaved3(d, pr + 3 * std::size_t(x), px, py, pz);
-                hn::LoadInterleaved3(d, nr + 3 * std::size_t(x), nx, ny, nz);
+                LoadXyz(d, pr + 3 * std::size_t(x), px, py, pz);
+                LoadXyz(d, nr + 3 * std::size_t(x), nx, ny, nz);
             } else {  // the image's borders (clamped) and passes of other channel counts
                 const VI xi = hn::Min(hn::Max(hn::Add(hn::Set(di, x), lane), hn::Zero(di)),
                                       hn::Set(di, w - 1));

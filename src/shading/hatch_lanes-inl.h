@@ -40,6 +40,7 @@ constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 using simd::HWY_NAMESPACE::ClampToRange;
 using simd::HWY_NAMESPACE::Dot3Unfused;
 using simd::HWY_NAMESPACE::Finite;
+using simd::HWY_NAMESPACE::LoadXyz;
 
 /// Truncation to int32 of lanes in [0, 2^23) (NaN and larger lanes give some int32; callers clamp
 /// or mask them): floor, then the bits of floor + 2^23, without ConvertTo's overflow fix-up.

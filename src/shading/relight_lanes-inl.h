@@ -17,6 +17,7 @@
 
 #include <cstdint>
 
+#include "core/hwy_math-inl.h"
 #include "shading/relight_pixel.h"
 
 HWY_BEFORE_NAMESPACE();
@@ -37,7 +38,7 @@ HWY_INLINE void Load3(const Image &img, int x, int y, int n, V &a, V &b, V &c)
     const float *p = img.pixel(x, y);
     const int ch = img.channels();
     if (n == int(hn::Lanes(d)) && ch == 3) {
-        hn::LoadInterleaved3(d, p, a, b, c);
+        simd::HWY_NAMESPACE::LoadXyz(d, p, a, b, c);
         return;
     }
     if (n == int(hn::Lanes(d)) && ch == 4) {
