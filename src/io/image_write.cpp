@@ -479,16 +479,38 @@ void write_display_preview(const Image &color,
         }
         to_display.apply_row(row.data(), w, in_ch, /*unpremultiply=*/true);
         std::uint8_t *out = buf.data() + std::size_t(y) * std::size_t(w) * std::size_t(nch);
+        // The row's eight dither thresholds, (pattern + 0.5) / 64, once a row.
         const int *pattern = kBayer[ay & 7];
-        for (int x = 0; x < w; ++x) {
-            const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
-            const float t =
-                options.dither ? (float(pattern[(x + display.x0) & 7]) + 0.5f) / 64.0f : 0.5f;
-            for (int c = 0; c < nch; ++c) {
-                const float v = c < in_ch ? p[c] : 1.0f;
-                const float q = std::isfinite(v) ? std::floor(v * 255.0f + t) : 0.0f;
-                out[std::size_t(x) * std::size_t(nch) + std::size_t(c)] =
-                    std::uint8_t(std::clamp(q, 0.0f, 255.0f));
+        float thresholds[8];
+        for (int i = 0; i < 8; ++i) {
+            thresholds[i] =
+                options.dither ? (float(pattern[(i + display.x0) & 7]) + 0.5f) / 64.0f : 0.5f;
+        }
+        // floor(v 255 + t) clamped to [0, 255], as the truncation of the clamped value (the same
+        // for every value: both are 0 below 0 and 255 from 255 up); 0 for NaN and infinities.
+        auto quantise = [](float v, float t) {
+            const float q =
+                std::isfinite(v) ? std::min(std::max(v * 255.0f + t, 0.0f), 255.0f) : 0.0f;
+            return std::uint8_t(q);
+        };
+        const std::size_t stride = std::size_t(in_ch);
+        if (nch <= in_ch) {  // every output channel is in the row
+            for (int x = 0; x < w; ++x) {
+                const float *p = row.data() + std::size_t(x) * stride;
+                const float t = thresholds[x & 7];
+                std::uint8_t *o = out + std::size_t(x) * std::size_t(nch);
+                for (int c = 0; c < nch; ++c) {
+                    o[c] = quantise(p[c], t);
+                }
+            }
+        } else {
+            for (int x = 0; x < w; ++x) {
+                const float *p = row.data() + std::size_t(x) * stride;
+                const float t = thresholds[x & 7];
+                for (int c = 0; c < nch; ++c) {
+                    out[std::size_t(x) * std::size_t(nch) + std::size_t(c)] =
+                        quantise(c < in_ch ? p[c] : 1.0f, t);
+                }
             }
         }
     });

@@ -916,6 +916,97 @@ std::vector<unsigned char> png_red(const std::string &path, int &w, int &h)
 
 }  // namespace
 
+// The preview's 8-bit codes by hand, through an identity transform: floor(v 255 + t) clamped
+// to [0, 255] with t the 8x8 Bayer threshold (pattern + 0.5) / 64 of the pixel (0.5 without
+// dither), 0 for NaN and infinities; channels the input lacks read as 1. Values at and around
+// the ends, codes' edges, a huge finite value; 1-, 3- and 4-channel inputs, with and without
+// alpha out, and a display window offset against the data (the pattern follows display
+// coordinates).
+TEST(IoWrite, PreviewCodesByHand)
+{
+    static constexpr int kBayer[8][8] = {{0, 32, 8, 40, 2, 34, 10, 42},
+                                         {48, 16, 56, 24, 50, 18, 58, 26},
+                                         {12, 44, 4, 36, 14, 46, 6, 38},
+                                         {60, 28, 52, 20, 62, 30, 54, 22},
+                                         {3, 35, 11, 43, 1, 33, 9, 41},
+                                         {51, 19, 59, 27, 49, 17, 57, 25},
+                                         {15, 47, 7, 39, 13, 45, 5, 37},
+                                         {63, 31, 55, 23, 61, 29, 53, 21}};
+    const float inf = std::numeric_limits<float>::infinity();
+    const float values[] = {-1.0f,
+                            0.0f,
+                            0.4f / 255.0f,
+                            0.6f / 255.0f,
+                            1.0f / 255.0f,
+                            0.2f,
+                            0.5f,
+                            254.5f / 255.0f,
+                            1.0f,
+                            1.5f,
+                            1e38f,
+                            inf,
+                            -inf,
+                            std::numeric_limits<float>::quiet_NaN()};
+    const int nv = int(std::size(values));
+    const std::string dir = scratch_dir("preview_codes");
+    const ColorProcessor identity = ColorProcessor::between("lin_rec709", "lin_rec709", "test");
+    ASSERT_TRUE(identity.is_noop());
+    for (const int in_ch : {1, 3, 4}) {
+        const int w = 19, h = 9;  // every value in every channel and at every dither phase
+        Image img(w, h, in_ch);
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                for (int c = 0; c < in_ch; ++c) {
+                    img.at(x, y, c) = c == 3 ? 1.0f : values[(x + 3 * y + 5 * c) % nv];
+                }
+            }
+        }
+        const Rect data{2, 1, 2 + w, 1 + h};
+        const Rect display{-3, -1, 2 + w, 1 + h};
+        for (const bool dither : {false, true}) {
+            for (const bool alpha : {false, true}) {
+                PreviewOptions o;
+                o.dither = dither;
+                o.alpha = alpha;
+                const std::string path = dir + "/codes.png";
+                write_display_preview(img, data, display, identity, path, o);
+                auto in = OIIO::ImageInput::open(path);
+                ASSERT_TRUE(in);
+                const int nch = alpha && in_ch == 4 ? 4 : 3;
+                ASSERT_EQ(in->spec().nchannels, nch);
+                ASSERT_EQ(in->spec().width, display.width());
+                std::vector<unsigned char> got(std::size_t(display.width()) *
+                                               std::size_t(display.height()) * std::size_t(nch));
+                ASSERT_TRUE(in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, got.data()));
+                int checked = 0;
+                for (int y = data.y0; y < data.y1; ++y) {
+                    for (int x = data.x0; x < data.x1; ++x) {
+                        const float t =
+                            dither ? (float(kBayer[y & 7][x & 7]) + 0.5f) / 64.0f : 0.5f;
+                        for (int c = 0; c < nch; ++c) {
+                            const float v = c < in_ch ? img.at(x - data.x0, y - data.y0, c) : 1.0f;
+                            const float q = std::isfinite(v) ? std::floor(v * 255.0f + t) : 0.0f;
+                            const int want = int(std::clamp(q, 0.0f, 255.0f));
+                            const std::size_t i =
+                                (std::size_t(y - display.y0) * std::size_t(display.width()) +
+                                 std::size_t(x - display.x0)) *
+                                    std::size_t(nch) +
+                                std::size_t(c);
+                            ASSERT_EQ(int(got[i]), want)
+                                << "v " << v << " channel " << c << " at " << x << "," << y
+                                << " dither " << dither << " in_ch " << in_ch;
+                            ++checked;
+                        }
+                    }
+                }
+                EXPECT_EQ(checked, w * h * nch);
+                // Outside the data window: black (alpha 0 where written).
+                EXPECT_EQ(int(got[0]), 0);
+            }
+        }
+    }
+}
+
 TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
 {
     // A smooth, slow ramp (a sky or fog gradient): 1024 px spanning a few 8-bit codes.
