@@ -7,11 +7,13 @@
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
+#include <utility>
 #include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/text.h"
+#include "io/io_detail.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
@@ -54,6 +56,10 @@ const ConfigHolder &config_holder()
 
 struct ColorProcessor::Impl {
     OCIO::ConstCPUProcessorRcPtr cpu;
+    /// For 8-bit output of a transform without channel crosstalk: the same transform over
+    /// half-float input, which OpenColorIO's optimiser turns into one table lookup a channel
+    /// (a 65536-entry 1D LUT, one per half value) instead of evaluating each op; null otherwise.
+    OCIO::ConstCPUProcessorRcPtr cpu_half;
     bool noop = false;
 };
 
@@ -163,6 +169,10 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
                         ? proc->getOptimizedCPUProcessor(
                               OCIO::BIT_DEPTH_F32, OCIO::BIT_DEPTH_F32, OCIO::OPTIMIZATION_DRAFT)
                         : proc->getDefaultCPUProcessor();
+        if (for_8bit && !impl->noop && !proc->hasChannelCrosstalk()) {
+            impl->cpu_half = proc->getOptimizedCPUProcessor(
+                OCIO::BIT_DEPTH_F16, OCIO::BIT_DEPTH_F32, OCIO::OPTIMIZATION_DRAFT);
+        }
     } catch (const OCIO::Exception &e) {
         throw_usage(where, ": OpenColorIO: ", e.what());
     }
@@ -377,6 +387,65 @@ void ColorProcessor::apply_row(float *row, int width, int nch, bool unpremultipl
     // Alpha 1 (most pixels) skips the division and the product: the same bits either way.
     constexpr float kMinAlpha = 1e-6f;
     auto divides = [&](float a) { return unpremult && a > kMinAlpha && a != 1.0f; };
+    auto premultiply_again = [&] {
+        for (int x = 0; unpremult && x < width; ++x) {
+            float *p = row + std::size_t(x) * std::size_t(nch);
+            if (divides(p[3])) {
+                p[0] *= p[3];
+                p[1] *= p[3];
+                p[2] *= p[3];
+            }
+        }
+    };
+    // The row's RGB as floats; channels beyond RGB (alpha, extra) are skipped through the
+    // strides.
+    OCIO::PackedImageDesc rgb_row(row,
+                                  width,
+                                  1,
+                                  OCIO::CHANNEL_ORDERING_RGB,
+                                  OCIO::BIT_DEPTH_F32,
+                                  sizeof(float),
+                                  std::ptrdiff_t(sizeof(float)) * nch,
+                                  std::ptrdiff_t(sizeof(float)) * nch * width);
+    if (impl_->cpu_half) {
+        // RGB as halves through the table, written back as floats over the row's RGB (alpha
+        // and extra channels untouched). Finite values past half's range are saturated first,
+        // so they stay as bright (or as dark) as they were instead of turning infinite;
+        // infinities and NaN come out as they went in (the table's entries for them are not
+        // what the exact transform gives: +inf would read as its brightest finite value).
+        thread_local std::vector<unsigned char> halves;
+        thread_local std::vector<std::pair<std::size_t, float>> odd;  // (value index, value)
+        halves.resize(std::size_t(width) * 6);
+        odd.clear();
+        for (int x = 0; x < width; ++x) {
+            float *p = row + std::size_t(x) * std::size_t(nch);
+            const bool d = divides(nch >= 4 ? p[3] : 1.0f);
+            for (int c = 0; c < 3; ++c) {
+                const float v = d ? p[c] / p[3] : p[c];
+                if (std::isfinite(v)) {
+                    p[c] = std::clamp(v, -65504.0f, 65504.0f);
+                } else {
+                    p[c] = v;
+                    odd.emplace_back(std::size_t(x) * std::size_t(nch) + std::size_t(c), v);
+                }
+            }
+        }
+        io_detail::floats_to_halves(row, 3, width, halves.data(), 6, nch);
+        const OCIO::PackedImageDesc src(halves.data(),
+                                        width,
+                                        1,
+                                        OCIO::CHANNEL_ORDERING_RGB,
+                                        OCIO::BIT_DEPTH_F16,
+                                        2,
+                                        6,
+                                        std::ptrdiff_t(6) * width);
+        impl_->cpu_half->apply(src, rgb_row);
+        for (const auto &[i, v] : odd) {
+            row[i] = v;
+        }
+        premultiply_again();
+        return;
+    }
     if (nch == 4) {
         // Packed RGBA is OpenColorIO's in-place path (no conversion to its working buffer):
         // several times faster than RGB with a stride. Alpha is put back afterwards bit for
@@ -413,24 +482,8 @@ void ColorProcessor::apply_row(float *row, int width, int nch, bool unpremultipl
             p[2] /= p[3];
         }
     }
-    // Channels beyond RGB (alpha, extra) are skipped through the strides.
-    OCIO::PackedImageDesc desc(row,
-                               width,
-                               1,
-                               OCIO::CHANNEL_ORDERING_RGB,
-                               OCIO::BIT_DEPTH_F32,
-                               sizeof(float),
-                               std::ptrdiff_t(sizeof(float)) * nch,
-                               std::ptrdiff_t(sizeof(float)) * nch * width);
-    impl_->cpu->apply(desc);
-    for (int x = 0; unpremult && x < width; ++x) {
-        float *p = row + std::size_t(x) * std::size_t(nch);
-        if (divides(p[3])) {
-            p[0] *= p[3];
-            p[1] *= p[3];
-            p[2] *= p[3];
-        }
-    }
+    impl_->cpu->apply(rgb_row);
+    premultiply_again();
 }
 
 void ColorProcessor::apply(Image &image, bool unpremultiply) const

@@ -1007,6 +1007,85 @@ TEST(IoWrite, PreviewCodesByHand)
     }
 }
 
+// An 8-bit preview of a transform without channel crosstalk (the sRGB display) goes through
+// OpenColorIO's table over half-float inputs: every code within one of the exact float
+// transform's (quantised by the same formula), most of them equal; finite values past half's
+// range stay white (not infinite, which the preview writes as 0); NaN and infinities 0; an
+// unpremultiplied RGBA pixel keeps its alpha.
+TEST(IoWrite, PreviewHalfTableWithinOneCode)
+{
+    const int w = 4096, h = 2;
+    Image img(w, h, 4);
+    for (int x = 0; x < w; ++x) {
+        // Floats that are not halves, from below 0 to well above 1.
+        const float v = -0.01f + 1.7f * (float(x) + 0.37f) / float(w);
+        for (int c = 0; c < 3; ++c) {
+            img.at(x, 0, c) = v * (1.0f + 0.013f * float(c));
+        }
+        img.at(x, 0, 3) = 1.0f;
+        for (int c = 0; c < 4; ++c) {
+            img.at(x, 1, c) = 0.0f;
+        }
+    }
+    const float inf = std::numeric_limits<float>::infinity();
+    const float specials[][4] = {{1e5f, 7e4f, 3e38f, 1.0f},
+                                 {inf, -inf, std::numeric_limits<float>::quiet_NaN(), 1.0f},
+                                 {-1e5f, 0.5f, 0.25f, 0.5f}};
+    for (int i = 0; i < 3; ++i) {
+        std::copy_n(specials[i], 4, img.pixel(i, 1));
+    }
+    const std::string dir = scratch_dir("preview_half");
+    const ColorProcessor table =
+        ColorProcessor::display_view("lin_rec709", "sRGB", "Standard", "test", true);
+    const ColorProcessor exact =
+        ColorProcessor::display_view("lin_rec709", "sRGB", "Standard", "test", false);
+    PreviewOptions o;
+    o.dither = false;
+    o.alpha = true;
+    const Rect window{0, 0, w, h};
+    write_display_preview(img, window, window, table, dir + "/p.png", o);
+    auto in = OIIO::ImageInput::open(dir + "/p.png");
+    ASSERT_TRUE(in);
+    std::vector<unsigned char> got(std::size_t(w) * std::size_t(h) * 4);
+    ASSERT_TRUE(in->read_image(0, 0, 0, 4, OIIO::TypeDesc::UINT8, got.data()));
+    auto code = [](float v) {
+        return std::isfinite(v) ? int(std::clamp(std::floor(v * 255.0f + 0.5f), 0.0f, 255.0f)) : 0;
+    };
+    int worst = 0, differ = 0;
+    for (int x = 0; x < w; ++x) {
+        float rgb[3] = {img.at(x, 0, 0), img.at(x, 0, 1), img.at(x, 0, 2)};
+        exact.apply_rgb(rgb);
+        for (int c = 0; c < 3; ++c) {
+            const int d = std::abs(int(got[std::size_t(x) * 4 + std::size_t(c)]) - code(rgb[c]));
+            worst = std::max(worst, d);
+            differ += d != 0 ? 1 : 0;
+        }
+        EXPECT_EQ(int(got[std::size_t(x) * 4 + 3]), 255);
+    }
+    std::printf("half table against the exact transform: worst %d code, %d of %d differ\n",
+                worst,
+                differ,
+                3 * w);
+    EXPECT_LE(worst, 1);
+    EXPECT_GT(differ, 0);  // the table really is in use (values are not halves)
+    EXPECT_LT(differ, w * 3 / 10);
+    const unsigned char *s = got.data() + std::size_t(w) * 4;
+    EXPECT_EQ(int(s[0]), 255);  // 1e5, 7e4 and 3e38: white
+    EXPECT_EQ(int(s[1]), 255);
+    EXPECT_EQ(int(s[2]), 255);
+    EXPECT_EQ(int(s[4]), 0);  // inf, -inf, NaN
+    EXPECT_EQ(int(s[5]), 0);
+    EXPECT_EQ(int(s[6]), 0);
+    // (-1e5, 0.5, 0.25) premultiplied by alpha 0.5: the display values of (-2e5, 1, 0.5) times
+    // 0.5, alpha 128.
+    float rgb[3] = {-2e5f, 1.0f, 0.5f};
+    exact.apply_rgb(rgb);
+    EXPECT_EQ(int(s[8]), 0);
+    EXPECT_NEAR(int(s[9]), code(rgb[1] * 0.5f), 1);
+    EXPECT_NEAR(int(s[10]), code(rgb[2] * 0.5f), 1);
+    EXPECT_EQ(int(s[11]), 128);
+}
+
 TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
 {
     // A smooth, slow ramp (a sky or fog gradient): 1024 px spanning a few 8-bit codes.
