@@ -493,24 +493,17 @@ void write_display_preview(const Image &color,
                 std::isfinite(v) ? std::min(std::max(v * 255.0f + t, 0.0f), 255.0f) : 0.0f;
             return std::uint8_t(q);
         };
-        const std::size_t stride = std::size_t(in_ch);
-        if (nch <= in_ch) {  // every output channel is in the row
-            for (int x = 0; x < w; ++x) {
-                const float *p = row.data() + std::size_t(x) * stride;
-                const float t = thresholds[x & 7];
-                std::uint8_t *o = out + std::size_t(x) * std::size_t(nch);
-                for (int c = 0; c < nch; ++c) {
-                    o[c] = quantise(p[c], t);
-                }
+        const int have = std::min(nch, in_ch);  // output channels the row has; the rest read 1
+        for (int x = 0; x < w; ++x) {
+            const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
+            const float t = thresholds[x & 7];
+            std::uint8_t *o = out + std::size_t(x) * std::size_t(nch);
+            int c = 0;
+            for (; c < have; ++c) {
+                o[c] = quantise(p[c], t);
             }
-        } else {
-            for (int x = 0; x < w; ++x) {
-                const float *p = row.data() + std::size_t(x) * stride;
-                const float t = thresholds[x & 7];
-                for (int c = 0; c < nch; ++c) {
-                    out[std::size_t(x) * std::size_t(nch) + std::size_t(c)] =
-                        quantise(c < in_ch ? p[c] : 1.0f, t);
-                }
+            for (; c < nch; ++c) {
+                o[c] = quantise(1.0f, t);
             }
         }
     });

@@ -18,6 +18,20 @@ namespace {
 
 using Json = nlohmann::json;
 
+// A JSON integer within [lo, hi]; an unsigned above 2^63 (which get<long long>() would read as
+// a negative number) is out of range.
+bool integer_in(const Json &v, long long lo, long long hi)
+{
+    if (!v.is_number_integer()) {
+        return false;
+    }
+    if (v.is_number_unsigned()) {
+        return hi >= 0 && v.get<std::uint64_t>() <= std::uint64_t(hi) &&
+               (lo <= 0 || v.get<std::uint64_t>() >= std::uint64_t(lo));
+    }
+    return v.get<long long>() >= lo && v.get<long long>() <= hi;
+}
+
 // A JSON object being read: remembers its path for messages and which keys were used, so that
 // unknown keys are reported (pbrt ReportUnused).
 class Obj {
@@ -71,10 +85,7 @@ class Obj {
             return def;
         }
         const Json &v = get(key);
-        // An unsigned above 2^63 would read as a negative long long.
-        if (!v.is_number_integer() ||
-            (v.is_number_unsigned() && (hi < 0 || v.get<std::uint64_t>() > std::uint64_t(hi))) ||
-            v.get<long long>() < lo || v.get<long long>() > hi) {
+        if (!integer_in(v, lo, hi)) {
             fail(key, str_cat("expected an integer in [", lo, ", ", hi, "], got ", v.dump()));
         }
         return v.get<int>();
@@ -120,15 +131,10 @@ class Obj {
         }
         const Json &v = get(key);
         // An int each: a larger integer would wrap in get<int>() and read as another value.
-        auto is_int = [](const Json &e) {
-            if (e.is_number_unsigned()) {
-                return e.get<std::uint64_t>() <= std::uint64_t(std::numeric_limits<int>::max());
-            }
-            return e.is_number_integer() &&
-                   e.get<std::int64_t>() >= std::numeric_limits<int>::min() &&
-                   e.get<std::int64_t>() <= std::numeric_limits<int>::max();
-        };
-        if (!v.is_array() || v.size() != 3 || !is_int(v[0]) || !is_int(v[1]) || !is_int(v[2])) {
+        constexpr int kMin = std::numeric_limits<int>::min(),
+                      kMax = std::numeric_limits<int>::max();
+        if (!v.is_array() || v.size() != 3 || !integer_in(v[0], kMin, kMax) ||
+            !integer_in(v[1], kMin, kMax) || !integer_in(v[2], kMin, kMax)) {
             fail(key, "expected an array of 3 integers in int's range, got " + v.dump());
         }
         return {v[0].get<int>(), v[1].get<int>(), v[2].get<int>()};

@@ -924,14 +924,19 @@ std::vector<unsigned char> png_red(const std::string &path, int &w, int &h)
 // coordinates).
 TEST(IoWrite, PreviewCodesByHand)
 {
-    static constexpr int kBayer[8][8] = {{0, 32, 8, 40, 2, 34, 10, 42},
-                                         {48, 16, 56, 24, 50, 18, 58, 26},
-                                         {12, 44, 4, 36, 14, 46, 6, 38},
-                                         {60, 28, 52, 20, 62, 30, 54, 22},
-                                         {3, 35, 11, 43, 1, 33, 9, 41},
-                                         {51, 19, 59, 27, 49, 17, 57, 25},
-                                         {15, 47, 7, 39, 13, 45, 5, 37},
-                                         {63, 31, 55, 23, 61, 29, 53, 21}};
+    // The 8x8 Bayer matrix by its recursion: B(2n)[i][j] = 4 B(n)[i mod n][j mod n] +
+    // B(2)[i / n][j / n], from B(1) = 0 and B(2) = {{0, 2}, {3, 1}}.
+    int kBayer[8][8] = {};
+    for (int n = 1; n < 8; n *= 2) {
+        static constexpr int kB2[2][2] = {{0, 2}, {3, 1}};
+        int next[8][8] = {};
+        for (int i = 0; i < 2 * n; ++i) {
+            for (int j = 0; j < 2 * n; ++j) {
+                next[i][j] = 4 * kBayer[i % n][j % n] + kB2[i / n][j / n];
+            }
+        }
+        std::copy(&next[0][0], &next[0][0] + 64, &kBayer[0][0]);
+    }
     const float inf = std::numeric_limits<float>::infinity();
     const float values[] = {-1.0f,
                             0.0f,
