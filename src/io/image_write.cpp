@@ -3,6 +3,7 @@
 // rebuilt with canonical channel names; 8-bit previews; atomic writes.
 
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,6 +14,7 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
+#include <numeric>
 #include <random>
 #include <set>
 
@@ -114,63 +116,75 @@ std::vector<float> half_size(const std::vector<float> &src, int w, int h, int nc
     return dst;
 }
 
-/// The part's pixels at native types over its data window, converted in parallel by rows.
-std::unique_ptr<unsigned char[]> pack_part(const OutPart &part, const Frame &frame)
-{
-    const Rect &dw = part.data_window;
-    std::size_t pixel_bytes = 0;
-    std::vector<std::size_t> offsets;
-    for (const OutChannel &c : part.channels) {
-        offsets.push_back(pixel_bytes);
-        pixel_bytes += c.type.size();
-    }
-    const std::size_t row_bytes = pixel_bytes * std::size_t(dw.width());
-    auto buf =
-        std::make_unique_for_overwrite<unsigned char[]>(row_bytes * std::size_t(dw.height()));
-    const Rect fw = frame.data_window;
-    // Runs of channels that are consecutive channels of one image, same type, written as they
-    // are: converted together (four halves at once for RGBA).
-    std::vector<std::size_t> run(part.channels.size(), 1);
-    for (std::size_t ci = part.channels.size(); ci-- > 1;) {
-        const OutChannel &a = part.channels[ci - 1], &b = part.channels[ci];
-        if (!a.raw && !b.raw && a.image && a.image == b.image && b.k == a.k + 1 &&
-            a.type == b.type && a.scale == 1.0f && a.offset == 0.0f && b.scale == 1.0f &&
-            b.offset == 0.0f) {
-            run[ci - 1] = run[ci] + 1;
+/// A part's pixels at native types, interleaved as the file stores them, packed a band of rows
+/// at a time so that the writer never holds the whole part a second time.
+class PartPacker {
+   public:
+    PartPacker(const OutPart &part, const Frame &frame)
+        : part_(part), frame_(frame), run_(part.channels.size(), 1)
+    {
+        for (const OutChannel &c : part.channels) {
+            offsets_.push_back(pixel_bytes_);
+            pixel_bytes_ += c.type.size();
         }
+        // Runs of channels that are consecutive channels of one image, same type, written as
+        // they are: converted together (four halves at once for RGBA).
+        for (std::size_t ci = part.channels.size(); ci-- > 1;) {
+            const OutChannel &a = part.channels[ci - 1], &b = part.channels[ci];
+            if (!a.raw && !b.raw && a.image && a.image == b.image && b.k == a.k + 1 &&
+                a.type == b.type && a.scale == 1.0f && a.offset == 0.0f && b.scale == 1.0f &&
+                b.offset == 0.0f) {
+                run_[ci - 1] = run_[ci] + 1;
+            }
+        }
+        const Rect &dw = part.data_window, &fw = frame.data_window;
+        inside_ = fw.x0 <= dw.x0 && dw.x1 <= fw.x1 && fw.y0 <= dw.y0 && dw.y1 <= fw.y1;
     }
-    const bool inside = fw.x0 <= dw.x0 && dw.x1 <= fw.x1 && fw.y0 <= dw.y0 && dw.y1 <= fw.y1;
-    parallel_for(0, dw.height(), [&](int y) {
-        unsigned char *row = buf.get() + std::size_t(y) * row_bytes;
-        std::vector<float> tmp(std::size_t(dw.width()));
+
+    std::size_t row_bytes() const { return pixel_bytes_ * std::size_t(part_.data_window.width()); }
+
+    /// Rows [y_begin, y_end) of the data window (0 = its first row) into dst, in parallel.
+    void pack(int y_begin, int y_end, unsigned char *dst) const
+    {
+        parallel_for(y_begin, y_end, [&](int y) {
+            pack_row(y, dst + std::size_t(y - y_begin) * row_bytes());
+        });
+    }
+
+   private:
+    void pack_row(int y, unsigned char *row) const
+    {
+        const Rect &dw = part_.data_window, &fw = frame_.data_window;
         const int ay = y + dw.y0;
-        for (std::size_t ci = 0; ci < part.channels.size();) {
-            const OutChannel &c = part.channels[ci];
-            unsigned char *dst = row + offsets[ci];
+        std::vector<float> tmp;
+        for (std::size_t ci = 0; ci < part_.channels.size();) {
+            const OutChannel &c = part_.channels[ci];
+            unsigned char *dst = row + offsets_[ci];
             const std::size_t size = c.type.size();
             if (c.raw) {
                 const unsigned char *src =
                     c.raw->data() + std::size_t(y) * std::size_t(dw.width()) * size;
                 for (int x = 0; x < dw.width(); ++x) {
                     std::memcpy(
-                        dst + std::size_t(x) * pixel_bytes, src + std::size_t(x) * size, size);
+                        dst + std::size_t(x) * pixel_bytes_, src + std::size_t(x) * size, size);
                 }
                 ++ci;
                 continue;
             }
             const Image &img = *c.image;
             const bool identity = c.scale == 1.0f && c.offset == 0.0f;
-            if (inside && identity && c.type.basetype != OIIO::TypeDesc::UINT) {
-                const int n = int(run[ci]);
+            if (inside_ && identity && c.type.basetype != OIIO::TypeDesc::UINT) {
+                const int n = int(run_[ci]);
                 const float *src = img.pixel(dw.x0 - fw.x0, ay - fw.y0) + c.k;
                 if (c.type.basetype == OIIO::TypeDesc::HALF) {
-                    floats_to_halves(src, n, dw.width(), dst, pixel_bytes, img.channels());
+                    floats_to_halves(src, n, dw.width(), dst, pixel_bytes_, img.channels());
                 } else {
-                    scatter_floats(src, n, dw.width(), dst, pixel_bytes, img.channels());
+                    scatter_floats(src, n, dw.width(), dst, pixel_bytes_, img.channels());
                 }
                 ci += std::size_t(n);
                 continue;
             }
+            tmp.resize(std::size_t(dw.width()));
             const bool whole_row = ay >= fw.y0 && ay < fw.y1;
             for (int x = 0; x < dw.width(); ++x) {
                 const int ax = x + dw.x0;
@@ -180,11 +194,42 @@ std::unique_ptr<unsigned char[]> pack_part(const OutPart &part, const Frame &fra
                 }
                 tmp[std::size_t(x)] = identity ? v : (v - c.offset) / c.scale;
             }
-            store_values(tmp.data(), dw.width(), c.type, dst, pixel_bytes);
+            store_values(tmp.data(), dw.width(), c.type, dst, pixel_bytes_);
             ++ci;
         }
-    });
-    return buf;
+    }
+
+    const OutPart &part_;
+    const Frame &frame_;
+    std::vector<std::size_t> offsets_;
+    std::vector<std::size_t> run_;
+    std::size_t pixel_bytes_ = 0;
+    bool inside_ = false;
+};
+
+/// Level 0 of a part, packed and written band by band.
+void write_part_pixels(OIIO::ImageOutput &out,
+                       const OutPart &part,
+                       const Frame &frame,
+                       const std::string &path)
+{
+    const PartPacker packer(part, frame);
+    const Rect &dw = part.data_window;
+    const int band = std::min(band_rows(part.spec, packer.row_bytes()), dw.height());
+    auto buf =
+        std::make_unique_for_overwrite<unsigned char[]>(packer.row_bytes() * std::size_t(band));
+    for (int y = 0; y < dw.height(); y += band) {
+        const int y_end = std::min(y + band, dw.height());
+        packer.pack(y, y_end, buf.get());
+        const bool ok =
+            part.spec.tile_width > 0
+                ? out.write_tiles(
+                      dw.x0, dw.x1, dw.y0 + y, dw.y0 + y_end, 0, 1, OIIO::TypeUnknown, buf.get())
+                : out.write_scanlines(dw.y0 + y, dw.y0 + y_end, 0, OIIO::TypeUnknown, buf.get());
+        if (!ok) {
+            throw_runtime(path, ": cannot write pixels: ", out.geterror());
+        }
+    }
 }
 
 }  // namespace
@@ -375,10 +420,7 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
             if (i > 0 && !out->open(tmp, specs[i], OIIO::ImageOutput::AppendSubimage)) {
                 throw_runtime(path, ": cannot append part ", i, ": ", out->geterror());
             }
-            const auto buf = pack_part(part, frame);
-            if (!out->write_image(OIIO::TypeUnknown, buf.get())) {
-                throw_runtime(path, ": cannot write pixels: ", out->geterror());
-            }
+            write_part_pixels(*out, part, frame, path);
             if (part.make_levels) {
                 // A touched MIP-mapped part: its levels are made again from the new pixels.
                 const int nch = int(part.channels.size());

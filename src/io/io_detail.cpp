@@ -1,11 +1,14 @@
 #include "io/io_detail.h"
 
+#include <OpenImageIO/strutil.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numeric>
 #include <set>
 
 #include "core/error.h"
@@ -435,6 +438,17 @@ void check_exr_header(const std::string &path)
                           format_bytes(budget));
         }
     }
+}
+
+int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes)
+{
+    int step =
+        OIIO::Strutil::istarts_with(spec.get_string_attribute("compression"), "dwab") ? 256 : 32;
+    if (spec.tile_width > 0) {
+        step = std::lcm(step, std::max(1, spec.tile_height));
+    }
+    const std::size_t band_bytes = std::max<std::size_t>(row_bytes * std::size_t(step), 1);
+    return step * int(std::clamp<std::size_t>((std::size_t(4) << 20) / band_bytes, 1, 64));
 }
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)

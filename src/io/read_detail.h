@@ -52,6 +52,7 @@ struct PartPixels {
     std::vector<Channel> channels;          ///< By channel - chbegin.
     std::shared_ptr<unsigned char[]> data;  ///< Not zero-filled: every byte is read into.
     std::size_t bytes = 0;
+    int row0 = 0;  ///< The part's row (0 = its data window's first) that data starts at.
 };
 
 /// An uninitialised byte buffer (a zero fill of a 1080p all-pass frame cost a third of a read),

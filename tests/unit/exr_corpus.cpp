@@ -657,6 +657,38 @@ void write_tiled(Writer &w)
     }
 }
 
+/// Corpus group: parts taller than the band of rows the writer packs at once (32 rows of a
+/// 4100-wide float RGBA part; 96 rows, two rows of 64x24 tiles, of the tiled one), ending in a
+/// partial band, with data windows that start at odd rows.
+void write_bands(Writer &w)
+{
+    {
+        const std::string path = w.add("bands_scanline",
+                                       Kind::Flat,
+                                       "4100x100 scanlines, data (0,-3)-(4099,96), R,G,B,A float, "
+                                       "ZIP: four bands of rows, the last partial");
+        Imf::Header header = make_header(
+            box(0, 0, 4099, 95),
+            box(0, -3, 4099, 96),
+            Imf::ZIP_COMPRESSION,
+            {{"R", Imf::FLOAT}, {"G", Imf::FLOAT}, {"B", Imf::FLOAT}, {"A", Imf::FLOAT}});
+        write_scanline_file(path, header, Values{14, 0, false, false});
+    }
+    {
+        const std::string path = w.add("bands_tiled",
+                                       Kind::Flat,
+                                       "4100x200 tiled 64x24, data (5,-7)-(4104,192), R,G,B half "
+                                       "+ Z float, PIZ: three bands of tile rows, the last partial");
+        Imf::Header header = make_header(
+            box(0, 0, 4109, 199),
+            box(5, -7, 4104, 192),
+            Imf::PIZ_COMPRESSION,
+            {{"R", Imf::HALF}, {"G", Imf::HALF}, {"B", Imf::HALF}, {"Z", Imf::FLOAT}});
+        header.setTileDescription(Imf::TileDescription(64, 24, Imf::ONE_LEVEL, Imf::ROUND_DOWN));
+        write_tiled_file(path, header, Values{15, 0, false, false});
+    }
+}
+
 /// Corpus group: compressions.
 void write_compressions(Writer &w)
 {
@@ -1213,6 +1245,7 @@ std::vector<Entry> write_corpus(const std::string &dir)
     Writer w(dir);
     write_windows(w);
     write_tiled(w);
+    write_bands(w);
     write_compressions(w);
     write_channel_sets(w);
     write_multipart(w);
