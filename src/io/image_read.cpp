@@ -518,10 +518,12 @@ Frame read_frame(const std::string &path,
                                                      : 0.0f;
                 const int x0 = std::clamp(dw.x0, 0, width), x1 = std::clamp(dw.x1, 0, width);
                 const bool row_inside = y >= dw.y0 && y < dw.y1 && x0 < x1;
-                for (int x = 0; x < width; ++x) {
-                    if (!row_inside || x < x0 || x >= x1) {
-                        dst[std::size_t(x) * step] = outside;
-                    }
+                const int left = row_inside ? x0 : width, right = row_inside ? x1 : width;
+                for (int x = 0; x < left; ++x) {
+                    dst[std::size_t(x) * step] = outside;
+                }
+                for (int x = right; x < width; ++x) {
+                    dst[std::size_t(x) * step] = outside;
                 }
             }
         }
