@@ -442,13 +442,36 @@ void check_exr_header(const std::string &path)
 
 int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes)
 {
-    int step =
-        OIIO::Strutil::istarts_with(spec.get_string_attribute("compression"), "dwab") ? 256 : 32;
-    if (spec.tile_width > 0) {
-        step = std::lcm(step, std::max(1, spec.tile_height));
+    // Scan lines per block of the codec OpenImageIO names (1 for none, rle, zips and formats
+    // other than EXR).
+    const std::string codec = spec.get_string_attribute("compression");
+    int block = 1;
+    for (const auto &[name, lines] : {std::pair<const char *, int>{"zips", 1},
+                                      {"zip", 16},
+                                      {"pxr24", 16},
+                                      {"piz", 32},
+                                      {"b44", 32},
+                                      {"dwaa", 32},
+                                      {"dwab", 256}}) {
+        if (OIIO::Strutil::istarts_with(codec, name)) {
+            block = lines;
+            break;
+        }
     }
-    const std::size_t band_bytes = std::max<std::size_t>(row_bytes * std::size_t(step), 1);
-    return step * int(std::clamp<std::size_t>((std::size_t(4) << 20) / band_bytes, 1, 64));
+    if (spec.tile_width > 0) {
+        block = std::max(1, spec.tile_height);  // a row of tiles: many blocks side by side
+    }
+    const int step = std::lcm(32, block);
+    const std::size_t step_bytes = std::max<std::size_t>(row_bytes * std::size_t(step), 1);
+    // About 4 MiB, and at least 8 blocks for OpenEXR's threads to share (a band of 3 blocks on
+    // 2 threads leaves one idle a third of the time), but at most 32 MiB.
+    std::size_t steps = std::max<std::size_t>((std::size_t(4) << 20) / step_bytes, 1);
+    if (spec.tile_width <= 0) {
+        steps = std::max<std::size_t>(steps, std::size_t((8 * block + step - 1) / step));
+    }
+    steps = std::clamp<std::size_t>(
+        steps, 1, std::max<std::size_t>((std::size_t(32) << 20) / step_bytes, 1));
+    return step * int(std::min<std::size_t>(steps, 64));
 }
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)

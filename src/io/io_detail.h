@@ -76,10 +76,10 @@ void convert_channel(const unsigned char *src,
                      float *dst,
                      std::size_t dst_stride,
                      int count);
-/// Rows of a part read or written at once: whole blocks of its codec (32 rows hold one or more
-/// blocks of every codec but DWAB, whose blocks are 256 rows) and whole rows of its tiles, about
-/// 4 MiB: several blocks for OpenEXR's threads to work on side by side, few enough to stay in
-/// cache between the library's copy and posthaste's conversion.
+/// Rows of a part read or written at once: whole blocks of its codec and whole rows of its
+/// tiles (a multiple of 32 rows), about 4 MiB and at least 8 blocks, for OpenEXR's threads to
+/// work on side by side, at most 32 MiB: small enough to stay in cache between the library's
+/// copy and posthaste's conversion, and never the whole frame a second time.
 int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes);
 /// Pixel types the reader converts.
 bool supported_native(OIIO::TypeDesc t);

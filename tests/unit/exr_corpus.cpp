@@ -657,20 +657,20 @@ void write_tiled(Writer &w)
     }
 }
 
-/// Corpus group: parts taller than the band of rows the writer packs at once (32 rows of a
-/// 4100-wide float RGBA part; 96 rows, two rows of 64x24 tiles, of the tiled one), ending in a
-/// partial band, with data windows that start at odd rows.
+/// Corpus group: parts taller than the band of rows read and written at once (32 rows of a
+/// 4100-wide uncompressed float RGBA part; 96 rows, four rows of 64x24 tiles, of the tiled one),
+/// ending in a partial band, with data windows that start at odd rows.
 void write_bands(Writer &w)
 {
     {
         const std::string path = w.add("bands_scanline",
                                        Kind::Flat,
                                        "4100x100 scanlines, data (0,-3)-(4099,96), R,G,B,A float, "
-                                       "ZIP: four bands of rows, the last partial");
+                                       "uncompressed: four bands of rows, the last partial");
         Imf::Header header = make_header(
             box(0, 0, 4099, 95),
             box(0, -3, 4099, 96),
-            Imf::ZIP_COMPRESSION,
+            Imf::NO_COMPRESSION,
             {{"R", Imf::FLOAT}, {"G", Imf::FLOAT}, {"B", Imf::FLOAT}, {"A", Imf::FLOAT}});
         write_scanline_file(path, header, Values{14, 0, false, false});
     }
