@@ -658,32 +658,37 @@ void write_tiled(Writer &w)
 }
 
 /// Corpus group: parts taller than the band of rows read and written at once (32 rows of a
-/// 4100-wide uncompressed float RGBA part; 96 rows, four rows of 64x24 tiles, of the tiled one),
-/// ending in a partial band, with data windows that start at odd rows.
+/// 4100-wide uncompressed float RGBA + uint part; 96 rows, four rows of 64x24 tiles, of the tiled
+/// one), ending in a partial band, with data windows that start at odd rows.
 void write_bands(Writer &w)
 {
     {
         const std::string path = w.add("bands_scanline",
                                        Kind::Flat,
-                                       "4100x100 scanlines, data (0,-3)-(4099,96), R,G,B,A float, "
-                                       "uncompressed: four bands of rows, the last partial");
-        Imf::Header header = make_header(
-            box(0, 0, 4099, 95),
-            box(0, -3, 4099, 96),
-            Imf::NO_COMPRESSION,
-            {{"R", Imf::FLOAT}, {"G", Imf::FLOAT}, {"B", Imf::FLOAT}, {"A", Imf::FLOAT}});
+                                       "4100x100 scanlines, data (0,-3)-(4099,96), R,G,B,A float "
+                                       "+ id uint (kept as the file's bits), uncompressed: four "
+                                       "bands of rows, the last partial");
+        Imf::Header header = make_header(box(0, 0, 4099, 95),
+                                         box(0, -3, 4099, 96),
+                                         Imf::NO_COMPRESSION,
+                                         {{"R", Imf::FLOAT},
+                                          {"G", Imf::FLOAT},
+                                          {"B", Imf::FLOAT},
+                                          {"A", Imf::FLOAT},
+                                          {"id", Imf::UINT}});
         write_scanline_file(path, header, Values{14, 0, false, false});
     }
     {
-        const std::string path = w.add("bands_tiled",
-                                       Kind::Flat,
-                                       "4100x200 tiled 64x24, data (5,-7)-(4104,192), R,G,B half "
-                                       "+ Z float, PIZ: three bands of tile rows, the last partial");
-        Imf::Header header = make_header(
-            box(0, 0, 4109, 199),
-            box(5, -7, 4104, 192),
-            Imf::PIZ_COMPRESSION,
-            {{"R", Imf::HALF}, {"G", Imf::HALF}, {"B", Imf::HALF}, {"Z", Imf::FLOAT}});
+        const std::string path =
+            w.add("bands_tiled",
+                  Kind::Flat,
+                  "4100x200 tiled 64x24, data (5,-7)-(4104,192), R,G,B half "
+                  "+ Z float, PIZ: three bands of tile rows, the last partial");
+        Imf::Header header =
+            make_header(box(0, 0, 4109, 199),
+                        box(5, -7, 4104, 192),
+                        Imf::PIZ_COMPRESSION,
+                        {{"R", Imf::HALF}, {"G", Imf::HALF}, {"B", Imf::HALF}, {"Z", Imf::FLOAT}});
         header.setTileDescription(Imf::TileDescription(64, 24, Imf::ONE_LEVEL, Imf::ROUND_DOWN));
         write_tiled_file(path, header, Values{15, 0, false, false});
     }
