@@ -3,7 +3,6 @@
 // rebuilt with canonical channel names; 8-bit previews; atomic writes.
 
 #include <OpenImageIO/imageio.h>
-#include <OpenImageIO/strutil.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -14,7 +13,6 @@
 #include <cstring>
 #include <filesystem>
 #include <mutex>
-#include <numeric>
 #include <random>
 #include <set>
 
