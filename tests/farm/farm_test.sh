@@ -65,25 +65,32 @@ wait_idle
 "$P" farm status job1 >/dev/null && ok "status 0 after the resubmit" || fail "status after resubmit"
 same local farm1 "5 5" >/dev/null || fail "frame 5 redone differs"
 
-# 3. A task cancelled while it runs: its frames are missing until resubmitted.
-"$P" farm submit "$graph" --frames 1-12 --chunk 6 --max-running 1 --job-dir job2 \
-    $(sets 960 540 farm2) >submit2.txt || fail "submit 2: $(cat submit2.txt)"
-job=$(cut -d' ' -f1 submit2.txt)
-for _ in $(seq 1 200); do
-    squeue -h -r -j "$job" -o '%i %T' | grep -q "^${job}_0 RUNNING" && break
-    sleep 0.05
+# 3. A task cancelled while it runs: its frames are missing until resubmitted. The cancel is sent
+# as soon as squeue shows the task running; on a loaded machine the task can still finish first
+# (every frame done, nothing to test), so the scenario runs again in a new job, at most 3 times.
+for attempt in 1 2 3; do
+    job2=job2-$attempt
+    "$P" farm submit "$graph" --frames 1-12 --chunk 6 --max-running 1 --job-dir $job2 \
+        $(sets 960 540 farm2-$attempt) >submit2.txt || fail "submit 2: $(cat submit2.txt)"
+    job=$(cut -d' ' -f1 submit2.txt)
+    for _ in $(seq 1 200); do
+        squeue -h -r -j "$job" -o '%i %T' | grep -q "^${job}_0 RUNNING" && break
+        sleep 0.05
+    done
+    scancel "${job}_0"
+    wait_idle
+    "$P" farm status $job2 --json >status2.json; rc=$?
+    [[ $rc -ne 0 ]] && break
+    echo "farm: attempt $attempt: chunk 0 finished before the cancel reached it"
 done
-scancel "${job}_0"
-wait_idle
-"$P" farm status job2 --json >status2.json; rc=$?
 [[ $rc -ne 0 ]] && ok "status non-zero after the cancel" || fail "status 0 after a cancel"
 missing=$(python3 -c "import json; print(' '.join(str(f['frame']) for f in json.load(open('status2.json'))['frames'] if f['state'] != 'done'))")
 [[ -n $missing ]] || fail "nothing missing after the cancel"
 for f in $missing; do ((f <= 6)) || fail "frame $f of another chunk is not done"; done
 ok "missing after the cancel: $missing (chunk 0 is 1-6)"
-"$P" farm resubmit job2 >/dev/null || fail "resubmit 2"
+"$P" farm resubmit $job2 >/dev/null || fail "resubmit 2"
 wait_idle
-"$P" farm status job2 >/dev/null && ok "status 0 after resubmitting the cancelled frames" ||
+"$P" farm status $job2 >/dev/null && ok "status 0 after resubmitting the cancelled frames" ||
     fail "status 2 after resubmit"
 
 # 4. An invalid graph is refused at submit; nothing is queued.
