@@ -10,6 +10,7 @@
 #include <map>
 #include <numeric>
 #include <set>
+#include <string_view>
 
 #include "core/error.h"
 #include "core/memory.h"
@@ -442,20 +443,16 @@ void check_exr_header(const std::string &path)
 
 int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes)
 {
-    // Scan lines per block of the codec OpenImageIO names (1 for none, rle, zips and formats
-    // other than EXR).
+    // Scan lines per block of the codec OpenImageIO names, in OpenEXR's order of ids (1 for
+    // formats other than EXR).
+    static constexpr std::string_view kCodecs[] = {
+        "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
     const std::string codec = spec.get_string_attribute("compression");
+    const std::string_view base = std::string_view(codec).substr(0, codec.find(':'));
     int block = 1;
-    for (const auto &[name, lines] : {std::pair<const char *, int>{"zips", 1},
-                                      {"zip", 16},
-                                      {"pxr24", 16},
-                                      {"piz", 32},
-                                      {"b44", 32},
-                                      {"dwaa", 32},
-                                      {"dwab", 256}}) {
-        if (OIIO::Strutil::istarts_with(codec, name)) {
-            block = lines;
-            break;
+    for (int id = 0; id < int(std::size(kCodecs)); ++id) {
+        if (OIIO::Strutil::iequals(base, kCodecs[id])) {
+            block = lines_per_chunk(id);
         }
     }
     if (spec.tile_width > 0) {
