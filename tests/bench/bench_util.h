@@ -24,8 +24,6 @@ inline double process_cpu_ms()
     return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
-/// Frame `frame` of samples/scenes/minecrappy.json at 1920x1080 with `passes`, rendered once.
-/// Benchmarks register and run on one thread, so the cache needs no lock.
 /// The baseline a node that outputs a new image pays at least: a copy of `image` into a fresh
 /// one, rows in parallel on 2 threads; counter cpu_ms as the node benchmarks report it.
 inline void copy_baseline(benchmark::State &state, const Image &image)
@@ -47,25 +45,43 @@ inline void copy_baseline(benchmark::State &state, const Image &image)
     set_thread_count(0);
 }
 
-inline const Frame &minecrappy_frame(int frame,
-                                     const std::set<std::string> &passes,
-                                     bool shadows = true)
+/// Frame `frame` of samples/scenes/`scene_file` at 1920x1080 with `passes`, rendered once.
+/// Benchmarks register and run on one thread, so the cache needs no lock.
+inline const Frame &scene_frame(const std::string &scene_file,
+                                int frame,
+                                const std::set<std::string> &passes,
+                                bool shadows = true)
 {
-    using Key = std::tuple<int, std::set<std::string>, bool>;
+    using Key = std::tuple<std::string, int, std::set<std::string>, bool>;
     static std::map<Key, Frame> frames;
-    const Key key{frame, passes, shadows};
+    static std::map<std::string, raster::Scene> scenes;
+    const Key key{scene_file, frame, passes, shadows};
     auto it = frames.find(key);
     if (it == frames.end()) {
-        static const raster::Scene scene = raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
-                                                              "/samples/scenes/minecrappy.json");
+        auto sc = scenes.find(scene_file);
+        if (sc == scenes.end()) {
+            sc = scenes
+                     .emplace(scene_file,
+                              raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) +
+                                                 "/samples/scenes/" + scene_file))
+                     .first;
+        }
         raster::RenderOptions o;
         o.width = 1920;
         o.height = 1080;
         o.shadows = shadows;
         o.passes = passes;
-        it = frames.emplace(key, raster::render_frame(scene, frame, o)).first;
+        it = frames.emplace(key, raster::render_frame(sc->second, frame, o)).first;
     }
     return it->second;
+}
+
+/// Frame `frame` of samples/scenes/minecrappy.json at 1920x1080 with `passes`, rendered once.
+inline const Frame &minecrappy_frame(int frame,
+                                     const std::set<std::string> &passes,
+                                     bool shadows = true)
+{
+    return scene_frame("minecrappy.json", frame, passes, shadows);
 }
 
 }  // namespace posthaste::bench
