@@ -23,6 +23,10 @@ class CameraRays {
     /// World vector to the camera-depth-1 point of NDC (u, v): its length is the distance along
     /// the ray per unit of depth (the `depth` pass is camera-space z).
     glm::vec3 depth_ray(float u, float v) const { return origin_ + u * du_ + v * dv_; }
+    /// depth_ray's terms: depth_ray(u, v) = origin() + u du() + v dv(), rounded in that order.
+    const glm::vec3 &ray_origin() const { return origin_; }
+    const glm::vec3 &ray_du() const { return du_; }
+    const glm::vec3 &ray_dv() const { return dv_; }
     /// Unit world-space view direction through NDC (u, v).
     glm::vec3 direction(float u, float v) const;
 

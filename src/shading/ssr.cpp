@@ -3,6 +3,7 @@
 #include "shading/ssr.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <glm/geometric.hpp>
@@ -12,9 +13,11 @@
 
 #include "core/hash.h"
 #include "core/parallel.h"
+#include "core/simd.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
 #include "shading/sky.h"
+#include "shading/ssr_kernels.h"
 
 namespace posthaste::shading {
 namespace {
@@ -52,11 +55,21 @@ class Marcher {
           grid_h_(grid_h),
           inv_stride_(1.0f / float(stride))
     {
+        grid_.inv_depth = inv_depth;
+        grid_.w = grid_w;
+        grid_.h = grid_h;
+        grid_.inv_stride = inv_stride_;
+        grid_.thickness = p.thickness;
     }
 
     /// What the ray origin + s dir meets on screen: the colour there and its weight against the
-    /// sky (1, less near the screen's edges); weight 0 when it meets nothing there.
-    glm::vec4 trace(const glm::vec3 &origin, const glm::vec3 &dir, float jitter) const
+    /// sky (1, less near the screen's edges); weight 0 when it meets nothing there. With
+    /// `scratch` (the caller's, one per thread) the steps' depth tests run on the vector kernel,
+    /// without it the scalar loop: the same result.
+    glm::vec4 trace(const glm::vec3 &origin,
+                    const glm::vec3 &dir,
+                    float jitter,
+                    std::vector<float> *scratch) const
     {
         const glm::vec4 sky(0.0f);
         // Camera z along the ray, to clip its far end in front of the camera.
@@ -102,56 +115,53 @@ class Marcher {
         // In float first: a segment projected from near the camera plane can be huge.
         const int steps = std::max(1, int(std::min(float(p_.steps), std::ceil(pixels))));
         float t_prev = 0.0f;
-        float inv_prev = a.inv_z;
-        for (int i = 0; i < steps; ++i) {
-            const float s = (float(i) + jitter) / float(steps);
-            const float t = std::max(t_start + s * s * (t_end - t_start), t_prev);
-            const ScreenPoint q = lerp(a, b, t);
-            const float inv_scene = inv_depth(q);
-            // At or behind the depth pass (in 1 / z: the sky's 0 is never reached) and the
-            // step's stretch of ray [z_prev, z] overlapping the slab [depth, depth + thickness].
-            const bool crossed =
-                q.inv_z <= inv_scene &&
-                std::min(1.0f / inv_prev, 1.0f / q.inv_z) <= 1.0f / inv_scene + p_.thickness;
-            if (crossed) {
-                // Bisect [t_prev, t] for the first point at or behind the depth pass.
-                float lo = t_prev, hi = t;
-                for (int k = 0; k < p_.refine; ++k) {
-                    const float mid = 0.5f * (lo + hi);
-                    const ScreenPoint m = lerp(a, b, mid);
-                    if (m.inv_z <= inv_depth(m)) {
-                        hi = mid;
-                    } else {
-                        lo = mid;
+        if (scratch != nullptr) {
+            // The steps' depth tests together (ssr_kernels.cpp: the same bits as the loop below),
+            // then each crossing in order as the loop takes it.
+            SsrSegment seg;
+            seg.ax = a.x;
+            seg.ay = a.y;
+            seg.a_inv_z = a.inv_z;
+            seg.bx = b.x;
+            seg.by = b.y;
+            seg.b_inv_z = b.inv_z;
+            seg.t_start = t_start;
+            seg.t_end = t_end;
+            seg.jitter = jitter;
+            seg.steps = steps;
+            scratch->resize(2 * std::size_t(steps + kSsrStepPad));
+            float *ts = scratch->data();
+            float *crossed = ts + steps + kSsrStepPad;
+            ssr_march_steps(grid_, seg, ts, crossed);
+            for (int i = 0; i < steps; ++i) {
+                if (crossed[i] != 0.0f) {
+                    if (const std::optional<glm::vec4> r = crossing(a, b, dir, t_prev, ts[i])) {
+                        return *r;
                     }
                 }
-                const ScreenPoint h = lerp(a, b, hi);
-                const int hx = clamp_index(h.x, width_);
-                const int hy = clamp_index(h.y, height_);
-                // Where the bisection lands, the ray must lie within the slab too: a long step
-                // that ends behind a surface it never crossed (the ray passed above or beside
-                // it, hidden by it) is not a hit; the march goes on.
-                if (1.0f / h.inv_z - in_.depth->at(hx, hy, 0) > p_.thickness) {
-                    t_prev = t;
-                    inv_prev = q.inv_z;
-                    continue;
-                }
-                // The back of a surface (its normal along the ray): what the ray meets is
-                // hidden from the camera, so the colour pass does not have it.
-                const Image &nrm = *in_.normal;
-                const glm::vec3 nh(nrm.at(hx, hy, 0), nrm.at(hx, hy, 1), nrm.at(hx, hy, 2));
-                if (glm::dot(nh, dir) > 0.0f) {
-                    return sky;
-                }
-                const Image &c = *in_.color;
-                const float edge = std::min(std::min(h.x, float(width_) - h.x),
-                                            std::min(h.y, float(height_) - h.y));
-                const float fade_px = p_.edge_fade * float(std::min(width_, height_));
-                const float w = fade_px > 0.0f ? std::clamp(edge / fade_px, 0.0f, 1.0f) : 1.0f;
-                return glm::vec4(c.at(hx, hy, 0), c.at(hx, hy, 1), c.at(hx, hy, 2), w);
+                t_prev = ts[i];
             }
-            t_prev = t;
-            inv_prev = q.inv_z;
+        } else {
+            float inv_prev = a.inv_z;
+            for (int i = 0; i < steps; ++i) {
+                const float s = (float(i) + jitter) / float(steps);
+                const float t = std::max(t_start + s * s * (t_end - t_start), t_prev);
+                const ScreenPoint q = lerp(a, b, t);
+                const float inv_scene = inv_depth(q);
+                // At or behind the depth pass (in 1 / z: the sky's 0 is never reached) and the
+                // step's stretch of ray [z_prev, z] overlapping the slab [depth, depth +
+                // thickness].
+                const bool crossed =
+                    q.inv_z <= inv_scene &&
+                    std::min(1.0f / inv_prev, 1.0f / q.inv_z) <= 1.0f / inv_scene + p_.thickness;
+                if (crossed) {
+                    if (const std::optional<glm::vec4> r = crossing(a, b, dir, t_prev, t)) {
+                        return *r;
+                    }
+                }
+                t_prev = t;
+                inv_prev = q.inv_z;
+            }
         }
         // Off the screen in front of what the last sample saw: with `extend`, that surface is
         // taken to go on past the edge (a wall cut by the frame) and the ray to meet it there.
@@ -169,6 +179,49 @@ class Marcher {
     }
 
    private:
+    /// A crossing between t_prev and t: bisected for the first point at or behind the depth
+    /// pass; the colour there (weight as trace()), the sky (weight 0) for the back of a
+    /// surface, or nothing when the ray passed beside the surface (the march goes on).
+    std::optional<glm::vec4> crossing(const ScreenPoint &a,
+                                      const ScreenPoint &b,
+                                      const glm::vec3 &dir,
+                                      float t_prev,
+                                      float t) const
+    {
+        float lo = t_prev, hi = t;
+        for (int k = 0; k < p_.refine; ++k) {
+            const float mid = 0.5f * (lo + hi);
+            const ScreenPoint m = lerp(a, b, mid);
+            if (m.inv_z <= inv_depth(m)) {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        const ScreenPoint h = lerp(a, b, hi);
+        const int hx = clamp_index(h.x, width_);
+        const int hy = clamp_index(h.y, height_);
+        // Where the bisection lands, the ray must lie within the slab too: a long step that
+        // ends behind a surface it never crossed (the ray passed above or beside it, hidden by
+        // it) is not a hit; the march goes on.
+        if (1.0f / h.inv_z - in_.depth->at(hx, hy, 0) > p_.thickness) {
+            return std::nullopt;
+        }
+        // The back of a surface (its normal along the ray): what the ray meets is hidden from
+        // the camera, so the colour pass does not have it.
+        const Image &nrm = *in_.normal;
+        const glm::vec3 nh(nrm.at(hx, hy, 0), nrm.at(hx, hy, 1), nrm.at(hx, hy, 2));
+        if (glm::dot(nh, dir) > 0.0f) {
+            return glm::vec4(0.0f);
+        }
+        const Image &c = *in_.color;
+        const float edge =
+            std::min(std::min(h.x, float(width_) - h.x), std::min(h.y, float(height_) - h.y));
+        const float fade_px = p_.edge_fade * float(std::min(width_, height_));
+        const float w = fade_px > 0.0f ? std::clamp(edge / fade_px, 0.0f, 1.0f) : 1.0f;
+        return glm::vec4(c.at(hx, hy, 0), c.at(hx, hy, 1), c.at(hx, hy, 2), w);
+    }
+
     /// 1 / the depth of the traced grid's cell under q (clamped to the grid), 0 on the sky.
     float inv_depth(const ScreenPoint &q) const
     {
@@ -194,6 +247,7 @@ class Marcher {
     const float *inv_depth_;  ///< grid_w_ x grid_h_, row-major
     int grid_w_, grid_h_;
     float inv_stride_;
+    SsrDepthGrid grid_;
 };
 
 /// A pixel the node changes: a finite surface, roughness at most the cut-off, a normal, a
@@ -245,6 +299,56 @@ std::optional<GlossyPixel> glossy_pixel(const SsrInputs &in,
     return g;
 }
 
+/// The traced cells' estimates in the layout of ssr_kernels.h's SsrResolveRow: per cell row,
+/// kSsrCellChannels arrays indexed by pixel column, each cell repeated over its `stride` columns,
+/// depth NaN where no cell or no estimate is.
+class CellRows {
+   public:
+    CellRows(int width, int rows, int stride)
+        : pitch_(width + 2 * kSsrCellMargin),
+          stride_(stride),
+          data_(std::size_t(rows) * kSsrCellChannels * std::size_t(pitch_), 0.0f),
+          cell_x_(std::size_t(pitch_))
+    {
+        for (int r = 0; r < rows; ++r) {
+            float *z = data_.data() + std::size_t(r) * kSsrCellChannels * std::size_t(pitch_);
+            std::fill(z, z + pitch_, std::numeric_limits<float>::quiet_NaN());
+        }
+        for (int e = -kSsrCellMargin; e < pitch_ - kSsrCellMargin; ++e) {
+            const int cell = e >= 0 ? e / stride : -((-e + stride - 1) / stride);
+            cell_x_[std::size_t(e + kSsrCellMargin)] = float(cell * stride);
+        }
+    }
+    /// Cell (tx, ty)'s depth, normal and change.
+    void set(int tx, int ty, const std::array<float, kSsrCellChannels> &v)
+    {
+        float *r = row(ty);
+        for (int c = 0; c < kSsrCellChannels; ++c) {
+            for (int i = 0; i < stride_; ++i) {
+                r[std::size_t(c) * std::size_t(pitch_) + std::size_t(tx * stride_ + i)] = v[c];
+            }
+        }
+    }
+    float at(int tx, int ty, int channel) const
+    {
+        return row(ty)[std::size_t(channel) * std::size_t(pitch_) + std::size_t(tx * stride_)];
+    }
+    /// Cell row ty at pixel column 0.
+    float *row(int ty) { return data_.data() + offset(ty); }
+    const float *row(int ty) const { return data_.data() + offset(ty); }
+    const float *cell_x() const { return cell_x_.data() + kSsrCellMargin; }
+    int pitch() const { return pitch_; }
+
+   private:
+    std::size_t offset(int ty) const
+    {
+        return std::size_t(ty) * kSsrCellChannels * std::size_t(pitch_) + kSsrCellMargin;
+    }
+    int pitch_, stride_;
+    std::vector<float> data_;
+    std::vector<float> cell_x_;
+};
+
 }  // namespace
 
 Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
@@ -274,12 +378,15 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         }
     });
     const Marcher marcher(in, p, inv_depth.data(), tw, th, st);
-    // Per traced cell: the change of the reflected radiance, and whether it holds one.
-    std::vector<glm::vec3> change(std::size_t(tw) * std::size_t(th));
-    std::vector<std::uint8_t> traced(std::size_t(tw) * std::size_t(th), 0);
+    // Per traced cell what the resolve compares and averages (ssr_kernels.h, SsrResolveRow).
+    CellRows cells(w, th, st);
     std::atomic<long long> n_pixels{0}, n_rays{0}, n_hits{0};
+    // The vector kernels (the march's depth tests, the resolve's weights) unless the scalar
+    // reference is asked for.
+    const bool vector_kernels = simd::requested() != simd::Level::Scalar;
     parallel_for(0, th, [&](int ty) {
         long long row_pixels = 0, row_rays = 0, row_hits = 0;
+        std::vector<float> scratch;
         const int y = ty * st;
         for (int tx = 0; tx < tw; ++tx) {
             const int x = tx * st;
@@ -303,7 +410,10 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                 if (!(nl > 0.0f)) {
                     continue;
                 }
-                const glm::vec4 hit = marcher.trace(origin, l, hash_unit(x, y, 3 * i + 2, p.seed));
+                const glm::vec4 hit = marcher.trace(origin,
+                                                    l,
+                                                    hash_unit(x, y, 3 * i + 2, p.seed),
+                                                    vector_kernels ? &scratch : nullptr);
                 glm::vec3 radiance(hit);
                 if (hit.w < 1.0f) {  // the sky, for what the screen does not show
                     const glm::vec3 sky_l = sky.radiance(l, sky_camera, false) * p.sky_scale;
@@ -319,9 +429,16 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                 continue;
             }
             const glm::vec3 r = glm::reflect(-g->view, g->n);
-            const std::size_t cell = std::size_t(ty) * std::size_t(tw) + std::size_t(tx);
-            change[cell] = sum / wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
-            traced[cell] = 1;
+            const glm::vec3 change = sum / wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
+            cells.set(tx,
+                      ty,
+                      {g->z,
+                       normal.at(x, y, 0),
+                       normal.at(x, y, 1),
+                       normal.at(x, y, 2),
+                       change.x,
+                       change.y,
+                       change.z});
         }
         n_pixels += row_pixels;
         n_rays += row_rays;
@@ -333,43 +450,124 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     // blur is that of the window on sharp reflections.
     Image out = *in.color;
     const int radius = std::max(p.denoise, st - 1);
+    const Image &albedo = *in.albedo, &material = *in.material;
     parallel_for(0, h, [&](int y) {
+        // The row's sky reflection weights (0 where the pixel is left alone): on the vector
+        // kernel from the row's channels side by side, or glossy_pixel's scalar reference.
+        const std::size_t row = std::size_t(w + kSsrStepPad);
+        std::vector<float> buf(12 * row, 0.0f);
+        float *wr = buf.data(), *wg = wr + row, *wb = wg + row;
+        if (vector_kernels) {
+            float *ch[9];
+            for (int c = 0; c < 9; ++c) {
+                ch[c] = buf.data() + std::size_t(3 + c) * row;
+            }
+            for (int x = 0; x < w; ++x) {
+                ch[0][x] = depth.at(x, y, 0);
+                for (int c = 0; c < 3; ++c) {
+                    ch[1 + c][x] = normal.at(x, y, c);
+                    ch[4 + c][x] = albedo.at(x, y, c);
+                }
+                ch[7][x] = material.at(x, y, 0);
+                ch[8][x] = material.at(x, y, 1);
+            }
+            SsrWeightRow r;
+            r.z = ch[0];
+            r.nx = ch[1];
+            r.ny = ch[2];
+            r.nz = ch[3];
+            r.ar = ch[4];
+            r.ag = ch[5];
+            r.ab = ch[6];
+            r.roughness = ch[7];
+            r.metallic = ch[8];
+            r.n = w;
+            r.width = w;
+            r.v = (float(y) + 0.5f) / float(h);
+            for (int c = 0; c < 3; ++c) {
+                r.origin[c] = rays.ray_origin()[c];
+                r.du[c] = rays.ray_du()[c];
+                r.dv[c] = rays.ray_dv()[c];
+            }
+            r.max_roughness = p.max_roughness;
+            ssr_weight_row(r, wr, wg, wb);
+        } else {
+            for (int x = 0; x < w; ++x) {
+                if (const std::optional<GlossyPixel> g =
+                        glossy_pixel(in, rays, p, x, y, /*with_point=*/false)) {
+                    wr[x] = g->weight.x;
+                    wg[x] = g->weight.y;
+                    wb[x] = g->weight.z;
+                }
+            }
+        }
+        const int ty0 = (std::max(0, y - radius) + st - 1) / st;
+        const int ty1 = std::min(h - 1, y + radius) / st;
+        if (vector_kernels) {
+            const float *rows[2 * 8 + 1];  // radius <= 8
+            SsrResolveRow rr;
+            rr.row_count = ty1 - ty0 + 1;
+            for (int i = 0; i < rr.row_count; ++i) {
+                rows[i] = cells.row(ty0 + i);
+            }
+            rr.rows = rows;
+            rr.pitch = cells.pitch();
+            rr.cell_x = cells.cell_x();
+            rr.stride = st;
+            rr.radius = radius;
+            rr.z = buf.data() + 3 * row;
+            rr.nx = rr.z + row;
+            rr.ny = rr.nx + row;
+            rr.nz = rr.ny + row;
+            rr.wr = wr;
+            rr.wg = wg;
+            rr.wb = wb;
+            rr.n = w;
+            rr.intensity = p.intensity;
+            // The outputs over the row's albedo and material arrays, which are read.
+            float *dr = buf.data() + 7 * row, *dg = dr + row, *db = dg + row, *apply = db + row;
+            ssr_resolve_row(rr, dr, dg, db, apply);
+            for (int x = 0; x < w; ++x) {
+                if (apply[x] != 0.0f) {
+                    float *px = out.pixel(x, y);
+                    px[0] += dr[x];
+                    px[1] += dg[x];
+                    px[2] += db[x];
+                }
+            }
+            return;
+        }
         for (int x = 0; x < w; ++x) {
-            const std::optional<GlossyPixel> g =
-                glossy_pixel(in, rays, p, x, y, /*with_point=*/false);
-            if (!g) {
+            const glm::vec3 weight(wr[x], wg[x], wb[x]);
+            if (weight == glm::vec3(0.0f)) {
                 continue;
             }
+            const float z = depth.at(x, y, 0);
             const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
             glm::vec3 sum(0.0f);
             float count = 0.0f;
-            const int ty0 = (std::max(0, y - radius) + st - 1) / st;
-            const int ty1 = std::min(h - 1, y + radius) / st;
             const int tx0 = (std::max(0, x - radius) + st - 1) / st;
             const int tx1 = std::min(w - 1, x + radius) / st;
             for (int ty = ty0; ty <= ty1; ++ty) {
                 for (int tx = tx0; tx <= tx1; ++tx) {
-                    const std::size_t cell = std::size_t(ty) * std::size_t(tw) + std::size_t(tx);
-                    if (!traced[cell]) {
+                    // Within 5 % of the pixel's depth (never for a cell without an estimate).
+                    const float cz = cells.at(tx, ty, 0);
+                    if (!(std::abs(cz - z) <= 0.05f * z)) {
                         continue;
                     }
-                    const int xx = tx * st, yy = ty * st;
-                    if (std::abs(depth.at(xx, yy, 0) - g->z) > 0.05f * g->z) {
+                    const glm::vec3 cn(
+                        cells.at(tx, ty, 1), cells.at(tx, ty, 2), cells.at(tx, ty, 3));
+                    if (glm::dot(cn, n) < 0.9f) {  // unit normals (zero where not finite)
                         continue;
                     }
-                    const glm::vec3 m(
-                        normal.at(xx, yy, 0), normal.at(xx, yy, 1), normal.at(xx, yy, 2));
-                    if (glm::dot(m, n) < 0.9f) {  // unit normals (zero where not finite)
-                        continue;
-                    }
-                    sum += change[cell];
+                    sum += glm::vec3(cells.at(tx, ty, 4), cells.at(tx, ty, 5), cells.at(tx, ty, 6));
                     count += 1.0f;
                 }
             }
             if (count == 0.0f) {
                 continue;  // no traced neighbour on this surface
             }
-            const glm::vec3 d = g->weight * (sum / count) * p.intensity;
+            const glm::vec3 d = weight * (sum / count) * p.intensity;
             float *px = out.pixel(x, y);
             px[0] += d.x;
             px[1] += d.y;

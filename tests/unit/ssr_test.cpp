@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/simd.h"
 #include "raster/ray_cast.h"
 #include "raster/render.h"
 #include "raster/scene.h"
@@ -246,6 +247,35 @@ TEST(Ssr, SameBitsForAnyThreadCount)
     const Frame two = test::run_node("ssr", f, "{}");
     set_thread_count(0);
     EXPECT_TRUE(one.image("color").bit_equal(two.image("color")));
+}
+
+TEST(Ssr, VectorKernelsGiveTheScalarReferenceBits)
+{
+    // The kernels (ssr_kernels.cpp: the march's depth tests, the resolve's weights and window)
+    // run on every Highway target and give the scalar reference's bits: whole vectors of steps
+    // (16), a partial one (37), one step, many (512); resolve windows from one pixel to 17, at
+    // full and half resolution; an odd size (the last cell column half outside).
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 161, 91);
+    for (const char *params : {R"({})",
+                               R"({"steps": 37, "thickness": 0.05, "denoise": 8})",
+                               R"({"steps": 1, "resolution": "full", "denoise": 0})",
+                               R"({"resolution": "full", "denoise": 2, "intensity": 0.5})",
+                               R"({"steps": 512, "offscreen": "extend", "rays": 2})"}) {
+        Frame reference;
+        {
+            const simd::ScopedLevel scalar(simd::Level::Scalar);
+            reference = test::run_node("ssr", f, params);
+        }
+        // The march changes the picture: a broken kernel cannot pass as the sky.
+        EXPECT_FALSE(reference.image("color").bit_equal(f.image("color"))) << params;
+        test::for_each_highway_target([&](const char *target) {
+            const Frame out = test::run_node("ssr", f, params);
+            EXPECT_TRUE(out.image("color").bit_equal(reference.image("color")))
+                << target << " " << params << ": RMS "
+                << rms_rgb(out.image("color"), reference.image("color"));
+        });
+    }
 }
 
 TEST(Ssr, NodeNamesWhatIsMissing)

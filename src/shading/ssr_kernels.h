@@ -1,0 +1,87 @@
+#pragma once
+// The screen-space reflection march's depth tests (shading/ssr.h), written once over Highway's
+// lane types (ssr_kernels.cpp): one step of one ray a lane, so that a ray's steps are tested
+// together (they are independent: each compares its own sample with the depth there and with the
+// previous sample), and what follows a crossing (the bisection, the hit's checks) stays per ray.
+// Compiled for each x86 target Highway supports and dispatched at run time; the same bits as the
+// scalar march on every target.
+
+namespace posthaste::shading {
+
+/// Step buffers hold the ray's steps rounded up to whole vectors: steps + kSsrStepPad.
+inline constexpr int kSsrStepPad = 16;
+
+/// The traced grid's 1 / depth (0 on the sky), w x h cells of `stride` pixels, row-major.
+struct SsrDepthGrid {
+    const float *inv_depth = nullptr;
+    int w = 0, h = 0;
+    float inv_stride = 1.0f;
+    float thickness = 0.5f;  ///< world units a surface extends behind its depth
+};
+
+/// A ray's projected segment: pixel coordinates and 1 / camera z at t = 0 (a) and t = 1 (b), all
+/// finite, 1 / z positive; the steps cover [t_start, t_end] as t_start + s^2 (t_end - t_start),
+/// s = (i + jitter) / steps.
+struct SsrSegment {
+    float ax = 0, ay = 0, a_inv_z = 0, bx = 0, by = 0, b_inv_z = 0;
+    float t_start = 0, t_end = 0, jitter = 0;
+    int steps = 1;
+};
+
+/// For each step i < s.steps: its t (t[i]) and whether the ray crossed the depth pass there
+/// (crossed[i] 1, else 0): the sample at or behind the grid's surface and the stretch of ray
+/// since the previous sample (the origin for i = 0) overlapping [depth, depth + thickness].
+/// t and crossed hold s.steps + kSsrStepPad values.
+void ssr_march_steps(const SsrDepthGrid &g, const SsrSegment &s, float *t, float *crossed);
+
+/// One row of the per-pixel inputs of the resolve, one array a channel (n values each, rounded
+/// up to whole vectors: n + kSsrStepPad), and the camera: depth_ray(u, v) = origin + u du + v dv
+/// (shading/camera_rays.h).
+struct SsrWeightRow {
+    const float *z = nullptr;
+    const float *nx = nullptr, *ny = nullptr, *nz = nullptr;
+    const float *ar = nullptr, *ag = nullptr, *ab = nullptr;
+    const float *roughness = nullptr, *metallic = nullptr;
+    int n = 0;
+    int width = 1;   ///< the image's width (u = (x + 0.5) / width)
+    float v = 0.5f;  ///< the row's NDC v
+    float origin[3] = {}, du[3] = {}, dv[3] = {};
+    float max_roughness = 0.78f;
+};
+
+/// The sky reflection weight (shading::sky_reflection_weight: Fresnel-Schlick at n.v times the
+/// gloss) of each pixel of the row that ssr changes, 0 for the others (sky, rough, no normal, no
+/// weight), as ssr.cpp's glossy_pixel computes it, bit for bit; into wr, wg, wb (n +
+/// kSsrStepPad values each).
+void ssr_weight_row(const SsrWeightRow &r, float *wr, float *wg, float *wb);
+
+/// The traced cells' estimates near one output row, and that row's pixels, for the resolve's
+/// window (ssr.cpp). A cell row holds kSsrCellChannels arrays of `pitch` floats (depth, NaN where
+/// the cell holds no estimate; the pass's normal x, y, z; the change r, g, b), indexed by pixel
+/// column: the cell of pixel column x is repeated over its `stride` columns, so that column
+/// x + stride k holds the k-th cell from x's own; valid from column -kSsrCellMargin to w +
+/// kSsrCellMargin. cell_x: the first pixel column of the cell each column holds.
+inline constexpr int kSsrCellChannels = 7;
+inline constexpr int kSsrCellMargin = 32;
+struct SsrResolveRow {
+    const float *const *rows = nullptr;  ///< the window's cell rows, top down (column 0 each)
+    int row_count = 0;
+    int pitch = 0;
+    const float *cell_x = nullptr;  ///< column 0
+    int stride = 1;
+    int radius = 0;  ///< a cell is in x's window when |cell_x - x| <= radius
+    /// The row: the pixels' depth and normal as the passes have them, their sky reflection
+    /// weights (0: left alone), n + kSsrStepPad values each.
+    const float *z = nullptr, *nx = nullptr, *ny = nullptr, *nz = nullptr;
+    const float *wr = nullptr, *wg = nullptr, *wb = nullptr;
+    int n = 0;
+    float intensity = 1.0f;
+};
+
+/// The resolve of one row: for each pixel with a weight, the mean change of the cells in its
+/// window on its surface (depth within 5 % of the pixel's, n . n_cell >= 0.9) times its weight
+/// and the intensity, into dr, dg, db, and apply 1 (else 0: no weight or no such cell); the
+/// same bits as ssr.cpp's scalar resolve. Outputs hold n + kSsrStepPad values.
+void ssr_resolve_row(const SsrResolveRow &r, float *dr, float *dg, float *db, float *apply);
+
+}  // namespace posthaste::shading
