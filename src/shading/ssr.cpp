@@ -30,6 +30,14 @@ struct ScreenPoint {
     float x, y, inv_z;
 };
 
+/// The part of a reflected ray on screen, ready to march: its ends projected, the stretch
+/// [t_start, t_end] of it that is marched, and the number of steps (0: none, the sky).
+struct RaySegment {
+    ScreenPoint a{}, b{};
+    float t_start = 0.0f, t_end = 0.0f;
+    int steps = 0;
+};
+
 /// The index of the pixel or cell holding coordinate v, in [0, n): converted after clamping in
 /// float, so that no value (huge, or NaN) reaches the integer conversion out of range.
 int clamp_index(float v, int n)
@@ -62,32 +70,26 @@ class Marcher {
         grid_.thickness = p.thickness;
     }
 
-    /// What the ray origin + s dir meets on screen: the colour there and its weight against the
-    /// sky (1, less near the screen's edges); weight 0 when it meets nothing there. With
-    /// `scratch` (the caller's, one per thread) the steps' depth tests run on the vector kernel,
-    /// without it the scalar loop: the same result.
-    glm::vec4 trace(const glm::vec3 &origin,
-                    const glm::vec3 &dir,
-                    float jitter,
-                    std::vector<float> *scratch) const
+    /// The part of the ray origin + s dir on screen (steps 0: none, the ray sees the sky).
+    RaySegment segment(const glm::vec3 &origin, const glm::vec3 &dir) const
     {
-        const glm::vec4 sky(0.0f);
+        RaySegment seg;
         // Camera z along the ray, to clip its far end in front of the camera.
         const glm::vec4 oc = in_.world_to_camera * glm::vec4(origin, 1.0f);
         const glm::vec4 dc = in_.world_to_camera * glm::vec4(dir, 0.0f);
         float length = p_.max_distance;
         if (oc.z + dc.z * length < kNear) {
             if (dc.z >= 0.0f) {
-                return sky;  // the origin itself is behind the near plane
+                return seg;  // the origin itself is behind the near plane
             }
             length = (kNear - oc.z) / dc.z;
         }
         if (!(length > 0.0f)) {
-            return sky;
+            return seg;
         }
         const ScreenPoint a = project(origin), b = project(origin + dir * length);
         if (!std::isfinite(a.x + a.y + a.inv_z + b.x + b.y + b.inv_z)) {
-            return sky;
+            return seg;
         }
         // The part of the segment on screen: t in [0, t_end].
         float t_end = 1.0f;
@@ -103,70 +105,97 @@ class Marcher {
             t_end = std::min(t_end, -a.y / dy);
         }
         if (!(t_end > 0.0f)) {
-            return sky;
+            return seg;
         }
         // No more samples than pixels crossed; spaced as t = s^2, closer near the origin where
         // contact reflections need them, jittered per ray.
         const float length_px = std::sqrt(dx * dx + dy * dy);
         // The march starts a pixel and a half out: before that it would meet its own pixel,
         // whose one depth stands for a surface that slopes across it.
-        const float t_start = std::min(t_end, 1.5f / std::max(length_px, 1e-6f));
-        const float pixels = length_px * (t_end - t_start);
+        seg.t_start = std::min(t_end, 1.5f / std::max(length_px, 1e-6f));
+        seg.t_end = t_end;
+        seg.a = a;
+        seg.b = b;
+        const float pixels = length_px * (t_end - seg.t_start);
         // In float first: a segment projected from near the camera plane can be huge.
-        const int steps = std::max(1, int(std::min(float(p_.steps), std::ceil(pixels))));
+        seg.steps = std::max(1, int(std::min(float(p_.steps), std::ceil(pixels))));
+        return seg;
+    }
+
+    /// The segment as the vector march's kernel takes it.
+    SsrSegment kernel_segment(const RaySegment &seg, float jitter) const
+    {
+        SsrSegment k;
+        k.ax = seg.a.x;
+        k.ay = seg.a.y;
+        k.a_inv_z = seg.a.inv_z;
+        k.bx = seg.b.x;
+        k.by = seg.b.y;
+        k.b_inv_z = seg.b.inv_z;
+        k.t_start = seg.t_start;
+        k.t_end = seg.t_end;
+        k.jitter = jitter;
+        k.steps = seg.steps;
+        return k;
+    }
+    const SsrDepthGrid &grid() const { return grid_; }
+
+    /// What the ray meets on screen: the colour there and its weight against the sky (1, less
+    /// near the screen's edges); weight 0 when it meets nothing there. The scalar march (the
+    /// reference of the vector kernel), for a segment with steps.
+    glm::vec4 march(const RaySegment &seg, const glm::vec3 &dir, float jitter) const
+    {
+        const ScreenPoint &a = seg.a, &b = seg.b;
         float t_prev = 0.0f;
-        if (scratch != nullptr) {
-            // The steps' depth tests together (ssr_kernels.cpp: the same bits as the loop below),
-            // then each crossing in order as the loop takes it.
-            SsrSegment seg;
-            seg.ax = a.x;
-            seg.ay = a.y;
-            seg.a_inv_z = a.inv_z;
-            seg.bx = b.x;
-            seg.by = b.y;
-            seg.b_inv_z = b.inv_z;
-            seg.t_start = t_start;
-            seg.t_end = t_end;
-            seg.jitter = jitter;
-            seg.steps = steps;
-            scratch->resize(2 * std::size_t(steps + kSsrStepPad));
-            float *ts = scratch->data();
-            float *crossed = ts + steps + kSsrStepPad;
-            ssr_march_steps(grid_, seg, ts, crossed);
-            for (int i = 0; i < steps; ++i) {
-                if (crossed[i] != 0.0f) {
-                    if (const std::optional<glm::vec4> r = crossing(a, b, dir, t_prev, ts[i])) {
-                        return *r;
-                    }
+        float inv_prev = a.inv_z;
+        for (int i = 0; i < seg.steps; ++i) {
+            const float s = (float(i) + jitter) / float(seg.steps);
+            const float t = std::max(seg.t_start + s * s * (seg.t_end - seg.t_start), t_prev);
+            const ScreenPoint q = lerp(a, b, t);
+            const float inv_scene = inv_depth(q);
+            // At or behind the depth pass (in 1 / z: the sky's 0 is never reached) and the
+            // step's stretch of ray [z_prev, z] overlapping the slab [depth, depth + thickness].
+            const bool crossed =
+                q.inv_z <= inv_scene &&
+                std::min(1.0f / inv_prev, 1.0f / q.inv_z) <= 1.0f / inv_scene + p_.thickness;
+            if (crossed) {
+                if (const std::optional<glm::vec4> r = crossing(a, b, dir, t_prev, t)) {
+                    return *r;
                 }
-                t_prev = ts[i];
             }
-        } else {
-            float inv_prev = a.inv_z;
-            for (int i = 0; i < steps; ++i) {
-                const float s = (float(i) + jitter) / float(steps);
-                const float t = std::max(t_start + s * s * (t_end - t_start), t_prev);
-                const ScreenPoint q = lerp(a, b, t);
-                const float inv_scene = inv_depth(q);
-                // At or behind the depth pass (in 1 / z: the sky's 0 is never reached) and the
-                // step's stretch of ray [z_prev, z] overlapping the slab [depth, depth +
-                // thickness].
-                const bool crossed =
-                    q.inv_z <= inv_scene &&
-                    std::min(1.0f / inv_prev, 1.0f / q.inv_z) <= 1.0f / inv_scene + p_.thickness;
-                if (crossed) {
-                    if (const std::optional<glm::vec4> r = crossing(a, b, dir, t_prev, t)) {
-                        return *r;
-                    }
-                }
-                t_prev = t;
-                inv_prev = q.inv_z;
-            }
+            t_prev = t;
+            inv_prev = q.inv_z;
         }
-        // Off the screen in front of what the last sample saw: with `extend`, that surface is
-        // taken to go on past the edge (a wall cut by the frame) and the ray to meet it there.
-        if (p_.extend && t_end < 1.0f) {
-            const ScreenPoint e = lerp(a, b, t_prev);
+        return off_screen(seg, t_prev);
+    }
+
+    /// march()'s result from the vector kernel's steps (ssr_march_steps: each step's t and
+    /// whether it crossed): each crossing in order as march() takes it.
+    glm::vec4 march_result(const RaySegment &seg,
+                           const glm::vec3 &dir,
+                           const float *ts,
+                           const float *crossed) const
+    {
+        float t_prev = 0.0f;
+        for (int i = 0; i < seg.steps; ++i) {
+            if (crossed[i] != 0.0f) {
+                if (const std::optional<glm::vec4> r = crossing(seg.a, seg.b, dir, t_prev, ts[i])) {
+                    return *r;
+                }
+            }
+            t_prev = ts[i];
+        }
+        return off_screen(seg, t_prev);
+    }
+
+   private:
+    /// A ray that met nothing up to its last sample (t_last): off the screen in front of what
+    /// that sample saw. With `extend`, that surface is taken to go on past the edge (a wall cut
+    /// by the frame) and the ray to meet it there; else the sky.
+    glm::vec4 off_screen(const RaySegment &seg, float t_last) const
+    {
+        if (p_.extend && seg.t_end < 1.0f) {
+            const ScreenPoint e = lerp(seg.a, seg.b, t_last);
             const int ex = clamp_index(e.x, width_);
             const int ey = clamp_index(e.y, height_);
             const float scene_z = in_.depth->at(ex, ey, 0);
@@ -175,10 +204,9 @@ class Marcher {
                 return glm::vec4(c.at(ex, ey, 0), c.at(ex, ey, 1), c.at(ex, ey, 2), 1.0f);
             }
         }
-        return sky;
+        return glm::vec4(0.0f);
     }
 
-   private:
     /// A crossing between t_prev and t: bisected for the first point at or behind the depth
     /// pass; the colour there (weight as trace()), the sky (weight 0) for the back of a
     /// surface, or nothing when the ray passed beside the surface (the march goes on).
@@ -384,23 +412,102 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     // The vector kernels (the march's depth tests, the resolve's weights) unless the scalar
     // reference is asked for.
     const bool vector_kernels = simd::requested() != simd::Level::Scalar;
+    // A row's glossy pixels are traced in batches of about kBatchRays rays, in three passes:
+    // each ray's segment; the depth tests of every ray's steps (the vector kernel), whose
+    // reads of the depth grid, mostly cache misses, overlap when the rays follow each other
+    // without waiting on their results; then each ray's crossings and what it meets, summed
+    // per pixel in the rays' order.
+    constexpr int kBatchRays = 64;
+    const std::size_t step_pitch = std::size_t(p.steps + kSsrStepPad);
     parallel_for(0, th, [&](int ty) {
+        struct Ray {
+            int pixel;  // in the batch
+            glm::vec3 l;
+            float nl, jitter;
+            RaySegment seg;
+        };
+        struct Pixel {
+            int x;
+            GlossyPixel g;
+            glm::vec3 sum{0.0f};
+            float wsum = 0.0f;
+        };
+        std::vector<Ray> batch_rays;
+        std::vector<Pixel> batch_pixels;
+        std::vector<float> ts, crossed;
+        if (vector_kernels) {
+            ts.resize(std::size_t(kBatchRays + p.rays) * step_pitch);
+            crossed.resize(ts.size());
+        }
         long long row_pixels = 0, row_rays = 0, row_hits = 0;
-        std::vector<float> scratch;
         const int y = ty * st;
+        const auto flush = [&] {
+            if (vector_kernels) {
+                for (std::size_t k = 0; k < batch_rays.size(); ++k) {
+                    const Ray &ray = batch_rays[k];
+                    if (ray.seg.steps > 0) {
+                        ssr_march_steps(marcher.grid(),
+                                        marcher.kernel_segment(ray.seg, ray.jitter),
+                                        ts.data() + k * step_pitch,
+                                        crossed.data() + k * step_pitch);
+                    }
+                }
+            }
+            for (std::size_t k = 0; k < batch_rays.size(); ++k) {
+                const Ray &ray = batch_rays[k];
+                glm::vec4 hit(0.0f);  // the sky, for a ray with no segment on screen
+                if (ray.seg.steps > 0) {
+                    hit = vector_kernels ? marcher.march_result(ray.seg,
+                                                                ray.l,
+                                                                ts.data() + k * step_pitch,
+                                                                crossed.data() + k * step_pitch)
+                                         : marcher.march(ray.seg, ray.l, ray.jitter);
+                }
+                glm::vec3 radiance(hit);
+                if (hit.w < 1.0f) {  // the sky, for what the screen does not show
+                    const glm::vec3 sky_l = sky.radiance(ray.l, sky_camera, false) * p.sky_scale;
+                    radiance = sky_l + (radiance - sky_l) * hit.w;
+                }
+                Pixel &px = batch_pixels[std::size_t(ray.pixel)];
+                px.sum += radiance * ray.nl;
+                px.wsum += ray.nl;
+                row_hits += hit.w > 0.0f ? 1 : 0;
+            }
+            for (const Pixel &px : batch_pixels) {
+                if (!(px.wsum > 0.0f)) {
+                    continue;
+                }
+                const GlossyPixel &g = px.g;
+                const glm::vec3 r = glm::reflect(-g.view, g.n);
+                const glm::vec3 change =
+                    px.sum / px.wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
+                cells.set(px.x / st,
+                          ty,
+                          {g.z,
+                           normal.at(px.x, y, 0),
+                           normal.at(px.x, y, 1),
+                           normal.at(px.x, y, 2),
+                           change.x,
+                           change.y,
+                           change.z});
+            }
+            batch_rays.clear();
+            batch_pixels.clear();
+        };
         for (int tx = 0; tx < tw; ++tx) {
             const int x = tx * st;
             const std::optional<GlossyPixel> g = glossy_pixel(in, rays, p, x, y);
             if (!g) {
                 continue;
             }
+            ++row_pixels;
             const float alpha = roughness_to_alpha(g->roughness);
             const int count =
                 std::clamp(int(std::ceil(float(p.rays) * g->roughness / 0.35f)), 1, p.rays);
             // The origin leaves the surface by a fraction of its distance (depth precision).
             const glm::vec3 origin = g->point + g->n * (1e-3f * g->z + 1e-3f);
-            glm::vec3 sum(0.0f);
-            float wsum = 0.0f;
+            const int pixel = int(batch_pixels.size());
+            batch_pixels.push_back(Pixel{x, *g});
             for (int i = 0; i < count; ++i) {
                 // Stratified in the first coordinate (the lobe's angle from its axis).
                 const float u1 = (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count);
@@ -410,36 +517,15 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                 if (!(nl > 0.0f)) {
                     continue;
                 }
-                const glm::vec4 hit = marcher.trace(origin,
-                                                    l,
-                                                    hash_unit(x, y, 3 * i + 2, p.seed),
-                                                    vector_kernels ? &scratch : nullptr);
-                glm::vec3 radiance(hit);
-                if (hit.w < 1.0f) {  // the sky, for what the screen does not show
-                    const glm::vec3 sky_l = sky.radiance(l, sky_camera, false) * p.sky_scale;
-                    radiance = sky_l + (radiance - sky_l) * hit.w;
-                }
-                sum += radiance * nl;
-                wsum += nl;
                 ++row_rays;
-                row_hits += hit.w > 0.0f ? 1 : 0;
+                batch_rays.push_back(Ray{
+                    pixel, l, nl, hash_unit(x, y, 3 * i + 2, p.seed), marcher.segment(origin, l)});
             }
-            ++row_pixels;
-            if (!(wsum > 0.0f)) {
-                continue;
+            if (int(batch_rays.size()) >= kBatchRays) {
+                flush();
             }
-            const glm::vec3 r = glm::reflect(-g->view, g->n);
-            const glm::vec3 change = sum / wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
-            cells.set(tx,
-                      ty,
-                      {g->z,
-                       normal.at(x, y, 0),
-                       normal.at(x, y, 1),
-                       normal.at(x, y, 2),
-                       change.x,
-                       change.y,
-                       change.z});
         }
+        flush();
         n_pixels += row_pixels;
         n_rays += row_rays;
         n_hits += row_hits;
