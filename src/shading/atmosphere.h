@@ -140,6 +140,7 @@ struct ScatteringResult {
 };
 
 class Atmosphere;
+struct SkyCoordParams;
 
 /// The sky-view LUT for one camera altitude and sun: in-scattered radiance of the whole ray (to
 /// the atmosphere top or the ground) by view direction. Immutable; cheap to look up.
@@ -175,6 +176,9 @@ class SkyView {
     /// radiance() for n unit directions given as separate x, y, z arrays (a vector at a time,
     /// shading/atmosphere_kernels; the same results as radiance() up to float rounding).
     void radiance_n(const float *x, const float *y, const float *z, int n, glm::vec3 *out) const;
+    /// The table and the frame its coordinates are taken in, for kernels that look it up
+    /// themselves (shading/atmosphere_kernels.h).
+    SkyCoordParams coord_params() const;
     /// The table: columns u = sin(azimuth / 2) from the sun, rows as described on the class.
     const Lut2D &lut() const { return lut_; }
     /// Cosine of the horizon's zenith angle at the LUT's camera (rays below hit the ground).

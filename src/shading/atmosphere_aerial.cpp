@@ -191,6 +191,11 @@ struct AtmosphereKernels {
     }
 };
 
+SkyCoordParams SkyView::coord_params() const
+{
+    return AtmosphereKernels::sky(*this);
+}
+
 void SkyView::radiance_n(
     const float *x, const float *y, const float *z, int n, glm::vec3 *out) const
 {

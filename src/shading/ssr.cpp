@@ -14,6 +14,8 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/simd.h"
+#include "shading/atmosphere.h"
+#include "shading/atmosphere_kernels.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
 #include "shading/sky.h"
@@ -389,6 +391,41 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     const CameraRays rays(in.world_to_camera, in.world_to_ndc);
     const SceneSky &sky = scene_sky(p.sun_direction);
     const glm::vec3 sky_camera(0.0f, kSkyCameraY, 0.0f);
+    // The vector kernels (the march's depth tests, the sky, the resolve's weights and window)
+    // unless the scalar reference is asked for.
+    const bool vector_kernels = simd::requested() != simd::Level::Scalar;
+    // The scene sky's radiance (SceneSky::radiance, no sun disc) of unit directions: the sky-view
+    // table on the vector kernel (the same bits), the ground's share after it.
+    const SkyCoordParams sky_lut = sky.atmosphere().cached_sky_view().coord_params();
+    const auto sky_radiance = [&](const std::vector<glm::vec3> &dirs,
+                                  std::vector<glm::vec3> &values) {
+        values.resize(dirs.size());
+        if (!vector_kernels) {
+            for (std::size_t i = 0; i < dirs.size(); ++i) {
+                values[i] = sky.radiance(dirs[i], sky_camera, false);
+            }
+            return;
+        }
+        const std::size_t n = dirs.size(), pitch = n + kSsrStepPad;
+        std::vector<float> soa(6 * pitch, 0.0f);
+        for (std::size_t i = 0; i < n; ++i) {
+            soa[i] = dirs[i].x;
+            soa[pitch + i] = dirs[i].y;
+            soa[2 * pitch + i] = dirs[i].z;
+        }
+        ssr_sky_view_radiance(sky_lut,
+                              soa.data(),
+                              soa.data() + pitch,
+                              soa.data() + 2 * pitch,
+                              int(n),
+                              soa.data() + 3 * pitch,
+                              soa.data() + 4 * pitch,
+                              soa.data() + 5 * pitch);
+        for (std::size_t i = 0; i < n; ++i) {
+            values[i] = glm::vec3(soa[3 * pitch + i], soa[4 * pitch + i], soa[5 * pitch + i]) +
+                        sky.ground(dirs[i], sky_camera);
+        }
+    };
     // The march compares in 1 / z (no division per step; the sky's +inf is 0) on the traced
     // grid: at half resolution each cell holds its 2x2 block's nearest surface, a quarter of
     // the memory the rays wander through.
@@ -409,9 +446,6 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     // Per traced cell what the resolve compares and averages (ssr_kernels.h, SsrResolveRow).
     CellRows cells(w, th, st);
     std::atomic<long long> n_pixels{0}, n_rays{0}, n_hits{0};
-    // The vector kernels (the march's depth tests, the resolve's weights) unless the scalar
-    // reference is asked for.
-    const bool vector_kernels = simd::requested() != simd::Level::Scalar;
     // A row's glossy pixels are traced in batches of about kBatchRays rays, in three passes:
     // each ray's segment; the depth tests of every ray's steps (the vector kernel), whose
     // reads of the depth grid, mostly cache misses, overlap when the rays follow each other
@@ -425,16 +459,20 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             glm::vec3 l;
             float nl, jitter;
             RaySegment seg;
+            glm::vec4 hit{0.0f};
+            int sky = -1;  // its sky direction's index, where it needs one
         };
         struct Pixel {
             int x;
             GlossyPixel g;
             glm::vec3 sum{0.0f};
             float wsum = 0.0f;
+            int sky = -1;
         };
         std::vector<Ray> batch_rays;
         std::vector<Pixel> batch_pixels;
         std::vector<float> ts, crossed;
+        std::vector<glm::vec3> sky_dirs, sky_values;
         if (vector_kernels) {
             ts.resize(std::size_t(kBatchRays + p.rays) * step_pitch);
             crossed.resize(ts.size());
@@ -453,34 +491,48 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                     }
                 }
             }
+            // What each ray meets; the sky where it meets nothing on screen (or only partly, near
+            // the edges), looked up with each pixel's mirror direction together afterwards.
+            sky_dirs.clear();
             for (std::size_t k = 0; k < batch_rays.size(); ++k) {
-                const Ray &ray = batch_rays[k];
-                glm::vec4 hit(0.0f);  // the sky, for a ray with no segment on screen
+                Ray &ray = batch_rays[k];
+                ray.hit = glm::vec4(0.0f);  // the sky, for a ray with no segment on screen
                 if (ray.seg.steps > 0) {
-                    hit = vector_kernels ? marcher.march_result(ray.seg,
-                                                                ray.l,
-                                                                ts.data() + k * step_pitch,
-                                                                crossed.data() + k * step_pitch)
-                                         : marcher.march(ray.seg, ray.l, ray.jitter);
+                    ray.hit = vector_kernels ? marcher.march_result(ray.seg,
+                                                                    ray.l,
+                                                                    ts.data() + k * step_pitch,
+                                                                    crossed.data() + k * step_pitch)
+                                             : marcher.march(ray.seg, ray.l, ray.jitter);
                 }
-                glm::vec3 radiance(hit);
-                if (hit.w < 1.0f) {  // the sky, for what the screen does not show
-                    const glm::vec3 sky_l = sky.radiance(ray.l, sky_camera, false) * p.sky_scale;
-                    radiance = sky_l + (radiance - sky_l) * hit.w;
+                if (ray.hit.w < 1.0f) {
+                    ray.sky = int(sky_dirs.size());
+                    sky_dirs.push_back(ray.l);
                 }
-                Pixel &px = batch_pixels[std::size_t(ray.pixel)];
-                px.sum += radiance * ray.nl;
-                px.wsum += ray.nl;
-                row_hits += hit.w > 0.0f ? 1 : 0;
+                batch_pixels[std::size_t(ray.pixel)].wsum += ray.nl;
+                row_hits += ray.hit.w > 0.0f ? 1 : 0;
+            }
+            for (Pixel &px : batch_pixels) {
+                if (px.wsum > 0.0f) {
+                    px.sky = int(sky_dirs.size());
+                    sky_dirs.push_back(glm::reflect(-px.g.view, px.g.n));
+                }
+            }
+            sky_radiance(sky_dirs, sky_values);
+            for (const Ray &ray : batch_rays) {
+                glm::vec3 radiance(ray.hit);
+                if (ray.hit.w < 1.0f) {  // the sky, for what the screen does not show
+                    const glm::vec3 sky_l = sky_values[std::size_t(ray.sky)] * p.sky_scale;
+                    radiance = sky_l + (radiance - sky_l) * ray.hit.w;
+                }
+                batch_pixels[std::size_t(ray.pixel)].sum += radiance * ray.nl;
             }
             for (const Pixel &px : batch_pixels) {
                 if (!(px.wsum > 0.0f)) {
                     continue;
                 }
                 const GlossyPixel &g = px.g;
-                const glm::vec3 r = glm::reflect(-g.view, g.n);
                 const glm::vec3 change =
-                    px.sum / px.wsum - sky.radiance(r, sky_camera, false) * p.sky_scale;
+                    px.sum / px.wsum - sky_values[std::size_t(px.sky)] * p.sky_scale;
                 cells.set(px.x / st,
                           ty,
                           {g.z,

@@ -15,6 +15,8 @@
 #include <cstddef>
 #include <limits>
 
+#include "shading/atmosphere_kernels.h"
+
 HWY_BEFORE_NAMESPACE();
 namespace posthaste::shading::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
@@ -72,6 +74,97 @@ void MarchSteps(const SsrDepthGrid &g, const SsrSegment &s, float *t_out, float 
         hn::StoreU(hn::IfThenElseZero(hn::And(behind, overlaps), one), d, crossed_out + i0);
     }
     (void)di;
+}
+
+/// shading::fast_acos, the same operations in the same order.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V AcosAsScalar(D d, V x)
+{
+    const V ax = hn::Min(hn::Set(d, 1.0f), hn::Abs(x));
+    V p = hn::Set(d, -0.0012624911f);
+    p = hn::Add(hn::Mul(p, ax), hn::Set(d, 0.0066700901f));
+    p = hn::Sub(hn::Mul(p, ax), hn::Set(d, 0.0170881256f));
+    p = hn::Add(hn::Mul(p, ax), hn::Set(d, 0.0308918810f));
+    p = hn::Sub(hn::Mul(p, ax), hn::Set(d, 0.0501743046f));
+    p = hn::Add(hn::Mul(p, ax), hn::Set(d, 0.0889789874f));
+    p = hn::Sub(hn::Mul(p, ax), hn::Set(d, 0.2145988016f));
+    p = hn::Add(hn::Mul(p, ax), hn::Set(d, 1.5707963050f));
+    const V r = hn::Mul(hn::Sqrt(hn::Sub(hn::Set(d, 1.0f), ax)), p);
+    return hn::IfThenElse(hn::Lt(x, hn::Zero(d)), hn::Sub(hn::Set(d, 3.14159265358979f), r), r);
+}
+
+/// shading::saturate for finite x.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V Saturate(D d, V x)
+{
+    return hn::Min(hn::Max(x, hn::Zero(d)), hn::Set(d, 1.0f));
+}
+
+void SkyViewRadiance(const SkyCoordParams &p,
+                     const float *xs,
+                     const float *ys,
+                     const float *zs,
+                     int n,
+                     float *out_r,
+                     float *out_g,
+                     float *out_b)
+{
+    const hn::ScalableTag<float> d;
+    const hn::RebindToSigned<decltype(d)> di;
+    using V = hn::Vec<decltype(d)>;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
+    const auto dot = [&](V x, V y, V z, const float *v) {
+        return hn::Add(hn::Add(hn::Mul(x, hn::Set(d, v[0])), hn::Mul(y, hn::Set(d, v[1]))),
+                       hn::Mul(z, hn::Set(d, v[2])));
+    };
+    const int rows_above = p.lut_height / 2, rows_below = p.lut_height - rows_above;
+    for (int i = 0; i < n; i += int(hn::Lanes(d))) {
+        const V x = hn::LoadU(d, xs + i), y = hn::LoadU(d, ys + i), z = hn::LoadU(d, zs + i);
+        const V mu = dot(x, y, z, p.up);
+        const V along = dot(x, y, z, p.sun_tangent);
+        const V side = dot(x, y, z, p.sun_side);
+        const V horizontal = hn::Sqrt(hn::Add(hn::Mul(along, along), hn::Mul(side, side)));
+        const V cos_azimuth =
+            hn::IfThenElse(hn::Gt(horizontal, hn::Set(d, 1e-12f)), hn::Div(along, horizontal), one);
+        const V u = hn::Sqrt(hn::Max(hn::Sub(half, hn::Mul(half, cos_azimuth)), zero));
+        const V theta = AcosAsScalar(d, mu);
+        const auto above = hn::Not(hn::Lt(mu, hn::Set(d, p.mu_horizon)));
+        const V s_above = hn::Sub(
+            one,
+            hn::Sqrt(Saturate(d, hn::Sub(one, hn::Mul(theta, hn::Set(d, p.inv_theta_above))))));
+        const V s_below = hn::Sqrt(Saturate(
+            d,
+            hn::Mul(hn::Sub(theta, hn::Set(d, p.theta_horizon)), hn::Set(d, p.inv_theta_below))));
+        const V s = hn::IfThenElse(above, s_above, s_below);
+        // Lut2D::sample_rows over the half the direction is in.
+        const V rows =
+            hn::IfThenElse(above, hn::Set(d, float(rows_above)), hn::Set(d, float(rows_below)));
+        const auto row0 =
+            hn::IfThenElseZero(hn::RebindMask(di, hn::Not(above)), hn::Set(di, rows_above));
+        const V fx = hn::Mul(Saturate(d, u), hn::Set(d, float(p.lut_width - 1)));
+        const V fy = hn::Mul(Saturate(d, s), hn::Sub(rows, one));
+        const auto x0 = hn::Min(hn::ConvertTo(di, fx), hn::Set(di, p.lut_width - 2));
+        const auto y0 =
+            hn::Min(hn::ConvertTo(di, fy), hn::ConvertTo(di, hn::Sub(rows, hn::Set(d, 2.0f))));
+        const V tx = hn::Sub(fx, hn::ConvertTo(d, x0));
+        const V ty = hn::Sub(fy, hn::ConvertTo(d, y0));
+        const auto texel = hn::Add(hn::Mul(hn::Add(row0, y0), hn::Set(di, p.lut_width)), x0);
+        const auto i00 = hn::Mul(texel, hn::Set(di, 3));
+        const auto i01 = hn::Add(i00, hn::Set(di, 3));
+        const auto i10 = hn::Add(i00, hn::Set(di, 3 * p.lut_width));
+        const auto i11 = hn::Add(i10, hn::Set(di, 3));
+        float *outs[3] = {out_r, out_g, out_b};
+        for (int c = 0; c < 3; ++c) {
+            const auto cc = hn::Set(di, c);
+            const V p00 = hn::GatherIndex(d, p.lut, hn::Add(i00, cc));
+            const V p01 = hn::GatherIndex(d, p.lut, hn::Add(i01, cc));
+            const V p10 = hn::GatherIndex(d, p.lut, hn::Add(i10, cc));
+            const V p11 = hn::GatherIndex(d, p.lut, hn::Add(i11, cc));
+            const V top = hn::Add(p00, hn::Mul(tx, hn::Sub(p01, p00)));
+            const V bottom = hn::Add(p10, hn::Mul(tx, hn::Sub(p11, p10)));
+            hn::StoreU(hn::Add(top, hn::Mul(ty, hn::Sub(bottom, top))), d, outs[c] + i);
+        }
+    }
 }
 
 void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
@@ -203,7 +296,20 @@ HWY_AFTER_NAMESPACE();
 namespace posthaste::shading {
 
 HWY_EXPORT(MarchSteps);
+HWY_EXPORT(SkyViewRadiance);
 HWY_EXPORT(WeightRow);
+
+void ssr_sky_view_radiance(const SkyCoordParams &p,
+                           const float *x,
+                           const float *y,
+                           const float *z,
+                           int n,
+                           float *r,
+                           float *g,
+                           float *b)
+{
+    HWY_DYNAMIC_DISPATCH(SkyViewRadiance)(p, x, y, z, n, r, g, b);
+}
 HWY_EXPORT(ResolveRow);
 
 void ssr_resolve_row(const SsrResolveRow &r, float *dr, float *dg, float *db, float *apply)

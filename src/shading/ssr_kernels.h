@@ -8,6 +8,8 @@
 
 namespace posthaste::shading {
 
+struct SkyCoordParams;
+
 /// Step buffers hold the ray's steps rounded up to whole vectors: steps + kSsrStepPad.
 inline constexpr int kSsrStepPad = 16;
 
@@ -33,6 +35,18 @@ struct SsrSegment {
 /// since the previous sample (the origin for i = 0) overlapping [depth, depth + thickness].
 /// t and crossed hold s.steps + kSsrStepPad values.
 void ssr_march_steps(const SsrDepthGrid &g, const SsrSegment &s, float *t, float *crossed);
+
+/// SkyView::radiance (shading/atmosphere.h) of n unit directions (x[i], y[i], z[i]), bit for
+/// bit on every target, into r, g, b; `p` from SkyView::coord_params. All arrays hold n +
+/// kSsrStepPad values.
+void ssr_sky_view_radiance(const SkyCoordParams &p,
+                           const float *x,
+                           const float *y,
+                           const float *z,
+                           int n,
+                           float *r,
+                           float *g,
+                           float *b);
 
 /// One row of the per-pixel inputs of the resolve, one array a channel (n values each, rounded
 /// up to whole vectors: n + kSsrStepPad), and the camera: depth_ray(u, v) = origin + u du + v dv

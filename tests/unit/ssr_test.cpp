@@ -15,6 +15,11 @@
 #include "raster/ray_cast.h"
 #include "raster/render.h"
 #include "raster/scene.h"
+#include "shading/atmosphere.h"
+#include "shading/atmosphere_kernels.h"
+#include "shading/scene_sky.h"
+#include "shading/sky.h"
+#include "shading/ssr_kernels.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -276,6 +281,51 @@ TEST(Ssr, VectorKernelsGiveTheScalarReferenceBits)
                 << rms_rgb(out.image("color"), reference.image("color"));
         });
     }
+}
+
+TEST(Ssr, SkyKernelGivesTheSkyViewBits)
+{
+    // The sky-view lookups of missed rays (ssr_sky_view_radiance) against SkyView::radiance,
+    // bit for bit on every target: directions over the whole sphere (zenith, nadir, the horizon
+    // and just either side of it, towards and away from the sun), n not a whole vector.
+    const shading::SceneSky &sky = shading::scene_sky(glm::vec3(0.4f, 0.75f, 0.3f));
+    const shading::SkyView &view = sky.atmosphere().cached_sky_view();
+    std::vector<glm::vec3> dirs = {{0, 1, 0}, {0, -1, 0}, {1, 0, 0}, {0.4f, 0.75f, 0.3f}};
+    for (int i = 0; i < 53; ++i) {
+        for (int j = 0; j < 29; ++j) {
+            const float phi = 6.2831853f * float(i) / 53.0f;
+            const float y = -1.0f + 2.0f * float(j) / 28.0f + (j == 14 ? 1e-4f : 0.0f);
+            const float r = std::sqrt(std::max(0.0f, 1.0f - y * y));
+            dirs.push_back(glm::normalize(glm::vec3(r * std::cos(phi), y, r * std::sin(phi))));
+        }
+    }
+    const int n = int(dirs.size());
+    const std::size_t pitch = std::size_t(n + shading::kSsrStepPad);
+    std::vector<float> soa(6 * pitch, 0.0f);
+    for (int i = 0; i < n; ++i) {
+        soa[std::size_t(i)] = dirs[std::size_t(i)].x;
+        soa[pitch + std::size_t(i)] = dirs[std::size_t(i)].y;
+        soa[2 * pitch + std::size_t(i)] = dirs[std::size_t(i)].z;
+    }
+    const shading::SkyCoordParams lut = view.coord_params();
+    test::for_each_highway_target([&](const char *target) {
+        shading::ssr_sky_view_radiance(lut,
+                                       soa.data(),
+                                       soa.data() + pitch,
+                                       soa.data() + 2 * pitch,
+                                       n,
+                                       soa.data() + 3 * pitch,
+                                       soa.data() + 4 * pitch,
+                                       soa.data() + 5 * pitch);
+        int differ = 0;
+        for (int i = 0; i < n; ++i) {
+            const glm::vec3 want = view.radiance(dirs[std::size_t(i)]);
+            for (int c = 0; c < 3; ++c) {
+                differ += soa[std::size_t(3 + c) * pitch + std::size_t(i)] != want[c] ? 1 : 0;
+            }
+        }
+        EXPECT_EQ(differ, 0) << target;
+    });
 }
 
 TEST(Ssr, NodeNamesWhatIsMissing)
