@@ -124,6 +124,24 @@ class Marcher {
         return seg;
     }
 
+    /// What ssr_segments needs to compute segment() in vectors.
+    SsrSegmentCamera segment_camera() const
+    {
+        SsrSegmentCamera c;
+        for (int col = 0; col < 4; ++col) {
+            for (int row = 0; row < 4; ++row) {
+                c.world_to_camera[4 * col + row] = in_.world_to_camera[col][row];
+                c.world_to_ndc[4 * col + row] = in_.world_to_ndc[col][row];
+            }
+        }
+        c.width = width_;
+        c.height = height_;
+        c.max_distance = p_.max_distance;
+        c.max_steps = p_.steps;
+        c.near = kNear;
+        return c;
+    }
+
     /// The segment as the vector march's kernel takes it.
     SsrSegment kernel_segment(const RaySegment &seg, float jitter) const
     {
@@ -452,6 +470,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     // without waiting on their results; then each ray's crossings and what it meets, summed
     // per pixel in the rays' order.
     constexpr int kBatchRays = 64;
+    const SsrSegmentCamera segment_camera = marcher.segment_camera();
     const std::size_t step_pitch = std::size_t(p.steps + kSsrStepPad);
     parallel_for(0, th, [&](int ty) {
         struct Ray {
@@ -465,6 +484,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         struct Pixel {
             int x;
             GlossyPixel g;
+            glm::vec3 origin;
             glm::vec3 sum{0.0f};
             float wsum = 0.0f;
             int sky = -1;
@@ -473,6 +493,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         std::vector<Pixel> batch_pixels;
         std::vector<float> ts, crossed;
         std::vector<glm::vec3> sky_dirs, sky_values;
+        std::vector<float> seg_soa;
         if (vector_kernels) {
             ts.resize(std::size_t(kBatchRays + p.rays) * step_pitch);
             crossed.resize(ts.size());
@@ -481,6 +502,40 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         const int y = ty * st;
         const auto flush = [&] {
             if (vector_kernels) {
+                // The rays' segments together (ssr_segments: segment()'s bits).
+                const std::size_t n = batch_rays.size(), pitch = n + kSsrStepPad;
+                seg_soa.assign(15 * pitch, 0.0f);
+                for (std::size_t k = 0; k < n; ++k) {
+                    const Ray &ray = batch_rays[k];
+                    const glm::vec3 &o = batch_pixels[std::size_t(ray.pixel)].origin;
+                    for (int c = 0; c < 3; ++c) {
+                        seg_soa[std::size_t(c) * pitch + k] = o[c];
+                        seg_soa[std::size_t(3 + c) * pitch + k] = ray.l[c];
+                    }
+                }
+                float *out[9];
+                for (int c = 0; c < 9; ++c) {
+                    out[c] = seg_soa.data() + std::size_t(6 + c) * pitch;
+                }
+                ssr_segments(segment_camera,
+                             seg_soa.data(),
+                             seg_soa.data() + pitch,
+                             seg_soa.data() + 2 * pitch,
+                             seg_soa.data() + 3 * pitch,
+                             seg_soa.data() + 4 * pitch,
+                             seg_soa.data() + 5 * pitch,
+                             int(n),
+                             out);
+                for (std::size_t k = 0; k < n; ++k) {
+                    RaySegment &seg = batch_rays[k].seg;
+                    seg.steps = int(out[8][k]);
+                    if (seg.steps > 0) {
+                        seg.a = ScreenPoint{out[0][k], out[1][k], out[2][k]};
+                        seg.b = ScreenPoint{out[3][k], out[4][k], out[5][k]};
+                        seg.t_start = out[6][k];
+                        seg.t_end = out[7][k];
+                    }
+                }
                 for (std::size_t k = 0; k < batch_rays.size(); ++k) {
                     const Ray &ray = batch_rays[k];
                     if (ray.seg.steps > 0) {
@@ -559,7 +614,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             // The origin leaves the surface by a fraction of its distance (depth precision).
             const glm::vec3 origin = g->point + g->n * (1e-3f * g->z + 1e-3f);
             const int pixel = int(batch_pixels.size());
-            batch_pixels.push_back(Pixel{x, *g});
+            batch_pixels.push_back(Pixel{x, *g, origin});
             for (int i = 0; i < count; ++i) {
                 // Stratified in the first coordinate (the lobe's angle from its axis).
                 const float u1 = (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count);
@@ -570,8 +625,14 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                     continue;
                 }
                 ++row_rays;
-                batch_rays.push_back(Ray{
-                    pixel, l, nl, hash_unit(x, y, 3 * i + 2, p.seed), marcher.segment(origin, l)});
+                // The segment now on the scalar path, for the whole batch before its march on
+                // the vector one.
+                batch_rays.push_back(
+                    Ray{pixel,
+                        l,
+                        nl,
+                        hash_unit(x, y, 3 * i + 2, p.seed),
+                        vector_kernels ? RaySegment{} : marcher.segment(origin, l)});
             }
             if (int(batch_rays.size()) >= kBatchRays) {
                 flush();

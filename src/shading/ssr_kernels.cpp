@@ -36,6 +36,101 @@ HWY_INLINE hn::Vec<hn::RebindToSigned<D>> CellIndex(D d, const SsrDepthGrid &g, 
     return hn::Add(hn::Mul(cy, hn::Set(di, g.w)), cx);
 }
 
+/// Row r of the matrix m (glm's column-major layout) times (x, y, z, w), in glm's order:
+/// (m0 x + m1 y) + (m2 z + m3 w).
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE V MatRow(D d, const float *m, int r, V x, V y, V z, V w)
+{
+    const V a0 = hn::Add(hn::Mul(hn::Set(d, m[r]), x), hn::Mul(hn::Set(d, m[4 + r]), y));
+    const V a1 = hn::Add(hn::Mul(hn::Set(d, m[8 + r]), z), hn::Mul(hn::Set(d, m[12 + r]), w));
+    return hn::Add(a0, a1);
+}
+
+/// std::min(a, b) and std::max(a, b) as the scalar code has them ((b < a) ? b : a and
+/// (a < b) ? b : a), NaN included.
+template <class V>
+HWY_INLINE V StdMin(V a, V b)
+{
+    return hn::IfThenElse(hn::Lt(b, a), b, a);
+}
+template <class V>
+HWY_INLINE V StdMax(V a, V b)
+{
+    return hn::IfThenElse(hn::Lt(a, b), b, a);
+}
+
+void Segments(const SsrSegmentCamera &c,
+              const float *oxs,
+              const float *oys,
+              const float *ozs,
+              const float *dxs,
+              const float *dys,
+              const float *dzs,
+              int n,
+              float *const out[9])
+{
+    const hn::ScalableTag<float> d;
+    using V = hn::Vec<decltype(d)>;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
+    const V width = hn::Set(d, float(c.width)), height = hn::Set(d, float(c.height));
+    const V near = hn::Set(d, c.near);
+    const V inf = hn::Set(d, std::numeric_limits<float>::infinity());
+    const float *w2c = c.world_to_camera, *w2n = c.world_to_ndc;
+    // project(): pixel coordinates and 1 / camera z of the world point (x, y, z, 1).
+    const auto project = [&](V x, V y, V z, V &px, V &py, V &inv_z) {
+        const V hx = MatRow(d, w2n, 0, x, y, z, one), hy = MatRow(d, w2n, 1, x, y, z, one);
+        const V hw = MatRow(d, w2n, 3, x, y, z, one);
+        px = hn::Mul(hn::Div(hx, hw), width);
+        py = hn::Mul(hn::Div(hy, hw), height);
+        inv_z = hn::Div(one, MatRow(d, w2c, 2, x, y, z, one));
+    };
+    for (int i = 0; i < n; i += int(hn::Lanes(d))) {
+        const V ox = hn::LoadU(d, oxs + i), oy = hn::LoadU(d, oys + i), oz = hn::LoadU(d, ozs + i);
+        const V dx = hn::LoadU(d, dxs + i), dy = hn::LoadU(d, dys + i), dz = hn::LoadU(d, dzs + i);
+        // Camera z along the ray, to clip its far end in front of the camera.
+        const V oc_z = MatRow(d, w2c, 2, ox, oy, oz, one);
+        const V dc_z = MatRow(d, w2c, 2, dx, dy, dz, zero);
+        V length = hn::Set(d, c.max_distance);
+        const auto clip = hn::Lt(hn::Add(oc_z, hn::Mul(dc_z, length)), near);
+        auto valid = hn::Not(hn::And(clip, hn::Ge(dc_z, zero)));
+        length = hn::IfThenElse(clip, hn::Div(hn::Sub(near, oc_z), dc_z), length);
+        valid = hn::And(valid, hn::Gt(length, zero));
+        V ax, ay, az, bx, by, bz;
+        project(ox, oy, oz, ax, ay, az);
+        project(hn::Add(ox, hn::Mul(dx, length)),
+                hn::Add(oy, hn::Mul(dy, length)),
+                hn::Add(oz, hn::Mul(dz, length)),
+                bx,
+                by,
+                bz);
+        const V sum = hn::Add(hn::Add(hn::Add(hn::Add(hn::Add(ax, ay), az), bx), by), bz);
+        valid = hn::And(valid, hn::Lt(hn::Abs(sum), inf));
+        // The part of the segment on screen: t in [0, t_end].
+        V t_end = one;
+        const V ddx = hn::Sub(bx, ax), ddy = hn::Sub(by, ay);
+        t_end = hn::IfThenElse(
+            hn::Gt(ddx, zero),
+            StdMin(t_end, hn::Div(hn::Sub(width, ax), ddx)),
+            hn::IfThenElse(hn::Lt(ddx, zero), StdMin(t_end, hn::Div(hn::Neg(ax), ddx)), t_end));
+        t_end = hn::IfThenElse(
+            hn::Gt(ddy, zero),
+            StdMin(t_end, hn::Div(hn::Sub(height, ay), ddy)),
+            hn::IfThenElse(hn::Lt(ddy, zero), StdMin(t_end, hn::Div(hn::Neg(ay), ddy)), t_end));
+        valid = hn::And(valid, hn::Gt(t_end, zero));
+        const V length_px = hn::Sqrt(hn::Add(hn::Mul(ddx, ddx), hn::Mul(ddy, ddy)));
+        const V t_start =
+            StdMin(t_end, hn::Div(hn::Set(d, 1.5f), StdMax(length_px, hn::Set(d, 1e-6f))));
+        const V pixels = hn::Mul(length_px, hn::Sub(t_end, t_start));
+        const V steps =
+            StdMax(one, hn::Trunc(StdMin(hn::Set(d, float(c.max_steps)), hn::Ceil(pixels))));
+        const V values[9] = {
+            ax, ay, az, bx, by, bz, t_start, t_end, hn::IfThenElseZero(valid, steps)};
+        for (int k = 0; k < 9; ++k) {
+            hn::StoreU(values[k], d, out[k] + i);
+        }
+    }
+}
+
 void MarchSteps(const SsrDepthGrid &g, const SsrSegment &s, float *t_out, float *crossed_out)
 {
     const hn::ScalableTag<float> d;
@@ -295,7 +390,21 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace posthaste::shading {
 
+HWY_EXPORT(Segments);
 HWY_EXPORT(MarchSteps);
+
+void ssr_segments(const SsrSegmentCamera &c,
+                  const float *ox,
+                  const float *oy,
+                  const float *oz,
+                  const float *dx,
+                  const float *dy,
+                  const float *dz,
+                  int n,
+                  float *const out[9])
+{
+    HWY_DYNAMIC_DISPATCH(Segments)(c, ox, oy, oz, dx, dy, dz, n, out);
+}
 HWY_EXPORT(SkyViewRadiance);
 HWY_EXPORT(WeightRow);
 

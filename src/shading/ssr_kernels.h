@@ -30,6 +30,31 @@ struct SsrSegment {
     int steps = 1;
 };
 
+/// What a ray's segment on screen is computed from (ssr.cpp's Marcher::segment): the camera's
+/// matrices as glm holds them (column-major, m[4 c + r]), the image size, the ray's length, the
+/// most steps, the near plane the far end is clipped to.
+struct SsrSegmentCamera {
+    float world_to_camera[16] = {}, world_to_ndc[16] = {};
+    int width = 1, height = 1;
+    float max_distance = 60.0f;
+    int max_steps = 16;
+    float near = 1e-3f;
+};
+
+/// The segments of n rays (origins ox, oy, oz; unit directions dx, dy, dz) as Marcher::segment
+/// computes them, bit for bit: out[0..8] receive a.x, a.y, a.inv_z, b.x, b.y, b.inv_z, t_start,
+/// t_end and the steps (0 for a ray with no segment on screen; then the others are
+/// meaningless). Every array holds n + kSsrStepPad values.
+void ssr_segments(const SsrSegmentCamera &c,
+                  const float *ox,
+                  const float *oy,
+                  const float *oz,
+                  const float *dx,
+                  const float *dy,
+                  const float *dz,
+                  int n,
+                  float *const out[9]);
+
 /// For each step i < s.steps: its t (t[i]) and whether the ray crossed the depth pass there
 /// (crossed[i] 1, else 0): the sample at or behind the grid's surface and the stretch of ray
 /// since the previous sample (the origin for i = 0) overlapping [depth, depth + thickness].
