@@ -212,19 +212,25 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             glm::vec4 hit{0.0f};
             int sky = -1;  // its sky direction's index, where it needs one
         };
+        struct Candidate {  // a ray drawn, before its direction is known
+            int pixel;
+            float u1, u2, jitter;
+        };
         struct Pixel {
             int x;
             GlossyPixel g;
             glm::vec3 origin;
+            float alpha;
             glm::vec3 sum{0.0f};
             float wsum = 0.0f;
             int sky = -1;
         };
+        std::vector<Candidate> candidates;
         std::vector<Ray> batch_rays;
         std::vector<Pixel> batch_pixels;
         std::vector<float> ts, crossed;
         std::vector<glm::vec3> sky_dirs, sky_values;
-        std::vector<float> seg_soa;
+        std::vector<float> seg_soa, ggx_soa;
         if (vector_kernels) {
             ts.resize(std::size_t(kBatchRays + p.rays) * step_pitch);
             crossed.resize(ts.size());
@@ -232,6 +238,63 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         long long row_pixels = 0, row_rays = 0, row_hits = 0;
         const int y = ty * st;
         const auto flush = [&] {
+            // The candidates' directions from the GGX lobe (ggx_reflection_twin, or its vector
+            // kernel, the same bits); those below the surface are dropped.
+            const std::size_t nc = candidates.size(), cpitch = nc + kSsrStepPad;
+            ggx_soa.assign(13 * cpitch, 0.0f);
+            float *gin[9], *gout[4];
+            for (int c = 0; c < 9; ++c) {
+                gin[c] = ggx_soa.data() + std::size_t(c) * cpitch;
+            }
+            for (int c = 0; c < 4; ++c) {
+                gout[c] = ggx_soa.data() + std::size_t(9 + c) * cpitch;
+            }
+            for (std::size_t k = 0; k < nc; ++k) {
+                const Candidate &cand = candidates[k];
+                const Pixel &px = batch_pixels[std::size_t(cand.pixel)];
+                for (int c = 0; c < 3; ++c) {
+                    gin[c][k] = px.g.n[c];
+                    gin[3 + c][k] = px.g.view[c];
+                }
+                gin[6][k] = px.alpha;
+                gin[7][k] = cand.u1;
+                gin[8][k] = cand.u2;
+            }
+            if (vector_kernels) {
+                ssr_ggx_rays(gin, int(nc), gout);
+            } else {
+                for (std::size_t k = 0; k < nc; ++k) {
+                    const float n[3] = {gin[0][k], gin[1][k], gin[2][k]};
+                    const float v[3] = {gin[3][k], gin[4][k], gin[5][k]};
+                    float l[3];
+                    ggx_reflection_twin(n, v, gin[6][k], gin[7][k], gin[8][k], l);
+                    for (int c = 0; c < 3; ++c) {
+                        gout[c][k] = l[c];
+                    }
+                    gout[3][k] = (n[0] * l[0] + n[1] * l[1]) + n[2] * l[2];
+                }
+            }
+            batch_rays.clear();
+            for (std::size_t k = 0; k < nc; ++k) {
+                const float nl = gout[3][k];
+                if (!(nl > 0.0f)) {
+                    continue;
+                }
+                ++row_rays;
+                const Candidate &cand = candidates[k];
+                const glm::vec3 l(gout[0][k], gout[1][k], gout[2][k]);
+                // The segment now on the scalar path, for the whole batch below on the vector
+                // one.
+                batch_rays.push_back(
+                    Ray{cand.pixel,
+                        l,
+                        nl,
+                        cand.jitter,
+                        vector_kernels
+                            ? RaySegment{}
+                            : marcher.segment(batch_pixels[std::size_t(cand.pixel)].origin, l)});
+            }
+            candidates.clear();
             if (vector_kernels) {
                 // The rays' segments together (ssr_segments: segment()'s bits).
                 const std::size_t n = batch_rays.size(), pitch = n + kSsrStepPad;
@@ -345,27 +408,16 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             // The origin leaves the surface by a fraction of its distance (depth precision).
             const glm::vec3 origin = g->point + g->n * (1e-3f * g->z + 1e-3f);
             const int pixel = int(batch_pixels.size());
-            batch_pixels.push_back(Pixel{x, *g, origin});
+            batch_pixels.push_back(Pixel{x, *g, origin, alpha});
             for (int i = 0; i < count; ++i) {
                 // Stratified in the first coordinate (the lobe's angle from its axis).
-                const float u1 = (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count);
-                const float u2 = hash_unit(x, y, 3 * i + 1, p.seed);
-                const glm::vec3 l = sample_ggx_reflection(g->n, g->view, alpha, u1, u2);
-                const float nl = glm::dot(g->n, l);
-                if (!(nl > 0.0f)) {
-                    continue;
-                }
-                ++row_rays;
-                // The segment now on the scalar path, for the whole batch before its march on
-                // the vector one.
-                batch_rays.push_back(
-                    Ray{pixel,
-                        l,
-                        nl,
-                        hash_unit(x, y, 3 * i + 2, p.seed),
-                        vector_kernels ? RaySegment{} : marcher.segment(origin, l)});
+                candidates.push_back(
+                    Candidate{pixel,
+                              (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count),
+                              hash_unit(x, y, 3 * i + 1, p.seed),
+                              hash_unit(x, y, 3 * i + 2, p.seed)});
             }
-            if (int(batch_rays.size()) >= kBatchRays) {
+            if (int(candidates.size()) >= kBatchRays) {
                 flush();
             }
         }

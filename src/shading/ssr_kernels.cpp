@@ -36,6 +36,92 @@ HWY_INLINE hn::Vec<hn::RebindToSigned<D>> CellIndex(D d, const SsrDepthGrid &g, 
     return hn::Add(hn::Mul(cy, hn::Set(di, g.w)), cx);
 }
 
+/// sincos_turns (ssr_kernels.h) in lanes, the same operations in the same order.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void SinCosTurns(D d, V u, V &s, V &c)
+{
+    const hn::RebindToSigned<D> di;
+    const V one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f), quarter = hn::Set(d, 0.25f);
+    V q = hn::Sub(u, hn::ConvertTo(d, hn::ConvertTo(di, u)));
+    q = hn::IfThenElse(hn::Gt(q, half),
+                       hn::Sub(q, one),
+                       hn::IfThenElse(hn::Lt(q, hn::Neg(half)), hn::Add(q, one), q));
+    const auto high = hn::Gt(q, quarter), low = hn::Lt(q, hn::Neg(quarter));
+    const V r =
+        hn::IfThenElse(high, hn::Sub(half, q), hn::IfThenElse(low, hn::Sub(hn::Neg(half), q), q));
+    const V x = hn::Mul(r, hn::Set(d, 6.28318530717958647692f));
+    const V x2 = hn::Mul(x, x);
+    V ps = hn::Set(d, -2.5052108385e-8f);
+    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, 2.7557319224e-6f));
+    ps = hn::Sub(hn::Mul(ps, x2), hn::Set(d, 1.9841269841e-4f));
+    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, 8.3333333333e-3f));
+    ps = hn::Sub(hn::Mul(ps, x2), hn::Set(d, 1.6666666667e-1f));
+    s = hn::Add(x, hn::Mul(x, hn::Mul(x2, ps)));
+    V pc = hn::Set(d, 2.0876756988e-9f);
+    pc = hn::Sub(hn::Mul(pc, x2), hn::Set(d, 2.7557319224e-7f));
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, 2.4801587302e-5f));
+    pc = hn::Sub(hn::Mul(pc, x2), hn::Set(d, 1.3888888889e-3f));
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, 4.1666666667e-2f));
+    pc = hn::Sub(hn::Mul(pc, x2), half);
+    const V cv = hn::Add(one, hn::Mul(x2, pc));
+    c = hn::IfThenElse(hn::Or(high, low), hn::Neg(cv), cv);
+}
+
+void GgxRays(const float *const in[9], int n, float *const out[4])
+{
+    const hn::ScalableTag<float> d;
+    using V = hn::Vec<decltype(d)>;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
+    for (int i = 0; i < n; i += int(hn::Lanes(d))) {
+        const V nx = hn::LoadU(d, in[0] + i), ny = hn::LoadU(d, in[1] + i),
+                nz = hn::LoadU(d, in[2] + i);
+        const V vx = hn::LoadU(d, in[3] + i), vy = hn::LoadU(d, in[4] + i),
+                vz = hn::LoadU(d, in[5] + i);
+        const V alpha = hn::LoadU(d, in[6] + i), u1 = hn::LoadU(d, in[7] + i),
+                u2 = hn::LoadU(d, in[8] + i);
+        const V a2 = hn::Mul(alpha, alpha);
+        const V cos2 = hn::Div(hn::Sub(one, u1), hn::Add(one, hn::Mul(hn::Sub(a2, one), u1)));
+        const V cos_t = hn::Sqrt(
+            hn::IfThenElse(hn::Gt(cos2, zero), hn::IfThenElse(hn::Lt(cos2, one), cos2, one), zero));
+        const V sin2 = hn::Sub(one, hn::Mul(cos_t, cos_t));
+        const V sin_t = hn::Sqrt(hn::IfThenElse(hn::Gt(sin2, zero), sin2, zero));
+        V sp, cp;
+        SinCosTurns(d, u2, sp, cp);
+        const V sign = hn::CopySign(one, nz);
+        const V a = hn::Div(hn::Set(d, -1.0f), hn::Add(sign, nz));
+        const V b = hn::Mul(hn::Mul(nx, ny), a);
+        const V t1[3] = {hn::Add(one, hn::Mul(hn::Mul(hn::Mul(sign, nx), nx), a)),
+                         hn::Mul(sign, b),
+                         hn::Mul(hn::Neg(sign), nx)};
+        const V t2[3] = {b, hn::Add(sign, hn::Mul(hn::Mul(ny, ny), a)), hn::Neg(ny)};
+        const V w1 = hn::Mul(sin_t, cp), w2 = hn::Mul(sin_t, sp);
+        const V nv[3] = {nx, ny, nz}, vv[3] = {vx, vy, vz};
+        V h[3];
+        for (int k = 0; k < 3; ++k) {
+            h[k] = hn::Add(hn::Add(hn::Mul(t1[k], w1), hn::Mul(t2[k], w2)), hn::Mul(nv[k], cos_t));
+        }
+        const V vh2 =
+            hn::Mul(hn::Set(d, 2.0f),
+                    hn::Add(hn::Add(hn::Mul(vx, h[0]), hn::Mul(vy, h[1])), hn::Mul(vz, h[2])));
+        V r[3];
+        for (int k = 0; k < 3; ++k) {
+            r[k] = hn::Sub(hn::Mul(vh2, h[k]), vv[k]);
+        }
+        const V inv = hn::Div(one,
+                              hn::Sqrt(hn::Add(hn::Add(hn::Mul(r[0], r[0]), hn::Mul(r[1], r[1])),
+                                               hn::Mul(r[2], r[2]))));
+        V l[3];
+        for (int k = 0; k < 3; ++k) {
+            l[k] = hn::Mul(r[k], inv);
+            hn::StoreU(l[k], d, out[k] + i);
+        }
+        // n . l in glm's order.
+        hn::StoreU(hn::Add(hn::Add(hn::Mul(nx, l[0]), hn::Mul(ny, l[1])), hn::Mul(nz, l[2])),
+                   d,
+                   out[3] + i);
+    }
+}
+
 /// Row r of the matrix m (glm's column-major layout) times (x, y, z, w), in glm's order:
 /// (m0 x + m1 y) + (m2 z + m3 w).
 template <class D, class V = hn::Vec<D>>
@@ -390,7 +476,13 @@ HWY_AFTER_NAMESPACE();
 #if HWY_ONCE
 namespace posthaste::shading {
 
+HWY_EXPORT(GgxRays);
 HWY_EXPORT(Segments);
+
+void ssr_ggx_rays(const float *const in[9], int n, float *const out[4])
+{
+    HWY_DYNAMIC_DISPATCH(GgxRays)(in, n, out);
+}
 HWY_EXPORT(MarchSteps);
 
 void ssr_segments(const SsrSegmentCamera &c,

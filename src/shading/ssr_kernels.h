@@ -6,6 +6,8 @@
 // Compiled for each x86 target Highway supports and dispatched at run time; the same bits as the
 // scalar march on every target.
 
+#include <cmath>
+
 namespace posthaste::shading {
 
 struct SkyCoordParams;
@@ -29,6 +31,73 @@ struct SsrSegment {
     float t_start = 0, t_end = 0, jitter = 0;
     int steps = 1;
 };
+
+/// sin and cos of 2 pi u for any finite u: u reduced to [-1/4, 1/4] turns, then Taylor
+/// polynomials to x^11 and x^12 (error below 1e-7), multiplies and adds in this order; the
+/// scalar twin of the sampling kernel's lanes.
+inline void sincos_turns(float u, float &s, float &c)
+{
+    float q = u - float(int(u));                           // (-1, 1)
+    q = q > 0.5f ? q - 1.0f : (q < -0.5f ? q + 1.0f : q);  // [-1/2, 1/2]
+    // sin(pi - x) = sin x, cos(pi - x) = -cos x: fold |q| > 1/4 back into [-1/4, 1/4].
+    const bool fold = q > 0.25f || q < -0.25f;
+    const float r = q > 0.25f ? 0.5f - q : (q < -0.25f ? -0.5f - q : q);
+    const float x = r * 6.28318530717958647692f;
+    const float x2 = x * x;
+    float ps = -2.5052108385e-8f;
+    ps = ps * x2 + 2.7557319224e-6f;
+    ps = ps * x2 - 1.9841269841e-4f;
+    ps = ps * x2 + 8.3333333333e-3f;
+    ps = ps * x2 - 1.6666666667e-1f;
+    s = x + x * (x2 * ps);
+    float pc = 2.0876756988e-9f;
+    pc = pc * x2 - 2.7557319224e-7f;
+    pc = pc * x2 + 2.4801587302e-5f;
+    pc = pc * x2 - 1.3888888889e-3f;
+    pc = pc * x2 + 4.1666666667e-2f;
+    pc = pc * x2 - 0.5f;
+    const float cv = 1.0f + x2 * pc;
+    c = fold ? -cv : cv;
+}
+
+/// shading::sample_ggx_reflection's method with sincos_turns for the azimuth (the truth's
+/// sampler uses std::cos and std::sin; the directions agree to about 1e-7): the reflected
+/// direction for GGX roughness alpha around unit n seen from v, from (u1, u2) in [0, 1)^2.
+/// The scalar reference of ssr_ggx_rays, bit for bit.
+inline void ggx_reflection_twin(
+    const float n[3], const float v[3], float alpha, float u1, float u2, float l[3])
+{
+    const float a2 = alpha * alpha;
+    const float cos2 = (1.0f - u1) / (1.0f + (a2 - 1.0f) * u1);
+    const float cos_t = std::sqrt(cos2 > 0.0f ? (cos2 < 1.0f ? cos2 : 1.0f) : 0.0f);
+    const float sin2 = 1.0f - cos_t * cos_t;
+    const float sin_t = std::sqrt(sin2 > 0.0f ? sin2 : 0.0f);
+    float sp, cp;
+    sincos_turns(u2, sp, cp);
+    // An orthonormal basis around n (Duff et al. 2017).
+    const float sign = std::copysign(1.0f, n[2]);
+    const float a = -1.0f / (sign + n[2]), b = n[0] * n[1] * a;
+    const float t1[3] = {1.0f + sign * n[0] * n[0] * a, sign * b, -sign * n[0]};
+    const float t2[3] = {b, sign + n[1] * n[1] * a, -n[1]};
+    const float w1 = sin_t * cp, w2 = sin_t * sp;
+    float h[3];
+    for (int i = 0; i < 3; ++i) {
+        h[i] = (t1[i] * w1 + t2[i] * w2) + n[i] * cos_t;
+    }
+    const float vh2 = 2.0f * ((v[0] * h[0] + v[1] * h[1]) + v[2] * h[2]);
+    float r[3];
+    for (int i = 0; i < 3; ++i) {
+        r[i] = vh2 * h[i] - v[i];
+    }
+    const float inv = 1.0f / std::sqrt((r[0] * r[0] + r[1] * r[1]) + r[2] * r[2]);
+    for (int i = 0; i < 3; ++i) {
+        l[i] = r[i] * inv;
+    }
+}
+
+/// ggx_reflection_twin for n rays, and n.l: in[0..8] are n x, y, z, v x, y, z, alpha, u1, u2;
+/// out[0..3] receive l x, y, z and n.l. Every array holds n + kSsrStepPad values.
+void ssr_ggx_rays(const float *const in[9], int n, float *const out[4]);
 
 /// What a ray's segment on screen is computed from (ssr.cpp's Marcher::segment): the camera's
 /// matrices as glm holds them (column-major, m[4 c + r]), the image size, the ray's length, the

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 #include <limits>
@@ -17,6 +18,7 @@
 #include "raster/scene.h"
 #include "shading/atmosphere.h"
 #include "shading/atmosphere_kernels.h"
+#include "shading/lighting.h"
 #include "shading/scene_sky.h"
 #include "shading/sky.h"
 #include "shading/ssr_kernels.h"
@@ -326,6 +328,38 @@ TEST(Ssr, SkyKernelGivesTheSkyViewBits)
         }
         EXPECT_EQ(differ, 0) << target;
     });
+}
+
+TEST(Ssr, SamplerTwinDrawsTheTruthsDirections)
+{
+    // The node draws its rays with ggx_reflection_twin (a polynomial sine and cosine, so that its
+    // vector kernel can give the same bits); the truth with shading::sample_ggx_reflection. The
+    // same (n, v, alpha, u1, u2) must give the same direction to float precision, or the node
+    // would sample a different lobe than the one it is charted against.
+    double worst_sc = 0.0, worst_l = 0.0;
+    for (int i = 0; i <= 4096; ++i) {
+        const float u = float(i) / 4096.0f;
+        float sv, cv;
+        shading::sincos_turns(u, sv, cv);
+        const double a = 6.283185307179586 * double(u);
+        worst_sc = std::max({worst_sc, std::abs(sv - std::sin(a)), std::abs(cv - std::cos(a))});
+    }
+    EXPECT_LT(worst_sc, 3e-7);
+    for (int i = 0; i < 2000; ++i) {
+        const float h0 = float((i * 7919) % 1000) / 1000.0f,
+                    h1 = float((i * 104729) % 997) / 997.0f;
+        const glm::vec3 n = glm::normalize(glm::vec3(std::cos(6.2831853f * h0) * (1.0f - h1),
+                                                     (i % 3 == 0 ? -1.0f : 1.0f) * (0.1f + h1),
+                                                     std::sin(6.2831853f * h0)));
+        const glm::vec3 v = glm::normalize(n + glm::vec3(0.3f * h1, 0.2f, -0.4f * h0));
+        const float alpha = 0.0025f + 0.6f * h1;
+        const float u1 = float(i % 50) / 50.0f, u2 = float(i % 37) / 37.0f;
+        const glm::vec3 want = shading::sample_ggx_reflection(n, v, alpha, u1, u2);
+        float l[3];
+        shading::ggx_reflection_twin(&n.x, &v.x, alpha, u1, u2, l);
+        worst_l = std::max(worst_l, double(glm::length(glm::vec3(l[0], l[1], l[2]) - want)));
+    }
+    EXPECT_LT(worst_l, 1e-6);
 }
 
 TEST(Ssr, NodeNamesWhatIsMissing)
