@@ -15,11 +15,14 @@
 #include <cstddef>
 #include <limits>
 
+#include "core/hwy_math-inl.h"
 #include "shading/atmosphere_kernels.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace posthaste::shading::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
+using simd::HWY_NAMESPACE::ClampToRange;
+using simd::HWY_NAMESPACE::Dot3Unfused;
 
 /// The grid cell index of coordinates (x, y) in pixels: ssr.cpp's clamp_index in each axis
 /// (clamped in float, then truncated).
@@ -29,10 +32,10 @@ HWY_INLINE hn::Vec<hn::RebindToSigned<D>> CellIndex(D d, const SsrDepthGrid &g, 
     const hn::RebindToSigned<D> di;
     const V zero = hn::Zero(d);
     const V inv_stride = hn::Set(d, g.inv_stride);
-    const auto cx = hn::ConvertTo(
-        di, hn::Min(hn::Max(hn::Mul(x, inv_stride), zero), hn::Set(d, float(g.w - 1))));
-    const auto cy = hn::ConvertTo(
-        di, hn::Min(hn::Max(hn::Mul(y, inv_stride), zero), hn::Set(d, float(g.h - 1))));
+    const auto cx =
+        hn::ConvertTo(di, ClampToRange(hn::Mul(x, inv_stride), zero, hn::Set(d, float(g.w - 1))));
+    const auto cy =
+        hn::ConvertTo(di, ClampToRange(hn::Mul(y, inv_stride), zero, hn::Set(d, float(g.h - 1))));
     return hn::Add(hn::Mul(cy, hn::Set(di, g.w)), cx);
 }
 
@@ -51,18 +54,19 @@ HWY_INLINE void SinCosTurns(D d, V u, V &s, V &c)
         hn::IfThenElse(high, hn::Sub(half, q), hn::IfThenElse(low, hn::Sub(hn::Neg(half), q), q));
     const V x = hn::Mul(r, hn::Set(d, 6.28318530717958647692f));
     const V x2 = hn::Mul(x, x);
-    V ps = hn::Set(d, -2.5052108385e-8f);
-    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, 2.7557319224e-6f));
-    ps = hn::Sub(hn::Mul(ps, x2), hn::Set(d, 1.9841269841e-4f));
-    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, 8.3333333333e-3f));
-    ps = hn::Sub(hn::Mul(ps, x2), hn::Set(d, 1.6666666667e-1f));
+    // Written out (not looped) so that every target keeps the polynomials unrolled.
+    V ps = hn::Set(d, kSinTaylor[0]);
+    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, kSinTaylor[1]));
+    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, kSinTaylor[2]));
+    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, kSinTaylor[3]));
+    ps = hn::Add(hn::Mul(ps, x2), hn::Set(d, kSinTaylor[4]));
     s = hn::Add(x, hn::Mul(x, hn::Mul(x2, ps)));
-    V pc = hn::Set(d, 2.0876756988e-9f);
-    pc = hn::Sub(hn::Mul(pc, x2), hn::Set(d, 2.7557319224e-7f));
-    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, 2.4801587302e-5f));
-    pc = hn::Sub(hn::Mul(pc, x2), hn::Set(d, 1.3888888889e-3f));
-    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, 4.1666666667e-2f));
-    pc = hn::Sub(hn::Mul(pc, x2), half);
+    V pc = hn::Set(d, kCosTaylor[0]);
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, kCosTaylor[1]));
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, kCosTaylor[2]));
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, kCosTaylor[3]));
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, kCosTaylor[4]));
+    pc = hn::Add(hn::Mul(pc, x2), hn::Set(d, kCosTaylor[5]));
     const V cv = hn::Add(one, hn::Mul(x2, pc));
     c = hn::IfThenElse(hn::Or(high, low), hn::Neg(cv), cv);
 }
@@ -100,25 +104,19 @@ void GgxRays(const float *const in[9], int n, float *const out[4])
         for (int k = 0; k < 3; ++k) {
             h[k] = hn::Add(hn::Add(hn::Mul(t1[k], w1), hn::Mul(t2[k], w2)), hn::Mul(nv[k], cos_t));
         }
-        const V vh2 =
-            hn::Mul(hn::Set(d, 2.0f),
-                    hn::Add(hn::Add(hn::Mul(vx, h[0]), hn::Mul(vy, h[1])), hn::Mul(vz, h[2])));
+        const V vh2 = hn::Mul(hn::Set(d, 2.0f), Dot3Unfused(vx, vy, vz, h[0], h[1], h[2]));
         V r[3];
         for (int k = 0; k < 3; ++k) {
             r[k] = hn::Sub(hn::Mul(vh2, h[k]), vv[k]);
         }
-        const V inv = hn::Div(one,
-                              hn::Sqrt(hn::Add(hn::Add(hn::Mul(r[0], r[0]), hn::Mul(r[1], r[1])),
-                                               hn::Mul(r[2], r[2]))));
+        const V inv = hn::Div(one, hn::Sqrt(Dot3Unfused(r[0], r[1], r[2], r[0], r[1], r[2])));
         V l[3];
         for (int k = 0; k < 3; ++k) {
             l[k] = hn::Mul(r[k], inv);
             hn::StoreU(l[k], d, out[k] + i);
         }
         // n . l in glm's order.
-        hn::StoreU(hn::Add(hn::Add(hn::Mul(nx, l[0]), hn::Mul(ny, l[1])), hn::Mul(nz, l[2])),
-                   d,
-                   out[3] + i);
+        hn::StoreU(Dot3Unfused(nx, ny, nz, l[0], l[1], l[2]), d, out[3] + i);
     }
 }
 
@@ -274,13 +272,6 @@ HWY_INLINE V AcosAsScalar(D d, V x)
     return hn::IfThenElse(hn::Lt(x, hn::Zero(d)), hn::Sub(hn::Set(d, 3.14159265358979f), r), r);
 }
 
-/// shading::saturate for finite x.
-template <class D, class V = hn::Vec<D>>
-HWY_INLINE V Saturate(D d, V x)
-{
-    return hn::Min(hn::Max(x, hn::Zero(d)), hn::Set(d, 1.0f));
-}
-
 void SkyViewRadiance(const SkyCoordParams &p,
                      const float *xs,
                      const float *ys,
@@ -295,9 +286,10 @@ void SkyViewRadiance(const SkyCoordParams &p,
     using V = hn::Vec<decltype(d)>;
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0f), half = hn::Set(d, 0.5f);
     const auto dot = [&](V x, V y, V z, const float *v) {
-        return hn::Add(hn::Add(hn::Mul(x, hn::Set(d, v[0])), hn::Mul(y, hn::Set(d, v[1]))),
-                       hn::Mul(z, hn::Set(d, v[2])));
+        return Dot3Unfused(x, y, z, hn::Set(d, v[0]), hn::Set(d, v[1]), hn::Set(d, v[2]));
     };
+    // shading::saturate for finite x.
+    const auto saturate = [&](V x) { return ClampToRange(x, zero, one); };
     const int rows_above = p.lut_height / 2, rows_below = p.lut_height - rows_above;
     for (int i = 0; i < n; i += int(hn::Lanes(d))) {
         const V x = hn::LoadU(d, xs + i), y = hn::LoadU(d, ys + i), z = hn::LoadU(d, zs + i);
@@ -311,10 +303,8 @@ void SkyViewRadiance(const SkyCoordParams &p,
         const V theta = AcosAsScalar(d, mu);
         const auto above = hn::Not(hn::Lt(mu, hn::Set(d, p.mu_horizon)));
         const V s_above = hn::Sub(
-            one,
-            hn::Sqrt(Saturate(d, hn::Sub(one, hn::Mul(theta, hn::Set(d, p.inv_theta_above))))));
-        const V s_below = hn::Sqrt(Saturate(
-            d,
+            one, hn::Sqrt(saturate(hn::Sub(one, hn::Mul(theta, hn::Set(d, p.inv_theta_above))))));
+        const V s_below = hn::Sqrt(saturate(
             hn::Mul(hn::Sub(theta, hn::Set(d, p.theta_horizon)), hn::Set(d, p.inv_theta_below))));
         const V s = hn::IfThenElse(above, s_above, s_below);
         // Lut2D::sample_rows over the half the direction is in.
@@ -322,8 +312,8 @@ void SkyViewRadiance(const SkyCoordParams &p,
             hn::IfThenElse(above, hn::Set(d, float(rows_above)), hn::Set(d, float(rows_below)));
         const auto row0 =
             hn::IfThenElseZero(hn::RebindMask(di, hn::Not(above)), hn::Set(di, rows_above));
-        const V fx = hn::Mul(Saturate(d, u), hn::Set(d, float(p.lut_width - 1)));
-        const V fy = hn::Mul(Saturate(d, s), hn::Sub(rows, one));
+        const V fx = hn::Mul(saturate(u), hn::Set(d, float(p.lut_width - 1)));
+        const V fy = hn::Mul(saturate(s), hn::Sub(rows, one));
         const auto x0 = hn::Min(hn::ConvertTo(di, fx), hn::Set(di, p.lut_width - 2));
         const auto y0 =
             hn::Min(hn::ConvertTo(di, fy), hn::ConvertTo(di, hn::Sub(rows, hn::Set(d, 2.0f))));
@@ -363,15 +353,12 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
     const V inf = hn::Set(d, std::numeric_limits<float>::infinity());
     const V max_roughness = hn::Set(d, r.max_roughness);
     const V f0_dielectric = hn::Set(d, 0.04f);
-    const auto dot = [](V ax, V ay, V az, V bx, V by, V bz) {
-        return hn::Add(hn::Add(hn::Mul(ax, bx), hn::Mul(ay, by)), hn::Mul(az, bz));
-    };
     const std::size_t lanes = hn::Lanes(d);
     for (int x = 0; x < r.n; x += int(lanes)) {
         const V z = hn::LoadU(d, r.z + x);
         const V rough = hn::LoadU(d, r.roughness + x);
         V nx = hn::LoadU(d, r.nx + x), ny = hn::LoadU(d, r.ny + x), nz = hn::LoadU(d, r.nz + x);
-        const V nlen = hn::Sqrt(dot(nx, ny, nz, nx, ny, nz));
+        const V nlen = hn::Sqrt(Dot3Unfused(nx, ny, nz, nx, ny, nz));
         const V gloss = hn::Mul(hn::Sub(one, rough), hn::Sub(one, rough));
         const auto glossy =
             hn::And(hn::And(hn::Gt(z, zero), hn::Lt(z, inf)),
@@ -391,16 +378,16 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
         const V rx = hn::Add(hn::Add(ox, hn::Mul(u, dux)), vdx);
         const V ry = hn::Add(hn::Add(oy, hn::Mul(u, duy)), vdy);
         const V rz = hn::Add(hn::Add(oz, hn::Mul(u, duz)), vdz);
-        const V inv_len = hn::Div(one, hn::Sqrt(dot(rx, ry, rz, rx, ry, rz)));
+        const V inv_len = hn::Div(one, hn::Sqrt(Dot3Unfused(rx, ry, rz, rx, ry, rz)));
         const V vx = hn::Neg(hn::Mul(rx, inv_len)), vy = hn::Neg(hn::Mul(ry, inv_len)),
                 vz = hn::Neg(hn::Mul(rz, inv_len));
         // The side the camera sees.
-        const auto back = hn::Lt(dot(nx, ny, nz, vx, vy, vz), zero);
+        const auto back = hn::Lt(Dot3Unfused(nx, ny, nz, vx, vy, vz), zero);
         nx = hn::IfThenElse(back, hn::Neg(nx), nx);
         ny = hn::IfThenElse(back, hn::Neg(ny), ny);
         nz = hn::IfThenElse(back, hn::Neg(nz), nz);
-        const V nv = hn::Max(dot(nx, ny, nz, vx, vy, vz), zero);
-        const V m = hn::Sub(one, hn::Min(hn::Max(nv, zero), one));
+        const V nv = hn::Max(Dot3Unfused(nx, ny, nz, vx, vy, vz), zero);
+        const V m = hn::Sub(one, ClampToRange(nv, zero, one));
         const V m2 = hn::Mul(m, m);
         const V m5 = hn::Mul(hn::Mul(m2, m2), m);
         // F0 = mix(0.04, albedo, metallic) = 0.04 (1 - metallic) + albedo metallic.
@@ -449,9 +436,12 @@ void ResolveRow(const SsrResolveRow &r, float *dr, float *dg, float *db, float *
                 const std::ptrdiff_t e = std::ptrdiff_t(x) + std::ptrdiff_t(r.stride) * k;
                 const V cz = hn::LoadU(d, c + e);
                 const V cx = hn::LoadU(d, r.cell_x + e);
-                const V dot = hn::Add(hn::Add(hn::Mul(hn::LoadU(d, c + pitch + e), nx),
-                                              hn::Mul(hn::LoadU(d, c + 2 * pitch + e), ny)),
-                                      hn::Mul(hn::LoadU(d, c + 3 * pitch + e), nz));
+                const V dot = Dot3Unfused(hn::LoadU(d, c + pitch + e),
+                                          hn::LoadU(d, c + 2 * pitch + e),
+                                          hn::LoadU(d, c + 3 * pitch + e),
+                                          nx,
+                                          ny,
+                                          nz);
                 const auto take = hn::And(hn::And(hn::Le(hn::Abs(hn::Sub(cx, xf)), radius),
                                                   hn::Le(hn::Abs(hn::Sub(cz, z)), near_depth)),
                                           hn::Not(hn::Lt(dot, min_cos)));

@@ -32,6 +32,17 @@ struct SsrSegment {
     int steps = 1;
 };
 
+/// Taylor coefficients of sin x / x - 1 and cos x - 1 in x^2 (highest first), shared by
+/// sincos_turns and its lanes (ssr_kernels.cpp) so that they round alike.
+inline constexpr float kSinTaylor[5] = {
+    -2.5052108385e-8f, 2.7557319224e-6f, -1.9841269841e-4f, 8.3333333333e-3f, -1.6666666667e-1f};
+inline constexpr float kCosTaylor[6] = {2.0876756988e-9f,
+                                        -2.7557319224e-7f,
+                                        2.4801587302e-5f,
+                                        -1.3888888889e-3f,
+                                        4.1666666667e-2f,
+                                        -0.5f};
+
 /// sin and cos of 2 pi u for any finite u: u reduced to [-1/4, 1/4] turns, then Taylor
 /// polynomials to x^11 and x^12 (error below 1e-7), multiplies and adds in this order; the
 /// scalar twin of the sampling kernel's lanes.
@@ -44,18 +55,15 @@ inline void sincos_turns(float u, float &s, float &c)
     const float r = q > 0.25f ? 0.5f - q : (q < -0.25f ? -0.5f - q : q);
     const float x = r * 6.28318530717958647692f;
     const float x2 = x * x;
-    float ps = -2.5052108385e-8f;
-    ps = ps * x2 + 2.7557319224e-6f;
-    ps = ps * x2 - 1.9841269841e-4f;
-    ps = ps * x2 + 8.3333333333e-3f;
-    ps = ps * x2 - 1.6666666667e-1f;
+    float ps = kSinTaylor[0];
+    for (int i = 1; i < 5; ++i) {
+        ps = ps * x2 + kSinTaylor[i];
+    }
     s = x + x * (x2 * ps);
-    float pc = 2.0876756988e-9f;
-    pc = pc * x2 - 2.7557319224e-7f;
-    pc = pc * x2 + 2.4801587302e-5f;
-    pc = pc * x2 - 1.3888888889e-3f;
-    pc = pc * x2 + 4.1666666667e-2f;
-    pc = pc * x2 - 0.5f;
+    float pc = kCosTaylor[0];
+    for (int i = 1; i < 6; ++i) {
+        pc = pc * x2 + kCosTaylor[i];
+    }
     const float cv = 1.0f + x2 * pc;
     c = fold ? -cv : cv;
 }
