@@ -6,18 +6,11 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
-#include <cmath>
-#include <cstring>
-#include <filesystem>
 #include <fstream>
-#include <limits>
-#include <numeric>
 
 #include "core/error.h"
 #include "core/memory.h"
-#include "core/parallel.h"
 #include "core/passes.h"
-#include "core/srgb.h"
 #include "core/text.h"
 #include "io/image_file.h"
 #include "io/io_detail.h"
@@ -29,8 +22,6 @@ namespace posthaste {
 using namespace io_detail;
 
 namespace {
-
-namespace fs = std::filesystem;
 
 bool has_exr_magic(const std::string &path)
 {
@@ -450,16 +441,9 @@ Frame read_frame(const std::string &path,
     // The passes, and the file's bits of the channels a float cannot give back (one native
     // plane each, filled as the rows arrive).
     const int width = window.width(), height = window.height();
-    struct OutPass {
-        const PassSource *ps;
-        Image img;
-        bool is_depth, linearize;
-        // First bad value per row (x, channel), for BadPixels::Error; -1 when none.
-        std::vector<std::pair<int, int>> bad;
-        // Non-finite values kept, per row (summed in row order: thread-count independent).
-        std::vector<std::size_t> kept;
-    };
-    std::vector<OutPass> outs;
+    const bool count_kept = non_finite && options.bad_pixels == BadPixels::Keep;
+    FrameRows rows(path, info, window, options, count_kept);
+    std::vector<FrameRows::Out> &outs = rows.outs;
     for (const PassSource *ps : selected) {
         const bool is_depth = ps->pass == pass::kDepth || ps->pass.starts_with("depth@");
         outs.push_back({ps,
@@ -469,13 +453,8 @@ Frame read_frame(const std::string &path,
                         std::vector<std::pair<int, int>>(std::size_t(height), {-1, -1}),
                         std::vector<std::size_t>(std::size_t(height), 0)});
     }
-    struct RawPlane {
-        std::size_t offset, size;  ///< In a pixel of the part's buffer.
-        unsigned char *dst;
-    };
-    std::vector<std::vector<RawPlane>> raw_planes(info.parts.size());
     if (source) {
-        for (const OutPass &out : outs) {
+        for (const FrameRows::Out &out : outs) {
             for (const ChannelSource &cs : out.ps->sources) {
                 if (cs.part < 0) {
                     continue;
@@ -489,182 +468,20 @@ Frame read_frame(const std::string &path,
                 }
                 const std::size_t n = pd.bytes / pd.pixel_bytes, size = nc.type.size();
                 auto plane = std::make_shared<std::vector<unsigned char>>(n * size);
-                raw_planes[std::size_t(cs.part)].push_back({nc.offset, size, plane->data()});
+                rows.raw_planes[std::size_t(cs.part)].push_back({nc.offset, size, plane->data()});
                 source->raw[key] = std::move(plane);
             }
         }
     }
-    const bool count_kept = non_finite && options.bad_pixels == BadPixels::Keep;
-    const bool check_bad = options.bad_pixels != BadPixels::Keep;
-
-    // What no part gives: channels without a part, rows and columns outside a part's window.
-    parallel_for(0, height, [&](int y) {
-        for (OutPass &out : outs) {
-            const std::size_t step = out.ps->sources.size();
-            float *row = out.img.pixel(0, y);
-            for (std::size_t k = 0; k < step; ++k) {
-                const ChannelSource &cs = out.ps->sources[k];
-                float *dst = row + k;
-                if (cs.part < 0) {
-                    for (int x = 0; x < width; ++x) {
-                        dst[std::size_t(x) * step] = cs.offset;
-                    }
-                    continue;
-                }
-                const Rect dw =
-                    info.parts[std::size_t(cs.part)].data_window.offset(-window.x0, -window.y0);
-                const float outside = (out.ps->pass == pass::kColor && k == 3) ? 0.0f
-                                      : out.is_depth ? std::numeric_limits<float>::infinity()
-                                                     : 0.0f;
-                const int x0 = std::clamp(dw.x0, 0, width), x1 = std::clamp(dw.x1, 0, width);
-                const bool row_inside = y >= dw.y0 && y < dw.y1 && x0 < x1;
-                const int left = row_inside ? x0 : width, right = row_inside ? x1 : width;
-                for (int x = 0; x < left; ++x) {
-                    dst[std::size_t(x) * step] = outside;
-                }
-                for (int x = right; x < width; ++x) {
-                    dst[std::size_t(x) * step] = outside;
-                }
-            }
-        }
-    });
-
-    // Frame rows [y_begin, y_end) of every channel that part p gives, from the part's rows in
-    // data[p] (from its row data[p].row0 on).
-    auto convert_rows = [&](std::size_t p, int y_begin, int y_end) {
-        const FilePart &part = info.parts[p];
-        const PartPixels &pd = data[p];
-        const Rect dw = part.data_window.offset(-window.x0, -window.y0);
-        const int x0 = std::clamp(dw.x0, 0, width), x1 = std::clamp(dw.x1, 0, width);
-        if (x0 >= x1) {
-            return;
-        }
-        parallel_for(y_begin, y_end, [&](int y) {
-            for (OutPass &out : outs) {
-                const std::size_t step = out.ps->sources.size();
-                float *row = out.img.pixel(0, y);
-                for (std::size_t k = 0; k < step; ++k) {
-                    const ChannelSource &cs = out.ps->sources[k];
-                    if (cs.part != int(p)) {
-                        continue;
-                    }
-                    float *dst = row + k;
-                    const auto &nc = pd.channels[std::size_t(cs.channel - pd.chbegin)];
-                    const std::size_t first =
-                        std::size_t(y - dw.y0 - pd.row0) * std::size_t(dw.width()) +
-                        std::size_t(x0 - dw.x0);
-                    convert_channel(pd.data.get() + first * pd.pixel_bytes + nc.offset,
-                                    pd.pixel_bytes,
-                                    nc.type,
-                                    dst + std::size_t(x0) * step,
-                                    step,
-                                    x1 - x0);
-                    const bool affine = cs.scale != 1.0f || cs.offset != 0.0f;
-                    const bool lin = out.linearize && k < 3;
-                    const bool clip_inf = out.ps->infinite_above > 0.0f;
-                    if (count_kept) {
-                        for (int x = x0; x < x1; ++x) {
-                            const float v = dst[std::size_t(x) * step];
-                            out.kept[std::size_t(y)] +=
-                                !std::isfinite(v) && !(out.is_depth && v > 0.0f);
-                        }
-                    }
-                    if (!(affine || lin || clip_inf || check_bad)) {
-                        continue;
-                    }
-                    for (int x = x0; x < x1; ++x) {
-                        float &v = dst[std::size_t(x) * step];
-                        if (lin) {
-                            v = srgb_to_linear(v);
-                        }
-                        if (affine) {
-                            v = cs.scale * v + cs.offset;
-                        }
-                        if (clip_inf && v >= out.ps->infinite_above) {
-                            v = std::numeric_limits<float>::infinity();
-                        }
-                        if (check_bad && !std::isfinite(v) && !(out.is_depth && v > 0.0f)) {
-                            auto &first_bad = out.bad[std::size_t(y)];
-                            if (options.bad_pixels == BadPixels::Zero) {
-                                v = 0.0f;
-                            } else if (first_bad.first < 0 ||
-                                       std::make_pair(x, int(k)) < first_bad) {
-                                first_bad = {x, int(k)};
-                            }
-                        }
-                    }
-                }
-            }
-        });
-    };
-    // Part rows [r_begin, r_end) (held in data[p] from its row0) into the raw planes.
-    auto copy_raw = [&](std::size_t p, int r_begin, int r_end) {
-        const PartPixels &pd = data[p];
-        const std::size_t w = std::size_t(info.parts[p].data_window.width());
-        for (const RawPlane &plane : raw_planes[p]) {
-            for (std::size_t i = std::size_t(r_begin) * w; i < std::size_t(r_end) * w; ++i) {
-                std::memcpy(
-                    plane.dst + i * plane.size,
-                    pd.data.get() + (i - std::size_t(pd.row0) * w) * pd.pixel_bytes + plane.offset,
-                    plane.size);
-            }
-        }
-    };
+    rows.fill_uncovered();
     for (std::size_t p = 0; p < info.parts.size(); ++p) {
-        if (needed[p].empty()) {
-            continue;
-        }
-        PartPixels &pd = data[p];
-        const Rect dw = info.parts[p].data_window.offset(-window.x0, -window.y0);
-        const int rows = dw.height();
-        // Frame rows of part rows [r_begin, r_end).
-        auto frame_rows = [&](int r_begin, int r_end) {
-            convert_rows(p, std::max(0, r_begin + dw.y0), std::min(height, r_end + dw.y0));
-            copy_raw(p, r_begin, r_end);
-        };
-        if (!banded[p]) {
-            frame_rows(0, rows);
-            continue;
-        }
-        const OIIO::ImageSpec &spec = o.specs[p];
-        const std::size_t row_bytes = std::size_t(spec.width) * pd.pixel_bytes;
-        const int band = std::min(band_rows(spec, row_bytes), rows);
-        pd.data = raw_bytes(row_bytes * std::size_t(band), spec.width, band, pd.chend - pd.chbegin);
-        for (int r = 0; r < rows; r += band) {
-            const int r_end = std::min(r + band, rows);
-            const bool ok = spec.tile_width > 0 ? o.in->read_tiles(int(p),
-                                                                   0,
-                                                                   spec.x,
-                                                                   spec.x + spec.width,
-                                                                   spec.y + r,
-                                                                   spec.y + r_end,
-                                                                   spec.z,
-                                                                   spec.z + std::max(1, spec.depth),
-                                                                   pd.chbegin,
-                                                                   pd.chend,
-                                                                   OIIO::TypeUnknown,
-                                                                   pd.data.get())
-                                                : o.in->read_scanlines(int(p),
-                                                                       0,
-                                                                       spec.y + r,
-                                                                       spec.y + r_end,
-                                                                       spec.z,
-                                                                       pd.chbegin,
-                                                                       pd.chend,
-                                                                       OIIO::TypeUnknown,
-                                                                       pd.data.get());
-            if (!ok) {
-                std::string err = o.in->geterror();
-                std::replace(err.begin(), err.end(), '\n', ' ');
-                throw_runtime(
-                    path, ": cannot read pixels of part ", p, " (truncated or corrupt?): ", err);
-            }
-            pd.row0 = r;
-            frame_rows(r, r_end);
+        if (!needed[p].empty()) {
+            rows.read_part(
+                banded[p] ? o.in.get() : nullptr, banded[p] ? &o.specs[p] : nullptr, p, data[p]);
         }
     }
 
-    for (OutPass &out : outs) {
+    for (FrameRows::Out &out : outs) {
         const PassSource *ps = out.ps;
         for (int y = 0; y < height; ++y) {
             if (out.bad[std::size_t(y)].first >= 0) {

@@ -1,20 +1,13 @@
 // Writing frames: EXR through OpenImageIO, in the layout of the file the frame was read from
 // (parts, views, channel names and pixel types, windows, tiles and untouched mip levels), or
-// rebuilt with canonical channel names; 8-bit previews; atomic writes.
+// rebuilt with canonical channel names; 8-bit previews (atomic writes: atomic_file.cpp).
 
 #include <OpenImageIO/imageio.h>
-#include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <chrono>
 #include <cmath>
-#include <csignal>
 #include <cstring>
 #include <filesystem>
-#include <mutex>
-#include <random>
-#include <set>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -262,118 +255,6 @@ void check_compression(const std::string &compression, const std::string &where)
             throw_usage(where, ": invalid compression level \"", level, "\"");
         }
     }
-}
-
-namespace {
-
-/// Remove temporary files of posthaste's naming (".NAME.tmpPID-N.ext") that a killed write left
-/// in `dir`: those whose process is not alive here and that are over 10 minutes old (the age
-/// keeps a live write of another host on a shared file system safe). Once per directory and
-/// process; failures are ignored (the directory is someone else's to tidy).
-void remove_stale_temporaries(const fs::path &dir)
-{
-    static std::mutex mutex;
-    static std::set<std::string> done;
-    {
-        std::lock_guard lock(mutex);
-        if (!done.insert(dir.string()).second) {
-            return;
-        }
-    }
-    std::error_code ec;
-    const auto now = fs::file_time_type::clock::now();
-    for (fs::directory_iterator it(dir.empty() ? fs::path(".") : dir, ec), end; !ec && it != end;
-         it.increment(ec)) {
-        const std::string name = it->path().filename().string();
-        const auto tmp = name.rfind(".tmp");
-        if (name.size() < 6 || name[0] != '.' || tmp == std::string::npos || tmp == 0) {
-            continue;
-        }
-        const auto dash = name.find('-', tmp);
-        if (dash == std::string::npos) {
-            continue;
-        }
-        const std::string pid_text = name.substr(tmp + 4, dash - tmp - 4);
-        if (pid_text.empty() || pid_text.find_first_not_of("0123456789") != std::string::npos ||
-            pid_text.size() > 9) {
-            continue;
-        }
-        const int pid = std::stoi(pid_text);
-        if (pid == ::getpid() || ::kill(pid, 0) == 0 || errno != ESRCH) {
-            continue;  // alive (or not ours to judge)
-        }
-        std::error_code age_ec;
-        const auto mtime = fs::last_write_time(it->path(), age_ec);
-        if (age_ec || now - mtime < std::chrono::minutes(10)) {
-            continue;
-        }
-        fs::remove(it->path(), age_ec);
-    }
-}
-
-}  // namespace
-
-void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write)
-{
-    const fs::path target(path);
-    std::error_code ec;
-    if (target.has_parent_path()) {
-        fs::create_directories(target.parent_path(), ec);
-        if (ec) {
-            throw_runtime(path,
-                          ": cannot create directory ",
-                          target.parent_path().string(),
-                          ": ",
-                          ec.message());
-        }
-    }
-    remove_stale_temporaries(target.parent_path());
-    // Keep the extension last: OIIO picks the writer from it.
-    thread_local std::mt19937 rng(std::random_device{}());
-    // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on "." + std::string here.
-    std::string name = ".";
-    name += target.stem().string();
-    name += ".tmp";
-    name += std::to_string(::getpid());
-    name += '-';
-    name += std::to_string(rng() % 100000);
-    name += target.extension().string();
-    const std::string tmp = (target.parent_path() / name).string();
-    try {
-        write(tmp);
-    } catch (const Error &e) {
-        // The libraries say "file output failed"; say why when the disk is the reason.
-        std::error_code space_ec;
-        const std::uintmax_t written = fs::file_size(tmp, space_ec);
-        const fs::space_info space =
-            fs::space(target.has_parent_path() ? target.parent_path() : fs::path("."), space_ec);
-        fs::remove(tmp, ec);
-        if (!space_ec && space.available < std::max<std::uintmax_t>(written, 1) + (64u << 10)) {
-            throw Error(e.code(),
-                        std::string(e.what()) + " (no space left on the device: " +
-                            std::to_string(space.available >> 10) + " KiB free)");
-        }
-        throw;
-    } catch (...) {
-        fs::remove(tmp, ec);
-        throw;
-    }
-    fs::rename(tmp, target, ec);
-    if (ec) {
-        fs::remove(tmp, ec);
-        throw_runtime(path, ": cannot rename temporary file into place: ", ec.message());
-    }
-}
-
-void write_text_file(const std::string &path, const std::string &text)
-{
-    atomic_write(path, [&](const std::string &tmp) {
-        std::FILE *f = std::fopen(tmp.c_str(), "wb");
-        const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
-        if (!f || std::fclose(f) != 0 || !ok) {
-            throw_runtime(path, ": cannot write");
-        }
-    });
 }
 
 void write_exr(const Frame &frame, const std::string &path, const WriteOptions &options)

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/image.h"
@@ -58,6 +59,58 @@ struct PartPixels {
 /// An uninitialised byte buffer (a zero fill of a 1080p all-pass frame cost a third of a read),
 /// counted against the memory budget like a pass image of `width` x `height` x `channels`.
 std::shared_ptr<unsigned char[]> raw_bytes(std::size_t n, int width, int height, int channels);
+
+/// A frame's passes assembled from its file's parts (read_bands.cpp): the pass images (`outs`,
+/// set up by the caller) with what no part covers filled, each part's rows converted to float as
+/// its bands are read, the file's own bits of the channels a float cannot give back copied into
+/// their planes (`raw_planes`), and the first bad value and the kept non-finite count per row.
+class FrameRows {
+   public:
+    struct Out {
+        const PassSource *ps;
+        Image img;
+        bool is_depth, linearize;
+        /// First bad value per row (x, channel), for BadPixels::Error; -1 when none.
+        std::vector<std::pair<int, int>> bad;
+        /// Non-finite values kept, per row (summed in row order: thread-count independent).
+        std::vector<std::size_t> kept;
+    };
+    /// A channel kept as the file's bits: its place in a pixel of the part's buffer, its plane.
+    struct RawPlane {
+        std::size_t offset, size;
+        unsigned char *dst;
+    };
+
+    FrameRows(const std::string &path,
+              const FileInfo &info,
+              const Rect &window,
+              const ReadOptions &options,
+              bool count_kept);
+    /// Channels without a part, and the rows and columns outside a part's window.
+    void fill_uncovered();
+    /// Part p into the passes: a flat part read band by band from `in` at the native types of
+    /// pd's channel span; without `in`, pd's rows as they are (converted floats).
+    void read_part(OIIO::ImageInput *in,
+                   const OIIO::ImageSpec *spec,
+                   std::size_t p,
+                   PartPixels &pd);
+
+    std::vector<Out> outs;
+    std::vector<std::vector<RawPlane>> raw_planes;  ///< By part.
+
+   private:
+    /// Frame rows [y_begin, y_end) of every channel that part p gives, from pd (which holds the
+    /// part's rows from pd.row0 on).
+    void convert_rows(std::size_t p, const PartPixels &pd, int y_begin, int y_end);
+    /// Part rows [r_begin, r_end) (held in pd from its row0) into the raw planes.
+    void copy_raw(std::size_t p, const PartPixels &pd, int r_begin, int r_end);
+
+    const std::string &path_;
+    const FileInfo &info_;
+    Rect window_;
+    const ReadOptions &options_;
+    bool count_kept_;
+};
 
 /// True for an EXR whose RGBA interface reports chroma channels (Y, RY, BY).
 bool is_luminance_chroma(const std::string &path);
