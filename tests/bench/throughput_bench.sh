@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Throughput of the demo graph: the whole graph at a size over N frames with --jobs 2, two
 # settings alternated in one run (A, B, A, B, ...), R rounds each: wall seconds per frame, each
-# write node's ms per frame, peak resident memory, and the output sizes. Medians over rounds.
+# write node's ms per frame, peak resident memory, and the output sizes. Medians over rounds, and
+# the rounds' range of the wall time and the peak (a run's peak moves with how the two jobs'
+# frames overlap).
 # Usage: throughput_bench.sh POSTHASTE FRAMES ROUNDS WIDTH HEIGHT "A --set values" "B --set values"
 set -euo pipefail
 P=$(realpath "$1")
@@ -39,11 +41,14 @@ python3 - "$T/results" "$FRAMES" <<'PY'
 import statistics, sys
 rows = [l.split() for l in open(sys.argv[1])]
 frames = int(sys.argv[2])
-print("setting  wall s/frame  exr ms  preview ms  hatched ms  writes/nodes  peak MB  output MB   (medians)")
+print("setting  wall s/frame  exr ms  preview ms  hatched ms  writes/nodes  peak MB  output MB   (medians)"
+      "   wall range  peak range")
 for label in ("A", "B"):
     r = [x for x in rows if x[0] == label]
     med = lambda i: statistics.median(float(x[i]) for x in r)
     writes = med(3) + med(4) + med(5)
     print(f"{label:8} {med(2) / frames:12.3f} {med(3):7.1f} {med(4):11.1f} {med(5):11.1f} "
-          f"{100 * writes / med(6):11.0f} % {med(7) / 1024:8.0f} {med(8) / 1024:10.1f}")
+          f"{100 * writes / med(6):11.0f} % {med(7) / 1024:8.0f} {med(8) / 1024:10.1f}"
+          f"   {min(float(x[2]) for x in r) / frames:.3f}-{max(float(x[2]) for x in r) / frames:.3f}"
+          f"  {min(float(x[7]) for x in r) / 1024:.0f}-{max(float(x[7]) for x in r) / 1024:.0f}")
 PY
