@@ -78,6 +78,62 @@ std::optional<GlossyPixel> glossy_pixel(const SsrInputs &in,
     return g;
 }
 
+/// The channels ssr_weight_row reads (depth; normal x, y, z; albedo r, g, b; roughness;
+/// metallic), of every `step`-th pixel of row y from column 0, side by side: `count` values into
+/// each of ch[0..8], whose kSsrStepPad values after those are zeroed. The weight kernel's
+/// parameters for the row.
+SsrWeightRow weight_row_inputs(const SsrInputs &in,
+                               const CameraRays &rays,
+                               const SsrParams &p,
+                               int y,
+                               int step,
+                               int count,
+                               float *const ch[9])
+{
+    const Image &depth = *in.depth, &normal = *in.normal, &albedo = *in.albedo,
+                &material = *in.material;
+    const float *zr = depth.pixel(0, y), *nr = normal.pixel(0, y), *ar = albedo.pixel(0, y),
+                *mr = material.pixel(0, y);
+    const std::size_t zc = std::size_t(depth.channels()) * std::size_t(step),
+                      nc = std::size_t(normal.channels()) * std::size_t(step),
+                      ac = std::size_t(albedo.channels()) * std::size_t(step),
+                      mc = std::size_t(material.channels()) * std::size_t(step);
+    for (int i = 0; i < count; ++i) {
+        const std::size_t k = std::size_t(i);
+        ch[0][i] = zr[k * zc];
+        for (int c = 0; c < 3; ++c) {
+            ch[1 + c][i] = nr[k * nc + std::size_t(c)];
+            ch[4 + c][i] = ar[k * ac + std::size_t(c)];
+        }
+        ch[7][i] = mr[k * mc];
+        ch[8][i] = mr[k * mc + 1];
+    }
+    for (int c = 0; c < 9; ++c) {
+        std::fill(ch[c] + count, ch[c] + count + kSsrStepPad, 0.0f);
+    }
+    SsrWeightRow r;
+    r.z = ch[0];
+    r.nx = ch[1];
+    r.ny = ch[2];
+    r.nz = ch[3];
+    r.ar = ch[4];
+    r.ag = ch[5];
+    r.ab = ch[6];
+    r.roughness = ch[7];
+    r.metallic = ch[8];
+    r.n = count;
+    r.width = depth.width();
+    r.stride = step;
+    r.v = (float(y) + 0.5f) / float(depth.height());
+    for (int c = 0; c < 3; ++c) {
+        r.origin[c] = rays.ray_origin()[c];
+        r.du[c] = rays.ray_du()[c];
+        r.dv[c] = rays.ray_dv()[c];
+    }
+    r.max_roughness = p.max_roughness;
+    return r;
+}
+
 /// The traced cells' estimates in the layout of ssr_kernels.h's SsrResolveRow: per cell row,
 /// kSsrCellChannels arrays indexed by pixel column, each cell repeated over its `stride` columns,
 /// depth NaN where no cell or no estimate is.
@@ -395,9 +451,46 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             batch_rays.clear();
             batch_pixels.clear();
         };
+        // The traced pixels' set-up (glossy_pixel) on the weight kernel, the same bits: their
+        // weights, normals, view directions and points side by side.
+        thread_local std::vector<float> setup;
+        const std::size_t spitch = std::size_t(tw + kSsrStepPad);
+        float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
+        if (vector_kernels) {
+            if (setup.size() < 21 * spitch) {
+                setup.resize(21 * spitch);
+            }
+            for (int c = 0; c < 9; ++c) {
+                sin[c] = setup.data() + std::size_t(c) * spitch;
+            }
+            for (int c = 0; c < 3; ++c) {
+                sw[c] = setup.data() + std::size_t(9 + c) * spitch;
+                sn[c] = setup.data() + std::size_t(12 + c) * spitch;
+                sv[c] = setup.data() + std::size_t(15 + c) * spitch;
+                sp[c] = setup.data() + std::size_t(18 + c) * spitch;
+            }
+            SsrWeightRow r = weight_row_inputs(in, rays, p, y, st, tw, sin);
+            for (int c = 0; c < 3; ++c) {
+                r.position[c] = rays.position()[c];
+                r.n_out[c] = sn[c];
+                r.view_out[c] = sv[c];
+                r.point_out[c] = sp[c];
+            }
+            ssr_weight_row(r, sw[0], sw[1], sw[2]);
+        }
         for (int tx = 0; tx < tw; ++tx) {
             const int x = tx * st;
-            const std::optional<GlossyPixel> g = glossy_pixel(in, rays, p, x, y);
+            std::optional<GlossyPixel> g;
+            if (!vector_kernels) {
+                g = glossy_pixel(in, rays, p, x, y);
+            } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
+                g = GlossyPixel{sin[0][tx],
+                                sin[7][tx],
+                                glm::vec3(sp[0][tx], sp[1][tx], sp[2][tx]),
+                                glm::vec3(sn[0][tx], sn[1][tx], sn[2][tx]),
+                                glm::vec3(sv[0][tx], sv[1][tx], sv[2][tx]),
+                                glm::vec3(sw[0][tx], sw[1][tx], sw[2][tx])};
+            }
             if (!g) {
                 continue;
             }
@@ -432,48 +525,24 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     // blur is that of the window on sharp reflections.
     Image out = *in.color;
     const int radius = std::max(p.denoise, st - 1);
-    const Image &albedo = *in.albedo, &material = *in.material;
     parallel_for(0, h, [&](int y) {
         // The row's sky reflection weights (0 where the pixel is left alone): on the vector
         // kernel from the row's channels side by side, or glossy_pixel's scalar reference.
         const std::size_t row = std::size_t(w + kSsrStepPad);
-        std::vector<float> buf(12 * row, 0.0f);
+        // The weights, then the row's channels (kept by each thread from row to row).
+        thread_local std::vector<float> buf;
+        if (buf.size() < 12 * row) {
+            buf.resize(12 * row);
+        }
         float *wr = buf.data(), *wg = wr + row, *wb = wg + row;
         if (vector_kernels) {
             float *ch[9];
             for (int c = 0; c < 9; ++c) {
                 ch[c] = buf.data() + std::size_t(3 + c) * row;
             }
-            for (int x = 0; x < w; ++x) {
-                ch[0][x] = depth.at(x, y, 0);
-                for (int c = 0; c < 3; ++c) {
-                    ch[1 + c][x] = normal.at(x, y, c);
-                    ch[4 + c][x] = albedo.at(x, y, c);
-                }
-                ch[7][x] = material.at(x, y, 0);
-                ch[8][x] = material.at(x, y, 1);
-            }
-            SsrWeightRow r;
-            r.z = ch[0];
-            r.nx = ch[1];
-            r.ny = ch[2];
-            r.nz = ch[3];
-            r.ar = ch[4];
-            r.ag = ch[5];
-            r.ab = ch[6];
-            r.roughness = ch[7];
-            r.metallic = ch[8];
-            r.n = w;
-            r.width = w;
-            r.v = (float(y) + 0.5f) / float(h);
-            for (int c = 0; c < 3; ++c) {
-                r.origin[c] = rays.ray_origin()[c];
-                r.du[c] = rays.ray_du()[c];
-                r.dv[c] = rays.ray_dv()[c];
-            }
-            r.max_roughness = p.max_roughness;
-            ssr_weight_row(r, wr, wg, wb);
+            ssr_weight_row(weight_row_inputs(in, rays, p, y, 1, w, ch), wr, wg, wb);
         } else {
+            std::fill(wr, wr + 3 * row, 0.0f);
             for (int x = 0; x < w; ++x) {
                 if (const std::optional<GlossyPixel> g =
                         glossy_pixel(in, rays, p, x, y, /*with_point=*/false)) {

@@ -352,6 +352,8 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
             vdz = hn::Mul(v, hn::Set(d, r.dv[2]));
     const V inf = hn::Set(d, std::numeric_limits<float>::infinity());
     const V max_roughness = hn::Set(d, r.max_roughness);
+    const V stride = hn::Set(d, float(r.stride));  // exact: i stride is an integer below 2^24
+    const bool terms = r.n_out[0] != nullptr;
     const V f0_dielectric = hn::Set(d, 0.04f);
     const std::size_t lanes = hn::Lanes(d);
     for (int x = 0; x < r.n; x += int(lanes)) {
@@ -374,7 +376,7 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
         ny = hn::Div(ny, nlen);
         nz = hn::Div(nz, nlen);
         // The view direction: -normalize(depth_ray(u, v)), normalize as v * (1 / sqrt(v.v)).
-        const V u = hn::Div(hn::Add(hn::Iota(d, float(x)), half), width);
+        const V u = hn::Div(hn::Add(hn::Mul(hn::Iota(d, float(x)), stride), half), width);
         const V rx = hn::Add(hn::Add(ox, hn::Mul(u, dux)), vdx);
         const V ry = hn::Add(hn::Add(oy, hn::Mul(u, duy)), vdy);
         const V rz = hn::Add(hn::Add(oz, hn::Mul(u, duz)), vdz);
@@ -386,6 +388,18 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
         nx = hn::IfThenElse(back, hn::Neg(nx), nx);
         ny = hn::IfThenElse(back, hn::Neg(ny), ny);
         nz = hn::IfThenElse(back, hn::Neg(nz), nz);
+        if (terms) {
+            // glossy_pixel's point: position + depth_ray(u, v) z.
+            const V p[3] = {hn::Add(hn::Set(d, r.position[0]), hn::Mul(rx, z)),
+                            hn::Add(hn::Set(d, r.position[1]), hn::Mul(ry, z)),
+                            hn::Add(hn::Set(d, r.position[2]), hn::Mul(rz, z))};
+            const V nn[3] = {nx, ny, nz}, vv[3] = {vx, vy, vz};
+            for (int c = 0; c < 3; ++c) {
+                hn::StoreU(nn[c], d, r.n_out[c] + x);
+                hn::StoreU(vv[c], d, r.view_out[c] + x);
+                hn::StoreU(p[c], d, r.point_out[c] + x);
+            }
+        }
         const V nv = hn::Max(Dot3Unfused(nx, ny, nz, vx, vy, vz), zero);
         const V m = hn::Sub(one, ClampToRange(nv, zero, one));
         const V m2 = hn::Mul(m, m);

@@ -159,16 +159,22 @@ struct SsrWeightRow {
     const float *ar = nullptr, *ag = nullptr, *ab = nullptr;
     const float *roughness = nullptr, *metallic = nullptr;
     int n = 0;
-    int width = 1;   ///< the image's width (u = (x + 0.5) / width)
+    int width = 1;   ///< the image's width (u = (x stride + 0.5) / width)
+    int stride = 1;  ///< value i is pixel column i stride
     float v = 0.5f;  ///< the row's NDC v
     float origin[3] = {}, du[3] = {}, dv[3] = {};
     float max_roughness = 0.78f;
+    /// Optional (the march's start, where non-null): the camera's position, and per value the
+    /// unit normal turned to the camera, the view direction and the world point
+    /// (position + depth_ray z), glossy_pixel's bits where the weight is not 0.
+    float position[3] = {};
+    float *n_out[3] = {}, *view_out[3] = {}, *point_out[3] = {};
 };
 
 /// The sky reflection weight (shading::sky_reflection_weight: Fresnel-Schlick at n.v times the
 /// gloss) of each pixel of the row that ssr changes, 0 for the others (sky, rough, no normal, no
 /// weight), as ssr.cpp's glossy_pixel computes it, bit for bit; into wr, wg, wb (n +
-/// kSsrStepPad values each).
+/// kSsrStepPad values each), and glossy_pixel's other terms where asked for.
 void ssr_weight_row(const SsrWeightRow &r, float *wr, float *wg, float *wb);
 
 /// The traced cells' estimates near one output row, and that row's pixels, for the resolve's
