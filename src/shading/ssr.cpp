@@ -78,6 +78,22 @@ std::optional<GlossyPixel> glossy_pixel(const SsrInputs &in,
     return g;
 }
 
+/// Room in `buf` for `arrays` arrays of n values side by side, each followed by kSsrStepPad
+/// values that the vector kernels read past the end: the pitch. The buffer grows but is not
+/// cleared (the arrays are written before they are read); the pads of the first `inputs`
+/// arrays are zeroed.
+std::size_t soa_arrays(std::vector<float> &buf, std::size_t n, int arrays, int inputs)
+{
+    const std::size_t pitch = n + kSsrStepPad;
+    if (buf.size() < std::size_t(arrays) * pitch) {
+        buf.resize(std::size_t(arrays) * pitch);
+    }
+    for (int c = 0; c < inputs; ++c) {
+        std::fill_n(buf.data() + std::size_t(c) * pitch + n, kSsrStepPad, 0.0f);
+    }
+    return pitch;
+}
+
 /// The channels ssr_weight_row reads (depth; normal x, y, z; albedo r, g, b; roughness;
 /// metallic), of every `step`-th pixel of row y from column 0, side by side: `count` values into
 /// each of ch[0..8], whose kSsrStepPad values after those are zeroed. The weight kernel's
@@ -211,8 +227,8 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             }
             return;
         }
-        const std::size_t n = dirs.size(), pitch = n + kSsrStepPad;
-        std::vector<float> soa(6 * pitch, 0.0f);
+        thread_local std::vector<float> soa;
+        const std::size_t n = dirs.size(), pitch = soa_arrays(soa, n, 6, 3);
         for (std::size_t i = 0; i < n; ++i) {
             soa[i] = dirs[i].x;
             soa[pitch + i] = dirs[i].y;
@@ -296,8 +312,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         const auto flush = [&] {
             // The candidates' directions from the GGX lobe (ggx_reflection_twin, or its vector
             // kernel, the same bits); those below the surface are dropped.
-            const std::size_t nc = candidates.size(), cpitch = nc + kSsrStepPad;
-            ggx_soa.assign(13 * cpitch, 0.0f);
+            const std::size_t nc = candidates.size(), cpitch = soa_arrays(ggx_soa, nc, 13, 9);
             float *gin[9], *gout[4];
             for (int c = 0; c < 9; ++c) {
                 gin[c] = ggx_soa.data() + std::size_t(c) * cpitch;
@@ -353,8 +368,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             candidates.clear();
             if (vector_kernels) {
                 // The rays' segments together (ssr_segments: segment()'s bits).
-                const std::size_t n = batch_rays.size(), pitch = n + kSsrStepPad;
-                seg_soa.assign(15 * pitch, 0.0f);
+                const std::size_t n = batch_rays.size(), pitch = soa_arrays(seg_soa, n, 15, 6);
                 for (std::size_t k = 0; k < n; ++k) {
                     const Ray &ray = batch_rays[k];
                     const glm::vec3 &o = batch_pixels[std::size_t(ray.pixel)].origin;
