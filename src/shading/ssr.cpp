@@ -468,12 +468,10 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
         // The traced pixels' set-up (glossy_pixel) on the weight kernel, the same bits: their
         // weights, normals, view directions and points side by side.
         thread_local std::vector<float> setup;
-        const std::size_t spitch = std::size_t(tw + kSsrStepPad);
         float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
         if (vector_kernels) {
-            if (setup.size() < 21 * spitch) {
-                setup.resize(21 * spitch);
-            }
+            // (weight_row_inputs zeroes its inputs' pads.)
+            const std::size_t spitch = soa_arrays(setup, std::size_t(tw), 21, 0);
             for (int c = 0; c < 9; ++c) {
                 sin[c] = setup.data() + std::size_t(c) * spitch;
             }
@@ -542,12 +540,10 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     parallel_for(0, h, [&](int y) {
         // The row's sky reflection weights (0 where the pixel is left alone): on the vector
         // kernel from the row's channels side by side, or glossy_pixel's scalar reference.
-        const std::size_t row = std::size_t(w + kSsrStepPad);
-        // The weights, then the row's channels (kept by each thread from row to row).
+        // The weights, then the row's channels (kept by each thread from row to row;
+        // weight_row_inputs zeroes the channels' pads).
         thread_local std::vector<float> buf;
-        if (buf.size() < 12 * row) {
-            buf.resize(12 * row);
-        }
+        const std::size_t row = soa_arrays(buf, std::size_t(w), 12, 0);
         float *wr = buf.data(), *wg = wr + row, *wb = wg + row;
         if (vector_kernels) {
             float *ch[9];
