@@ -41,10 +41,27 @@ constexpr ParamSpec kAoRadius =
         .range(1e-3, 100.0)
         .units("m")
         .doc("truth ao: occluders farther than this from the surface point do not count.");
-constexpr ParamSpec kParams[] = {
-    kScene, kWidth, kHeight, kSupersample, kShadows, kTruth, kSamples, kSeed, kAoRadius};
+constexpr ParamSpec kProjection =
+    ParamSpec::choice("projection", "perspective|latlong", "perspective")
+        .doc(
+            "latlong: a reflection probe, the radiance seen from the camera's position in every "
+            "direction, exactly traced (samples: rays a texel), as a latitude-longitude map "
+            "(width x height, +y up, the top row straight up, the middle column looking down "
+            "-z) with color and depth (distance, +inf for the sky); header "
+            "posthaste:probePosition. For ssr's environment input.");
+constexpr ParamSpec kParams[] = {kScene,
+                                 kWidth,
+                                 kHeight,
+                                 kSupersample,
+                                 kShadows,
+                                 kTruth,
+                                 kSamples,
+                                 kSeed,
+                                 kAoRadius,
+                                 kProjection};
 constexpr int kTruthAo = 4;
 constexpr int kTruthReflections = 5;
+constexpr int kProjectionLatLong = 1;
 
 raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
 {
@@ -80,6 +97,11 @@ void add_sun_attributes(const raster::Scene &scene, Frame &frame)
         OIIO::ParamValue("posthaste:sunIlluminance", OIIO::TypeVector, 1, &e));
     // The scale of the sky light in the beauty (the ssr node's sky fallback defaults to it).
     frame.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", scene.sky_ambient));
+    // The scene's sun as it lights the beauty (colour times illuminance): the ssr node shades
+    // its hits' sun response for the reflected rays with it.
+    const glm::vec3 sun = scene.sun.color * scene.sun.illuminance;
+    frame.attributes.push_back(
+        OIIO::ParamValue("posthaste:sunIrradiance", OIIO::TypeVector, 1, &sun));
 }
 
 void execute(NodeContext &ctx)
@@ -93,6 +115,26 @@ void execute(NodeContext &ctx)
     raster::RenderOptions options = render_options(ctx.params(), ctx.requested());
     const int truth = ctx.get_choice(kTruth);
     try {
+        if (ctx.get_choice(kProjection) == kProjectionLatLong) {
+            raster::EnvironmentProbe probe =
+                raster::render_environment_probe(scene,
+                                                 ctx.frame_number(),
+                                                 options.width,
+                                                 options.height,
+                                                 ctx.get_int(kSamples),
+                                                 std::uint32_t(ctx.get_int(kSeed)));
+            Frame &f = ctx.output();
+            f.set_size(options.width, options.height);
+            if (ctx.requested().wants(pass::kColor)) {
+                f.set(pass::kColor, std::move(probe.color));
+            }
+            if (ctx.requested().wants(pass::kDepth)) {
+                f.set(pass::kDepth, std::move(probe.distance));
+            }
+            f.attributes.push_back(
+                OIIO::ParamValue("posthaste:probePosition", OIIO::TypeVector, 1, &probe.position));
+            return;
+        }
         if (truth == kTruthAo) {
             // The requested passes as usual, plus the exact ambient occlusion (rays per pixel:
             // `samples`).
@@ -152,7 +194,22 @@ void execute(NodeContext &ctx)
 void check(CheckContext &ctx)
 {
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
-    if (!ctx.downstream.all) {
+    if (ctx.params.get_choice(kProjection) == kProjectionLatLong) {
+        if (ctx.params.get_choice(kTruth) != 0) {
+            throw_usage(where,
+                        ": param \"projection\": latlong makes no ground truth (truth none)");
+        }
+        if (!ctx.downstream.all) {
+            for (const std::string &p : ctx.downstream.names) {
+                if (p != pass::kColor && p != pass::kDepth) {
+                    throw_usage(where,
+                                ": a latlong probe makes color and depth only, not pass \"",
+                                p,
+                                "\"; a node downstream reads it");
+                }
+            }
+        }
+    } else if (!ctx.downstream.all) {
         for (const std::string &p : ctx.downstream.names) {
             if (p == pass::kAo && ctx.params.get_choice(kTruth) == kTruthAo) {
                 continue;

@@ -7,6 +7,7 @@
 #include "shading/ssr.h"
 
 #include <cmath>
+#include <optional>
 
 #include "core/sanitize.h"
 #include "nodes/node.h"
@@ -65,6 +66,25 @@ constexpr ParamSpec kIntensity =
         .doc("Share of the change applied (0: the colour unchanged, nothing traced).");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Ray jitter pattern.");
+constexpr ParamSpec kEnvironmentPosition =
+    ParamSpec::vec3("environment_position", 0.0, 0.0, 0.0)
+        .units("scene units")
+        .doc(
+            "Where the environment input was taken (a reflection probe's position), for its "
+            "depth pass.")
+        .from_header("posthaste:probePosition");
+constexpr ParamSpec kParallax =
+    ParamSpec::boolean("parallax", true)
+        .doc(
+            "With an environment input that has a depth pass (distances from its position): a ray "
+            "sees "
+            "the probe's surface where it crosses it; off: everything in it infinitely far.");
+constexpr ParamSpec kSunIrradiance =
+    ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
+        .doc(
+            "The sun's colour times illuminance, to shade a hit's sun response as the reflected "
+            "ray sees it (0: hits keep the colour the camera saw).")
+        .from_header("posthaste:sunIrradiance");
 constexpr ParamSpec kParams[] = {kRays,
                                  kSteps,
                                  kRefine,
@@ -78,12 +98,82 @@ constexpr ParamSpec kParams[] = {kRays,
                                  kDenoise,
                                  kResolution,
                                  kIntensity,
-                                 kSeed};
+                                 kSeed,
+                                 kEnvironmentPosition,
+                                 kParallax,
+                                 kSunIrradiance};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,depth,normal,albedo,material",
      false,
-     "Colour, depth, world normals, albedo, material and camera matrices."}};
+     "Colour, depth, world normals, albedo, material and camera matrices."},
+    {"environment",
+     "color",
+     true,
+     "Optional: what rays the screen does not answer see instead of the sky: a "
+     "latitude-longitude map (render's projection latlong, a renderer's panorama or HDRI; +y "
+     "up, the middle column looking down -z), with an optional depth pass of distances from "
+     "environment_position."}};
+
+/// The environment input sanitised into `probe` (its colour kept in `color_s`, its distances
+/// resampled into `cube`).
+void environment_probe(NodeContext &ctx,
+                       shading::Probe &probe,
+                       Image &color_s,
+                       std::optional<shading::DistanceCube> &cube)
+{
+    const Frame &env = ctx.input("environment");
+    const std::string where = ctx.where() + ": input \"environment\"";
+    const Image &color = env.image("color", where);
+    if (color.channels() < 3) {
+        throw_runtime(
+            where, ": expected an RGB(A) color pass, got ", color.channels(), " channels");
+    }
+    probe.radiance = &finite_view(color, 0.0f, color_s);
+    if (!ctx.get_bool(kParallax) || !env.has("depth")) {
+        return;
+    }
+    const Image &depth = env.image("depth", where);
+    if (depth.width() != color.width() || depth.height() != color.height()) {
+        throw_runtime(where,
+                      ": pass \"depth\" is ",
+                      depth.width(),
+                      "x",
+                      depth.height(),
+                      ", pass \"color\" ",
+                      color.width(),
+                      "x",
+                      color.height());
+    }
+    if (!ctx.params().given(kEnvironmentPosition) &&
+        !env.attributes.find_pv(std::string(kEnvironmentPosition.header))) {
+        throw_runtime(where,
+                      ": has a depth pass but no position (param \"environment_position\" or "
+                      "header posthaste:probePosition; or parallax false)");
+    }
+    probe.position = param_or_header_vec3(ctx, kEnvironmentPosition, env);
+    probe.max_distance = ctx.get_float(kMaxDistance);
+    probe.thickness = ctx.get_float(kThickness);
+    probe.march_steps = ctx.get_int(kSteps);
+    probe.refine_steps = ctx.get_int(kRefine);
+    if (!std::isfinite(probe.position.x) || !std::isfinite(probe.position.y) ||
+        !std::isfinite(probe.position.z)) {
+        throw_runtime(where, ": param \"environment_position\" must be finite");
+    }
+    // Distances: NaN and -inf read as the sky (no parallax there).
+    Image depth_s;
+    cube.emplace(finite_view(depth, std::numeric_limits<float>::infinity(), depth_s, true));
+    probe.distance = &*cube;
+}
+
+void plan(PlanContext &ctx)
+{
+    // The sun's visibility at the hits, for their re-shading, where the frame has it.
+    ctx.inputs[0].add_optional("shadow");
+    if (ctx.connected.size() > 1 && ctx.connected[1] && ctx.params.get_bool(kParallax)) {
+        ctx.inputs[1].add_optional("depth");  // the probe's distances, where it has them
+    }
+}
 
 void execute(NodeContext &ctx)
 {
@@ -137,6 +227,25 @@ void execute(NodeContext &ctx)
                       "finite and >= 0 (header posthaste:sunDirection, posthaste:skyAmbient)");
     }
     p.sun_direction = sun_dir / len;
+    p.sun_irradiance = param_or_header_vec3(ctx, kSunIrradiance, in);
+    if (!std::isfinite(p.sun_irradiance.x) || !std::isfinite(p.sun_irradiance.y) ||
+        !std::isfinite(p.sun_irradiance.z) || p.sun_irradiance.x < 0.0f ||
+        p.sun_irradiance.y < 0.0f || p.sun_irradiance.z < 0.0f) {
+        throw_runtime(ctx.where(),
+                      ": param \"sun_irradiance\" (header posthaste:sunIrradiance) must be "
+                      "finite and >= 0");
+    }
+    Image shadow_s;
+    if (p.sun_irradiance != glm::vec3(0.0f) && in.has("shadow")) {
+        si.shadow = &finite_view(in.image("shadow", ctx.where()), 0.0f, shadow_s);
+    }
+    shading::Probe probe;
+    Image env_color_s;
+    std::optional<shading::DistanceCube> env_cube;
+    if (ctx.has_input("environment")) {
+        environment_probe(ctx, probe, env_color_s, env_cube);
+        si.environment = &probe;
+    }
     Image out = shading::ssr(si, p);
     ctx.output().set("color",
                      std::make_shared<const Image>(std::move(out)),
@@ -154,7 +263,7 @@ extern const NodeType kSsr{
      kParams,
      "color"},
     &execute,
-    nullptr,
+    &plan,
     nullptr};
 
 }  // namespace posthaste::nodes

@@ -29,6 +29,8 @@ inline constexpr const char *kDiffuseMotion = "diffuse_motion";
 // specular_depth.Z: the camera depth at which the specular share is in focus (the depth of a
 // highlight's virtual image), as depth
 inline constexpr const char *kSpecularDepth = "specular_depth";
+// shadow.Y: the sun's visibility at the surface, 1 lit .. 0 shadowed or facing away (0 on the sky)
+inline constexpr const char *kShadow = "shadow";
 // Made by nodes, not read by alias: ambient occlusion (ao.Y, 0 occluded .. 1 open).
 inline constexpr const char *kAo = "ao";
 

@@ -41,6 +41,10 @@ struct KernelLight {
 // `sm` where vis > 0 (render_shadow_kernels.cpp, the CPU's best Highway target).
 void shadow_lanes(const ShadowMap &sm, SurfaceLanes &s, int count);
 
+// The sun's visibility at surface point p with normal n (facing the viewer): 0 where n faces away
+// from the sun, else the shadow maps' filtered lookups multiplied (the shadow pass; shade()).
+float sun_visibility(const Lighting &lt, const glm::vec3 &p, const glm::vec3 &n);
+
 // The beauty of one surface sample; with `specular`, also its view-dependent share: the colour
 // less the diffuse terms (albedo (1 - metallic) times the sun's n.l / pi, or its toon band, and
 // the sky ambient), so that colour - specular moves with the surface.

@@ -10,6 +10,7 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "shading/environment.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
 #include "shading/sky.h"
@@ -253,8 +254,6 @@ Image render_ao_truth(const Scene &scene,
 
 namespace {
 
-constexpr float kHitMinRoughness = 0.3f;
-
 /// Radiance leaving a surface the truth's reflected ray meets, toward the ray's origin: the
 /// rasterizer's shading (shading::direct_response with toon bands, add_sky_light) with the sun's
 /// shadow from an exact ray instead of a shadow map. Isotropic (a hit has no tangent).
@@ -281,11 +280,11 @@ glm::vec3 shade_hit(const Scene &scene,
         shading::DirectOptions direct;
         direct.toon_bands = mat->toon ? 3 : 0;
         // Path regularisation (Kaplanyan and Dachsbacher 2013): the sun's highlight on a hit is
-        // drawn with roughness at least kHitMinRoughness. A near-mirror hit would otherwise
-        // show the sun's glint to a few rays in thousands (sun -> polished floor -> glossy
-        // ball -> camera), noise that 256 rays do not average away.
+        // drawn with roughness at least kReflectedSunMinRoughness. A near-mirror hit would
+        // otherwise show the sun's glint to a few rays in thousands (sun -> polished floor ->
+        // glossy ball -> camera), noise that 256 rays do not average away.
         shading::Surface lobe = surf;
-        lobe.roughness = std::max(lobe.roughness, kHitMinRoughness);
+        lobe.roughness = std::max(lobe.roughness, shading::kReflectedSunMinRoughness);
         c = shading::direct_response(lobe, n, v, l, direct) * scene.sun.color *
             scene.sun.illuminance;
     }
@@ -370,6 +369,54 @@ Image render_reflection_truth(
         }
     });
     return out;
+}
+
+EnvironmentProbe render_environment_probe(
+    const Scene &scene, int frame, int width, int height, int samples, std::uint32_t seed)
+{
+    EnvironmentProbe probe;
+    probe.color = Image(width, height, 4);
+    probe.distance = Image(width, height, 1);
+    probe.position = scene.camera_at(double(frame)).position;
+    const RayScene rays(scene, double(frame));
+    const shading::SceneSky &sky = shading::scene_sky(scene.sun.direction);
+    const glm::vec3 sky_camera(0.0f, shading::kSkyCameraY, 0.0f);
+    const float max_dist =
+        glm::length(
+            glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
+        1e3f;
+    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    const float inf = std::numeric_limits<float>::infinity();
+    const glm::vec3 o = probe.position;
+    const auto radiance = [&](const glm::vec3 &l) {
+        if (const auto hit = rays.closest(o, l, max_dist)) {
+            return shade_hit(scene, rays, sky, o + l * hit->distance, *hit, -l);
+        }
+        return sky.radiance(l, sky_camera, false) * scene.sky_ambient;
+    };
+    parallel_for(0, height, [&](int y) {
+        for (int x = 0; x < width; ++x) {
+            glm::vec3 sum(0.0f);
+            for (int i = 0; i < strata * strata; ++i) {
+                const float jx = (float(i % strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
+                const float jy =
+                    (float(i / strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
+                sum += radiance(shading::latlong_direction((float(x) + jx) / float(width),
+                                                           (float(y) + jy) / float(height)));
+            }
+            sum /= float(strata * strata);
+            float *px = probe.color.pixel(x, y);
+            px[0] = sum.x;
+            px[1] = sum.y;
+            px[2] = sum.z;
+            px[3] = 1.0f;
+            const glm::vec3 centre = shading::latlong_direction((float(x) + 0.5f) / float(width),
+                                                                (float(y) + 0.5f) / float(height));
+            const auto hit = rays.closest(o, centre, max_dist);
+            probe.distance.at(x, y, 0) = hit ? hit->distance : inf;
+        }
+    });
+    return probe;
 }
 
 }  // namespace posthaste::raster

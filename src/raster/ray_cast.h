@@ -94,4 +94,19 @@ Image render_ao_truth(const Scene &scene,
 Image render_reflection_truth(
     const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed);
 
+/// A reflection probe: the radiance seen from one point in every direction, exactly traced, in
+/// the latitude-longitude layout of shading/environment.h.
+struct EnvironmentProbe {
+    Image color;     ///< RGBA, alpha 1: each hit shaded as render_reflection_truth shades it
+                     ///< (viewed from the probe), the sky times sky_ambient where rays leave.
+    Image distance;  ///< One channel: distance to the surface met by the texel's centre ray,
+                     ///< +inf for the sky.
+    glm::vec3 position{0.0f};  ///< Where it was taken.
+};
+
+/// The probe of frame `frame` at the camera's position, width x height texels, each the mean of
+/// `samples` stratified directions inside the texel (jitter hashed from texel, sample and seed).
+EnvironmentProbe render_environment_probe(
+    const Scene &scene, int frame, int width, int height, int samples, std::uint32_t seed);
+
 }  // namespace posthaste::raster

@@ -141,7 +141,8 @@ const std::set<std::string> &render_pass_names()
                                                 pass::kSpecular,
                                                 pass::kSpecularMotion,
                                                 pass::kDiffuseMotion,
-                                                pass::kSpecularDepth};
+                                                pass::kSpecularDepth,
+                                                pass::kShadow};
     return names;
 }
 
@@ -201,8 +202,10 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     });
     std::unique_ptr<LightingState> ls;
     Image color, specular;
-    if (want_color) {
+    if (want_color || has(pass::kShadow)) {  // the shadow pass reads the shadow maps
         ls = std::make_unique<LightingState>(s, cache, g, o, stats);
+    }
+    if (want_color) {
         color = fresh_image(o.width, o.height, 4);
         if (want_specular) {
             specular = fresh_image(o.width, o.height, 3);
@@ -257,7 +260,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     Image position = make(pass::kPosition, 3), motion = make(pass::kMotion, 2);
     Image albedo = make(pass::kAlbedo, 3), material = make(pass::kMaterial, 3);
     Image tangent = make(pass::kTangent, 3), id = make(pass::kId, 1);
-    Image spec_depth = make(pass::kSpecularDepth, 1);
+    Image spec_depth = make(pass::kSpecularDepth, 1), shadow = make(pass::kShadow, 1);
     Image spec_motion = make(pass::kSpecularMotion, 2),
           diffuse_motion = make(pass::kDiffuseMotion, 2);
     const glm::vec4 zrow(v.world_to_camera[0][2],
@@ -280,6 +283,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
         RowBuffer spec_motion_row(spec_motion, n);
         DepthMotionRow sm(spec_motion_row.active() ? n : 0);
         RowBuffer diffuse_motion_row(diffuse_motion, n), spec_depth_row(spec_depth, n);
+        RowBuffer shadow_row(shadow, n);
         DepthMotionRow dfm(diffuse_motion_row.active() ? n : 0);
         RowBuffer normal_row(normal, n);
         RowBuffer position_row(position, n), motion_row(motion, n), albedo_row(albedo, n);
@@ -324,6 +328,9 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                     if (id_row.active()) {
                         *id_row.at(i) = 0.0f;
                     }
+                    if (shadow_row.active()) {
+                        *shadow_row.at(i) = 0.0f;
+                    }
                     continue;
                 }
                 const Hit h = hitter.hit(tid, d);
@@ -352,6 +359,11 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 put3(tangent_row, h.t);
                 if (id_row.active()) {
                     *id_row.at(i) = float(h.material);
+                }
+                if (shadow_row.active()) {
+                    // The side the camera sees, as shade() lights it.
+                    const glm::vec3 nv = glm::dot(h.n, d) > 0.0f ? -h.n : h.n;
+                    *shadow_row.at(i) = sun_visibility(ls->lighting, h.p, nv);
                 }
             }
             if (depth_motion_here) {
@@ -398,7 +410,8 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                                  &specular_row,
                                  &spec_motion_row,
                                  &diffuse_motion_row,
-                                 &spec_depth_row}) {
+                                 &spec_depth_row,
+                                 &shadow_row}) {
                 b->write(tile.x0, y);
             }
         }
@@ -412,6 +425,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     store(pass::kSpecularMotion, spec_motion);
     store(pass::kDiffuseMotion, diffuse_motion);
     store(pass::kSpecularDepth, spec_depth);
+    store(pass::kShadow, shadow);
     store(pass::kDepth, depth);
     store(pass::kNormal, normal);
     store(pass::kPosition, position);

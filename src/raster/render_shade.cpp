@@ -14,6 +14,18 @@
 
 namespace posthaste::raster::render_detail {
 
+float sun_visibility(const Lighting &lt, const glm::vec3 &p, const glm::vec3 &n)
+{
+    float vis = glm::dot(n, lt.scene->sun.direction) > 0.0f ? 1.0f : 0.0f;
+    if (vis > 0.0f && lt.static_map) {
+        vis *= shadow_lookup(*lt.static_map, p, n);
+    }
+    if (vis > 0.0f && lt.dynamic_map) {
+        vis *= shadow_lookup(*lt.dynamic_map, p, n);
+    }
+    return vis;
+}
+
 glm::vec3 shade(
     const Lighting &lt, const Hit &h, const glm::vec3 &view_dir, SkyCache &sky, glm::vec3 *specular)
 {
@@ -31,13 +43,7 @@ glm::vec3 shade(
     surf.anisotropy = mat.anisotropy;
     surf.tangent = h.t;
     const glm::vec3 l = s.sun.direction;
-    float vis = glm::dot(n, l) > 0.0f ? 1.0f : 0.0f;
-    if (vis > 0.0f && lt.static_map) {
-        vis *= shadow_lookup(*lt.static_map, h.p, n);
-    }
-    if (vis > 0.0f && lt.dynamic_map) {
-        vis *= shadow_lookup(*lt.dynamic_map, h.p, n);
-    }
+    const float vis = sun_visibility(lt, h.p, n);
     const glm::vec3 e_sun = s.sun.color * s.sun.illuminance * vis;
     glm::vec3 c(0.0f);
     if (vis > 0.0f) {

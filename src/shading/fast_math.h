@@ -49,4 +49,33 @@ inline float fast_acos(float x)
     return x < 0.0f ? 3.14159265358979f - r : r;
 }
 
+/// atan2(y, x) to about 1e-7 rad: the arctangent of the smaller over the larger magnitude, in
+/// [0, 1], by Abramowitz and Stegun 4.4.49 (error 2e-8), then moved to its octant. 0 at the
+/// origin.
+inline float fast_atan2(float y, float x)
+{
+    const float ax = std::fabs(x), ay = std::fabs(y);
+    const float hi = std::max(ax, ay), lo = std::min(ax, ay);
+    if (!(hi > 0.0f)) {
+        return 0.0f;
+    }
+    const float a = lo / hi, s = a * a;
+    float p = 0.0028662257f;
+    p = p * s - 0.0161657367f;
+    p = p * s + 0.0429096138f;
+    p = p * s - 0.0752896400f;
+    p = p * s + 0.1065626393f;
+    p = p * s - 0.1420889944f;
+    p = p * s + 0.1999355085f;
+    p = p * s - 0.3333314528f;
+    float r = (p * s + 1.0f) * a;
+    if (ay > ax) {
+        r = 1.57079632679f - r;
+    }
+    if (x < 0.0f) {
+        r = 3.14159265359f - r;
+    }
+    return y < 0.0f ? -r : r;
+}
+
 }  // namespace posthaste::shading

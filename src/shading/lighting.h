@@ -15,6 +15,12 @@ namespace posthaste::shading {
 
 class SceneSky;
 
+/// The least roughness of the sun's highlight on a surface that a reflected ray meets, in the
+/// reflection truth (raster/ray_cast.h) and in ssr's re-shaded hits: path regularisation
+/// (Kaplanyan and Dachsbacher 2013), which keeps near-mirror sun glints seen in a reflection
+/// from turning into fireflies.
+inline constexpr float kReflectedSunMinRoughness = 0.3f;
+
 /// Options of direct_response. The defaults are exactly the rasterizer's non-toon shading.
 struct DirectOptions {
     Geometry geometry = Geometry::SmithCorrelated;

@@ -423,7 +423,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                                                                     crossed.data() + k * step_pitch)
                                              : marcher.march(ray.seg, ray.l, ray.jitter);
                 }
-                if (ray.hit.w < 1.0f) {
+                if (ray.hit.w < 1.0f && !in.environment) {
                     ray.sky = int(sky_dirs.size());
                     sky_dirs.push_back(ray.l);
                 }
@@ -440,7 +440,10 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             for (const Ray &ray : batch_rays) {
                 glm::vec3 radiance(ray.hit);
                 if (ray.hit.w < 1.0f) {  // the sky, for what the screen does not show
-                    const glm::vec3 sky_l = sky_values[std::size_t(ray.sky)] * p.sky_scale;
+                    const glm::vec3 sky_l =
+                        in.environment ? in.environment->seen(
+                                             batch_pixels[std::size_t(ray.pixel)].origin, ray.l)
+                                       : sky_values[std::size_t(ray.sky)] * p.sky_scale;
                     radiance = sky_l + (radiance - sky_l) * ray.hit.w;
                 }
                 batch_pixels[std::size_t(ray.pixel)].sum += radiance * ray.nl;

@@ -15,6 +15,7 @@
 
 #include "core/image.h"
 #include "shading/camera_rays.h"
+#include "shading/environment.h"
 
 namespace posthaste::shading {
 
@@ -33,6 +34,10 @@ struct SsrParams {
     /// A ray that leaves the screen in front of the surface its last sample saw meets that
     /// surface's colour (the surface taken to go on past the edge) instead of the sky.
     bool extend = false;
+    /// The sun's irradiance (colour times illuminance) for re-shading hits: a hit's sun
+    /// response as the reflected ray sees it instead of as the camera saw it. Zero: hits keep
+    /// the colour the camera saw.
+    glm::vec3 sun_irradiance{0.0f};
     /// 1: rays from every glossy pixel; 2: from every other pixel in x and y (a quarter of the
     /// rays), the resolve filling the others from their traced neighbours on the same surface.
     int stride = 2;
@@ -53,6 +58,12 @@ struct SsrInputs {
     const Image *material = nullptr;
     glm::mat4 world_to_camera{1.0f};
     glm::mat4 world_to_ndc{1.0f};
+    /// Optional: what a ray that the screen does not answer sees instead of the sky (a
+    /// reflection probe or the scene's environment map, shading/environment.h).
+    const Probe *environment = nullptr;
+    /// Optional: the sun's visibility (shadow pass, 1 lit .. 0 shadowed) for re-shading hits;
+    /// without it a hit facing the sun is taken to be lit.
+    const Image *shadow = nullptr;
 };
 
 /// What ssr() did, for the bench and the tests.

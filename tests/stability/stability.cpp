@@ -158,7 +158,12 @@ Frame plain_frame(int w, int h, int number)
 std::vector<HostileFrame> hostile_frames()
 {
     std::vector<HostileFrame> out;
-    const Frame base = plain_frame(16, 16);
+    Frame base = plain_frame(16, 16);
+    // Every port gets the frame, ssr's environment too: where it was taken, as a reflection
+    // probe's header says, so that its depth pass reads as the probe's distances.
+    const glm::vec3 probe(0.0f, 1.5f, -5.0f);
+    base.attributes.push_back(
+        OIIO::ParamValue("posthaste:probePosition", OIIO::TypeVector, 1, &probe));
     out.push_back({"plain", "ordinary finite values (the control)", base});
     out.push_back({"nan_everywhere",
                    "NaN in every pass, one channel at every 5th pixel",

@@ -18,6 +18,7 @@
 #include "raster/scene.h"
 #include "shading/atmosphere.h"
 #include "shading/atmosphere_kernels.h"
+#include "shading/environment.h"
 #include "shading/lighting.h"
 #include "shading/scene_sky.h"
 #include "shading/sky.h"
@@ -31,13 +32,18 @@ using test::rms_rgb;
 using test::scene_path;
 
 /// The glossy scene's frame with every pass ssr reads, and the header the render node writes.
-Frame glossy_frame(const raster::Scene &s, int w, int h)
+Frame glossy_frame(const raster::Scene &s, int w, int h, int frame = 1)
 {
     Frame f = raster::render_frame(
-        s, 1, render_options(w, h, {"color", "depth", "normal", "albedo", "material", "position"}));
+        s,
+        frame,
+        render_options(
+            w, h, {"color", "depth", "normal", "albedo", "material", "position", "shadow"}));
     const glm::vec3 d = s.sun.direction;
     f.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
     f.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", s.sky_ambient));
+    const glm::vec3 sun = s.sun.color * s.sun.illuminance;
+    f.attributes.push_back(OIIO::ParamValue("posthaste:sunIrradiance", OIIO::TypeVector, 1, &sun));
     return f;
 }
 
@@ -163,13 +169,18 @@ TEST(Ssr, TruthNoiseFallsWithTheRayCount)
 TEST(Ssr, RemovesMostOfTheMissingReflectionsOnTheGlossyScene)
 {
     raster::Scene s = raster::load_scene(scene_path("glossy.json"));
-    const Frame f = glossy_frame(s, 240, 135);
+    const Frame f = glossy_frame(s, 480, 270);
     const Image truth =
-        raster::render_reflection_truth(s, 1, render_options(240, 135, {"color"}), 256, 7);
+        raster::render_reflection_truth(s, 1, render_options(480, 270, {"color"}), 64, 7);
     const double none = rms_rgb(f.image("color"), truth);
     const Frame out = test::run_node("ssr", f, "{}");
     const double ssr = rms_rgb(out.image("color"), truth);
-    EXPECT_LT(ssr, 0.7 * none) << "ssr " << ssr << " nothing " << none;
+    EXPECT_LT(ssr, 0.5 * none) << "ssr " << ssr << " nothing " << none;
+    // Without the shadow pass, hits facing the sun are taken to be lit: close, on this scene.
+    Frame no_shadow = f;
+    no_shadow.erase("shadow");
+    const Frame lit = test::run_node("ssr", no_shadow, "{}");
+    EXPECT_LT(rms_rgb(lit.image("color"), truth), 0.6 * none);
     // Only colour changes: alpha and every other pass are the input's.
     const Image &a = out.image("color"), &b = f.image("color");
     for (int y = 0; y < a.height(); ++y) {
@@ -178,6 +189,23 @@ TEST(Ssr, RemovesMostOfTheMissingReflectionsOnTheGlossyScene)
         }
     }
     EXPECT_EQ(out.pass("depth").image, f.pass("depth").image);
+}
+
+TEST(Ssr, ReshadedHitsShowHighlightsWhereTheReflectedRaysSeeThem)
+{
+    // Frame 16: the gold ball and its image in the polished floor, each showing the sun's
+    // highlight as the other sees it. Hits that keep the colour the camera saw (no
+    // sun_irradiance) put those highlights where the camera saw them.
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 480, 270, 16);
+    const Image truth =
+        raster::render_reflection_truth(s, 16, render_options(480, 270, {"color"}), 64, 7);
+    const double none = rms_rgb(f.image("color"), truth);
+    const double reshaded = rms_rgb(test::run_node("ssr", f, "{}", 16).image("color"), truth);
+    const double as_seen = rms_rgb(
+        test::run_node("ssr", f, R"({"sun_irradiance": [0, 0, 0]})", 16).image("color"), truth);
+    EXPECT_LT(reshaded, 0.9 * as_seen) << "re-shaded " << reshaded << " as seen " << as_seen;
+    EXPECT_LT(as_seen, none);
 }
 
 TEST(Ssr, SkyRoughSurfacesAndZeroIntensityAreLeftAlone)
@@ -211,7 +239,7 @@ TEST(Ssr, NonFinitePassesAndExtremeParametersGiveFiniteOutput)
     const Frame clean = glossy_frame(s, 96, 54);
     const float nan = std::numeric_limits<float>::quiet_NaN();
     const float inf = std::numeric_limits<float>::infinity();
-    for (const char *pass : {"color", "depth", "normal", "albedo", "material"}) {
+    for (const char *pass : {"color", "depth", "normal", "albedo", "material", "shadow"}) {
         for (const float bad : {nan, inf, -inf}) {
             Frame f = clean;
             Image img = f.image(pass);
@@ -235,7 +263,8 @@ TEST(Ssr, NonFinitePassesAndExtremeParametersGiveFiniteOutput)
           R"({"rays": 1, "steps": 1, "refine": 0, "denoise": 0, "thickness": 0.0001})",
           R"({"thickness": 10000, "max_distance": 1000000, "edge_fade": 0.5})",
           R"({"max_distance": 0.001, "max_roughness": 1, "offscreen": "sky"})",
-          R"({"sky_scale": 1000000, "sun_direction": [0, -1, 0]})"}) {
+          R"({"sky_scale": 1000000, "sun_direction": [0, -1, 0]})",
+          R"({"sun_irradiance": [1000000, 0, 1000000]})"}) {
         const Frame out = test::run_node("ssr", clean, params);
         const Image &o = out.image("color");
         for (std::size_t i = 0; i < o.value_count(); ++i) {
@@ -360,6 +389,85 @@ TEST(Ssr, SamplerTwinDrawsTheTruthsDirections)
         worst_l = std::max(worst_l, double(glm::length(glm::vec3(l[0], l[1], l[2]) - want)));
     }
     EXPECT_LT(worst_l, 1e-6);
+}
+
+/// A latitude-longitude map of w x h whose every texel is `f(direction at its centre)`.
+template <typename F>
+Frame environment_frame(int w, int h, F f)
+{
+    Image map(w, h, 4);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const glm::vec3 c = f(shading::latlong_direction((float(x) + 0.5f) / float(w),
+                                                             (float(y) + 0.5f) / float(h)));
+            map.at(x, y, 0) = c.x;
+            map.at(x, y, 1) = c.y;
+            map.at(x, y, 2) = c.z;
+            map.at(x, y, 3) = 1.0f;
+        }
+    }
+    Frame env;
+    env.set_size(w, h);
+    env.set("color", std::move(map));
+    return env;
+}
+
+TEST(Ssr, EnvironmentInputReplacesTheSkyForWhatTheScreenMisses)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 120, 68);
+    const test::NodeRunner runner("ssr", "{}");
+    const Image sky_out = runner.run(f).image("color");
+    // The sky itself as the environment: the same result but for the map's resolution.
+    const shading::SceneSky &sky = shading::scene_sky(s.sun.direction);
+    const glm::vec3 sky_camera(0.0f, shading::kSkyCameraY, 0.0f);
+    const Frame sky_env = environment_frame(512, 256, [&](const glm::vec3 &d) {
+        return sky.radiance(d, sky_camera, false) * s.sky_ambient;
+    });
+    const Image same = runner.run_ports({{"image", f}, {"environment", sky_env}}).image("color");
+    EXPECT_LT(rms_rgb(same, sky_out), 0.02 * rms_rgb(sky_out, f.image("color")));
+    // A red environment: reflections turn red where rays leave the screen, nowhere bluer.
+    const Frame red_env =
+        environment_frame(64, 32, [](const glm::vec3 &) { return glm::vec3(4.0f, 0.0f, 0.0f); });
+    const Image red = runner.run_ports({{"image", f}, {"environment", red_env}}).image("color");
+    int redder = 0;
+    for (int y = 0; y < red.height(); ++y) {
+        for (int x = 0; x < red.width(); ++x) {
+            ASSERT_LE(red.at(x, y, 2), sky_out.at(x, y, 2) + 1e-6f) << x << "," << y;
+            redder += red.at(x, y, 0) > sky_out.at(x, y, 0) + 1e-3f ? 1 : 0;
+        }
+    }
+    EXPECT_GT(redder, red.width() * red.height() / 20);
+}
+
+TEST(Ssr, EnvironmentInputNamesWhatIsWrong)
+{
+    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
+    const Frame f = glossy_frame(s, 48, 27);
+    Frame env = environment_frame(32, 16, [](const glm::vec3 &) { return glm::vec3(1.0f); });
+    auto expect_error = [&](const Frame &e, const std::string &params, const std::string &needle) {
+        try {
+            test::NodeRunner("ssr", params).run_ports({{"image", f}, {"environment", e}});
+            ADD_FAILURE() << "no error for " << needle;
+        } catch (const Error &err) {
+            EXPECT_NE(std::string(err.what()).find(needle), std::string::npos) << err.what();
+        }
+    };
+    Frame two = env;
+    two.set("color", Image(32, 16, 2), {"R", "G"});
+    expect_error(two, "{}", "environment");
+    // Distances without the position they were taken from.
+    Frame with_depth = env;
+    with_depth.set("depth", Image(32, 16, 1));
+    expect_error(with_depth, "{}", "environment_position");
+    // ... which the parameter gives, or parallax off ignores.
+    const Image ok = test::NodeRunner("ssr", R"({"environment_position": [10, 5, 10]})")
+                         .run_ports({{"image", f}, {"environment", with_depth}})
+                         .image("color");
+    EXPECT_EQ(ok.width(), 48);
+    test::NodeRunner("ssr", R"({"parallax": false})")
+        .run_ports({{"image", f}, {"environment", with_depth}});
+    expect_error(env, R"({"sun_irradiance": [-1, 0, 0]})", "sun_irradiance");
 }
 
 TEST(Ssr, NodeNamesWhatIsMissing)
