@@ -19,6 +19,7 @@ struct RenderCommand : RunSettings {
     std::string size = "1920x1080";
     int supersample = 1;
     bool no_shadows = false;
+    bool probe = false;
     std::string truth;
     int samples = 64;
     int seed = 0;
@@ -51,7 +52,7 @@ int render(const RenderCommand &o)
     }
     std::string passes = o.passes;
     if (passes == "all") {
-        passes = o.truth.empty() ? "*" : o.truth == "ao" ? "ao" : "color";
+        passes = o.probe ? "color,depth" : o.truth.empty() ? "*" : o.truth == "ao" ? "ao" : "color";
     }
     nlohmann::json g;
     g["nodes"] = nlohmann::json::array();
@@ -66,7 +67,8 @@ int render(const RenderCommand &o)
                             {"truth", truth},
                             {"samples", o.samples},
                             {"seed", o.seed},
-                            {"ao_radius", o.ao_radius}}}});
+                            {"ao_radius", o.ao_radius},
+                            {"projection", o.probe ? "latlong" : "perspective"}}}});
     g["nodes"].push_back(
         {{"id", "write"},
          {"type", "write"},
@@ -101,6 +103,11 @@ void add_render_command(CLI::App &app, int &exit_code)
     cmd->add_option("--supersample", o->supersample, "Beauty supersampling per axis: 1, 2 or 4")
         ->check(CLI::IsMember({1, 2, 4}));
     cmd->add_flag("--no-shadows", o->no_shadows, "Turn the sun's shadow map off");
+    cmd->add_flag("--probe",
+                  o->probe,
+                  "A reflection probe instead: the latitude-longitude map seen from the camera's "
+                  "position, exactly traced (color, and depth as distance; --samples rays a "
+                  "texel); for ssr's environment input");
     cmd->add_option(
         "--truth", o->truth, "Ground truth: motion, dof, motion,dof, ao or reflections");
     cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")

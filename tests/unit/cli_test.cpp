@@ -247,6 +247,32 @@ TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
         << out;
 }
 
+TEST(Cli, RenderProbeWritesTheMapWithItsDistancesAndPosition)
+{
+    const std::string dir = test::scratch_dir("cli_probe");
+    const std::string scene = std::string(POSTHASTE_TEST_DIR) + "/../samples/scenes/glossy.json";
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " render " + scene + " --probe --size 64x32 --samples 1 -q -o " +
+                              dir + "/p.####.exr --frames 1",
+                          &out),
+              0)
+        << out;
+    const Frame f = read_frame(dir + "/p.0001.exr", nullptr, 1);
+    EXPECT_EQ(f.width(), 64);
+    EXPECT_EQ(f.height(), 32);
+    EXPECT_TRUE(f.has("color"));
+    EXPECT_TRUE(f.has("depth"));
+    EXPECT_NE(f.attributes.find_pv("posthaste:probePosition"), nullptr);
+    // A probe is not a ground truth.
+    EXPECT_EQ(run_command(kBin + " render " + scene + " --probe --truth ao --size 64x32 -o " + dir +
+                              "/q.####.exr --frames 1",
+                          &out),
+              2)
+        << out;
+    EXPECT_NE(out.find("projection"), std::string::npos) << out;
+    EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
+}
+
 TEST(Cli, InfoShowsTheMapping)
 {
     const std::string dir = test::scratch_dir("cli_info");
