@@ -82,8 +82,8 @@ constexpr ParamSpec kParallax =
 constexpr ParamSpec kSunIrradiance =
     ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
         .doc(
-            "The sun's colour times illuminance, to shade a hit's sun response as the reflected "
-            "ray sees it (0: hits keep the colour the camera saw).")
+            "The sun's colour times illuminance, to re-shade a hit's sun response and sky light "
+            "as the reflected ray sees them (0: hits keep the colour the camera saw).")
         .from_header("posthaste:sunIrradiance");
 constexpr ParamSpec kParams[] = {kRays,
                                  kSteps,

@@ -3,11 +3,12 @@
 // its roughness are marched through the depth pass in screen space (perspective-correct depth
 // along the projected segment, McGuire and Mara 2014's idea without their DDA: samples spaced
 // closer near the origin), a hit is refined by bisection and takes the colour pass's radiance
-// there; a ray that leaves the screen, meets nothing, or meets the back of a surface sees the
-// sky. The n.l-weighted mean of what the rays see replaces the sky lookup of the renderer's
-// specular term (shading::sky_reflection_weight), which is what raster::render_reflection_truth
-// computes exactly. Near the screen's edges hits fade into the sky (a ray that hits there
-// would soon have left the screen, so its neighbours disagree).
+// there, re-shaded for the ray's view (its sun response and sky light); a ray that leaves the
+// screen, meets nothing, or meets the back of a surface sees the sky (or the environment
+// input: a reflection probe, shading/environment.h). The n.l-weighted mean of what the rays see
+// replaces the sky lookup of the renderer's specular term (shading::sky_reflection_weight), which
+// is what raster::render_reflection_truth computes exactly. Near the screen's edges hits fade into
+// the sky (a ray that hits there would soon have left the screen, so its neighbours disagree).
 
 #include <cstdint>
 #include <glm/mat4x4.hpp>
@@ -35,8 +36,8 @@ struct SsrParams {
     /// surface's colour (the surface taken to go on past the edge) instead of the sky.
     bool extend = false;
     /// The sun's irradiance (colour times illuminance) for re-shading hits: a hit's sun
-    /// response as the reflected ray sees it instead of as the camera saw it. Zero: hits keep
-    /// the colour the camera saw.
+    /// response and sky light as the reflected ray sees them instead of as the camera saw them.
+    /// Zero: hits keep the colour the camera saw.
     glm::vec3 sun_irradiance{0.0f};
     /// 1: rays from every glossy pixel; 2: from every other pixel in x and y (a quarter of the
     /// rays), the resolve filling the others from their traced neighbours on the same surface.

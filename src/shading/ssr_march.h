@@ -10,6 +10,8 @@
 #include <optional>
 
 #include "shading/lighting.h"
+#include "shading/scene_sky.h"
+#include "shading/sky.h"
 #include "shading/ssr.h"
 #include "shading/ssr_kernels.h"
 
@@ -265,35 +267,38 @@ class Marcher {
         return glm::vec4(col, w);
     }
 
-    /// The change of a hit's sun response from the camera's view to the reflected ray's
-    /// (toward -dir), with the truth's hit lobe (roughness at least kReflectedSunMinRoughness).
+    /// The change of a hit's shading from the camera's view to the reflected ray's (toward
+    /// -dir): its sun response (the truth's hit lobe, roughness at least
+    /// kReflectedSunMinRoughness; the shadow pass's visibility) and its sky light
+    /// (add_sky_light: the sky reflected about the normal, Fresnel at n.v).
     glm::vec3 reshade(int hx, int hy, glm::vec3 n, const glm::vec3 &dir) const
     {
         const glm::vec3 l = p_.sun_direction;
-        float vis = in_.shadow ? in_.shadow->at(hx, hy, 0) : 1.0f;
-        if (!(vis > 0.0f)) {
-            return glm::vec3(0.0f);
-        }
         const float u = (float(hx) + 0.5f) / float(width_), v = (float(hy) + 0.5f) / float(height_);
         const glm::vec3 ray = rays_.depth_ray(u, v);
         const glm::vec3 v_cam = -ray / std::sqrt(glm::dot(ray, ray));
         if (glm::dot(n, v_cam) < 0.0f) {
             n = -n;
         }
-        if (!(glm::dot(n, l) > 0.0f)) {
-            return glm::vec3(0.0f);
-        }
         Surface surf;
         surf.albedo = glm::vec3(
             in_.albedo->at(hx, hy, 0), in_.albedo->at(hx, hy, 1), in_.albedo->at(hx, hy, 2));
         surf.roughness = std::clamp(in_.material->at(hx, hy, 0), 0.0f, 1.0f);
         surf.metallic = std::clamp(in_.material->at(hx, hy, 1), 0.0f, 1.0f);
-        Surface lobe = surf;
-        lobe.roughness = std::max(lobe.roughness, kReflectedSunMinRoughness);
-        const DirectOptions direct;
-        const glm::vec3 seen = direct_response(surf, n, v_cam, l, direct);
-        const glm::vec3 reflected = direct_response(lobe, n, -dir, l, direct);
-        return (reflected - seen) * (p_.sun_irradiance * vis);
+        glm::vec3 seen(0.0f), reflected(0.0f);
+        const float vis = in_.shadow ? in_.shadow->at(hx, hy, 0) : 1.0f;
+        if (vis > 0.0f && glm::dot(n, l) > 0.0f) {
+            Surface lobe = surf;
+            lobe.roughness = std::max(lobe.roughness, kReflectedSunMinRoughness);
+            const DirectOptions direct;
+            const glm::vec3 e = p_.sun_irradiance * vis;
+            seen = direct_response(surf, n, v_cam, l, direct) * e;
+            reflected = direct_response(lobe, n, -dir, l, direct) * e;
+        }
+        const glm::vec3 ambient = sky_.ambient(n);
+        seen = add_sky_light(seen, surf, n, v_cam, sky_, ambient, p_.sky_scale);
+        reflected = add_sky_light(reflected, surf, n, -dir, sky_, ambient, p_.sky_scale);
+        return reflected - seen;
     }
 
     /// 1 / the depth of the traced grid's cell under q (clamped to the grid), 0 on the sky.
@@ -318,6 +323,7 @@ class Marcher {
     const SsrInputs &in_;
     const SsrParams &p_;
     CameraRays rays_{in_.world_to_camera, in_.world_to_ndc};
+    const SceneSky &sky_ = scene_sky(p_.sun_direction);
     int width_, height_;
     const float *inv_depth_;  ///< grid_w_ x grid_h_, row-major
     int grid_w_, grid_h_;
