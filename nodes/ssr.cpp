@@ -77,8 +77,7 @@ constexpr ParamSpec kParallax =
     ParamSpec::boolean("parallax", true)
         .doc(
             "With an environment input that has a depth pass (distances from its position): a ray "
-            "sees "
-            "the probe's surface where it crosses it; off: everything in it infinitely far.");
+            "sees the probe's surface where it crosses it; off: everything in it infinitely far.");
 constexpr ParamSpec kSunIrradiance =
     ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
         .doc(
