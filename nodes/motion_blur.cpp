@@ -83,6 +83,15 @@ constexpr ParamSpec kSpecular =
             "a source can give them), blur the specular share along specular_motion and the rest "
             "of color along diffuse_motion where the input has it, else along motion (source "
             "motion only); off: blur color as one.");
+constexpr ParamSpec kSpecularKnee =
+    ParamSpec::real("specular_knee", 1.0)
+        .range(0.0, 1e6)
+        .doc(
+            "The lighting split blurs on its own only what a pixel's specular share holds above "
+            "this (scene-linear, per channel); below it the share stays in color and is blurred "
+            "with the rest, where a smooth, dim reflection loses little. 0: all of it apart "
+            "(a second blur over every glossy surface).")
+        .only_when("specular", "auto");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Seed of the per-pixel jitter.");
 constexpr ParamSpec kParams[] = {kShutter,
@@ -97,6 +106,7 @@ constexpr ParamSpec kParams[] = {kShutter,
                                  kSource,
                                  kMethod,
                                  kSpecular,
+                                 kSpecularKnee,
                                  kSeed};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
@@ -164,18 +174,22 @@ Image blur_split(NodeContext &ctx,
     // A parting pixel spreads at most max_radius; what lands there is gathered from as far
     // again, plus the tiles of the neighbour-max lookup.
     const int reach = 2 * (int(std::ceil(o.max_radius)) + 2 * o.tile);
+    const float knee = ctx.get_float(kSpecularKnee);
     const shading::SplitRegion region =
         shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
             for (int x = 0; x < w; ++x) {
                 const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
-                row[x] = std::abs(a[0] - b[0]) > 1e-3f || std::abs(a[1] - b[1]) > 1e-3f;
+                const bool parts = std::abs(a[0] - b[0]) > 1e-3f || std::abs(a[1] - b[1]) > 1e-3f;
+                row[x] = !parts                                        ? shading::kSplitNone
+                         : shading::above_knee(spec.pixel(x, y), knee) ? shading::kSplitShare
+                                                                       : shading::kSplitGeometry;
             }
         });
     if (region.empty()) {
         return shading::motion_blur(color, *rest_motion, depth, o);
     }
     const Rect &crop = region.crop;
-    const Image share = shading::share_color(spec, region);
+    const Image share = shading::share_color(spec, region, knee);
     // The other pixels hold no share but keep their motion, so that both blurs see the same
     // coverage (what passes in front of what, for how long).
     Image share_motion = Image::uninitialized(crop.width(), crop.height(), 2);
@@ -216,9 +230,15 @@ void execute(NodeContext &ctx)
                                      depth_storage,
                                      /*allow_positive_inf=*/true);
     const std::string &motion_pass = ctx.get_string(kMotionPass);
+    const bool split = ctx.get_choice(kSpecular) == 0 && ctx.get_choice(kSource) == 0 &&
+                       in.has(motion_pass) && in.has(pass::kSpecular) &&
+                       in.has(pass::kSpecularMotion);
     Image reprojected;
     const Image *motion = nullptr;
-    if (ctx.get_choice(kSource) == 0 && in.has(motion_pass)) {
+    if (split && in.has(pass::kDiffuseMotion)) {
+        // The split blurs the rest along diffuse_motion (checked there): motion is not read.
+        motion = &ctx.input_pass("image", motion_pass);
+    } else if (ctx.get_choice(kSource) == 0 && in.has(motion_pass)) {
         motion = &finite_view(ctx.input_pass("image", motion_pass), 0.0f, motion_storage);
         if (motion->channels() < 2) {
             throw_runtime(ctx.where(),
@@ -263,9 +283,6 @@ void execute(NodeContext &ctx)
     o.coherence = ctx.get_float(kCoherence);
     o.group_tolerance = ctx.get_float(kGroupTolerance);
     o.seed = std::uint32_t(ctx.get_int(kSeed));
-    const bool split = ctx.get_choice(kSpecular) == 0 && ctx.get_choice(kSource) == 0 &&
-                       in.has(motion_pass) && in.has(pass::kSpecular) &&
-                       in.has(pass::kSpecularMotion);
     Image out = split ? blur_split(ctx, color, *motion, depth, o)
                       : shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());

@@ -21,7 +21,7 @@ SplitRegion find_split(int width,
         std::uint8_t *row = r.parts.data() + std::size_t(y) * std::size_t(width);
         mark_row(y, row);
         for (int x = 0; x < width; ++x) {
-            if (row[x]) {
+            if (row[x] == kSplitShare) {
                 first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
                 last[std::size_t(y)] = x;
             }
@@ -44,7 +44,7 @@ SplitRegion find_split(int width,
     return r;
 }
 
-Image share_color(const Image &specular, const SplitRegion &region)
+Image share_color(const Image &specular, const SplitRegion &region, float knee)
 {
     const Rect &c = region.crop;
     Image share = Image::uninitialized(c.width(), c.height(), 4);
@@ -52,11 +52,12 @@ Image share_color(const Image &specular, const SplitRegion &region)
         const int y = c.y0 + j;
         for (int i = 0; i < c.width(); ++i) {
             const int x = c.x0 + i;
-            const bool parts = region.at(x, y);
+            const bool parts = region.lifted(x, y);
             const float *sp = specular.pixel(x, y);
             float *d = share.pixel(i, j);
             for (int k = 0; k < 3; ++k) {
-                d[k] = parts && std::isfinite(sp[k]) ? sp[k] : 0.0f;
+                const float v = knee > 0.0f ? std::max(sp[k] - knee, 0.0f) : sp[k];
+                d[k] = parts && std::isfinite(sp[k]) ? v : 0.0f;
             }
             d[3] = 0.0f;
         }

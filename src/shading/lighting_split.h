@@ -16,32 +16,57 @@
 
 namespace posthaste::shading {
 
+/// What find_split's `mark_row` writes for a pixel: its share moves with the rest; it parts
+/// ways and holds a share above the knee (above_knee), which is lifted out and blurred on its
+/// own; or it parts ways below the knee, so it lends the share's blur its own geometry (motion
+/// or depth: the share's image stays one coherent surface around a highlight) but keeps its
+/// share in colour.
+enum SplitMark : std::uint8_t { kSplitNone = 0, kSplitShare = 1, kSplitGeometry = 2 };
+
 /// The pixels whose share parts ways, and where the share's blur runs.
 struct SplitRegion {
     int width = 0, height = 0;        ///< The frame's size.
-    Rect box;                         ///< Bounds of the parting pixels (empty: none).
+    Rect box;                         ///< Bounds of the kSplitShare pixels (empty: none).
     Rect crop;                        ///< box grown by the reach, clipped to the frame.
-    std::vector<std::uint8_t> parts;  ///< Per frame pixel, row-major: 1 where it parts ways.
+    std::vector<std::uint8_t> parts;  ///< Per frame pixel, row-major: a SplitMark.
     bool empty() const { return box.empty(); }
+    /// The pixel parts ways (either mark): the share's blur sees it with the share's geometry.
     bool at(int x, int y) const
     {
-        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] != 0;
+        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] != kSplitNone;
+    }
+    /// The pixel's share is lifted out of colour (share_color).
+    bool lifted(int x, int y) const
+    {
+        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] == kSplitShare;
     }
 };
 
 /// Mark the parting pixels of a width x height frame, one row at a time (`mark_row(y, row)`
-/// writes 0 or 1 for each of the row's pixels), and bound them; the crop is the box grown by
-/// `reach` on every side (what a blur spreads from the box and gathers into it). Rows run in
-/// parallel; the result does not depend on the thread count.
+/// writes a SplitMark for each of the row's pixels), and bound those whose share is lifted; the
+/// crop is the box grown by `reach` on every side (what a blur spreads from the box and gathers
+/// into it). Rows run in parallel; the result does not depend on the thread count.
 SplitRegion find_split(int width,
                        int height,
                        int reach,
                        const std::function<void(int y, std::uint8_t *row)> &mark_row);
 
-/// The share over the region's crop, RGBA (the filters' packed path): the first three channels
-/// of `specular` at parting pixels (non-finite values as 0), zero elsewhere and in alpha. This
-/// is what the filter subtracts from colour (its rest) and what the second blur spreads.
-Image share_color(const Image &specular, const SplitRegion &region);
+/// Whether a pixel's specular share rises above `knee` in one of its first three channels (NaN
+/// does not). Only what lies above the knee parts ways (share_color): below it the share stays
+/// in colour and is blurred with the surface, where a smooth, dim reflection blurred along the
+/// surface's motion changes little and a highlight a great deal. A node marks a pixel as
+/// kSplitShare only where this holds, so frames without highlights run one filter.
+inline bool above_knee(const float *specular, float knee)
+{
+    return specular[0] > knee || specular[1] > knee || specular[2] > knee;
+}
+
+/// The share over the region's crop, RGBA (the filters' packed path): at lifted pixels the
+/// first three channels of `specular` less `knee`, at least 0 (with knee 0 the channels as they
+/// are; non-finite values as 0), zero elsewhere and in alpha. This is what the filter subtracts
+/// from colour (its rest) and what the second blur spreads; colour keeps the rest of the share,
+/// so the split stays continuous where a highlight fades under the knee.
+Image share_color(const Image &specular, const SplitRegion &region, float knee = 0.0f);
 
 /// Add what the share's blur changed to `out`, the blur of colour less the share, over the
 /// crop: out = color + (out - rest) + (share_blurred - share), rest = color - share, so a

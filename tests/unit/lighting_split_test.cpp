@@ -260,6 +260,21 @@ TEST(LightingSplit, MotionBlurFollowsEachShareAgainstTheTruth)
     // Measured 2026-11-26: nothing 0.0413, split 0.0110, color as one 0.0956.
     EXPECT_LE(e_split, 0.45 * e_none);
     EXPECT_LE(e_split, 0.2 * e_one);
+    // The knee (default 1): only the highlights' excess parts ways. All of the share apart
+    // (knee 0) buys nothing here. With the knee above every highlight nothing parts, and color
+    // is blurred as one along diffuse_motion (not motion): the spinning ball's shading and
+    // highlight stay still, which is most of what the split buys on this scene.
+    const double e_all =
+        rms_rgb(run_node("motion_blur", in, R"({"specular_knee": 0})").image("color"),
+                truth.image("color"));
+    const double e_none_apart =
+        rms_rgb(run_node("motion_blur", in, R"({"specular_knee": 1000})").image("color"),
+                truth.image("color"));
+    std::printf("knee 0 %.4f, knee 1000 %.4f\n", e_all, e_none_apart);
+    // Measured 2026-11-28: knee 0 0.0111, knee 1 0.0111, knee 1000 0.0112.
+    EXPECT_LE(e_split, 1.05 * e_all);
+    EXPECT_LE(e_none_apart, 0.45 * e_none);
+    EXPECT_LE(e_none_apart, 0.2 * e_one);
 }
 
 TEST(LightingSplit, DofFocusesTheHighlightAtItsImage)
@@ -626,6 +641,27 @@ TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChange
     EXPECT_EQ(share.at(6, 5, 0), 0.0f);
     // The rest's blur moved 0.25 of its value from (12, 9) to (13, 9); the share's blur spread
     // the 2 into 1 + 1 over (12, 9) and (11, 9).
+    // With a knee only the excess above it is lifted; a pixel that parts ways below the knee
+    // (kSplitGeometry) lends its geometry but keeps its share, and does not grow the box.
+    const shading::SplitRegion kneed = shading::find_split(w, h, 5, [&](int y, std::uint8_t *row) {
+        for (int x = 0; x < w; ++x) {
+            row[x] = x == 12 && y == 9    ? shading::kSplitShare
+                     : x == 30 && y == 25 ? shading::kSplitGeometry
+                                          : shading::kSplitNone;
+        }
+    });
+    EXPECT_EQ(kneed.box, (Rect{12, 9, 13, 10}));
+    EXPECT_TRUE(kneed.at(30, 25));
+    EXPECT_FALSE(kneed.lifted(30, 25));
+    spec.at(12, 9, 2) = 0.5f;
+    const Image kneed_share = shading::share_color(spec, kneed, 1.5f);
+    EXPECT_EQ(kneed_share.at(5, 5, 0), 0.5f);  // 2 - 1.5
+    EXPECT_EQ(kneed_share.at(5, 5, 1), 0.0f);  // NaN
+    EXPECT_EQ(kneed_share.at(5, 5, 2), 0.0f);  // under the knee: stays in colour
+    EXPECT_TRUE(shading::above_knee(spec.pixel(12, 9), 1.5f));
+    EXPECT_FALSE(shading::above_knee(spec.pixel(12, 9), 2.0f));
+    spec.at(12, 9, 2) = 0.0f;
+
     Image out = color;
     out.at(12, 9, 0) = (1.0f - 2.0f) * 0.75f;
     out.at(13, 9, 0) = 1.0f + 0.25f * (1.0f - 2.0f);
