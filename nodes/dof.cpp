@@ -73,6 +73,15 @@ constexpr ParamSpec kSpecular =
             "source can give them), blur the specular share by the CoC of specular_depth (a "
             "highlight's image lies behind its surface) and the rest of color by depth's (the "
             "full-resolution gather only); off: blur color as one.");
+constexpr ParamSpec kSpecularKnee =
+    ParamSpec::real("specular_knee", 1.0)
+        .range(0.0, 1e6)
+        .doc(
+            "The lighting split blurs on its own only what a pixel's specular share holds above "
+            "this (scene-linear, per channel); below it the share stays in color and is blurred "
+            "with the rest, where a smooth, dim reflection loses little. 0: all of it apart "
+            "(a second blur over every glossy surface).")
+        .only_when("specular", "auto");
 constexpr ParamSpec kParams[] = {kFstop,
                                  kFocus,
                                  kFocal,
@@ -83,7 +92,8 @@ constexpr ParamSpec kParams[] = {kFstop,
                                  kRotation,
                                  kMethod,
                                  kResolution,
-                                 kSpecular};
+                                 kSpecular,
+                                 kSpecularKnee};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}};
 
@@ -153,8 +163,12 @@ bool blur_split(NodeContext &ctx,
     // A parting pixel spreads at most the largest CoC; what lands there is gathered from as far
     // again, plus the tiles of the gather's neighbour maximum.
     const int reach = 2 * (int(std::ceil(s.max_coc_px)) + 32);
-    const shading::SplitRegion region =
-        shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
+    const float knee = ctx.get_float(kSpecularKnee);
+    const shading::SplitRegion region = shading::find_split(
+        w,
+        h,
+        reach,
+        [&](int y, std::uint8_t *row) {
             const float *a = depth.pixel(0, y), *b = spec_depth.pixel(0, y);
             const int ca = depth.channels(), cb = spec_depth.channels();
             for (int x = 0; x < w; ++x) {
@@ -162,15 +176,19 @@ bool blur_split(NodeContext &ctx,
                             zb = b[std::size_t(x) * std::size_t(cb)];
                 // A share whose depth is not a positive finite depth (NaN, sky) stays with the
                 // rest.
-                row[x] = za > 0.0f && zb > 0.0f && std::isfinite(za) && std::isfinite(zb) &&
-                         std::abs(za - zb) > 1e-4f * za;
+                const bool parts = za > 0.0f && zb > 0.0f && std::isfinite(za) &&
+                                   std::isfinite(zb) && std::abs(za - zb) > 1e-4f * za;
+                row[x] = !parts                                        ? shading::kSplitNone
+                         : shading::above_knee(spec.pixel(x, y), knee) ? shading::kSplitShare
+                                                                       : shading::kSplitGeometry;
             }
-        });
+        },
+        shading::kDofSplitAlign);
     if (region.empty()) {
         return false;
     }
     const Rect &crop = region.crop;
-    const Image share = shading::share_color(spec, region);
+    const Image share = shading::share_color(spec, region, knee);
     // The other pixels hold no share but keep their depth: both blurs see the same occluders.
     Image share_depth = Image::uninitialized(crop.width(), crop.height(), 1);
     parallel_for(0, crop.height(), [&](int j) {
@@ -187,8 +205,14 @@ bool blur_split(NodeContext &ctx,
     const bool rest_still = !shading::apply_dof(color, depth, lens, rest_settings, out);
     shading::DofSettings share_settings = s;
     share_settings.skip_empty = true;
+    share_settings.jitter_x0 = crop.x0;
+    share_settings.jitter_y0 = crop.y0;
     Image share_blurred;
-    if (!shading::apply_dof(share, share_depth, lens, share_settings, share_blurred)) {
+    // The share is the crop's image: its sensor is the crop's share of the frame's, or every
+    // CoC in pixels would shrink by crop width / frame width.
+    shading::DofLens share_lens = lens;
+    share_lens.sensor_mm = lens.sensor_mm * float(crop.width()) / float(w);
+    if (!shading::apply_dof(share, share_depth, share_lens, share_settings, share_blurred)) {
         if (rest_still) {
             return false;  // neither share is blurred: color as it is
         }

@@ -74,7 +74,11 @@ struct Context {
 
 inline int variant_of(const Context &cx, int x, int y, std::uint32_t which)
 {
-    return int(hash4(std::uint32_t(x), std::uint32_t(y), which, cx.settings->seed) >> 28);
+    return int(hash4(std::uint32_t(x),
+                     std::uint32_t(y + cx.settings->jitter_y0),
+                     which,
+                     cx.settings->seed) >>
+               28);
 }
 
 // The two layers at one pixel: the near field in front of it (average colour and coverage
@@ -97,7 +101,7 @@ glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
     }
     const int k = cx.patterns.level(radius);
     const int n = cx.patterns.count(k);
-    const Tap *taps = cx.patterns.taps(k, variant_of(cx, x, y, 0));
+    const Tap *taps = cx.patterns.taps(k, variant_of(cx, x + cx.settings->jitter_x0, y, 0));
     glm::vec4 sum = lv.color(ip);
     for (int i = 0; i < n; ++i) {
         const int qx = std::clamp(x + taps[i].dx, 0, lv.width - 1);
@@ -136,7 +140,7 @@ float gather_group(
     const Context &cx, const Level &lv, int x0, int y, int count, float near_radius, Group &g)
 {
     dof::setup_group(lv, x0, y, count, g);
-    const int group = x0 / kLanes;
+    const int group = (x0 + cx.settings->jitter_x0) / kLanes;
     float sample_area = 0.0f;
     if (near_radius >= 0.5f) {
         const int k = cx.patterns.level(near_radius);

@@ -10,7 +10,8 @@ namespace posthaste::shading {
 SplitRegion find_split(int width,
                        int height,
                        int reach,
-                       const std::function<void(int y, std::uint8_t *row)> &mark_row)
+                       const std::function<void(int y, std::uint8_t *row)> &mark_row,
+                       int align)
 {
     SplitRegion r;
     r.width = width;
@@ -40,7 +41,13 @@ SplitRegion find_split(int width,
         return r;
     }
     r.box = box;
-    r.crop = box.expand(std::max(reach, 0)).intersect(Rect{0, 0, width, height});
+    Rect crop = box.expand(std::max(reach, 0)).intersect(Rect{0, 0, width, height});
+    if (align > 1) {
+        // The origin down to the grid (it is inside the frame, so not negative).
+        crop.x0 -= crop.x0 % align;
+        crop.y0 -= crop.y0 % align;
+    }
+    r.crop = crop;
     return r;
 }
 

@@ -42,14 +42,21 @@ struct SplitRegion {
     }
 };
 
+/// The grid dof's crop starts on: the CoC tiles (16 px) and the gather's groups of 8 pixels
+/// then fall as the whole frame's do, and the share's blur can draw the frame's jitter
+/// (DofSettings::jitter_x0).
+constexpr int kDofSplitAlign = 16;
+
 /// Mark the parting pixels of a width x height frame, one row at a time (`mark_row(y, row)`
 /// writes a SplitMark for each of the row's pixels), and bound those whose share is lifted; the
 /// crop is the box grown by `reach` on every side (what a blur spreads from the box and gathers
-/// into it). Rows run in parallel; the result does not depend on the thread count.
+/// into it), clipped to the frame, its origin moved down to multiples of `align`. Rows run in
+/// parallel; the result does not depend on the thread count.
 SplitRegion find_split(int width,
                        int height,
                        int reach,
-                       const std::function<void(int y, std::uint8_t *row)> &mark_row);
+                       const std::function<void(int y, std::uint8_t *row)> &mark_row,
+                       int align = 1);
 
 /// Whether a pixel's specular share rises above `knee` in one of its first three channels (NaN
 /// does not). Only what lies above the knee parts ways (share_color): below it the share stays

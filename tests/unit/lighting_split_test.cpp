@@ -302,6 +302,22 @@ TEST(LightingSplit, DofFocusesTheHighlightAtItsImage)
     // 128 samples: 0.0157, 0.0223, 0.0214).
     EXPECT_LT(e_split, 0.95 * e_one);
     EXPECT_LT(e_split, e_simple);
+    // The knee (default 1) lifts the highlight's excess alone and the share's blur runs over a
+    // crop around it: that blur must see the crop's own sensor (a crop narrower than the frame
+    // once gave every CoC in pixels the crop's share of its size: four times the error at
+    // 960x540) and lose nothing against lifting all of the share (knee 0, the frame's crop).
+    const double e_all = rms_rgb(run_node("dof", in, R"({"specular_knee": 0})").image("color"),
+                                 truth.image("color"));
+    std::printf("knee 0 %.5f\n", e_all);
+    EXPECT_LE(e_split, 1.03 * e_all);
+    // Here the crop is the whole frame; with a smaller largest CoC it is not: the highlight's
+    // blur with the knee stays that of the whole share, far closer to it than to no split.
+    const Image k0 = run_node("dof", in, R"({"max_coc": 8, "specular_knee": 0})").image("color");
+    const double d_knee = rms_rgb(run_node("dof", in, R"({"max_coc": 8})").image("color"), k0);
+    const double d_off =
+        rms_rgb(run_node("dof", in, R"({"max_coc": 8, "specular": "off"})").image("color"), k0);
+    std::printf("max_coc 8: knee 1 - knee 0 %.5f, off - knee 0 %.5f\n", d_knee, d_off);
+    EXPECT_LT(d_knee, 0.25 * d_off);
 }
 
 TEST(LightingSplit, DofWithBadSharesStaysFinite)
@@ -609,25 +625,48 @@ TEST(LightingSplit, EmptyTilesAreSkippedWithTheSameBits)
 TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChanged)
 {
     const int w = 40, h = 30;
-    const shading::SplitRegion r = shading::find_split(w, h, 5, [&](int y, std::uint8_t *row) {
-        for (int x = 0; x < w; ++x) {
-            row[x] = (x == 12 && y == 9) || (x == 20 && y == 14);
-        }
-    });
+    const shading::SplitRegion r = shading::find_split(
+        w,
+        h,
+        5,
+        [&](int y, std::uint8_t *row) {
+            for (int x = 0; x < w; ++x) {
+                row[x] = (x == 12 && y == 9) || (x == 20 && y == 14);
+            }
+        },
+        1);
     EXPECT_EQ(r.box, (Rect{12, 9, 21, 15}));
     EXPECT_EQ(r.crop, (Rect{7, 4, 26, 20}));
     EXPECT_TRUE(r.at(20, 14));
     EXPECT_FALSE(r.at(13, 9));
-    const shading::SplitRegion none =
-        shading::find_split(w, h, 5, [&](int, std::uint8_t *row) { std::fill_n(row, w, 0); });
+    const shading::SplitRegion none = shading::find_split(
+        w, h, 5, [&](int, std::uint8_t *row) { std::fill_n(row, w, 0); }, 1);
     EXPECT_TRUE(none.empty());
     // Clipped at the frame.
-    const shading::SplitRegion edge = shading::find_split(w, h, 8, [&](int y, std::uint8_t *row) {
-        for (int x = 0; x < w; ++x) {
-            row[x] = x == 1 && y == 28;
-        }
-    });
+    const shading::SplitRegion edge = shading::find_split(
+        w,
+        h,
+        8,
+        [&](int y, std::uint8_t *row) {
+            for (int x = 0; x < w; ++x) {
+                row[x] = x == 1 && y == 28;
+            }
+        },
+        1);
     EXPECT_EQ(edge.crop, (Rect{0, 20, 10, 30}));
+    // dof's crops start on the grid of kDofSplitAlign.
+    const shading::SplitRegion snapped = shading::find_split(
+        300,
+        200,
+        5,
+        [&](int y, std::uint8_t *row) {
+            for (int x = 0; x < 300; ++x) {
+                row[x] = x == 140 && y == 130;
+            }
+        },
+        shading::kDofSplitAlign);
+    EXPECT_EQ(snapped.box, (Rect{140, 130, 141, 131}));
+    EXPECT_EQ(snapped.crop, (Rect{128, 112, 146, 136}));
 
     Image spec(w, h, 3), color(w, h, 4);
     spec.at(12, 9, 0) = 2.0f;
@@ -643,13 +682,18 @@ TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChange
     // the 2 into 1 + 1 over (12, 9) and (11, 9).
     // With a knee only the excess above it is lifted; a pixel that parts ways below the knee
     // (kSplitGeometry) lends its geometry but keeps its share, and does not grow the box.
-    const shading::SplitRegion kneed = shading::find_split(w, h, 5, [&](int y, std::uint8_t *row) {
-        for (int x = 0; x < w; ++x) {
-            row[x] = x == 12 && y == 9    ? shading::kSplitShare
-                     : x == 30 && y == 25 ? shading::kSplitGeometry
-                                          : shading::kSplitNone;
-        }
-    });
+    const shading::SplitRegion kneed = shading::find_split(
+        w,
+        h,
+        5,
+        [&](int y, std::uint8_t *row) {
+            for (int x = 0; x < w; ++x) {
+                row[x] = x == 12 && y == 9    ? shading::kSplitShare
+                         : x == 30 && y == 25 ? shading::kSplitGeometry
+                                              : shading::kSplitNone;
+            }
+        },
+        1);
     EXPECT_EQ(kneed.box, (Rect{12, 9, 13, 10}));
     EXPECT_TRUE(kneed.at(30, 25));
     EXPECT_FALSE(kneed.lifted(30, 25));
