@@ -46,17 +46,27 @@ class ScratchPool {
         return pool;
     }
 
-    void *take(std::size_t bytes)
+    void *take(std::size_t bytes, std::size_t &got)
     {
         {
+            // The smallest kept block that holds `bytes` and is at most twice as large: the
+            // lighting split's crops and other per-frame sizes change from frame to frame, and an
+            // exact-size match would leave them all to fresh (kernel-cleared) memory.
             const std::lock_guard<std::mutex> lock(mutex_);
+            std::size_t best = free_.size();
             for (std::size_t i = 0; i < free_.size(); ++i) {
-                if (free_[i].bytes == bytes) {
-                    void *p = free_[i].p;
-                    kept_ -= bytes;
-                    free_.erase(free_.begin() + std::ptrdiff_t(i));
-                    return p;
+                const std::size_t b = free_[i].bytes;
+                if (b >= bytes && b / 2 <= bytes &&
+                    (best == free_.size() || b < free_[best].bytes)) {
+                    best = i;
                 }
+            }
+            if (best != free_.size()) {
+                void *p = free_[best].p;
+                got = free_[best].bytes;
+                kept_ -= got;
+                free_.erase(free_.begin() + std::ptrdiff_t(best));
+                return p;
             }
         }
         constexpr std::size_t kHuge = std::size_t(2) << 20;
@@ -65,18 +75,29 @@ class ScratchPool {
             throw std::bad_alloc();
         }
         advise_huge_pages(p, bytes);
+        got = bytes;
         return p;
     }
 
     void give(void *p, std::size_t bytes)
     {
+        std::vector<void *> evicted;
         {
             const std::lock_guard<std::mutex> lock(mutex_);
-            if (kept_ + bytes <= kPoolBytes) {
+            if (bytes <= kPoolBytes) {
+                // The newest block stays; the oldest go first (a size no longer asked for).
+                while (kept_ + bytes > kPoolBytes && !free_.empty()) {
+                    evicted.push_back(free_.front().p);
+                    kept_ -= free_.front().bytes;
+                    free_.erase(free_.begin());
+                }
                 free_.push_back({p, bytes});
                 kept_ += bytes;
-                return;
+                p = nullptr;
             }
+        }
+        for (void *e : evicted) {
+            std::free(e);
         }
         std::free(p);
     }
@@ -101,9 +122,14 @@ class ScratchPool {
 
 }  // namespace
 
-void *scratch_take(std::size_t bytes)
+void *scratch_take(std::size_t bytes, std::size_t *got)
 {
-    return ScratchPool::instance().take(bytes);
+    std::size_t size = bytes;
+    void *p = ScratchPool::instance().take(bytes, size);
+    if (got) {
+        *got = size;
+    }
+    return p;
 }
 
 void scratch_give(void *block, std::size_t bytes)

@@ -39,11 +39,12 @@ std::size_t parse_memory_size(const std::string &text, const std::string &where)
 /// Scratch blocks kept between frames. A filter's per-pixel scratch is tens of megabytes written
 /// once per frame, and fresh memory costs the kernel a page clear (and a fault) per page on first
 /// touch (perf: about 5 % of the motion blur node, 3.6 % of dof). A freed block goes back to a
-/// process-wide pool (at most 256 MiB kept, mutex-guarded); taking a block of the same size
-/// reuses one. Blocks are 2 MiB-aligned whole multiples of 2 MiB with huge pages advised; their
+/// process-wide pool (at most 256 MiB kept, the oldest blocks freed first, mutex-guarded);
+/// taking reuses the smallest kept block of at least `bytes` and at most twice that, its size in
+/// `*got`. Blocks are 2 MiB-aligned whole multiples of 2 MiB with huge pages advised; their
 /// contents are stale, so the caller must write before it reads. Throws std::bad_alloc.
-void *scratch_take(std::size_t bytes);
-/// Returns a block from scratch_take (same `bytes`) to the pool, or frees it.
+void *scratch_take(std::size_t bytes, std::size_t *got = nullptr);
+/// Returns a block from scratch_take (its size: `*got`) to the pool, or frees it.
 void scratch_give(void *block, std::size_t bytes);
 
 /// Deleter of scratch_array.
@@ -61,7 +62,9 @@ ScratchArray<T> scratch_array(std::size_t n)
     constexpr std::size_t kHuge = std::size_t(2) << 20;
     std::size_t bytes = (n * sizeof(T) + kHuge - 1) / kHuge * kHuge;
     bytes = bytes > 0 ? bytes : kHuge;
-    return ScratchArray<T>(static_cast<T *>(scratch_take(bytes)), ScratchDeleter{bytes});
+    std::size_t got = bytes;
+    T *p = static_cast<T *>(scratch_take(bytes, &got));
+    return ScratchArray<T>(p, ScratchDeleter{got});
 }
 
 }  // namespace posthaste
