@@ -160,27 +160,28 @@ bool blur_split(NodeContext &ctx,
                       h,
                       ")");
     }
-    // A parting pixel spreads at most the largest CoC; what lands there is gathered from as far
-    // again, plus the tiles of the gather's neighbour maximum.
-    const int reach = 2 * (int(std::ceil(s.max_coc_px)) + 32);
+    // A lifted pixel spreads at most the largest CoC radius (half of max_coc, a diameter); what
+    // lands there is gathered from as far again, plus two tiles of the CoC field's neighbour
+    // maximum. (Twice this, as before, gave the same bits on the camera stack's 16 frames at
+    // 1080p but one, which moved by one half-float step in one pixel.)
+    const int reach = int(std::ceil(s.max_coc_px)) + 32;
     const float knee = ctx.get_float(kSpecularKnee);
+    const auto parts_at = [&](int x, int y) {
+        const float za = depth.at(x, y, 0), zb = spec_depth.at(x, y, 0);
+        // A share whose depth is not a positive finite depth (NaN, sky) stays with the rest.
+        return za > 0.0f && zb > 0.0f && std::isfinite(za) && std::isfinite(zb) &&
+               std::abs(za - zb) > 1e-4f * za;
+    };
+    // The knee first: most pixels hold no highlight, and then their depths are not compared.
     const shading::SplitRegion region = shading::find_split(
         w,
         h,
         reach,
         [&](int y, std::uint8_t *row) {
-            const float *a = depth.pixel(0, y), *b = spec_depth.pixel(0, y);
-            const int ca = depth.channels(), cb = spec_depth.channels();
+            const float *sp = spec.pixel(0, y);
+            const std::size_t sc = std::size_t(spec.channels());
             for (int x = 0; x < w; ++x) {
-                const float za = a[std::size_t(x) * std::size_t(ca)],
-                            zb = b[std::size_t(x) * std::size_t(cb)];
-                // A share whose depth is not a positive finite depth (NaN, sky) stays with the
-                // rest.
-                const bool parts = za > 0.0f && zb > 0.0f && std::isfinite(za) &&
-                                   std::isfinite(zb) && std::abs(za - zb) > 1e-4f * za;
-                row[x] = !parts                                        ? shading::kSplitNone
-                         : shading::above_knee(spec.pixel(x, y), knee) ? shading::kSplitShare
-                                                                       : shading::kSplitGeometry;
+                row[x] = shading::above_knee(sp + std::size_t(x) * sc, knee) && parts_at(x, y);
             }
         },
         shading::kDofSplitAlign);
@@ -190,12 +191,14 @@ bool blur_split(NodeContext &ctx,
     const Rect &crop = region.crop;
     const Image share = shading::share_color(spec, region, knee);
     // The other pixels hold no share but keep their depth: both blurs see the same occluders.
+    // Those whose share parts ways below the knee lend the share's blur their specular_depth:
+    // the share's image stays one surface around its highlight.
     Image share_depth = Image::uninitialized(crop.width(), crop.height(), 1);
     parallel_for(0, crop.height(), [&](int j) {
         const int y = crop.y0 + j;
         for (int i = 0; i < crop.width(); ++i) {
             const int x = crop.x0 + i;
-            *share_depth.pixel(i, j) = region.at(x, y) ? spec_depth.at(x, y, 0) : depth.at(x, y, 0);
+            *share_depth.pixel(i, j) = parts_at(x, y) ? spec_depth.at(x, y, 0) : depth.at(x, y, 0);
         }
     });
     shading::DofSettings rest_settings = s;

@@ -139,10 +139,11 @@ Image blur_split(NodeContext &ctx,
                  const Image &depth,
                  const shading::MotionBlurOptions &o)
 {
-    Image spec_motion_storage, diffuse_motion_storage;
+    Image diffuse_motion_storage;
     const Image &spec = ctx.input_pass("image", pass::kSpecular);
-    const Image &spec_motion =
-        finite_view(ctx.input_pass("image", pass::kSpecularMotion), 0.0f, spec_motion_storage);
+    // Read only where a highlight is lifted and around it, non-finite components as still
+    // (finite_view's reading, without its scan of the whole pass).
+    const Image &spec_motion = ctx.input_pass("image", pass::kSpecularMotion);
     check_size(ctx, color, spec, pass::kSpecular);
     check_size(ctx, color, spec_motion, pass::kSpecularMotion);
     const Image *rest_motion = &motion;
@@ -175,14 +176,19 @@ Image blur_split(NodeContext &ctx,
     // again, plus the tiles of the neighbour-max lookup.
     const int reach = 2 * (int(std::ceil(o.max_radius)) + 2 * o.tile);
     const float knee = ctx.get_float(kSpecularKnee);
+    const auto finite_or_0 = [](float v) { return std::isfinite(v) ? v : 0.0f; };
+    const auto parts_at = [&](int x, int y) {
+        const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
+        return std::abs(finite_or_0(a[0]) - b[0]) > 1e-3f ||
+               std::abs(finite_or_0(a[1]) - b[1]) > 1e-3f;
+    };
+    // The knee first: most pixels hold no highlight, and then their motions are not read.
     const shading::SplitRegion region =
         shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
+            const float *sp = spec.pixel(0, y);
+            const std::size_t sc = std::size_t(spec.channels());
             for (int x = 0; x < w; ++x) {
-                const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
-                const bool parts = std::abs(a[0] - b[0]) > 1e-3f || std::abs(a[1] - b[1]) > 1e-3f;
-                row[x] = !parts                                        ? shading::kSplitNone
-                         : shading::above_knee(spec.pixel(x, y), knee) ? shading::kSplitShare
-                                                                       : shading::kSplitGeometry;
+                row[x] = shading::above_knee(sp + std::size_t(x) * sc, knee) && parts_at(x, y);
             }
         });
     if (region.empty()) {
@@ -191,17 +197,25 @@ Image blur_split(NodeContext &ctx,
     const Rect &crop = region.crop;
     const Image share = shading::share_color(spec, region, knee);
     // The other pixels hold no share but keep their motion, so that both blurs see the same
-    // coverage (what passes in front of what, for how long).
+    // coverage (what passes in front of what, for how long); those whose share parts ways below
+    // the knee lend the share's blur their specular_motion, so that the share's image stays one
+    // surface around its highlight.
     Image share_motion = Image::uninitialized(crop.width(), crop.height(), 2);
     Image share_depth = Image::uninitialized(crop.width(), crop.height(), 1);
     parallel_for(0, crop.height(), [&](int j) {
         const int y = crop.y0 + j;
         for (int i = 0; i < crop.width(); ++i) {
             const int x = crop.x0 + i;
-            const float *m = region.at(x, y) ? spec_motion.pixel(x, y) : rest_motion->pixel(x, y);
             float *d = share_motion.pixel(i, j);
-            d[0] = m[0];
-            d[1] = m[1];
+            if (parts_at(x, y)) {
+                const float *m = spec_motion.pixel(x, y);
+                d[0] = finite_or_0(m[0]);
+                d[1] = finite_or_0(m[1]);
+            } else {
+                const float *m = rest_motion->pixel(x, y);
+                d[0] = m[0];
+                d[1] = m[1];
+            }
             *share_depth.pixel(i, j) = depth.at(x, y, 0);
         }
     });

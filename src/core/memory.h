@@ -40,9 +40,9 @@ std::size_t parse_memory_size(const std::string &text, const std::string &where)
 /// once per frame, and fresh memory costs the kernel a page clear (and a fault) per page on first
 /// touch (perf: about 5 % of the motion blur node, 3.6 % of dof). A freed block goes back to a
 /// process-wide pool (at most 256 MiB kept, the oldest blocks freed first, mutex-guarded);
-/// taking reuses the smallest kept block of at least `bytes` and at most twice that, its size in
-/// `*got`. Blocks are 2 MiB-aligned whole multiples of 2 MiB with huge pages advised; their
-/// contents are stale, so the caller must write before it reads. Throws std::bad_alloc.
+/// taking reuses the smallest kept block of at least `bytes`, its size in `*got`. Blocks are
+/// 2 MiB-aligned whole multiples of 2 MiB with huge pages advised; their contents are stale, so
+/// the caller must write before it reads. Throws std::bad_alloc.
 void *scratch_take(std::size_t bytes, std::size_t *got = nullptr);
 /// Returns a block from scratch_take (its size: `*got`) to the pool, or frees it.
 void scratch_give(void *block, std::size_t bytes);

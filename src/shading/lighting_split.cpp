@@ -22,7 +22,7 @@ SplitRegion find_split(int width,
         std::uint8_t *row = r.parts.data() + std::size_t(y) * std::size_t(width);
         mark_row(y, row);
         for (int x = 0; x < width; ++x) {
-            if (row[x] == kSplitShare) {
+            if (row[x]) {
                 first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
                 last[std::size_t(y)] = x;
             }
@@ -59,7 +59,7 @@ Image share_color(const Image &specular, const SplitRegion &region, float knee)
         const int y = c.y0 + j;
         for (int i = 0; i < c.width(); ++i) {
             const int x = c.x0 + i;
-            const bool parts = region.lifted(x, y);
+            const bool parts = region.at(x, y);
             const float *sp = specular.pixel(x, y);
             float *d = share.pixel(i, j);
             for (int k = 0; k < 3; ++k) {

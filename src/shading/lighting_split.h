@@ -16,29 +16,16 @@
 
 namespace posthaste::shading {
 
-/// What find_split's `mark_row` writes for a pixel: its share moves with the rest; it parts
-/// ways and holds a share above the knee (above_knee), which is lifted out and blurred on its
-/// own; or it parts ways below the knee, so it lends the share's blur its own geometry (motion
-/// or depth: the share's image stays one coherent surface around a highlight) but keeps its
-/// share in colour.
-enum SplitMark : std::uint8_t { kSplitNone = 0, kSplitShare = 1, kSplitGeometry = 2 };
-
-/// The pixels whose share parts ways, and where the share's blur runs.
+/// The pixels whose share is lifted out of colour, and where the share's blur runs.
 struct SplitRegion {
     int width = 0, height = 0;        ///< The frame's size.
-    Rect box;                         ///< Bounds of the kSplitShare pixels (empty: none).
+    Rect box;                         ///< Bounds of the lifted pixels (empty: none).
     Rect crop;                        ///< box grown by the reach, clipped to the frame.
-    std::vector<std::uint8_t> parts;  ///< Per frame pixel, row-major: a SplitMark.
+    std::vector<std::uint8_t> parts;  ///< Per frame pixel, row-major: 1 where it is lifted.
     bool empty() const { return box.empty(); }
-    /// The pixel parts ways (either mark): the share's blur sees it with the share's geometry.
     bool at(int x, int y) const
     {
-        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] != kSplitNone;
-    }
-    /// The pixel's share is lifted out of colour (share_color).
-    bool lifted(int x, int y) const
-    {
-        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] == kSplitShare;
+        return parts[std::size_t(y) * std::size_t(width) + std::size_t(x)] != 0;
     }
 };
 
@@ -47,11 +34,11 @@ struct SplitRegion {
 /// (DofSettings::jitter_x0).
 constexpr int kDofSplitAlign = 16;
 
-/// Mark the parting pixels of a width x height frame, one row at a time (`mark_row(y, row)`
-/// writes a SplitMark for each of the row's pixels), and bound those whose share is lifted; the
-/// crop is the box grown by `reach` on every side (what a blur spreads from the box and gathers
-/// into it), clipped to the frame, its origin moved down to multiples of `align`. Rows run in
-/// parallel; the result does not depend on the thread count.
+/// Mark the lifted pixels of a width x height frame, one row at a time (`mark_row(y, row)`
+/// writes 0 or 1 for each of the row's pixels: 1 where the share parts ways and rises above the
+/// knee), and bound them; the crop is the box grown by `reach` on every side (what a blur spreads
+/// from the box and gathers into it), clipped to the frame, its origin moved down to multiples of
+/// `align`. Rows run in parallel; the result does not depend on the thread count.
 SplitRegion find_split(int width,
                        int height,
                        int reach,
@@ -62,7 +49,10 @@ SplitRegion find_split(int width,
 /// does not). Only what lies above the knee parts ways (share_color): below it the share stays
 /// in colour and is blurred with the surface, where a smooth, dim reflection blurred along the
 /// surface's motion changes little and a highlight a great deal. A node marks a pixel as
-/// kSplitShare only where this holds, so frames without highlights run one filter.
+/// a pixel lifted only where this holds, so frames without highlights run one filter. Around a
+/// lifted pixel, those whose share parts ways below the knee keep their share in colour but
+/// lend the share's blur their geometry (specular motion or depth), so that the share's image
+/// stays one surface around its highlight.
 inline bool above_knee(const float *specular, float knee)
 {
     return specular[0] > knee || specular[1] > knee || specular[2] > knee;

@@ -680,23 +680,18 @@ TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChange
     EXPECT_EQ(share.at(6, 5, 0), 0.0f);
     // The rest's blur moved 0.25 of its value from (12, 9) to (13, 9); the share's blur spread
     // the 2 into 1 + 1 over (12, 9) and (11, 9).
-    // With a knee only the excess above it is lifted; a pixel that parts ways below the knee
-    // (kSplitGeometry) lends its geometry but keeps its share, and does not grow the box.
+    // With a knee only the excess above it is lifted.
     const shading::SplitRegion kneed = shading::find_split(
         w,
         h,
         5,
         [&](int y, std::uint8_t *row) {
             for (int x = 0; x < w; ++x) {
-                row[x] = x == 12 && y == 9    ? shading::kSplitShare
-                         : x == 30 && y == 25 ? shading::kSplitGeometry
-                                              : shading::kSplitNone;
+                row[x] = x == 12 && y == 9;
             }
         },
         1);
     EXPECT_EQ(kneed.box, (Rect{12, 9, 13, 10}));
-    EXPECT_TRUE(kneed.at(30, 25));
-    EXPECT_FALSE(kneed.lifted(30, 25));
     spec.at(12, 9, 2) = 0.5f;
     const Image kneed_share = shading::share_color(spec, kneed, 1.5f);
     EXPECT_EQ(kneed_share.at(5, 5, 0), 0.5f);  // 2 - 1.5

@@ -75,13 +75,14 @@ TEST(Memory, ImagesOfEverySizeKeepTheirValues)
     }
 }
 
-// The scratch pool: whole, 2 MiB-aligned blocks; a freed block is handed out again for the same
-// size (stale contents, writable), not for another size; blocks of several users coexist.
-TEST(Memory, ScratchBlocksAreAlignedAndReusedBySize)
+// The scratch pool: whole, 2 MiB-aligned blocks; a freed block is handed out again for any
+// size it holds, the smallest that fits first (stale contents, writable to its end); blocks of
+// several users coexist.
+TEST(Memory, ScratchBlocksAreAlignedAndReusedBestFit)
 {
     constexpr std::uintptr_t kHuge = std::uintptr_t(2) << 20;
     const std::size_t n = 3 * 1000 * 1000;  // 12 MB of floats: rounded up to 12 MiB
-    float *first = nullptr;
+    float *first = nullptr, *second = nullptr, *big_block = nullptr;
     {
         ScratchArray<float> a = scratch_array<float>(n);
         ASSERT_NE(a.get(), nullptr);
@@ -91,15 +92,28 @@ TEST(Memory, ScratchBlocksAreAlignedAndReusedBySize)
         first = a.get();
     }
     {
-        ScratchArray<float> other = scratch_array<float>(n / 2);  // another size: a new block
-        EXPECT_NE(other.get(), first);
-        ScratchArray<float> same = scratch_array<float>(n);  // the freed block again
-        EXPECT_EQ(same.get(), first);
-        same[n - 1] = 3.0f;                                    // writable to its end
-        ScratchArray<float> second = scratch_array<float>(n);  // the first is in use: a new one
-        EXPECT_NE(second.get(), first);
-        second[0] = 4.0f;
-        EXPECT_EQ(same[n - 1], 3.0f);
+        ScratchArray<float> smaller = scratch_array<float>(n / 2);  // the kept block holds it
+        EXPECT_EQ(smaller.get(), first);
+        smaller[n - 1] = 3.0f;                               // the whole block, past what was asked
+        ScratchArray<float> same = scratch_array<float>(n);  // none kept now: a new block
+        EXPECT_NE(same.get(), first);
+        second = same.get();
+        same[0] = 4.0f;
+        EXPECT_EQ(smaller[n - 1], 3.0f);
+    }
+    {
+        ScratchArray<float> big = scratch_array<float>(2 * n);  // no kept block holds 24 MiB
+        EXPECT_NE(big.get(), first);
+        EXPECT_NE(big.get(), second);
+        big_block = big.get();
+        big[2 * n - 1] = 5.0f;
+    }
+    {
+        // Kept: two blocks of 12 MiB and one of 24. 20 MiB takes the 24; 4 MiB a 12, not the 24.
+        ScratchArray<float> mid = scratch_array<float>(5 * 1000 * 1000);
+        EXPECT_EQ(mid.get(), big_block);
+        ScratchArray<float> small = scratch_array<float>(1000 * 1000);
+        EXPECT_TRUE(small.get() == first || small.get() == second);
     }
     ScratchArray<char> tiny = scratch_array<char>(1);  // at least one 2 MiB block
     ASSERT_NE(tiny.get(), nullptr);
