@@ -187,6 +187,10 @@ Image blur_split(NodeContext &ctx,
         shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
             const float *sp = spec.pixel(0, y);
             const std::size_t sc = std::size_t(spec.channels());
+            if (!shading::any_above(sp, std::size_t(w) * sc, knee)) {
+                std::fill_n(row, w, std::uint8_t(0));
+                return;
+            }
             for (int x = 0; x < w; ++x) {
                 row[x] = shading::above_knee(sp + std::size_t(x) * sc, knee) && parts_at(x, y);
             }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 
 #include "core/parallel.h"
 
@@ -21,11 +22,14 @@ SplitRegion find_split(int width,
     parallel_for(0, height, [&](int y) {
         std::uint8_t *row = r.parts.data() + std::size_t(y) * std::size_t(width);
         mark_row(y, row);
-        for (int x = 0; x < width; ++x) {
-            if (row[x]) {
-                first[std::size_t(y)] = std::min(first[std::size_t(y)], x);
-                last[std::size_t(y)] = x;
-            }
+        const std::uint8_t *const begin = row, *const end = row + width;
+        const auto set = [](std::uint8_t v) { return v != 0; };
+        const std::uint8_t *f = std::find_if(begin, end, set);
+        if (f != end) {
+            const auto l =
+                std::find_if(std::make_reverse_iterator(end), std::make_reverse_iterator(f), set);
+            first[std::size_t(y)] = int(f - begin);
+            last[std::size_t(y)] = int(l.base() - begin) - 1;
         }
     });
     Rect box{width, height, 0, 0};

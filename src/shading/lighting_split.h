@@ -58,6 +58,18 @@ inline bool above_knee(const float *specular, float knee)
     return specular[0] > knee || specular[1] > knee || specular[2] > knee;
 }
 
+/// Whether any of `count` values rises above `knee` (NaN does not): a row's quick test before
+/// its pixels are looked at one by one (most rows hold no highlight). One pass the compiler
+/// vectorises, over every channel of the row.
+inline bool any_above(const float *values, std::size_t count, float knee)
+{
+    int any = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+        any |= int(values[i] > knee);
+    }
+    return any != 0;
+}
+
 /// The share over the region's crop, RGBA (the filters' packed path): at lifted pixels the
 /// first three channels of `specular` less `knee`, at least 0 (with knee 0 the channels as they
 /// are; non-finite values as 0), zero elsewhere and in alpha. This is what the filter subtracts
