@@ -13,6 +13,7 @@
 
 #include "core/sanitize.h"
 #include "nodes/node.h"
+#include "nodes/split_params.h"
 #include "shading/dof_gather.h"
 #include "shading/lighting_split.h"
 
@@ -73,15 +74,6 @@ constexpr ParamSpec kSpecular =
             "source can give them), blur the specular share by the CoC of specular_depth (a "
             "highlight's image lies behind its surface) and the rest of color by depth's (the "
             "full-resolution gather only); off: blur color as one.");
-constexpr ParamSpec kSpecularKnee =
-    ParamSpec::real("specular_knee", 1.0)
-        .range(0.0, 1e6)
-        .doc(
-            "The lighting split blurs on its own only what a pixel's specular share holds above "
-            "this (scene-linear, per channel); below it the share stays in color and is blurred "
-            "with the rest, where a smooth, dim reflection loses little. 0: all of it apart "
-            "(a second blur over every glossy surface).")
-        .only_when("specular", "auto");
 constexpr ParamSpec kParams[] = {kFstop,
                                  kFocus,
                                  kFocal,
@@ -177,17 +169,7 @@ bool blur_split(NodeContext &ctx,
         w,
         h,
         reach,
-        [&](int y, std::uint8_t *row) {
-            const float *sp = spec.pixel(0, y);
-            const std::size_t sc = std::size_t(spec.channels());
-            if (!shading::any_above(sp, std::size_t(w) * sc, knee)) {
-                std::fill_n(row, w, std::uint8_t(0));
-                return;
-            }
-            for (int x = 0; x < w; ++x) {
-                row[x] = shading::above_knee(sp + std::size_t(x) * sc, knee) && parts_at(x, y);
-            }
-        },
+        [&](int y, std::uint8_t *row) { shading::mark_highlights(spec, knee, y, row, parts_at); },
         shading::kDofSplitAlign);
     if (region.empty()) {
         return false;

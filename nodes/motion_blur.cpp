@@ -16,6 +16,7 @@
 #include "core/parallel.h"
 #include "core/sanitize.h"
 #include "nodes/node.h"
+#include "nodes/split_params.h"
 #include "shading/lighting_split.h"
 #include "shading/reproject.h"
 
@@ -83,15 +84,6 @@ constexpr ParamSpec kSpecular =
             "a source can give them), blur the specular share along specular_motion and the rest "
             "of color along diffuse_motion where the input has it, else along motion (source "
             "motion only); off: blur color as one.");
-constexpr ParamSpec kSpecularKnee =
-    ParamSpec::real("specular_knee", 1.0)
-        .range(0.0, 1e6)
-        .doc(
-            "The lighting split blurs on its own only what a pixel's specular share holds above "
-            "this (scene-linear, per channel); below it the share stays in color and is blurred "
-            "with the rest, where a smooth, dim reflection loses little. 0: all of it apart "
-            "(a second blur over every glossy surface).")
-        .only_when("specular", "auto");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Seed of the per-pixel jitter.");
 constexpr ParamSpec kParams[] = {kShutter,
@@ -185,15 +177,7 @@ Image blur_split(NodeContext &ctx,
     // The knee first: most pixels hold no highlight, and then their motions are not read.
     const shading::SplitRegion region =
         shading::find_split(w, h, reach, [&](int y, std::uint8_t *row) {
-            const float *sp = spec.pixel(0, y);
-            const std::size_t sc = std::size_t(spec.channels());
-            if (!shading::any_above(sp, std::size_t(w) * sc, knee)) {
-                std::fill_n(row, w, std::uint8_t(0));
-                return;
-            }
-            for (int x = 0; x < w; ++x) {
-                row[x] = shading::above_knee(sp + std::size_t(x) * sc, knee) && parts_at(x, y);
-            }
+            shading::mark_highlights(spec, knee, y, row, parts_at);
         });
     if (region.empty()) {
         return shading::motion_blur(color, *rest_motion, depth, o);

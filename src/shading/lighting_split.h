@@ -8,6 +8,8 @@
 // what each blur changed. The node keeps only what is its own: which pixels part ways, and the
 // geometry (motion or depth) the share is blurred with.
 
+#include <algorithm>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <vector>
@@ -68,6 +70,25 @@ inline bool any_above(const float *values, std::size_t count, float knee)
         any |= int(values[i] > knee);
     }
     return any != 0;
+}
+
+/// find_split's mark for a node: 1 where the pixel's share rises above the knee (above_knee)
+/// and `parts(x, y)` says its share parts ways from the rest (the node's geometry test, asked
+/// only there); a row with nothing above the knee is cleared at once (any_above).
+template <class Parts>
+void mark_highlights(
+    const Image &specular, float knee, int y, std::uint8_t *row, const Parts &parts)
+{
+    const int w = specular.width();
+    const std::size_t sc = std::size_t(specular.channels());
+    const float *sp = specular.pixel(0, y);
+    if (!any_above(sp, std::size_t(w) * sc, knee)) {
+        std::fill_n(row, w, std::uint8_t(0));
+        return;
+    }
+    for (int x = 0; x < w; ++x) {
+        row[x] = above_knee(sp + std::size_t(x) * sc, knee) && parts(x, y);
+    }
 }
 
 /// The share over the region's crop, RGBA (the filters' packed path): at lifted pixels the
