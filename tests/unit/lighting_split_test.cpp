@@ -330,14 +330,16 @@ TEST(LightingSplit, DofWithBadSharesStaysFinite)
                          -std::numeric_limits<float>::infinity(),
                          0.0f,
                          -5.0f};
-    for (const char *name : {"specular", "specular_depth"}) {
-        Frame f = in;
-        f.set(name, sprinkled(f.image(name), Rect{5, 5, 90, 50}, 3, 2, bad));
-        const Frame out = run_node("dof", f, "{}");
-        const Image &c = out.image("color");
-        for (std::size_t i = 0; i < c.value_count(); ++i) {
-            ASSERT_TRUE(std::isfinite(c.data()[i])) << name;
-            ASSERT_LE(std::abs(c.data()[i]), 1e4f) << name;
+    for (const char *params : {"{}", R"({"specular_knee": 0})"}) {
+        for (const char *name : {"specular", "specular_depth"}) {
+            Frame f = in;
+            f.set(name, sprinkled(f.image(name), Rect{5, 5, 90, 50}, 3, 2, bad));
+            const Frame out = run_node("dof", f, params);
+            const Image &c = out.image("color");
+            for (std::size_t i = 0; i < c.value_count(); ++i) {
+                ASSERT_TRUE(std::isfinite(c.data()[i])) << name << " " << params;
+                ASSERT_LE(std::abs(c.data()[i]), 1e4f) << name << " " << params;
+            }
         }
     }
 }
@@ -351,16 +353,21 @@ TEST(LightingSplit, StillFrameKeepsItsBitsAndBadPassesStayFinite)
     const float bad[] = {std::numeric_limits<float>::quiet_NaN(),
                          std::numeric_limits<float>::infinity(),
                          -std::numeric_limits<float>::infinity()};
-    for (const char *name : {"specular", "specular_motion", "diffuse_motion"}) {
-        Frame f = in;
-        f.set(name, sprinkled(f.image(name), Rect{10, 10, 80, 40}, 5, 3, bad));
-        const Frame out = run_node("motion_blur", f, "{}");
-        const Image &c = out.image("color");
-        for (int y = 0; y < c.height(); ++y) {
-            for (int x = 0; x < c.width(); ++x) {
-                for (int ch = 0; ch < c.channels(); ++ch) {
-                    ASSERT_TRUE(std::isfinite(c.at(x, y, ch))) << name << " at " << x << "," << y;
-                    ASSERT_LE(std::abs(c.at(x, y, ch)), 1e4f) << name;
+    // At the default knee only highlights read their specular_motion; at knee 0 every parting
+    // pixel does, so the sprinkled values are read where they lie.
+    for (const char *params : {"{}", R"({"specular_knee": 0})"}) {
+        for (const char *name : {"specular", "specular_motion", "diffuse_motion"}) {
+            Frame f = in;
+            f.set(name, sprinkled(f.image(name), Rect{10, 10, 80, 40}, 5, 3, bad));
+            const Frame out = run_node("motion_blur", f, params);
+            const Image &c = out.image("color");
+            for (int y = 0; y < c.height(); ++y) {
+                for (int x = 0; x < c.width(); ++x) {
+                    for (int ch = 0; ch < c.channels(); ++ch) {
+                        ASSERT_TRUE(std::isfinite(c.at(x, y, ch)))
+                            << name << " " << params << " at " << x << "," << y;
+                        ASSERT_LE(std::abs(c.at(x, y, ch)), 1e4f) << name << " " << params;
+                    }
                 }
             }
         }
@@ -654,7 +661,7 @@ TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChange
         },
         1);
     EXPECT_EQ(edge.crop, (Rect{0, 20, 10, 30}));
-    // dof's crops start on the grid of kDofSplitAlign.
+    // dof's crops start on the grid of kDofCropAlign.
     const shading::SplitRegion snapped = shading::find_split(
         300,
         200,
@@ -664,7 +671,7 @@ TEST(LightingSplit, RegionBoundsThePartingPixelsAndComposeAddsWhatEachBlurChange
                 row[x] = x == 140 && y == 130;
             }
         },
-        shading::kDofSplitAlign);
+        shading::kDofCropAlign);
     EXPECT_EQ(snapped.box, (Rect{140, 130, 141, 131}));
     EXPECT_EQ(snapped.crop, (Rect{128, 112, 146, 136}));
 

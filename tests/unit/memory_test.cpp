@@ -115,6 +115,21 @@ TEST(Memory, ScratchBlocksAreAlignedAndReusedBestFit)
         ScratchArray<float> small = scratch_array<float>(1000 * 1000);
         EXPECT_TRUE(small.get() == first || small.get() == second);
     }
+    // A full pool (256 MiB) frees its oldest blocks for a newcomer: of three 100 MiB blocks
+    // freed in turn, the first is gone and a request takes one of the last two. (The blocks are
+    // never touched: no memory is committed for them.)
+    {
+        const std::size_t m = std::size_t(100) << 20;
+        void *a = scratch_take(m), *b = scratch_take(m), *c = scratch_take(m);
+        scratch_give(a, m);
+        scratch_give(b, m);
+        scratch_give(c, m);
+        std::size_t got = 0;
+        void *again = scratch_take(m, &got);
+        EXPECT_TRUE(again == b || again == c);
+        EXPECT_EQ(got, m);
+        scratch_give(again, got);
+    }
     ScratchArray<char> tiny = scratch_array<char>(1);  // at least one 2 MiB block
     ASSERT_NE(tiny.get(), nullptr);
     tiny[(std::size_t(2) << 20) - 1] = 'x';
