@@ -170,7 +170,7 @@ bool blur_split(NodeContext &ctx,
         h,
         reach,
         [&](int y, std::uint8_t *row) { shading::mark_highlights(spec, knee, y, row, parts_at); },
-        shading::kDofSplitAlign);
+        shading::kDofCropAlign);
     if (region.empty()) {
         return false;
     }

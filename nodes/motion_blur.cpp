@@ -168,11 +168,10 @@ Image blur_split(NodeContext &ctx,
     // again, plus the tiles of the neighbour-max lookup.
     const int reach = 2 * (int(std::ceil(o.max_radius)) + 2 * o.tile);
     const float knee = ctx.get_float(kSpecularKnee);
-    const auto finite_or_0 = [](float v) { return std::isfinite(v) ? v : 0.0f; };
     const auto parts_at = [&](int x, int y) {
         const float *a = spec_motion.pixel(x, y), *b = rest_motion->pixel(x, y);
-        return std::abs(finite_or_0(a[0]) - b[0]) > 1e-3f ||
-               std::abs(finite_or_0(a[1]) - b[1]) > 1e-3f;
+        return std::abs(finite_or_zero(a[0]) - b[0]) > 1e-3f ||
+               std::abs(finite_or_zero(a[1]) - b[1]) > 1e-3f;
     };
     // The knee first: most pixels hold no highlight, and then their motions are not read.
     const shading::SplitRegion region =
@@ -197,8 +196,8 @@ Image blur_split(NodeContext &ctx,
             float *d = share_motion.pixel(i, j);
             if (parts_at(x, y)) {
                 const float *m = spec_motion.pixel(x, y);
-                d[0] = finite_or_0(m[0]);
-                d[1] = finite_or_0(m[1]);
+                d[0] = finite_or_zero(m[0]);
+                d[1] = finite_or_zero(m[1]);
             } else {
                 const float *m = rest_motion->pixel(x, y);
                 d[0] = m[0];

@@ -13,6 +13,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/sanitize.h"
 
 namespace posthaste::filter {
 namespace {
@@ -87,11 +88,6 @@ int fft_size(int n)
             return m;
         }
     }
-}
-
-float finite_or_zero(float v)
-{
-    return std::isfinite(v) ? v : 0.0f;
 }
 
 // ---- the built-in PSF ----------------------------------------------------------------------

@@ -19,6 +19,11 @@ enum class DofMethod {
     Simple,  ///< Baseline: uniform disc of each pixel's own CoC, no depth test (scatter-free).
 };
 
+/// The grid a crop blurred on its own starts on (the lighting split's share): the CoC tiles
+/// (16 px) and the gather's groups of 8 pixels then fall as the whole frame's do, and the crop
+/// can draw the frame's jitter (DofSettings::jitter_x0).
+constexpr int kDofCropAlign = 16;
+
 struct DofSettings {
     float max_coc_px = 64.0f;  ///< Largest CoC diameter, px.
     int samples = 64;          ///< Most samples per pixel; fewer where the CoC is small.

@@ -31,11 +31,6 @@ struct SplitRegion {
     }
 };
 
-/// The grid dof's crop starts on: the CoC tiles (16 px) and the gather's groups of 8 pixels
-/// then fall as the whole frame's do, and the share's blur can draw the frame's jitter
-/// (DofSettings::jitter_x0).
-constexpr int kDofSplitAlign = 16;
-
 /// Mark the lifted pixels of a width x height frame, one row at a time (`mark_row(y, row)`
 /// writes 0 or 1 for each of the row's pixels: 1 where the share parts ways and rises above the
 /// knee), and bound them; the crop is the box grown by `reach` on every side (what a blur spreads
