@@ -247,23 +247,26 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                         sky.ground(dirs[i], sky_camera);
         }
     };
-    // The march compares in 1 / z (no division per step; the sky's +inf is 0) on the traced
-    // grid: at half resolution each cell holds its 2x2 block's nearest surface, a quarter of
-    // the memory the rays wander through.
-    std::vector<float> inv_depth(std::size_t(tw) * std::size_t(th));
-    parallel_for(0, th, [&](int ty) {
-        for (int tx = 0; tx < tw; ++tx) {
+    // The march compares in 1 / z (no division per step; the sky's +inf is 0) on a grid of
+    // gs x gs pixel cells, each holding its block's nearest surface: at half resolution and
+    // below a quarter of the memory the rays wander through. Coarser cells would merge
+    // surfaces that the rays must tell apart (the balls' silhouettes, thin features).
+    const int gs = std::min(st, 2);
+    const int gw = (w + gs - 1) / gs, gh = (h + gs - 1) / gs;
+    std::vector<float> inv_depth(std::size_t(gw) * std::size_t(gh));
+    parallel_for(0, gh, [&](int gy) {
+        for (int gx = 0; gx < gw; ++gx) {
             float inv = 0.0f;
-            for (int y = ty * st; y < std::min(h, ty * st + st); ++y) {
-                for (int x = tx * st; x < std::min(w, tx * st + st); ++x) {
+            for (int y = gy * gs; y < std::min(h, gy * gs + gs); ++y) {
+                for (int x = gx * gs; x < std::min(w, gx * gs + gs); ++x) {
                     const float z = depth.at(x, y, 0);
                     inv = std::max(inv, z > 0.0f ? 1.0f / z : 0.0f);
                 }
             }
-            inv_depth[std::size_t(ty) * std::size_t(tw) + std::size_t(tx)] = inv;
+            inv_depth[std::size_t(gy) * std::size_t(gw) + std::size_t(gx)] = inv;
         }
     });
-    const Marcher marcher(in, p, inv_depth.data(), tw, th, st);
+    const Marcher marcher(in, p, inv_depth.data(), gw, gh, gs);
     // Per traced cell what the resolve compares and averages (ssr_kernels.h, SsrResolveRow).
     CellRows cells(w, th, st);
     std::atomic<long long> n_pixels{0}, n_rays{0}, n_hits{0};
@@ -538,9 +541,13 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
     // pixels on the same surface (depth within 5 %, normals within 25 degrees), weighted by the
     // pixel's own Fresnel and gloss. The rays' noise falls by the number of cells averaged; the
     // blur is that of the window on sharp reflections.
-    Image out = *in.color;
-    const int radius = std::max(p.denoise, st - 1);
+    // The colour is copied row by row in the resolve, which then adds to the row in cache.
+    const Image &color = *in.color;
+    Image out = Image::uninitialized(w, h, color.channels());
+    const std::size_t row_values = std::size_t(w) * std::size_t(color.channels());
+    const int radius = st > 1 ? std::max(p.denoise, st) : p.denoise;
     parallel_for(0, h, [&](int y) {
+        std::copy_n(color.pixel(0, y), row_values, out.pixel(0, y));
         // The row's sky reflection weights (0 where the pixel is left alone): on the vector
         // kernel from the row's channels side by side, or glossy_pixel's scalar reference.
         // The weights, then the row's channels (kept by each thread from row to row;

@@ -40,9 +40,12 @@ struct SsrParams {
     /// Zero: hits keep the colour the camera saw.
     glm::vec3 sun_irradiance{0.0f};
     /// 1: rays from every glossy pixel; 2: from every other pixel in x and y (a quarter of the
-    /// rays), the resolve filling the others from their traced neighbours on the same surface.
-    int stride = 2;
-    /// Resolve window radius in pixels (0: each pixel keeps its own rays' estimate).
+    /// rays); 4: every fourth (a sixteenth); the resolve fills the others from their traced
+    /// neighbours on the same surface. The march's depth grid has cells of min(stride, 2).
+    int stride = 4;
+    /// Resolve window radius in pixels (0: each pixel keeps its own rays' estimate); at least
+    /// `stride` where stride > 1, so that every pixel's window reaches a traced cell on either
+    /// side.
     int denoise = 3;
     float intensity = 1.0f;  ///< Share of the change applied.
     std::uint32_t seed = 0;

@@ -1,9 +1,9 @@
 // Benchmarks of the ssr node (nodes/ssr.cpp) at 1920x1080 on the glossy scene
 // (samples/scenes/glossy.json: polished floor, mirror panel, balls), the frames of
 // graphs/bench/ssr.json (1: wide view; 16: close to the floor), rendered once: the default
-// settings, hits not re-shaded (as the camera saw them), with the scene's reflection probe, one
-// ray a pixel, and full resolution; beside the copy of the colour pass the node
-// pays at least. cpu_ms is the process CPU time per iteration (all threads).
+// settings (quarter resolution at this size), hits not re-shaded (as the camera saw them), with
+// the scene's reflection probe, one ray a pixel, half and full resolution; beside the copy of the
+// colour pass the node pays at least. cpu_ms is the process CPU time per iteration (all threads).
 //   build/tests/posthaste_benchmarks --benchmark_filter=Ssr --benchmark_repetitions=5
 //       --benchmark_report_aggregates_only=true   (one command line)
 #include <benchmark/benchmark.h>
@@ -101,6 +101,10 @@ void BM_SsrNodeRays1(benchmark::State &state)
 {
     run_ssr(state, R"({"rays": 1})");
 }
+void BM_SsrNodeHalf(benchmark::State &state)
+{
+    run_ssr(state, R"({"resolution": "half"})");
+}
 void BM_SsrNodeFull(benchmark::State &state)
 {
     run_ssr(state, R"({"resolution": "full"})");
@@ -114,6 +118,7 @@ BENCHMARK(BM_SsrNode)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTi
 BENCHMARK(BM_SsrNodeAsSeen)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeProbe)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeRays1)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsrNodeHalf)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeFull)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrCopyBaseline)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 

@@ -290,14 +290,16 @@ TEST(Ssr, VectorKernelsGiveTheScalarReferenceBits)
     // The kernels (ssr_kernels.cpp: the march's depth tests, the resolve's weights and window)
     // run on every Highway target and give the scalar reference's bits: whole vectors of steps
     // (16), a partial one (37), one step, many (512); resolve windows from one pixel to 17, at
-    // full and half resolution; an odd size (the last cell column half outside).
+    // full, half and quarter resolution; an odd size (the last cell column partly outside).
     raster::Scene s = raster::load_scene(scene_path("glossy.json"));
     const Frame f = glossy_frame(s, 161, 91);
     for (const char *params : {R"({})",
                                R"({"steps": 37, "thickness": 0.05, "denoise": 8})",
                                R"({"steps": 1, "resolution": "full", "denoise": 0})",
                                R"({"resolution": "full", "denoise": 2, "intensity": 0.5})",
-                               R"({"steps": 512, "offscreen": "extend", "rays": 2})"}) {
+                               R"({"steps": 512, "offscreen": "extend", "rays": 2})",
+                               R"({"resolution": "half", "denoise": 3})",
+                               R"({"denoise": 8, "rays": 8})"}) {
         Frame reference;
         {
             const simd::ScopedLevel scalar(simd::Level::Scalar);
