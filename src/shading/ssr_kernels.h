@@ -173,14 +173,14 @@ struct SsrWeightRow {
 
 /// The sky reflection weight (shading::sky_reflection_weight: Fresnel-Schlick at n.v times the
 /// gloss) of each pixel of the row that ssr changes, 0 for the others (sky, rough, no normal, no
-/// weight), as ssr.cpp's glossy_pixel computes it, bit for bit; into wr, wg, wb (n +
+/// weight), as ssr_rows.cpp's glossy_pixel computes it, bit for bit; into wr, wg, wb (n +
 /// kSsrStepPad values each), and glossy_pixel's other terms where asked for.
 void ssr_weight_row(const SsrWeightRow &r, float *wr, float *wg, float *wb);
 
 /// The traced cells' estimates near one output row, and that row's pixels, for the resolve's
-/// window (ssr.cpp). A cell row holds kSsrCellChannels arrays of `pitch` floats (depth, NaN where
-/// the cell holds no estimate; the pass's normal x, y, z; the change r, g, b), indexed by pixel
-/// column: the cell of pixel column x is repeated over its `stride` columns, so that column
+/// window (ssr_rows.cpp). A cell row holds kSsrCellChannels arrays of `pitch` floats (depth, NaN
+/// where the cell holds no estimate; the pass's normal x, y, z; the change r, g, b), indexed by
+/// pixel column: the cell of pixel column x is repeated over its `stride` columns, so that column
 /// x + stride k holds the k-th cell from x's own; valid from column -kSsrCellMargin to w +
 /// kSsrCellMargin. cell_x: the first pixel column of the cell each column holds.
 inline constexpr int kSsrCellChannels = 7;
@@ -203,7 +203,7 @@ struct SsrResolveRow {
 /// The resolve of one row: for each pixel with a weight, the mean change of the cells in its
 /// window on its surface (depth within 5 % of the pixel's, n . n_cell >= 0.9) times its weight
 /// and the intensity, into dr, dg, db, and apply 1 (else 0: no weight or no such cell); the
-/// same bits as ssr.cpp's scalar resolve. Outputs hold n + kSsrStepPad values.
+/// same bits as ssr_rows.cpp's scalar resolve. Outputs hold n + kSsrStepPad values.
 void ssr_resolve_row(const SsrResolveRow &r, float *dr, float *dg, float *db, float *apply);
 
 }  // namespace posthaste::shading
