@@ -3,11 +3,9 @@
 #include "shading/ssr.h"
 
 #include <algorithm>
-#include <array>
 #include <atomic>
 #include <cmath>
 #include <glm/geometric.hpp>
-#include <limits>
 #include <optional>
 #include <vector>
 

@@ -8,8 +8,7 @@
 
 #include <gtest/gtest.h>
 
-#include <cmath>
-
+#include "metrics/metrics.h"
 #include "raster/ray_cast.h"
 #include "raster/render.h"
 #include "raster/scene.h"
@@ -17,19 +16,6 @@
 
 namespace posthaste {
 namespace {
-
-/// RMS of a - b over channel 0 (one size).
-double rms1(const Image &a, const Image &b)
-{
-    double sum = 0.0;
-    for (int y = 0; y < a.height(); ++y) {
-        for (int x = 0; x < a.width(); ++x) {
-            const double d = double(a.at(x, y, 0)) - double(b.at(x, y, 0));
-            sum += d * d;
-        }
-    }
-    return std::sqrt(sum / double(a.pixel_count()));
-}
 
 struct AoErrors {
     double none = 0.0, node = 0.0;
@@ -53,7 +39,8 @@ AoErrors ao_errors(const raster::Scene &s, int frame)
             EXPECT_TRUE(ao.at(x, y, 0) >= 0.0f && ao.at(x, y, 0) <= 1.0f) << x << "," << y;
         }
     }
-    return {rms1(one, truth), rms1(ao, truth)};
+    // The bench's RMSE (metrics::compare, idiff's definition).
+    return {metrics::compare(one, truth).all.rms_error, metrics::compare(ao, truth).all.rms_error};
 }
 
 TEST(AoAccuracySlow, RemovesMostOfTheErrorWhereTheDepthBufferHoldsTheOccluders)
