@@ -1,14 +1,16 @@
 // nodes/ao.cpp: screen-space ambient occlusion from the depth and normal passes and the camera
 // (src/shading/gtao.h: GTAO, Jimenez et al. 2016, with a hard world radius so that it estimates
-// what `render` with truth "ao" computes exactly). Outputs pass "ao" (1 channel); `apply:
-// multiply` also darkens color by it, an approximation (the beauty's direct light is darkened
-// too; a renderer's separate indirect pass would be the right target). Non-finite depth reads as
-// the sky (AO 1), a non-finite normal as facing the camera.
+// what `render` with truth "ao" computes exactly; `method: trace`, src/shading/ao_trace.h: rays
+// marched through the depth pass, a slow reference for what the depth pass can show). Outputs pass
+// "ao" (1 channel); `apply: multiply` also darkens color by it, an approximation (the beauty's
+// direct light is darkened too; a renderer's separate indirect pass would be the right target).
+// Non-finite depth reads as the sky (AO 1), a non-finite normal as facing the camera.
 
 #include <cmath>
 
 #include "core/sanitize.h"
 #include "nodes/node.h"
+#include "shading/ao_trace.h"
 #include "shading/camera_rays.h"
 #include "shading/gtao.h"
 
@@ -39,8 +41,33 @@ constexpr ParamSpec kResolution =
         .doc("half: every other pixel, then a depth-aware upsample (a quarter of the work).");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
-constexpr ParamSpec kParams[] = {
-    kRadius, kSlices, kSteps, kDenoise, kIntensity, kMaxRadiusPx, kApply, kResolution, kSeed};
+constexpr ParamSpec kMethod =
+    ParamSpec::choice("method", "gtao|trace", "gtao")
+        .doc(
+            "gtao: horizons in slices (fast); trace: rays marched through the depth pass (slow "
+            "reference).");
+constexpr ParamSpec kRays =
+    ParamSpec::integer("rays", 64).range(1, 1024).doc("trace: rays per pixel (a square grid).");
+constexpr ParamSpec kRaySteps =
+    ParamSpec::integer("ray_steps", 24).range(1, 256).doc("trace: depth samples along a ray.");
+constexpr ParamSpec kThickness =
+    ParamSpec::real("thickness", 1.0)
+        .range(0.0, 1e6)
+        .units("scene units")
+        .doc("trace: how far a surface extends behind the depth pass (camera depth).");
+constexpr ParamSpec kParams[] = {kRadius,
+                                 kSlices,
+                                 kSteps,
+                                 kDenoise,
+                                 kIntensity,
+                                 kMaxRadiusPx,
+                                 kApply,
+                                 kResolution,
+                                 kSeed,
+                                 kMethod,
+                                 kRays,
+                                 kRaySteps,
+                                 kThickness};
 constexpr PortSpec kInputs[] = {
     {"image", "depth,normal", false, "Depth, world normals and camera matrices."}};
 
@@ -62,19 +89,32 @@ void execute(NodeContext &ctx)
         ao = Image(depth.width(), depth.height(), 1);
         ao.fill(1.0f);
     } else {
-        shading::GtaoParams p;
-        p.radius = ctx.get_float(kRadius);
-        p.slices = ctx.get_int(kSlices);
-        p.steps = ctx.get_int(kSteps);
-        p.max_radius_px = ctx.get_float(kMaxRadiusPx);
-        p.seed = std::uint32_t(ctx.get_int(kSeed));
-        p.stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
-        ao = shading::gtao(depth, normal, rays, p);
-        const Image ao_depth = shading::gtao_depth(depth, p.stride);
+        const int stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
+        const std::uint32_t seed = std::uint32_t(ctx.get_int(kSeed));
+        if (ctx.get_string(kMethod) == "trace") {
+            shading::AoTraceParams p;
+            p.radius = ctx.get_float(kRadius);
+            p.rays = ctx.get_int(kRays);
+            p.steps = ctx.get_int(kRaySteps);
+            p.thickness = ctx.get_float(kThickness);
+            p.stride = stride;
+            p.seed = seed;
+            ao = shading::ao_trace(depth, normal, rays, p);
+        } else {
+            shading::GtaoParams p;
+            p.radius = ctx.get_float(kRadius);
+            p.slices = ctx.get_int(kSlices);
+            p.steps = ctx.get_int(kSteps);
+            p.max_radius_px = ctx.get_float(kMaxRadiusPx);
+            p.seed = seed;
+            p.stride = stride;
+            ao = shading::gtao(depth, normal, rays, p);
+        }
+        const Image ao_depth = shading::gtao_depth(depth, stride);
         if (ctx.get_bool(kDenoise)) {
             ao = shading::gtao_denoise(ao, ao_depth);
         }
-        ao = shading::gtao_upsample(ao, ao_depth, depth, p.stride);
+        ao = shading::gtao_upsample(ao, ao_depth, depth, stride);
         parallel_for(0, ao.height(), [&](int y) {
             for (int x = 0; x < ao.width(); ++x) {
                 const float v = std::clamp(ao.at(x, y, 0), 0.0f, 1.0f);

@@ -205,21 +205,13 @@ float ao_truth_at(const RayScene &rays,
 {
     const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
     const int n = strata * strata;
-    // An orthonormal basis around the normal (Duff et al. 2017).
-    const float sign = std::copysign(1.0f, nn.z);
-    const float a = -1.0f / (sign + nn.z), b = nn.x * nn.y * a;
-    const glm::vec3 t1(1.0f + sign * nn.x * nn.x * a, sign * b, -sign * nn.x);
-    const glm::vec3 t2(b, sign + nn.y * nn.y * a, -nn.y);
     const glm::vec3 origin = p + nn * 1e-3f;
     int open = 0;
     for (int i = 0; i < n; ++i) {
-        // Cosine-weighted: a uniform point of the unit disc lifted onto the hemisphere.
         const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
         const float u2 = (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
-        const float r = std::sqrt(u1), phi = 6.28318530718f * u2;
-        const glm::vec3 dir = t1 * (r * std::cos(phi)) + t2 * (r * std::sin(phi)) +
-                              nn * std::sqrt(std::max(0.0f, 1.0f - u1));
-        open += rays.occluded(origin, glm::normalize(dir), radius) ? 0 : 1;
+        open +=
+            rays.occluded(origin, shading::sample_cosine_hemisphere(nn, u1, u2), radius) ? 0 : 1;
     }
     return float(open) / float(n);
 }

@@ -98,6 +98,18 @@ glm::vec3 sky_reflection_weight(const Surface &s, const glm::vec3 &n, const glm:
     return fresnel_schlick(specular_f0(s), nv) * gloss;
 }
 
+glm::vec3 sample_cosine_hemisphere(const glm::vec3 &n, float u1, float u2)
+{
+    // An orthonormal basis around n (Duff et al. 2017).
+    const float sign = std::copysign(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z), b = n.x * n.y * a;
+    const glm::vec3 t1(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    const glm::vec3 t2(b, sign + n.y * n.y * a, -n.y);
+    const float r = std::sqrt(u1), phi = 6.28318530718f * u2;
+    return glm::normalize(t1 * (r * std::cos(phi)) + t2 * (r * std::sin(phi)) +
+                          n * std::sqrt(std::max(0.0f, 1.0f - u1)));
+}
+
 glm::vec3 sample_ggx_reflection(
     const glm::vec3 &n, const glm::vec3 &v, float alpha, float u1, float u2)
 {

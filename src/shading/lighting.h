@@ -71,6 +71,11 @@ glm::vec3 add_sky_light(glm::vec3 c,
 /// reflected rays really meet (the reflection truth and the ssr node both do so).
 glm::vec3 sky_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v);
 
+/// A unit direction around unit normal n drawn with density cos(theta) / pi from (u1, u2) in
+/// [0, 1)^2 (a uniform point of the unit disc, radius sqrt(u1) and turn u2, lifted onto the
+/// hemisphere: Malley's method). Used by the AO truth and the node's ray-traced method alike.
+glm::vec3 sample_cosine_hemisphere(const glm::vec3 &n, float u1, float u2);
+
 /// A reflected direction for GGX roughness `alpha` around unit normal n seen from v: a half
 /// vector drawn with density D(h) (n.h) (Walter et al. 2007) from (u1, u2) in [0, 1)^2,
 /// and v mirrored about it. May point below the surface (n.l <= 0): callers drop those. With

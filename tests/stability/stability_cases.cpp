@@ -80,6 +80,9 @@ NodeCases node_cases(const std::string &type)
         c.param_sets.push_back(
             {"wide_many", {"radius=50", "slices=8", "steps=32", "apply=multiply"}});
         c.param_sets.push_back({"tiny_radius", {"radius=0.0001", "denoise=false"}});
+        c.param_sets.push_back({"trace", {"method=trace", "rays=4", "ray_steps=8"}});
+        c.param_sets.push_back(
+            {"trace_extreme", {"method=trace", "rays=1", "radius=50", "thickness=0"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",

@@ -1,7 +1,8 @@
 // Ambient occlusion: the exact ray caster (voxels, spheres, moving blocks), the ground truth at
 // the foot of a wall against its closed form, GTAO on an analytic floor-and-wall G-buffer (an open
 // plane gives 1, the corner its closed form within the screen-space method's error), and the
-// node's refusals (no normals, no camera).
+// node's refusals (no normals, no camera); the ray-traced method on the same G-buffers (the plane,
+// the corner, a foreground plate that rays pass behind), its same bits on any thread count.
 
 #include <gtest/gtest.h>
 
@@ -10,8 +11,10 @@
 #include <limits>
 
 #include "core/error.h"
+#include "core/parallel.h"
 #include "core/simd.h"
 #include "raster/ray_cast.h"
+#include "shading/ao_trace.h"
 #include "shading/camera_rays.h"
 #include "shading/gtao.h"
 #include "test_util.h"
@@ -95,13 +98,14 @@ TEST(Ao, TruthAtTheFootOfAWallMatchesTheClosedForm)
 }
 
 /// A G-buffer of the floor y = 0 and the wall x = wall_x seen by a camera at (wall_x - 4, 3, 0)
-/// looking along +x and down: depth, world normals and the camera's rays.
+/// looking along +x and down: depth, world normals and the camera's rays. With `plate`, a thin
+/// plate x = 1, 1.8 <= y <= 2.6 (facing the camera) hangs between the camera and the floor.
 struct AnalyticGBuffer {
     Image depth, normal;
     shading::CameraRays rays;
 };
 
-AnalyticGBuffer floor_wall_gbuffer(int w, int h, bool wall)
+AnalyticGBuffer floor_wall_gbuffer(int w, int h, bool wall, bool plate = false)
 {
     const float wall_x = 4.0f;
     glm::mat4 to_world(1.0f);
@@ -134,6 +138,13 @@ AnalyticGBuffer floor_wall_gbuffer(int w, int h, bool wall)
                     n = glm::vec3(-1, 0, 0);
                 }
             }
+            if (plate && r.x > 0.0f) {
+                const float t = (1.0f - cam.x) / r.x, py = cam.y + t * r.y;
+                if (t < best && py >= 1.8f && py <= 2.6f) {
+                    best = t;
+                    n = glm::vec3(-1, 0, 0);
+                }
+            }
             g.depth.at(x, y, 0) = best;
             for (int c = 0; c < 3; ++c) {
                 g.normal.at(x, y, c) = n[c];
@@ -148,6 +159,15 @@ Image gtao_denoised(const AnalyticGBuffer &g, const shading::GtaoParams &p)
 {
     const Image ao_depth = shading::gtao_depth(g.depth, p.stride);
     const Image ao = shading::gtao_denoise(shading::gtao(g.depth, g.normal, g.rays, p), ao_depth);
+    return shading::gtao_upsample(ao, ao_depth, g.depth, p.stride);
+}
+
+/// The node's pipeline with the ray-traced method.
+Image trace_denoised(const AnalyticGBuffer &g, const shading::AoTraceParams &p)
+{
+    const Image ao_depth = shading::gtao_depth(g.depth, p.stride);
+    const Image ao =
+        shading::gtao_denoise(shading::ao_trace(g.depth, g.normal, g.rays, p), ao_depth);
     return shading::gtao_upsample(ao, ao_depth, g.depth, p.stride);
 }
 
@@ -224,6 +244,77 @@ TEST(Ao, HalfResolutionKeepsThePlaneAndTheCorner)
     EXPECT_NEAR(floor_mean(up), 1.0, 0.01);
     const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, true);
     expect_corner_band(g, gtao_denoised(g, p), 0.25, 0.5);
+}
+
+TEST(Ao, TraceIsOneOnAnOpenPlaneAndFollowsTheCorner)
+{
+    shading::AoTraceParams p;
+    p.rays = 64;
+    p.steps = 32;
+    // No occluder: every ray stays open, the pixel's own plane never occludes it.
+    const AnalyticGBuffer open = floor_wall_gbuffer(320, 240, false);
+    const Image flat = shading::ao_trace(open.depth, open.normal, open.rays, p);
+    for (int y = 0; y < flat.height(); ++y) {
+        for (int x = 0; x < flat.width(); ++x) {
+            ASSERT_EQ(flat.at(x, y, 0), 1.0f) << x << ", " << y;
+        }
+    }
+    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, true);
+    const Image ao = trace_denoised(g, p);
+    for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
+        expect_corner_band(g, ao, d0, d0 + 0.25);
+    }
+    p.stride = 2;
+    expect_corner_band(g, trace_denoised(g, p), 0.25, 0.5);
+}
+
+// Floor pixels seen below a hanging plate, more than the radius from it (1.9 m at least): nothing
+// occludes them. Rays rising from them pass behind the plate on screen; with a thickness below
+// their depth behind it they stay open (AO 1, as the truth), with an unbounded one the plate's
+// shadow appears on the floor (the halo of the depth buffer's infinite-thickness reading).
+TEST(Ao, TraceThicknessLetsRaysPassBehindAForegroundPlate)
+{
+    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, false, true);
+    const int w = g.depth.width(), h = g.depth.height();
+    const glm::vec3 cam = g.rays.position();
+    auto floor_band = [&](const Image &ao) {
+        double sum = 0.0;
+        int n = 0;
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                const glm::vec3 pt =
+                    cam + g.depth.at(x, y, 0) * g.rays.depth_ray((x + 0.5f) / w, (y + 0.5f) / h);
+                if (g.normal.at(x, y, 1) == 1.0f && pt.x >= 1.6f && pt.x < 2.4f) {
+                    EXPECT_TRUE(std::isfinite(ao.at(x, y, 0)));
+                    sum += ao.at(x, y, 0);
+                    ++n;
+                }
+            }
+        }
+        EXPECT_GT(n, 200);
+        return sum / std::max(n, 1);
+    };
+    shading::AoTraceParams p;
+    p.rays = 36;
+    p.steps = 32;
+    p.thickness = 0.3f;
+    EXPECT_GT(floor_band(shading::ao_trace(g.depth, g.normal, g.rays, p)), 0.995);
+    p.thickness = 1e6f;
+    EXPECT_LT(floor_band(shading::ao_trace(g.depth, g.normal, g.rays, p)), 0.95);
+}
+
+TEST(Ao, TraceGivesTheSameBitsOnAnyThreadCount)
+{
+    const AnalyticGBuffer g = floor_wall_gbuffer(97, 61, true, true);
+    shading::AoTraceParams p;
+    p.rays = 9;
+    const int before = thread_count();
+    set_thread_count(1);
+    const Image one = shading::ao_trace(g.depth, g.normal, g.rays, p);
+    set_thread_count(2);
+    const Image two = shading::ao_trace(g.depth, g.normal, g.rays, p);
+    set_thread_count(before);
+    EXPECT_TRUE(one.bit_equal(two));
 }
 
 // The upsample is one Highway source compiled without contraction: the CPU's best target and
