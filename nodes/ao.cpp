@@ -1,10 +1,12 @@
 // nodes/ao.cpp: screen-space ambient occlusion from the depth and normal passes and the camera
 // (src/shading/gtao.h: GTAO, Jimenez et al. 2016, with a hard world radius so that it estimates
-// what `render` with truth "ao" computes exactly; `method: trace`, src/shading/ao_trace.h: rays
-// marched through the depth pass, a slow reference for what the depth pass can show). Outputs pass
-// "ao" (1 channel); `apply: multiply` also darkens color by it, an approximation (the beauty's
-// direct light is darkened too; a renderer's separate indirect pass would be the right target).
-// Non-finite depth reads as the sky (AO 1), a non-finite normal as facing the camera.
+// what `render` with truth "ao" computes exactly; `method: bitmask`, the same slices with a
+// visibility bitmask of finite thickness after Therrien et al. 2023; `method: trace`,
+// src/shading/ao_trace.h: rays marched through the depth pass, a slow reference for what the
+// depth pass can show). Outputs pass "ao" (1 channel); `apply: multiply` also darkens color by
+// it, an approximation (the beauty's direct light is darkened too; a renderer's separate
+// indirect pass would be the right target). Non-finite depth reads as the sky (AO 1), a
+// non-finite normal as facing the camera.
 
 #include <cmath>
 
@@ -42,19 +44,19 @@ constexpr ParamSpec kResolution =
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
 constexpr ParamSpec kMethod =
-    ParamSpec::choice("method", "gtao|trace", "gtao")
+    ParamSpec::choice("method", "gtao|bitmask|trace", "gtao")
         .doc(
-            "gtao: horizons in slices (fast); trace: rays marched through the depth pass (slow "
-            "reference).");
+            "gtao: horizons in slices; bitmask: the same slices, a sample hiding only "
+            "`thickness` behind it; trace: rays marched through the depth pass (slow reference).");
 constexpr ParamSpec kRays =
     ParamSpec::integer("rays", 64).range(1, 1024).doc("trace: rays per pixel (a square grid).");
 constexpr ParamSpec kRaySteps =
     ParamSpec::integer("ray_steps", 24).range(1, 256).doc("trace: depth samples along a ray.");
 constexpr ParamSpec kThickness =
     ParamSpec::real("thickness", 1.0)
-        .range(0.0, 1e6)
+        .range(1e-4, 1e6)
         .units("scene units")
-        .doc("trace: how far a surface extends behind the depth pass (camera depth).");
+        .doc("bitmask, trace: how far a surface extends behind the depth pass (camera depth).");
 constexpr ParamSpec kParams[] = {kRadius,
                                  kSlices,
                                  kSteps,
@@ -108,6 +110,9 @@ void execute(NodeContext &ctx)
             p.max_radius_px = ctx.get_float(kMaxRadiusPx);
             p.seed = seed;
             p.stride = stride;
+            if (ctx.get_string(kMethod) == "bitmask") {
+                p.thickness = ctx.get_float(kThickness);
+            }
             ao = shading::gtao(depth, normal, rays, p);
         }
         const Image ao_depth = shading::gtao_depth(depth, stride);

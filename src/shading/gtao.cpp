@@ -53,6 +53,7 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
     kp.slices = std::max(1, p.slices);
     kp.steps = std::max(1, p.steps);
     kp.stride = st;
+    kp.thickness = p.thickness;
     // Slice directions for each of the pattern's 16 rotations.
     std::vector<float> dir_x(std::size_t(16 * kp.slices)), dir_y(dir_x.size());
     for (int r = 0; r < 16; ++r) {

@@ -24,6 +24,10 @@ struct GtaoParams {
     /// to full resolution by gtao_upsample.
     int stride = 1;
     std::uint32_t seed = 0;  ///< Shifts the 4x4 pattern of slice rotations and step jitter.
+    /// 0: GTAO's horizons (a sample hides every direction below it); > 0: a visibility bitmask
+    /// of 32 sectors per slice, each sample hiding only the sectors between itself and itself
+    /// pushed this far in camera depth (scene units).
+    float thickness = 0.0f;
 };
 
 /// AO (1 channel, 0 occluded .. 1 open, the estimate itself: a few slices can scatter a little

@@ -47,19 +47,29 @@ HWY_INLINE V Dot(V ax, V ay, V az, V bx, V by, V bz)
     return hn::MulAdd(ax, bx, hn::MulAdd(ay, by, hn::Mul(az, bz)));
 }
 
-void GtaoRow(const GtaoKernelParams &p,
-             int oy,
-             const float *zs,
-             const float *nxs,
-             const float *nys,
-             const float *nzs,
-             const std::int32_t *rots,
-             const float *jits,
-             int n,
-             float *out)
+/// Bit masks of the k lowest of 32 sectors, k = 0..32 (the visibility bitmask's intervals).
+HWY_ALIGN static constexpr std::int32_t kLowMask[33] = {
+    0,         0x1,        0x3,        0x7,        0xF,       0x1F,      0x3F,
+    0x7F,      0xFF,       0x1FF,      0x3FF,      0x7FF,     0xFFF,     0x1FFF,
+    0x3FFF,    0x7FFF,     0xFFFF,     0x1FFFF,    0x3FFFF,   0x7FFFF,   0xFFFFF,
+    0x1FFFFF,  0x3FFFFF,   0x7FFFFF,   0xFFFFFF,   0x1FFFFFF, 0x3FFFFFF, 0x7FFFFFF,
+    0xFFFFFFF, 0x1FFFFFFF, 0x3FFFFFFF, 0x7FFFFFFF, -1};
+
+template <bool kBitmask>
+void GtaoRowT(const GtaoKernelParams &p,
+              int oy,
+              const float *zs,
+              const float *nxs,
+              const float *nys,
+              const float *nzs,
+              const std::int32_t *rots,
+              const float *jits,
+              int n,
+              float *out)
 {
     const hn::ScalableTag<float> d;
     const hn::RebindToSigned<decltype(d)> di;
+    const hn::RebindToUnsigned<decltype(d)> du32;
     using V = hn::Vec<decltype(d)>;
     const int lanes = int(hn::Lanes(d));
     const float inv_w = 1.0f / float(p.w), inv_h = 1.0f / float(p.h);
@@ -156,6 +166,46 @@ void GtaoRow(const GtaoKernelParams &p,
             const V ang_n = hn::IfThenElse(neg, hn::Neg(acn), acn);
             const V sin_abs = hn::Sqrt(hn::Max(hn::NegMulAdd(cos_n, cos_n, one), zero));
             const V sin_n = hn::IfThenElse(neg, hn::Neg(sin_abs), sin_abs);
+            // The visibility bitmask: the hemisphere about the projected normal, lo .. hi from
+            // the view vector, cut into 32 sectors of equal cosine-weighted measure (so that a
+            // sector's share is its count); cum(lo) and the whole measure from gtao.h's arcs.
+            const V lo = hn::Sub(ang_n, hn::Set(d, kHalfPi)),
+                    hi = hn::Add(ang_n, hn::Set(d, kHalfPi));
+            const V cum_lo = hn::Neg(Arc(d, lo, sin_n, hn::Neg(cos_n), cos_n, sin_n));
+            const V measure = hn::Sub(Arc(d, hi, hn::Neg(sin_n), cos_n, cos_n, sin_n), cum_lo);
+            const V inv_measure = hn::Div(one, hn::Max(measure, hn::Set(d, 1e-12f)));
+            auto sectors = hn::Zero(di);
+            // The sector coordinate (0 .. 1) of the direction at cosine c from the view vector
+            // on side `side1` of the slice: its cumulative measure from lo.
+            const auto sector_of = [&](V c, bool side1) {
+                const V a = FastAcos(d, c);
+                const V sa = hn::Sqrt(hn::Max(hn::NegMulAdd(c, c, one), zero));
+                const V th = side1 ? a : hn::Neg(a);
+                const V arc = Arc(d, th, c, side1 ? sa : hn::Neg(sa), cos_n, sin_n);
+                const V u = hn::Mul(hn::Sub(side1 ? arc : hn::Neg(arc), cum_lo), inv_measure);
+                return hn::IfThenElse(hn::Gt(th, hi), one, hn::IfThenElse(hn::Lt(th, lo), zero, u));
+            };
+            // Sectors hidden by a surface point q (from the point) with front cosine cf: from q
+            // to q pushed `thickness` of camera depth away along its ray r, where `ok`.
+            const auto occlude =
+                [&](auto ok, V cf, V qx, V qy, V qz, V rx, V ry, V rz, bool side1) {
+                    const V th = hn::Set(d, p.thickness);
+                    const V bx = hn::MulAdd(th, rx, qx), by = hn::MulAdd(th, ry, qy),
+                            bz = hn::MulAdd(th, rz, qz);
+                    const V cb =
+                        hn::Div(Dot(bx, by, bz, view_x, view_y, view_z),
+                                hn::Sqrt(hn::Max(Dot(bx, by, bz, bx, by, bz), hn::Set(d, 1e-24f))));
+                    const V uf = sector_of(cf, side1), ub = sector_of(cb, side1);
+                    const V s32 = hn::Set(d, 32.0f);
+                    const auto to_index = [&](V u) {
+                        const auto i = hn::ConvertTo(di, hn::Floor(hn::MulAdd(u, s32, half)));
+                        return hn::Min(hn::Max(i, hn::Zero(di)), hn::Set(di, 32));
+                    };
+                    const auto ia = to_index(hn::Min(uf, ub)), ib = to_index(hn::Max(uf, ub));
+                    const auto bits = hn::AndNot(hn::GatherIndex(di, kLowMask, ia),
+                                                 hn::GatherIndex(di, kLowMask, ib));
+                    sectors = hn::Or(sectors, hn::IfThenElseZero(hn::RebindMask(di, ok), bits));
+                };
             // Lowest horizons: the tangent plane, n - pi/2 (side 0) and n + pi/2 (side 1), as
             // cosines from the view vector.
             V hc[2] = {sin_n, hn::Neg(sin_n)};
@@ -198,7 +248,11 @@ void GtaoRow(const GtaoKernelParams &p,
                         hn::And(valid, hn::And(hn::Le(len2, r2), hn::Ge(len2, hn::Set(d, 1e-12f))));
                     const V c = hn::Div(Dot(q_x, q_y, q_z, view_x, view_y, view_z),
                                         hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f))));
-                    h = hn::IfThenElse(in_range, hn::Max(h, c), h);
+                    if constexpr (kBitmask) {
+                        occlude(in_range, c, q_x, q_y, q_z, sr_x, sr_y, sr_z, side_i == 1);
+                    } else {
+                        h = hn::IfThenElse(in_range, hn::Max(h, c), h);
+                    }
                     // Just beyond the radius of a sample inside it: the straight surface in
                     // between crosses the radius there (a larger jump is a depth edge).
                     const auto beyond = hn::And(valid, hn::Gt(len2, r2));
@@ -223,7 +277,19 @@ void GtaoRow(const GtaoKernelParams &p,
                                                  view_y,
                                                  view_z),
                                              inv_radius);
-                        h = hn::IfThenElse(ok, hn::Max(h, cq), h);
+                        if constexpr (kBitmask) {
+                            occlude(ok,
+                                    cq,
+                                    hn::MulAdd(uu, a_x, prev_x),
+                                    hn::MulAdd(uu, a_y, prev_y),
+                                    hn::MulAdd(uu, a_z, prev_z),
+                                    sr_x,
+                                    sr_y,
+                                    sr_z,
+                                    side_i == 1);
+                        } else {
+                            h = hn::IfThenElse(ok, hn::Max(h, cq), h);
+                        }
                     }
                     // The last sample inside the radius: kept through samples too close to
                     // matter, forgotten at a missing depth or beyond the radius.
@@ -235,12 +301,20 @@ void GtaoRow(const GtaoKernelParams &p,
                 }
                 hc[side_i] = h;
             }
+            if constexpr (kBitmask) {
+                const V open = hn::Sub(
+                    hn::Set(d, 32.0f),
+                    hn::ConvertTo(
+                        d, hn::BitCast(di, hn::PopulationCount(hn::BitCast(du32, sectors)))));
+                const V vis = hn::Mul(hn::Mul(measure, open), hn::Set(d, 1.0f / 32.0f));
+                visibility =
+                    hn::Add(visibility, hn::IfThenElseZero(slice_ok, hn::Mul(pn_len, vis)));
+                continue;
+            }
             // Horizon angles (side 0 negative), at most pi/2 from the normal.
             V h0 = hn::Neg(FastAcos(d, hc[0])), h1 = FastAcos(d, hc[1]);
             V c0 = hc[0], s0 = hn::Neg(hn::Sqrt(hn::Max(hn::NegMulAdd(c0, c0, one), zero)));
             V c1 = hc[1], s1 = hn::Sqrt(hn::Max(hn::NegMulAdd(c1, c1, one), zero));
-            const V lo = hn::Sub(ang_n, hn::Set(d, kHalfPi)),
-                    hi = hn::Add(ang_n, hn::Set(d, kHalfPi));
             const auto clamp0 = hn::Lt(h0, lo), clamp1 = hn::Gt(h1, hi);
             h0 = hn::IfThenElse(clamp0, lo, h0);
             c0 = hn::IfThenElse(clamp0, sin_n, c0);  // cos(n - pi/2)
@@ -255,6 +329,24 @@ void GtaoRow(const GtaoKernelParams &p,
         // The mean over slices (unoccluded, the mean over all slice directions is exactly 1).
         const V ao = hn::Mul(visibility, hn::Set(d, 1.0f / float(p.slices)));
         hn::StoreU(hn::IfThenElse(active, ao, one), d, out + i0);
+    }
+}
+
+void GtaoRow(const GtaoKernelParams &p,
+             int oy,
+             const float *zs,
+             const float *nxs,
+             const float *nys,
+             const float *nzs,
+             const std::int32_t *rots,
+             const float *jits,
+             int n,
+             float *out)
+{
+    if (p.thickness > 0.0f) {
+        GtaoRowT<true>(p, oy, zs, nxs, nys, nzs, rots, jits, n, out);
+    } else {
+        GtaoRowT<false>(p, oy, zs, nxs, nys, nzs, rots, jits, n, out);
     }
 }
 

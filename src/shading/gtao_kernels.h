@@ -19,6 +19,9 @@ struct GtaoKernelParams {
     float radius = 1.0f, max_radius_px = 256.0f;
     float px_world_1 = 1.0f;  ///< world units per pixel at depth 1
     int slices = 2, steps = 4, stride = 1;
+    /// 0: a sample hides everything below its horizon (GTAO); > 0: only the sectors between
+    /// it and it pushed this far in camera depth (a visibility bitmask, Therrien et al. 2023).
+    float thickness = 0.0f;
     const float *dir_x = nullptr, *dir_y = nullptr;  ///< slice directions [16 * slices]
 };
 

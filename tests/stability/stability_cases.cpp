@@ -81,8 +81,11 @@ NodeCases node_cases(const std::string &type)
             {"wide_many", {"radius=50", "slices=8", "steps=32", "apply=multiply"}});
         c.param_sets.push_back({"tiny_radius", {"radius=0.0001", "denoise=false"}});
         c.param_sets.push_back({"trace", {"method=trace", "rays=4", "ray_steps=8"}});
+        c.param_sets.push_back({"bitmask", {"method=bitmask", "steps=3", "thickness=0.0001"}});
         c.param_sets.push_back(
-            {"trace_extreme", {"method=trace", "rays=1", "radius=50", "thickness=0"}});
+            {"bitmask_wide", {"method=bitmask", "radius=50", "thickness=1000000", "slices=3"}});
+        c.param_sets.push_back(
+            {"trace_extreme", {"method=trace", "rays=1", "radius=50", "thickness=0.0001"}});
     } else if (type == "channels") {
         c.param_sets.push_back({"copy_rename_remove",
                                 {R"(copy={"mix": ["color.R", "depth.Z", 1], "n2": "normal"})",

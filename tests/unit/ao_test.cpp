@@ -229,6 +229,40 @@ TEST(Ao, GtaoIsOneOnAnOpenPlaneAndFollowsTheCorner)
     }
 }
 
+// The bitmask's sectors: on the open plane nothing is hidden; at the foot of the wall (its face
+// visible, the wall solid behind it) a thickness of 1 m hides what the horizons hide; a thickness
+// of 0.1 mm hides almost nothing, so the floor by the wall reads nearly open.
+TEST(Ao, BitmaskIsOneOnAnOpenPlaneAndFollowsTheCornerWithThickness)
+{
+    shading::GtaoParams p;
+    p.slices = 4;
+    p.steps = 16;
+    p.thickness = 1.0f;
+    EXPECT_NEAR(floor_mean(gtao_denoised(floor_wall_gbuffer(320, 240, false), p)), 1.0, 0.01);
+    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, true);
+    const Image ao = gtao_denoised(g, p);
+    for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
+        expect_corner_band(g, ao, d0, d0 + 0.25);
+    }
+    p.thickness = 1e-4f;
+    const Image thin = gtao_denoised(g, p);
+    double sum = 0.0;
+    int n = 0;
+    for (int y = 0; y < 240; ++y) {
+        for (int x = 80; x < 240; ++x) {
+            const glm::vec3 pt =
+                g.rays.position() +
+                g.depth.at(x, y, 0) * g.rays.depth_ray((x + 0.5f) / 320, (y + 0.5f) / 240);
+            if (g.normal.at(x, y, 1) == 1.0f && pt.x > 3.75f) {
+                sum += thin.at(x, y, 0);
+                ++n;
+            }
+        }
+    }
+    ASSERT_GT(n, 50);
+    EXPECT_GT(sum / n, 0.95) << "closed form there about " << corner_ao(0.125, 1.0);
+}
+
 TEST(Ao, HalfResolutionKeepsThePlaneAndTheCorner)
 {
     shading::GtaoParams p;
