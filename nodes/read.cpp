@@ -5,10 +5,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <map>
+#include <memory>
+#include <mutex>
 
+#include "core/camera_solve.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "nodes/node.h"
+#include "nodes/read_camera.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -49,8 +53,36 @@ constexpr ParamSpec kDeep =
         .doc(
             "Deep files: composite each pixel's samples front to back (depth = the nearest "
             "sample), or refuse them.");
-constexpr ParamSpec kParams[] = {
-    kPath, kFrameOffset, kBadPixels, kLinearize, kAliases, kView, kDeep, kConvention};
+constexpr ParamSpec kCamera =
+    ParamSpec::json("camera", "null")
+        .doc(
+            "The camera, replacing the header's: {\"world_to_camera\": [16], \"world_to_ndc\": "
+            "[16]} (OpenEXR's order), or {\"camera_to_world\": [16], \"focal_length\": mm, "
+            "\"sensor_width\": mm} (camera space +X right, +Y up, +Z forward); \"near_clip\" "
+            "optional.");
+constexpr ParamSpec kSolveCamera =
+    ParamSpec::choice("solve_camera", "auto|never", "auto")
+        .doc(
+            "auto: a file without worldToCamera/worldToNDC that has position and depth passes "
+            "gets its pinhole camera solved from them (posthaste info shows the residual); "
+            "never: leave such a frame without a camera.");
+constexpr ParamSpec kCameraResidual =
+    ParamSpec::real("camera_residual", 0.05)
+        .range(1e-6, 10.0)
+        .units("px")
+        .doc("Largest RMS reprojection error a solved camera may have before the read refuses.")
+        .only_when("solve_camera", "auto");
+constexpr ParamSpec kParams[] = {kPath,
+                                 kFrameOffset,
+                                 kBadPixels,
+                                 kLinearize,
+                                 kAliases,
+                                 kView,
+                                 kDeep,
+                                 kConvention,
+                                 kCamera,
+                                 kSolveCamera,
+                                 kCameraResidual};
 
 ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
 {
@@ -65,21 +97,110 @@ ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
     return o;
 }
 
+/// What a read node decides once for its sequence, from its parameters and the first frame's
+/// header it opens.
+struct ReadState {
+    ReadOptions options;
+    GraphCamera graph_camera;
+    /// The sequence's headers carry no camera matrices but the files have position and depth:
+    /// read those two passes too and solve the camera.
+    bool solve = false;
+    CameraSolveOptions solve_options;
+    /// The solve is reported once on stderr.
+    std::shared_ptr<std::once_flag> said = std::make_shared<std::once_flag>();
+};
+
+ParamWhere camera_where(const NodeIdentity &node)
+{
+    return {node.json_path + "/params/camera", node.describe()};
+}
+
+/// Give the frame the graph's camera, or the one solved from its passes, or mark the header's.
+void resolve_camera(const ReadState &state,
+                    const NodeContext &ctx,
+                    const std::string &path,
+                    Frame &frame)
+{
+    Camera &cam = frame.camera;
+    if (state.graph_camera.given()) {
+        apply_graph_camera(state.graph_camera, frame);
+        return;
+    }
+    if (cam.world_to_camera && cam.world_to_ndc) {
+        cam.origin = "header";
+        return;
+    }
+    if (!state.solve || !frame.has("position") || !frame.has("depth")) {
+        return;
+    }
+    CameraSolveOptions o = state.solve_options;
+    o.near_clip = cam.near_clip;
+    const CameraSolve solve = solve_camera(frame.image("position"),
+                                           frame.image("depth"),
+                                           frame.display_window,
+                                           frame.data_window,
+                                           path,
+                                           o);
+    apply_camera_solve(solve, stamped_focal_length(frame.attributes), cam);
+    std::call_once(*state.said, [&] {
+        std::fprintf(stderr,
+                     "note: %s: %s: camera %s (later frames are solved likewise)\n",
+                     ctx.node().describe().c_str(),
+                     path.c_str(),
+                     solve.describe().c_str());
+    });
+}
+
+ReadState make_state(const NodeParams &params, const NodeIdentity &node, const std::string &path)
+{
+    ReadState s;
+    s.options = read_options(params, node);
+    s.graph_camera = parse_graph_camera(params.get_json(kCamera), camera_where(node));
+    s.solve_options.max_residual_px = params.get_real(kCameraResidual);
+    if (!s.graph_camera.given() && params.get_choice(kSolveCamera) == 0) {
+        const FileInfo info = read_file_info(path, s.options);
+        bool position = false, depth = false;
+        for (const PassSource &ps : info.passes) {
+            position = position || ps.pass == "position";
+            depth = depth || ps.pass == "depth";
+        }
+        s.solve = !(info.camera.world_to_camera && info.camera.world_to_ndc) && position && depth;
+    }
+    return s;
+}
+
 void execute(NodeContext &ctx)
 {
-    const ReadOptions &options = ctx.state().get_or_create<ReadOptions>(
-        [&] { return read_options(ctx.params(), ctx.node()); });
     const std::string path =
         expand_frame_pattern(ctx.get_string(kPath), ctx.frame_number() + ctx.get_int(kFrameOffset));
     const PassSet &wanted = ctx.requested();
     try {
+        const ReadState &state = ctx.state().get_or_create<ReadState>(
+            [&] { return make_state(ctx.params(), ctx.node(), path); });
+        const ReadOptions &options = state.options;
+        // The solve's two passes, read for it alone where nothing downstream asked for them.
+        std::set<std::string> optional = wanted.optional;
+        std::vector<std::string> only_for_solve;
+        if (state.solve && !wanted.all) {
+            for (const char *name : {"position", "depth"}) {
+                if (!wanted.wants(name)) {
+                    optional.insert(name);
+                    only_for_solve.push_back(name);
+                }
+            }
+        }
         std::map<std::string, std::size_t> non_finite;
         ctx.output() = read_frame(path,
                                   wanted.all ? nullptr : &wanted.names,
                                   ctx.frame_number(),
                                   options,
                                   &non_finite,
-                                  &wanted.optional);
+                                  &optional);
+        resolve_camera(state, ctx, path, ctx.output());
+        for (const std::string &name : only_for_solve) {
+            ctx.output().erase(name);
+            non_finite.erase(name);
+        }
         if (!non_finite.empty()) {
             // One line per frame, not one per pixel (the spatial nodes never spread them).
             std::string counts;
@@ -101,6 +222,7 @@ void execute(NodeContext &ctx)
 void check(CheckContext &ctx)
 {
     const ReadOptions options = read_options(ctx.params, ctx.node);
+    parse_graph_camera(ctx.params.get_json(kCamera), camera_where(ctx.node));
     const std::string pattern = ctx.params.get_string(kPath);
     const int offset = ctx.params.get_int(kFrameOffset);
     // The first frame whose file exists must have every requested pass; frames that are missing

@@ -6,8 +6,11 @@
 #include <cstdio>
 
 #include "cli/commands.h"
+#include "core/camera_solve.h"
+#include "core/error.h"
 #include "core/passes.h"
 #include "io/image_file.h"
+#include "nodes/read_camera.h"
 
 namespace posthaste::cli {
 namespace {
@@ -45,6 +48,43 @@ std::string window_text(const Rect &r)
     return "(" + std::to_string(r.x0) + "," + std::to_string(r.y0) + ")-(" +
            std::to_string(r.x1 - 1) + "," + std::to_string(r.y1 - 1) + ") " +
            std::to_string(r.width()) + "x" + std::to_string(r.height());
+}
+
+/// The file's camera as a read node would give it: the header's matrices, else the camera
+/// solved from its position and depth passes, else none (with why).
+Camera info_camera(const FileInfo &fi, const ReadOptions &options)
+{
+    Camera camera = fi.camera;
+    if (camera.world_to_camera && camera.world_to_ndc) {
+        camera.origin = "header";
+        return camera;
+    }
+    bool position = false, depth = false;
+    for (const PassSource &ps : fi.passes) {
+        position = position || ps.pass == "position";
+        depth = depth || ps.pass == "depth";
+    }
+    if (!position || !depth) {
+        camera.origin =
+            "none: no matrices in the header and no position + depth passes to solve "
+            "them from";
+        return camera;
+    }
+    try {
+        const std::set<std::string> wanted = {"position", "depth"};
+        const Frame f = read_frame(fi.path, &wanted, 0, options);
+        const CameraSolve solve =
+            solve_camera(f.image("position"),
+                         f.image("depth"),
+                         f.display_window,
+                         f.data_window,
+                         fi.path,
+                         {.max_residual_px = 0.05, .near_clip = camera.near_clip, .stride = 0});
+        apply_camera_solve(solve, nodes::stamped_focal_length(fi.attributes), camera);
+    } catch (const Error &e) {
+        camera.origin = std::string("none: ") + e.what();
+    }
+    return camera;
 }
 
 int info(const std::vector<std::string> &files, const std::string &convention)
@@ -112,19 +152,20 @@ int info(const std::vector<std::string> &files, const std::string &convention)
             }
             std::printf("    channels: %s\n", line.c_str());
         }
-        std::printf("camera\n");
-        print_matrix("worldToCamera", fi.camera.world_to_camera);
-        print_matrix("worldToNDC", fi.camera.world_to_ndc);
+        const Camera camera = info_camera(fi, options);
+        std::printf("camera             %s\n", camera.origin.c_str());
+        print_matrix("worldToCamera", camera.world_to_camera);
+        print_matrix("worldToNDC", camera.world_to_ndc);
         print_matrix("prevWorldToCamera", fi.camera.prev_world_to_camera);
         print_matrix("prevWorldToNDC", fi.camera.prev_world_to_ndc);
-        print_scalar("aperture", fi.camera.fstop, " (f-number)");
-        print_scalar("focus", fi.camera.focus_distance, " m");
-        print_scalar("focalLength", fi.camera.focal_length_mm, " mm");
-        print_scalar("sensorWidth", fi.camera.sensor_width_mm, " mm");
-        print_scalar("sensorHeight", fi.camera.sensor_height_mm, " mm");
-        print_scalar("shutter", fi.camera.shutter, " (fraction of a frame)");
-        print_scalar("nearClip", fi.camera.near_clip, "");
-        print_scalar("farClip", fi.camera.far_clip, "");
+        print_scalar("aperture", camera.fstop, " (f-number)");
+        print_scalar("focus", camera.focus_distance, " m");
+        print_scalar("focalLength", camera.focal_length_mm, " mm");
+        print_scalar("sensorWidth", camera.sensor_width_mm, " mm");
+        print_scalar("sensorHeight", camera.sensor_height_mm, " mm");
+        print_scalar("shutter", camera.shutter, " (fraction of a frame)");
+        print_scalar("nearClip", camera.near_clip, "");
+        print_scalar("farClip", camera.far_clip, "");
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {
             std::printf(

@@ -17,15 +17,31 @@ const T &require(const std::optional<T> &v, const char *attribute, const std::st
     return *v;
 }
 
+/// A matrix has three sources; the message names them all.
+const glm::mat4 &require_matrix(const std::optional<glm::mat4> &m,
+                                const char *attribute,
+                                const std::string &who)
+{
+    if (!m) {
+        throw_runtime(who,
+                      ": camera attribute \"",
+                      attribute,
+                      "\" is missing from the header; give the camera in the header "
+                      "(worldToCamera, worldToNDC), as read's \"camera\" parameter, or with "
+                      "position and depth passes to solve it from");
+    }
+    return *m;
+}
+
 }  // namespace
 
 const glm::mat4 &Camera::require_world_to_camera(const std::string &who) const
 {
-    return require(world_to_camera, attr::kWorldToCamera, who);
+    return require_matrix(world_to_camera, attr::kWorldToCamera, who);
 }
 const glm::mat4 &Camera::require_world_to_ndc(const std::string &who) const
 {
-    return require(world_to_ndc, attr::kWorldToNDC, who);
+    return require_matrix(world_to_ndc, attr::kWorldToNDC, who);
 }
 const glm::mat4 &Camera::require_prev_world_to_camera(const std::string &who) const
 {

@@ -49,8 +49,20 @@ struct Camera {
     std::optional<float> shutter;  ///< fraction of the frame interval the shutter is open.
     std::optional<float> near_clip;
     std::optional<float> far_clip;
+    /// Where the matrices came from, for `info` and messages: "header", "graph", or a solve's
+    /// description ("solved from position + depth, residual ..."); "" when not known. Not part
+    /// of the camera's value: two cameras with the same matrices and lens are equal.
+    std::string origin;
 
-    bool operator==(const Camera &) const = default;
+    bool operator==(const Camera &o) const
+    {
+        return world_to_camera == o.world_to_camera && world_to_ndc == o.world_to_ndc &&
+               prev_world_to_camera == o.prev_world_to_camera &&
+               prev_world_to_ndc == o.prev_world_to_ndc && fstop == o.fstop &&
+               focus_distance == o.focus_distance && focal_length_mm == o.focal_length_mm &&
+               sensor_width_mm == o.sensor_width_mm && sensor_height_mm == o.sensor_height_mm &&
+               shutter == o.shutter && near_clip == o.near_clip && far_clip == o.far_clip;
+    }
 
     /// The value, or an Error naming the missing header attribute and who needed it.
     const glm::mat4 &require_world_to_camera(const std::string &who) const;
