@@ -1,0 +1,322 @@
+# The Cycles bench set: scenes that stress the post-processing nodes, rendered by Blender's
+# Cycles with every pass the nodes read, Cycles' own truths (motion blur, depth of field, ambient
+# occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
+#
+#   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
+#
+# Writes, per shot, into OUT_DIR:
+#   SHOT.passes.exr         multilayer: Combined, Depth, Normal, Position, Vector, DiffCol, AO
+#                           (distance 1 m), Mist; no camera matrices (Blender writes none); the
+#                           stamp's Lens in the header
+#   SHOT.mb_s050.exr        Cycles motion blur, shutter 0.5 frame, centred (the truth)
+#   SHOT.mb_s100.exr        shutter 1.0
+#   SHOT.dof_fA.exr         Cycles depth of field at the two f-stops of the shot
+#   SHOT.ao_d1.exr / ao_d2.exr   Cycles' AO pass alone at 1 m and 2 m
+#   SHOT.blender_vblur_s050.exr / _s100   Blender's Vector Blur node on the passes
+#   SHOT.blender_defocus_fA.exr            Blender's Defocus node (Z buffer, the scene camera)
+# and render_times.txt. Stored as half-float EXRs, depth, position and motion as float (oiiotool).
+# CI never runs Blender; the files are checked in (samples/cycles/).
+import math
+import os
+import subprocess
+import sys
+import time
+
+import bpy
+
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+OUT = os.path.abspath(argv[0] if argv else "samples/cycles")
+QUICK = "--quick" in argv
+os.makedirs(OUT, exist_ok=True)
+
+WIDTH, HEIGHT = (160, 90) if QUICK else (320, 180)
+PASS_SAMPLES = 16 if QUICK else 256
+TRUTH_SAMPLES = 16 if QUICK else 512
+AO_SAMPLES = 16 if QUICK else 256
+FRAME = 2  # the shot frame: frame 1 is the previous frame of the motion vectors
+
+times = []
+
+
+def material(name, color, roughness, metallic=0.0):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    bsdf = m.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    bsdf.inputs["Metallic"].default_value = metallic
+    return m
+
+
+def checker(m, scale, dark):
+    """A procedural checker in object space times the base colour: texture for the blurs to
+    move and defocus (a flat colour blurs into itself)."""
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    tex = nodes.new("ShaderNodeTexChecker")
+    tex.inputs["Scale"].default_value = scale
+    tex.inputs["Color1"].default_value = m.node_tree.nodes["Principled BSDF"].inputs[
+        "Base Color"].default_value[:]
+    c = tex.inputs["Color1"].default_value
+    tex.inputs["Color2"].default_value = (c[0] * dark, c[1] * dark, c[2] * dark, 1.0)
+    coord = nodes.new("ShaderNodeTexCoord")
+    links.new(coord.outputs["Object"], tex.inputs["Vector"])
+    links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+    return m
+
+
+def add(obj_op, name, mat, **kw):
+    obj_op(**kw)
+    o = bpy.context.active_object
+    o.name = name
+    o.data.materials.append(mat)
+    return o
+
+
+def build_scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    grey = checker(material("ground", (0.55, 0.55, 0.5), 0.8), 60.0, 0.45)
+    clay = material("clay", (0.7, 0.35, 0.2), 0.6)
+    white = checker(material("white", (0.8, 0.8, 0.8), 0.5), 4.0, 0.5)
+    chrome = material("chrome", (0.9, 0.9, 0.9), 0.12, 1.0)
+    gold = material("gold", (1.0, 0.75, 0.35), 0.25, 1.0)
+    blue = material("blue", (0.15, 0.3, 0.8), 0.35)
+
+    add(bpy.ops.mesh.primitive_plane_add, "ground", grey, size=60, location=(0, 0, 0))
+    # Contact shadows and creases: a wall, steps and boxes resting on the ground and each other.
+    add(bpy.ops.mesh.primitive_cube_add, "wall", white, size=1, location=(0, 4, 1.5),
+        scale=(8, 0.4, 3))
+    add(bpy.ops.mesh.primitive_cube_add, "step1", clay, size=1, location=(-2.5, 2.6, 0.25),
+        scale=(2, 2, 0.5))
+    add(bpy.ops.mesh.primitive_cube_add, "step2", clay, size=1, location=(-2.5, 3.0, 0.75),
+        scale=(2, 1.2, 0.5))
+    add(bpy.ops.mesh.primitive_cube_add, "box", white, size=1, location=(2.2, 2.0, 0.5),
+        rotation=(0, 0, 0.5))
+    # Thin features: poles and a fence of slats.
+    for i in range(5):
+        add(bpy.ops.mesh.primitive_cylinder_add, f"pole{i}", white, radius=0.03, depth=2.2,
+            location=(-4.0 + 0.35 * i, 1.0, 1.1))
+    for i in range(8):
+        add(bpy.ops.mesh.primitive_cube_add, f"slat{i}", clay, size=1,
+            location=(3.4 + 0.18 * i, 3.2, 0.6), scale=(0.05, 0.05, 1.2))
+    # Glossy spheres, one resting on the ground (contact) and one on the box.
+    add(bpy.ops.mesh.primitive_uv_sphere_add, "chrome_ball", chrome, radius=0.6,
+        location=(0.3, 1.2, 0.6), segments=64, ring_count=32)
+    add(bpy.ops.mesh.primitive_uv_sphere_add, "gold_ball", gold, radius=0.3,
+        location=(2.2, 2.0, 1.3), segments=48, ring_count=24)
+    for o in bpy.data.objects:
+        if o.type == 'MESH' and o.name.endswith("ball"):
+            bpy.context.view_layer.objects.active = o
+            bpy.ops.object.shade_smooth()
+    # Fast motion: a spinning cube and a sphere crossing the frame.
+    spin = add(bpy.ops.mesh.primitive_cube_add, "spinner", blue, size=0.8,
+               location=(-1.0, 0.2, 0.4))
+    spin.rotation_mode = 'XYZ'
+    for f, angle in ((1, 0.0), (2, 0.6), (3, 1.2)):
+        spin.rotation_euler = (0, 0, angle)
+        spin.keyframe_insert("rotation_euler", frame=f)
+    runner = add(bpy.ops.mesh.primitive_uv_sphere_add, "runner", blue, radius=0.35,
+                 location=(1.5, -0.3, 0.35), segments=48, ring_count=24)
+    bpy.context.view_layer.objects.active = runner
+    bpy.ops.object.shade_smooth()
+    for f, x in ((1, 1.9), (2, 1.5), (3, 1.1)):
+        runner.location.x = x
+        runner.keyframe_insert("location", frame=f)
+    for o in bpy.data.objects:
+        if o.animation_data and o.animation_data.action:
+            for fc in o.animation_data.action.fcurves:
+                for k in fc.keyframe_points:
+                    k.interpolation = 'LINEAR'
+
+    # Sun and sky; the sky is seen at the top of the frame (infinite depth).
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 10), rotation=(0.7, 0.2, 2.3))
+    bpy.context.active_object.data.energy = 3.0
+    bpy.context.active_object.data.angle = math.radians(2.0)
+    world = bpy.data.worlds.new("sky")
+    scene.world = world
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.45, 0.6, 0.9, 1.0)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    world.mist_settings.start = 2.0
+    world.mist_settings.depth = 20.0
+    world.light_settings.distance = 1.0  # the AO pass's distance
+
+    bpy.ops.object.camera_add()
+    cam = bpy.context.active_object
+    cam.name = "camera"
+    cam.data.lens = 35.0
+    cam.data.sensor_width = 36.0
+    cam.data.clip_start = 0.1
+    scene.camera = cam
+    return scene, cam
+
+
+def set_shot(scene, cam, shot):
+    cam.animation_data_clear()
+    if shot == "yard":
+        # A moving camera: dollies sideways and pans a little over frames 1-3.
+        for f, x in ((1, -0.6), (2, 0.0), (3, 0.6)):
+            cam.location = (x, -7.0, 2.2)
+            cam.rotation_euler = (math.radians(78), 0.0, math.radians(-2.0 * x))
+            cam.keyframe_insert("location", frame=f)
+            cam.keyframe_insert("rotation_euler", frame=f)
+        cam.data.lens = 35.0
+        cam.data.dof.focus_distance = 4.0
+        stops = (1.4, 2.8)
+    else:  # "closeup": depth of field on the chrome ball, the wall and sky behind; a slow pan
+        for f in (1, 2, 3):
+            cam.location = (1.0, -1.3, 0.8)
+            cam.rotation_euler = (math.radians(85.6), 0.0, math.radians(15.6 + 0.5 * (f - 2)))
+            cam.keyframe_insert("location", frame=f)
+            cam.keyframe_insert("rotation_euler", frame=f)
+        cam.data.lens = 70.0
+        cam.data.dof.focus_distance = 2.6
+        stops = (1.4, 4.0)
+    for fc in cam.animation_data.action.fcurves:
+        for k in fc.keyframe_points:
+            k.interpolation = 'LINEAR'
+    return stops
+
+
+def base_settings(scene, samples):
+    scene.render.engine = 'CYCLES'
+    scene.cycles.device = 'CPU'
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.seed = 7
+    scene.cycles.max_bounces = 4
+    scene.render.threads_mode = 'AUTO'
+    scene.render.resolution_x = WIDTH
+    scene.render.resolution_y = HEIGHT
+    scene.render.resolution_percentage = 100
+    scene.render.filter_size = 1.5  # Blackman-Harris, Cycles' default
+    scene.render.fps = 24
+    scene.frame_set(FRAME)
+    scene.render.use_motion_blur = False
+    scene.camera.data.dof.use_dof = False
+    scene.render.use_compositing = False
+    scene.use_nodes = False
+    scene.render.use_stamp = False
+    scene.render.use_stamp_lens = True
+    scene.render.use_stamp_camera = True
+    vl = scene.view_layers[0]
+    for p in ("z", "normal", "position", "vector", "diffuse_color", "ambient_occlusion", "mist"):
+        setattr(vl, "use_pass_" + p, False)
+
+
+def render(scene, path, fmt):
+    s = scene.render.image_settings
+    s.file_format = fmt
+    s.color_depth = '32'
+    s.exr_codec = 'ZIP'
+    s.color_mode = 'RGBA'
+    scene.render.filepath = path
+    t0 = time.time()
+    bpy.ops.render.render(write_still=True)
+    dt = time.time() - t0
+    times.append((os.path.basename(path), scene.cycles.samples, dt))
+    print(f"cycles set: {path}: {dt:.1f} s", flush=True)
+
+
+# Stored as half-float except the passes whose precision the nodes need (a half position is 8 mm
+# off at 10 m, a third of a pixel here: the camera solve would see it).
+FLOAT_CHANNELS = ["ViewLayer.Depth.Z"] + [f"ViewLayer.{p}.{c}" for p in ("Position", "Vector")
+                                          for c in "XYZW"[:4 if p == "Vector" else 3]]
+
+
+def to_half(path):
+    args = ["oiiotool", path, "-d", "half"]
+    for c in FLOAT_CHANNELS:
+        args += ["-d", f"{c}=float"]
+    args += ["--compression", "zip", "-o", path]
+    subprocess.run(args, check=True)
+
+
+def compositor(scene, shot, stops):
+    """Blender's own Vector Blur and Defocus on the render's passes, as a user would set them."""
+    scene.use_nodes = True
+    scene.render.use_compositing = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    rl = tree.nodes.new("CompositorNodeRLayers")
+    out = tree.nodes.new("CompositorNodeOutputFile")
+    out.base_path = OUT
+    out.format.file_format = 'OPEN_EXR'
+    out.format.color_depth = '32'
+    out.format.exr_codec = 'ZIP'
+    out.file_slots.clear()
+    for shutter in (0.5, 1.0):
+        vb = tree.nodes.new("CompositorNodeVecBlur")
+        vb.factor = shutter
+        vb.samples = 32
+        tree.links.new(rl.outputs["Image"], vb.inputs["Image"])
+        tree.links.new(rl.outputs["Depth"], vb.inputs["Z"])
+        tree.links.new(rl.outputs["Vector"], vb.inputs["Speed"])
+        name = f"{shot}.blender_vblur_s{int(shutter * 100):03d}."
+        out.file_slots.new(name)
+        tree.links.new(vb.outputs["Image"], out.inputs[name])
+    for fstop in stops:
+        df = tree.nodes.new("CompositorNodeDefocus")
+        df.use_zbuffer = True
+        df.f_stop = fstop
+        df.blur_max = 32.0
+        df.threshold = 1.0
+        df.use_preview = False
+        df.scene = scene
+        tree.links.new(rl.outputs["Image"], df.inputs["Image"])
+        tree.links.new(rl.outputs["Depth"], df.inputs["Z"])
+        name = f"{shot}.blender_defocus_f{fstop:g}."
+        out.file_slots.new(name)
+        tree.links.new(df.outputs["Image"], out.inputs[name])
+
+
+def main():
+    scene, cam = build_scene()
+    for shot in ("yard", "closeup"):
+        stops = set_shot(scene, cam, shot)
+        # The passes (and Blender's compositor nodes on them).
+        base_settings(scene, PASS_SAMPLES)
+        vl = scene.view_layers[0]
+        for p in ("z", "normal", "position", "vector", "diffuse_color", "ambient_occlusion", "mist"):
+            setattr(vl, "use_pass_" + p, True)
+        compositor(scene, shot, stops)
+        render(scene, os.path.join(OUT, f"{shot}.passes.exr"), 'OPEN_EXR_MULTILAYER')
+        # The file output node appends the frame number: drop it.
+        for f in os.listdir(OUT):
+            if f.startswith(shot + ".blender_") and f.endswith(f"{FRAME:04d}.exr"):
+                os.replace(os.path.join(OUT, f), os.path.join(OUT, f[:-len(f"{FRAME:04d}.exr")] + "exr"))
+        # Truths: beauty only.
+        base_settings(scene, TRUTH_SAMPLES)
+        scene.render.use_motion_blur = True
+        scene.cycles.motion_blur_position = 'CENTER'
+        for shutter in (0.5, 1.0):
+            scene.render.motion_blur_shutter = shutter
+            render(scene, os.path.join(OUT, f"{shot}.mb_s{int(shutter * 100):03d}.exr"),
+                   'OPEN_EXR')
+        scene.render.use_motion_blur = False
+        cam.data.dof.use_dof = True
+        for fstop in stops:
+            cam.data.dof.aperture_fstop = fstop
+            render(scene, os.path.join(OUT, f"{shot}.dof_f{fstop:g}.exr"), 'OPEN_EXR')
+        cam.data.dof.use_dof = False
+        # Cycles' AO pass alone at two distances (no bounces: only the AO pass is kept).
+        base_settings(scene, AO_SAMPLES)
+        scene.cycles.max_bounces = 0
+        vl.use_pass_ambient_occlusion = True
+        for dist in (1.0, 2.0):
+            scene.world.light_settings.distance = dist
+            render(scene, os.path.join(OUT, f"{shot}.ao_d{int(dist)}.exr"),
+                   'OPEN_EXR_MULTILAYER')
+        scene.world.light_settings.distance = 1.0
+    for f in sorted(os.listdir(OUT)):
+        if f.endswith(".exr"):
+            to_half(os.path.join(OUT, f))
+    with open(os.path.join(OUT, "render_times.txt"), "w") as f:
+        f.write(f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
+                f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
+        for name, samples, dt in times:
+            f.write(f"{name} {samples} {dt:.1f}\n")
+
+
+main()
