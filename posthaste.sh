@@ -109,7 +109,8 @@ accuracy() {
     deps
     build
     # graphs/bench/long/: specs the test suite does not run (each renders another 1080p truth).
-    for spec in motion_blur spin dof fog full_stack bloom ao ssr ssr_default long/ssr_probe; do
+    for spec in motion_blur spin dof fog full_stack bloom ao ssr ssr_default cycles_motion_blur \
+        long/ssr_probe; do
         name=$(basename "$spec")
         "$BUILD_DIR"/posthaste bench "graphs/bench/$spec.json" --out "out/bench/$name" -q
         mkdir -p "docs/accuracy/$name"
