@@ -20,10 +20,13 @@
 namespace posthaste::nodes {
 namespace {
 
-constexpr ParamSpec kFstop = ParamSpec::real("fstop", 0.0)
-                                 .at_least(0.0)
-                                 .doc("f-number N (aperture diameter = focal length / N).")
-                                 .from_header_only(attr::kAperture);
+constexpr ParamSpec kFstop =
+    ParamSpec::real("fstop", 5.6)
+        .at_least(0.0)
+        .doc(
+            "f-number N (aperture diameter = focal length / N); where neither the graph nor the "
+            "header gives one (Blender writes none), the default stands in and a note says so.")
+        .from_header(attr::kAperture);
 constexpr ParamSpec kFocus = ParamSpec::real("focus_distance", 0.0)
                                  .at_least(0.0)
                                  .units("m")
@@ -101,7 +104,15 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
     const double fstop = ctx.get_real(kFstop), focus = ctx.get_real(kFocus);
     const double focal = ctx.get_real(kFocal), sensor = ctx.get_real(kSensor);
     const NodeParams &p = ctx.params();
-    l.fstop = p.given(kFstop) ? float(fstop) : cam.require_fstop(who);
+    if (p.given(kFstop)) {
+        l.fstop = float(fstop);
+    } else if (cam.fstop) {
+        l.fstop = *cam.fstop;
+    } else {
+        l.fstop = float(fstop);
+        ctx.state().note_once(ctx.node().describe() + ": the frame has no aperture: f/" +
+                              str_cat(l.fstop) + " (give fstop to choose)");
+    }
     l.focus_m = p.given(kFocus) ? float(focus) : cam.require_focus_distance(who);
     l.focal_mm = p.given(kFocal) ? float(focal) : cam.require_focal_length_mm(who);
     l.sensor_mm =

@@ -23,6 +23,7 @@
 #include <set>
 
 #include "core/sanitize.h"
+#include "nodes/material_params.h"
 #include "nodes/node.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
@@ -166,12 +167,15 @@ constexpr ParamSpec kParams[] = {kMode,
                                  kShadowDistance,
                                  kShadowThickness,
                                  kShadowBias,
-                                 kClamp};
+                                 kClamp,
+                                 kMaterialRoughness,
+                                 kMaterialMetallic};
 constexpr PortSpec kInputs[] = {
     {"image",
-     "color,normal,albedo,material",
+     "color,normal,albedo",
      false,
-     "Frame with color and its G-buffer; other passes pass through."},
+     "Frame with color and its G-buffer (material, else roughness and metallic); other passes "
+     "pass through."},
 };
 
 // Lights and toon ids, validated. `where` is "<file>:/nodes/<i>/params", `who` the node.
@@ -240,6 +244,7 @@ void plan(PlanContext &ctx)
 {
     PassSet &in = ctx.inputs[0];
     const NodeParams &p = ctx.params;
+    plan_material(ctx);
     in.add(p.get_choice(kPositionFrom) == 0 ? pass::kPosition : pass::kDepth);
     if (p.get_bool(kAnisotropic)) {
         in.add(pass::kTangent);
@@ -264,8 +269,9 @@ void execute(NodeContext &ctx)
     const Image &color = finite_view(ctx.input_pass("image", pass::kColor), 0.0f, color_storage);
     const Image &normal = finite_view(ctx.input_pass("image", pass::kNormal), 0.0f, normal_storage);
     const Image &albedo = finite_view(ctx.input_pass("image", pass::kAlbedo), 0.0f, albedo_storage);
+    Image material_const;
     const Image &material =
-        finite_view(ctx.input_pass("image", pass::kMaterial), 0.0f, material_storage);
+        finite_view(material_or_constant(ctx, "image", material_const), 0.0f, material_storage);
     const bool from_depth = ctx.get_choice(kPositionFrom) == 1;
     const Image *position =
         from_depth ? nullptr

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "core/sanitize.h"
+#include "nodes/material_params.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -103,12 +104,15 @@ constexpr ParamSpec kParams[] = {kRays,
                                  kSeed,
                                  kEnvironmentPosition,
                                  kParallax,
-                                 kSunIrradiance};
+                                 kSunIrradiance,
+                                 kMaterialRoughness,
+                                 kMaterialMetallic};
 constexpr PortSpec kInputs[] = {
     {"image",
-     "color,depth,normal,albedo,material",
+     "color,depth,normal,albedo",
      false,
-     "Colour, depth, world normals, albedo, material and camera matrices."},
+     "Colour, depth, world normals, albedo, material (else roughness and metallic) and camera "
+     "matrices."},
     {"environment",
      "color",
      true,
@@ -185,6 +189,7 @@ void plan(PlanContext &ctx)
 {
     // The sun's visibility at the hits, for their re-shading, where the frame has it.
     ctx.inputs[0].add_optional("shadow");
+    plan_material(ctx);
     if (ctx.connected.size() > 1 && ctx.connected[1] && ctx.params.get_bool(kParallax)) {
         ctx.inputs[1].add_optional("depth");  // the probe's distances, where it has them
     }
@@ -202,7 +207,8 @@ void execute(NodeContext &ctx)
     const Image &depth_in = in.image("depth", ctx.where());
     const Image &normal_in = in.image("normal", ctx.where());
     const Image &albedo_in = in.image("albedo", ctx.where());
-    const Image &material_in = in.image("material", ctx.where());
+    Image material_const;
+    const Image &material_in = material_or_constant(ctx, "image", material_const);
     if (color_in.channels() < 3 || normal_in.channels() < 3 || albedo_in.channels() < 3 ||
         material_in.channels() < 2) {
         throw_runtime(ctx.where(),

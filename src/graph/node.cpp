@@ -1,6 +1,7 @@
 #include "graph/node.h"
 
 #include <algorithm>
+#include <cstdio>
 
 #include "core/error.h"
 
@@ -139,6 +140,17 @@ std::shared_ptr<const Frame> NodeContext::input_at(std::string_view port, int fr
         throw_runtime(where(), ": input \"", port, "\" is not connected");
     }
     return f;
+}
+
+void NodeState::note_once(const std::string &text)
+{
+    {
+        std::lock_guard lock(notes_mutex_);
+        if (!notes_.insert(text).second) {
+            return;
+        }
+    }
+    std::fprintf(stderr, "note: %s\n", text.c_str());
 }
 
 }  // namespace posthaste

@@ -162,9 +162,15 @@ class NodeState {
         return *std::any_cast<std::shared_ptr<const T>>(value_);
     }
 
+    /// Print "note: <text>" on stderr the first time this node instance says `text` (a constant
+    /// a node stood in for a missing pass or header value, say): once a run, not once a frame.
+    void note_once(const std::string &text);
+
    private:
     std::mutex mutex_;
     std::any value_;
+    std::mutex notes_mutex_;
+    std::set<std::string> notes_;
 };
 
 class PlanContext {
