@@ -102,6 +102,43 @@ const Image &measured_pass(const Frame &frame, const std::string &pass, const st
     return frame.image(pass, who);
 }
 
+/// Channel `channel` of `image` alone (-1: the image itself).
+ImagePtr select_channel(const ImagePtr &image, int channel, const std::string &where)
+{
+    if (channel < 0) {
+        return image;
+    }
+    if (channel >= image->channels()) {
+        throw_runtime(
+            where, ": the truth has ", image->channels(), " channels, no channel ", channel);
+    }
+    auto out = std::make_shared<Image>(image->width(), image->height(), 1);
+    for (std::size_t i = 0; i < out->pixel_count(); ++i) {
+        out->data()[i] = image->data()[i * std::size_t(image->channels()) + std::size_t(channel)];
+    }
+    return out;
+}
+
+/// metrics::compare over the pixels of finite depth only (their values gathered into one row,
+/// so the statistics are compare's own).
+metrics::CompareStats compare_surface(const Image &ref, const Image &test, const Image &depth)
+{
+    std::vector<std::size_t> keep;
+    for (std::size_t i = 0; i < depth.pixel_count(); ++i) {
+        if (std::isfinite(depth.data()[i * std::size_t(depth.channels())])) {
+            keep.push_back(i);
+        }
+    }
+    const int n = std::max<int>(1, int(keep.size()));
+    Image a(n, 1, ref.channels()), b(n, 1, test.channels());
+    const std::size_t c = std::size_t(ref.channels());
+    for (std::size_t k = 0; k < keep.size(); ++k) {
+        std::copy_n(ref.data() + keep[k] * c, c, a.data() + k * c);
+        std::copy_n(test.data() + keep[k] * c, c, b.data() + k * c);
+    }
+    return metrics::compare(a, b);
+}
+
 /// First three channels, sRGB-encoded, clamped, box-downscaled so the longer side is <= max_side.
 Image display_thumbnail(const Image &img, float scale, int max_side = 160)
 {
@@ -182,7 +219,8 @@ BenchSpec parse_spec(const std::string &text,
                 "warmup",
                 "runs",
                 "threads",
-                "diff_scale"},
+                "diff_scale",
+                "exclude"},
                w);
     BenchSpec s;
     s.origin = origin;
@@ -211,7 +249,23 @@ BenchSpec parse_spec(const std::string &text,
         throw_usage(tw,
                     ": expected an object {\"pattern\": ...} or {\"graph\": ..., \"node\": ...}");
     }
-    check_keys(truth, {"pattern", "graph", "node", "set"}, tw);
+    check_keys(truth, {"pattern", "graph", "node", "set", "pass", "channel"}, tw);
+    if (truth.contains("pass")) {
+        s.truth_pass = get_string(truth, "pass", tw);
+    }
+    if (truth.contains("channel")) {
+        if (!truth["channel"].is_number_integer() || truth["channel"].get<int>() < 0 ||
+            truth["channel"].get<int>() > 63) {
+            throw_usage(tw, "/channel: expected a channel index 0..63");
+        }
+        s.truth_channel = truth["channel"].get<int>();
+    }
+    if (j.contains("exclude")) {
+        if (get_string(j, "exclude", w) != "sky") {
+            throw_usage(w, "/exclude: expected \"sky\" (pixels of infinite depth)");
+        }
+        s.exclude_sky = true;
+    }
     if (truth.contains("pattern") == truth.contains("graph")) {
         throw_usage(tw, ": give exactly one of \"pattern\" (files) or \"graph\" (a truth graph)");
     }
@@ -402,11 +456,13 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                 result.frames.size(),
                 " frame(s))"));
     std::vector<ImagePtr> truth;
+    const std::string truth_pass = spec.truth_pass.empty() ? spec.pass : spec.truth_pass;
     if (!spec.truth_pattern.empty()) {
-        const std::set<std::string> wanted{spec.pass};
+        const std::set<std::string> wanted{truth_pass};
         for (int f : result.frames) {
-            const Frame fr = read_frame(expand_frame_pattern(spec.truth_pattern, f), &wanted, f);
-            truth.push_back(fr.pass(spec.pass).image);
+            const std::string path = expand_frame_pattern(spec.truth_pattern, f);
+            const Frame fr = read_frame(path, &wanted, f);
+            truth.push_back(select_channel(fr.pass(truth_pass).image, spec.truth_channel, path));
         }
     } else {
         Prepared t = prepare(
@@ -414,7 +470,10 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         t.graph->check(result.frames);
         for (int f : result.frames) {
             const Frame fr = t.graph->evaluate(f);
-            truth.push_back(fr.pass(spec.pass, "truth node " + quoted(spec.truth_node)).image);
+            truth.push_back(
+                select_channel(fr.pass(truth_pass, "truth node " + quoted(spec.truth_node)).image,
+                               spec.truth_channel,
+                               spec.truth_graph));
         }
     }
 
@@ -476,7 +535,9 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                               "x",
                               ref.channels());
             }
-            const metrics::CompareStats stats = metrics::compare(ref, test);
+            const metrics::CompareStats stats =
+                spec.exclude_sky ? compare_surface(ref, test, out.image("depth", who))
+                                 : metrics::compare(ref, test);
             rmse += stats.all.rms_error;
             psnr += stats.all.psnr;
             if (spec.flip && ref.channels() >= 3) {

@@ -9,7 +9,11 @@
 //     "frames": "1-2",                optional; default: the graph's default frames
 //     "pass": "color",                optional; the pass compared with the truth
 //     "truth": {"pattern": "truth.####.exr"}                      files on disk, or
-//              {"graph": "truth.json", "node": "out", "set": [...]}  another graph's output
+//              {"graph": "truth.json", "node": "out", "set": [...]}  another graph's output;
+//              either with "pass": "ViewLayer.AO" (the truth's pass, default the same) and
+//              "channel": 0 (one channel of it: Cycles writes its AO pass as grey RGB)
+//     "exclude": "sky",               optional; leave out pixels whose depth (in the measured
+//                                     node's output) is infinite: a renderer's AO pass is 0 there
 //     "settings": [ {"name": "fast", "set": ["merge.mix=0.5"]}, ... ],   optional sweep
 //     "baseline": "fast",             optional; speed ratios are against this setting
 //     "metrics": ["rmse", "psnr", "flip"],   optional; default rmse and psnr
@@ -39,6 +43,9 @@ struct BenchSpec {
     std::string node;
     std::string frames;  ///< Empty: the graph's default frames.
     std::string pass = "color";
+    std::string truth_pass;     ///< The truth's pass; empty: the same as `pass`.
+    int truth_channel = -1;     ///< One channel of the truth's pass (-1: all of them).
+    bool exclude_sky = false;   ///< Leave pixels of infinite depth out of the error.
     std::string truth_pattern;  ///< Resolved; empty when the truth is a graph.
     std::string truth_graph;    ///< Resolved; empty when the truth is files.
     std::string truth_node;

@@ -13,12 +13,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <regex>
 #include <sstream>
 
 #include "bench/chart.h"
 #include "bench/stability_chart.h"
 #include "core/error.h"
+#include "io/image_file.h"
 
 namespace posthaste::bench {
 namespace {
@@ -433,6 +435,64 @@ void run_ready_specs(bool heavy)
     }
     EXPECT_GE(ran, 2);
     fs::remove_all(out);
+}
+
+// A renderer's AO pass against the ao node: the truth's pass named apart (Cycles' grey RGB
+// "ViewLayer.AO"), one channel of it, and the sky left out (Cycles writes 0 there, the node 1).
+TEST_F(BenchEndToEnd, TruthPassChannelAndSkyExcluded)
+{
+    Frame f;
+    f.set_size(8, 4);
+    Image ao(8, 4, 1), depth(8, 4, 1), truth(8, 4, 3);
+    for (int y = 0; y < 4; ++y) {
+        for (int x = 0; x < 8; ++x) {
+            const bool sky = x >= 4;
+            ao.at(x, y, 0) = sky ? 1.0f : 0.1f * float(x + y);
+            depth.at(x, y, 0) = sky ? std::numeric_limits<float>::infinity() : 2.0f;
+            truth.at(x, y, 0) = sky ? 0.0f : ao.at(x, y, 0);
+            truth.at(x, y, 1) = 7.0f;  // other channels: not compared
+            truth.at(x, y, 2) = -3.0f;
+        }
+    }
+    f.set("ao", std::move(ao), {"Y"});
+    f.set("depth", std::move(depth));
+    write_exr(f, path("ao.0001.exr"), {});
+    Frame t;
+    t.set_size(8, 4);
+    t.set("t", std::move(truth), {"R", "G", "B"});
+    write_exr(t, path("t.0001.exr"), {});
+    std::ofstream(path("ao.json")) << R"({"nodes": [
+        {"id": "r", "type": "read", "params": {"path": ")"
+                                   << path("ao.####.exr") << R"("}},
+        {"id": "w", "type": "write", "inputs": {"image": "r"},
+         "params": {"path": ")" << path("out/o.####.exr")
+                                   << R"(", "passes": "ao"}}]})";
+    auto spec = [&](const std::string &exclude) {
+        std::ofstream(path("s.json")) << R"({"graph": "ao.json", "node": "r", "pass": "ao",
+            "frames": "1", "truth": {"pattern": "t.####.exr", "pass": "t", "channel": 0},)"
+                                      << exclude << R"( "warmup": 0, "runs": 1})";
+        return run_bench(load_spec(path("s.json")));
+    };
+    EXPECT_EQ(spec(R"("exclude": "sky",)").settings.at(0).rmse, 0.0);
+    // With the sky: half the pixels differ by 1, RMSE sqrt(1/2).
+    EXPECT_NEAR(spec("").settings.at(0).rmse, std::sqrt(0.5), 1e-6);
+    // Bad values name the key.
+    std::ofstream(path("bad.json")) << R"({"graph": "ao.json", "node": "r",
+        "truth": {"pattern": "t.####.exr", "channel": -1}})";
+    try {
+        load_spec(path("bad.json"));
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("/truth/channel"), std::string::npos) << e.what();
+    }
+    std::ofstream(path("bad.json")) << R"({"graph": "ao.json", "node": "r",
+        "truth": {"pattern": "t.####.exr"}, "exclude": "clouds"})";
+    try {
+        load_spec(path("bad.json"));
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("/exclude"), std::string::npos) << e.what();
+    }
 }
 
 TEST(BenchReadySpecs, RunFromTheRepositoryRoot)
