@@ -111,7 +111,9 @@ constexpr ParamSpec kEnergy =
         .doc("Kulla-Conty multiple-scattering lobe (restores the energy rough GGX loses).");
 constexpr ParamSpec kAnisotropic =
     ParamSpec::boolean("anisotropic", true)
-        .doc("Use material anisotropy with the tangent pass (read only when true).");
+        .doc(
+            "Use material anisotropy with the tangent pass (read only when true); a frame "
+            "without a tangent pass is shaded isotropic, with a note.");
 constexpr ParamSpec kToonIds =
     ParamSpec::string("toon_ids", "")
         .doc("Material ids (id pass) shaded as toon, comma list (Minecrappy's scene: 6, leaves).");
@@ -247,7 +249,7 @@ void plan(PlanContext &ctx)
     plan_material(ctx);
     in.add(p.get_choice(kPositionFrom) == 0 ? pass::kPosition : pass::kDepth);
     if (p.get_bool(kAnisotropic)) {
-        in.add(pass::kTangent);
+        in.add_optional(pass::kTangent);  // most renderers write none
     }
     if (!split_list(p.get_string(kToonIds)).empty()) {
         in.add(pass::kId);
@@ -283,8 +285,13 @@ void execute(NodeContext &ctx)
                                             depth_storage,
                                             /*allow_positive_inf=*/true)
                              : nullptr;
+    const bool has_tangent = ctx.input("image").has(pass::kTangent);
+    if (ctx.get_bool(kAnisotropic) && !has_tangent) {
+        ctx.state().note_once(ctx.node().describe() +
+                              ": no tangent pass: anisotropic materials are shaded isotropic");
+    }
     const Image *tangent =
-        ctx.get_bool(kAnisotropic)
+        ctx.get_bool(kAnisotropic) && has_tangent
             ? &finite_view(ctx.input_pass("image", pass::kTangent), 0.0f, tangent_storage)
             : nullptr;
     const Image *id = setup.toon_ids.empty() ? nullptr : &ctx.input_pass("image", pass::kId);

@@ -13,7 +13,8 @@
 #   SHOT.dof_fA.exr         Cycles depth of field at the two f-stops of the shot
 #   SHOT.ao_d1.exr / ao_d2.exr   Cycles' AO pass alone at 1 m and 2 m
 #   SHOT.blender_vblur_s050.exr / _s100   Blender's Vector Blur node on the passes
-#   SHOT.blender_defocus_fA.exr            Blender's Defocus node (Z buffer, the scene camera)
+#   SHOT.blender_defocus_fA.exr            Blender's Defocus node (Z buffer, the scene camera),
+#                                          its f-stop calibrated (blender_calibration.txt)
 # and render_times.txt. Stored as half-float EXRs, depth, position and motion as float (oiiotool).
 # CI never runs Blender; the files are checked in (samples/cycles/).
 import math
@@ -30,9 +31,9 @@ QUICK = "--quick" in argv
 os.makedirs(OUT, exist_ok=True)
 
 WIDTH, HEIGHT = (160, 90) if QUICK else (320, 180)
-PASS_SAMPLES = 16 if QUICK else 256
-TRUTH_SAMPLES = 16 if QUICK else 512
-AO_SAMPLES = 16 if QUICK else 256
+PASS_SAMPLES = 16 if QUICK else 1024
+TRUTH_SAMPLES = 16 if QUICK else 2048
+AO_SAMPLES = 16 if QUICK else 1024
 FRAME = 2  # the shot frame: frame 1 is the previous frame of the motion vectors
 
 times = []
@@ -233,8 +234,71 @@ def to_half(path):
     subprocess.run(args, check=True)
 
 
+def rms_rgb(a, b):
+    """RMS error over RGB of two EXRs, as oiiotool --diff prints it."""
+    r = subprocess.run(["oiiotool", a, "--ch", "R,G,B", b, "--ch", "R,G,B", "--diff"],
+                       capture_output=True, text=True)
+    for line in r.stdout.splitlines():
+        if "RMS error" in line:
+            return float(line.split("=")[1])
+    raise RuntimeError(r.stdout + r.stderr)
+
+
+calibration = []
+
+
+def blender_defocus(scene, shot, stops):
+    """Blender's Defocus node on the passes (Z buffer, the scene camera's lens and focus), with
+    its f-stop calibrated as a user would match a reference: the node's f-stop is not the
+    lens's (Blender's depth-to-radius mapping is not a thin lens), so for each of Cycles'
+    f-stops the node's is scanned in half-stops up to 64 times it, and the one closest to
+    Cycles' truth (RMSE over RGB) is kept; the choice is written to blender_calibration.txt.
+    This favours Blender: its row is its best case."""
+    scene.use_nodes = True
+    scene.render.use_compositing = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    image = tree.nodes.new("CompositorNodeImage")
+    image.image = bpy.data.images.load(os.path.join(OUT, f"{shot}.passes.exr"))
+    df = tree.nodes.new("CompositorNodeDefocus")
+    df.use_zbuffer = True
+    df.blur_max = 64.0
+    df.threshold = 1.0
+    df.use_preview = False
+    df.scene = scene
+    comp = tree.nodes.new("CompositorNodeComposite")
+    tree.links.new(image.outputs["Combined"], df.inputs["Image"])
+    tree.links.new(image.outputs["Depth"], df.inputs["Z"])
+    tree.links.new(df.outputs["Image"], comp.inputs["Image"])
+    s = scene.render.image_settings
+    s.file_format = 'OPEN_EXR'
+    s.color_depth = '32'
+    s.exr_codec = 'ZIP'
+    s.color_mode = 'RGBA'
+    trial = os.path.join(OUT, "defocus_trial.exr")
+    for fstop in stops:
+        truth = os.path.join(OUT, f"{shot}.dof_f{fstop:g}.exr")
+        best = None
+        for i in range(13):
+            df.f_stop = fstop * 2 ** (i / 2)
+            scene.render.filepath = trial
+            bpy.ops.render.render(write_still=True)  # no Render Layers node: compositing only
+            err = rms_rgb(trial, truth)
+            if best is None or err < best[0]:
+                best = (err, df.f_stop)
+                os.replace(trial, os.path.join(OUT, f"{shot}.blender_defocus_f{fstop:g}.exr"))
+        calibration.append((shot, fstop, best[1], best[0]))
+        print(f"cycles set: {shot} Defocus for f/{fstop:g}: node f-stop {best[1]:.3g}, "
+              f"RMSE {best[0]:.4f}", flush=True)
+    if os.path.exists(trial):
+        os.remove(trial)
+    scene.use_nodes = False
+    scene.render.use_compositing = False
+    bpy.data.images.remove(image.image)
+
+
 def compositor(scene, shot, stops):
-    """Blender's own Vector Blur and Defocus on the render's passes, as a user would set them."""
+    """Blender's own Vector Blur on the render's passes, at the truth's shutter."""
     scene.use_nodes = True
     scene.render.use_compositing = True
     tree = scene.node_tree
@@ -256,19 +320,6 @@ def compositor(scene, shot, stops):
         name = f"{shot}.blender_vblur_s{int(shutter * 100):03d}."
         out.file_slots.new(name)
         tree.links.new(vb.outputs["Image"], out.inputs[name])
-    for fstop in stops:
-        df = tree.nodes.new("CompositorNodeDefocus")
-        df.use_zbuffer = True
-        df.f_stop = fstop
-        df.blur_max = 32.0
-        df.threshold = 1.0
-        df.use_preview = False
-        df.scene = scene
-        tree.links.new(rl.outputs["Image"], df.inputs["Image"])
-        tree.links.new(rl.outputs["Depth"], df.inputs["Z"])
-        name = f"{shot}.blender_defocus_f{fstop:g}."
-        out.file_slots.new(name)
-        tree.links.new(df.outputs["Image"], out.inputs[name])
 
 
 def main():
@@ -300,6 +351,8 @@ def main():
             cam.data.dof.aperture_fstop = fstop
             render(scene, os.path.join(OUT, f"{shot}.dof_f{fstop:g}.exr"), 'OPEN_EXR')
         cam.data.dof.use_dof = False
+        base_settings(scene, TRUTH_SAMPLES)
+        blender_defocus(scene, shot, stops)
         # Cycles' AO pass alone at two distances (no bounces: only the AO pass is kept).
         base_settings(scene, AO_SAMPLES)
         scene.cycles.max_bounces = 0
@@ -317,6 +370,11 @@ def main():
                 f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
         for name, samples, dt in times:
             f.write(f"{name} {samples} {dt:.1f}\n")
+    with open(os.path.join(OUT, "blender_calibration.txt"), "w") as f:
+        f.write("# Blender's Defocus: the node f-stop closest to Cycles' truth at each lens f-stop\n"
+                "# shot lens_fstop node_fstop rmse_rgb\n")
+        for shot, fstop, node_fstop, err in calibration:
+            f.write(f"{shot} {fstop:g} {node_fstop:.4g} {err:.5f}\n")
 
 
 main()

@@ -13,7 +13,9 @@
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/passes.h"
+#include "graph/graph.h"
 #include "graph/param_json.h"
+#include "nodes/registry.h"
 
 namespace posthaste::stability {
 namespace {
@@ -155,6 +157,37 @@ Frame plain_frame(int w, int h, int number)
     return f;
 }
 
+/// A window of a Cycles frame (samples/cycles/), read through the engine so that its camera is
+/// solved from its passes as a graph's would be: a production renderer's filtered edges (depths
+/// and positions mixed across silhouettes, normals not of unit length, motion mixed at edges),
+/// Blender's sky (depth 1e10, read as +inf), a right-handed world, and a data window inside the
+/// display window.
+static Frame cycles_window(const std::string &shot, const Rect &window)
+{
+    const std::string graph = R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")" +
+                              std::string(POSTHASTE_SOURCE_DIR) + "/samples/cycles/" + shot +
+                              R"(.passes.exr"}},
+        {"id": "out", "type": "write", "inputs": {"image": "in"}, "params": {"path": "unused.exr"}}]})";
+    Graph g = Graph::parse(graph, "cycles_window", nodes::catalog());
+    g.set_capture("in");
+    const Frame full = g.evaluate(2);
+    Frame f = full;
+    f.data_window = window;
+    f.clear_passes();
+    for (const auto &[name, pass] : full.passes()) {
+        const Image &img = *pass.image;
+        Image cut(window.width(), window.height(), img.channels());
+        for (int y = 0; y < window.height(); ++y) {
+            std::copy_n(img.pixel(window.x0, window.y0 + y),
+                        std::size_t(window.width()) * std::size_t(img.channels()),
+                        cut.pixel(0, y));
+        }
+        f.set(name, std::move(cut), pass.channels);
+    }
+    return f;
+}
+
 std::vector<HostileFrame> hostile_frames()
 {
     std::vector<HostileFrame> out;
@@ -207,6 +240,12 @@ std::vector<HostileFrame> hostile_frames()
                            v = x % 2 ? 0.0f : 1e-30f;
                        }
                    })});
+    out.push_back({"cycles_yard_edges",
+                   "Cycles' filtered passes: thin poles against the sky, mixed depths at edges",
+                   cycles_window("yard", {0, 0, 96, 64})});
+    out.push_back({"cycles_closeup_edges",
+                   "Cycles' filtered passes: a chrome ball's silhouette over a wall and the sky",
+                   cycles_window("closeup", {40, 40, 136, 104})});
     out.push_back({"negative",
                    "negative color, depth and material values",
                    edited(base, [](const std::string &name, int, int, int, float &v) {

@@ -503,34 +503,5 @@ TEST(Ssr, NodeNamesWhatIsMissing)
     }
 }
 
-// A frame without a material pass (Blender writes none by default) is shaded with the
-// roughness and metallic parameters: the same bits as the frame given that constant material.
-TEST(Ssr, AMissingMaterialIsTheParametersConstant)
-{
-    raster::Scene s = raster::load_scene(scene_path("glossy.json"));
-    const Frame f = glossy_frame(s, 96, 54);
-    for (const char *node : {"ssr", "relight"}) {
-        const std::string params =
-            std::string(node) == "ssr"
-                ? R"({"roughness": 0.2, "metallic": 1})"
-                : R"({"roughness": 0.2, "metallic": 1, "anisotropic": false, "lights": [{"type": "point", "position": [0, 3, 0]}]})";
-        Frame without = f;
-        without.erase("material");
-        Frame constant = f;
-        Image m(96, 54, 3);
-        for (std::size_t i = 0; i < m.pixel_count(); ++i) {
-            m.data()[3 * i] = 0.2f;
-            m.data()[3 * i + 1] = 1.0f;
-        }
-        constant.set("material", std::move(m), f.pass("material").channels);
-        const Image a = test::run_node(node, without, params).image("color");
-        const Image b = test::run_node(node, constant, params).image("color");
-        EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.pixel_count() * 4 * sizeof(float))) << node;
-        // ... and differs from the frame's own material (the test can fail).
-        const Image c = test::run_node(node, f, params).image("color");
-        EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.pixel_count() * 4 * sizeof(float))) << node;
-    }
-}
-
 }  // namespace
 }  // namespace posthaste

@@ -1,0 +1,75 @@
+// Passes a renderer rarely writes (Blender writes no material, tangent or aperture): the nodes
+// stand a parameter's constant in, say so once, and give the bits of a frame that had it.
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+
+#include "raster/render.h"
+#include "raster/scene.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+Frame glossy_frame(int w, int h)
+{
+    static const raster::Scene scene = raster::load_scene(test::scene_path("glossy.json"));
+    return raster::render_frame(
+        scene,
+        1,
+        test::render_options(
+            w, h, {"color", "depth", "normal", "position", "albedo", "material", "tangent"}));
+}
+
+// A frame without a material pass (Blender writes none by default) is shaded with the
+// roughness and metallic parameters: the same bits as the frame given that constant material.
+TEST(MissingPasses, AMissingMaterialIsTheParametersConstant)
+{
+    const Frame f = glossy_frame(96, 54);
+    for (const char *node : {"ssr", "relight"}) {
+        const std::string params =
+            std::string(node) == "ssr"
+                ? R"({"roughness": 0.2, "metallic": 1})"
+                : R"({"roughness": 0.2, "metallic": 1, "anisotropic": false, "lights": [{"type": "point", "position": [0, 3, 0]}]})";
+        Frame without = f;
+        without.erase("material");
+        Frame constant = f;
+        Image m(96, 54, 3);
+        for (std::size_t i = 0; i < m.pixel_count(); ++i) {
+            m.data()[3 * i] = 0.2f;
+            m.data()[3 * i + 1] = 1.0f;
+        }
+        constant.set("material", std::move(m), f.pass("material").channels);
+        const Image a = test::run_node(node, without, params).image("color");
+        const Image b = test::run_node(node, constant, params).image("color");
+        EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.pixel_count() * 4 * sizeof(float))) << node;
+        // ... and differs from the frame's own material (the test can fail).
+        const Image c = test::run_node(node, f, params).image("color");
+        EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.pixel_count() * 4 * sizeof(float))) << node;
+    }
+}
+
+// Without a tangent pass, relight's anisotropic shading is the isotropic one, not an error.
+TEST(MissingPasses, AMissingTangentShadesIsotropic)
+{
+    Frame f = glossy_frame(96, 54);
+    Image m = f.image("material");
+    for (std::size_t i = 0; i < m.pixel_count(); ++i) {
+        m.data()[3 * i + 2] = 0.8f;  // every surface anisotropic
+    }
+    f.set("material", std::move(m), f.pass("material").channels);
+    Frame without = f;
+    without.erase("tangent");
+    const std::string lights = R"("lights": [{"type": "point", "position": [0, 3, 0]}])";
+    const Image a = test::run_node("relight", without, "{" + lights + "}").image("color");
+    const Image b =
+        test::run_node("relight", f, R"({"anisotropic": false, )" + lights + "}").image("color");
+    EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.pixel_count() * 4 * sizeof(float)));
+    // ... where the tangent, when there, changes the shading (the test can fail).
+    const Image c = test::run_node("relight", f, "{" + lights + "}").image("color");
+    EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.pixel_count() * 4 * sizeof(float)));
+}
+
+}  // namespace
+}  // namespace posthaste
