@@ -218,7 +218,7 @@ CameraSolve solve_camera(const Image &position,
     const int w = position.width(), h = position.height();
     int stride = options.stride;
     if (stride <= 0) {
-        stride = std::max(1, int(std::sqrt(double(w) * double(h) / 250000.0)));
+        stride = std::max(1, int(std::ceil(std::sqrt(double(w) * double(h) / 100000.0))));
     }
     const double dw = double(display.width()), dh = double(display.height());
     std::vector<Sample> samples;

@@ -24,8 +24,8 @@ struct CameraSolveOptions {
     double max_residual_px = 0.05;
     /// The near clip for NDC z; absent: the nearest depth in the frame.
     std::optional<float> near_clip;
-    /// Fit on every `stride`-th pixel in x and y (0: chosen so that about 250,000 pixels are
-    /// looked at).
+    /// Fit on every `stride`-th pixel in x and y (0: chosen so that at most about 100,000 pixels
+    /// are looked at).
     int stride = 0;
 };
 
