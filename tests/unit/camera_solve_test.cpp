@@ -82,6 +82,20 @@ TEST(CameraSolve, EqualsTheHeaderOnTheRasterizersFrames)
     }
 }
 
+TEST(CameraSolve, TheDefaultSampleBudgetHoldsAt1080p)
+{
+    // Every 5th pixel in x and y at this size (83k samples).
+    const Frame f = rendered(20, 1920, 1080);
+    CameraSolveOptions o;
+    o.near_clip = f.camera.near_clip;
+    const CameraSolve s = solve_camera(
+        f.image("position"), f.image("depth"), f.display_window, f.data_window, "test", o);
+    EXPECT_LT(s.pixels_valid, 100000u);
+    EXPECT_LT(s.residual_px, 0.01);
+    EXPECT_LT(relative_difference(s.world_to_camera, *f.camera.world_to_camera), 1e-4);
+    EXPECT_LT(relative_difference(s.world_to_ndc, *f.camera.world_to_ndc), 1e-4);
+}
+
 TEST(CameraSolve, AMirroredWorldGivesAMirroredCameraThatProjectsTheSame)
 {
     Frame f = rendered(20);
