@@ -67,6 +67,12 @@ constexpr ParamSpec kSunDirection =
         .doc("World direction towards the sun.")
         .from_header("posthaste:sunDirection")
         .only_when("model", "height|atmosphere|atmosphere_raymarch");
+constexpr ParamSpec kUp =
+    ParamSpec::vec3("up", 0.0, 1.0, 0.0)
+        .doc(
+            "World direction of up, for heights and the sun's elevation: +Y (the rasterizer's, "
+            "Maya's, Houdini's) or [0, 0, 1] for a Z-up world (Blender's, 3ds Max's, Unreal's).")
+        .only_when("model", "height|atmosphere|atmosphere_raymarch");
 constexpr ParamSpec kSunColor =
     ParamSpec::vec3("sun_color", 0.0, 0.0, 0.0)
         .at_least(0.0)
@@ -112,28 +118,39 @@ constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64)
                                  .range(1, 4096)
                                  .doc("atmosphere_raymarch: integration steps per pixel.")
                                  .only_when("model", "atmosphere_raymarch");
-constexpr ParamSpec kParams[] = {kModel,
-                                 kColor,
-                                 kStart,
-                                 kEnd,
-                                 kDensity,
-                                 kFalloff,
-                                 kBaseHeight,
-                                 kSky,
-                                 kSunDirection,
-                                 kSunColor,
-                                 kSunG,
-                                 kIlluminance,
-                                 kMetresPerUnit,
-                                 kGroundAltitude,
-                                 kFroxels,
-                                 kSlices,
-                                 kMaxDistance,
-                                 kSunDisc,
-                                 kSteps};
+constexpr ParamSpec kParams[] = {
+    kModel,    kColor,      kStart,       kEnd,           kDensity,
+    kFalloff,  kBaseHeight, kSky,         kSunDirection,  kUp,
+    kSunColor, kSunG,       kIlluminance, kMetresPerUnit, kGroundAltitude,
+    kFroxels,  kSlices,     kMaxDistance, kSunDisc,       kSteps};
 constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."}};
 
 enum Model { Linear, Exp, Exp2, Height, Atmo, AtmoRayMarch };
+
+/// The rotation taking the unit vector along `up` to +Y (the identity for +Y itself): about the
+/// axis up x Y by the angle between them, or half a turn about X for -Y.
+glm::mat3 rotation_to_y_up(glm::vec3 up, const std::string &who)
+{
+    const float len = glm::length(up);
+    if (!(len > 0.0f) || !std::isfinite(len)) {
+        throw_runtime(who, ": up must be a non-zero finite vector");
+    }
+    up /= len;
+    const glm::vec3 y(0.0f, 1.0f, 0.0f);
+    if (up == y) {
+        return glm::mat3(1.0f);
+    }
+    const float c = glm::dot(up, y);
+    if (c < -0.999999f) {
+        return glm::mat3(glm::vec3(1, 0, 0), glm::vec3(0, -1, 0), glm::vec3(0, 0, -1));
+    }
+    // Rodrigues: R = I + [k]x + [k]x^2 / (1 + c), k = up x y (|k| = sin).
+    const glm::vec3 k = glm::cross(up, y);
+    const glm::mat3 kx(glm::vec3(0.0f, k.z, -k.y),
+                       glm::vec3(-k.z, 0.0f, k.x),
+                       glm::vec3(k.y, -k.x, 0.0f));  // columns
+    return glm::mat3(1.0f) + kx + kx * kx * (1.0f / (1.0f + c));
+}
 
 glm::vec3 vec3_of(const std::vector<double> &v)
 {
@@ -245,8 +262,12 @@ void execute(NodeContext &ctx)
     }
     const std::string who = ctx.where();
     const Camera camera = in.pixel_camera();  // NDC spans the data window
-    const glm::mat4 &w2c = camera.require_world_to_camera(who);
-    const glm::mat4 &w2ndc = camera.require_world_to_ndc(who);
+    // The models measure height along +Y: a world whose up is another axis is turned so that
+    // its up is +Y, the camera and the sun with it (identity for the default).
+    const glm::mat3 to_y_up = rotation_to_y_up(vec3_of(ctx.get_vec(kUp)), who);
+    const glm::mat4 from_y_up = glm::mat4(glm::transpose(to_y_up));
+    const glm::mat4 w2c = camera.require_world_to_camera(who) * from_y_up;
+    const glm::mat4 w2ndc = camera.require_world_to_ndc(who) * from_y_up;
     const shading::CameraRays rays(w2c, w2ndc);
 
     // Negative depths count as 0 (a copy is made only when there are some). The height fog and
@@ -269,7 +290,7 @@ void execute(NodeContext &ctx)
     if (!(glm::length(sun_dir) > 0.0f) || !std::isfinite(glm::length(sun_dir))) {
         throw_runtime(who, ": sun direction must be a non-zero finite vector");
     }
-    sun_dir = glm::normalize(sun_dir);
+    sun_dir = to_y_up * glm::normalize(sun_dir);
 
     // The height fog and atmosphere kernels read the input and write the output in one sweep;
     // the other models work on a copy.

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <sstream>
 
 #include "metrics/metrics.h"
 #include "raster/scene.h"
@@ -96,6 +97,53 @@ TEST(Handedness, NodesGiveTheSameResultForAMirroredWorld)
     const Frame b = test::run_node(
         "relight", m, R"({"lights": [{"type": "point", "position": [-1.5, 2.0, 0.5]}]})", 8);
     EXPECT_LT(metrics::compare(a.image("color"), b.image("color")).all.rms_error, 1e-4);
+}
+
+// Blender's world has Z up: fog's `up` turns it so that heights and the sun's elevation are
+// measured along it. A frame whose world is turned so that +Y goes to +Z, fogged with up
+// [0, 0, 1] and its sun turned likewise, is the original's fog.
+TEST(Handedness, FogWithZUpIsTheYUpFog)
+{
+    const raster::Scene scene = raster::load_scene(test::scene_path("minecrappy.json"));
+    const Frame f = raster::render_frame(
+        scene, 20, test::render_options(160, 90, {"color", "depth", "normal", "position"}));
+    // Rotate the world a quarter turn about X: (x, y, z) -> (x, -z, y), +Y to +Z.
+    const glm::mat4 q = glm::rotate(glm::mat4(1.0f), glm::radians(90.0f), glm::vec3(1, 0, 0));
+    Frame z_up = f;
+    for (const char *name : {"normal", "position"}) {
+        Image img = f.image(name);
+        for (std::size_t i = 0; i < img.pixel_count(); ++i) {
+            float *p = img.data() + 3 * i;
+            const glm::vec3 v = glm::mat3(q) * glm::vec3(p[0], p[1], p[2]);
+            p[0] = v.x;
+            p[1] = v.y;
+            p[2] = v.z;
+        }
+        z_up.set(name, std::move(img), f.pass(name).channels);
+    }
+    const glm::mat4 q_inv = glm::transpose(q);
+    z_up.camera.world_to_camera = *f.camera.world_to_camera * q_inv;
+    z_up.camera.world_to_ndc = *f.camera.world_to_ndc * q_inv;
+    const glm::vec3 sun(0.4f, 0.75f, 0.3f), sun_z = glm::mat3(q) * sun;
+    // The fog node's parameters: a model, the sun, and up when given.
+    auto params = [](const char *model, const glm::vec3 &s, const char *up) {
+        std::ostringstream os;
+        os << "{" << model << ", \"sun_direction\": [" << s.x << ", " << s.y << ", " << s.z << "]"
+           << up << "}";
+        return os.str();
+    };
+    for (const char *model :
+         {R"("model": "height", "density": 0.3, "falloff": 0.5, "base_height": 2)",
+          R"("model": "atmosphere", "metres_per_unit": 100)"}) {
+        const Image a = test::run_node("fog", f, params(model, sun, ""), 20).image("color");
+        const Image b =
+            test::run_node("fog", z_up, params(model, sun_z, R"(, "up": [0, 0, 1])"), 20)
+                .image("color");
+        EXPECT_LT(metrics::compare(a, b).all.rms_error, 1e-4) << model;
+        // Without `up`, the turned world is fogged by the wrong heights (the test can fail).
+        const Image c = test::run_node("fog", z_up, params(model, sun_z, ""), 20).image("color");
+        EXPECT_GT(metrics::compare(a, c).all.rms_error, 1e-3) << model;
+    }
 }
 
 }  // namespace
