@@ -3,11 +3,13 @@
 # occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
 #
 #   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
+#                                                              [--only-unfiltered]
 #
 # Writes, per shot, into OUT_DIR:
 #   SHOT.passes.exr         multilayer: Combined, Depth, Normal, Position, Vector, DiffCol, AO
 #                           (distance 1 m), Mist; no camera matrices (Blender writes none); the
 #                           stamp's Lens in the header
+#   SHOT.passes_unfiltered.exr   Depth, Normal, Position, Vector with a 0.01 px pixel filter
 #   SHOT.mb_s050.exr        Cycles motion blur, shutter 0.5 frame, centred (the truth)
 #   SHOT.mb_s100.exr        shutter 1.0
 #   SHOT.dof_fA.exr         Cycles depth of field at the two f-stops of the shot
@@ -28,6 +30,8 @@ import bpy
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 OUT = os.path.abspath(argv[0] if argv else "samples/cycles")
 QUICK = "--quick" in argv
+# Only the unfiltered data passes (to add them to a set made before they were).
+ONLY_UNFILTERED = "--only-unfiltered" in argv
 os.makedirs(OUT, exist_ok=True)
 
 WIDTH, HEIGHT = (160, 90) if QUICK else (320, 180)
@@ -331,8 +335,21 @@ def main():
         vl = scene.view_layers[0]
         for p in ("z", "normal", "position", "vector", "diffuse_color", "ambient_occlusion", "mist"):
             setattr(vl, "use_pass_" + p, True)
-        compositor(scene, shot, stops)
-        render(scene, os.path.join(OUT, f"{shot}.passes.exr"), 'OPEN_EXR_MULTILAYER')
+        if not ONLY_UNFILTERED:
+            compositor(scene, shot, stops)
+            render(scene, os.path.join(OUT, f"{shot}.passes.exr"), 'OPEN_EXR_MULTILAYER')
+        # The same data passes without the pixel filter (0.01 px: every sample at the pixel's
+        # centre, so depth, normals, positions and motion are one surface's, exact), to measure
+        # what the filtered passes of a production render cost each node.
+        base_settings(scene, 16)
+        scene.use_nodes = False
+        scene.render.use_compositing = False
+        scene.render.filter_size = 0.01
+        for p in ("z", "normal", "position", "vector"):
+            setattr(vl, "use_pass_" + p, True)
+        render(scene, os.path.join(OUT, f"{shot}.passes_unfiltered.exr"), 'OPEN_EXR_MULTILAYER')
+        if ONLY_UNFILTERED:
+            continue
         # The file output node appends the frame number: drop it.
         for f in os.listdir(OUT):
             if f.startswith(shot + ".blender_") and f.endswith(f"{FRAME:04d}.exr"):
@@ -363,13 +380,16 @@ def main():
                    'OPEN_EXR_MULTILAYER')
         scene.world.light_settings.distance = 1.0
     for f in sorted(os.listdir(OUT)):
-        if f.endswith(".exr"):
+        if f.endswith(".exr") and (not ONLY_UNFILTERED or "_unfiltered" in f):
             to_half(os.path.join(OUT, f))
-    with open(os.path.join(OUT, "render_times.txt"), "w") as f:
-        f.write(f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
-                f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
+    with open(os.path.join(OUT, "render_times.txt"), "a" if ONLY_UNFILTERED else "w") as f:
+        if not ONLY_UNFILTERED:
+            f.write(f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
+                    f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
         for name, samples, dt in times:
             f.write(f"{name} {samples} {dt:.1f}\n")
+    if ONLY_UNFILTERED:
+        return
     with open(os.path.join(OUT, "blender_calibration.txt"), "w") as f:
         f.write("# Blender's Defocus: the node f-stop closest to Cycles' truth at each lens f-stop\n"
                 "# shot lens_fstop node_fstop rmse_rgb\n")
