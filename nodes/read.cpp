@@ -131,6 +131,9 @@ void resolve_camera(const ReadState &state,
         return;
     }
     if (!state.solve || !frame.has("position") || !frame.has("depth")) {
+        // Said where a node asks for the matrices: which file lacked them.
+        cam.origin = "none: " + path + " has no camera matrices" +
+                     (state.solve ? " and no position and depth passes" : "");
         return;
     }
     CameraSolveOptions o = state.solve_options;

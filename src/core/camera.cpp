@@ -20,13 +20,16 @@ const T &require(const std::optional<T> &v, const char *attribute, const std::st
 /// A matrix has three sources; the message names them all.
 const glm::mat4 &require_matrix(const std::optional<glm::mat4> &m,
                                 const char *attribute,
-                                const std::string &who)
+                                const std::string &who,
+                                const std::string &origin)
 {
     if (!m) {
         throw_runtime(who,
                       ": camera attribute \"",
                       attribute,
-                      "\" is missing from the header; give the camera in the header "
+                      "\" is missing from the header",
+                      origin.empty() ? "" : " (" + origin + ")",
+                      "; give the camera in the header "
                       "(worldToCamera, worldToNDC), as read's \"camera\" parameter, or with "
                       "position and depth passes to solve it from");
     }
@@ -37,11 +40,11 @@ const glm::mat4 &require_matrix(const std::optional<glm::mat4> &m,
 
 const glm::mat4 &Camera::require_world_to_camera(const std::string &who) const
 {
-    return require_matrix(world_to_camera, attr::kWorldToCamera, who);
+    return require_matrix(world_to_camera, attr::kWorldToCamera, who, origin);
 }
 const glm::mat4 &Camera::require_world_to_ndc(const std::string &who) const
 {
-    return require_matrix(world_to_ndc, attr::kWorldToNDC, who);
+    return require_matrix(world_to_ndc, attr::kWorldToNDC, who, origin);
 }
 const glm::mat4 &Camera::require_prev_world_to_camera(const std::string &who) const
 {

@@ -296,6 +296,7 @@ TEST(CameraSolve, AoRunsOnAFileWithoutMatrices)
         {"id": "out", "type": "write", "inputs": {"image": "ao"}, "params": {"path": "ao.exr"}}]})";
     EXPECT_EQ(1, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
     EXPECT_NE(log.find("node \"ao\""), std::string::npos) << log;
+    EXPECT_NE(log.find("nocam.exr has no camera matrices"), std::string::npos) << log;
     EXPECT_NE(log.find("worldToCamera"), std::string::npos) << log;
     EXPECT_NE(log.find("read's \"camera\" parameter"), std::string::npos) << log;
     EXPECT_NE(log.find("position and depth passes"), std::string::npos) << log;
