@@ -3,7 +3,7 @@
 # occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
 #
 #   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
-#                                                              [--only-unfiltered]
+#                                                              [--only-unfiltered | --noise]
 #
 # Writes, per shot, into OUT_DIR:
 #   SHOT.passes.exr         multilayer: Combined, Depth, Normal, Position, Vector, DiffCol, AO
@@ -32,6 +32,9 @@ OUT = os.path.abspath(argv[0] if argv else "samples/cycles")
 QUICK = "--quick" in argv
 # Only the unfiltered data passes (to add them to a set made before they were).
 ONLY_UNFILTERED = "--only-unfiltered" in argv
+# Only a second render of each shot's sharp frame and of its shutter-0.5 truth with another seed,
+# into OUT_DIR/noise/, to measure the renders' own noise (not checked in).
+NOISE = "--noise" in argv
 os.makedirs(OUT, exist_ok=True)
 
 WIDTH, HEIGHT = (160, 90) if QUICK else (320, 180)
@@ -326,8 +329,30 @@ def compositor(scene, shot, stops):
         tree.links.new(vb.outputs["Image"], out.inputs[name])
 
 
+def noise_renders(scene, cam):
+    """The sharp frame and the shutter-0.5 truth again with another seed: their RMSE against
+    the set's is sqrt(2) times each render's noise."""
+    out = os.path.join(OUT, "noise")
+    os.makedirs(out, exist_ok=True)
+    for shot in ("yard", "closeup"):
+        set_shot(scene, cam, shot)
+        base_settings(scene, PASS_SAMPLES)
+        scene.cycles.seed = 8
+        render(scene, os.path.join(out, f"{shot}.sharp_seed8.exr"), 'OPEN_EXR')
+        base_settings(scene, TRUTH_SAMPLES)
+        scene.cycles.seed = 8
+        scene.render.use_motion_blur = True
+        scene.cycles.motion_blur_position = 'CENTER'
+        scene.render.motion_blur_shutter = 0.5
+        render(scene, os.path.join(out, f"{shot}.mb_s050_seed8.exr"), 'OPEN_EXR')
+        scene.render.use_motion_blur = False
+
+
 def main():
     scene, cam = build_scene()
+    if NOISE:
+        noise_renders(scene, cam)
+        return
     for shot in ("yard", "closeup"):
         stops = set_shot(scene, cam, shot)
         # The passes (and Blender's compositor nodes on them).
