@@ -105,6 +105,7 @@ struct ReadState {
     /// The sequence's headers carry no camera matrices but the files have position and depth:
     /// read those two passes too and solve the camera.
     bool solve = false;
+    std::string no_solve_why;  ///< Why not, for the message of a node that needs the camera.
     CameraSolveOptions solve_options;
     /// The solve is reported once on stderr.
     std::shared_ptr<std::once_flag> said = std::make_shared<std::once_flag>();
@@ -133,7 +134,7 @@ void resolve_camera(const ReadState &state,
     if (!state.solve || !frame.has("position") || !frame.has("depth")) {
         // Said where a node asks for the matrices: which file lacked them.
         cam.origin = "none: " + path + " has no camera matrices" +
-                     (state.solve ? " and no position and depth passes" : "");
+                     (state.solve ? " and no position and depth passes" : state.no_solve_why);
         return;
     }
     CameraSolveOptions o = state.solve_options;
@@ -160,7 +161,9 @@ ReadState make_state(const NodeParams &params, const NodeIdentity &node, const s
     s.options = read_options(params, node);
     s.graph_camera = parse_graph_camera(params.get_json(kCamera), camera_where(node));
     s.solve_options.max_residual_px = params.get_real(kCameraResidual);
-    if (!s.graph_camera.given() && params.get_choice(kSolveCamera) == 0) {
+    if (params.get_choice(kSolveCamera) != 0) {
+        s.no_solve_why = " (read's solve_camera is never)";
+    } else if (!s.graph_camera.given()) {
         const FileInfo info = read_file_info(path, s.options);
         bool position = false, depth = false;
         for (const PassSource &ps : info.passes) {
@@ -168,6 +171,9 @@ ReadState make_state(const NodeParams &params, const NodeIdentity &node, const s
             depth = depth || ps.pass == "depth";
         }
         s.solve = !(info.camera.world_to_camera && info.camera.world_to_ndc) && position && depth;
+        if (!(position && depth)) {
+            s.no_solve_why = " and no position and depth passes";
+        }
     }
     return s;
 }

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -296,10 +297,25 @@ TEST(CameraSolve, AoRunsOnAFileWithoutMatrices)
         {"id": "out", "type": "write", "inputs": {"image": "ao"}, "params": {"path": "ao.exr"}}]})";
     EXPECT_EQ(1, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
     EXPECT_NE(log.find("node \"ao\""), std::string::npos) << log;
-    EXPECT_NE(log.find("nocam.exr has no camera matrices"), std::string::npos) << log;
+    EXPECT_NE(log.find("nocam.exr has no camera matrices (read's solve_camera is never)"),
+              std::string::npos)
+        << log;
     EXPECT_NE(log.find("worldToCamera"), std::string::npos) << log;
     EXPECT_NE(log.find("read's \"camera\" parameter"), std::string::npos) << log;
     EXPECT_NE(log.find("position and depth passes"), std::string::npos) << log;
+    // A file with neither matrices nor a position pass: the same line says so.
+    Frame no_position = f;
+    no_position.erase("position");
+    write_without_camera(dir, no_position, true);
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": "nocam.exr"}},
+        {"id": "ao", "type": "ao", "inputs": {"image": "in"}},
+        {"id": "out", "type": "write", "inputs": {"image": "ao"}, "params": {"path": "ao.exr"}}]})";
+    EXPECT_EQ(1, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
+    EXPECT_NE(log.find("nocam.exr has no camera matrices and no position and depth passes"),
+              std::string::npos)
+        << log;
+    EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
 }
 
 TEST(CameraSolve, TheGraphsCameraReplacesTheHeaders)
