@@ -73,13 +73,10 @@ Camera info_camera(const FileInfo &fi, const ReadOptions &options)
     try {
         const std::set<std::string> wanted = {"position", "depth"};
         const Frame f = read_frame(fi.path, &wanted, 0, options);
-        const CameraSolve solve =
-            solve_camera(f.image("position"),
-                         f.image("depth"),
-                         f.display_window,
-                         f.data_window,
-                         fi.path,
-                         {.max_residual_px = 0.05, .near_clip = camera.near_clip, .stride = 0});
+        CameraSolveOptions o;  // the read's defaults
+        o.near_clip = camera.near_clip;
+        const CameraSolve solve = solve_camera(
+            f.image("position"), f.image("depth"), f.display_window, f.data_window, fi.path, o);
         apply_camera_solve(solve, nodes::stamped_focal_length(fi.attributes), camera);
     } catch (const Error &e) {
         camera.origin = std::string("none: ") + e.what();
