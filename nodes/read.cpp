@@ -67,7 +67,7 @@ constexpr ParamSpec kSolveCamera =
             "gets its pinhole camera solved from them (posthaste info shows the residual); "
             "never: leave such a frame without a camera.");
 constexpr ParamSpec kCameraResidual =
-    ParamSpec::real("camera_residual", 0.05)
+    ParamSpec::real("camera_residual", kDefaultMaxResidualPx)
         .range(1e-6, 10.0)
         .units("px")
         .doc("Largest RMS reprojection error a solved camera may have before the read refuses.")
@@ -137,15 +137,7 @@ void resolve_camera(const ReadState &state,
                      (state.solve ? " and no position and depth passes" : state.no_solve_why);
         return;
     }
-    CameraSolveOptions o = state.solve_options;
-    o.near_clip = cam.near_clip;
-    const CameraSolve solve = solve_camera(frame.image("position"),
-                                           frame.image("depth"),
-                                           frame.display_window,
-                                           frame.data_window,
-                                           path,
-                                           o);
-    apply_camera_solve(solve, stamped_focal_length(frame.attributes), cam);
+    const CameraSolve solve = solve_frame_camera(frame, state.solve_options, path);
     std::call_once(*state.said, [&] {
         std::fprintf(stderr,
                      "note: %s: %s: camera %s (later frames are solved likewise)\n",

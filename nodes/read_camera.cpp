@@ -143,6 +143,19 @@ void apply_graph_camera(const GraphCamera &g, Frame &frame)
     cam.origin = "graph";
 }
 
+CameraSolve solve_frame_camera(Frame &frame, CameraSolveOptions options, const std::string &who)
+{
+    options.near_clip = frame.camera.near_clip;
+    const CameraSolve solve = solve_camera(frame.image("position"),
+                                           frame.image("depth"),
+                                           frame.display_window,
+                                           frame.data_window,
+                                           who,
+                                           options);
+    apply_camera_solve(solve, stamped_focal_length(frame.attributes), frame.camera);
+    return solve;
+}
+
 std::optional<float> stamped_focal_length(const OIIO::ParamValueList &attributes)
 {
     const OIIO::ParamValue *p = attributes.find_pv("Lens", OIIO::TypeUnknown, false);

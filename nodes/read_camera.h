@@ -8,6 +8,7 @@
 #include <optional>
 #include <string>
 
+#include "core/camera_solve.h"
 #include "core/frame.h"
 
 namespace posthaste::nodes {
@@ -36,6 +37,11 @@ GraphCamera parse_graph_camera(const std::string &json_text, const ParamWhere &w
 
 /// Set the frame's matrices from the graph's camera (the display window gives the aspect).
 void apply_graph_camera(const GraphCamera &camera, Frame &frame);
+
+/// Solve the frame's camera from its position and depth passes (the near clip the header's, if
+/// it has one; the focal length the header's, else Blender's stamp's) and put it in the frame's
+/// camera; returns the solve. Throws the solve's runtime Error, naming `who`.
+CameraSolve solve_frame_camera(Frame &frame, CameraSolveOptions options, const std::string &who);
 
 /// The focal length in mm from Blender's stamp metadata (`Lens`, "50.00 mm"), if the header's
 /// attributes have it.

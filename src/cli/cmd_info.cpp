@@ -6,7 +6,6 @@
 #include <cstdio>
 
 #include "cli/commands.h"
-#include "core/camera_solve.h"
 #include "core/error.h"
 #include "core/passes.h"
 #include "io/image_file.h"
@@ -72,12 +71,9 @@ Camera info_camera(const FileInfo &fi, const ReadOptions &options)
     }
     try {
         const std::set<std::string> wanted = {"position", "depth"};
-        const Frame f = read_frame(fi.path, &wanted, 0, options);
-        CameraSolveOptions o;  // the read's defaults
-        o.near_clip = camera.near_clip;
-        const CameraSolve solve = solve_camera(
-            f.image("position"), f.image("depth"), f.display_window, f.data_window, fi.path, o);
-        apply_camera_solve(solve, nodes::stamped_focal_length(fi.attributes), camera);
+        Frame f = read_frame(fi.path, &wanted, 0, options);
+        nodes::solve_frame_camera(f, {}, fi.path);  // the read's defaults
+        camera = f.camera;
     } catch (const Error &e) {
         camera.origin = std::string("none: ") + e.what();
     }

@@ -19,9 +19,13 @@
 
 namespace posthaste {
 
+/// The largest RMS reprojection error (pixels) a solve accepts by default; read's
+/// `camera_residual` parameter declares it as its default.
+inline constexpr double kDefaultMaxResidualPx = 0.05;
+
 struct CameraSolveOptions {
     /// Largest RMS reprojection error (pixels) accepted over the pixels kept.
-    double max_residual_px = 0.05;
+    double max_residual_px = kDefaultMaxResidualPx;
     /// The near clip for NDC z; absent: the nearest depth in the frame.
     std::optional<float> near_clip;
     /// Fit on every `stride`-th pixel in x and y (0: chosen so that at most about 100,000 pixels
