@@ -71,5 +71,20 @@ TEST(MissingPasses, AMissingTangentShadesIsotropic)
     EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.pixel_count() * 4 * sizeof(float)));
 }
 
+// Without an aperture in the header, dof takes its fstop default, 5.6: the bits of the frame
+// given f/5.6, and not those of another f-stop (the test can fail).
+TEST(MissingPasses, AMissingApertureIsTheDefaultFstop)
+{
+    const raster::Scene scene = raster::load_scene(test::scene_path("minecrappy.json"));
+    Frame f = raster::render_frame(scene, 40, test::render_options(96, 54, {"color", "depth"}));
+    f.camera.fstop.reset();
+    const std::string focus = R"("focus_distance": 3)";
+    const Image a = test::run_node("dof", f, "{" + focus + "}", 40).image("color");
+    const Image b = test::run_node("dof", f, R"({"fstop": 5.6, )" + focus + "}", 40).image("color");
+    const Image c = test::run_node("dof", f, R"({"fstop": 2, )" + focus + "}", 40).image("color");
+    EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.pixel_count() * 4 * sizeof(float)));
+    EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.pixel_count() * 4 * sizeof(float)));
+}
+
 }  // namespace
 }  // namespace posthaste
