@@ -10,6 +10,7 @@
 #include <charconv>
 #include <glm/geometric.hpp>
 
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/hatch.h"
 #include "shading/tam.h"
@@ -150,49 +151,48 @@ bool parse_ids(const std::string &text, std::vector<int> &ids, std::string &bad)
     return true;
 }
 
-glm::vec3 vec3_of(const NodeParams &p, const ParamSpec &s)
-{
-    const std::vector<double> &v = p.get_vec(s);
-    return {float(v[0]), float(v[1]), float(v[2])};
-}
+constexpr Binding<shading::TamParams> kTamFields[] = {
+    bind<&shading::TamParams::size>(kTamSize),
+    bind<&shading::TamParams::width>(kStrokeWidth),
+    bind<&shading::TamParams::length>(kStrokeLength),
+    bind<&shading::TamParams::jitter>(kJitter),
+    bind<&shading::TamParams::angle_deg>(kAngle),
+    bind<&shading::TamParams::cross_angle_deg>(kCrossAngle),
+    bind<&shading::TamParams::cross_tones>(kCrossTones),
+    bind<&shading::TamParams::candidates>(kCandidates),
+    bind<&shading::TamParams::darkest>(kDarkest),
+    bind<&shading::TamParams::seed>(kSeed),
+};
+constexpr Binding<shading::HatchSettings> kHatchFields[] = {
+    bind<&shading::HatchSettings::screen_space>(kMode, "screen"),
+    bind<&shading::HatchSettings::triplanar>(kProjection, "triplanar"),
+    bind<&shading::HatchSettings::scale>(kScale),
+    bind<&shading::HatchSettings::tone_from_light>(kTone, "light"),
+    bind<&shading::HatchSettings::light_dir>(kLightDir),
+    bind<&shading::HatchSettings::ambient>(kAmbient),
+    bind<&shading::HatchSettings::exposure>(kExposure),
+    bind<&shading::HatchSettings::gamma>(kGamma),
+    bind<&shading::HatchSettings::outline_width>(kOutlineWidth),
+    bind<&shading::HatchSettings::depth_threshold>(kDepthThreshold),
+    bind<&shading::HatchSettings::normal_threshold_deg>(kNormalThreshold),
+    bind<&shading::HatchSettings::paper>(kPaper),
+    bind<&shading::HatchSettings::ink>(kInk),
+    bind<&shading::HatchSettings::outline>(kOutlineColor),
+    bind<&shading::HatchSettings::mix>(kMix),
+};
 
 shading::TamParams tam_params(const NodeParams &p)
 {
-    shading::TamParams t;
-    t.size = 64 << p.get_choice(kTamSize);
+    shading::TamParams t = fill(p, kTamFields);
     t.stroke_levels = t.size >= 256 ? 4 : (t.size == 128 ? 3 : 2);
-    t.width = p.get_float(kStrokeWidth);
-    t.length = p.get_float(kStrokeLength);
-    t.jitter = p.get_float(kJitter);
-    t.angle_deg = p.get_float(kAngle);
-    t.cross_angle_deg = p.get_float(kCrossAngle);
-    t.cross_tones = p.get_int(kCrossTones);
-    t.candidates = p.get_int(kCandidates);
-    t.darkest = p.get_float(kDarkest);
-    t.seed = std::uint32_t(p.get_int(kSeed));
     return t;
 }
 
 shading::HatchSettings settings(const NodeParams &p)
 {
-    shading::HatchSettings s;
-    s.screen_space = p.get_choice(kMode) == 1;
-    s.triplanar = p.get_choice(kProjection) == 1;
-    s.scale = p.get_float(kScale);
-    s.tone_from_light = p.get_choice(kTone) == 1;
-    s.light_dir = vec3_of(p, kLightDir);
-    s.ambient = p.get_float(kAmbient);
-    s.exposure = p.get_float(kExposure);
-    s.gamma = p.get_float(kGamma);
-    s.outline_width = p.get_float(kOutlineWidth);
-    s.depth_threshold = p.get_float(kDepthThreshold);
-    s.normal_threshold_deg = p.get_float(kNormalThreshold);
-    s.paper = vec3_of(p, kPaper);
-    s.ink = vec3_of(p, kInk);
-    s.outline = vec3_of(p, kOutlineColor);
+    shading::HatchSettings s = fill(p, kHatchFields);
     std::string bad;
     parse_ids(p.get_string(kIds), s.ids, bad);  // checked in check()
-    s.mix = p.get_float(kMix);
     return s;
 }
 
@@ -263,7 +263,7 @@ void check(CheckContext &ctx)
         throw_usage(
             where, ": param \"ids\": expected comma-separated integers >= 0, got \"", bad, "\"");
     }
-    const glm::vec3 l = vec3_of(ctx.params, kLightDir);
+    const glm::vec3 l = settings(ctx.params).light_dir;
     if (!(glm::dot(l, l) > 1e-12f)) {
         throw_usage(where, ": param \"light_dir\": expected a non-zero vector, got [0, 0, 0]");
     }
@@ -279,6 +279,11 @@ extern const NodeType kHatching{{"hatching",
                                  "color"},
                                 &execute,
                                 &plan,
-                                &check};
+                                &check,
+                                nullptr,
+                                [](std::vector<std::string> &problems) {
+                                    audit(kHatching, kTamFields, problems);
+                                    audit(kHatching, kHatchFields, problems);
+                                }};
 
 }  // namespace posthaste::nodes

@@ -80,6 +80,23 @@ struct Camera {
     Camera for_window(const Rect &display, const Rect &data) const;
 };
 
+/// The camera's scalar header attributes and the members they fill, each once: the reader, the
+/// writer and a parameter's header fallback (graph/param_bind.h) walk the same table.
+struct CameraScalarAttribute {
+    const char *name;
+    std::optional<float> Camera::*member;
+};
+inline constexpr CameraScalarAttribute kCameraScalarAttributes[] = {
+    {attr::kAperture, &Camera::fstop},
+    {attr::kFocus, &Camera::focus_distance},
+    {attr::kFocalLength, &Camera::focal_length_mm},
+    {attr::kSensorWidth, &Camera::sensor_width_mm},
+    {attr::kSensorHeight, &Camera::sensor_height_mm},
+    {attr::kShutter, &Camera::shutter},
+    {attr::kNearClip, &Camera::near_clip},
+    {attr::kFarClip, &Camera::far_clip},
+};
+
 /// A pinhole camera's matrices from a camera-to-world transform and lens. `view_to_world` maps
 /// camera space (left-handed, +Z forward) to world space. Returns {worldToCamera, worldToNDC}.
 struct CameraMatrices {

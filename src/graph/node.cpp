@@ -75,6 +75,26 @@ int NodeParams::get_choice(const ParamSpec &spec) const
     return it == words.end() ? 0 : int(it - words.begin());
 }
 
+bool NodeParams::applies(const ParamSpec &spec) const
+{
+    if (spec.when_param.empty() || !type_) {
+        return true;
+    }
+    for (const ParamSpec &control : type_->spec.params) {
+        if (control.name == spec.when_param) {
+            return condition_holds(spec, control, value(control));
+        }
+    }
+    // A condition on an undeclared parameter is a programming error.
+    throw_runtime("internal: node type \"",
+                  type_->spec.type,
+                  "\": param \"",
+                  spec.name,
+                  "\" applies only when undeclared param \"",
+                  spec.when_param,
+                  "\" ...");
+}
+
 std::string NodeContext::where() const
 {
     return node_.describe() + ", frame " + std::to_string(frame_number_);

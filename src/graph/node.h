@@ -107,6 +107,10 @@ struct NodeType {
     void (*check)(CheckContext &ctx) = nullptr;
     /// Optional, for sources: the frames available on disk (used when no frame list is given).
     std::vector<int> (*discover_frames)(const NodeParams &params) = nullptr;
+    /// Optional, for nodes that bind parameters to settings fields (graph/param_bind.h): adds a
+    /// line to `problems` for each binding that disagrees with its spec. The node catalog test
+    /// runs it for every node.
+    void (*audit)(std::vector<std::string> &problems) = nullptr;
 };
 
 /// Parameters of one node instance, validated and defaulted.
@@ -132,6 +136,9 @@ class NodeParams {
     const std::vector<NodeParams> &get_records(const ParamSpec &spec) const;
     /// True if the graph or --set gave this parameter (false: the default is in force).
     bool given(const ParamSpec &spec) const { return value(spec).given; }
+    /// Whether the parameter's only_when holds (true without a condition, and for the fields of
+    /// a record, whose conditions the graph checked when it read them).
+    bool applies(const ParamSpec &spec) const;
     const std::map<std::string, ParamValue> &values() const { return values_; }
 
    private:

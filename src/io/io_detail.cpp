@@ -92,30 +92,17 @@ bool is_integer_type(OIIO::TypeDesc t)
 
 namespace {
 
-// The camera's header attributes, each once: read and write walk the same tables.
+// The camera's matrix attributes, each once: read and write walk the same table (the scalars'
+// is core/camera.h's kCameraScalarAttributes).
 struct MatrixAttribute {
     const char *name;
     std::optional<glm::mat4> Camera::*member;
-};
-struct ScalarAttribute {
-    const char *name;
-    std::optional<float> Camera::*member;
 };
 constexpr MatrixAttribute kMatrixAttributes[] = {
     {attr::kWorldToCamera, &Camera::world_to_camera},
     {attr::kWorldToNDC, &Camera::world_to_ndc},
     {attr::kPrevWorldToCamera, &Camera::prev_world_to_camera},
     {attr::kPrevWorldToNDC, &Camera::prev_world_to_ndc},
-};
-constexpr ScalarAttribute kScalarAttributes[] = {
-    {attr::kAperture, &Camera::fstop},
-    {attr::kFocus, &Camera::focus_distance},
-    {attr::kFocalLength, &Camera::focal_length_mm},
-    {attr::kSensorWidth, &Camera::sensor_width_mm},
-    {attr::kSensorHeight, &Camera::sensor_height_mm},
-    {attr::kShutter, &Camera::shutter},
-    {attr::kNearClip, &Camera::near_clip},
-    {attr::kFarClip, &Camera::far_clip},
 };
 
 }  // namespace
@@ -136,7 +123,7 @@ void read_camera(const OIIO::ImageSpec &spec, Camera &cam)
             out = p->get_float();
         }
     };
-    for (const ScalarAttribute &a : kScalarAttributes) {
+    for (const CameraScalarAttribute &a : kCameraScalarAttributes) {
         scalar(a.name, cam.*a.member);
     }
     if (!cam.fstop) {
@@ -155,7 +142,7 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
             spec.erase_attribute(a.name);
         }
     }
-    for (const ScalarAttribute &a : kScalarAttributes) {
+    for (const CameraScalarAttribute &a : kCameraScalarAttributes) {
         if (const auto &v = cam.*a.member) {
             if (!before || before->*a.member != v) {
                 spec.attribute(a.name, *v);

@@ -24,7 +24,7 @@ struct HatchSettings {
     bool screen_space = false;  ///< Naive baseline: TAM at 1 texel per pixel of the screen.
     bool triplanar = false;     ///< Blend three planes by |N|; false: dominant axis of N only.
     float triplanar_sharpness = 4.0f;  ///< Exponent on the plane weights.
-    float scale = 1.0f;                ///< World metres per TAM tile (surface mode).
+    float scale = 2.0f;                ///< World metres per TAM tile (surface mode).
     bool tone_from_light = false;      ///< Tone from n.l (light_dir, ambient) instead of luminance.
     glm::vec3 light_dir{0.4f, 1.0f, 0.3f};  ///< World direction towards the light (normalised).
     float ambient = 0.15f;                  ///< Tone floor with tone_from_light.
