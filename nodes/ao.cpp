@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "core/sanitize.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/ao_trace.h"
 #include "shading/camera_rays.h"
@@ -24,9 +25,15 @@ constexpr ParamSpec kRadius = ParamSpec::real("radius", 1.0)
                                   .units("scene units")
                                   .doc("Occluders farther than this from the point do not count.");
 constexpr ParamSpec kSlices =
-    ParamSpec::integer("slices", 2).range(1, 16).doc("Slice directions per pixel.");
+    ParamSpec::integer("slices", 2)
+        .range(1, 16)
+        .doc("gtao, bitmask: slice directions per pixel.")
+        .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kSteps =
-    ParamSpec::integer("steps", 4).range(1, 64).doc("Depth samples on each side of a slice.");
+    ParamSpec::integer("steps", 4)
+        .range(1, 64)
+        .doc("gtao, bitmask: depth samples on each side of a slice.")
+        .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kDenoise = ParamSpec::boolean("denoise", true)
                                    .doc("Depth-aware 5x5 blur of the per-pixel rotation noise.");
 constexpr ParamSpec kIntensity = ParamSpec::real("intensity", 1.0)
@@ -35,7 +42,8 @@ constexpr ParamSpec kIntensity = ParamSpec::real("intensity", 1.0)
 constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 256.0)
                                        .range(1.0, 4096.0)
                                        .units("px")
-                                       .doc("Cap on the search's screen radius (close-ups).");
+                                       .doc("gtao, bitmask: cap on the search's screen radius (close-ups).")
+                                       .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kApply = ParamSpec::choice("apply", "none|multiply", "none")
                                  .doc("none: only the ao pass; multiply: color RGB times ao too.");
 constexpr ParamSpec kResolution =
@@ -49,14 +57,21 @@ constexpr ParamSpec kMethod =
             "gtao: horizons in slices; bitmask: the same slices, a sample hiding only "
             "`thickness` behind it; trace: rays marched through the depth pass (slow reference).");
 constexpr ParamSpec kRays =
-    ParamSpec::integer("rays", 64).range(1, 1024).doc("trace: rays per pixel (a square grid).");
+    ParamSpec::integer("rays", 64)
+        .range(1, 1024)
+        .doc("trace: rays per pixel (a square grid).")
+        .only_when("method", "trace");
 constexpr ParamSpec kRaySteps =
-    ParamSpec::integer("ray_steps", 24).range(1, 256).doc("trace: depth samples along a ray.");
+    ParamSpec::integer("ray_steps", 24)
+        .range(1, 256)
+        .doc("trace: depth samples along a ray.")
+        .only_when("method", "trace");
 constexpr ParamSpec kThickness =
     ParamSpec::real("thickness", 1.0)
         .range(1e-4, 1e6)
         .units("scene units")
-        .doc("bitmask, trace: how far a surface extends behind the depth pass (camera depth).");
+        .doc("bitmask, trace: how far a surface extends behind the depth pass (camera depth).")
+        .only_when("method", "bitmask|trace");
 constexpr ParamSpec kParams[] = {kRadius,
                                  kSlices,
                                  kSteps,
@@ -72,6 +87,21 @@ constexpr ParamSpec kParams[] = {kRadius,
                                  kThickness};
 constexpr PortSpec kInputs[] = {
     {"image", "depth,normal", false, "Depth, world normals and camera matrices."}};
+
+constexpr Binding<shading::GtaoParams> kGtaoFields[] = {
+    bind<&shading::GtaoParams::radius>(kRadius),
+    bind<&shading::GtaoParams::slices>(kSlices),
+    bind<&shading::GtaoParams::steps>(kSteps),
+    bind<&shading::GtaoParams::max_radius_px>(kMaxRadiusPx),
+    bind<&shading::GtaoParams::seed>(kSeed),
+};
+constexpr Binding<shading::AoTraceParams> kTraceFields[] = {
+    bind<&shading::AoTraceParams::radius>(kRadius),
+    bind<&shading::AoTraceParams::rays>(kRays),
+    bind<&shading::AoTraceParams::steps>(kRaySteps),
+    bind<&shading::AoTraceParams::thickness>(kThickness),
+    bind<&shading::AoTraceParams::seed>(kSeed),
+};
 
 void execute(NodeContext &ctx)
 {
@@ -92,26 +122,15 @@ void execute(NodeContext &ctx)
         ao.fill(1.0f);
     } else {
         const int stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
-        const std::uint32_t seed = std::uint32_t(ctx.get_int(kSeed));
         if (ctx.get_string(kMethod) == "trace") {
-            shading::AoTraceParams p;
-            p.radius = ctx.get_float(kRadius);
-            p.rays = ctx.get_int(kRays);
-            p.steps = ctx.get_int(kRaySteps);
-            p.thickness = ctx.get_float(kThickness);
+            shading::AoTraceParams p = fill(ctx.params(), kTraceFields);
             p.stride = stride;
-            p.seed = seed;
             ao = shading::ao_trace(depth, normal, rays, p);
         } else {
-            shading::GtaoParams p;
-            p.radius = ctx.get_float(kRadius);
-            p.slices = ctx.get_int(kSlices);
-            p.steps = ctx.get_int(kSteps);
-            p.max_radius_px = ctx.get_float(kMaxRadiusPx);
-            p.seed = seed;
+            shading::GtaoParams p = fill(ctx.params(), kGtaoFields);
             p.stride = stride;
             if (ctx.get_string(kMethod) == "bitmask") {
-                p.thickness = ctx.get_float(kThickness);
+                p.thickness = fill(ctx.params(), kTraceFields).thickness;  // 0 for horizons
             }
             ao = shading::gtao(depth, normal, rays, p);
         }
@@ -162,6 +181,11 @@ extern const NodeType kAo{
      "ao"},
     &execute,
     &plan,
-    nullptr};
+    nullptr,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kAo, kGtaoFields, problems);
+        audit(kAo, kTraceFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

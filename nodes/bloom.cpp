@@ -16,6 +16,7 @@
 
 #include "core/sanitize.h"
 #include "io/image_file.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -104,33 +105,32 @@ struct BloomCache {
     mutable std::vector<Built> built;
 };
 
-filter::BloomPsfParams psf_params(const NodeParams &params, const Frame &frame)
+constexpr Binding<filter::BloomPsfParams> kPsfFields[] = {
+    bind<&filter::BloomPsfParams::intensity>(kIntensity),
+    bind<&filter::BloomPsfParams::size>(kSize),
+    bind<&filter::BloomPsfParams::falloff>(kFalloff),
+    bind<&filter::BloomPsfParams::radius>(kRadius),
+    bind<&filter::BloomPsfParams::blades>(kBlades),
+    bind<&filter::BloomPsfParams::blade_rotation>(kBladeRotation),
+    bind<&filter::BloomPsfParams::fstop>(kFstop),
+    bind<&filter::BloomPsfParams::diffraction_scale>(kDiffractionScale),
+};
+
+filter::BloomPsfParams psf_params(NodeContext &ctx, const Frame &frame)
 {
-    filter::BloomPsfParams p;
-    p.intensity = params.get_real(kIntensity);
-    p.size = params.get_real(kSize);
-    p.falloff = params.get_real(kFalloff);
-    p.radius = params.get_real(kRadius);
-    p.blades = params.get_int(kBlades);
-    p.blade_rotation = params.get_real(kBladeRotation);
-    p.fstop = params.get_real(kFstop);
-    if (!params.given(kFstop) && frame.camera.fstop && *frame.camera.fstop > 0.0f &&
-        std::isfinite(*frame.camera.fstop)) {
-        p.fstop = *frame.camera.fstop;
-    }
+    filter::BloomPsfParams p = fill(ctx, kPsfFields, HeaderSource::of(frame));
     const double sensor_mm = frame.camera.sensor_width_mm && *frame.camera.sensor_width_mm > 0.0f &&
                                      std::isfinite(*frame.camera.sensor_width_mm)
                                  ? *frame.camera.sensor_width_mm
                                  : 36.0;
     p.pixel_pitch_um = sensor_mm * 1000.0 / std::max(frame.display_window.width(), 1);
-    p.diffraction_scale = params.get_real(kDiffractionScale);
     return p;
 }
 
 Built build(NodeContext &ctx, const Frame &frame)
 {
     const BloomCache &cache = ctx.state().get_or_create<BloomCache>([] { return BloomCache{}; });
-    const filter::BloomPsfParams p = psf_params(ctx.params(), frame);
+    const filter::BloomPsfParams p = psf_params(ctx, frame);
     const int width = std::max(frame.display_window.width(), 1);
     const std::array<double, 5> key = {
         double(width), p.fstop, p.pixel_pitch_um, double(frame.width()), double(frame.height())};
@@ -205,6 +205,10 @@ extern const NodeType kBloom{
      ""},
     &execute,
     nullptr,
-    &check};
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kBloom, kPsfFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/sanitize.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
 #include "shading/dof_gather.h"
@@ -92,31 +93,32 @@ constexpr ParamSpec kParams[] = {kFstop,
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}};
 
+constexpr Binding<shading::DofLens> kLensFields[] = {
+    bind<&shading::DofLens::fstop>(kFstop),
+    bind<&shading::DofLens::focus_m>(kFocus),
+    bind<&shading::DofLens::focal_mm>(kFocal),
+    bind<&shading::DofLens::sensor_mm>(kSensor),
+};
+constexpr Binding<shading::DofSettings> kFields[] = {
+    bind<&shading::DofSettings::max_coc_px>(kMaxCoc),
+    bind<&shading::DofSettings::samples>(kSamples),
+    bind<&shading::DofSettings::blades>(kBlades),
+    bind<&shading::DofSettings::rotation_deg>(kRotation),
+    bind<&shading::DofSettings::method>(kMethod),
+    bind<&shading::DofSettings::half_res>(kResolution, "half"),
+};
+
 shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
 {
     // The data window's camera: its sensor spans the pass images (the display window's sensor
     // width, given or from the header, scaled by data width / display width).
     const Camera cam = in.pixel_camera();
-    const double window_scale =
-        in.display_window.empty() ? 1.0 : double(in.width()) / double(in.display_window.width());
-    const std::string who = ctx.where();
-    shading::DofLens l;
-    const double fstop = ctx.get_real(kFstop), focus = ctx.get_real(kFocus);
-    const double focal = ctx.get_real(kFocal), sensor = ctx.get_real(kSensor);
-    const NodeParams &p = ctx.params();
-    if (p.given(kFstop)) {
-        l.fstop = float(fstop);
-    } else if (cam.fstop) {
-        l.fstop = *cam.fstop;
-    } else {
-        l.fstop = float(fstop);
-        ctx.state().note_once(ctx.node().describe() + ": the frame has no aperture: f/" +
-                              str_cat(l.fstop) + " (give fstop to choose)");
+    shading::DofLens l = fill(ctx, kLensFields, HeaderSource{&cam, &in.attributes});
+    if (ctx.params().given(kSensor) && !in.display_window.empty()) {
+        l.sensor_mm = float(double(l.sensor_mm) * double(in.width()) /
+                            double(in.display_window.width()));
     }
-    l.focus_m = p.given(kFocus) ? float(focus) : cam.require_focus_distance(who);
-    l.focal_mm = p.given(kFocal) ? float(focal) : cam.require_focal_length_mm(who);
-    l.sensor_mm =
-        p.given(kSensor) ? float(sensor * window_scale) : cam.require_sensor_width_mm(who);
+    const std::string who = ctx.where();
     if (!(l.fstop > 0.0f) || !(l.focus_m > 0.0f) || !(l.focal_mm > 0.0f) || !(l.sensor_mm > 0.0f) ||
         !std::isfinite(l.fstop) || !std::isfinite(l.focus_m) || !std::isfinite(l.focal_mm) ||
         !std::isfinite(l.sensor_mm)) {
@@ -248,14 +250,7 @@ void execute(NodeContext &ctx)
                       color.height());
     }
     const shading::DofLens lens = lens_of(ctx, in);
-    shading::DofSettings s;
-    s.max_coc_px = ctx.get_float(kMaxCoc);
-    s.samples = ctx.get_int(kSamples);
-    s.blades = ctx.get_int(kBlades);
-    s.rotation_deg = ctx.get_float(kRotation);
-    s.method =
-        ctx.get_choice(kMethod) == 0 ? shading::DofMethod::Gather : shading::DofMethod::Simple;
-    s.half_res = ctx.get_choice(kResolution) == 1;
+    const shading::DofSettings s = fill(ctx.params(), kFields);
     Image out;
     // The split is the full-resolution gather's (measured: the half-resolution gather's sharp
     // highlights came out worse split, and the seeds' simple method is kept as it was).
@@ -301,25 +296,12 @@ void check(CheckContext &ctx)
     // leaving it out means.
     for (const ParamSpec *s : {&kFstop, &kFocus, &kFocal, &kSensor}) {
         if (ctx.params.given(*s) && !(ctx.params.get_real(*s) > 0.0)) {
-            throw_usage(ctx.node.json_path,
-                        "/params/",
-                        s->name,
-                        ": ",
-                        ctx.node.describe(),
-                        ": param \"",
-                        s->name,
-                        "\" must be > 0 (leave it out for the header's ",
-                        s->header,
-                        ")");
+            throw_param(ctx, *s, str_cat("must be > 0 (leave it out for the header's ", s->header, ")"));
         }
     }
     const int blades = ctx.params.get_int(kBlades);
     if (blades == 1 || blades == 2) {
-        throw_usage(ctx.node.json_path,
-                    "/params/blades: ",
-                    ctx.node.describe(),
-                    ": param \"blades\": expected 0 or 3..16, got ",
-                    blades);
+        throw_param_expected(ctx, kBlades, "0 or 3..16", blades);
     }
 }
 
@@ -334,6 +316,11 @@ extern const NodeType kDof{{"dof",
                             /*keeps_specular=*/true},
                            &execute,
                            &plan,
-                           &check};
+                           &check,
+                           nullptr,
+                           [](std::vector<std::string> &problems) {
+                               audit(kDof, kLensFields, problems);
+                               audit(kDof, kFields, problems);
+                           }};
 
 }  // namespace posthaste::nodes

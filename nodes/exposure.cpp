@@ -17,6 +17,7 @@
 #include <map>
 #include <mutex>
 
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -124,15 +125,21 @@ struct MeterCache {
     mutable std::map<int, std::shared_future<double>> meters;
 };
 
+constexpr Binding<filter::MeterParams> kMeterFields[] = {
+    bind<&filter::MeterParams::min_ev>(kMinEv),
+    bind<&filter::MeterParams::max_ev>(kMaxEv),
+    bind<&filter::MeterParams::low_percentile>(kLowPercentile),
+    bind<&filter::MeterParams::high_percentile>(kHighPercentile),
+    bind<&filter::MeterParams::step>(kMeteringStep),
+};
+constexpr Binding<filter::PhotographicParams> kPhotographicFields[] = {
+    bind<&filter::PhotographicParams::fstop>(kFstop),
+    bind<&filter::PhotographicParams::iso>(kIso),
+};
+
 filter::MeterParams meter_params(const NodeParams &p)
 {
-    filter::MeterParams m;
-    m.min_ev = p.get_real(kMinEv);
-    m.max_ev = p.get_real(kMaxEv);
-    m.low_percentile = p.get_real(kLowPercentile);
-    m.high_percentile = p.get_real(kHighPercentile);
-    m.step = p.get_int(kMeteringStep);
-    return m;
+    return fill(p, kMeterFields);
 }
 
 /// The EV a frame's metering asks for: the metered log2 luminance less log2(key).
@@ -200,17 +207,15 @@ double scale_stops(NodeContext &ctx, const Frame &frame, const Image &image)
         return compensation;
     }
     if (mode == "photographic") {
-        double fstop = ctx.get_real(kFstop);
-        if (!ctx.params().given(kFstop) && frame.camera.fstop && *frame.camera.fstop > 0.0f &&
-            std::isfinite(*frame.camera.fstop)) {
-            fstop = *frame.camera.fstop;
-        }
+        const filter::PhotographicParams lens =
+            fill(ctx, kPhotographicFields, HeaderSource::of(frame));
+        // The header's shutter is a fraction of the frame interval: seconds at the frame rate.
         double shutter = ctx.get_real(kShutterTime);
         if (!ctx.params().given(kShutterTime) && frame.camera.shutter &&
             *frame.camera.shutter > 0.0f && std::isfinite(*frame.camera.shutter)) {
             shutter = *frame.camera.shutter / ctx.get_real(kFps);
         }
-        const double ev = filter::ev100(fstop, shutter, ctx.get_real(kIso));
+        const double ev = filter::ev100(lens.fstop, shutter, lens.iso);
         return std::log2(filter::photographic_scale(ev)) + compensation;
     }
     return compensation - auto_ev(ctx, image);
@@ -231,12 +236,13 @@ void execute(NodeContext &ctx)
 
 void check(CheckContext &ctx)
 {
-    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
-    if (ctx.params.get_real(kLowPercentile) >= ctx.params.get_real(kHighPercentile)) {
-        throw_usage(where, ": low_percentile must be below high_percentile");
+    const filter::MeterParams m = meter_params(ctx.params);
+    if (m.low_percentile >= m.high_percentile) {
+        throw_param_expected(
+            ctx, kLowPercentile, str_cat("below high_percentile (", m.high_percentile, ")"), m.low_percentile);
     }
-    if (ctx.params.get_real(kMinEv) >= ctx.params.get_real(kMaxEv)) {
-        throw_usage(where, ": min_ev must be below max_ev");
+    if (m.min_ev >= m.max_ev) {
+        throw_param_expected(ctx, kMinEv, str_cat("below max_ev (", m.max_ev, ")"), m.min_ev);
     }
 }
 
@@ -250,6 +256,11 @@ extern const NodeType kExposure{{"exposure",
                                  ""},
                                 &execute,
                                 nullptr,
-                                &check};
+                                &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(nodes::kExposure, kMeterFields, problems);
+        audit(nodes::kExposure, kPhotographicFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

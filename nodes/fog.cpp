@@ -15,6 +15,7 @@
 #include <mutex>
 
 #include "core/sanitize.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/atmosphere.h"
 #include "shading/camera_rays.h"
@@ -129,6 +130,26 @@ enum Model { Linear, Exp, Exp2, Height, Atmo, AtmoRayMarch };
 
 /// The rotation taking the unit vector along `up` to +Y (the identity for +Y itself): about the
 /// axis up x Y by the angle between them, or half a turn about X for -Y.
+constexpr Binding<shading::HeightFog> kHeightFields[] = {
+    bind<&shading::HeightFog::density>(kDensity),
+    bind<&shading::HeightFog::falloff>(kFalloff),
+    bind<&shading::HeightFog::base_height>(kBaseHeight),
+    bind<&shading::HeightFog::start_distance>(kStart),
+    bind<&shading::HeightFog::color>(kColor),
+    bind<&shading::HeightFog::sun_color>(kSunColor),
+    bind<&shading::HeightFog::sun_g>(kSunG),
+    bind<&shading::HeightFog::opaque_sky>(kSky, "fog"),
+};
+constexpr Binding<shading::AtmosphereParams> kAtmosphereFields[] = {
+    bind<&shading::AtmosphereParams::metres_per_unit>(kMetresPerUnit),
+    bind<&shading::AtmosphereParams::ground_altitude_m>(kGroundAltitude),
+};
+constexpr Binding<shading::AerialPerspectiveSettings> kFroxelFields[] = {
+    bind<&shading::AerialPerspectiveSettings::width>(kFroxels),
+    bind<&shading::AerialPerspectiveSettings::slices>(kSlices),
+    bind<&shading::AerialPerspectiveSettings::max_distance>(kMaxDistance),
+};
+
 glm::mat3 rotation_to_y_up(glm::vec3 up, const std::string &who)
 {
     const float len = glm::length(up);
@@ -183,11 +204,9 @@ AtmosphereCache::Built atmosphere_for(NodeContext &ctx,
             return b;
         }
     }
-    shading::AtmosphereParams p;
+    shading::AtmosphereParams p = fill(ctx.params(), kAtmosphereFields);
     p.sun_direction = sun_dir;
     p.sun_illuminance = illuminance;
-    p.metres_per_unit = ctx.get_float(kMetresPerUnit);
-    p.ground_altitude_m = ctx.get_float(kGroundAltitude);
     AtmosphereCache::Built b;
     b.key = key;
     b.atmosphere = std::make_shared<const shading::Atmosphere>(p);
@@ -305,18 +324,10 @@ void execute(NodeContext &ctx)
             apply_classic(model, ctx, rays, *depth, out);
             break;
         case Height: {
-            shading::HeightFog fog;
-            fog.density = density;
-            fog.falloff = ctx.get_float(kFalloff);
-            fog.base_height = ctx.get_float(kBaseHeight);
-            fog.start_distance = ctx.get_float(kStart);
-            fog.color = vec3_of(ctx.get_vec(kColor));
-            fog.sun_color = vec3_of(ctx.get_vec(kSunColor));
-            fog.sun_direction = sun_dir;
-            fog.sun_g = ctx.get_float(kSunG);
             // sky "fog": sky pixels get the fog's radiance (colour plus the sun lobe), folded
             // into the same sweep.
-            fog.opaque_sky = ctx.get_choice(kSky) == 0;
+            shading::HeightFog fog = fill(ctx.params(), kHeightFields);
+            fog.sun_direction = sun_dir;
             shading::apply_height_fog(fog, rays, *depth, source, out);
             break;
         }
@@ -327,10 +338,8 @@ void execute(NodeContext &ctx)
             const auto &atmosphere = built.atmosphere;
             const bool disc = ctx.get_bool(kSunDisc);
             if (model == Atmo) {
-                shading::AerialPerspectiveSettings s;
-                s.width = s.height = ctx.get_int(kFroxels);
-                s.slices = ctx.get_int(kSlices);
-                s.max_distance = ctx.get_float(kMaxDistance);
+                shading::AerialPerspectiveSettings s = fill(ctx.params(), kFroxelFields);
+                s.height = s.width;  // square froxels in NDC
                 // Froxels only as deep as this frame's geometry reaches.
                 const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s, *depth);
                 shading::apply_atmosphere(
@@ -426,6 +435,12 @@ extern const NodeType kFog{{"fog",
                             ""},
                            &execute,
                            nullptr,
-                           &check};
+                           &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kFog, kHeightFields, problems);
+        audit(kFog, kAtmosphereFields, problems);
+        audit(kFog, kFroxelFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

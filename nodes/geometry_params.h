@@ -4,7 +4,9 @@
 
 #include <string>
 
+#include "filter/frame_ops.h"
 #include "filter/image_ops.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -21,6 +23,14 @@ constexpr ParamSpec geometry_filter(std::string_view def)
 inline constexpr ParamSpec kGeometryFiltered =
     ParamSpec::string("filtered", "color,albedo")
         .doc("Passes resampled with `filter`; the others (depth, ids, normals) take the nearest.");
+
+/// The warp's resampling, from the node's `filter` and `filtered`. FrameWarp leaves both to its
+/// caller: reformat and transform default `filter` differently.
+template <const ParamSpec &Filter>
+inline constexpr Binding<filter::FrameWarp> kWarpFields[] = {
+    bind<&filter::FrameWarp::filter>(Filter).without_default(),
+    bind<&filter::FrameWarp::filtered>(kGeometryFiltered).without_default(),
+};
 
 /// A usage error naming the node and parameter when `filter` is not a filter OpenImageIO knows.
 inline void check_filter_name(const CheckContext &ctx)

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "graph/param_bind.h"
 #include "nodes/color_pass.h"
 
 namespace posthaste::nodes {
@@ -73,6 +74,18 @@ constexpr ParamSpec kParams[] = {kExposure,
                                  kPass};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grade."}};
 
+constexpr Binding<ColorProcessor::Grade> kGradeFields[] = {
+    bind<&ColorProcessor::Grade::slope>(kSlope),
+    bind<&ColorProcessor::Grade::offset>(kOffset),
+    bind<&ColorProcessor::Grade::power>(kPower),
+    bind<&ColorProcessor::Grade::saturation>(kSaturation),
+    bind<&ColorProcessor::Grade::lift>(kLift),
+    bind<&ColorProcessor::Grade::gamma>(kGamma),
+    bind<&ColorProcessor::Grade::gain>(kGain),
+    bind<&ColorProcessor::Grade::lut>(kLut),
+    bind<&ColorProcessor::Grade::interpolation>(kInterpolation),
+};
+
 ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node)
 {
     const std::string where = node.json_path + "/params: " + node.describe();
@@ -85,22 +98,20 @@ ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node
     for (int i = 0; i < 9; ++i) {
         g.matrix[i] = wb[std::size_t(i)] * scale;
     }
+    fill_into(g, params, std::span<const Binding<ColorProcessor::Grade>>(kGradeFields));
     for (int c = 0; c < 3; ++c) {
-        g.slope[c] = params.get_vec(kSlope)[std::size_t(c)];
-        g.offset[c] = params.get_vec(kOffset)[std::size_t(c)];
-        g.power[c] = params.get_vec(kPower)[std::size_t(c)];
-        g.lift[c] = params.get_vec(kLift)[std::size_t(c)];
-        g.gamma[c] = params.get_vec(kGamma)[std::size_t(c)];
-        g.gain[c] = params.get_vec(kGain)[std::size_t(c)];
         if (!(g.gamma[c] > 0.0) || !(g.power[c] > 0.0)) {
-            throw_usage(where, ": gamma and power must be > 0 (channel ", c, ")");
+            const ParamSpec &bad = !(g.gamma[c] > 0.0) ? kGamma : kPower;
+            throw_param_expected(node.json_path + "/params/" + std::string(bad.name) + ": " +
+                                     node.describe(),
+                                 bad.name,
+                                 "> 0 in every channel",
+                                 str_cat("[", params.get_vec(bad)[0], ", ", params.get_vec(bad)[1],
+                                         ", ", params.get_vec(bad)[2], "]"));
         }
     }
-    g.saturation = params.get_real(kSaturation);
-    g.lut = params.get_string(kLut);
-    g.interpolation = params.get_string(kInterpolation);
     if (!g.lut.empty() && !std::filesystem::exists(g.lut)) {
-        throw_usage(where, ": param \"lut\": ", g.lut, ": no such file");
+        throw_param(where, kLut.name, g.lut + ": no such file");
     }
     return ColorProcessor::grade(g, where);
 }
@@ -127,6 +138,10 @@ extern const NodeType kGrade{
      ""},
     &execute,
     nullptr,
-    &check};
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kGrade, kGradeFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

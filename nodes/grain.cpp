@@ -7,6 +7,7 @@
 
 #include "filter/grain.h"
 
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -39,6 +40,15 @@ constexpr ParamSpec kPass =
 constexpr ParamSpec kParams[] = {kIntensity, kSize, kMode, kResponse, kOffset, kSeed, kPass};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grain."}};
 
+constexpr Binding<filter::GrainParams> kFields[] = {
+    bind<&filter::GrainParams::intensity>(kIntensity),
+    bind<&filter::GrainParams::size>(kSize),
+    bind<&filter::GrainParams::color>(kMode, "color"),
+    bind<&filter::GrainParams::response>(kResponse),
+    bind<&filter::GrainParams::offset>(kOffset),
+    bind<&filter::GrainParams::seed>(kSeed),
+};
+
 void execute(NodeContext &ctx)
 {
     const std::string &name = ctx.get_string(kPass);
@@ -47,13 +57,7 @@ void execute(NodeContext &ctx)
     if (ctx.get_real(kIntensity) == 0.0) {
         return;  // the output shares the input pass
     }
-    filter::GrainParams p;
-    p.intensity = ctx.get_real(kIntensity);
-    p.size = ctx.get_real(kSize);
-    p.color = ctx.get_string(kMode) == "color";
-    p.response = ctx.get_real(kResponse);
-    p.offset = ctx.get_real(kOffset);
-    p.seed = std::uint32_t(ctx.get_int(kSeed));
+    const filter::GrainParams p = fill(ctx.params(), kFields);
     Image out = filter::apply_grain(
         *in.image, frame.data_window.x0, frame.data_window.y0, ctx.frame_number(), p);
     ctx.output().set(name, std::make_shared<const Image>(std::move(out)), in.channels, in.storage);
@@ -69,6 +73,10 @@ extern const NodeType kGrain{
      ""},
     &execute,
     nullptr,
-    nullptr};
+    nullptr,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kGrain, kFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

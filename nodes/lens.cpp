@@ -18,6 +18,7 @@
 
 #include "core/passes.h"
 #include "core/sanitize.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -99,14 +100,21 @@ struct LensCache {
     mutable std::vector<Built> built;
 };
 
+constexpr Binding<filter::Distortion> kDistortionFields[] = {
+    bind<&filter::Distortion::k1>(kK1),
+    bind<&filter::Distortion::k2>(kK2),
+    bind<&filter::Distortion::k3>(kK3),
+    bind<&filter::Distortion::p1>(kP1),
+    bind<&filter::Distortion::p2>(kP2),
+};
+constexpr Binding<filter::LensGeometry> kGeometryFields[] = {
+    bind<&filter::LensGeometry::undistort>(kDirection, "undistort"),
+};
+
 filter::LensGeometry geometry(NodeContext &ctx, const Frame &frame)
 {
-    filter::LensGeometry g;
-    g.distortion = {ctx.get_real(kK1),
-                    ctx.get_real(kK2),
-                    ctx.get_real(kK3),
-                    ctx.get_real(kP1),
-                    ctx.get_real(kP2)};
+    filter::LensGeometry g = fill(ctx.params(), kGeometryFields);
+    g.distortion = fill(ctx.params(), kDistortionFields);
     const Rect &d = frame.display_window;
     g.centre = glm::dvec2(0.5 * (d.x0 + d.x1) + ctx.get_real(kCenterX),
                           0.5 * (d.y0 + d.y1) + ctx.get_real(kCenterY));
@@ -117,7 +125,6 @@ filter::LensGeometry geometry(NodeContext &ctx, const Frame &frame)
     } else {
         g.unit = 0.5 * d.width();
     }
-    g.undistort = ctx.get_string(kDirection) == "undistort";
     return g;
 }
 
@@ -182,10 +189,7 @@ void execute(NodeContext &ctx)
     const std::shared_ptr<const filter::LensMap> map = lens_map(ctx, frame, g);
     const Rect out_window = map->window;
     const int w = out_window.width(), h = out_window.height();
-    const filter::Resample filter = ctx.get_string(kFilter) == "nearest" ? filter::Resample::Nearest
-                                    : ctx.get_string(kFilter) == "bilinear"
-                                        ? filter::Resample::Bilinear
-                                        : filter::Resample::Bicubic;
+    const auto filter = filter::Resample(ctx.get_choice(kFilter));  // the choices' order
     const std::vector<std::string> filtered = split_list(ctx.get_string(kFiltered));
     // The optical centre relative to the input data window (where the map's coordinates live).
     const float cx = float(g.centre.x - frame.data_window.x0),
@@ -297,6 +301,11 @@ extern const NodeType kLens{
      "stmap"},
     &execute,
     nullptr,
-    nullptr};
+    nullptr,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kLens, kDistortionFields, problems);
+        audit(kLens, kGeometryFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

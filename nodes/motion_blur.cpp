@@ -15,6 +15,7 @@
 
 #include "core/parallel.h"
 #include "core/sanitize.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
 #include "shading/lighting_split.h"
@@ -102,6 +103,19 @@ constexpr ParamSpec kParams[] = {kShutter,
                                  kSeed};
 constexpr PortSpec kInputs[] = {
     {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
+};
+
+constexpr Binding<shading::MotionBlurOptions> kFields[] = {
+    bind<&shading::MotionBlurOptions::method>(kMethod),
+    bind<&shading::MotionBlurOptions::shutter>(kShutter),
+    bind<&shading::MotionBlurOptions::samples>(kSamples),
+    bind<&shading::MotionBlurOptions::max_radius>(kMaxRadius),
+    bind<&shading::MotionBlurOptions::tile>(kTileSize),
+    bind<&shading::MotionBlurOptions::soft_z>(kSoftZ),
+    bind<&shading::MotionBlurOptions::tile_jitter>(kTileJitter),
+    bind<&shading::MotionBlurOptions::coherence>(kCoherence),
+    bind<&shading::MotionBlurOptions::group_tolerance>(kGroupTolerance),
+    bind<&shading::MotionBlurOptions::seed>(kSeed),
 };
 
 void check_size(const NodeContext &ctx, const Image &color, const Image &p, const char *name)
@@ -269,21 +283,7 @@ void execute(NodeContext &ctx)
                           p->height());
         }
     }
-    shading::MotionBlurOptions o;
-    o.method = ctx.get_choice(kMethod) == 0 ? shading::BlurMethod::Reconstruct
-                                            : shading::BlurMethod::Uniform;
-    o.shutter = ctx.get_float(kShutter);
-    if (!ctx.params().given(kShutter) && in.camera.shutter) {
-        o.shutter = *in.camera.shutter;
-    }
-    o.samples = ctx.get_int(kSamples);
-    o.max_radius = ctx.get_float(kMaxRadius);
-    o.tile = ctx.get_int(kTileSize);
-    o.soft_z = ctx.get_float(kSoftZ);
-    o.tile_jitter = ctx.get_float(kTileJitter);
-    o.coherence = ctx.get_float(kCoherence);
-    o.group_tolerance = ctx.get_float(kGroupTolerance);
-    o.seed = std::uint32_t(ctx.get_int(kSeed));
+    const shading::MotionBlurOptions o = fill(ctx, kFields, HeaderSource::of(in));
     Image out = split ? blur_split(ctx, color, *motion, depth, o)
                       : shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());
@@ -312,6 +312,11 @@ extern const NodeType kMotionBlur{{"motion_blur",
                                    kParams,
                                    "color"},
                                   &execute,
-                                  &plan};
+                                  &plan,
+    nullptr,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kMotionBlur, kFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

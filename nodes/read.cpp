@@ -11,6 +11,7 @@
 #include "core/camera_solve.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "nodes/read_camera.h"
 
@@ -84,16 +85,22 @@ constexpr ParamSpec kParams[] = {kPath,
                                  kSolveCamera,
                                  kCameraResidual};
 
+constexpr Binding<ReadOptions> kOptionFields[] = {
+    bind<&ReadOptions::bad_pixels>(kBadPixels),
+    bind<&ReadOptions::linearize>(kLinearize),
+    bind<&ReadOptions::view>(kView),
+    bind<&ReadOptions::deep>(kDeep),
+    bind<&ReadOptions::convention>(kConvention),
+};
+constexpr Binding<CameraSolveOptions> kSolveFields[] = {
+    bind<&CameraSolveOptions::max_residual_px>(kCameraResidual),
+};
+
 ReadOptions read_options(const NodeParams &params, const NodeIdentity &node)
 {
-    ReadOptions o;
+    ReadOptions o = fill(params, kOptionFields);
     o.aliases = parse_alias_rules(params.get_json(kAliases),
                                   node.json_path + "/params/aliases: " + node.describe());
-    o.bad_pixels = BadPixels(params.get_choice(kBadPixels));
-    o.linearize = params.get_bool(kLinearize);
-    o.view = params.get_string(kView);
-    o.deep = DeepMode(params.get_choice(kDeep));
-    o.convention = params.get_string(kConvention);
     return o;
 }
 
@@ -152,7 +159,7 @@ ReadState make_state(const NodeParams &params, const NodeIdentity &node, const s
     ReadState s;
     s.options = read_options(params, node);
     s.graph_camera = parse_graph_camera(params.get_json(kCamera), camera_where(node));
-    s.solve_options.max_residual_px = params.get_real(kCameraResidual);
+    s.solve_options = fill(params, kSolveFields);
     if (params.get_choice(kSolveCamera) != 0) {
         s.no_solve_why = " (read's solve_camera is never)";
     } else if (!s.graph_camera.given()) {
@@ -295,6 +302,10 @@ extern const NodeType kRead{
     &execute,
     nullptr,
     &check,
-    &discover};
+    &discover,
+    [](std::vector<std::string> &problems) {
+        audit(kRead, kOptionFields, problems);
+        audit(kRead, kSolveFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -10,6 +10,7 @@
 
 #include "filter/frame_ops.h"
 #include "nodes/geometry_params.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -66,8 +67,7 @@ void execute(NodeContext &ctx)
     check_window_size(ctx.where(), w.window, ctx.params().given(kScale) ? "scale" : "width");
     w.display = display;
     w.resize = true;
-    w.filter = ctx.get_string(kFilter);
-    w.filtered = split_list(ctx.get_string(kGeometryFiltered));
+    fill_into(w, ctx.params(), std::span<const Binding<filter::FrameWarp>>(kWarpFields<kFilter>));
     filter::warp_frame(in, w, ctx.output());
 }
 
@@ -95,6 +95,10 @@ extern const NodeType kReformat{
      /*keeps_specular=*/true},
     &execute,
     nullptr,
-    &check};
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kReformat, kWarpFields<kFilter>, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -24,6 +24,7 @@
 
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
@@ -84,6 +85,13 @@ constexpr ParamSpec kLightFields[] = {kLightType,
                                       kLightRadius,
                                       kLightInner,
                                       kLightOuter};
+constexpr Binding<Light> kLightFields_[] = {
+    bind<&Light::type>(kLightType),
+};
+constexpr Binding<Light> kPlacedLightFields[] = {
+    bind<&Light::position>(kLightPosition),
+    bind<&Light::radius>(kLightRadius),
+};
 constexpr ParamSpec kLights =
     ParamSpec::records("lights", kLightFields).doc("The lights, in world space and metres.");
 constexpr ParamSpec kAmbient = ParamSpec::real("ambient", 0.0)
@@ -153,6 +161,23 @@ constexpr ParamSpec kClamp =
     ParamSpec::real("clamp", 0.0)
         .range(0.0, 1e30)
         .doc("Largest radiance a light may add per channel (firefly clamp); 0: no clamp.");
+constexpr Binding<shading::DirectOptions> kDirectFields[] = {
+    bind<&shading::DirectOptions::geometry>(kGeometry),
+    bind<&shading::DirectOptions::burley>(kDiffuse, "burley"),
+    bind<&shading::DirectOptions::energy_compensation>(kEnergy),
+};
+/// The toon materials' options: their base's, and the bands. DirectOptions starts without toon
+/// (0 bands), so these fields have no default of their own.
+constexpr Binding<shading::DirectOptions> kToonFields[] = {
+    bind<&shading::DirectOptions::toon_bands>(kToonBands).without_default(),
+    bind<&shading::DirectOptions::toon_specular_steps>(kToonSpecularSteps).without_default(),
+};
+constexpr Binding<shading::relight::ScreenShadows> kShadowFields[] = {
+    bind<&shading::relight::ScreenShadows::steps>(kShadowSteps),
+    bind<&shading::relight::ScreenShadows::distance>(kShadowDistance),
+    bind<&shading::relight::ScreenShadows::thickness>(kShadowThickness),
+    bind<&shading::relight::ScreenShadows::bias>(kShadowBias),
+};
 constexpr ParamSpec kParams[] = {kMode,
                                  kLights,
                                  kAmbient,
@@ -194,8 +219,7 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
             const std::vector<double> &v = r.get_vec(f);
             return glm::vec3(float(v[0]), float(v[1]), float(v[2]));
         };
-        Light l;
-        l.type = LightType(r.get_choice(kLightType));
+        Light l = fill(r, kLightFields_);
         l.power = vec3(kLightColor) * r.get_float(kLightIntensity);
         if (l.type != LightType::Point) {
             const glm::vec3 d = vec3(kLightDirection);
@@ -205,8 +229,7 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
             l.direction = glm::normalize(d);
         }
         if (l.type != LightType::Directional) {
-            l.position = vec3(kLightPosition);
-            l.radius = r.get_float(kLightRadius);
+            fill_into(l, r, std::span<const Binding<Light>>(kPlacedLightFields));
         }
         if (l.type == LightType::Spot) {
             const float inner = r.get_float(kLightInner), outer = r.get_float(kLightOuter);
@@ -317,16 +340,12 @@ void execute(NodeContext &ctx)
     const bool replace = ctx.get_choice(kMode) == 1;
     const float ambient = ctx.get_float(kAmbient);
     const float clamp = ctx.get_float(kClamp);
-    shading::DirectOptions base;
-    base.geometry = shading::Geometry(ctx.get_choice(kGeometry));
-    base.burley = ctx.get_choice(kDiffuse) == 1;
-    base.energy_compensation = ctx.get_bool(kEnergy);
+    const shading::DirectOptions base = fill(ctx.params(), kDirectFields);
     if (base.energy_compensation) {
         shading::energy_table(base.geometry);  // build before the tiles, not inside one
     }
     shading::DirectOptions toon = base;
-    toon.toon_bands = ctx.get_int(kToonBands);
-    toon.toon_specular_steps = ctx.get_int(kToonSpecularSteps);
+    fill_into(toon, ctx.params(), std::span<const Binding<shading::DirectOptions>>(kToonFields));
     glm::vec3 sky_sun(0.0f);
     for (const Light &l : setup.lights) {
         if (l.type == LightType::Directional) {
@@ -336,13 +355,10 @@ void execute(NodeContext &ctx)
     }
     shading::relight::ScreenShadows ss;
     if (shadows) {
+        ss = fill(ctx.params(), kShadowFields);
         ss.depth = depth;
         ss.world_to_ndc = w2ndc;
         ss.z_row = z_row;
-        ss.steps = ctx.get_int(kShadowSteps);
-        ss.distance = ctx.get_float(kShadowDistance);
-        ss.thickness = ctx.get_float(kShadowThickness);
-        ss.bias = ctx.get_float(kShadowBias);
     }
     const int W = color.width(), H = color.height();
     const int nc = color.channels();
@@ -390,6 +406,14 @@ extern const NodeType kRelight{
     {"relight", "Add or replace lights from the G-buffer (GGX BRDF).", kInputs, kParams, "color"},
     &execute,
     &plan,
-    &check};
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kRelight, kDirectFields, problems);
+        audit(kRelight, kToonFields, problems);
+        audit(kRelight, kShadowFields, problems);
+        audit(kRelight, kLightFields_, problems);
+        audit(kRelight, kPlacedLightFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -5,6 +5,7 @@
 #include "raster/render.h"
 
 #include "core/memory.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "raster/ray_cast.h"
 #include "raster/scene.h"
@@ -33,14 +34,19 @@ constexpr ParamSpec kTruth =
             "with exactly traced glossy reflections (samples: GGX rays a pixel; supersample 1).");
 constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
                                    .range(1, 65536)
-                                   .doc("Renders accumulated for the ground truth.");
+                                   .doc(
+                                       "Renders accumulated for the ground truth (rays a texel "
+                                       "for the latlong probe).");
 constexpr ParamSpec kSeed =
-    ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Jitter seed for the ground truth.");
+    ParamSpec::integer("seed", 0)
+        .range(0, 2147483647)
+        .doc("Jitter seed for the ground truth and the latlong probe.");
 constexpr ParamSpec kAoRadius =
     ParamSpec::real("ao_radius", 1.0)
         .range(1e-3, 100.0)
         .units("m")
-        .doc("truth ao: occluders farther than this from the surface point do not count.");
+        .doc("truth ao: occluders farther than this from the surface point do not count.")
+        .only_when("truth", "ao");
 constexpr ParamSpec kProjection =
     ParamSpec::choice("projection", "perspective|latlong", "perspective")
         .doc(
@@ -63,13 +69,20 @@ constexpr int kTruthAo = 4;
 constexpr int kTruthReflections = 5;
 constexpr int kProjectionLatLong = 1;
 
+constexpr Binding<raster::RenderOptions> kRenderFields[] = {
+    bind<&raster::RenderOptions::width>(kWidth),
+    bind<&raster::RenderOptions::height>(kHeight),
+    bind<&raster::RenderOptions::supersample>(kSupersample),
+    bind<&raster::RenderOptions::shadows>(kShadows),
+};
+constexpr Binding<raster::TruthOptions> kTruthFields[] = {
+    bind<&raster::TruthOptions::samples>(kSamples),
+    bind<&raster::TruthOptions::seed>(kSeed),
+};
+
 raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
 {
-    raster::RenderOptions o;
-    o.width = params.get_int(kWidth);
-    o.height = params.get_int(kHeight);
-    o.supersample = params.get_int(kSupersample);
-    o.shadows = params.get_bool(kShadows);
+    raster::RenderOptions o = fill(params, kRenderFields);
     o.passes.clear();
     for (const std::string &p : raster::render_pass_names()) {
         if (requested.wants(p)) {
@@ -173,11 +186,9 @@ void execute(NodeContext &ctx)
             ctx.output() = raster::render_frame(scene, ctx.frame_number(), options);
             return;
         }
-        raster::TruthOptions t;
+        raster::TruthOptions t = fill(ctx.params(), kTruthFields);
         t.motion = truth == 1 || truth == 3;
         t.dof = truth == 2 || truth == 3;
-        t.samples = ctx.get_int(kSamples);
-        t.seed = std::uint32_t(ctx.get_int(kSeed));
         Frame truth_frame = raster::render_truth(scene, ctx.frame_number(), options, t);
         options.passes.erase(pass::kColor);
         if (!options.passes.empty()) {
@@ -294,6 +305,10 @@ extern const NodeType kRender{{"render",
                               &execute,
                               nullptr,
                               &check,
-                              &discover};
+                              &discover,
+    [](std::vector<std::string> &problems) {
+        audit(kRender, kRenderFields, problems);
+        audit(kRender, kTruthFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -12,6 +12,7 @@
 
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -121,6 +122,29 @@ constexpr PortSpec kInputs[] = {
      "up, the middle column looking down -z), with an optional depth pass of distances from "
      "environment_position."}};
 
+constexpr Binding<shading::SsrParams> kFields[] = {
+    bind<&shading::SsrParams::rays>(kRays),
+    bind<&shading::SsrParams::steps>(kSteps),
+    bind<&shading::SsrParams::refine>(kRefine),
+    bind<&shading::SsrParams::thickness>(kThickness),
+    bind<&shading::SsrParams::max_distance>(kMaxDistance),
+    bind<&shading::SsrParams::edge_fade>(kEdgeFade),
+    bind<&shading::SsrParams::max_roughness>(kMaxRoughness),
+    bind<&shading::SsrParams::seed>(kSeed),
+    bind<&shading::SsrParams::intensity>(kIntensity),
+    bind<&shading::SsrParams::extend>(kOffscreen, "extend"),
+    bind<&shading::SsrParams::denoise>(kDenoise),
+    bind<&shading::SsrParams::sky_scale>(kSkyScale),
+    bind<&shading::SsrParams::sun_irradiance>(kSunIrradiance),
+};
+constexpr Binding<shading::Probe> kProbeFields[] = {
+    bind<&shading::Probe::position>(kEnvironmentPosition),
+    bind<&shading::Probe::max_distance>(kMaxDistance),
+    bind<&shading::Probe::thickness>(kThickness),
+    bind<&shading::Probe::march_steps>(kSteps),
+    bind<&shading::Probe::refine_steps>(kRefine),
+};
+
 /// The traced grid's stride for `resolution` on a frame `width` pixels wide. auto traces at
 /// least 240 columns, and quarter resolution only from 1280: fewer cells leave each one's few
 /// rays, meeting a sharp highlight, as sparse bright samples that the resolve spreads, and
@@ -170,11 +194,7 @@ void environment_probe(NodeContext &ctx,
                       ": has a depth pass but no position (param \"environment_position\" or "
                       "header posthaste:probePosition; or parallax false)");
     }
-    probe.position = param_or_header_vec3(ctx, kEnvironmentPosition, env);
-    probe.max_distance = ctx.get_float(kMaxDistance);
-    probe.thickness = ctx.get_float(kThickness);
-    probe.march_steps = ctx.get_int(kSteps);
-    probe.refine_steps = ctx.get_int(kRefine);
+    fill_into(probe, ctx, std::span<const Binding<shading::Probe>>(kProbeFields), HeaderSource::of(env));
     if (!std::isfinite(probe.position.x) || !std::isfinite(probe.position.y) ||
         !std::isfinite(probe.position.z)) {
         throw_runtime(where, ": param \"environment_position\" must be finite");
@@ -226,20 +246,8 @@ void execute(NodeContext &ctx)
     si.albedo = &finite_view(albedo_in, 0.0f, albedo_s);
     si.material = &finite_view(material_in, 1.0f, material_s);  // rough: left alone
 
-    shading::SsrParams p;
-    p.rays = ctx.get_int(kRays);
-    p.steps = ctx.get_int(kSteps);
-    p.refine = ctx.get_int(kRefine);
-    p.thickness = ctx.get_float(kThickness);
-    p.max_distance = ctx.get_float(kMaxDistance);
-    p.edge_fade = ctx.get_float(kEdgeFade);
-    p.max_roughness = ctx.get_float(kMaxRoughness);
-    p.seed = std::uint32_t(ctx.get_int(kSeed));
-    p.intensity = ctx.get_float(kIntensity);
-    p.extend = ctx.get_string(kOffscreen) == "extend";
-    p.denoise = ctx.get_int(kDenoise);
+    shading::SsrParams p = fill(ctx, kFields, HeaderSource::of(in));
     p.stride = ssr_stride(ctx.get_string(kResolution), depth_in.width());
-    p.sky_scale = param_or_header_float(ctx, kSkyScale, in);
     const glm::vec3 sun_dir = param_or_header_vec3(ctx, kSunDirection, in);
     const float len = glm::length(sun_dir);
     if (!(len > 0.0f) || !std::isfinite(len) || !std::isfinite(p.sky_scale) || p.sky_scale < 0.0f) {
@@ -248,7 +256,6 @@ void execute(NodeContext &ctx)
                       "finite and >= 0 (header posthaste:sunDirection, posthaste:skyAmbient)");
     }
     p.sun_direction = sun_dir / len;
-    p.sun_irradiance = param_or_header_vec3(ctx, kSunIrradiance, in);
     if (!std::isfinite(p.sun_irradiance.x) || !std::isfinite(p.sun_irradiance.y) ||
         !std::isfinite(p.sun_irradiance.z) || p.sun_irradiance.x < 0.0f ||
         p.sun_irradiance.y < 0.0f || p.sun_irradiance.z < 0.0f) {
@@ -285,6 +292,11 @@ extern const NodeType kSsr{
      "color"},
     &execute,
     &plan,
-    nullptr};
+    nullptr,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kSsr, kFields, problems);
+        audit(kSsr, kProbeFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -13,6 +13,7 @@
 
 #include "filter/frame_ops.h"
 #include "nodes/geometry_params.h"
+#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -99,8 +100,7 @@ void execute(NodeContext &ctx)
     }
     check_window_size(ctx.where(), w.window, "scale");
     w.display = d;
-    w.filter = ctx.get_string(kFilter);
-    w.filtered = split_list(ctx.get_string(kGeometryFiltered));
+    fill_into(w, ctx.params(), std::span<const Binding<filter::FrameWarp>>(kWarpFields<kFilter>));
     filter::warp_frame(in, w, ctx.output());
 }
 
@@ -121,6 +121,10 @@ extern const NodeType kTransform{
      /*keeps_specular=*/true},
     &execute,
     nullptr,
-    &check};
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kTransform, kWarpFields<kFilter>, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -67,8 +67,10 @@ int render(const RenderCommand &o)
                             {"truth", truth},
                             {"samples", o.samples},
                             {"seed", o.seed},
-                            {"ao_radius", o.ao_radius},
                             {"projection", o.probe ? "latlong" : "perspective"}}}});
+    if (truth == "ao") {
+        g["nodes"][0]["params"]["ao_radius"] = o.ao_radius;
+    }
     g["nodes"].push_back(
         {{"id", "write"},
          {"type", "write"},

@@ -18,6 +18,13 @@ double ev100(double fstop, double shutter_seconds, double iso);
 /// factor q = 0.65: L_max = 78 / (q S) * N^2 / t).
 double photographic_scale(double ev100);
 
+/// A photographic exposure's lens and film (the shutter time is the caller's: it may come from
+/// the header's fraction of the frame interval and the frame rate).
+struct PhotographicParams {
+    double fstop = 8.0;  ///< f-number
+    double iso = 100.0;  ///< sensitivity
+};
+
 struct MeterParams {
     double min_ev = -10.0;  ///< histogram range, log2 of Rec.709 luminance
     double max_ev = 20.0;

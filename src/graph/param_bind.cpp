@@ -13,6 +13,19 @@ void throw_param(const std::string &where, std::string_view param, std::string_v
     throw_usage(where, ": param \"", param, "\": ", problem);
 }
 
+void throw_param(const CheckContext &ctx, const ParamSpec &spec, std::string_view problem)
+{
+    throw_usage(ctx.node.json_path,
+                "/params/",
+                spec.name,
+                ": ",
+                ctx.node.describe(),
+                ": param \"",
+                spec.name,
+                "\": ",
+                problem);
+}
+
 std::optional<double> HeaderSource::number(std::string_view attribute) const
 {
     if (camera) {
@@ -60,6 +73,15 @@ NodeParams default_params(const NodeType &node)
     return NodeParams(&node, std::move(values));
 }
 
+NodeParams default_record(const ParamSpec &records)
+{
+    std::map<std::string, ParamValue> values;
+    for (std::size_t i = 0; i < records.field_count; ++i) {
+        values[std::string(records.fields[i].name)] = default_param(records.fields[i]);
+    }
+    return NodeParams(nullptr, std::move(values));
+}
+
 namespace bind_detail {
 
 void header_missing(NodeContext &ctx,
@@ -72,9 +94,15 @@ void header_missing(NodeContext &ctx,
                                  ? str_cat("the frame's header has no ", header)
                                  : str_cat("the frame's header ", header, " is ", found,
                                            ", outside ", describe_range(spec));
-    if (spec.header_only) {
-        // The frame lacks what the node needs: an input error, not the graph's.
-        throw_runtime(ctx.where(), ": param \"", spec.name, "\": not given, and ", what);
+    if (spec.header_only || !found.empty()) {
+        // The frame lacks what the node needs, or holds what it cannot take: an input error,
+        // not the graph's.
+        throw_runtime(ctx.where(),
+                      ": param \"",
+                      spec.name,
+                      "\": not given, and ",
+                      what,
+                      found.empty() ? "" : str_cat(" (give ", spec.name, ")"));
     }
     ctx.state().note_once(str_cat(ctx.node().describe(), ": ", what, ": param \"", spec.name,
                                   "\" takes its default ", shown_default, " (give ", spec.name,

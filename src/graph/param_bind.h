@@ -9,8 +9,8 @@
 // field's type, a Choice becomes the field's enum (the enum's order is the choices' order), an
 // integer parsed from its word, or a bool that is true for one word; a parameter whose only_when
 // does not hold leaves the field alone; a parameter declared from_header() and not given takes
-// the frame's header value (an invalid or absent one leaves the default, with a note, or is an
-// error for from_header_only()). audit() tells where a settings struct's own default differs
+// the frame's header value (an absent one leaves the default, with a note, or is an error for
+// from_header_only(); an invalid one is an error). audit() tells where a settings struct's own default differs
 // from its parameter's, and a unit test runs it over the whole node catalog, so tests and
 // benchmarks that start from `Settings{}` run what a graph with defaults runs.
 
@@ -43,6 +43,20 @@ template <typename V>
                                        const V &got)
 {
     throw_param(where, param, str_cat("expected ", allowed, ", got ", got));
+}
+
+/// The same, for a check() hook: located at the parameter in the graph file
+/// (`g.json:/nodes/2/params/blades: node "d" (dof): param "blades": ...`).
+[[noreturn]] void throw_param(const CheckContext &ctx,
+                              const ParamSpec &spec,
+                              std::string_view problem);
+template <typename V>
+[[noreturn]] void throw_param_expected(const CheckContext &ctx,
+                                       const ParamSpec &spec,
+                                       std::string_view allowed,
+                                       const V &got)
+{
+    throw_param(ctx, spec, str_cat("expected ", allowed, ", got ", got));
 }
 
 /// A header value a parameter declared from_header() falls back on: the camera's scalar (for the
@@ -104,6 +118,12 @@ std::string show(const F &v)
 {
     if constexpr (std::is_same_v<F, glm::vec3>) {
         return str_cat("[", v.x, ", ", v.y, ", ", v.z, "]");
+    } else if constexpr (std::is_array_v<F>) {
+        std::string s = "[";
+        for (std::size_t i = 0; i < std::extent_v<F>; ++i) {
+            s += (i ? ", " : "") + str_cat(v[i]);
+        }
+        return s + "]";
     } else if constexpr (std::is_same_v<F, std::string>) {
         return quoted(v);
     } else if constexpr (std::is_same_v<F, std::vector<std::string>>) {
@@ -167,6 +187,10 @@ std::string misfit(const ParamSpec &spec, std::string_view word)
         return spec.type == ParamType::String ? "" : "a list field takes a comma-separated string";
     } else if constexpr (std::is_same_v<F, glm::vec3>) {
         return spec.type == ParamType::Vec && spec.vec_size == 3 ? "" : "a vec3 field takes a vec3";
+    } else if constexpr (std::is_array_v<F> && std::is_arithmetic_v<std::remove_extent_t<F>>) {
+        return spec.type == ParamType::Vec && spec.vec_size == int(std::extent_v<F>)
+                   ? ""
+                   : str_cat("an array field of ", std::extent_v<F>, " takes a vec of as many");
     } else {
         static_assert(sizeof(F) == 0, "no conversion from a parameter to this field type");
     }
@@ -219,6 +243,17 @@ struct Binding {
     std::string (*show)(const S &) = nullptr;
     /// Why the field's type cannot hold the spec's values ("" when it can).
     std::string (*misfit)(const Binding &) = nullptr;
+    /// False for a field the struct leaves to its caller (a transport struct shared by nodes whose
+    /// parameters default differently): audit() then does not compare defaults.
+    bool own_default = true;
+
+    /// The same binding, for a field without a default of its own (see own_default).
+    constexpr Binding without_default() const
+    {
+        Binding b = *this;
+        b.own_default = false;
+        return b;
+    }
 };
 
 /// Bind `spec` to `Member` (a pointer to a member of a settings struct). A bool member bound to
@@ -231,23 +266,47 @@ constexpr auto bind(const ParamSpec &spec, std::string_view word = {})
     Binding<S> b;
     b.spec = &spec;
     b.word = word;
-    b.assign = [](S &s, const Binding<S> &self, const NodeParams &p) {
-        s.*Member = bind_detail::convert<F>(*self.spec, self.word, p);
-    };
-    b.assign_header = [](S &s, const Binding<S> &self, const HeaderSource &h, std::string &found) {
-        const std::optional<F> v = bind_detail::header_value<F>(h, self.spec->header);
-        found.clear();
-        if (!v) {
+    if constexpr (std::is_array_v<F>) {
+        // A fixed array of numbers (a Vec of as many): element by element, no header fallback.
+        using E = std::remove_extent_t<F>;
+        b.assign = [](S &s, const Binding<S> &self, const NodeParams &p) {
+            const std::vector<double> &v = p.get_vec(*self.spec);
+            for (std::size_t i = 0; i < std::extent_v<F> && i < v.size(); ++i) {
+                (s.*Member)[i] = E(v[i]);
+            }
+        };
+        b.assign_header = [](S &, const Binding<S> &, const HeaderSource &, std::string &found) {
+            found.clear();
             return false;
-        }
-        if (!bind_detail::in_range(*self.spec, *v)) {
-            found = bind_detail::show(*v);
-            return false;
-        }
-        s.*Member = *v;
-        return true;
-    };
-    b.same = [](const S &x, const S &y) { return x.*Member == y.*Member; };
+        };
+        b.same = [](const S &x, const S &y) {
+            for (std::size_t i = 0; i < std::extent_v<F>; ++i) {
+                if (!((x.*Member)[i] == (y.*Member)[i])) {
+                    return false;
+                }
+            }
+            return true;
+        };
+    } else {
+        b.assign = [](S &s, const Binding<S> &self, const NodeParams &p) {
+            s.*Member = bind_detail::convert<F>(*self.spec, self.word, p);
+        };
+        b.assign_header =
+            [](S &s, const Binding<S> &self, const HeaderSource &h, std::string &found) {
+                const std::optional<F> v = bind_detail::header_value<F>(h, self.spec->header);
+                found.clear();
+                if (!v) {
+                    return false;
+                }
+                if (!bind_detail::in_range(*self.spec, *v)) {
+                    found = bind_detail::show(*v);
+                    return false;
+                }
+                s.*Member = *v;
+                return true;
+            };
+        b.same = [](const S &x, const S &y) { return x.*Member == y.*Member; };
+    }
     b.show = [](const S &s) { return bind_detail::show(s.*Member); };
     b.misfit = [](const Binding<S> &self) { return bind_detail::misfit<F>(*self.spec, self.word); };
     return b;
@@ -273,9 +332,9 @@ void fill_into(S &s, const NodeParams &p, std::span<const Binding<S>> bindings)
 }
 
 /// Fill as above; a from_header() parameter that was not given then takes the header's value
-/// from `header` when it is a valid one (within the parameter's range). Otherwise a
-/// from_header_only() parameter is an error naming the parameter and the attribute, and any other
-/// keeps its default with a note (once per node) saying so.
+/// from `header`. A header value outside the parameter's range (or not finite) is an error naming
+/// the parameter, the attribute and the value; a header without one is an error for a
+/// from_header_only() parameter, and otherwise leaves the default, with a note (once per node).
 template <typename S>
 void fill_into(S &s,
                NodeContext &ctx,
@@ -321,7 +380,16 @@ NodeParams default_params(const NodeType &node);
 
 /// What is wrong with the bindings of `node`, one line each: a bound parameter the node does not
 /// declare, a field type that cannot hold the parameter's values, or a field whose own default
-/// (in `S{}`) differs from the parameter's default.
+/// (in `S{}`) differs from the parameter's default (but for from_header_only() parameters, whose
+/// default never stands in).
+/// The parameters of a record parameter (`records` spec) at their fields' defaults.
+NodeParams default_record(const ParamSpec &records);
+
+/// What is wrong with the bindings of `node`, one line each: a bound parameter the node does not
+/// declare (as a parameter, or as a field of a records parameter), a field type that cannot hold
+/// the parameter's values, or a field whose own default (in `S{}`) differs from the parameter's
+/// default (but for from_header_only() parameters, whose default never stands in, and fields
+/// bound without_default()).
 template <typename S, std::size_t N>
 void audit(const NodeType &node, const Binding<S> (&bindings)[N], std::vector<std::string> &problems)
 {
@@ -329,11 +397,20 @@ void audit(const NodeType &node, const Binding<S> (&bindings)[N], std::vector<st
     const S own{};
     for (const Binding<S> &b : bindings) {
         const std::string head = str_cat(node.spec.type, ": param \"", b.spec->name, "\": ");
-        bool declared = false;
+        const NodeParams *from = nullptr;
+        NodeParams record;
         for (const ParamSpec &d : node.spec.params) {
-            declared = declared || d.name == b.spec->name;
+            if (d.name == b.spec->name) {
+                from = &defaults;
+            }
+            for (std::size_t i = 0; !from && i < d.field_count; ++i) {
+                if (d.fields[i].name == b.spec->name) {
+                    record = default_record(d);
+                    from = &record;
+                }
+            }
         }
-        if (!declared) {
+        if (!from) {
             problems.push_back(head + "bound but not declared by the node");
             continue;
         }
@@ -341,8 +418,11 @@ void audit(const NodeType &node, const Binding<S> (&bindings)[N], std::vector<st
             problems.push_back(head + why);
             continue;
         }
+        if (b.spec->header_only || !b.own_default) {
+            continue;
+        }
         S from_spec{};
-        b.assign(from_spec, b, defaults);
+        b.assign(from_spec, b, *from);
         if (!b.same(own, from_spec)) {
             problems.push_back(head + "default " + b.show(from_spec) +
                                ", but its settings field starts at " + b.show(own));

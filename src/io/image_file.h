@@ -86,7 +86,7 @@ struct ReadOptions {
     DeepMode deep = DeepMode::Flatten;
     /// "" or "auto": every renderer's pass names; else one of known_conventions() (plus the
     /// canonical names).
-    std::string convention;
+    std::string convention = "auto";
     bool count_deep_samples = false;  ///< read_file_info: fill FilePart::deep_samples.
 };
 

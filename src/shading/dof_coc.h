@@ -15,7 +15,7 @@ namespace posthaste::shading {
 
 /// Thin-lens parameters, in the units of the EXR header.
 struct DofLens {
-    float fstop = 8.0f;       ///< f-number N; aperture diameter A = f / N.
+    float fstop = 5.6f;       ///< f-number N; aperture diameter A = f / N.
     float focus_m = 10.0f;    ///< Focus distance s, metres.
     float focal_mm = 35.0f;   ///< Focal length f, mm.
     float sensor_mm = 36.0f;  ///< Sensor width, mm (maps to the image width).

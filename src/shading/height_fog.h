@@ -23,17 +23,17 @@ namespace posthaste::shading {
 
 /// Parameters of exponential height fog. Every length is in scene units.
 struct HeightFog {
-    float density = 0.02f;        ///< extinction coefficient at base_height, per scene unit (>= 0).
+    float density = 0.01f;        ///< extinction coefficient at base_height, per scene unit (>= 0).
     float falloff = 0.1f;         ///< b: density scales by exp(-b) per unit of height (>= 0).
     float base_height = 0.0f;     ///< h0: world y where the density equals `density`.
     float start_distance = 0.0f;  ///< no fog closer than this to the camera (along the ray, >= 0).
-    glm::vec3 color{0.5f, 0.6f, 0.7f};  ///< fog radiance (scene-linear RGB), isotropic part.
+    glm::vec3 color{0.6f, 0.7f, 0.8f};  ///< fog radiance (scene-linear RGB), isotropic part.
     glm::vec3 sun_color{0.0f};          ///< sun lobe radiance scale; 0 disables the lobe.
     glm::vec3 sun_direction{0.0f, 1.0f, 0.0f};  ///< unit vector towards the sun (world).
     float sun_g = 0.7f;  ///< Henyey-Greenstein asymmetry of the sun lobe, in (-1, 1).
     /// Sky pixels (+inf depth) show the fog's radiance alone (transmittance 0), as if the fog went
     /// on for ever in every direction; otherwise they get the fog of the infinite ray.
-    bool opaque_sky = false;
+    bool opaque_sky = true;
 };
 
 /// Transmittance and in-scattered radiance of a fog segment.

@@ -140,6 +140,7 @@ TEST(HeightFog, StartDistanceAndInfiniteDistance)
     fog.density = 0.02f;
     fog.falloff = 0.05f;
     fog.start_distance = 50.0f;
+    fog.opaque_sky = false;  // the infinite ray's fog, not the sky's radiance
     const glm::vec3 c(0.0f, 1.0f, 0.0f);
     const glm::vec3 up = glm::normalize(glm::vec3(1.0f, 1.0f, 0.0f));
     EXPECT_EQ(height_fog_optical_depth(fog, c, up, 49.0f), 0.0f);

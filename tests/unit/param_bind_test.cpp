@@ -160,29 +160,45 @@ TEST(ParamBind, HeaderFallbackTakesAValidHeaderValueUnlessGiven)
     EXPECT_EQ(s.shutter, 0.25f);
 }
 
-// A header value out of the parameter's range, or none, leaves the default (with a note); a
-// from_header_only parameter without a header value is an error naming it and the attribute.
+// No header value leaves the default (with a note); a header value out of the parameter's range
+// is an error naming the parameter, the attribute and the value; a from_header_only parameter
+// without a header value is an error naming it and the attribute.
 TEST(ParamBind, HeaderFallbackRefusesWhatTheSpecWouldNot)
 {
     Toy t;
     t.p = params({});
-    t.camera.fstop = 0.0f;
-    t.camera.shutter = std::numeric_limits<float>::quiet_NaN();
     t.camera.focus_distance = 3.0f;
     const Settings s = t.run();
     EXPECT_EQ(s.fstop, 8.0);
     EXPECT_EQ(s.shutter, 0.5f);
+    const auto message = [&] {
+        try {
+            t.run();
+        } catch (const Error &e) {
+            EXPECT_EQ(e.code(), ExitCode::Runtime);
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    t.camera.fstop = 0.0f;
+    EXPECT_EQ(message(),
+              "node \"t\" (toy), frame 1: param \"fstop\": not given, and the frame's header "
+              "\"aperture\" is 0, outside 0.5..128 (give fstop)");
+    t.camera.fstop.reset();
+    t.camera.shutter = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_EQ(message(),
+              "node \"t\" (toy), frame 1: param \"shutter\": not given, and the frame's header "
+              "\"shutter\" is nan, outside 0..1 (give shutter)");
+    t.camera.shutter.reset();
     t.camera.focus_distance.reset();
-    try {
-        t.run();
-        FAIL() << "expected an error";
-    } catch (const Error &e) {
-        EXPECT_EQ(std::string(e.what()),
-                  "node \"t\" (toy), frame 1: param \"focus\": not given, and the frame's header "
-                  "has no \"focus\"");
-    }
+    EXPECT_EQ(message(),
+              "node \"t\" (toy), frame 1: param \"focus\": not given, and the frame's header "
+              "has no \"focus\"");
     t.p = params({{"focus", 1.0}});
     EXPECT_EQ(t.run().focus, 1.0f);
+    t.camera.fstop = 0.0f;
+    t.p = params({{"focus", 1.0}, {"fstop", 2.0}});
+    EXPECT_EQ(t.run().fstop, 2.0);  // a given value never reads the header
 }
 
 TEST(ParamBind, ErrorsHaveOneShape)
