@@ -11,7 +11,6 @@
 #include <cmath>
 
 #include "core/sanitize.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/ao_trace.h"
 #include "shading/camera_rays.h"

@@ -16,7 +16,6 @@
 
 #include "core/sanitize.h"
 #include "io/image_file.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -186,12 +185,9 @@ void execute(NodeContext &ctx)
 
 void check(CheckContext &ctx)
 {
-    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     const std::string &path = ctx.params.get_string(kPsf);
-    if (!path.empty()) {
-        if (!std::filesystem::exists(path)) {
-            throw_usage(where, ": param \"psf\": ", path, ": no such file");
-        }
+    if (!path.empty() && !std::filesystem::exists(path)) {
+        throw_param(ctx, kPsf, path + ": no such file");
     }
 }
 

@@ -43,6 +43,8 @@ struct Ops {
     std::vector<std::string> keeps;
 };
 
+constexpr Binding<Ops> kOpsFields[] = {bind<&Ops::removes>(kRemove)};
+
 Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
 {
     using json = nlohmann::json;
@@ -92,7 +94,7 @@ Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
         }
         ops.renames.emplace_back(it.key(), it.value().get<std::string>());
     }
-    ops.removes = split_list(params.get_string(kRemove));
+    fill_into(ops, params, std::span<const Binding<Ops>>(kOpsFields));
     const std::string keep = params.get_string(kKeep);
     ops.keep_all = keep == "*";
     if (!ops.keep_all) {
@@ -245,6 +247,10 @@ extern const NodeType kChannels{{"channels",
                                  /*keeps_specular=*/true},
                                 &execute,
                                 &plan,
-                                &check};
+                                &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kChannels, kOpsFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

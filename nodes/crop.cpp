@@ -36,24 +36,21 @@ Rect box_of(const NodeParams &p, const std::string &where, const Rect &display)
     }
     for (double v : b) {
         if (v != std::floor(v) || std::abs(v) > 1e9) {
-            throw_usage(where, ": param \"box\": expected whole pixel coordinates, got ", v);
+            throw_param_expected(where, kBox.name, "whole pixel coordinates", v);
         }
     }
     const Rect r{int(b[0]), int(b[1]), int(b[2]), int(b[3])};
     if (r.empty()) {
-        throw_usage(where,
-                    ": param \"box\": empty (",
-                    r.x0,
-                    ", ",
-                    r.y0,
-                    ", ",
-                    r.x1,
-                    ", ",
-                    r.y1,
-                    "): x1 must exceed x0 and y1 y0");
+        throw_param_expected(where,
+                             kBox.name,
+                             "x1 above x0 and y1 above y0",
+                             str_cat("[", r.x0, ", ", r.y0, ", ", r.x1, ", ", r.y1, "] (empty)"));
     }
     if (r.width() > kMaxImageSide || r.height() > kMaxImageSide) {
-        throw_usage(where, ": param \"box\": at most ", kMaxImageSide, " pixels a side");
+        throw_param_expected(where,
+                             kBox.name,
+                             str_cat("at most ", kMaxImageSide, " pixels a side"),
+                             str_cat(r.width(), "x", r.height()));
     }
     return r;
 }

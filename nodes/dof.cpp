@@ -12,7 +12,6 @@
 #include <vector>
 
 #include "core/sanitize.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
 #include "shading/dof_gather.h"

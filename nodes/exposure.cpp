@@ -17,7 +17,6 @@
 #include <map>
 #include <mutex>
 
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {

@@ -15,7 +15,6 @@
 #include <mutex>
 
 #include "core/sanitize.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/atmosphere.h"
 #include "shading/camera_rays.h"
@@ -305,7 +304,7 @@ void execute(NodeContext &ctx)
         }
     }
 
-    glm::vec3 sun_dir = param_or_header_vec3(ctx, kSunDirection, in);
+    glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
     if (!(glm::length(sun_dir) > 0.0f) || !std::isfinite(glm::length(sun_dir))) {
         throw_runtime(who, ": sun direction must be a non-zero finite vector");
     }
@@ -333,7 +332,7 @@ void execute(NodeContext &ctx)
         }
         case Atmo:
         case AtmoRayMarch: {
-            const glm::vec3 illuminance = param_or_header_vec3(ctx, kIlluminance, in);
+            const glm::vec3 illuminance = param_value<glm::vec3>(ctx, kIlluminance, HeaderSource::of(in));
             const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
             const auto &atmosphere = built.atmosphere;
             const bool disc = ctx.get_bool(kSunDisc);
@@ -414,14 +413,11 @@ void execute(NodeContext &ctx)
 void check(CheckContext &ctx)
 {
     const Model model = Model(ctx.params.get_choice(kModel));
-    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     if (model == Linear && ctx.params.get_real(kEnd) < ctx.params.get_real(kStart)) {
-        throw_usage(where,
-                    ": param \"end\" (",
-                    ctx.params.get_real(kEnd),
-                    ") is before param \"start\" (",
-                    ctx.params.get_real(kStart),
-                    ")");
+        throw_param_expected(ctx,
+                             kEnd,
+                             str_cat("at least start (", ctx.params.get_real(kStart), ")"),
+                             ctx.params.get_real(kEnd));
     }
 }
 

@@ -6,7 +6,6 @@
 
 #include "filter/frame_ops.h"
 #include "filter/image_ops.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -37,13 +36,11 @@ inline void check_filter_name(const CheckContext &ctx)
 {
     const std::string &f = ctx.params.values().at("filter").text;
     if (f != "nearest" && f != "bicubic" && f != "bilinear" && !filter::is_filter_name(f)) {
-        throw_usage(ctx.node.json_path,
-                    "/params: ",
-                    ctx.node.describe(),
-                    ": param \"filter\": unknown filter \"",
-                    f,
-                    "\" (bicubic, bilinear, nearest, or OpenImageIO's: blackman-harris, "
-                    "lanczos3, catmull-rom, mitchell, gaussian, triangle, box, ...)");
+        throw_param(ctx.node.json_path + "/params/filter: " + ctx.node.describe(),
+                    "filter",
+                    "unknown filter " + quoted(f) +
+                        " (bicubic, bilinear, nearest, or OpenImageIO's: blackman-harris, "
+                        "lanczos3, catmull-rom, mitchell, gaussian, triangle, box, ...)");
     }
 }
 
@@ -53,16 +50,15 @@ inline void check_window_size(const std::string &where, const Rect &window, cons
     constexpr double kMaxPixels = double(1 << 28);
     if (window.width() > kMaxImageSide || window.height() > kMaxImageSide ||
         double(window.width()) * double(window.height()) > kMaxPixels) {
-        throw_usage(where,
-                    ": param \"",
+        throw_param(where,
                     param,
-                    "\": the output would be ",
-                    window.width(),
-                    "x",
-                    window.height(),
-                    " pixels (at most ",
-                    kMaxImageSide,
-                    " a side and 2^28 in all)");
+                    str_cat("the output would be ",
+                            window.width(),
+                            "x",
+                            window.height(),
+                            " pixels (at most ",
+                            kMaxImageSide,
+                            " a side and 2^28 in all)"));
     }
 }
 

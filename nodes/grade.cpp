@@ -10,7 +10,6 @@
 #include <cmath>
 #include <filesystem>
 
-#include "graph/param_bind.h"
 #include "nodes/color_pass.h"
 
 namespace posthaste::nodes {

@@ -7,7 +7,6 @@
 
 #include "filter/grain.h"
 
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {

@@ -10,7 +10,6 @@
 #include <charconv>
 #include <glm/geometric.hpp>
 
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/hatch.h"
 #include "shading/tam.h"
@@ -29,7 +28,11 @@ constexpr ParamSpec kProjection = ParamSpec::choice("projection", "dominant|trip
                                           "triplanar: three planes blended by |N|.")
                                       .only_when("mode", "surface");
 constexpr ParamSpec kScale =
-    ParamSpec::real("scale", 2.0).range(1e-3, 1e4).units("m").doc("World size of one TAM tile.");
+    ParamSpec::real("scale", 2.0)
+        .range(1e-3, 1e4)
+        .units("m")
+        .doc("World size of one TAM tile.")
+        .only_when("mode", "surface");
 constexpr ParamSpec kTone =
     ParamSpec::choice("tone", "luminance|light", "luminance")
         .doc("Tone from the input color's luminance, or from n.l with light_dir.");
@@ -256,16 +259,14 @@ void plan(PlanContext &ctx)
 
 void check(CheckContext &ctx)
 {
-    const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     std::vector<int> ids;
     std::string bad;
     if (!parse_ids(ctx.params.get_string(kIds), ids, bad)) {
-        throw_usage(
-            where, ": param \"ids\": expected comma-separated integers >= 0, got \"", bad, "\"");
+        throw_param_expected(ctx, kIds, "comma-separated integers >= 0", quoted(bad));
     }
     const glm::vec3 l = settings(ctx.params).light_dir;
     if (!(glm::dot(l, l) > 1e-12f)) {
-        throw_usage(where, ": param \"light_dir\": expected a non-zero vector, got [0, 0, 0]");
+        throw_param_expected(ctx, kLightDir, "a non-zero vector", "[0, 0, 0]");
     }
 }
 

@@ -18,7 +18,6 @@
 
 #include "core/passes.h"
 #include "core/sanitize.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -116,8 +115,9 @@ filter::LensGeometry geometry(NodeContext &ctx, const Frame &frame)
     filter::LensGeometry g = fill(ctx.params(), kGeometryFields);
     g.distortion = fill(ctx.params(), kDistortionFields);
     const Rect &d = frame.display_window;
-    g.centre = glm::dvec2(0.5 * (d.x0 + d.x1) + ctx.get_real(kCenterX),
-                          0.5 * (d.y0 + d.y1) + ctx.get_real(kCenterY));
+    // Derived: the display window's centre, moved by the parameters' offset.
+    const glm::dvec2 offset(ctx.get_real(kCenterX), ctx.get_real(kCenterY));
+    g.centre = glm::dvec2(0.5 * (d.x0 + d.x1), 0.5 * (d.y0 + d.y1)) + offset;
     if (ctx.get_string(kNormalize) == "focal_length") {
         const std::string who = ctx.where() + ": param \"normalize\"";
         g.unit = double(frame.camera.require_focal_length_mm(who)) /

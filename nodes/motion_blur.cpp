@@ -15,7 +15,6 @@
 
 #include "core/parallel.h"
 #include "core/sanitize.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
 #include "shading/lighting_split.h"
@@ -46,7 +45,8 @@ constexpr ParamSpec kTileSize = ParamSpec::integer("tile_size", 16)
                                     .doc("Tile of the tile-max / neighbour-max reduction.");
 constexpr ParamSpec kSoftZ = ParamSpec::real("soft_z", 0.05)
                                  .range(1e-4, 10.0)
-                                 .doc("Depth ramp of the in-front test, as a fraction of depth.");
+                                 .doc("Depth ramp of the in-front test, as a fraction of depth.")
+                                 .only_when("method", "reconstruct");
 constexpr ParamSpec kTileJitter =
     ParamSpec::real("tile_jitter", 0.25)
         .range(0.0, 1.0)
@@ -56,7 +56,8 @@ constexpr ParamSpec kCoherence = ParamSpec::real("coherence", 0.1)
                                      .doc(
                                          "Tiles whose reachable motion vectors differ by at most "
                                          "this fraction of the longest take "
-                                         "the cheaper uniform path (0: never).");
+                                         "the cheaper uniform path (0: never).")
+                                     .only_when("method", "reconstruct");
 constexpr ParamSpec kGroupTolerance =
     ParamSpec::real("group_tolerance", 0.5)
         .range(0.0, 4.0)

@@ -1,7 +1,7 @@
 #pragma once
-// Everything a node file needs: the node interface, images, frames, passes, parallel loops and
-// errors. Each nodes/<type>.cpp defines one `extern const NodeType k<Type>` listed in
-// nodes/registry.cpp.
+// Everything a node file needs: the node interface, images, frames, passes, parallel loops,
+// errors, and parameters bound to settings fields (graph/param_bind.h). Each nodes/<type>.cpp
+// defines one `extern const NodeType k<Type>` listed in nodes/registry.cpp.
 
 #include <glm/vec3.hpp>
 #include <string>
@@ -12,6 +12,7 @@
 #include "core/parallel.h"
 #include "core/passes.h"
 #include "graph/node.h"
+#include "graph/param_bind.h"
 
 namespace posthaste::nodes {
 
@@ -32,35 +33,6 @@ inline const Pass &rgb_pass(const NodeContext &ctx, const std::string &name, con
                       " needs 3 or 4");
     }
     return in;
-}
-
-/// A real parameter declared from_header(...): its value where the graph gave it, else the
-/// frame's header attribute of that name (a number), else the default.
-inline float param_or_header_float(const NodeContext &ctx, const ParamSpec &spec, const Frame &f)
-{
-    const float v = ctx.get_float(spec);
-    if (ctx.params().given(spec) || spec.header.empty()) {
-        return v;
-    }
-    return f.attributes.get_float(std::string(spec.header), v);
-}
-
-/// A vec3 parameter declared from_header(...): its value where the graph gave it, else the
-/// frame's header attribute of that name (three floats: an OIIO vector, point, normal or
-/// float[3]), else the default.
-inline glm::vec3 param_or_header_vec3(const NodeContext &ctx, const ParamSpec &spec, const Frame &f)
-{
-    const std::vector<double> &d = ctx.get_vec(spec);
-    const glm::vec3 v{float(d[0]), float(d[1]), float(d[2])};
-    if (ctx.params().given(spec) || spec.header.empty()) {
-        return v;
-    }
-    const OIIO::ParamValue *p = f.attributes.find_pv(std::string(spec.header));
-    if (!p || p->type().basetype != OIIO::TypeDesc::FLOAT || p->type().basevalues() != 3) {
-        return v;
-    }
-    const float *h = static_cast<const float *>(p->data());
-    return glm::vec3(h[0], h[1], h[2]);
 }
 
 extern const NodeType kRead;

@@ -11,7 +11,6 @@
 #include "core/camera_solve.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "nodes/read_camera.h"
 

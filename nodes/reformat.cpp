@@ -10,7 +10,6 @@
 
 #include "filter/frame_ops.h"
 #include "nodes/geometry_params.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -76,10 +75,7 @@ void check(CheckContext &ctx)
     check_filter_name(ctx);
     const NodeParams &p = ctx.params;
     if (p.given(kScale) && (p.get_int(kWidth) != 0 || p.get_int(kHeight) != 0)) {
-        throw_usage(ctx.node.json_path,
-                    "/params: ",
-                    ctx.node.describe(),
-                    ": param \"scale\" applies only when width and height are 0");
+        throw_param(ctx, kScale, "applies only when width and height are 0");
     }
 }
 

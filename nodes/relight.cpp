@@ -24,7 +24,6 @@
 
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "shading/brdf.h"
 #include "shading/lighting.h"
@@ -220,7 +219,8 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
             return glm::vec3(float(v[0]), float(v[1]), float(v[2]));
         };
         Light l = fill(r, kLightFields_);
-        l.power = vec3(kLightColor) * r.get_float(kLightIntensity);
+        const float intensity = r.get_float(kLightIntensity);
+        l.power = vec3(kLightColor) * intensity;  // derived: colour times intensity
         if (l.type != LightType::Point) {
             const glm::vec3 d = vec3(kLightDirection);
             if (!(glm::length(d) > 1e-12f)) {

@@ -5,7 +5,6 @@
 #include "raster/render.h"
 
 #include "core/memory.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 #include "raster/ray_cast.h"
 #include "raster/scene.h"
@@ -207,8 +206,7 @@ void check(CheckContext &ctx)
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     if (ctx.params.get_choice(kProjection) == kProjectionLatLong) {
         if (ctx.params.get_choice(kTruth) != 0) {
-            throw_usage(where,
-                        ": param \"projection\": latlong makes no ground truth (truth none)");
+            throw_param(ctx, kProjection, "latlong makes no ground truth (truth none)");
         }
         if (!ctx.downstream.all) {
             for (const std::string &p : ctx.downstream.names) {
@@ -241,7 +239,7 @@ void check(CheckContext &ctx)
     }
     const int ss = ctx.params.get_int(kSupersample);
     if (ss == 3) {
-        throw_usage(where, ": param \"supersample\": expected 1, 2 or 4, got 3");
+        throw_param_expected(ctx, kSupersample, "1, 2 or 4", ss);
     }
     // What a frame will allocate, before any is: the requested passes plus the rasterizer's
     // own buffers (G-buffer, depth, ids, about 16 floats a pixel), at the supersampled size.

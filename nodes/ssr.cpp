@@ -12,7 +12,6 @@
 
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -247,8 +246,9 @@ void execute(NodeContext &ctx)
     si.material = &finite_view(material_in, 1.0f, material_s);  // rough: left alone
 
     shading::SsrParams p = fill(ctx, kFields, HeaderSource::of(in));
-    p.stride = ssr_stride(ctx.get_string(kResolution), depth_in.width());
-    const glm::vec3 sun_dir = param_or_header_vec3(ctx, kSunDirection, in);
+    const std::string &resolution = ctx.get_string(kResolution);
+    p.stride = ssr_stride(resolution, depth_in.width());  // derived from the image's width
+    const glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
     const float len = glm::length(sun_dir);
     if (!(len > 0.0f) || !std::isfinite(len) || !std::isfinite(p.sky_scale) || p.sky_scale < 0.0f) {
         throw_runtime(ctx.where(),

@@ -13,7 +13,6 @@
 
 #include "filter/frame_ops.h"
 #include "nodes/geometry_params.h"
-#include "graph/param_bind.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {

@@ -95,6 +95,18 @@ ColorProcessor make_display(const NodeParams &params, const NodeIdentity &node)
                                         /*for_8bit=*/true);
 }
 
+constexpr Binding<PreviewOptions> kPreviewFields[] = {
+    bind<&PreviewOptions::alpha>(kAlpha),
+    bind<&PreviewOptions::png_level>(kPngLevel),
+    bind<&PreviewOptions::png_filter>(kPngFilter),
+    bind<&PreviewOptions::dither>(kDither),
+};
+constexpr Binding<WriteOptions> kExrFields[] = {
+    bind<&WriteOptions::compression>(kCompression),
+    bind<&WriteOptions::layout>(kLayout),
+    bind<&WriteOptions::allow_lossy_data>(kAllowLossyData),
+};
+
 void execute(NodeContext &ctx)
 {
     const NodeParams &params = ctx.params();
@@ -106,11 +118,7 @@ void execute(NodeContext &ctx)
                 [&] { return make_display(params, ctx.node()); });
             // A preview shows the display window (the delivered format); outside the data
             // window it is transparent black.
-            PreviewOptions po;
-            po.alpha = params.get_bool(kAlpha);
-            po.png_level = params.get_int(kPngLevel);
-            po.png_filter = params.get_string(kPngFilter);
-            po.dither = params.get_bool(kDither);
+            const PreviewOptions po = fill(params, kPreviewFields);
             write_display_preview(frame.image(pass::kColor, ctx.where()),
                                   frame.data_window,
                                   frame.display_window,
@@ -119,11 +127,8 @@ void execute(NodeContext &ctx)
                                   po);
             return;
         }
-        WriteOptions options;
-        options.compression = params.get_string(kCompression);
-        options.layout = ExrLayout(params.get_choice(kLayout));
+        WriteOptions options = fill(params, kExrFields);
         options.passes = listed_passes(params);
-        options.allow_lossy_data = params.get_bool(kAllowLossyData);
         const int storage = params.get_choice(kStorage);
         if (storage != 0) {
             for (const std::string &name : frame.pass_names()) {
@@ -161,21 +166,18 @@ void check(CheckContext &ctx)
         make_display(ctx.params, ctx.node);
         auto out = OIIO::ImageOutput::create(path);
         if (!out) {
-            throw_usage(where,
-                        ": param \"path\": no image writer for \"",
-                        path,
-                        "\" (use .exr, .png, .jpg or .tif)");
+            throw_param_expected(ctx, kPath, "a .exr, .png, .jpg or .tif file", quoted(path));
         }
         return;
     }
     check_compression(ctx.params.get_string(kCompression), where + ": param \"compression\"");
     if (ctx.frames.size() > 1 && !has_frame_placeholder(path)) {
-        throw_usage(where,
-                    ": param \"path\": \"",
-                    path,
-                    "\" has no frame placeholder (####) but ",
-                    ctx.frames.size(),
-                    " frames would be written to it");
+        throw_param(ctx,
+                    kPath,
+                    str_cat(quoted(path),
+                            " has no frame placeholder (####) but ",
+                            ctx.frames.size(),
+                            " frames would be written to it"));
     }
 }
 
@@ -190,6 +192,11 @@ extern const NodeType kWrite{{"write",
                               /*keeps_specular=*/true},
                              &execute,
                              &plan,
-                             &check};
+                             &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kWrite, kPreviewFields, problems);
+        audit(kWrite, kExrFields, problems);
+    }};
 
 }  // namespace posthaste::nodes

@@ -135,38 +135,20 @@ class NodeRunner {
     /// The node's output frame for input `in`, as frame `frame_number`.
     Frame run(std::shared_ptr<const Frame> in, int frame_number = 1) const
     {
-        const GraphNode &gn = node();
-        NodeContext ctx(gn.identity,
-                        gn.params,
-                        {std::move(in)},
-                        {port_},
-                        gn.requested,
-                        frame_number,
-                        *gn.state);
-        gn.type->execute(ctx);
-        return ctx.take_output();
+        return graph_.run_node(graph_.find("n"), {std::move(in)}, {port_}, frame_number);
     }
     /// The node's output for frames on several of its ports (the first port's included), by
     /// port name.
     Frame run_ports(const std::vector<std::pair<std::string, Frame>> &inputs,
                     int frame_number = 1) const
     {
-        const GraphNode &gn = node();
         std::vector<std::shared_ptr<const Frame>> frames;
         std::vector<std::string> ports;
         for (const auto &[port, frame] : inputs) {
             ports.push_back(port);
             frames.push_back(std::make_shared<const Frame>(frame));
         }
-        NodeContext ctx(gn.identity,
-                        gn.params,
-                        std::move(frames),
-                        std::move(ports),
-                        gn.requested,
-                        frame_number,
-                        *gn.state);
-        gn.type->execute(ctx);
-        return ctx.take_output();
+        return graph_.run_node(graph_.find("n"), std::move(frames), std::move(ports), frame_number);
     }
     Frame run(const Frame &in, int frame_number = 1) const
     {

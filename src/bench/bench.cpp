@@ -119,26 +119,6 @@ ImagePtr select_channel(const ImagePtr &image, int channel, const std::string &w
     return out;
 }
 
-/// metrics::compare over the pixels of finite depth only (their values gathered into one row,
-/// so the statistics are compare's own).
-metrics::CompareStats compare_surface(const Image &ref, const Image &test, const Image &depth)
-{
-    std::vector<std::size_t> keep;
-    for (std::size_t i = 0; i < depth.pixel_count(); ++i) {
-        if (std::isfinite(depth.data()[i * std::size_t(depth.channels())])) {
-            keep.push_back(i);
-        }
-    }
-    const int n = std::max<int>(1, int(keep.size()));
-    Image a(n, 1, ref.channels()), b(n, 1, test.channels());
-    const std::size_t c = std::size_t(ref.channels());
-    for (std::size_t k = 0; k < keep.size(); ++k) {
-        std::copy_n(ref.data() + keep[k] * c, c, a.data() + k * c);
-        std::copy_n(test.data() + keep[k] * c, c, b.data() + k * c);
-    }
-    return metrics::compare(a, b);
-}
-
 /// First three channels, sRGB-encoded, clamped, box-downscaled so the longer side is <= max_side.
 Image display_thumbnail(const Image &img, float scale, int max_side = 160)
 {
@@ -536,7 +516,7 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                               ref.channels());
             }
             const metrics::CompareStats stats =
-                spec.exclude_sky ? compare_surface(ref, test, out.image("depth", who))
+                spec.exclude_sky ? metrics::compare_surface(ref, test, out.image("depth", who))
                                  : metrics::compare(ref, test);
             rmse += stats.all.rms_error;
             psnr += stats.all.psnr;

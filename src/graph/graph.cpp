@@ -287,6 +287,31 @@ const std::vector<int> &Graph::sequence_frames() const
     return sequence_->frames;
 }
 
+void Graph::execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *first_input)
+{
+    try {
+        gn.type->execute(ctx);
+    } catch (const Error &) {
+        throw;
+    } catch (const std::exception &e) {
+        throw_runtime(ctx.where(), ": ", e.what());
+    }
+    drop_stale_specular(gn.type->spec, first_input, ctx.output());
+}
+
+Frame Graph::run_node(int index,
+                      std::vector<std::shared_ptr<const Frame>> inputs,
+                      std::vector<std::string> ports,
+                      int frame) const
+{
+    const GraphNode &gn = nodes_.at(std::size_t(index));
+    const std::shared_ptr<const Frame> first_input = inputs.empty() ? nullptr : inputs[0];
+    NodeContext ctx(
+        gn.identity, gn.params, std::move(inputs), std::move(ports), gn.requested, frame, *gn.state);
+    execute_step(gn, ctx, first_input.get());
+    return ctx.take_output();
+}
+
 Frame Graph::evaluate(int frame, NodeTimes *times) const
 {
     Frame captured;
@@ -366,15 +391,10 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
         ctx.set_history(&history);
         const auto t0 = std::chrono::steady_clock::now();
         if (target < 0 || !gn.type->spec.sink) {
-            try {
-                gn.type->execute(ctx);
-            } catch (const Error &) {
-                throw;
-            } catch (const std::exception &e) {
-                throw_runtime(ctx.where(), ": ", e.what());
-            }
+            execute_step(gn, ctx, first_input.get());
+        } else {
+            drop_stale_specular(gn.type->spec, first_input.get(), ctx.output());
         }
-        drop_stale_specular(gn.type->spec, first_input.get(), ctx.output());
         const auto t1 = std::chrono::steady_clock::now();
         if (times) {
             *times->nanoseconds[std::size_t(i)] +=

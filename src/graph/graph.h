@@ -77,6 +77,14 @@ class Graph {
     /// different frames. Adds each node's time to `times` when given. Returns the output frame
     /// of the capture node (see set_capture), or an empty Frame.
     Frame evaluate(int frame, NodeTimes *times = nullptr) const;
+    /// Node `index`'s own step, as evaluate() takes it (execute; an exception that is not an
+    /// Error named by the node; a stale specular pass dropped), on frames held in memory: one
+    /// frame per input port named in `ports`. No history: a node that looks at earlier frames
+    /// sees none. For callers that hold frames themselves (the tests).
+    Frame run_node(int index,
+                   std::vector<std::shared_ptr<const Frame>> inputs,
+                   std::vector<std::string> ports,
+                   int frame) const;
     /// Keep the output of node `id` (all its passes) for evaluate() to return; re-plans.
     void set_capture(const std::string &id);
     /// Index of node `id`, or -1.
@@ -86,6 +94,8 @@ class Graph {
 
    private:
     friend struct GraphBuilder;  // the steps of parse (graph_parse.cpp)
+    /// Execute node `gn` in `ctx` (see run_node).
+    static void execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *first_input);
     Graph() = default;
     void plan();
     /// Evaluate frame `frame`: every live node (target < 0), or only node `target` and what it

@@ -375,6 +375,31 @@ S fill(NodeContext &ctx, const Binding<S> (&bindings)[N], const HeaderSource &he
     return s;
 }
 
+namespace bind_detail {
+template <typename F>
+struct Holder {
+    F value{};
+};
+}  // namespace bind_detail
+
+/// One parameter's value by fill()'s rules, header fallback included (a parameter whose only_when
+/// does not hold gives its default): for a value the node derives others from before any
+/// settings field takes it.
+template <typename F>
+F param_value(NodeContext &ctx, const ParamSpec &spec, const HeaderSource &header)
+{
+    const Binding<bind_detail::Holder<F>> b = bind<&bind_detail::Holder<F>::value>(spec);
+    bind_detail::Holder<F> h;
+    b.assign(h, b, ctx.params());
+    if (!spec.header.empty() && !ctx.params().given(spec) && ctx.params().applies(spec)) {
+        std::string found;
+        if (!b.assign_header(h, b, header, found)) {
+            bind_detail::header_missing(ctx, spec, found, b.show(h));
+        }
+    }
+    return h.value;
+}
+
 /// The parameters of `node` at their defaults (what a graph that gives none runs).
 NodeParams default_params(const NodeType &node);
 

@@ -209,6 +209,48 @@ CompareStats compare(const Image &a, const Image &b, const Thresholds &threshold
     return stats;
 }
 
+CompareStats compare_surface(const Image &a,
+                             const Image &b,
+                             const Image &depth,
+                             int channels,
+                             const Thresholds &thresholds)
+{
+    if (a.width() != depth.width() || a.height() != depth.height() || b.width() != a.width() ||
+        b.height() != a.height()) {
+        throw_runtime("compare_surface: images of ",
+                      a.width(),
+                      "x",
+                      a.height(),
+                      " and ",
+                      b.width(),
+                      "x",
+                      b.height(),
+                      " with a depth of ",
+                      depth.width(),
+                      "x",
+                      depth.height());
+    }
+    const int nc = channels > 0 ? channels : a.channels();
+    if (nc > a.channels() || nc > b.channels()) {
+        throw_runtime("compare_surface: ", nc, " channels asked of images with ", a.channels(),
+                      " and ", b.channels());
+    }
+    std::vector<std::size_t> keep;
+    for (std::size_t i = 0; i < depth.pixel_count(); ++i) {
+        if (std::isfinite(depth.data()[i * std::size_t(depth.channels())])) {
+            keep.push_back(i);
+        }
+    }
+    const int n = std::max<int>(1, int(keep.size()));
+    Image pa(n, 1, nc), pb(n, 1, nc);
+    const std::size_t ca = std::size_t(a.channels()), cb = std::size_t(b.channels());
+    for (std::size_t k = 0; k < keep.size(); ++k) {
+        std::copy_n(a.data() + keep[k] * ca, nc, pa.data() + k * std::size_t(nc));
+        std::copy_n(b.data() + keep[k] * cb, nc, pb.data() + k * std::size_t(nc));
+    }
+    return compare(pa, pb, thresholds);
+}
+
 Verdict verdict(const CompareStats &stats, const Thresholds &t)
 {
     // idiff divides by at least one pixel.

@@ -68,6 +68,15 @@ struct CompareStats {
 /// depend on the thread count (per-tile partial sums combined in tile order, in double).
 CompareStats compare(const Image &a, const Image &b, const Thresholds &thresholds = {});
 
+/// compare() over the surface pixels only (those whose `depth` is finite: not the sky) and the
+/// first `channels` channels of both images (0: all of them). For truths that hold nothing on the
+/// sky (Cycles writes AO 0 there). The images and `depth` share a width and height.
+CompareStats compare_surface(const Image &a,
+                             const Image &b,
+                             const Image &depth,
+                             int channels = 0,
+                             const Thresholds &thresholds = {});
+
 /// idiff's outcomes, valued as its exit codes.
 enum class Verdict : int {
     Pass = 0,

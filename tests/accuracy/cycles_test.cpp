@@ -177,24 +177,6 @@ TEST(CyclesAccuracySlow, DofBeatsBlendersDefocus)
     }
 }
 
-/// RMSE over the surface pixels (finite depth: Cycles writes AO 0 on the sky).
-double rmse_surface(const Image &ao, const Image &truth, const Image &depth)
-{
-    std::vector<float> a, b;
-    for (int y = 0; y < ao.height(); ++y) {
-        for (int x = 0; x < ao.width(); ++x) {
-            if (std::isfinite(depth.pixel(x, y)[0])) {
-                a.push_back(ao.pixel(x, y)[0]);
-                b.push_back(truth.pixel(x, y)[0]);
-            }
-        }
-    }
-    Image ia(int(a.size()), 1, 1), ib(int(b.size()), 1, 1);
-    std::copy(a.begin(), a.end(), ia.data());
-    std::copy(b.begin(), b.end(), ib.data());
-    return metrics::compare(ia, ib).all.rms_error;
-}
-
 TEST(CyclesAccuracySlow, AoAgainstCyclesAoPass)
 {
     for (const char *shot : {"yard", "closeup"}) {
@@ -207,12 +189,10 @@ TEST(CyclesAccuracySlow, AoAgainstCyclesAoPass)
             const Image &t = truth.image("ViewLayer.AO");
             const std::string radius = std::string(R"("radius": )") + dist;
             auto ao = [&](const Frame &in, const std::string &more) {
-                return rmse_surface(
-                    test::run_node("ao", in, "{" + radius + more + "}", kFrame).image("ao"),
-                    t,
-                    depth);
+                const Frame out = test::run_node("ao", in, "{" + radius + more + "}", kFrame);
+                return metrics::compare_surface(out.image("ao"), t, depth, 1).all.rms_error;
             };
-            const double nothing = rmse_surface(one, t, depth);
+            const double nothing = metrics::compare_surface(one, t, depth, 1).all.rms_error;
             const double node = ao(f, ""), unfiltered = ao(u, "");
             const double bound = ao(f, R"(, "method": "trace")");
             std::printf(

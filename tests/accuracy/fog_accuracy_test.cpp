@@ -12,6 +12,7 @@
 #include <fstream>
 
 #include "graph/graph.h"
+#include "metrics/metrics.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
@@ -44,25 +45,12 @@ struct Err {
     double rmse = 0, max = 0;
 };
 
+/// Over the surface pixels (the sky's colour is the sky model's, not the fog's).
 Err geometry_error(const Frame &a, const Frame &ref)
 {
-    const Image &x = a.image("color"), &r = ref.image("color"), &z = ref.image("depth");
-    double sum = 0, mx = 0;
-    std::size_t n = 0;
-    for (int y = 0; y < x.height(); ++y) {
-        for (int xx = 0; xx < x.width(); ++xx) {
-            if (!std::isfinite(z.at(xx, y, 0))) {
-                continue;
-            }
-            for (int c = 0; c < 3; ++c) {
-                const double d = double(x.at(xx, y, c)) - r.at(xx, y, c);
-                sum += d * d;
-                mx = std::max(mx, std::abs(d));
-                ++n;
-            }
-        }
-    }
-    return {std::sqrt(sum / double(std::max<std::size_t>(n, 1))), mx};
+    const metrics::CompareStats st =
+        metrics::compare_surface(a.image("color"), ref.image("color"), ref.image("depth"), 3);
+    return {st.all.rms_error, st.all.max_error};
 }
 
 TEST(FogAccuracySlow, CheaperModelsAgainstTheRayMarchedAtmosphere)

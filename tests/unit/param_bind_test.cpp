@@ -8,6 +8,7 @@
 #include <map>
 
 #include "core/error.h"
+#include "graph/graph.h"
 #include "graph/param_json.h"
 #include "nodes/registry.h"
 
@@ -237,6 +238,39 @@ TEST(ParamBind, AuditNamesEachDisagreement)
     EXPECT_EQ(problems[1],
               "toy: param \"shape\": an integer field takes a choice only among whole numbers");
     EXPECT_EQ(problems[2], "toy: param \"undeclared\": bound but not declared by the node");
+}
+
+// A parameter the chosen method ignores is refused, naming both (here ao's, render's and
+// motion_blur's method-specific parameters).
+TEST(ParamBind, AParameterTheMethodIgnoresIsRefused)
+{
+    const auto error_of = [](const std::string &node, const std::string &params) {
+        const std::string g =
+            R"({"nodes": [{"id": "r", "type": "render", "params": {"scene": "s.json"}},)"
+            R"( {"id": "n", )" + std::string(node == "render" ? "" : R"("inputs": {"image": "r"}, )") +
+            R"("type": ")" + node + R"(", "params": )" + params + "}]}";
+        try {
+            Graph::parse(g, "g.json", nodes::catalog());
+        } catch (const Error &e) {
+            return std::string(e.what());
+        }
+        return std::string("accepted");
+    };
+    EXPECT_NE(error_of("ao", R"({"method": "trace", "slices": 4})")
+                  .find("param \"slices\" applies only when method is gtao or bitmask, not trace"),
+              std::string::npos);
+    EXPECT_NE(error_of("ao", R"({"method": "gtao", "rays": 16})")
+                  .find("param \"rays\" applies only when method is trace, not gtao"),
+              std::string::npos);
+    EXPECT_NE(error_of("ao", R"({"thickness": 2})")
+                  .find("param \"thickness\" applies only when method is bitmask or trace"),
+              std::string::npos);
+    EXPECT_NE(error_of("render", R"({"scene": "s.json", "ao_radius": 2})")
+                  .find("param \"ao_radius\" applies only when truth is ao, not none"),
+              std::string::npos);
+    EXPECT_NE(error_of("motion_blur", R"({"method": "uniform", "coherence": 0.2})")
+                  .find("param \"coherence\" applies only when method is reconstruct"),
+              std::string::npos);
 }
 
 }  // namespace
