@@ -7,10 +7,11 @@
 #    is an undefined symbol at link time.
 
 # posthaste_floor(NAME DIR folder [FLOORS floor...] [LIBS target...] [EXTRA source...])
-# A static library posthaste_NAME of DIR's *.cpp (and EXTRA), linking the named floors and LIBS.
+# A static library posthaste_NAME of the *.cpp under DIR (its family folders too: src/shading/dof/)
+# and EXTRA, linking the named floors and LIBS.
 function(posthaste_floor name)
   cmake_parse_arguments(F "" "DIR" "FLOORS;LIBS;EXTRA" ${ARGN})
-  file(GLOB _sources CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/${F_DIR}/*.cpp)
+  file(GLOB_RECURSE _sources CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/${F_DIR}/*.cpp)
   add_library(posthaste_${name} STATIC ${_sources} ${F_EXTRA})
   target_compile_options(posthaste_${name} PRIVATE ${POSTHASTE_WARNINGS})
   set(_deps "")
@@ -38,7 +39,7 @@ function(posthaste_check_floors)
   foreach(_rule IN LISTS _rules)
     string(REPLACE "|" ";" _parts "${_rule}")
     list(GET _parts 1 _dir)
-    file(GLOB _f CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/${_dir}/*.cpp
+    file(GLOB_RECURSE _f CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/${_dir}/*.cpp
          ${PROJECT_SOURCE_DIR}/${_dir}/*.h)
     list(APPEND _files ${_f})
     string(APPEND _text "${_rule}\n")

@@ -1,8 +1,8 @@
 // nodes/ao.cpp: screen-space ambient occlusion from the depth and normal passes and the camera
-// (src/shading/gtao.h: GTAO, Jimenez et al. 2016, with a hard world radius so that it estimates
+// (src/shading/ao/gtao.h: GTAO, Jimenez et al. 2016, with a hard world radius so that it estimates
 // what `render` with truth "ao" computes exactly; `method: bitmask`, the same slices with a
 // visibility bitmask of finite thickness after Therrien et al. 2023; `method: trace`,
-// src/shading/ao_trace.h: rays marched through the depth pass, a slow reference for what the
+// src/shading/ao/ao_trace.h: rays marched through the depth pass, a slow reference for what the
 // depth pass can show). Outputs pass "ao" (1 channel); `apply: multiply` also darkens color by
 // it, an approximation (the beauty's direct light is darkened too; a renderer's separate
 // indirect pass would be the right target). Non-finite depth reads as the sky (AO 1), a
@@ -12,9 +12,9 @@
 
 #include "core/sanitize.h"
 #include "nodes/node.h"
-#include "shading/ao_trace.h"
+#include "shading/ao/ao_trace.h"
 #include "shading/camera_rays.h"
-#include "shading/gtao.h"
+#include "shading/ao/gtao.h"
 
 namespace posthaste::nodes {
 namespace {

@@ -1,5 +1,5 @@
 // nodes/dof.cpp: depth of field from color + depth: thin-lens circle of confusion (signed, px),
-// tile max CoC with dilation, then a near/far separated gather (src/shading/dof_gather.h; Jimenez
+// tile max CoC with dilation, then a near/far separated gather (src/shading/dof/dof_gather.h; Jimenez
 // 2014, Abadie 2018). Lens values come from the frame header (aperture, focus, focalLength,
 // sensorWidth) unless a parameter overrides them. Jitter is hashed from (x / 8, y): the output does
 // not depend on the thread count. When no pixel's CoC reaches half a pixel the color pass is
@@ -14,8 +14,8 @@
 #include "core/sanitize.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
-#include "shading/dof_gather.h"
-#include "shading/lighting_split.h"
+#include "shading/dof/dof_gather.h"
+#include "shading/lighting/lighting_split.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -137,7 +137,7 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
 // The lighting split: a highlight's image lies behind the surface that shows it (a ball's
 // convex mirror puts the sun's image R/2 behind its surface), so a thin lens focuses it at
 // specular_depth, not at the surface. Color less the specular share is blurred by the CoC of
-// depth, the share by that of specular_depth (shading/lighting_split.h). Only the pixels whose
+// depth, the share by that of specular_depth (shading/lighting/lighting_split.h). Only the pixels whose
 // two depths differ keep their share apart; the share's blur runs over their box plus what can
 // reach it, and only on the tiles its gather can carry something into. False when no pixel's
 // depths differ (the caller blurs color as one).

@@ -1,7 +1,7 @@
 // nodes/fog.cpp: fog and atmosphere over a frame, from depth and the camera matrices.
 // Models: linear (start, end), exp and exp2 (density), exponential height fog with the exact
-// line integral (src/shading/height_fog.h), and a physically based atmosphere after Hillaire
-// 2020 (src/shading/atmosphere.h: transmittance, multi-scattering and sky-view LUTs, an aerial
+// line integral (src/shading/fog/height_fog.h), and a physically based atmosphere after Hillaire
+// 2020 (src/shading/atmosphere/atmosphere.h: transmittance, multi-scattering and sky-view LUTs, an aerial
 // perspective froxel volume), plus `atmosphere_raymarch`, the per-pixel reference it is judged by.
 // Composite: RGB = RGB * T + inscatter; alpha untouched. Sky pixels (depth +inf) get the fog
 // color (linear, exp, exp2, height with sky=fog) or the sky radiance (atmosphere).
@@ -16,10 +16,10 @@
 
 #include "core/sanitize.h"
 #include "nodes/node.h"
-#include "shading/atmosphere.h"
+#include "shading/atmosphere/atmosphere.h"
 #include "shading/camera_rays.h"
-#include "shading/height_fog.h"
-#include "shading/scene_sky.h"
+#include "shading/fog/height_fog.h"
+#include "shading/atmosphere/scene_sky.h"
 
 namespace posthaste::nodes {
 namespace {

@@ -11,8 +11,8 @@
 #include <glm/geometric.hpp>
 
 #include "nodes/node.h"
-#include "shading/hatch.h"
-#include "shading/tam.h"
+#include "shading/hatching/hatch.h"
+#include "shading/hatching/tam.h"
 
 namespace posthaste::nodes {
 namespace {

@@ -1,12 +1,12 @@
 // nodes/motion_blur.cpp: blur color along screen motion with a tile-max reconstruction filter
-// (src/shading/motion_blur.h: McGuire et al. 2012, Guertin et al. 2014; departures noted there).
+// (src/shading/motion_blur/motion_blur.h: McGuire et al. 2012, Guertin et al. 2014; departures noted there).
 // Reads color and depth, plus the motion pass (pixels from the previous frame, x right, y down)
 // or, with source "camera" or no motion pass in the input, motion reprojected from depth and
 // the previous frame's camera (prevWorldToNDC). The shutter is centred on the frame: each pixel
 // blurs over +-shutter/2 x motion. Jitter is hashed from (x, y): the output is thread-count
 // independent, and zero motion returns the input bit for bit.
 
-#include "shading/motion_blur.h"
+#include "shading/motion_blur/motion_blur.h"
 
 #include <algorithm>
 #include <cmath>
@@ -17,8 +17,8 @@
 #include "core/sanitize.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
-#include "shading/lighting_split.h"
-#include "shading/reproject.h"
+#include "shading/lighting/lighting_split.h"
+#include "shading/motion_blur/reproject.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -138,7 +138,7 @@ void check_size(const NodeContext &ctx, const Image &color, const Image &p, cons
 
 // The lighting split: color less its specular share blurred along the surface motion, plus the
 // specular share blurred along its own (a highlight on a rolling ball moves with the ball's
-// centre, not with its turning surface); shading/lighting_split.h. Written as color plus what
+// centre, not with its turning surface); shading/lighting/lighting_split.h. Written as color plus what
 // each blur changed, so a still frame keeps its bits.
 Image blur_split(NodeContext &ctx,
                  const Image &color,

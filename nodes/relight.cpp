@@ -1,15 +1,15 @@
 // nodes/relight.cpp: add lights to a frame, or replace its lighting, from its G-buffer: normal,
 // position (or depth plus the camera matrices), albedo, material (roughness, metallic,
 // anisotropy), tangent and material id. Directional, point and spot lights; the metallic-workflow
-// BRDF of shading/brdf.h (Lambert or Burley diffuse, GGX with Smith or Cook-Torrance masking,
+// BRDF of shading/lighting/brdf.h (Lambert or Burley diffuse, GGX with Smith or Cook-Torrance masking,
 // anisotropic GGX, Kulla & Conty 2017 energy compensation) and the rasterizer's toon bands and
-// sky light (shading/lighting.h), so that mode "replace" with the scene's sun and sky_ambient
+// sky light (shading/lighting/lighting.h), so that mode "replace" with the scene's sun and sky_ambient
 // reproduces Minecrappy's beauty. Optional screen-space shadows march the depth buffer toward
 // each light. Background pixels (no surface) keep their input color. This file declares the
 // parameters, checks them, plans the passes and fills shading::relight::Inputs; the method is in
 // src/shading/relight.{h,cpp} and relight_kernels.cpp.
 
-#include "shading/relight.h"
+#include "shading/lighting/relight.h"
 
 #include <algorithm>
 #include <array>
@@ -25,8 +25,8 @@
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
 #include "nodes/node.h"
-#include "shading/brdf.h"
-#include "shading/lighting.h"
+#include "shading/lighting/brdf.h"
+#include "shading/lighting/lighting.h"
 
 namespace posthaste::nodes {
 namespace {

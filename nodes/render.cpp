@@ -8,7 +8,7 @@
 #include "nodes/node.h"
 #include "raster/ray_cast.h"
 #include "raster/scene.h"
-#include "shading/sky.h"
+#include "shading/atmosphere/sky.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -101,7 +101,7 @@ const raster::Scene &scene_of(NodeContext &ctx)
 void add_sun_attributes(const raster::Scene &scene, Frame &frame)
 {
     const glm::vec3 d = scene.sun.direction;
-    // The sky is computed for this illuminance (shading/sky.h): the fog node's atmosphere, which
+    // The sky is computed for this illuminance (shading/atmosphere/sky.h): the fog node's atmosphere, which
     // defaults to it, then draws the same sky.
     const glm::vec3 e(shading::kSkyIlluminance);
     frame.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));

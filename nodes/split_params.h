@@ -1,5 +1,5 @@
 #pragma once
-// The lighting split's parameter shared by dof and motion_blur (shading/lighting_split.h).
+// The lighting split's parameter shared by dof and motion_blur (shading/lighting/lighting_split.h).
 
 #include "nodes/node.h"
 

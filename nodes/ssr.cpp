@@ -1,10 +1,10 @@
 // nodes/ssr.cpp: screen-space reflections from the colour, depth, normal, albedo and material
-// passes and the camera (src/shading/ssr.h): glossy pixels' GGX rays marched through the depth
+// passes and the camera (src/shading/ssr/ssr.h): glossy pixels' GGX rays marched through the depth
 // pass, what they meet on screen replacing the sky the renderer reflected; estimates what
 // `render` with truth "reflections" computes exactly. Non-finite depth reads as the sky,
 // non-finite normals and materials leave their pixel alone, non-finite colour reads as black.
 
-#include "shading/ssr.h"
+#include "shading/ssr/ssr.h"
 
 #include <cmath>
 #include <optional>

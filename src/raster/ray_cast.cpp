@@ -10,10 +10,10 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/passes.h"
-#include "shading/environment.h"
-#include "shading/lighting.h"
-#include "shading/scene_sky.h"
-#include "shading/sky.h"
+#include "shading/ssr/environment.h"
+#include "shading/lighting/lighting.h"
+#include "shading/atmosphere/scene_sky.h"
+#include "shading/atmosphere/sky.h"
 
 namespace posthaste::raster {
 

@@ -95,7 +95,7 @@ Image render_reflection_truth(
     const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed);
 
 /// A reflection probe: the radiance seen from one point in every direction, exactly traced, in
-/// the latitude-longitude layout of shading/environment.h.
+/// the latitude-longitude layout of shading/ssr/environment.h.
 struct EnvironmentProbe {
     Image color;     ///< RGBA, alpha 1: each hit shaded as render_reflection_truth shades it
                      ///< (viewed from the probe), the sky times sky_ambient where rays leave.

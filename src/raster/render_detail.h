@@ -24,10 +24,10 @@
 #include "raster/render.h"
 #include "raster/scene.h"
 #include "raster/scene_cache.h"
-#include "shading/brdf.h"
-#include "shading/lighting.h"
-#include "shading/scene_sky.h"
-#include "shading/sky.h"
+#include "shading/lighting/brdf.h"
+#include "shading/lighting/lighting.h"
+#include "shading/atmosphere/scene_sky.h"
+#include "shading/atmosphere/sky.h"
 
 namespace posthaste::raster::render_detail {
 

@@ -1,5 +1,5 @@
 // The rasterizer's colour: each visible surface shaded with the shared BRDF and sky
-// (shading/lighting.h) with the sun's shadow: shade() per pixel, the vector lanes in
+// (shading/lighting/lighting.h) with the sun's shadow: shade() per pixel, the vector lanes in
 // render_shade_kernels.cpp.
 #include <algorithm>
 #include <array>
@@ -47,7 +47,7 @@ glm::vec3 shade(
     const glm::vec3 e_sun = s.sun.color * s.sun.illuminance * vis;
     glm::vec3 c(0.0f);
     if (vis > 0.0f) {
-        // Toon materials: n.l quantised to thirds, plus the specular lobe (shading/lighting.h).
+        // Toon materials: n.l quantised to thirds, plus the specular lobe (shading/lighting/lighting.h).
         shading::DirectOptions direct;
         direct.toon_bands = mat.toon ? 3 : 0;
         c = shading::direct_response(surf, n, v, l, direct) * e_sun;

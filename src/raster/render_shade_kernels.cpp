@@ -11,7 +11,7 @@
 #include <hwy/foreach_target.h>
 #include <hwy/highway.h>
 #include "core/hwy_math-inl.h"
-#include "shading/brdf_lanes-inl.h"
+#include "shading/lighting/brdf_lanes-inl.h"
 // clang-format on
 
 #include "raster/color_row.h"

@@ -19,7 +19,7 @@
 #include "metrics/metrics.h"
 #include "raster/render.h"
 #include "raster/scene.h"
-#include "shading/dof_gather.h"
+#include "shading/dof/dof_gather.h"
 
 namespace posthaste {
 namespace {

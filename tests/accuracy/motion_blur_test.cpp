@@ -3,7 +3,7 @@
 // reprojection against the rasterizer's motion pass; and (MotionBlurAccuracySlow) RMSE / PSNR
 // against accumulated ground truth beside doing nothing and the seeds' uniform camera blur.
 
-#include "shading/motion_blur.h"
+#include "shading/motion_blur/motion_blur.h"
 
 #include <gtest/gtest.h>
 
@@ -21,8 +21,8 @@
 #include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
-#include "shading/motion_blur_gather.h"
-#include "shading/reproject.h"
+#include "shading/motion_blur/motion_blur_gather.h"
+#include "shading/motion_blur/reproject.h"
 #include "shading/tiles.h"
 #include "test_util.h"
 

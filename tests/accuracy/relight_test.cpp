@@ -15,8 +15,8 @@
 #include "graph/graph.h"
 #include "metrics/metrics.h"
 #include "nodes/registry.h"
-#include "shading/brdf.h"
-#include "shading/lighting.h"
+#include "shading/lighting/brdf.h"
+#include "shading/lighting/lighting.h"
 #include "test_util.h"
 
 namespace posthaste {

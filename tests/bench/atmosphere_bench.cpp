@@ -10,8 +10,8 @@
 #include "core/image.h"
 #include "core/parallel.h"
 #include "core/simd.h"
-#include "shading/atmosphere.h"
-#include "shading/height_fog.h"
+#include "shading/atmosphere/atmosphere.h"
+#include "shading/fog/height_fog.h"
 
 namespace posthaste::shading {
 namespace {

@@ -13,7 +13,7 @@
 
 #include "bench_util.h"
 #include "raster/render.h"
-#include "shading/dof_gather.h"
+#include "shading/dof/dof_gather.h"
 
 namespace posthaste {
 namespace {

@@ -11,8 +11,8 @@
 #include "bench_util.h"
 #include "core/simd.h"
 #include "raster/render.h"
-#include "shading/hatch.h"
-#include "shading/tam.h"
+#include "shading/hatching/hatch.h"
+#include "shading/hatching/tam.h"
 
 namespace posthaste::shading {
 namespace {

@@ -16,8 +16,8 @@
 #include "bench_util.h"
 #include "core/simd.h"
 #include "raster/render.h"
-#include "shading/motion_blur.h"
-#include "shading/reproject.h"
+#include "shading/motion_blur/motion_blur.h"
+#include "shading/motion_blur/reproject.h"
 
 namespace posthaste::shading {
 namespace {

@@ -17,7 +17,7 @@
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
-#include "shading/brdf.h"
+#include "shading/lighting/brdf.h"
 #include "test_util.h"
 
 namespace posthaste {

@@ -14,9 +14,9 @@
 #include "core/parallel.h"
 #include "core/simd.h"
 #include "raster/ray_cast.h"
-#include "shading/ao_trace.h"
+#include "shading/ao/ao_trace.h"
 #include "shading/camera_rays.h"
-#include "shading/gtao.h"
+#include "shading/ao/gtao.h"
 #include "test_util.h"
 
 namespace posthaste {

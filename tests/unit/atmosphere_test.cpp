@@ -1,4 +1,4 @@
-#include "shading/atmosphere.h"
+#include "shading/atmosphere/atmosphere.h"
 
 #include <gtest/gtest.h>
 

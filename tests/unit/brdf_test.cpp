@@ -1,5 +1,5 @@
 // Tests for src/shading/brdf: hand-computed values, GGX normalisation, finiteness at the edges.
-#include "shading/brdf.h"
+#include "shading/lighting/brdf.h"
 
 #include <gtest/gtest.h>
 

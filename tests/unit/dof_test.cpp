@@ -17,8 +17,8 @@
 #include "io/image_file.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
-#include "shading/dof_coc.h"
-#include "shading/dof_gather.h"
+#include "shading/dof/dof_coc.h"
+#include "shading/dof/dof_gather.h"
 #include "test_util.h"
 
 namespace posthaste {

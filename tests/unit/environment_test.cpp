@@ -3,7 +3,7 @@
 // form, the probe the renderer traces (distances to a known floor, the sky where rays leave), and
 // the renderer's shadow pass (lit and shadowed points of a hand-built scene).
 
-#include "shading/environment.h"
+#include "shading/ssr/environment.h"
 
 #include <gtest/gtest.h>
 
@@ -17,8 +17,8 @@
 #include "raster/render.h"
 #include "raster/scene.h"
 #include "shading/fast_math.h"
-#include "shading/scene_sky.h"
-#include "shading/sky.h"
+#include "shading/atmosphere/scene_sky.h"
+#include "shading/atmosphere/sky.h"
 #include "test_util.h"
 
 namespace posthaste {

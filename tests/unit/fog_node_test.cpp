@@ -15,7 +15,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "shading/camera_rays.h"
-#include "shading/height_fog.h"
+#include "shading/fog/height_fog.h"
 #include "test_util.h"
 
 namespace posthaste {

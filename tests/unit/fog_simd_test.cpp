@@ -15,9 +15,9 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/simd.h"
-#include "shading/atmosphere.h"
+#include "shading/atmosphere/atmosphere.h"
 #include "shading/camera_rays.h"
-#include "shading/height_fog.h"
+#include "shading/fog/height_fog.h"
 
 namespace posthaste::shading {
 namespace {

@@ -15,8 +15,8 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
-#include "shading/hatch.h"
-#include "shading/tam.h"
+#include "shading/hatching/hatch.h"
+#include "shading/hatching/tam.h"
 #include "test_util.h"
 
 namespace posthaste::shading {

@@ -1,4 +1,4 @@
-#include "shading/height_fog.h"
+#include "shading/fog/height_fog.h"
 
 #include <gtest/gtest.h>
 

@@ -5,7 +5,7 @@
 // scene), the planner's optional passes, and the failure cases: non-finite passes, sizes, a still
 // frame's bits.
 
-#include "shading/lighting_split.h"
+#include "shading/lighting/lighting_split.h"
 
 #include <gtest/gtest.h>
 
@@ -22,8 +22,8 @@
 #include "nodes/registry.h"
 #include "raster/render.h"
 #include "raster/scene.h"
-#include "shading/dof_gather.h"
-#include "shading/motion_blur.h"
+#include "shading/dof/dof_gather.h"
+#include "shading/motion_blur/motion_blur.h"
 #include "test_util.h"
 
 namespace posthaste {

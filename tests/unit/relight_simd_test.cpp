@@ -1,5 +1,5 @@
-// The relight node's vector rows (shading/relight_kernels.cpp, one Highway source) against its
-// reference (shading/relight.cpp: prepare_pixel and shading::direct_response, one pixel at a
+// The relight node's vector rows (shading/lighting/relight_kernels.cpp, one Highway source) against its
+// reference (shading/lighting/relight.cpp: prepare_pixel and shading::direct_response, one pixel at a
 // time) on a real frame: the Minecrappy scene's G-buffer at frame 30 with every material kind
 // (rough and glossy dielectrics, metals, the anisotropic ones, toon leaves) under a sun, two
 // point lights and a spot, in both modes and with positions from the position pass or from
@@ -18,7 +18,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
-#include "shading/relight_pixel.h"
+#include "shading/lighting/relight_pixel.h"
 #include "test_util.h"
 namespace posthaste {
 namespace {
