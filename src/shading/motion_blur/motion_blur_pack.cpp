@@ -81,20 +81,20 @@ Packed pack(const Image &color,
     const std::size_t stride = (n + 15) / 16 * 16;
     // The vector rows fold the tile reductions themselves where vectors tile the tiles.
     const bool fold = vector && o.tile % pack_lanes() == 0;
-    Packed out{scratch<float>(stride * kFields),
-               stride,
-               fold ? Image() : Image::uninitialized(w, h, 2),
-               std::vector<unsigned char>(std::size_t(h), 0),
-               Image(),
-               Image()};
-    const Packer p{color,
-                   motion,
-                   depth,
-                   out,
-                   w,
-                   std::min(color.channels(), 4),
-                   0.5f * o.shutter,
-                   std::max(o.max_radius, 0.0f)};
+    Packed out{.block = scratch<float>(stride * kFields),
+               .stride = stride,
+               .velocity = fold ? Image() : Image::uninitialized(w, h, 2),
+               .opaque_rows = std::vector<unsigned char>(std::size_t(h), 0),
+               .tiles = Image(),
+               .bounds = Image()};
+    const Packer p{.color = color,
+                   .motion = motion,
+                   .depth = depth,
+                   .out = out,
+                   .w = w,
+                   .nc = std::min(color.channels(), 4),
+                   .scale = 0.5f * o.shutter,
+                   .max_r = std::max(o.max_radius, 0.0f)};
     if (fold) {
         const int tw = (w + o.tile - 1) / o.tile, th = (h + o.tile - 1) / o.tile;
         out.tiles = Image(tw, th, 2);
