@@ -59,5 +59,6 @@ extern const NodeType kBlur;
 extern const NodeType kSharpen;
 extern const NodeType kAo;
 extern const NodeType kSsr;
+extern const NodeType kCryptomatte;
 
 }  // namespace posthaste::nodes

@@ -12,7 +12,7 @@ const NodeType *const kAllNodes[] = {
     &nodes::kGrade,      &nodes::kMerge,   &nodes::kChannels, &nodes::kFog,       &nodes::kRelight,
     &nodes::kMotionBlur, &nodes::kDof,     &nodes::kBloom,    &nodes::kExposure,  &nodes::kGrain,
     &nodes::kLens,       &nodes::kTonemap, &nodes::kReformat, &nodes::kTransform, &nodes::kCrop,
-    &nodes::kBlur,       &nodes::kSharpen, &nodes::kAo,       &nodes::kSsr,
+    &nodes::kBlur,       &nodes::kSharpen, &nodes::kAo,       &nodes::kSsr,       &nodes::kCryptomatte,
 };
 }  // namespace
 

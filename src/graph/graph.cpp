@@ -1,5 +1,7 @@
 #include "graph/graph.h"
 
+#include "io/cryptomatte.h"
+
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -409,9 +411,13 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
             // frame that carried it along is.
             Frame out = ctx.take_output();
             if (!gn.requested.all) {
+                // A cryptomatte request keeps the rank layers the frame's header declares.
+                const std::set<std::string> ranks =
+                    cryptomatte::requested_ranks(gn.requested.optional, out.attributes, out.pass_names());
                 for (const std::string &name : out.pass_names()) {
                     const std::string base = name.substr(0, name.find('@'));
-                    if (!gn.requested.wants(name) && !gn.requested.wants(base)) {
+                    if (!gn.requested.wants(name) && !gn.requested.wants(base) &&
+                        ranks.count(name) == 0) {
                         out.erase(name);
                     }
                 }

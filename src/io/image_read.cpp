@@ -12,6 +12,7 @@
 #include "core/memory.h"
 #include "core/passes.h"
 #include "core/text.h"
+#include "io/cryptomatte.h"
 #include "io/image_file.h"
 #include "io/io_detail.h"
 #include "io/read_detail.h"
@@ -296,8 +297,31 @@ Frame read_frame(const std::string &path,
             }
             selected.push_back(&*it);
         }
+        // Optional passes the file has; "cryptomatte:<type>" asks for the rank layers of the
+        // cryptomattes its header declares (every one for an empty type).
+        std::set<std::string> also;
+        if (optional) {
+            std::vector<std::string> names;
+            for (const PassSource &p : info.passes) {
+                names.push_back(p.pass);
+            }
+            for (const std::string &request : *optional) {
+                std::string type;
+                if (!cryptomatte::parse_request(request, type)) {
+                    also.insert(request);
+                    continue;
+                }
+                for (const cryptomatte::Layer &l : cryptomatte::find_layers(info.attributes, path)) {
+                    if (type.empty() || l.is(type)) {
+                        for (const std::string &rank : cryptomatte::rank_passes(l, names, path)) {
+                            also.insert(rank);
+                        }
+                    }
+                }
+            }
+        }
         for (const PassSource &p : info.passes) {
-            if (optional && optional->count(p.pass) != 0 && wanted->count(p.pass) == 0) {
+            if (also.count(p.pass) != 0 && wanted->count(p.pass) == 0) {
                 selected.push_back(&p);
             }
         }

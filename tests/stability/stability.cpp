@@ -15,6 +15,7 @@
 #include "core/passes.h"
 #include "graph/graph.h"
 #include "graph/param_json.h"
+#include "io/cryptomatte.h"
 #include "nodes/registry.h"
 
 namespace posthaste::stability {
@@ -132,6 +133,32 @@ Frame plain_frame(int w, int h, int number)
             }
         }
         f.set(name, std::move(img));
+    }
+    // A cryptomatte as a renderer declares it (two ranks: "rock" or "tree" first, the other
+    // second, coverages from the hash), so the cryptomatte node keys every hostile frame.
+    {
+        const float rock = cryptomatte::id_of("rock"), tree = cryptomatte::id_of("tree");
+        Image ranks(w, h, 4);
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                const float u = hash_unit(x, y, 2, 29);
+                float *p = ranks.pixel(x, y);
+                p[0] = u < 0.5f ? rock : tree;
+                p[1] = 0.5f + 0.5f * u;
+                p[2] = u < 0.5f ? tree : rock;
+                p[3] = 0.5f - 0.5f * u;
+            }
+        }
+        f.set("CryptoObject00", std::move(ranks), {"R", "G", "B", "A"});
+        const nlohmann::json manifest = {{"rock", cryptomatte::hex_of(rock)},
+                                         {"tree", cryptomatte::hex_of(tree)}};
+        for (const auto &[field, value] :
+             std::vector<std::pair<std::string, std::string>>{{"name", "CryptoObject"},
+                                                              {"hash", "MurmurHash3_32"},
+                                                              {"conversion", "uint32_to_float32"},
+                                                              {"manifest", manifest.dump()}}) {
+            f.attributes.push_back(OIIO::ParamValue("cryptomatte/6f7a1c2/" + field, value));
+        }
     }
     // A full camera header (this frame, the previous one moved 0.2 units and turned 2 degrees,
     // lens and shutter), so nodes that project or defocus run rather than refuse.
@@ -309,7 +336,12 @@ StabilityResult run_case(const NodeType &type,
     r.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 
     const Frame &out = ctx.output();
+    // A cryptomatte's rank layers hold IDs, hash bits read as floats (any magnitude): the bound
+    // does not apply to them (they must still be finite).
+    const std::set<std::string> ids = cryptomatte::requested_ranks(
+        {cryptomatte::request_for("")}, out.attributes, out.pass_names());
     for (const auto &[name, pass] : out.passes()) {
+        const bool id_layer = ids.count(name) != 0;
         const Image &img = *pass.image;
         // Pixels are matched by file coordinates, so a node that cuts or moves the data window
         // without resampling (crop) is held to where its values came from.
@@ -325,7 +357,9 @@ StabilityResult run_case(const NodeType &type,
                         continue;
                     }
                     if (std::isfinite(v)) {
-                        r.max_abs = std::max(r.max_abs, double(std::fabs(v)));
+                        if (!id_layer) {
+                            r.max_abs = std::max(r.max_abs, double(std::fabs(v)));
+                        }
                         continue;
                     }
                     ++r.nonfinite_out;

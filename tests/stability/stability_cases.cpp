@@ -76,6 +76,10 @@ NodeCases node_cases(const std::string &type)
     } else if (type == "sharpen") {
         c.param_sets.push_back(
             {"strong", {"amount=16", "sigma=8", "clamp_negative=false", "passes=color,normal"}});
+    } else if (type == "cryptomatte") {
+        c.param_sets.push_back({"names", {R"(matte=["rock", "tre?"])"}});
+        c.param_sets.push_back({"keyed", {R"(matte=["*"])", "output=keyed"}});
+        c.param_sets.push_back({"alpha_by_id", {R"(matte=["<1e-30>", "rock"])", "output=alpha"}});
     } else if (type == "ao") {
         c.param_sets.push_back(
             {"wide_many", {"radius=50", "slices=8", "steps=32", "apply=multiply"}});

@@ -1,0 +1,312 @@
+// nodes/cryptomatte.cpp: an ID matte keyed from a Cryptomatte (io/cryptomatte.h): the summed
+// coverage, over every rank, of the IDs whose names the graph lists. Names hash to IDs
+// (MurmurHash3_x86_32, seed 0, the specification's float conversion), so a name keys without a
+// manifest; wildcards search the manifest. The ranks are read from the input frame's header
+// and passes: the node asks its source for them by a "cryptomatte:<layer>" request, which a
+// read resolves against the file's header.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "io/cryptomatte.h"
+#include "io/source_file.h"
+#include "nodes/node.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kLayer =
+    ParamSpec::string("layer", "")
+        .doc(
+            "The cryptomatte, by type name (CryptoObject, CryptoMaterial, CryptoAsset or any "
+            "other; Blender's ViewLayer.CryptoObject answers to CryptoObject); empty: the frame's "
+            "only one.");
+constexpr ParamSpec kMatte = ParamSpec::json("matte", "[]").doc(
+    "The names keyed: a list of strings, each a name, a pattern with * (any run) and ? (one "
+    "character; \\ makes the next character literal), or an ID as <float> or <0x8 hex digits> "
+    "(the manifest's value).");
+constexpr ParamSpec kOutput =
+    ParamSpec::choice("output", "matte|alpha|keyed", "matte")
+        .doc(
+            "matte: add the matte as a pass; alpha: color's alpha becomes the matte; keyed: color "
+            "(alpha too) multiplied by the matte.");
+constexpr ParamSpec kPass = ParamSpec::string("pass", "matte")
+                                .doc("The pass the matte is written to (output matte).")
+                                .only_when("output", "matte");
+constexpr ParamSpec kParams[] = {kLayer, kMatte, kOutput, kPass};
+constexpr PortSpec kInputs[] = {
+    {"image", "", false, "A frame with a cryptomatte: its header and rank layers (<name>00, ...)."}};
+
+/// The matte list as given (checked in check()).
+std::vector<std::string> entries_of(const NodeParams &p)
+{
+    std::vector<std::string> out;
+    for (const auto &e : nlohmann::json::parse(p.get_json(kMatte))) {
+        out.push_back(e.get<std::string>());
+    }
+    return out;
+}
+
+/// An entry's ID when it is one ("<1.5e-12>", "<0x13851a76>").
+bool id_entry(const std::string &e, float &id)
+{
+    if (e.size() < 3 || e.front() != '<' || e.back() != '>') {
+        return false;
+    }
+    const std::string inner = e.substr(1, e.size() - 2);
+    char *end = nullptr;
+    if (inner.size() == 10 && inner[0] == '0' && (inner[1] == 'x' || inner[1] == 'X')) {
+        const unsigned long bits = std::strtoul(inner.c_str() + 2, &end, 16);
+        if (*end != '\0') {
+            return false;
+        }
+        const std::uint32_t b = std::uint32_t(bits);
+        std::memcpy(&id, &b, sizeof(id));
+        return true;
+    }
+    id = std::strtof(inner.c_str(), &end);
+    return end != inner.c_str() && *end == '\0' && std::isfinite(id);
+}
+
+/// Whether the file the pass came from holds an ID channel (R or B) of it as half floats.
+bool stored_as_half(const Frame &f, const Pass &p)
+{
+    if (!f.source) {
+        return false;
+    }
+    for (std::size_t c = 0; c < p.origin.size(); c += 2) {
+        const ChannelOrigin &o = p.origin[c];
+        if (o.part >= 0 && std::size_t(o.part) < f.source->parts.size() &&
+            f.source->parts[std::size_t(o.part)].spec.channelformat(o.channel) ==
+                OIIO::TypeDesc::HALF) {
+            return true;
+        }
+    }
+    return false;
+}
+
+const cryptomatte::Layer &choose_layer(const std::vector<cryptomatte::Layer> &layers,
+                                       const std::string &type,
+                                       const std::string &where)
+{
+    std::string have;
+    for (const cryptomatte::Layer &l : layers) {
+        have += (have.empty() ? "" : ", ") + l.name;
+    }
+    if (layers.empty()) {
+        throw_runtime(where, ": the frame's header declares no cryptomatte (cryptomatte/<key>/name)");
+    }
+    if (type.empty()) {
+        if (layers.size() > 1) {
+            throw_runtime(where, ": the frame has ", layers.size(), " cryptomattes (", have,
+                          "): give layer");
+        }
+        return layers.front();
+    }
+    for (const cryptomatte::Layer &l : layers) {
+        if (l.is(type)) {
+            return l;
+        }
+    }
+    throw_runtime(where, ": no cryptomatte \"", type, "\" in the frame (have: ", have, ")");
+}
+
+/// The IDs the entries key, as float bits, sorted.
+std::vector<std::uint32_t> keyed_ids(NodeContext &ctx,
+                                     const cryptomatte::Layer &layer,
+                                     const std::vector<std::string> &entries)
+{
+    std::vector<std::uint32_t> ids;
+    for (const std::string &e : entries) {
+        float id = 0.0f;
+        if (id_entry(e, id)) {
+            ids.push_back(cryptomatte::bits_of(id));
+        } else if (cryptomatte::has_wildcard(e)) {
+            if (!layer.has_manifest) {
+                throw_runtime(ctx.where(),
+                              ": matte entry \"",
+                              e,
+                              "\": a pattern needs a manifest, and cryptomatte \"",
+                              layer.name,
+                              "\" has none (give names or <ID>s)");
+            }
+            int n = 0;
+            for (const auto &[name, value] : layer.manifest) {
+                if (cryptomatte::name_matches(e, name)) {
+                    ids.push_back(cryptomatte::bits_of(value));
+                    ++n;
+                }
+            }
+            if (n == 0) {
+                ctx.state().note_once(ctx.node().describe() + ": matte entry \"" + e +
+                                      "\" matches no name in the manifest of \"" + layer.name +
+                                      "\"");
+            }
+        } else {
+            ids.push_back(cryptomatte::bits_of(cryptomatte::id_of(cryptomatte::unescape(e))));
+        }
+    }
+    std::sort(ids.begin(), ids.end());
+    ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+    return ids;
+}
+
+/// Summed coverage of `ids` over the rank passes, clamped to [0, 1]; non-finite coverage counts
+/// as none.
+Image matte_of(const std::vector<const Image *> &ranks,
+               const std::vector<std::uint32_t> &ids,
+               int w,
+               int h)
+{
+    Image out = Image::uninitialized(w, h, 1);
+    const bool few = ids.size() <= 8;
+    const auto keyed = [&](float id) {
+        const std::uint32_t b = cryptomatte::bits_of(id);
+        if (few) {
+            for (std::uint32_t k : ids) {
+                if (k == b) {
+                    return true;
+                }
+            }
+            return false;
+        }
+        return std::binary_search(ids.begin(), ids.end(), b);
+    };
+    parallel_for(0, h, [&](int y) {
+        float *o = out.pixel(0, y);
+        std::fill(o, o + w, 0.0f);
+        for (const Image *r : ranks) {
+            const float *p = r->pixel(0, y);
+            for (int x = 0; x < w; ++x, p += 4) {
+                if (p[1] != 0.0f && keyed(p[0]) && std::isfinite(p[1])) {
+                    o[x] += p[1];
+                }
+                if (p[3] != 0.0f && keyed(p[2]) && std::isfinite(p[3])) {
+                    o[x] += p[3];
+                }
+            }
+        }
+        for (int x = 0; x < w; ++x) {
+            o[x] = std::clamp(o[x], 0.0f, 1.0f);
+        }
+    });
+    return out;
+}
+
+void execute(NodeContext &ctx)
+{
+    const Frame &in = ctx.input("image");
+    const std::string where = ctx.where();
+    const std::string path = in.source ? in.source->path : std::string("the frame");
+    std::vector<cryptomatte::Layer> layers;
+    try {
+        layers = cryptomatte::find_layers(in.attributes, path);
+    } catch (const Error &e) {
+        throw Error(e.code(), where + ": " + e.what());
+    }
+    const cryptomatte::Layer &layer = choose_layer(layers, ctx.get_string(kLayer), where);
+    const std::vector<std::string> rank_names =
+        cryptomatte::rank_passes(layer, in.pass_names(), where);
+    if (rank_names.empty()) {
+        throw_runtime(where,
+                      ": cryptomatte \"",
+                      layer.name,
+                      "\" has no rank layer among the frame's passes (",
+                      layer.name,
+                      "00, ...)");
+    }
+    std::vector<const Image *> ranks;
+    for (const std::string &name : rank_names) {
+        const Pass &p = in.pass(name, where);
+        if (p.image->channels() != 4) {
+            throw_runtime(where, ": rank layer \"", name, "\" has ", p.image->channels(),
+                          " channels, expected 4 (id, coverage, id, coverage)");
+        }
+        if (p.storage == PixelStorage::Half || stored_as_half(in, p)) {
+            throw_runtime(where, ": rank layer \"", name,
+                          "\" holds its IDs as half floats, which cannot hold a 32-bit hash "
+                          "(write cryptomatte layers as float)");
+        }
+        ranks.push_back(p.image.get());
+    }
+    const std::vector<std::uint32_t> ids = keyed_ids(ctx, layer, entries_of(ctx.params()));
+    Image matte = matte_of(ranks, ids, in.width(), in.height());
+    const std::string &output = ctx.get_string(kOutput);
+    if (output == "matte") {
+        ctx.output().set(ctx.get_string(kPass), std::move(matte), {"A"});
+        return;
+    }
+    const Pass &cp = in.pass(pass::kColor, where);
+    const Image &color = *cp.image;
+    const int nc = output == "alpha" ? std::max(color.channels(), 4) : color.channels();
+    Image out = Image::uninitialized(color.width(), color.height(), nc);
+    parallel_for(0, out.height(), [&](int y) {
+        for (int x = 0; x < out.width(); ++x) {
+            const float m = matte.at(x, y, 0);
+            const float *s = color.pixel(x, y);
+            float *d = out.pixel(x, y);
+            for (int c = 0; c < nc; ++c) {
+                const float v = c < color.channels() ? s[c] : 1.0f;
+                d[c] = output == "keyed" ? v * m : (c == 3 ? m : v);
+            }
+        }
+    });
+    std::vector<std::string> channels = cp.channels;
+    if (int(channels.size()) < nc) {
+        channels.push_back("A");
+    }
+    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)), channels,
+                     cp.storage);
+}
+
+void plan(PlanContext &ctx)
+{
+    ctx.inputs[0].add_optional(cryptomatte::request_for(ctx.params.get_string(kLayer)));
+    if (ctx.params.get_string(kOutput) != "matte") {
+        ctx.inputs[0].add(pass::kColor);
+    }
+}
+
+void check(CheckContext &ctx)
+{
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(ctx.params.get_json(kMatte));
+    } catch (const nlohmann::json::parse_error &) {
+        throw_param_expected(ctx, kMatte, "a list of names", ctx.params.get_json(kMatte));
+    }
+    if (!j.is_array() || j.empty()) {
+        throw_param_expected(ctx, kMatte, "a non-empty list of names, patterns or <ID>s",
+                             j.dump());
+    }
+    for (const auto &e : j) {
+        float id = 0.0f;
+        if (!e.is_string() || e.get<std::string>().empty()) {
+            throw_param_expected(ctx, kMatte, "names as non-empty strings", e.dump());
+        }
+        const std::string s = e.get<std::string>();
+        if (s.front() == '<' && !id_entry(s, id)) {
+            throw_param_expected(ctx, kMatte, "an ID as <float> or <0x8 hex digits>", quoted(s));
+        }
+    }
+    if (ctx.params.get_string(kOutput) == "matte" && ctx.params.get_string(kPass).empty()) {
+        throw_param_expected(ctx, kPass, "a pass name", "\"\"");
+    }
+}
+
+}  // namespace
+
+extern const NodeType kCryptomatte{
+    {"cryptomatte",
+     "ID matte from a Cryptomatte: the coverage of the objects (or materials, assets) named.",
+     kInputs,
+     kParams,
+     ""},
+    &execute,
+    &plan,
+    &check};
+
+}  // namespace posthaste::nodes

@@ -1,0 +1,351 @@
+// io/cryptomatte.cpp: the Cryptomatte header, IDs and name patterns (io/cryptomatte.h).
+
+#include "io/cryptomatte.h"
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/error.h"
+
+namespace posthaste::cryptomatte {
+
+namespace {
+
+constexpr std::uint32_t rotl(std::uint32_t x, int r) { return (x << r) | (x >> (32 - r)); }
+
+constexpr std::string_view kPrefix = "cryptomatte/";
+constexpr std::string_view kRequest = "cryptomatte:";
+
+/// The 4-byte block at p, little-endian whatever the host.
+std::uint32_t block_at(const unsigned char *p)
+{
+    return std::uint32_t(p[0]) | std::uint32_t(p[1]) << 8 | std::uint32_t(p[2]) << 16 |
+           std::uint32_t(p[3]) << 24;
+}
+
+}  // namespace
+
+std::uint32_t murmur3_32(std::string_view data, std::uint32_t seed)
+{
+    constexpr std::uint32_t c1 = 0xcc9e2d51u, c2 = 0x1b873593u;
+    const auto *bytes = reinterpret_cast<const unsigned char *>(data.data());
+    const std::size_t n = data.size(), blocks = n / 4;
+    std::uint32_t h = seed;
+    const auto mix_in = [&](std::uint32_t k) {
+        k *= c1;
+        k = rotl(k, 15);
+        k *= c2;
+        return k;
+    };
+    for (std::size_t i = 0; i < blocks; ++i) {
+        h ^= mix_in(block_at(bytes + 4 * i));
+        h = rotl(h, 13);
+        h = h * 5u + 0xe6546b64u;
+    }
+    // The 1..3 bytes left over, the first the lowest.
+    std::uint32_t tail = 0;
+    for (std::size_t i = n & 3u; i > 0; --i) {
+        tail = (tail << 8) | bytes[4 * blocks + i - 1];
+    }
+    if ((n & 3u) != 0) {
+        h ^= mix_in(tail);
+    }
+    // Finalisation: every input bit reaches every output bit.
+    h ^= std::uint32_t(n);
+    h ^= h >> 16;
+    h *= 0x85ebca6bu;
+    h ^= h >> 13;
+    h *= 0xc2b2ae35u;
+    h ^= h >> 16;
+    return h;
+}
+
+float id_from_hash(std::uint32_t hash)
+{
+    const std::uint32_t exponent = (hash >> 23) & 0xffu;
+    if (exponent == 0 || exponent == 255) {
+        hash ^= 1u << 23;  // 0 -> 1, 255 -> 254: the exponent kept in 1..254
+    }
+    float f;
+    std::memcpy(&f, &hash, sizeof(f));
+    return f;
+}
+
+float id_of(std::string_view name) { return id_from_hash(murmur3_32(name)); }
+
+std::uint32_t bits_of(float id)
+{
+    std::uint32_t b;
+    std::memcpy(&b, &id, sizeof(b));
+    return b;
+}
+
+std::string hex_of(float id)
+{
+    char s[9];
+    std::snprintf(s, sizeof(s), "%08x", bits_of(id));
+    return s;
+}
+
+bool Layer::is(std::string_view type) const
+{
+    if (name == type) {
+        return true;
+    }
+    return name.size() > type.size() && name.compare(name.size() - type.size(), type.size(),
+                                                      type) == 0 &&
+           name[name.size() - type.size() - 1] == '.';
+}
+
+namespace {
+
+/// The manifest's JSON text as name -> ID, sorted by name; `what` leads the errors.
+std::vector<std::pair<std::string, float>> parse_manifest(const std::string &text,
+                                                          const std::string &what)
+{
+    nlohmann::json j;
+    try {
+        j = nlohmann::json::parse(text);
+    } catch (const nlohmann::json::parse_error &e) {
+        throw_runtime(what, ": the manifest is not JSON (", e.what(), ")");
+    }
+    if (!j.is_object()) {
+        throw_runtime(what, ": the manifest is not a JSON object of name: \"8 hex digits\"");
+    }
+    std::vector<std::pair<std::string, float>> out;
+    for (auto it = j.begin(); it != j.end(); ++it) {
+        const std::string hex = it.value().is_string() ? it.value().get<std::string>() : "";
+        if (hex.size() != 8 || hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos) {
+            throw_runtime(what,
+                          ": manifest entry \"",
+                          it.key(),
+                          "\": expected 8 hex digits, got ",
+                          it.value().dump());
+        }
+        const std::uint32_t bits = std::uint32_t(std::stoul(hex, nullptr, 16));
+        float id;
+        std::memcpy(&id, &bits, sizeof(id));
+        out.emplace_back(it.key(), id);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+}  // namespace
+
+std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes, const std::string &image_path)
+{
+    // cryptomatte/<key>/<field>, grouped by key.
+    std::map<std::string, std::map<std::string, std::string>> by_key;
+    for (const OIIO::ParamValue &p : attributes) {
+        const std::string n = p.name().string();
+        if (n.compare(0, kPrefix.size(), kPrefix) != 0) {
+            continue;
+        }
+        const std::size_t slash = n.find('/', kPrefix.size());
+        if (slash == std::string::npos) {
+            continue;
+        }
+        const std::string key = n.substr(kPrefix.size(), slash - kPrefix.size());
+        by_key[key][n.substr(slash + 1)] = p.get_string();
+    }
+    std::vector<Layer> layers;
+    for (const auto &[key, fields] : by_key) {
+        const auto field = [&](const char *f) {
+            const auto it = fields.find(f);
+            return it == fields.end() ? std::string() : it->second;
+        };
+        Layer l;
+        l.key = key;
+        l.name = field("name");
+        const std::string what =
+            image_path + ": cryptomatte \"" + (l.name.empty() ? key : l.name) + "\"";
+        if (l.name.empty()) {
+            throw_runtime(what, ": the header has no cryptomatte/", key, "/name");
+        }
+        if (field("hash") != "MurmurHash3_32") {
+            throw_runtime(what,
+                          ": hash \"",
+                          field("hash"),
+                          "\" (only MurmurHash3_32 is specified)");
+        }
+        if (field("conversion") != "uint32_to_float32") {
+            throw_runtime(what,
+                          ": conversion \"",
+                          field("conversion"),
+                          "\" (only uint32_to_float32 is specified)");
+        }
+        if (fields.count("manifest")) {
+            l.manifest = parse_manifest(field("manifest"), what);
+            l.has_manifest = true;
+            l.manifest_from = "header";
+        } else if (fields.count("manif_file")) {
+            const std::filesystem::path sidecar =
+                std::filesystem::path(image_path).parent_path() / field("manif_file");
+            std::ifstream in(sidecar);
+            if (!in) {
+                throw_runtime(what, ": cannot read its manifest file ", sidecar.string());
+            }
+            std::stringstream text;
+            text << in.rdbuf();
+            l.manifest = parse_manifest(text.str(), what + " (" + sidecar.string() + ")");
+            l.has_manifest = true;
+            l.manifest_from = sidecar.string();
+        }
+        layers.push_back(std::move(l));
+    }
+    std::sort(layers.begin(), layers.end(), [](const Layer &a, const Layer &b) {
+        return a.name < b.name;
+    });
+    return layers;
+}
+
+std::vector<std::string> rank_passes(const Layer &layer,
+                                     const std::vector<std::string> &pass_names,
+                                     const std::string &where)
+{
+    // <name>NN for every NN present; the highest decides how many there must be.
+    int highest = -1;
+    std::vector<bool> present(100, false);
+    for (const std::string &p : pass_names) {
+        if (p.size() == layer.name.size() + 2 && p.compare(0, layer.name.size(), layer.name) == 0 &&
+            std::isdigit(static_cast<unsigned char>(p[p.size() - 2])) &&
+            std::isdigit(static_cast<unsigned char>(p[p.size() - 1]))) {
+            const int k = std::stoi(p.substr(p.size() - 2));
+            present[std::size_t(k)] = true;
+            highest = std::max(highest, k);
+        }
+    }
+    std::vector<std::string> out;
+    for (int k = 0; k <= highest; ++k) {
+        const std::string suffix = {char('0' + k / 10), char('0' + k % 10)};
+        if (!present[std::size_t(k)]) {
+            throw_runtime(where,
+                          ": cryptomatte \"",
+                          layer.name,
+                          "\" has rank layer ",
+                          layer.name,
+                          highest < 10 ? "0" : "",
+                          highest,
+                          " but not ",
+                          layer.name,
+                          suffix);
+        }
+        out.push_back(layer.name + suffix);
+    }
+    return out;
+}
+
+bool name_matches(std::string_view pattern, std::string_view name)
+{
+    // Iterative glob with one backtrack point (the last `*`).
+    std::size_t p = 0, n = 0, star_p = std::string_view::npos, star_n = 0;
+    while (n < name.size()) {
+        if (p < pattern.size() && pattern[p] == '*') {
+            star_p = ++p;
+            star_n = n;
+            continue;
+        }
+        if (p < pattern.size()) {
+            const bool escaped = pattern[p] == '\\' && p + 1 < pattern.size();
+            const char c = escaped ? pattern[p + 1] : pattern[p];
+            if ((!escaped && c == '?') || c == name[n]) {
+                p += escaped ? 2 : 1;
+                ++n;
+                continue;
+            }
+        }
+        if (star_p == std::string_view::npos) {
+            return false;
+        }
+        p = star_p;
+        n = ++star_n;
+    }
+    while (p < pattern.size() && pattern[p] == '*') {
+        ++p;
+    }
+    return p == pattern.size();
+}
+
+bool has_wildcard(std::string_view pattern)
+{
+    for (std::size_t i = 0; i < pattern.size(); ++i) {
+        if (pattern[i] == '\\') {
+            ++i;
+        } else if (pattern[i] == '*' || pattern[i] == '?') {
+            return true;
+        }
+    }
+    return false;
+}
+
+std::string unescape(std::string_view pattern)
+{
+    std::string out;
+    for (std::size_t i = 0; i < pattern.size(); ++i) {
+        if (pattern[i] == '\\' && i + 1 < pattern.size()) {
+            ++i;
+        }
+        out += pattern[i];
+    }
+    return out;
+}
+
+std::string request_for(std::string_view type) { return std::string(kRequest) + std::string(type); }
+
+bool parse_request(std::string_view request, std::string &type)
+{
+    if (request.compare(0, kRequest.size(), kRequest) != 0) {
+        return false;
+    }
+    type = std::string(request.substr(kRequest.size()));
+    return true;
+}
+
+std::set<std::string> requested_ranks(const std::set<std::string> &optional,
+                                      const OIIO::ParamValueList &attributes,
+                                      const std::vector<std::string> &pass_names)
+{
+    std::set<std::string> out;
+    std::vector<std::string> types;
+    for (const std::string &request : optional) {
+        std::string type;
+        if (parse_request(request, type)) {
+            types.push_back(type);
+        }
+    }
+    if (types.empty()) {
+        return out;
+    }
+    // The names alone: a declaration's other fields (and its sidecar) are not needed to keep
+    // its layers.
+    for (const OIIO::ParamValue &p : attributes) {
+        const std::string n = p.name().string();
+        if (n.compare(0, kPrefix.size(), kPrefix) != 0 || n.size() < 5 ||
+            n.compare(n.size() - 5, 5, "/name") != 0) {
+            continue;
+        }
+        Layer l;
+        l.name = p.get_string();
+        for (const std::string &type : types) {
+            if (type.empty() || l.is(type)) {
+                for (const std::string &pass : pass_names) {
+                    if (pass.size() == l.name.size() + 2 &&
+                        pass.compare(0, l.name.size(), l.name) == 0 &&
+                        std::isdigit(static_cast<unsigned char>(pass[pass.size() - 2])) &&
+                        std::isdigit(static_cast<unsigned char>(pass[pass.size() - 1]))) {
+                        out.insert(pass);
+                    }
+                }
+            }
+        }
+    }
+    return out;
+}
+
+}  // namespace posthaste::cryptomatte

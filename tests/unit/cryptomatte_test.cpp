@@ -1,0 +1,343 @@
+// Cryptomatte: the hash and its float conversion against published values, the name patterns,
+// and mattes keyed from files written the way renderers write them (io/cryptomatte.h,
+// nodes/cryptomatte.cpp).
+
+#include "io/cryptomatte.h"
+
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "core/error.h"
+#include "graph/graph.h"
+#include "io/image_file.h"
+#include "nodes/registry.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+using cryptomatte::hex_of;
+using cryptomatte::id_of;
+using cryptomatte::murmur3_32;
+using cryptomatte::name_matches;
+
+// SMHasher's verification values for MurmurHash3_x86_32 (as listed with the reference code).
+TEST(Cryptomatte, MurmurHashMatchesPublishedValues)
+{
+    EXPECT_EQ(murmur3_32("", 0), 0u);
+    EXPECT_EQ(murmur3_32("", 1), 0x514E28B7u);
+    EXPECT_EQ(murmur3_32("", 0xffffffffu), 0x81F16F39u);
+    EXPECT_EQ(murmur3_32(std::string_view("\0\0\0\0", 4), 0), 0x2362F9DEu);
+    EXPECT_EQ(murmur3_32("aaaa", 0x9747b28cu), 0x5A97808Au);
+    EXPECT_EQ(murmur3_32("aaa", 0x9747b28cu), 0x283E0130u);
+    EXPECT_EQ(murmur3_32("aa", 0x9747b28cu), 0x5D211726u);
+    EXPECT_EQ(murmur3_32("a", 0x9747b28cu), 0x7FA09EA6u);
+    EXPECT_EQ(murmur3_32("Hello, world!", 0x9747b28cu), 0x24884CBAu);
+    EXPECT_EQ(murmur3_32("The quick brown fox jumps over the lazy dog", 0x9747b28cu),
+              0x2FA826CDu);
+}
+
+// The specification's example manifest: names and the hex of their float IDs.
+TEST(Cryptomatte, IdsMatchTheSpecificationsManifest)
+{
+    EXPECT_EQ(hex_of(id_of("bunny")), "13851a76");
+    EXPECT_EQ(hex_of(id_of("default")), "42c9679f");
+    EXPECT_EQ(hex_of(id_of("bunny_porcelain_mat")), "b24b26d4");
+}
+
+// The exponent is kept in 1..254: no zero, denormal, infinite or NaN ID.
+TEST(Cryptomatte, FloatConversionKeepsTheExponentAwayFromZeroAnd255)
+{
+    EXPECT_EQ(cryptomatte::bits_of(cryptomatte::id_from_hash(0x00000005u)), 0x00800005u);
+    EXPECT_EQ(cryptomatte::bits_of(cryptomatte::id_from_hash(0x7f800000u)), 0x7f000000u);
+    EXPECT_EQ(cryptomatte::bits_of(cryptomatte::id_from_hash(0xff800001u)), 0xff000001u);
+    EXPECT_EQ(cryptomatte::bits_of(cryptomatte::id_from_hash(0x3f800000u)), 0x3f800000u);
+    for (std::uint32_t h = 0; h < 100000; ++h) {
+        const float id = cryptomatte::id_from_hash(murmur3_32(std::to_string(h)));
+        ASSERT_TRUE(std::isnormal(id)) << h;
+    }
+}
+
+TEST(Cryptomatte, NamePatterns)
+{
+    EXPECT_TRUE(name_matches("bunny", "bunny"));
+    EXPECT_FALSE(name_matches("bunny", "bunny2"));
+    EXPECT_TRUE(name_matches("bun*", "bunny"));
+    EXPECT_TRUE(name_matches("*", ""));
+    EXPECT_TRUE(name_matches("*ny", "bunny"));
+    EXPECT_TRUE(name_matches("b?nny", "bunny"));
+    EXPECT_FALSE(name_matches("b?nny", "bnny"));
+    EXPECT_TRUE(name_matches("a*b*c", "a_b_b_c"));
+    EXPECT_FALSE(name_matches("a*b*c", "a_b_b_d"));
+    EXPECT_TRUE(name_matches("star\\*", "star*"));
+    EXPECT_FALSE(name_matches("star\\*", "starfish"));
+    EXPECT_TRUE(name_matches("what\\?", "what?"));
+    EXPECT_FALSE(name_matches("what\\?", "whatz"));
+    EXPECT_TRUE(name_matches("floor[1]", "floor[1]"));  // brackets are literal
+    EXPECT_FALSE(name_matches("floor[1]", "floor1"));
+    EXPECT_TRUE(cryptomatte::has_wildcard("a*"));
+    EXPECT_FALSE(cryptomatte::has_wildcard("a\\*"));
+    EXPECT_EQ(cryptomatte::unescape("star\\*\\\\"), "star*\\");
+}
+
+/// One pixel's ranks: (name, coverage), most coverage first.
+using Ranks = std::vector<std::pair<std::string, float>>;
+
+struct CryptoFile {
+    std::string layer = "CryptoObject";  ///< the layers' prefix
+    int rank_layers = 2;
+    bool half_ids = false;
+    bool manifest = true;
+    std::string hash = "MurmurHash3_32";
+    std::vector<int> skip_layers;  ///< rank layers left out
+};
+
+/// A 4x2 EXR as a renderer writes it: color, the rank layers and the header declaration.
+std::string write_crypto_file(const std::string &path,
+                              const CryptoFile &cf,
+                              const std::vector<Ranks> &pixels,
+                              const std::vector<std::string> &names)
+{
+    const int w = 4, h = 2;
+    std::vector<std::string> channels = {"R", "G", "B", "A"};
+    std::vector<int> layers;
+    for (int k = 0; k < cf.rank_layers; ++k) {
+        if (std::find(cf.skip_layers.begin(), cf.skip_layers.end(), k) == cf.skip_layers.end()) {
+            layers.push_back(k);
+            for (const char *c : {"R", "G", "B", "A"}) {
+                const std::string suffix = {char('0' + k / 10), char('0' + k % 10), '.'};
+                channels.push_back(cf.layer + suffix + c);
+            }
+        }
+    }
+    OIIO::ImageSpec spec(w, h, int(channels.size()), OIIO::TypeDesc::FLOAT);
+    spec.channelnames = channels;
+    if (cf.half_ids) {
+        spec.channelformats.assign(channels.size(), OIIO::TypeDesc::FLOAT);
+        for (std::size_t c = 4; c < channels.size(); ++c) {
+            spec.channelformats[c] = OIIO::TypeDesc::HALF;
+        }
+    }
+    const std::string key = hex_of(id_of(cf.layer)).substr(0, 7);
+    spec.attribute("cryptomatte/" + key + "/name", cf.layer);
+    spec.attribute("cryptomatte/" + key + "/hash", cf.hash);
+    spec.attribute("cryptomatte/" + key + "/conversion", "uint32_to_float32");
+    if (cf.manifest) {
+        nlohmann::json m = nlohmann::json::object();
+        for (const std::string &n : names) {
+            m[n] = hex_of(id_of(n));
+        }
+        spec.attribute("cryptomatte/" + key + "/manifest", m.dump());
+    }
+    std::vector<float> data(std::size_t(w * h) * channels.size(), 0.0f);
+    for (int i = 0; i < w * h; ++i) {
+        float *px = data.data() + std::size_t(i) * channels.size();
+        px[0] = px[1] = px[2] = 0.5f;
+        px[3] = 1.0f;
+        const Ranks &r = pixels[std::size_t(i)];
+        int slot = 4;
+        for (int k : layers) {
+            for (int j = 0; j < 2; ++j) {
+                const std::size_t rank = std::size_t(2 * k + j);
+                if (rank < r.size()) {
+                    px[slot + 2 * j] = id_of(r[rank].first);
+                    px[slot + 2 * j + 1] = r[rank].second;
+                }
+            }
+            slot += 4;
+        }
+    }
+    auto out = OIIO::ImageOutput::create(path);
+    EXPECT_TRUE(out && out->open(path, spec));
+    EXPECT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data()));
+    out->close();
+    return path;
+}
+
+const std::vector<std::string> kNames = {"bunny", "floor[1]", "star*", "default", "what?"};
+
+/// Every pixel has up to 4 ranks over these names.
+std::vector<Ranks> sample_pixels()
+{
+    return {
+        {{"bunny", 1.0f}},
+        {{"bunny", 0.5f}, {"floor[1]", 0.3f}, {"star*", 0.2f}},
+        {{"floor[1]", 0.6f}, {"default", 0.25f}, {"what?", 0.1f}, {"star*", 0.05f}},
+        {},
+        {{"star*", 0.75f}, {"bunny", 0.25f}},
+        {{"default", 1.0f}},
+        {{"what?", 0.4f}, {"bunny", 0.35f}, {"default", 0.15f}, {"floor[1]", 0.1f}},
+        {{"floor[1]", 0.9f}, {"bunny", 0.1f}},
+    };
+}
+
+/// The matte by hand: the coverages of the keyed names, summed in rank order.
+std::vector<float> expected_matte(const std::vector<Ranks> &pixels, const std::set<std::string> &keyed)
+{
+    std::vector<float> out;
+    for (const Ranks &r : pixels) {
+        float sum = 0.0f;
+        for (const auto &[name, cov] : r) {
+            if (keyed.count(name)) {
+                sum += cov;
+            }
+        }
+        out.push_back(std::clamp(sum, 0.0f, 1.0f));
+    }
+    return out;
+}
+
+/// The graph read -> cryptomatte with `params`, its output frame (the matte through the
+/// planner: the read gets the ranks from the node's request alone).
+Frame key(const std::string &path, const std::string &params)
+{
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" + path + R"("}},
+        {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"}, "params": )" + params +
+                               R"(},
+        {"id": "out", "type": "write", "inputs": {"image": "key"},
+         "params": {"path": ")" + path + R"(.out.exr", "passes": ")" +
+                               (params.find("output") == std::string::npos ? "matte" : "color") +
+                               R"("}}]})",
+                           "cryptomatte test",
+                           nodes::catalog());
+    g.set_capture("key");
+    return g.evaluate(1);
+}
+
+std::vector<float> values(const Image &img)
+{
+    return std::vector<float>(img.data(), img.data() + img.value_count());
+}
+
+TEST(Cryptomatte, MatteIsTheSummedCoverageOfTheNamesKeyed)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_keyed");
+    const std::vector<Ranks> pixels = sample_pixels();
+    const std::string path = write_crypto_file(dir + "/a.exr", CryptoFile{}, pixels, kNames);
+    // Names (brackets literal), an escaped wildcard, a pattern over the manifest, an ID.
+    EXPECT_EQ(values(key(path, R"({"matte": ["bunny"]})").image("matte")),
+              expected_matte(pixels, {"bunny"}));
+    EXPECT_EQ(values(key(path, R"({"matte": ["floor[1]", "star\\*"]})").image("matte")),
+              expected_matte(pixels, {"floor[1]", "star*"}));
+    EXPECT_EQ(values(key(path, R"({"matte": ["what\\?", "d*"]})").image("matte")),
+              expected_matte(pixels, {"what?", "default"}));
+    EXPECT_EQ(values(key(path, R"({"matte": ["*"]})").image("matte")),
+              expected_matte(pixels, {"bunny", "floor[1]", "star*", "default", "what?"}));
+    EXPECT_EQ(values(key(path, R"({"matte": ["<0x)" + hex_of(id_of("default")) + R"(>"]})")
+                         .image("matte")),
+              expected_matte(pixels, {"default"}));
+    // A pattern that matches no name keys nothing; so does a name no pixel has.
+    EXPECT_EQ(values(key(path, R"({"matte": ["zebra*", "lion"]})").image("matte")),
+              std::vector<float>(8, 0.0f));
+}
+
+TEST(Cryptomatte, KeyedAndAlphaOutputs)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_outputs");
+    const std::vector<Ranks> pixels = sample_pixels();
+    const std::string path = write_crypto_file(dir + "/a.exr", CryptoFile{}, pixels, kNames);
+    const std::vector<float> m = expected_matte(pixels, {"bunny"});
+    const Image keyed = key(path, R"({"matte": ["bunny"], "output": "keyed"})").image("color");
+    const Image alpha = key(path, R"({"matte": ["bunny"], "output": "alpha"})").image("color");
+    for (int i = 0; i < 8; ++i) {
+        EXPECT_EQ(keyed.data()[4 * i], 0.5f * m[std::size_t(i)]);
+        EXPECT_EQ(keyed.data()[4 * i + 3], m[std::size_t(i)]);
+        EXPECT_EQ(alpha.data()[4 * i], 0.5f);
+        EXPECT_EQ(alpha.data()[4 * i + 3], m[std::size_t(i)]);
+    }
+}
+
+// Blender names its layers after the view layer: ViewLayer.CryptoObject00. A name keys without
+// a manifest; a pattern does not.
+TEST(Cryptomatte, ViewLayerPrefixAndNoManifest)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_blender");
+    const std::vector<Ranks> pixels = sample_pixels();
+    CryptoFile cf;
+    cf.layer = "ViewLayer.CryptoObject";
+    cf.manifest = false;
+    const std::string path = write_crypto_file(dir + "/b.exr", cf, pixels, kNames);
+    EXPECT_EQ(values(key(path, R"({"layer": "CryptoObject", "matte": ["bunny"]})").image("matte")),
+              expected_matte(pixels, {"bunny"}));
+    try {
+        key(path, R"({"matte": ["bun*"]})");
+        FAIL() << "a pattern without a manifest was accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("a pattern needs a manifest"), std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(Cryptomatte, FilesThatBreakTheSpecificationAreNamed)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_bad");
+    const std::vector<Ranks> pixels = sample_pixels();
+    const auto error_of = [&](const CryptoFile &cf, const std::string &params) {
+        const std::string path = write_crypto_file(dir + "/bad.exr", cf, pixels, kNames);
+        try {
+            key(path, params);
+        } catch (const Error &e) {
+            return std::string(e.what());
+        }
+        return std::string("accepted");
+    };
+    CryptoFile hash;
+    hash.hash = "md5";
+    EXPECT_NE(error_of(hash, R"({"matte": ["bunny"]})")
+                  .find("cryptomatte \"CryptoObject\": hash \"md5\" (only MurmurHash3_32"),
+              std::string::npos);
+    CryptoFile gap;
+    gap.rank_layers = 3;
+    gap.skip_layers = {1};
+    EXPECT_NE(error_of(gap, R"({"matte": ["bunny"]})")
+                  .find("has rank layer CryptoObject02 but not CryptoObject01"),
+              std::string::npos);
+    CryptoFile half;
+    half.half_ids = true;
+    EXPECT_NE(error_of(half, R"({"matte": ["bunny"]})").find("holds its IDs as half floats"),
+              std::string::npos);
+    EXPECT_NE(error_of(CryptoFile{}, R"({"layer": "CryptoMaterial", "matte": ["bunny"]})")
+                  .find("no cryptomatte \"CryptoMaterial\" in the frame (have: CryptoObject)"),
+              std::string::npos);
+}
+
+TEST(Cryptomatte, GraphErrorsNameTheParameter)
+{
+    const auto error_of = [](const std::string &params) {
+        try {
+            Graph g = Graph::parse(R"({"nodes": [
+                {"id": "src", "type": "read", "params": {"path": "x.exr"}},
+                {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"}, "params": )" +
+                                       params + R"(},
+                {"id": "out", "type": "write", "inputs": {"image": "key"},
+                 "params": {"path": "o.exr", "passes": "matte"}}]})",
+                                   "g.json",
+                                   nodes::catalog());
+            g.set_capture("key");
+            for (const GraphNode &n : g.nodes()) {
+                if (n.type->check && n.identity.id == "key") {
+                    CheckContext ctx{n.params, n.identity, n.requested, {1}, {true}};
+                    n.type->check(ctx);
+                }
+            }
+        } catch (const Error &e) {
+            return std::string(e.what());
+        }
+        return std::string("accepted");
+    };
+    EXPECT_NE(error_of(R"({"matte": []})").find("param \"matte\": expected a non-empty list"),
+              std::string::npos);
+    EXPECT_NE(error_of(R"({"matte": ["<nope>"]})").find("expected an ID as <float>"),
+              std::string::npos);
+    EXPECT_NE(error_of(R"({"matte": [3]})").find("names as non-empty strings"), std::string::npos);
+    EXPECT_EQ(error_of(R"({"matte": ["bunny", "<0x13851a76>", "<1.5e-3>"]})"), "accepted");
+}
+
+}  // namespace
+}  // namespace posthaste
