@@ -162,9 +162,20 @@ Image matte_of(const std::vector<const Image *> &ranks,
                int h)
 {
     Image out = Image::uninitialized(w, h, 1);
+    // Most samples hold an ID that is not keyed: a 65,536-bit filter (8 KB, in L1) of the keyed
+    // IDs' hashed bits turns almost all of them away with one test; the rest are looked up.
+    std::vector<std::uint64_t> filter(1024, 0);
+    const auto slot = [](std::uint32_t b) { return (b * 0x9E3779B1u) >> 16; };
+    for (std::uint32_t b : ids) {
+        filter[slot(b) >> 6] |= std::uint64_t(1) << (slot(b) & 63u);
+    }
     const bool few = ids.size() <= 8;
     const auto keyed = [&](float id) {
         const std::uint32_t b = cryptomatte::bits_of(id);
+        const std::uint32_t s = slot(b);
+        if ((filter[s >> 6] >> (s & 63u) & 1u) == 0) {
+            return false;
+        }
         if (few) {
             for (std::uint32_t k : ids) {
                 if (k == b) {
@@ -181,10 +192,17 @@ Image matte_of(const std::vector<const Image *> &ranks,
         for (const Image *r : ranks) {
             const float *p = r->pixel(0, y);
             for (int x = 0; x < w; ++x, p += 4) {
-                if (p[1] != 0.0f && keyed(p[0]) && std::isfinite(p[1])) {
+                // Both ranks of the pixel through the filter, one branch for the pair.
+                const std::uint32_t s0 = slot(cryptomatte::bits_of(p[0]));
+                const std::uint32_t s2 = slot(cryptomatte::bits_of(p[2]));
+                if ((((filter[s0 >> 6] >> (s0 & 63u)) | (filter[s2 >> 6] >> (s2 & 63u))) & 1u) ==
+                    0) {
+                    continue;
+                }
+                if (keyed(p[0]) && std::isfinite(p[1])) {
                     o[x] += p[1];
                 }
-                if (p[3] != 0.0f && keyed(p[2]) && std::isfinite(p[3])) {
+                if (keyed(p[2]) && std::isfinite(p[3])) {
                     o[x] += p[3];
                 }
             }

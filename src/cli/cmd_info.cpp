@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/passes.h"
 #include "io/image_file.h"
+#include "io/cryptomatte.h"
 #include "nodes/read_camera.h"
 
 namespace posthaste::cli {
@@ -159,6 +160,30 @@ int info(const std::vector<std::string> &files, const std::string &convention)
         print_scalar("shutter", camera.shutter, " (fraction of a frame)");
         print_scalar("nearClip", camera.near_clip, "");
         print_scalar("farClip", camera.far_clip, "");
+        // Cryptomattes: their ranks and manifests, or why the file breaks the specification.
+        try {
+            std::vector<std::string> pass_names;
+            for (const PassSource &ps : fi.passes) {
+                pass_names.push_back(ps.pass);
+            }
+            for (const cryptomatte::Layer &l : cryptomatte::find_layers(fi.attributes, fi.path)) {
+                const std::vector<std::string> ranks =
+                    cryptomatte::rank_passes(l, pass_names, fi.path);
+                std::string manifest = "no manifest";
+                if (l.has_manifest) {
+                    manifest = "manifest of " + std::to_string(l.manifest.size()) + " names (" +
+                               (l.manifest_from == "header" ? "header" : l.manifest_from) + ")";
+                }
+                std::printf("cryptomatte        %s (key %s): %zu rank layers (%zu ranks), %s\n",
+                            l.name.c_str(),
+                            l.key.c_str(),
+                            ranks.size(),
+                            2 * ranks.size(),
+                            manifest.c_str());
+            }
+        } catch (const Error &e) {
+            std::printf("cryptomatte        invalid: %s\n", e.what());
+        }
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {
             std::printf(

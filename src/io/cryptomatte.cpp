@@ -78,13 +78,6 @@ float id_from_hash(std::uint32_t hash)
 
 float id_of(std::string_view name) { return id_from_hash(murmur3_32(name)); }
 
-std::uint32_t bits_of(float id)
-{
-    std::uint32_t b;
-    std::memcpy(&b, &id, sizeof(b));
-    return b;
-}
-
 std::string hex_of(float id)
 {
     char s[9];

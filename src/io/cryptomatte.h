@@ -14,6 +14,7 @@
 #include <OpenImageIO/paramlist.h>
 
 #include <cstdint>
+#include <cstring>
 #include <set>
 #include <string>
 #include <string_view>
@@ -29,7 +30,12 @@ float id_from_hash(std::uint32_t hash);
 /// The ID of a name: id_from_hash(murmur3_32(name)).
 float id_of(std::string_view name);
 /// The bits of an ID (what the manifest writes as 8 hex digits).
-std::uint32_t bits_of(float id);
+inline std::uint32_t bits_of(float id)
+{
+    std::uint32_t b;
+    std::memcpy(&b, &id, sizeof(b));
+    return b;
+}
 /// "13851a76" for an ID.
 std::string hex_of(float id);
 

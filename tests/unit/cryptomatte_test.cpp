@@ -307,6 +307,77 @@ TEST(Cryptomatte, FilesThatBreakTheSpecificationAreNamed)
               std::string::npos);
 }
 
+// `info` lists each cryptomatte with its ranks and manifest; a file that breaks the
+// specification says why.
+TEST(Cryptomatte, InfoListsEachCryptomatte)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_info");
+    write_crypto_file(dir + "/a.exr", CryptoFile{}, sample_pixels(), kNames);
+    std::string out;
+    ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " + dir + "/a.exr", &out), 0)
+        << out;
+    EXPECT_NE(out.find("cryptomatte        CryptoObject (key " +
+                       hex_of(id_of("CryptoObject")).substr(0, 7) +
+                       "): 2 rank layers (4 ranks), manifest of 5 names (header)"),
+              std::string::npos)
+        << out;
+    CryptoFile gap;
+    gap.rank_layers = 3;
+    gap.skip_layers = {0};
+    write_crypto_file(dir + "/b.exr", gap, sample_pixels(), kNames);
+    ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " + dir + "/b.exr", &out), 0)
+        << out;
+    EXPECT_NE(out.find("cryptomatte        invalid: "), std::string::npos) << out;
+    EXPECT_NE(out.find("has rank layer CryptoObject02 but not CryptoObject00"), std::string::npos)
+        << out;
+}
+
+// Read and written back (a grade on colour in between), the rank layers and the declaration
+// come out bit for bit.
+TEST(Cryptomatte, RankLayersPassThroughBitForBit)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_through");
+    const std::string in = write_crypto_file(dir + "/in.exr", CryptoFile{}, sample_pixels(), kNames);
+    const std::string out = dir + "/out.exr";
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" + in + R"("}},
+        {"id": "grade", "type": "grade", "inputs": {"image": "src"}, "params": {"exposure": 1}},
+        {"id": "out", "type": "write", "inputs": {"image": "grade"}, "params": {"path": ")" +
+                               out + R"("}}]})",
+                           "through",
+                           nodes::catalog());
+    g.evaluate(1);
+    auto a = OIIO::ImageInput::open(in), b = OIIO::ImageInput::open(out);
+    ASSERT_TRUE(a && b);
+    const OIIO::ImageSpec &sa = a->spec(), &sb = b->spec();
+    for (const char *attr : {"name", "hash", "conversion", "manifest"}) {
+        const std::string key = "cryptomatte/" + hex_of(id_of("CryptoObject")).substr(0, 7) + "/" + attr;
+        EXPECT_EQ(sa.get_string_attribute(key), sb.get_string_attribute(key)) << key;
+    }
+    std::vector<float> pa(std::size_t(sa.image_pixels()) * std::size_t(sa.nchannels)),
+        pb(std::size_t(sb.image_pixels()) * std::size_t(sb.nchannels));
+    ASSERT_TRUE(a->read_image(0, 0, 0, sa.nchannels, OIIO::TypeDesc::FLOAT, pa.data()));
+    ASSERT_TRUE(b->read_image(0, 0, 0, sb.nchannels, OIIO::TypeDesc::FLOAT, pb.data()));
+    int compared = 0;
+    for (int ca = 0; ca < sa.nchannels; ++ca) {
+        const std::string &name = sa.channelnames[std::size_t(ca)];
+        if (name.rfind("CryptoObject", 0) != 0) {
+            continue;
+        }
+        const auto it = std::find(sb.channelnames.begin(), sb.channelnames.end(), name);
+        ASSERT_NE(it, sb.channelnames.end()) << name;
+        const int cb = int(it - sb.channelnames.begin());
+        EXPECT_EQ(sb.channelformat(cb), OIIO::TypeDesc::FLOAT) << name;
+        for (int i = 0; i < int(sa.image_pixels()); ++i) {
+            ASSERT_EQ(cryptomatte::bits_of(pa[std::size_t(i * sa.nchannels + ca)]),
+                      cryptomatte::bits_of(pb[std::size_t(i * sb.nchannels + cb)]))
+                << name << " pixel " << i;
+        }
+        ++compared;
+    }
+    EXPECT_EQ(compared, 8);
+}
+
 TEST(Cryptomatte, GraphErrorsNameTheParameter)
 {
     const auto error_of = [](const std::string &params) {
