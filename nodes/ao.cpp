@@ -11,6 +11,7 @@
 #include <cmath>
 
 #include "core/sanitize.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 #include "shading/ao/ao_trace.h"
 #include "shading/camera_rays.h"
@@ -83,9 +84,9 @@ constexpr ParamSpec kParams[] = {kRadius,
                                  kMethod,
                                  kRays,
                                  kRaySteps,
-                                 kThickness};
+                                 kThickness, kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {
-    {"image", "depth,normal", false, "Depth, world normals and camera matrices."}};
+    {"image", "depth,normal", false, "Depth, world normals and camera matrices."}, kMaskPort};
 
 constexpr Binding<shading::GtaoParams> kGtaoFields[] = {
     bind<&shading::GtaoParams::radius>(kRadius),
@@ -177,7 +178,7 @@ extern const NodeType kAo{
      "Screen-space ambient occlusion (GTAO) from depth, normals and the camera; pass \"ao\".",
      kInputs,
      kParams,
-     "ao"},
+     "ao", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     &plan,
     nullptr,

@@ -16,6 +16,7 @@
 
 #include "core/sanitize.h"
 #include "io/image_file.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -87,8 +88,8 @@ constexpr ParamSpec kParams[] = {kMethod,
                                  kDiffractionScale,
                                  kLevels,
                                  kPsf,
-                                 kPass};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to bloom."}};
+                                 kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to bloom."}, kMaskPort};
 
 /// The largest PSF a `psf` image may give (a 4097 x 4097 kernel).
 constexpr int kMaxPsfRadius = 2048;
@@ -198,7 +199,7 @@ extern const NodeType kBloom{
      "Bloom and glare: energy-conserving convolution with a lens PSF (pyramid or exact FFT).",
      kInputs,
      kParams,
-     ""},
+     "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     nullptr,
     &check,

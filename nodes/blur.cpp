@@ -6,6 +6,7 @@
 
 #include "core/sanitize.h"
 #include "filter/image_ops.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -21,8 +22,8 @@ constexpr ParamSpec kSigmaY = ParamSpec::real("sigma_y", 0.0)
                                   .doc("Vertical standard deviation, when given (else sigma).");
 constexpr ParamSpec kPasses =
     ParamSpec::string("passes", "color").doc("Comma-separated passes to blur.").reads_passes();
-constexpr ParamSpec kParams[] = {kSigma, kSigmaY, kPasses};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to blur."}};
+constexpr ParamSpec kParams[] = {kSigma, kSigmaY, kPasses, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to blur."}, kMaskPort};
 
 void execute(NodeContext &ctx)
 {
@@ -49,7 +50,7 @@ extern const NodeType kBlur{{"blur",
                              "Gaussian blur by sigma in pixels (separable, Highway FIR kernels).",
                              kInputs,
                              kParams,
-                             ""},
+                             "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
                             &execute,
                             nullptr,
                             nullptr};

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/sanitize.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
 #include "shading/dof/dof_gather.h"
@@ -88,9 +89,9 @@ constexpr ParamSpec kParams[] = {kFstop,
                                  kMethod,
                                  kResolution,
                                  kSpecular,
-                                 kSpecularKnee};
+                                 kSpecularKnee, kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {
-    {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}};
+    {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}, kMaskPort};
 
 constexpr Binding<shading::DofLens> kLensFields[] = {
     bind<&shading::DofLens::fstop>(kFstop),
@@ -312,7 +313,7 @@ extern const NodeType kDof{{"dof",
                             kParams,
                             "color",
                             /*sink=*/false,
-                            /*keeps_specular=*/true},
+                            /*keeps_specular=*/true, /*maskable=*/true},
                            &execute,
                            &plan,
                            &check,

@@ -17,6 +17,7 @@
 #include <map>
 #include <mutex>
 
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -113,8 +114,8 @@ constexpr ParamSpec kParams[] = {kMode,
                                  kSpeedDown,
                                  kAdaptationFrames,
                                  kMeteringStep,
-                                 kPass};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to expose."}};
+                                 kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to expose."}, kMaskPort};
 
 /// Earlier frames' meterings, shared by the frames in flight: a frame computes its own, and the
 /// first frame to need an earlier one that is missing computes it from the engine's history
@@ -252,7 +253,7 @@ extern const NodeType kExposure{{"exposure",
                                  "exposure adapted over the sequence.",
                                  kInputs,
                                  kParams,
-                                 ""},
+                                 "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
                                 &execute,
                                 nullptr,
                                 &check,

@@ -15,6 +15,7 @@
 #include <mutex>
 
 #include "core/sanitize.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 #include "shading/atmosphere/atmosphere.h"
 #include "shading/camera_rays.h"
@@ -122,8 +123,8 @@ constexpr ParamSpec kParams[] = {
     kModel,    kColor,      kStart,       kEnd,           kDensity,
     kFalloff,  kBaseHeight, kSky,         kSunDirection,  kUp,
     kSunColor, kSunG,       kIlluminance, kMetresPerUnit, kGroundAltitude,
-    kFroxels,  kSlices,     kMaxDistance, kSunDisc,       kSteps};
-constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."}};
+    kFroxels,  kSlices,     kMaxDistance, kSunDisc,       kSteps, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."}, kMaskPort};
 
 enum Model { Linear, Exp, Exp2, Height, Atmo, AtmoRayMarch };
 
@@ -428,7 +429,7 @@ extern const NodeType kFog{{"fog",
                             "based atmosphere (Hillaire 2020).",
                             kInputs,
                             kParams,
-                            ""},
+                            "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
                            &execute,
                            nullptr,
                            &check,

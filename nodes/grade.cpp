@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "graph/mask.h"
 #include "nodes/color_pass.h"
 
 namespace posthaste::nodes {
@@ -70,8 +71,8 @@ constexpr ParamSpec kParams[] = {kExposure,
                                  kLut,
                                  kInterpolation,
                                  kUnpremultiply,
-                                 kPass};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grade."}};
+                                 kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grade."}, kMaskPort};
 
 constexpr Binding<ColorProcessor::Grade> kGradeFields[] = {
     bind<&ColorProcessor::Grade::slope>(kSlope),
@@ -134,7 +135,7 @@ extern const NodeType kGrade{
      "Color grade: white balance, exposure, ASC CDL, lift/gamma/gain, LUT (OpenColorIO).",
      kInputs,
      kParams,
-     ""},
+     "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     nullptr,
     &check,

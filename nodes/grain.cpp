@@ -7,6 +7,7 @@
 
 #include "filter/grain.h"
 
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -36,8 +37,8 @@ constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Another seed, another grain.");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to grain.").reads_passes();
-constexpr ParamSpec kParams[] = {kIntensity, kSize, kMode, kResponse, kOffset, kSeed, kPass};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grain."}};
+constexpr ParamSpec kParams[] = {kIntensity, kSize, kMode, kResponse, kOffset, kSeed, kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grain."}, kMaskPort};
 
 constexpr Binding<filter::GrainParams> kFields[] = {
     bind<&filter::GrainParams::intensity>(kIntensity),
@@ -69,7 +70,7 @@ extern const NodeType kGrain{
      "Film grain: deterministic per frame and seed, sized in pixels, in a log-like space.",
      kInputs,
      kParams,
-     ""},
+     "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     nullptr,
     nullptr,

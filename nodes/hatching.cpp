@@ -10,6 +10,7 @@
 #include <charconv>
 #include <glm/geometric.hpp>
 
+#include "graph/mask.h"
 #include "nodes/node.h"
 #include "shading/hatching/hatch.h"
 #include "shading/hatching/tam.h"
@@ -131,13 +132,12 @@ constexpr ParamSpec kParams[] = {kMode,
                                  kInk,
                                  kOutlineColor,
                                  kIds,
-                                 kMix};
+                                 kMix, kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,depth,normal,position",
      false,
-     "Frame to draw; id is read too when `ids` is given."},
-};
+     "Frame to draw; id is read too when `ids` is given."}, kMaskPort};
 
 /// Parses `ids` ("1, 4,7"); returns false on a word that is not a non-negative integer.
 bool parse_ids(const std::string &text, std::vector<int> &ids, std::string &bad)
@@ -277,7 +277,7 @@ extern const NodeType kHatching{{"hatching",
                                  "al. 2001), anchored to surfaces, with outlines.",
                                  kInputs,
                                  kParams,
-                                 "color"},
+                                 "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
                                 &execute,
                                 &plan,
                                 &check,

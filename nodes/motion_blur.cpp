@@ -15,6 +15,7 @@
 
 #include "core/parallel.h"
 #include "core/sanitize.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 #include "nodes/split_params.h"
 #include "shading/lighting/lighting_split.h"
@@ -101,10 +102,9 @@ constexpr ParamSpec kParams[] = {kShutter,
                                  kMethod,
                                  kSpecular,
                                  kSpecularKnee,
-                                 kSeed};
+                                 kSeed, kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {
-    {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
-};
+    {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."}, kMaskPort};
 
 constexpr Binding<shading::MotionBlurOptions> kFields[] = {
     bind<&shading::MotionBlurOptions::method>(kMethod),
@@ -311,7 +311,7 @@ extern const NodeType kMotionBlur{{"motion_blur",
                                    "reconstruction, or camera-only from depth).",
                                    kInputs,
                                    kParams,
-                                   "color"},
+                                   "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
                                   &execute,
                                   &plan,
     nullptr,

@@ -2,6 +2,7 @@
 // to another, or to a display and view. Premultiplied color is unpremultiplied around the
 // transform. Config: $OCIO, else samples/ocio/config.ocio (built in). Linear 0.18 -> sRGB 0.461356.
 
+#include "graph/mask.h"
 #include "nodes/color_pass.h"
 
 namespace posthaste::nodes {
@@ -24,8 +25,8 @@ constexpr ParamSpec kUnpremultiply =
         .doc("Divide color by alpha before the transform and multiply after.");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to transform.").reads_passes();
-constexpr ParamSpec kParams[] = {kMode, kFrom, kTo, kDisplay, kView, kUnpremultiply, kPass};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to transform."}};
+constexpr ParamSpec kParams[] = {kMode, kFrom, kTo, kDisplay, kView, kUnpremultiply, kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to transform."}, kMaskPort};
 
 ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node)
 {
@@ -53,7 +54,7 @@ void check(CheckContext &ctx)
 }  // namespace
 
 extern const NodeType kOcio{
-    {"ocio", "OpenColorIO color space or display transform.", kInputs, kParams, ""},
+    {"ocio", "OpenColorIO color space or display transform.", kInputs, kParams, "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     nullptr,
     &check};

@@ -24,6 +24,7 @@
 
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 #include "shading/lighting/brdf.h"
 #include "shading/lighting/lighting.h"
@@ -195,14 +196,13 @@ constexpr ParamSpec kParams[] = {kMode,
                                  kShadowBias,
                                  kClamp,
                                  kMaterialRoughness,
-                                 kMaterialMetallic};
+                                 kMaterialMetallic, kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,normal,albedo",
      false,
      "Frame with color and its G-buffer (material, else roughness and metallic); other passes "
-     "pass through."},
-};
+     "pass through."}, kMaskPort};
 
 // Lights and toon ids, validated. `where` is "<file>:/nodes/<i>/params", `who` the node.
 Setup parse_setup(const NodeParams &params, const std::string &where, const std::string &who)
@@ -403,7 +403,7 @@ void execute(NodeContext &ctx)
 }  // namespace
 
 extern const NodeType kRelight{
-    {"relight", "Add or replace lights from the G-buffer (GGX BRDF).", kInputs, kParams, "color"},
+    {"relight", "Add or replace lights from the G-buffer (GGX BRDF).", kInputs, kParams, "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     &plan,
     &check,

@@ -8,6 +8,7 @@
 
 #include "core/sanitize.h"
 #include "filter/image_ops.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -25,8 +26,8 @@ constexpr ParamSpec kClampNegative =
     ParamSpec::boolean("clamp_negative", true).doc("Clamp sharpened color at 0.");
 constexpr ParamSpec kPasses =
     ParamSpec::string("passes", "color").doc("Comma-separated passes to sharpen.").reads_passes();
-constexpr ParamSpec kParams[] = {kAmount, kSigma, kThreshold, kClampNegative, kPasses};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to sharpen."}};
+constexpr ParamSpec kParams[] = {kAmount, kSigma, kThreshold, kClampNegative, kPasses, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to sharpen."}, kMaskPort};
 
 void execute(NodeContext &ctx)
 {
@@ -68,7 +69,7 @@ extern const NodeType kSharpen{
      "Unsharp mask: detail above a threshold amplified (the blur node's Gaussian).",
      kInputs,
      kParams,
-     ""},
+     "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     nullptr,
     nullptr};

@@ -12,6 +12,7 @@
 
 #include "core/sanitize.h"
 #include "nodes/material_params.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -106,7 +107,7 @@ constexpr ParamSpec kParams[] = {kRays,
                                  kParallax,
                                  kSunIrradiance,
                                  kMaterialRoughness,
-                                 kMaterialMetallic};
+                                 kMaterialMetallic, kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,depth,normal,albedo",
@@ -119,7 +120,7 @@ constexpr PortSpec kInputs[] = {
      "Optional: what rays the screen does not answer see instead of the sky: a "
      "latitude-longitude map (render's projection latlong, a renderer's panorama or HDRI; +y "
      "up, the middle column looking down -z), with an optional depth pass of distances from "
-     "environment_position."}};
+     "environment_position."}, kMaskPort};
 
 constexpr Binding<shading::SsrParams> kFields[] = {
     bind<&shading::SsrParams::rays>(kRays),
@@ -289,7 +290,7 @@ extern const NodeType kSsr{
      "and the camera.",
      kInputs,
      kParams,
-     "color"},
+     "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     &plan,
     nullptr,

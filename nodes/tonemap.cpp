@@ -11,6 +11,7 @@
 
 #include "filter/rgba_rows.h"
 #include "filter/tonemap_kernels.h"
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -30,8 +31,8 @@ constexpr ParamSpec kWhite =
         .only_when("curve", "reinhard|hable");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to tone map.").reads_passes();
-constexpr ParamSpec kParams[] = {kCurve, kMode, kWhite, kPass};
-constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to tone map."}};
+constexpr ParamSpec kParams[] = {kCurve, kMode, kWhite, kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to tone map."}, kMaskPort};
 
 void execute(NodeContext &ctx)
 {
@@ -56,7 +57,7 @@ extern const NodeType kTonemap{
      "Tone curves to display-linear: AgX-style, ACES fit, Hable filmic, extended Reinhard.",
      kInputs,
      kParams,
-     ""},
+     "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
     nullptr,
     nullptr};

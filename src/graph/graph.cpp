@@ -1,5 +1,6 @@
 #include "graph/graph.h"
 
+#include "graph/mask.h"
 #include "io/cryptomatte.h"
 
 #include <tbb/task_arena.h>
@@ -213,6 +214,11 @@ void Graph::plan()
                     }
                 }
             }
+            for (std::size_t p = 0; spec.maskable && p < spec.inputs.size(); ++p) {
+                if (spec.inputs[p].name == kMaskPort.name) {
+                    gn.input_passes[p].add(gn.params.get_string(kMaskPass));
+                }
+            }
         }
         if (gn.type->plan) {
             PlanContext ctx{gn.params, gn.identity, gn.requested, gn.input_passes, connected};
@@ -293,6 +299,9 @@ void Graph::execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *fir
 {
     try {
         gn.type->execute(ctx);
+        if (gn.type->spec.maskable && first_input && ctx.has_input(kMaskPort.name)) {
+            apply_mask(ctx.where(), gn.params, *first_input, ctx.input(kMaskPort.name), ctx.output());
+        }
     } catch (const Error &) {
         throw;
     } catch (const std::exception &e) {

@@ -88,6 +88,9 @@ struct NodeSpec {
     /// for the specular shares upstream, and a node without it that replaces color and passes
     /// specular on unchanged has that pass dropped as stale.
     bool keeps_specular = false;
+    /// Changes colour and takes graph/mask.h's mask: its inputs list kMaskPort and its params
+    /// kMaskPass, kMaskChannel and kMaskInvert; the engine blends what it replaced by the mask.
+    bool maskable = false;
 };
 
 class NodeContext;

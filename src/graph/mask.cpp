@@ -1,0 +1,94 @@
+// graph/mask.cpp: the engine's mask on colour nodes (graph/mask.h).
+
+#include "graph/mask.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+#include "core/parallel.h"
+
+namespace posthaste {
+
+namespace {
+
+/// The mask over `window` (absolute): the channel or luminance of `pass`, clamped to [0, 1]
+/// (NaN: 0), inverted on request; 0 outside the mask frame's data window.
+Image mask_image(const std::string &who,
+                 const NodeParams &params,
+                 const Frame &mask,
+                 const Rect &window)
+{
+    const std::string &name = params.get_string(kMaskPass);
+    const Image &src = mask.image(name, who + ": mask input");
+    // r, g, b, a, luminance; a one-channel pass (a matte) is its own mask whichever is named.
+    const int channel = src.channels() == 1 ? 0 : params.get_choice(kMaskChannel);
+    if (channel < 4 && channel >= src.channels()) {
+        throw_runtime(who, ": mask pass \"", name, "\" has ", src.channels(),
+                      " channels, no ", "rgba"[channel], " (mask_channel)");
+    }
+    if (channel == 4 && src.channels() < 3) {
+        throw_runtime(who, ": mask luminance needs 3 channels in pass \"", name, "\", it has ",
+                      src.channels());
+    }
+    const bool invert = params.get_bool(kMaskInvert);
+    Image one(mask.width(), mask.height(), 1);
+    parallel_for(0, one.height(), [&](int y) {
+        for (int x = 0; x < one.width(); ++x) {
+            const float *p = src.pixel(x, y);
+            float m = channel < 4 ? p[channel] : 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+            m = std::isnan(m) ? 0.0f : std::clamp(m, 0.0f, 1.0f);
+            one.at(x, y, 0) = invert ? 1.0f - m : m;
+        }
+    });
+    // Outside the mask's window: no mask (0), which inverted is 1.
+    return place_in_window(one, mask.data_window, window, {invert ? 1.0f : 0.0f});
+}
+
+}  // namespace
+
+void apply_mask(const std::string &who,
+                const NodeParams &params,
+                const Frame &in,
+                const Frame &mask,
+                Frame &out)
+{
+    std::vector<std::string> changed;
+    for (const auto &[name, pass] : out.passes()) {
+        if (!in.has(name)) {
+            continue;
+        }
+        const Pass &before = in.pass(name);
+        if (before.image == pass.image || before.image->width() != pass.image->width() ||
+            before.image->height() != pass.image->height() ||
+            before.image->channels() != pass.image->channels() || in.data_window != out.data_window) {
+            continue;
+        }
+        changed.push_back(name);
+    }
+    if (changed.empty()) {
+        return;
+    }
+    const Image m = mask_image(who, params, mask, out.data_window);
+    for (const std::string &name : changed) {
+        const Pass &p = out.pass(name);
+        const Image &a = *in.pass(name).image, &b = *p.image;
+        Image blended = Image::uninitialized(b.width(), b.height(), b.channels());
+        const int nc = b.channels();
+        parallel_for(0, b.height(), [&](int y) {
+            const float *pa = a.pixel(0, y), *pb = b.pixel(0, y);
+            const float *pm = m.pixel(0, y);
+            float *d = blended.pixel(0, y);
+            for (int x = 0; x < b.width(); ++x) {
+                const float t = pm[x];
+                for (int c = 0; c < nc; ++c, ++pa, ++pb, ++d) {
+                    // Exactly the input at 0 and the node's value at 1.
+                    *d = t == 0.0f ? *pa : t == 1.0f ? *pb : *pa + (*pb - *pa) * t;
+                }
+            }
+        });
+        out.set(name, std::make_shared<const Image>(std::move(blended)), p.channels, p.storage);
+    }
+}
+
+}  // namespace posthaste

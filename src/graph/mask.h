@@ -1,0 +1,43 @@
+#pragma once
+// A mask on every colour node, declared once: a node that changes colour lists kMaskPort among
+// its inputs and kMaskParams' three parameters among its own and sets NodeSpec::maskable; the
+// engine then blends whatever pass the node replaced with the same pass of its input,
+// out = in + (node - in) * m, m the mask (a channel, or the luminance, of a pass of the frame on
+// the "mask" port: a cryptomatte matte, an alpha, a luminance), clamped to [0, 1], 1 - m with
+// mask_invert. Nothing is blended when the port is not connected. The same convention as
+// merge's mask (mask_pass, mask_channel).
+
+#include <string>
+
+#include "core/frame.h"
+#include "graph/node.h"
+
+namespace posthaste {
+
+inline constexpr PortSpec kMaskPort{
+    "mask",
+    "",
+    true,
+    "Optional: where the node applies (mask_pass's mask_channel; 0 keeps the input, 1 the "
+    "node's result)."};
+inline constexpr ParamSpec kMaskPass =
+    ParamSpec::string("mask_pass", "color")
+        .doc("Pass of the mask input that holds the mask (a cryptomatte node's \"matte\").");
+inline constexpr ParamSpec kMaskChannel =
+    ParamSpec::choice("mask_channel", "r|g|b|a|luminance", "a")
+        .doc(
+            "Channel of mask_pass used as the mask (luminance: Rec.709 weights of R, G, B); a "
+            "one-channel pass is the mask whichever is named.");
+inline constexpr ParamSpec kMaskInvert =
+    ParamSpec::boolean("mask_invert", false).doc("Use 1 - mask: the node applies outside it.");
+
+/// Blend every pass `out` replaced with `in`'s by the mask of frame `mask` (the node's
+/// parameters name its pass and channel). Passes the node added, or whose size changed, are
+/// left as the node made them. Errors name `who`, the pass and the channel.
+void apply_mask(const std::string &who,
+                const NodeParams &params,
+                const Frame &in,
+                const Frame &mask,
+                Frame &out);
+
+}  // namespace posthaste

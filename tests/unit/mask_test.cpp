@@ -1,0 +1,155 @@
+// The mask on colour nodes (graph/mask.h): the engine blends what a node replaced with its input,
+// out = in + (node - in) * m, by a channel or the luminance of a pass on the "mask" port.
+
+#include "graph/mask.h"
+
+#include <gtest/gtest.h>
+
+#include "core/error.h"
+#include "graph/graph.h"
+#include "nodes/registry.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+/// A 4x2 frame: color 0.5 (alpha 1), and a "matte" pass of 0, 0.25, 0.5, 1 ... (and NaN, -1, 2).
+Frame input_frame()
+{
+    Frame f;
+    f.set_size(4, 2);
+    Image color(4, 2, 4);
+    for (int i = 0; i < 8; ++i) {
+        float *p = color.data() + 4 * i;
+        p[0] = 0.5f;
+        p[1] = 0.25f;
+        p[2] = 0.125f;
+        p[3] = 1.0f;
+    }
+    f.set("color", std::move(color));
+    return f;
+}
+
+const float kMatte[8] = {0.0f, 0.25f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN(),
+                         -1.0f, 2.0f, 0.75f};
+
+Frame mask_frame()
+{
+    Frame f;
+    f.set_size(4, 2);
+    Image m(4, 2, 1);
+    Image rgb(4, 2, 3);
+    for (int i = 0; i < 8; ++i) {
+        m.data()[i] = kMatte[i];
+        rgb.data()[3 * i] = rgb.data()[3 * i + 1] = rgb.data()[3 * i + 2] = kMatte[i];
+    }
+    f.set("matte", std::move(m), {"A"});
+    f.set("grey", std::move(rgb), {"R", "G", "B"});
+    return f;
+}
+
+Frame run(const std::string &type, const std::string &params, bool connect_mask = true)
+{
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
+        {"id": "n", "type": ")" + type + R"(", "inputs": {"image": "src")" +
+                               (connect_mask ? R"(, "mask": "src")" : "") + R"(}, "params": )" +
+                               params + R"(},
+        {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
+                           "mask test",
+                           nodes::catalog());
+    std::vector<std::shared_ptr<const Frame>> in = {std::make_shared<const Frame>(input_frame())};
+    std::vector<std::string> ports = {"image"};
+    if (connect_mask) {
+        in.push_back(std::make_shared<const Frame>(mask_frame()));
+        ports.emplace_back("mask");
+    }
+    return g.run_node(g.find("n"), in, ports, 1);
+}
+
+// A grade of +1 stop doubles RGB; through the mask each pixel gets in + (2 in - in) m, m clamped
+// to [0, 1] (NaN: 0): exactly the input at 0 and the graded value at 1.
+TEST(Mask, BlendsTheNodesResultWithItsInput)
+{
+    const Image out = run("grade", R"({"exposure": 1, "mask_pass": "matte"})").image("color");
+    const Image inv =
+        run("grade", R"({"exposure": 1, "mask_pass": "matte", "mask_invert": true})").image("color");
+    const float in[3] = {0.5f, 0.25f, 0.125f};
+    for (int i = 0; i < 8; ++i) {
+        const float m = std::isnan(kMatte[i]) ? 0.0f : std::clamp(kMatte[i], 0.0f, 1.0f);
+        for (int c = 0; c < 3; ++c) {
+            const float graded = 2.0f * in[c];
+            const auto blend = [&](float t) {
+                return t == 0.0f ? in[c] : t == 1.0f ? graded : in[c] + (graded - in[c]) * t;
+            };
+            EXPECT_EQ(out.data()[4 * i + c], blend(m)) << i << " " << c;
+            EXPECT_EQ(inv.data()[4 * i + c], blend(1.0f - m)) << i << " " << c;
+        }
+        EXPECT_EQ(out.data()[4 * i + 3], 1.0f);
+    }
+}
+
+// Unconnected, the mask changes nothing: the node's own bits.
+TEST(Mask, WithoutAMaskTheNodeIsUnchanged)
+{
+    const Image masked = run("grade", R"({"exposure": 1})", false).image("color");
+    const Image plain = run("grade", R"({"exposure": 1})", false).image("color");
+    EXPECT_EQ(std::vector<float>(masked.data(), masked.data() + masked.value_count()),
+              std::vector<float>(plain.data(), plain.data() + plain.value_count()));
+    EXPECT_EQ(masked.at(0, 0, 0), 1.0f);
+}
+
+TEST(Mask, LuminanceAndChannelErrors)
+{
+    const Image lum =
+        run("exposure", R"({"exposure": 1, "mask_pass": "grey", "mask_channel": "luminance"})")
+            .image("color");
+    // Grey R = G = B: the luminance is the value (to rounding of the Rec.709 weights).
+    EXPECT_NEAR(lum.at(1, 0, 0), 0.5f + 0.5f * 0.25f, 1e-6f);
+    try {
+        run("exposure", R"({"exposure": 1, "mask_pass": "grey", "mask_channel": "a"})");
+        FAIL() << "a missing channel was accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("mask pass \"grey\" has 3 channels, no a"),
+                  std::string::npos)
+            << e.what();
+    }
+    try {
+        run("blur", R"({"sigma": 1, "mask_pass": "nope"})");
+        FAIL() << "a missing pass was accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("nope"), std::string::npos) << e.what();
+    }
+}
+
+// Every node that changes colour declares the mask, once, the same way.
+TEST(Mask, EveryColourNodeTakesIt)
+{
+    int maskable = 0;
+    for (const NodeType *t : nodes::catalog().all()) {
+        if (!t->spec.maskable) {
+            continue;
+        }
+        ++maskable;
+        bool port = false;
+        for (const PortSpec &p : t->spec.inputs) {
+            port = port || (p.name == kMaskPort.name && p.optional);
+        }
+        EXPECT_TRUE(port) << t->spec.type;
+        for (const ParamSpec *m : {&kMaskPass, &kMaskChannel, &kMaskInvert}) {
+            bool found = false;
+            for (const ParamSpec &p : t->spec.params) {
+                found = found || p.name == m->name;
+            }
+            EXPECT_TRUE(found) << t->spec.type << " lacks " << m->name;
+        }
+    }
+    EXPECT_GE(maskable, 15);
+    for (const char *type : {"grade", "exposure", "tonemap", "blur", "sharpen", "bloom", "grain",
+                             "fog", "relight", "dof", "motion_blur", "ocio", "ssr", "hatching"}) {
+        EXPECT_TRUE(nodes::catalog().find(type)->spec.maskable) << type;
+    }
+}
+
+}  // namespace
+}  // namespace posthaste
