@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cctype>
 #include <cstring>
+#include <deque>
 #include <nlohmann/json.hpp>
 
 #include "io/cryptomatte.h"
@@ -26,8 +28,8 @@ constexpr ParamSpec kLayer =
             "only one.");
 constexpr ParamSpec kMatte = ParamSpec::json("matte", "[]").doc(
     "The names keyed: a list of strings, each a name, a pattern with * (any run) and ? (one "
-    "character; \\ makes the next character literal), or an ID as <float> or <0x8 hex digits> "
-    "(the manifest's value).");
+    "character; \\ makes the next character literal), or an ID: <8 hex digits> (the manifest's "
+    "value, 0x optional) or <float>.");
 constexpr ParamSpec kOutput =
     ParamSpec::choice("output", "matte|alpha|keyed", "matte")
         .doc(
@@ -58,8 +60,11 @@ bool id_entry(const std::string &e, float &id)
     }
     const std::string inner = e.substr(1, e.size() - 2);
     char *end = nullptr;
-    if (inner.size() == 10 && inner[0] == '0' && (inner[1] == 'x' || inner[1] == 'X')) {
-        const unsigned long bits = std::strtoul(inner.c_str() + 2, &end, 16);
+    // The manifest's form: 8 hex digits (with or without 0x) are the ID's bits.
+    const bool prefixed = inner.size() == 10 && inner[0] == '0' && (inner[1] == 'x' || inner[1] == 'X');
+    if (prefixed || (inner.size() == 8 &&
+                     inner.find_first_not_of("0123456789abcdefABCDEF") == std::string::npos)) {
+        const unsigned long bits = std::strtoul(inner.c_str() + (prefixed ? 2 : 0), &end, 16);
         if (*end != '\0') {
             return false;
         }
@@ -237,6 +242,7 @@ void execute(NodeContext &ctx)
                       "00, ...)");
     }
     std::vector<const Image *> ranks;
+    std::deque<Image> reordered;  // rank layers whose channels were not in r, g, b, a order
     for (const std::string &name : rank_names) {
         const Pass &p = in.pass(name, where);
         if (p.image->channels() != 4) {
@@ -248,7 +254,30 @@ void execute(NodeContext &ctx)
                           "\" holds its IDs as half floats, which cannot hold a 32-bit hash "
                           "(write cryptomatte layers as float)");
         }
-        ranks.push_back(p.image.get());
+        // The channels by name where the file names them (r, g, b, a in any case and order).
+        int order[4] = {0, 1, 2, 3};
+        bool named = p.channels.size() == 4, identity = true;
+        for (int c = 0; named && c < 4; ++c) {
+            const auto it = std::find_if(p.channels.begin(), p.channels.end(), [&](const std::string &n) {
+                return n.size() == 1 && std::toupper(static_cast<unsigned char>(n[0])) == "RGBA"[c];
+            });
+            named = it != p.channels.end();
+            order[c] = named ? int(it - p.channels.begin()) : c;
+            identity = identity && order[c] == c;
+        }
+        if (named && !identity) {
+            Image ordered = Image::uninitialized(p.image->width(), p.image->height(), 4);
+            for (std::size_t i = 0; i < ordered.pixel_count(); ++i) {
+                for (int c = 0; c < 4; ++c) {
+                    ordered.data()[4 * i + std::size_t(c)] =
+                        p.image->data()[4 * i + std::size_t(order[c])];
+                }
+            }
+            reordered.push_back(std::move(ordered));
+            ranks.push_back(&reordered.back());
+        } else {
+            ranks.push_back(p.image.get());
+        }
     }
     const std::vector<std::uint32_t> ids = keyed_ids(ctx, layer, entries_of(ctx.params()));
     Image matte = matte_of(ranks, ids, in.width(), in.height());
@@ -285,6 +314,8 @@ void plan(PlanContext &ctx)
     ctx.inputs[0].add_optional(cryptomatte::request_for(ctx.params.get_string(kLayer)));
     if (ctx.params.get_string(kOutput) != "matte") {
         ctx.inputs[0].add(pass::kColor);
+    } else {
+        ctx.inputs[0].remove(ctx.params.get_string(kPass));  // the node makes it
     }
 }
 
@@ -307,7 +338,7 @@ void check(CheckContext &ctx)
         }
         const std::string s = e.get<std::string>();
         if (s.front() == '<' && !id_entry(s, id)) {
-            throw_param_expected(ctx, kMatte, "an ID as <float> or <0x8 hex digits>", quoted(s));
+            throw_param_expected(ctx, kMatte, "an ID as <8 hex digits> or <float>", quoted(s));
         }
     }
     if (ctx.params.get_string(kOutput) == "matte" && ctx.params.get_string(kPass).empty()) {

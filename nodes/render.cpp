@@ -5,6 +5,7 @@
 #include "raster/render.h"
 
 #include "core/memory.h"
+#include "io/cryptomatte.h"
 #include "nodes/node.h"
 #include "raster/ray_cast.h"
 #include "raster/scene.h"
@@ -46,6 +47,13 @@ constexpr ParamSpec kAoRadius =
         .units("m")
         .doc("truth ao: occluders farther than this from the surface point do not count.")
         .only_when("truth", "ao");
+constexpr ParamSpec kCryptomatteRanks =
+    ParamSpec::integer("cryptomatte_ranks", 6)
+        .range(1, 16)
+        .doc(
+            "Ranks of CryptoObject and CryptoMaterial, made when a node asks for them (a "
+            "cryptomatte node, or a write of their rank layers): two a layer, coverage from the "
+            "beauty's samples (supersample).");
 constexpr ParamSpec kProjection =
     ParamSpec::choice("projection", "perspective|latlong", "perspective")
         .doc(
@@ -63,12 +71,14 @@ constexpr ParamSpec kParams[] = {kScene,
                                  kSamples,
                                  kSeed,
                                  kAoRadius,
-                                 kProjection};
+                                 kProjection,
+                                 kCryptomatteRanks};
 constexpr int kTruthAo = 4;
 constexpr int kTruthReflections = 5;
 constexpr int kProjectionLatLong = 1;
 
 constexpr Binding<raster::RenderOptions> kRenderFields[] = {
+    bind<&raster::RenderOptions::cryptomatte_ranks>(kCryptomatteRanks),
     bind<&raster::RenderOptions::width>(kWidth),
     bind<&raster::RenderOptions::height>(kHeight),
     bind<&raster::RenderOptions::supersample>(kSupersample),
@@ -86,6 +96,21 @@ raster::RenderOptions render_options(const NodeParams &params, const PassSet &re
     for (const std::string &p : raster::render_pass_names()) {
         if (requested.wants(p)) {
             o.passes.insert(p);
+        }
+    }
+    // A cryptomatte asked for by a rank layer's name or by a "cryptomatte:<type>" request (every
+    // one for an empty type): all its rank layers.
+    for (const char *type : {raster::kCryptoObject, raster::kCryptoMaterial}) {
+        bool wanted = false;
+        for (const std::string &r : requested.optional) {
+            std::string t;
+            wanted = wanted || (cryptomatte::parse_request(r, t) && (t.empty() || t == type));
+        }
+        for (int k = 0; k < 8; ++k) {
+            wanted = wanted || requested.wants(raster::crypto_layer(type, k));
+        }
+        for (int k = 0; wanted && k < (o.cryptomatte_ranks + 1) / 2; ++k) {
+            o.passes.insert(raster::crypto_layer(type, k));
         }
     }
     return o;

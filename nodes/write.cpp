@@ -7,6 +7,7 @@
 #include "io/color.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
+#include "io/cryptomatte.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -107,6 +108,36 @@ constexpr Binding<WriteOptions> kExrFields[] = {
     bind<&WriteOptions::allow_lossy_data>(kAllowLossyData),
 };
 
+/// A cryptomatte's rank layers hold 32-bit hashes: they are written as float whatever storage
+/// the graph asks for the other passes (said once), and a lossy codec is refused for them.
+void keep_cryptomattes_exact(NodeContext &ctx, const Frame &frame, WriteOptions &options)
+{
+    const std::set<std::string> ranks = cryptomatte::requested_ranks(
+        {cryptomatte::request_for("")}, frame.attributes, frame.pass_names());
+    bool forced = false;
+    for (const std::string &name : ranks) {
+        auto it = options.storage.find(name);
+        forced = forced || (it != options.storage.end() && it->second == PixelStorage::Half);
+        options.storage[name] = PixelStorage::Float;
+    }
+    if (forced) {
+        ctx.state().note_once(ctx.node().describe() +
+                              ": cryptomatte rank layers are written as float (their IDs are "
+                              "32-bit hashes), the other passes as asked");
+    }
+    const std::string &c = options.compression;
+    const std::string base = c.substr(0, c.find(':'));
+    if (!ranks.empty() && (base == "dwaa" || base == "dwab" || base == "pxr24" || base == "b44" ||
+                           base == "b44a")) {
+        throw_runtime(ctx.where(),
+                      ": compression \"",
+                      c,
+                      "\" would change the IDs of cryptomatte rank layer \"",
+                      *ranks.begin(),
+                      "\"; choose a lossless compression (zip, piz, ...) or leave the layers out");
+    }
+}
+
 void execute(NodeContext &ctx)
 {
     const NodeParams &params = ctx.params();
@@ -135,6 +166,7 @@ void execute(NodeContext &ctx)
                 options.storage[name] = storage == 1 ? PixelStorage::Half : PixelStorage::Float;
             }
         }
+        keep_cryptomattes_exact(ctx, frame, options);
         write_exr(frame, path, options);
     } catch (const Error &e) {
         throw Error(e.code(), ctx.where() + ": " + e.what());

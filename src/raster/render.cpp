@@ -143,7 +143,20 @@ const std::set<std::string> &render_pass_names()
                                                 pass::kDiffuseMotion,
                                                 pass::kSpecularDepth,
                                                 pass::kShadow};
-    return names;
+    static const std::set<std::string> with_crypto = [] {
+        std::set<std::string> all = names;
+        for (int k = 0; k < 8; ++k) {
+            all.insert(crypto_layer(kCryptoObject, k));
+            all.insert(crypto_layer(kCryptoMaterial, k));
+        }
+        return all;
+    }();
+    return with_crypto;
+}
+
+std::string crypto_layer(const char *type, int k)
+{
+    return std::string(type) + char('0' + k / 10) + char('0' + k % 10);
 }
 
 void validate(const RenderOptions &o)
@@ -156,6 +169,9 @@ void validate(const RenderOptions &o)
                     o.width,
                     "x",
                     o.height);
+    }
+    if (o.cryptomatte_ranks < 1 || o.cryptomatte_ranks > 16) {
+        throw_usage("render: \"cryptomatte_ranks\": expected 1..16, got ", o.cryptomatte_ranks);
     }
     if (o.supersample != 1 && o.supersample != 2 && o.supersample != 4) {
         throw_usage("render: \"supersample\": expected 1, 2 or 4, got ", o.supersample);
@@ -244,6 +260,21 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     }
     const View v = make_view(cam, o.width, o.height, s.near_clip, glm::vec2(0.0f));
     const Visibility vis = visibility(g, v, stats);
+    if (o.passes.count(crypto_layer(kCryptoObject, 0)) ||
+        o.passes.count(crypto_layer(kCryptoMaterial, 0))) {
+        // Coverage from the beauty's own samples: a matte's edges are the beauty's.
+        Visibility vis_ss;
+        if (o.supersample > 1) {
+            vis_ss = visibility(g,
+                                make_view(cam,
+                                          o.width * o.supersample,
+                                          o.height * o.supersample,
+                                          s.near_clip,
+                                          glm::vec2(0.0f)),
+                                stats);
+        }
+        add_cryptomattes(s, g, o.supersample > 1 ? vis_ss : vis, o, f);
+    }
     t0 = Clock::now();
     std::optional<MaterialTable> own_materials;
     if (!ls) {

@@ -46,7 +46,14 @@ struct RenderOptions {
     bool shadows = true;          ///< Sun shadow map on or off.
     int shadow_map_size = 2048;   ///< Texels per side of the static shadow map.
     bool greedy_meshing = false;  ///< Fewer triangles, but T-junctions can crack edges.
+    /// Ranks of each cryptomatte (CryptoObject, CryptoMaterial; 2 a rank layer), 1..16.
+    int cryptomatte_ranks = 6;
 };
+
+/// The cryptomattes the renderer writes, and the name of rank layer k of one ("CryptoObject03").
+inline constexpr const char *kCryptoObject = "CryptoObject";
+inline constexpr const char *kCryptoMaterial = "CryptoMaterial";
+std::string crypto_layer(const char *type, int k);
 
 /// Ground-truth accumulation settings.
 struct TruthOptions {

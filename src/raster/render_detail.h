@@ -127,6 +127,17 @@ struct Visibility {
 
 Visibility visibility(const Geometry &g, const View &v, RenderStats *stats);
 
+// ---- Cryptomatte (render_cryptomatte.cpp) ---------------------------------------------------
+
+// The CryptoObject and CryptoMaterial rank layers o.passes asks for, from `vis` (o.supersample
+// samples a pixel side): each pixel's IDs ranked by coverage, the share of its samples that see
+// them (the sky is no ID), and the header's declarations with their manifests.
+void add_cryptomattes(const Scene &s,
+                      const Geometry &g,
+                      const Visibility &vis,
+                      const RenderOptions &o,
+                      Frame &f);
+
 // ---- Shadow maps (render_shadow.cpp) --------------------------------------------------------
 
 std::shared_ptr<const ShadowMap> static_shadow(

@@ -378,6 +378,43 @@ TEST(Cryptomatte, RankLayersPassThroughBitForBit)
     EXPECT_EQ(compared, 8);
 }
 
+// Blender 3.4's own Cryptomatte node on a Cycles render (samples/cryptomatte, made by
+// tests/cycles/make_cryptomatte_set.py): the same mattes, to the bit (held to 1e-6).
+TEST(Cryptomatte, MattesEqualBlendersCryptomatteNode)
+{
+    const std::string dir = std::string(POSTHASTE_SOURCE_DIR) + "/samples/cryptomatte/";
+    const std::string scene = dir + "scene.exr";
+    const struct {
+        const char *file, *layer, *matte;
+    } cases[] = {
+        {"cube", "CryptoObject", R"(["Cube"])"},
+        {"ball001_pole1", "CryptoObject", R"(["Ball.001", "Pole[1]"])"},
+        {"star", "CryptoObject", R"(["Star\\*"])"},
+        {"chrome", "CryptoMaterial", R"(["Chrome"])"},
+        {"glass", "CryptoMaterial", R"(["Glass\\?"])"},
+    };
+    for (const auto &c : cases) {
+        SCOPED_TRACE(c.file);
+        const Frame ours =
+            key(scene, std::string(R"({"layer": ")") + c.layer + R"(", "matte": )" + c.matte + "}");
+        auto in = OIIO::ImageInput::open(dir + "blender_matte_" + c.file + ".exr");
+        ASSERT_TRUE(in);
+        const OIIO::ImageSpec &spec = in->spec();
+        std::vector<float> theirs(std::size_t(spec.image_pixels()) * std::size_t(spec.nchannels));
+        ASSERT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, theirs.data()));
+        const Image &m = ours.image("matte");
+        ASSERT_EQ(m.value_count(), std::size_t(spec.image_pixels()));
+        double worst = 0.0, sum = 0.0;
+        for (std::size_t i = 0; i < m.value_count(); ++i) {
+            const float t = theirs[i * std::size_t(spec.nchannels)];
+            worst = std::max(worst, double(std::abs(m.data()[i] - t)));
+            sum += t;
+        }
+        EXPECT_LE(worst, 1e-6);
+        EXPECT_GT(sum, 5.0);  // the matte keys something
+    }
+}
+
 TEST(Cryptomatte, GraphErrorsNameTheParameter)
 {
     const auto error_of = [](const std::string &params) {
@@ -404,7 +441,7 @@ TEST(Cryptomatte, GraphErrorsNameTheParameter)
     };
     EXPECT_NE(error_of(R"({"matte": []})").find("param \"matte\": expected a non-empty list"),
               std::string::npos);
-    EXPECT_NE(error_of(R"({"matte": ["<nope>"]})").find("expected an ID as <float>"),
+    EXPECT_NE(error_of(R"({"matte": ["<nope>"]})").find("expected an ID as <8 hex digits> or <float>"),
               std::string::npos);
     EXPECT_NE(error_of(R"({"matte": [3]})").find("names as non-empty strings"), std::string::npos);
     EXPECT_EQ(error_of(R"({"matte": ["bunny", "<0x13851a76>", "<1.5e-3>"]})"), "accepted");
