@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include "core/error.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
@@ -149,6 +151,65 @@ TEST(Mask, EveryColourNodeTakesIt)
                              "fog", "relight", "dof", "motion_blur", "ocio", "ssr", "hatching"}) {
         EXPECT_TRUE(nodes::catalog().find(type)->spec.maskable) << type;
     }
+}
+
+}  // namespace
+}  // namespace posthaste
+
+namespace posthaste {
+namespace {
+
+// Every graph the repository ships loads and passes its checks (files exist, parameters apply).
+TEST(ShippedGraphs, LoadAndCheck)
+{
+    namespace fs = std::filesystem;
+    int n = 0;
+    for (const char *dir : {"graphs", "graphs/cycles"}) {
+        for (const auto &e : fs::directory_iterator(fs::path(POSTHASTE_SOURCE_DIR) / dir)) {
+            if (e.path().extension() != ".json") {
+                continue;
+            }
+            SCOPED_TRACE(e.path().string());
+            const Graph g = Graph::load(e.path().string(), nodes::catalog());
+            g.check({g.default_frames().front()});
+            ++n;
+        }
+    }
+    EXPECT_GE(n, 14);
+}
+
+// The shot graph keys the balls and the ground, and its masks confine each node to its matte:
+// outside the balls' matte the grade leaves the render's colour alone.
+TEST(ShippedGraphs, ShotKeysAndMasks)
+{
+    const std::string dir = test::scratch_dir("shot_graph");
+    Graph g = Graph::load(std::string(POSTHASTE_SOURCE_DIR) + "/graphs/shot.json",
+                          nodes::catalog(),
+                          {"scene.width=160", "scene.height=90", "exr.path=" + dir + "/s.####.exr",
+                           "png.path=" + dir + "/s.####.png"});
+    g.set_capture("grade_balls");
+    const Frame f = g.evaluate(12);
+    Graph plain = Graph::load(std::string(POSTHASTE_SOURCE_DIR) + "/graphs/shot.json",
+                              nodes::catalog(),
+                              {"scene.width=160", "scene.height=90",
+                               "exr.path=" + dir + "/p.####.exr", "png.path=" + dir + "/p.####.png"});
+    plain.set_capture("terrain");
+    const Frame before = plain.evaluate(12);
+    const Image &balls = f.image("balls"), &after = f.image("color"), &in = before.image("color");
+    int inside = 0, changed_inside = 0;
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
+            const bool same = std::equal(after.pixel(x, y), after.pixel(x, y) + 3, in.pixel(x, y));
+            if (balls.at(x, y, 0) == 0.0f) {
+                ASSERT_TRUE(same) << x << "," << y;
+            } else if (balls.at(x, y, 0) == 1.0f) {
+                ++inside;
+                changed_inside += same ? 0 : 1;
+            }
+        }
+    }
+    EXPECT_GT(inside, 20);
+    EXPECT_EQ(changed_inside, inside);
 }
 
 }  // namespace
