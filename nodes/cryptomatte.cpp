@@ -38,7 +38,13 @@ constexpr ParamSpec kOutput =
 constexpr ParamSpec kPass = ParamSpec::string("pass", "matte")
                                 .doc("The pass the matte is written to (output matte).")
                                 .only_when("output", "matte");
-constexpr ParamSpec kParams[] = {kLayer, kMatte, kOutput, kPass};
+constexpr ParamSpec kPreview =
+    ParamSpec::boolean("preview", false)
+        .doc(
+            "Also write pass \"cryptomatte_preview\": R the first rank's ID (keyable: a picker "
+            "reads the ID there), G and B the coverage-weighted viewable colours of every rank "
+            "(the specification's (hash << 8) and (hash << 16) over 2^32 - 1).");
+constexpr ParamSpec kParams[] = {kLayer, kMatte, kOutput, kPass, kPreview};
 constexpr PortSpec kInputs[] = {
     {"image", "", false, "A frame with a cryptomatte: its header and rank layers (<name>00, ...)."}};
 
@@ -219,6 +225,35 @@ Image matte_of(const std::vector<const Image *> &ranks,
     return out;
 }
 
+/// The keyable preview: R the first rank's ID, G and B the coverage-weighted sum of each rank's
+/// viewable colours from its ID's bits.
+Image preview_of(const std::vector<const Image *> &ranks, int w, int h)
+{
+    Image out(w, h, 3);
+    constexpr double kMax = 4294967295.0;
+    parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            float *o = out.pixel(x, y);
+            for (std::size_t k = 0; k < ranks.size(); ++k) {
+                const float *p = ranks[k]->pixel(x, y);
+                for (int j = 0; j < 2; ++j) {
+                    const float id = p[2 * j], cov = p[2 * j + 1];
+                    if (k == 0 && j == 0) {
+                        o[0] = id;
+                    }
+                    if (!(cov > 0.0f) || !std::isfinite(cov)) {
+                        continue;
+                    }
+                    const std::uint32_t bits = cryptomatte::bits_of(id);
+                    o[1] += cov * float(double(std::uint32_t(bits << 8)) / kMax);
+                    o[2] += cov * float(double(std::uint32_t(bits << 16)) / kMax);
+                }
+            }
+        }
+    });
+    return out;
+}
+
 void execute(NodeContext &ctx)
 {
     const Frame &in = ctx.input("image");
@@ -282,6 +317,10 @@ void execute(NodeContext &ctx)
     const std::vector<std::uint32_t> ids = keyed_ids(ctx, layer, entries_of(ctx.params()));
     Image matte = matte_of(ranks, ids, in.width(), in.height());
     const std::string &output = ctx.get_string(kOutput);
+    if (ctx.get_bool(kPreview)) {
+        ctx.output().set("cryptomatte_preview", preview_of(ranks, in.width(), in.height()),
+                         {"R", "G", "B"});
+    }
     if (output == "matte") {
         ctx.output().set(ctx.get_string(kPass), std::move(matte), {"A"});
         return;
@@ -317,6 +356,7 @@ void plan(PlanContext &ctx)
     } else {
         ctx.inputs[0].remove(ctx.params.get_string(kPass));  // the node makes it
     }
+    ctx.inputs[0].remove("cryptomatte_preview");
 }
 
 void check(CheckContext &ctx)

@@ -253,6 +253,35 @@ TEST(Cryptomatte, KeyedAndAlphaOutputs)
     }
 }
 
+// The keyable preview: R the first rank's ID, G and B the coverage-weighted viewable colours.
+TEST(Cryptomatte, PreviewIsKeyable)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_preview");
+    const std::vector<Ranks> pixels = sample_pixels();
+    const std::string path = write_crypto_file(dir + "/a.exr", CryptoFile{}, pixels, kNames);
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" + path + R"("}},
+        {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"},
+         "params": {"matte": ["bunny"], "preview": true}},
+        {"id": "out", "type": "write", "inputs": {"image": "key"},
+         "params": {"path": ")" + path + R"(.p.exr", "passes": "cryptomatte_preview"}}]})",
+                           "preview",
+                           nodes::catalog());
+    g.set_capture("key");
+    const Image p = g.evaluate(1).image("cryptomatte_preview");
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+        const Ranks &r = pixels[i];
+        EXPECT_EQ(cryptomatte::bits_of(p.data()[3 * i]),
+                  r.empty() ? 0u : cryptomatte::bits_of(id_of(r[0].first)));
+        float g_sum = 0.0f;
+        for (const auto &[name, cov] : r) {
+            const std::uint32_t bits = cryptomatte::bits_of(id_of(name));
+            g_sum += cov * float(double(std::uint32_t(bits << 8)) / 4294967295.0);
+        }
+        EXPECT_EQ(p.data()[3 * i + 1], g_sum) << i;
+    }
+}
+
 // Blender names its layers after the view layer: ViewLayer.CryptoObject00. A name keys without
 // a manifest; a pattern does not.
 TEST(Cryptomatte, ViewLayerPrefixAndNoManifest)
