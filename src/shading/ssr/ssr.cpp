@@ -35,28 +35,25 @@ using ssr_detail::weight_row_inputs;
 
 }  // namespace
 
-Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
-{
-    const Image &depth = *in.depth, &normal = *in.normal;
-    const int w = depth.width(), h = depth.height();
-    const int st = std::max(1, p.stride);
-    // The traced grid: every st-th pixel in x and y.
-    const int tw = (w + st - 1) / st, th = (h + st - 1) / st;
-    const CameraRays rays(in.world_to_camera, in.world_to_ndc);
-    const SceneSky &sky = scene_sky(p.sun_direction);
-    const glm::vec3 sky_camera(0.0f, kSkyCameraY, 0.0f);
-    // The vector kernels (the march's depth tests, the sky, the resolve's weights and window)
-    // unless the scalar reference is asked for.
-    const bool vector_kernels = simd::requested() != simd::Level::Scalar;
-    // The scene sky's radiance (SceneSky::radiance, no sun disc) of unit directions: the sky-view
-    // table on the vector kernel (the same bits), the ground's share after it.
-    const SkyCoordParams sky_lut = sky.atmosphere().cached_sky_view().coord_params();
-    const auto sky_radiance = [&](const std::vector<glm::vec3> &dirs,
-                                  std::vector<glm::vec3> &values) {
+namespace {
+
+/// The scene sky's radiance (SceneSky::radiance, no sun disc) of unit directions: the sky-view
+/// table on the vector kernel (the same bits), the ground's share after it.
+class SkyLookup {
+   public:
+    SkyLookup(const SceneSky &sky, bool vector_kernels)
+        : sky_(sky),
+          lut_(sky.atmosphere().cached_sky_view().coord_params()),
+          vector_kernels_(vector_kernels)
+    {
+    }
+
+    void operator()(const std::vector<glm::vec3> &dirs, std::vector<glm::vec3> &values) const
+    {
         values.resize(dirs.size());
-        if (!vector_kernels) {
+        if (!vector_kernels_) {
             for (std::size_t i = 0; i < dirs.size(); ++i) {
-                values[i] = sky.radiance(dirs[i], sky_camera, false);
+                values[i] = sky_.radiance(dirs[i], camera_, false);
             }
             return;
         }
@@ -67,7 +64,7 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             soa[pitch + i] = dirs[i].y;
             soa[2 * pitch + i] = dirs[i].z;
         }
-        ssr_sky_view_radiance(sky_lut,
+        ssr_sky_view_radiance(lut_,
                               soa.data(),
                               soa.data() + pitch,
                               soa.data() + 2 * pitch,
@@ -77,15 +74,24 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
                               soa.data() + 5 * pitch);
         for (std::size_t i = 0; i < n; ++i) {
             values[i] = glm::vec3(soa[3 * pitch + i], soa[4 * pitch + i], soa[5 * pitch + i]) +
-                        sky.ground(dirs[i], sky_camera);
+                        sky_.ground(dirs[i], camera_);
         }
-    };
-    // The march compares in 1 / z (no division per step; the sky's +inf is 0) on a grid of
-    // gs x gs pixel cells, each holding its block's nearest surface: at half resolution and
-    // below a quarter of the memory the rays wander through. Coarser cells would merge
-    // surfaces that the rays must tell apart (the balls' silhouettes, thin features).
-    const int gs = std::min(st, 2);
-    const int gw = (w + gs - 1) / gs, gh = (h + gs - 1) / gs;
+    }
+
+   private:
+    const SceneSky &sky_;
+    const SkyCoordParams lut_;
+    const bool vector_kernels_;
+    const glm::vec3 camera_{0.0f, kSkyCameraY, 0.0f};
+};
+
+/// The march's grid: 1 / z of each gs x gs cell's nearest surface (the sky's +inf is 0), gw x gh
+/// cells. The march compares in 1 / z (no division per step); at half resolution and below a
+/// quarter of the memory the rays wander through. Coarser cells would merge surfaces that the
+/// rays must tell apart (the balls' silhouettes, thin features).
+std::vector<float> nearest_inverse_depth(const Image &depth, int gs, int gw, int gh)
+{
+    const int w = depth.width(), h = depth.height();
     std::vector<float> inv_depth(std::size_t(gw) * std::size_t(gh));
     parallel_for(0, gh, [&](int gy) {
         for (int gx = 0; gx < gw; ++gx) {
@@ -99,276 +105,373 @@ Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
             inv_depth[std::size_t(gy) * std::size_t(gw) + std::size_t(gx)] = inv;
         }
     });
+    return inv_depth;
+}
+
+/// What every traced row reads (shared, read-only but for `cells`, whose rows are its own).
+struct TraceContext {
+    const SsrInputs &in;
+    const SsrParams &p;
+    const CameraRays &rays;
+    const Marcher &marcher;
+    const SkyLookup &sky;
+    CellRows &cells;
+    bool vector_kernels;
+    int st, tw;
+    std::size_t step_pitch;
+    SsrSegmentCamera segment_camera;
+};
+
+/// A row's glossy pixels traced in batches of about kBatchRays rays, in three passes: each
+/// ray's segment; the depth tests of every ray's steps (the vector kernel), whose reads of the
+/// depth grid, mostly cache misses, overlap when the rays follow each other without waiting on
+/// their results; then each ray's crossings and what it meets, summed per pixel in the rays'
+/// order.
+class RowTracer {
+   public:
+    static constexpr int kBatchRays = 64;
+
+    RowTracer(const TraceContext &cx, int ty) : cx_(cx), ty_(ty), y_(ty * cx.st)
+    {
+        if (cx_.vector_kernels) {
+            ts_.resize(std::size_t(kBatchRays + cx_.p.rays) * cx_.step_pitch);
+            crossed_.resize(ts_.size());
+        }
+    }
+
+    /// Every traced pixel of the row; their cells written, the counts added up.
+    void trace();
+
+    long long pixels = 0, rays = 0, hits = 0;
+
+   private:
+    struct Ray {
+        int pixel;  // in the batch
+        glm::vec3 l;
+        float nl, jitter;
+        RaySegment seg;
+        glm::vec4 hit{0.0f};
+        int sky = -1;  // its sky direction's index, where it needs one
+    };
+    struct Candidate {  // a ray drawn, before its direction is known
+        int pixel;
+        float u1, u2, jitter;
+    };
+    struct Pixel {
+        int x;
+        GlossyPixel g;
+        glm::vec3 origin;
+        float alpha;
+        glm::vec3 sum{0.0f};
+        float wsum = 0.0f;
+        int sky = -1;
+    };
+
+    void flush();
+    void draw_directions();
+    void march_batch();
+    void meet();
+    void resolve_pixels();
+
+    const TraceContext &cx_;
+    const int ty_, y_;
+    std::vector<Candidate> candidates_;
+    std::vector<Ray> batch_rays_;
+    std::vector<Pixel> batch_pixels_;
+    std::vector<float> ts_, crossed_;
+    std::vector<glm::vec3> sky_dirs_, sky_values_;
+    std::vector<float> seg_soa_, ggx_soa_;
+};
+
+/// The candidates' directions from the GGX lobe (ggx_reflection_twin, or its vector kernel, the
+/// same bits); those below the surface are dropped.
+void RowTracer::draw_directions()
+{
+    const std::size_t nc = candidates_.size(), cpitch = soa_arrays(ggx_soa_, nc, 13, 9);
+    float *gin[9], *gout[4];
+    for (int c = 0; c < 9; ++c) {
+        gin[c] = ggx_soa_.data() + std::size_t(c) * cpitch;
+    }
+    for (int c = 0; c < 4; ++c) {
+        gout[c] = ggx_soa_.data() + std::size_t(9 + c) * cpitch;
+    }
+    for (std::size_t k = 0; k < nc; ++k) {
+        const Candidate &cand = candidates_[k];
+        const Pixel &px = batch_pixels_[std::size_t(cand.pixel)];
+        for (int c = 0; c < 3; ++c) {
+            gin[c][k] = px.g.n[c];
+            gin[3 + c][k] = px.g.view[c];
+        }
+        gin[6][k] = px.alpha;
+        gin[7][k] = cand.u1;
+        gin[8][k] = cand.u2;
+    }
+    if (cx_.vector_kernels) {
+        ssr_ggx_rays(gin, int(nc), gout);
+    } else {
+        for (std::size_t k = 0; k < nc; ++k) {
+            const float n[3] = {gin[0][k], gin[1][k], gin[2][k]};
+            const float v[3] = {gin[3][k], gin[4][k], gin[5][k]};
+            float l[3];
+            ggx_reflection_twin(n, v, gin[6][k], gin[7][k], gin[8][k], l);
+            for (int c = 0; c < 3; ++c) {
+                gout[c][k] = l[c];
+            }
+            gout[3][k] = (n[0] * l[0] + n[1] * l[1]) + n[2] * l[2];
+        }
+    }
+    batch_rays_.clear();
+    for (std::size_t k = 0; k < nc; ++k) {
+        const float nl = gout[3][k];
+        if (!(nl > 0.0f)) {
+            continue;
+        }
+        ++rays;
+        const Candidate &cand = candidates_[k];
+        const glm::vec3 l(gout[0][k], gout[1][k], gout[2][k]);
+        // The segment now on the scalar path, for the whole batch below on the vector one.
+        batch_rays_.push_back(
+            Ray{cand.pixel,
+                l,
+                nl,
+                cand.jitter,
+                cx_.vector_kernels
+                    ? RaySegment{}
+                    : cx_.marcher.segment(batch_pixels_[std::size_t(cand.pixel)].origin, l)});
+    }
+    candidates_.clear();
+}
+
+/// The vector path: the rays' segments together (ssr_segments: segment()'s bits), then the
+/// depth tests of every ray's steps.
+void RowTracer::march_batch()
+{
+    const std::size_t n = batch_rays_.size(), pitch = soa_arrays(seg_soa_, n, 15, 6);
+    for (std::size_t k = 0; k < n; ++k) {
+        const Ray &ray = batch_rays_[k];
+        const glm::vec3 &o = batch_pixels_[std::size_t(ray.pixel)].origin;
+        for (int c = 0; c < 3; ++c) {
+            seg_soa_[std::size_t(c) * pitch + k] = o[c];
+            seg_soa_[std::size_t(3 + c) * pitch + k] = ray.l[c];
+        }
+    }
+    float *out[9];
+    for (int c = 0; c < 9; ++c) {
+        out[c] = seg_soa_.data() + std::size_t(6 + c) * pitch;
+    }
+    ssr_segments(cx_.segment_camera,
+                 seg_soa_.data(),
+                 seg_soa_.data() + pitch,
+                 seg_soa_.data() + 2 * pitch,
+                 seg_soa_.data() + 3 * pitch,
+                 seg_soa_.data() + 4 * pitch,
+                 seg_soa_.data() + 5 * pitch,
+                 int(n),
+                 out);
+    for (std::size_t k = 0; k < n; ++k) {
+        RaySegment &seg = batch_rays_[k].seg;
+        seg.steps = int(out[8][k]);
+        if (seg.steps > 0) {
+            seg.a = ScreenPoint{out[0][k], out[1][k], out[2][k]};
+            seg.b = ScreenPoint{out[3][k], out[4][k], out[5][k]};
+            seg.t_start = out[6][k];
+            seg.t_end = out[7][k];
+        }
+    }
+    for (std::size_t k = 0; k < batch_rays_.size(); ++k) {
+        const Ray &ray = batch_rays_[k];
+        if (ray.seg.steps > 0) {
+            ssr_march_steps(cx_.marcher.grid(),
+                            cx_.marcher.kernel_segment(ray.seg, ray.jitter),
+                            ts_.data() + k * cx_.step_pitch,
+                            crossed_.data() + k * cx_.step_pitch);
+        }
+    }
+}
+
+/// What each ray meets; the sky where it meets nothing on screen (or only partly, near the
+/// edges), looked up with each pixel's mirror direction together afterwards.
+void RowTracer::meet()
+{
+    sky_dirs_.clear();
+    for (std::size_t k = 0; k < batch_rays_.size(); ++k) {
+        Ray &ray = batch_rays_[k];
+        ray.hit = glm::vec4(0.0f);  // the sky, for a ray with no segment on screen
+        if (ray.seg.steps > 0) {
+            ray.hit = cx_.vector_kernels
+                          ? cx_.marcher.march_result(ray.seg,
+                                                     ray.l,
+                                                     ts_.data() + k * cx_.step_pitch,
+                                                     crossed_.data() + k * cx_.step_pitch)
+                          : cx_.marcher.march(ray.seg, ray.l, ray.jitter);
+        }
+        if (ray.hit.w < 1.0f && !cx_.in.environment) {
+            ray.sky = int(sky_dirs_.size());
+            sky_dirs_.push_back(ray.l);
+        }
+        batch_pixels_[std::size_t(ray.pixel)].wsum += ray.nl;
+        hits += ray.hit.w > 0.0f ? 1 : 0;
+    }
+    for (Pixel &px : batch_pixels_) {
+        if (px.wsum > 0.0f) {
+            px.sky = int(sky_dirs_.size());
+            sky_dirs_.push_back(glm::reflect(-px.g.view, px.g.n));
+        }
+    }
+    cx_.sky(sky_dirs_, sky_values_);
+}
+
+/// Each pixel's rays summed, less what the sky gave it already: its cell for the resolve.
+void RowTracer::resolve_pixels()
+{
+    for (const Ray &ray : batch_rays_) {
+        glm::vec3 radiance(ray.hit);
+        if (ray.hit.w < 1.0f) {  // the sky, for what the screen does not show
+            const glm::vec3 sky_l =
+                cx_.in.environment
+                    ? cx_.in.environment->seen(batch_pixels_[std::size_t(ray.pixel)].origin, ray.l)
+                    : sky_values_[std::size_t(ray.sky)] * cx_.p.sky_scale;
+            radiance = sky_l + (radiance - sky_l) * ray.hit.w;
+        }
+        batch_pixels_[std::size_t(ray.pixel)].sum += radiance * ray.nl;
+    }
+    const Image &normal = *cx_.in.normal;
+    for (const Pixel &px : batch_pixels_) {
+        if (!(px.wsum > 0.0f)) {
+            continue;
+        }
+        const GlossyPixel &g = px.g;
+        const glm::vec3 change =
+            px.sum / px.wsum - sky_values_[std::size_t(px.sky)] * cx_.p.sky_scale;
+        cx_.cells.set(px.x / cx_.st,
+                      ty_,
+                      {g.z,
+                       normal.at(px.x, y_, 0),
+                       normal.at(px.x, y_, 1),
+                       normal.at(px.x, y_, 2),
+                       change.x,
+                       change.y,
+                       change.z});
+    }
+}
+
+void RowTracer::flush()
+{
+    draw_directions();
+    if (cx_.vector_kernels) {
+        march_batch();
+    }
+    meet();
+    resolve_pixels();
+    batch_rays_.clear();
+    batch_pixels_.clear();
+}
+
+void RowTracer::trace()
+{
+    const SsrParams &p = cx_.p;
+    const int tw = cx_.tw, y = y_;
+    // The traced pixels' set-up (glossy_pixel) on the weight kernel, the same bits: their
+    // weights, normals, view directions and points side by side.
+    thread_local std::vector<float> setup;
+    float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
+    if (cx_.vector_kernels) {
+        // (weight_row_inputs zeroes its inputs' pads.)
+        const std::size_t spitch = soa_arrays(setup, std::size_t(tw), 21, 0);
+        for (int c = 0; c < 9; ++c) {
+            sin[c] = setup.data() + std::size_t(c) * spitch;
+        }
+        for (int c = 0; c < 3; ++c) {
+            sw[c] = setup.data() + std::size_t(9 + c) * spitch;
+            sn[c] = setup.data() + std::size_t(12 + c) * spitch;
+            sv[c] = setup.data() + std::size_t(15 + c) * spitch;
+            sp[c] = setup.data() + std::size_t(18 + c) * spitch;
+        }
+        SsrWeightRow r = weight_row_inputs(cx_.in, cx_.rays, p, y, cx_.st, tw, sin);
+        for (int c = 0; c < 3; ++c) {
+            r.position[c] = cx_.rays.position()[c];
+            r.n_out[c] = sn[c];
+            r.view_out[c] = sv[c];
+            r.point_out[c] = sp[c];
+        }
+        ssr_weight_row(r, sw[0], sw[1], sw[2]);
+    }
+    for (int tx = 0; tx < tw; ++tx) {
+        const int x = tx * cx_.st;
+        std::optional<GlossyPixel> g;
+        if (!cx_.vector_kernels) {
+            g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
+        } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
+            g = GlossyPixel{sin[0][tx],
+                            sin[7][tx],
+                            glm::vec3(sp[0][tx], sp[1][tx], sp[2][tx]),
+                            glm::vec3(sn[0][tx], sn[1][tx], sn[2][tx]),
+                            glm::vec3(sv[0][tx], sv[1][tx], sv[2][tx]),
+                            glm::vec3(sw[0][tx], sw[1][tx], sw[2][tx])};
+        }
+        if (!g) {
+            continue;
+        }
+        ++pixels;
+        const float alpha = roughness_to_alpha(g->roughness);
+        const int count =
+            std::clamp(int(std::ceil(float(p.rays) * g->roughness / 0.35f)), 1, p.rays);
+        // The origin leaves the surface by a fraction of its distance (depth precision).
+        const glm::vec3 origin = g->point + g->n * (1e-3f * g->z + 1e-3f);
+        const int pixel = int(batch_pixels_.size());
+        batch_pixels_.push_back(Pixel{x, *g, origin, alpha});
+        for (int i = 0; i < count; ++i) {
+            // Stratified in the first coordinate (the lobe's angle from its axis).
+            candidates_.push_back(Candidate{pixel,
+                                            (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count),
+                                            hash_unit(x, y, 3 * i + 1, p.seed),
+                                            hash_unit(x, y, 3 * i + 2, p.seed)});
+        }
+        if (int(candidates_.size()) >= kBatchRays) {
+            flush();
+        }
+    }
+    flush();
+}
+
+}  // namespace
+
+Image ssr(const SsrInputs &in, const SsrParams &p, SsrStats *stats)
+{
+    const Image &depth = *in.depth;
+    const int w = depth.width(), h = depth.height();
+    const int st = std::max(1, p.stride);
+    // The traced grid: every st-th pixel in x and y.
+    const int tw = (w + st - 1) / st, th = (h + st - 1) / st;
+    const CameraRays rays(in.world_to_camera, in.world_to_ndc);
+    // The vector kernels (the march's depth tests, the sky, the resolve's weights and window)
+    // unless the scalar reference is asked for.
+    const bool vector_kernels = simd::requested() != simd::Level::Scalar;
+    const SkyLookup sky(scene_sky(p.sun_direction), vector_kernels);
+    const int gs = std::min(st, 2);
+    const int gw = (w + gs - 1) / gs, gh = (h + gs - 1) / gs;
+    const std::vector<float> inv_depth = nearest_inverse_depth(depth, gs, gw, gh);
     const Marcher marcher(in, p, inv_depth.data(), gw, gh, gs);
     // Per traced cell what the resolve compares and averages (ssr_kernels.h, SsrResolveRow).
     CellRows cells(w, th, st);
+    const TraceContext cx{in,
+                          p,
+                          rays,
+                          marcher,
+                          sky,
+                          cells,
+                          vector_kernels,
+                          st,
+                          tw,
+                          std::size_t(p.steps + kSsrStepPad),
+                          marcher.segment_camera()};
     std::atomic<long long> n_pixels{0}, n_rays{0}, n_hits{0};
-    // A row's glossy pixels are traced in batches of about kBatchRays rays, in three passes:
-    // each ray's segment; the depth tests of every ray's steps (the vector kernel), whose
-    // reads of the depth grid, mostly cache misses, overlap when the rays follow each other
-    // without waiting on their results; then each ray's crossings and what it meets, summed
-    // per pixel in the rays' order.
-    constexpr int kBatchRays = 64;
-    const SsrSegmentCamera segment_camera = marcher.segment_camera();
-    const std::size_t step_pitch = std::size_t(p.steps + kSsrStepPad);
     parallel_for(0, th, [&](int ty) {
-        struct Ray {
-            int pixel;  // in the batch
-            glm::vec3 l;
-            float nl, jitter;
-            RaySegment seg;
-            glm::vec4 hit{0.0f};
-            int sky = -1;  // its sky direction's index, where it needs one
-        };
-        struct Candidate {  // a ray drawn, before its direction is known
-            int pixel;
-            float u1, u2, jitter;
-        };
-        struct Pixel {
-            int x;
-            GlossyPixel g;
-            glm::vec3 origin;
-            float alpha;
-            glm::vec3 sum{0.0f};
-            float wsum = 0.0f;
-            int sky = -1;
-        };
-        std::vector<Candidate> candidates;
-        std::vector<Ray> batch_rays;
-        std::vector<Pixel> batch_pixels;
-        std::vector<float> ts, crossed;
-        std::vector<glm::vec3> sky_dirs, sky_values;
-        std::vector<float> seg_soa, ggx_soa;
-        if (vector_kernels) {
-            ts.resize(std::size_t(kBatchRays + p.rays) * step_pitch);
-            crossed.resize(ts.size());
-        }
-        long long row_pixels = 0, row_rays = 0, row_hits = 0;
-        const int y = ty * st;
-        const auto flush = [&] {
-            // The candidates' directions from the GGX lobe (ggx_reflection_twin, or its vector
-            // kernel, the same bits); those below the surface are dropped.
-            const std::size_t nc = candidates.size(), cpitch = soa_arrays(ggx_soa, nc, 13, 9);
-            float *gin[9], *gout[4];
-            for (int c = 0; c < 9; ++c) {
-                gin[c] = ggx_soa.data() + std::size_t(c) * cpitch;
-            }
-            for (int c = 0; c < 4; ++c) {
-                gout[c] = ggx_soa.data() + std::size_t(9 + c) * cpitch;
-            }
-            for (std::size_t k = 0; k < nc; ++k) {
-                const Candidate &cand = candidates[k];
-                const Pixel &px = batch_pixels[std::size_t(cand.pixel)];
-                for (int c = 0; c < 3; ++c) {
-                    gin[c][k] = px.g.n[c];
-                    gin[3 + c][k] = px.g.view[c];
-                }
-                gin[6][k] = px.alpha;
-                gin[7][k] = cand.u1;
-                gin[8][k] = cand.u2;
-            }
-            if (vector_kernels) {
-                ssr_ggx_rays(gin, int(nc), gout);
-            } else {
-                for (std::size_t k = 0; k < nc; ++k) {
-                    const float n[3] = {gin[0][k], gin[1][k], gin[2][k]};
-                    const float v[3] = {gin[3][k], gin[4][k], gin[5][k]};
-                    float l[3];
-                    ggx_reflection_twin(n, v, gin[6][k], gin[7][k], gin[8][k], l);
-                    for (int c = 0; c < 3; ++c) {
-                        gout[c][k] = l[c];
-                    }
-                    gout[3][k] = (n[0] * l[0] + n[1] * l[1]) + n[2] * l[2];
-                }
-            }
-            batch_rays.clear();
-            for (std::size_t k = 0; k < nc; ++k) {
-                const float nl = gout[3][k];
-                if (!(nl > 0.0f)) {
-                    continue;
-                }
-                ++row_rays;
-                const Candidate &cand = candidates[k];
-                const glm::vec3 l(gout[0][k], gout[1][k], gout[2][k]);
-                // The segment now on the scalar path, for the whole batch below on the vector
-                // one.
-                batch_rays.push_back(
-                    Ray{cand.pixel,
-                        l,
-                        nl,
-                        cand.jitter,
-                        vector_kernels
-                            ? RaySegment{}
-                            : marcher.segment(batch_pixels[std::size_t(cand.pixel)].origin, l)});
-            }
-            candidates.clear();
-            if (vector_kernels) {
-                // The rays' segments together (ssr_segments: segment()'s bits).
-                const std::size_t n = batch_rays.size(), pitch = soa_arrays(seg_soa, n, 15, 6);
-                for (std::size_t k = 0; k < n; ++k) {
-                    const Ray &ray = batch_rays[k];
-                    const glm::vec3 &o = batch_pixels[std::size_t(ray.pixel)].origin;
-                    for (int c = 0; c < 3; ++c) {
-                        seg_soa[std::size_t(c) * pitch + k] = o[c];
-                        seg_soa[std::size_t(3 + c) * pitch + k] = ray.l[c];
-                    }
-                }
-                float *out[9];
-                for (int c = 0; c < 9; ++c) {
-                    out[c] = seg_soa.data() + std::size_t(6 + c) * pitch;
-                }
-                ssr_segments(segment_camera,
-                             seg_soa.data(),
-                             seg_soa.data() + pitch,
-                             seg_soa.data() + 2 * pitch,
-                             seg_soa.data() + 3 * pitch,
-                             seg_soa.data() + 4 * pitch,
-                             seg_soa.data() + 5 * pitch,
-                             int(n),
-                             out);
-                for (std::size_t k = 0; k < n; ++k) {
-                    RaySegment &seg = batch_rays[k].seg;
-                    seg.steps = int(out[8][k]);
-                    if (seg.steps > 0) {
-                        seg.a = ScreenPoint{out[0][k], out[1][k], out[2][k]};
-                        seg.b = ScreenPoint{out[3][k], out[4][k], out[5][k]};
-                        seg.t_start = out[6][k];
-                        seg.t_end = out[7][k];
-                    }
-                }
-                for (std::size_t k = 0; k < batch_rays.size(); ++k) {
-                    const Ray &ray = batch_rays[k];
-                    if (ray.seg.steps > 0) {
-                        ssr_march_steps(marcher.grid(),
-                                        marcher.kernel_segment(ray.seg, ray.jitter),
-                                        ts.data() + k * step_pitch,
-                                        crossed.data() + k * step_pitch);
-                    }
-                }
-            }
-            // What each ray meets; the sky where it meets nothing on screen (or only partly, near
-            // the edges), looked up with each pixel's mirror direction together afterwards.
-            sky_dirs.clear();
-            for (std::size_t k = 0; k < batch_rays.size(); ++k) {
-                Ray &ray = batch_rays[k];
-                ray.hit = glm::vec4(0.0f);  // the sky, for a ray with no segment on screen
-                if (ray.seg.steps > 0) {
-                    ray.hit = vector_kernels ? marcher.march_result(ray.seg,
-                                                                    ray.l,
-                                                                    ts.data() + k * step_pitch,
-                                                                    crossed.data() + k * step_pitch)
-                                             : marcher.march(ray.seg, ray.l, ray.jitter);
-                }
-                if (ray.hit.w < 1.0f && !in.environment) {
-                    ray.sky = int(sky_dirs.size());
-                    sky_dirs.push_back(ray.l);
-                }
-                batch_pixels[std::size_t(ray.pixel)].wsum += ray.nl;
-                row_hits += ray.hit.w > 0.0f ? 1 : 0;
-            }
-            for (Pixel &px : batch_pixels) {
-                if (px.wsum > 0.0f) {
-                    px.sky = int(sky_dirs.size());
-                    sky_dirs.push_back(glm::reflect(-px.g.view, px.g.n));
-                }
-            }
-            sky_radiance(sky_dirs, sky_values);
-            for (const Ray &ray : batch_rays) {
-                glm::vec3 radiance(ray.hit);
-                if (ray.hit.w < 1.0f) {  // the sky, for what the screen does not show
-                    const glm::vec3 sky_l =
-                        in.environment ? in.environment->seen(
-                                             batch_pixels[std::size_t(ray.pixel)].origin, ray.l)
-                                       : sky_values[std::size_t(ray.sky)] * p.sky_scale;
-                    radiance = sky_l + (radiance - sky_l) * ray.hit.w;
-                }
-                batch_pixels[std::size_t(ray.pixel)].sum += radiance * ray.nl;
-            }
-            for (const Pixel &px : batch_pixels) {
-                if (!(px.wsum > 0.0f)) {
-                    continue;
-                }
-                const GlossyPixel &g = px.g;
-                const glm::vec3 change =
-                    px.sum / px.wsum - sky_values[std::size_t(px.sky)] * p.sky_scale;
-                cells.set(px.x / st,
-                          ty,
-                          {g.z,
-                           normal.at(px.x, y, 0),
-                           normal.at(px.x, y, 1),
-                           normal.at(px.x, y, 2),
-                           change.x,
-                           change.y,
-                           change.z});
-            }
-            batch_rays.clear();
-            batch_pixels.clear();
-        };
-        // The traced pixels' set-up (glossy_pixel) on the weight kernel, the same bits: their
-        // weights, normals, view directions and points side by side.
-        thread_local std::vector<float> setup;
-        float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
-        if (vector_kernels) {
-            // (weight_row_inputs zeroes its inputs' pads.)
-            const std::size_t spitch = soa_arrays(setup, std::size_t(tw), 21, 0);
-            for (int c = 0; c < 9; ++c) {
-                sin[c] = setup.data() + std::size_t(c) * spitch;
-            }
-            for (int c = 0; c < 3; ++c) {
-                sw[c] = setup.data() + std::size_t(9 + c) * spitch;
-                sn[c] = setup.data() + std::size_t(12 + c) * spitch;
-                sv[c] = setup.data() + std::size_t(15 + c) * spitch;
-                sp[c] = setup.data() + std::size_t(18 + c) * spitch;
-            }
-            SsrWeightRow r = weight_row_inputs(in, rays, p, y, st, tw, sin);
-            for (int c = 0; c < 3; ++c) {
-                r.position[c] = rays.position()[c];
-                r.n_out[c] = sn[c];
-                r.view_out[c] = sv[c];
-                r.point_out[c] = sp[c];
-            }
-            ssr_weight_row(r, sw[0], sw[1], sw[2]);
-        }
-        for (int tx = 0; tx < tw; ++tx) {
-            const int x = tx * st;
-            std::optional<GlossyPixel> g;
-            if (!vector_kernels) {
-                g = glossy_pixel(in, rays, p, x, y);
-            } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
-                g = GlossyPixel{sin[0][tx],
-                                sin[7][tx],
-                                glm::vec3(sp[0][tx], sp[1][tx], sp[2][tx]),
-                                glm::vec3(sn[0][tx], sn[1][tx], sn[2][tx]),
-                                glm::vec3(sv[0][tx], sv[1][tx], sv[2][tx]),
-                                glm::vec3(sw[0][tx], sw[1][tx], sw[2][tx])};
-            }
-            if (!g) {
-                continue;
-            }
-            ++row_pixels;
-            const float alpha = roughness_to_alpha(g->roughness);
-            const int count =
-                std::clamp(int(std::ceil(float(p.rays) * g->roughness / 0.35f)), 1, p.rays);
-            // The origin leaves the surface by a fraction of its distance (depth precision).
-            const glm::vec3 origin = g->point + g->n * (1e-3f * g->z + 1e-3f);
-            const int pixel = int(batch_pixels.size());
-            batch_pixels.push_back(Pixel{x, *g, origin, alpha});
-            for (int i = 0; i < count; ++i) {
-                // Stratified in the first coordinate (the lobe's angle from its axis).
-                candidates.push_back(
-                    Candidate{pixel,
-                              (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count),
-                              hash_unit(x, y, 3 * i + 1, p.seed),
-                              hash_unit(x, y, 3 * i + 2, p.seed)});
-            }
-            if (int(candidates.size()) >= kBatchRays) {
-                flush();
-            }
-        }
-        flush();
-        n_pixels += row_pixels;
-        n_rays += row_rays;
-        n_hits += row_hits;
+        RowTracer row(cx, ty);
+        row.trace();
+        n_pixels += row.pixels;
+        n_rays += row.rays;
+        n_hits += row.hits;
     });
     Image out = ssr_detail::resolve(in, p, rays, cells, st, vector_kernels);
     if (stats) {
