@@ -127,6 +127,26 @@ struct Visibility {
 
 Visibility visibility(const Geometry &g, const View &v, RenderStats *stats);
 
+// ---- The passes from the visibility buffer (render_passes.cpp) -------------------------------
+
+struct LightingState;
+
+// Every data pass o.passes asks for, and colour (and its specular share) when `color_here` (one
+// sample a pixel), from `vis` seen through `v`; set on `f`. `ls` is null when neither colour
+// nor the shadow pass is asked for.
+void shade_passes(const Scene &s,
+                  const Geometry &g,
+                  const View &v,
+                  const Visibility &vis,
+                  const RenderOptions &o,
+                  const LightingState *ls,
+                  bool color_here,
+                  bool want_specular,
+                  Image &color,
+                  Image &specular,
+                  Frame &f,
+                  RenderStats *stats);
+
 // ---- Cryptomatte (render_cryptomatte.cpp) ---------------------------------------------------
 
 // The CryptoObject and CryptoMaterial rank layers o.passes asks for, from `vis` (o.supersample
