@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -93,6 +95,7 @@ struct CryptoFile {
     int rank_layers = 2;
     bool half_ids = false;
     bool manifest = true;
+    std::string sidecar;  ///< the manifest in this file beside the image (manif_file) instead
     std::string hash = "MurmurHash3_32";
     std::vector<int> skip_layers;  ///< rank layers left out
 };
@@ -132,7 +135,12 @@ std::string write_crypto_file(const std::string &path,
         for (const std::string &n : names) {
             m[n] = hex_of(id_of(n));
         }
-        spec.attribute("cryptomatte/" + key + "/manifest", m.dump());
+        if (cf.sidecar.empty()) {
+            spec.attribute("cryptomatte/" + key + "/manifest", m.dump());
+        } else {
+            spec.attribute("cryptomatte/" + key + "/manif_file", cf.sidecar);
+            std::ofstream(std::filesystem::path(path).parent_path() / cf.sidecar) << m.dump();
+        }
     }
     std::vector<float> data(std::size_t(w * h) * channels.size(), 0.0f);
     for (int i = 0; i < w * h; ++i) {
@@ -299,6 +307,36 @@ TEST(Cryptomatte, ViewLayerPrefixAndNoManifest)
         FAIL() << "a pattern without a manifest was accepted";
     } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("a pattern needs a manifest"), std::string::npos)
+            << e.what();
+    }
+}
+
+// A manifest in a sidecar file (manif_file, relative to the image) serves patterns as one in the
+// header does; a sidecar that is missing or not a manifest is named.
+TEST(Cryptomatte, SidecarManifest)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_sidecar");
+    const std::vector<Ranks> pixels = sample_pixels();
+    CryptoFile cf;
+    cf.sidecar = "manifest.json";
+    const std::string path = write_crypto_file(dir + "/a.exr", cf, pixels, kNames);
+    EXPECT_EQ(values(key(path, R"({"matte": ["flo*"]})").image("matte")),
+              expected_matte(pixels, {"floor[1]"}));
+    std::filesystem::remove(dir + "/manifest.json");
+    try {
+        key(path, R"({"matte": ["bunny"]})");
+        FAIL() << "a missing sidecar was accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("cannot read its manifest file"), std::string::npos)
+            << e.what();
+    }
+    std::ofstream(dir + "/manifest.json") << R"({"bunny": "13851a7"})";
+    try {
+        key(path, R"({"matte": ["bunny"]})");
+        FAIL() << "a malformed sidecar was accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("manifest entry \"bunny\": expected 8 hex digits"),
+                  std::string::npos)
             << e.what();
     }
 }
