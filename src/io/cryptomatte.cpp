@@ -84,7 +84,9 @@ std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes, const std
         by_key[key][n.substr(slash + 1)] = p.get_string();
     }
     std::vector<Layer> layers;
-    for (const auto &[key, fields] : by_key) {
+    for (const auto &entry : by_key) {
+        const std::string &key = entry.first;
+        const std::map<std::string, std::string> &fields = entry.second;
         const auto field = [&](const char *f) {
             const auto it = fields.find(f);
             return it == fields.end() ? std::string() : it->second;
