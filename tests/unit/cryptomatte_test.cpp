@@ -209,7 +209,7 @@ Frame key(const std::string &path, const std::string &params)
         {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"}, "params": )" + params +
                                R"(},
         {"id": "out", "type": "write", "inputs": {"image": "key"},
-         "params": {"path": ")" + path + R"(.out.exr", "passes": ")" +
+         "params": {"path": ")" + test::scratch_dir("cryptomatte_key_out") + R"(/out.exr", "passes": ")" +
                                (params.find("output") == std::string::npos ? "matte" : "color") +
                                R"("}}]})",
                            "cryptomatte test",
