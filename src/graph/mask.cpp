@@ -12,12 +12,9 @@ namespace posthaste {
 
 namespace {
 
-/// The mask over `window` (absolute): the channel or luminance of `pass`, clamped to [0, 1]
-/// (NaN: 0), inverted on request; 0 outside the mask frame's data window.
-Image mask_image(const std::string &who,
-                 const NodeParams &params,
-                 const Frame &mask,
-                 const Rect &window)
+/// The channel of the mask pass the mask is (0..3, or 4 for the luminance), or an error naming
+/// the pass and channel when the frame on the mask port cannot give it.
+int mask_channel(const std::string &who, const NodeParams &params, const Frame &mask)
 {
     const std::string &name = params.get_string(kMaskPass);
     const Image &src = mask.image(name, who + ": mask input");
@@ -31,6 +28,19 @@ Image mask_image(const std::string &who,
         throw_runtime(who, ": mask luminance needs 3 channels in pass \"", name, "\", it has ",
                       src.channels());
     }
+    return channel;
+}
+
+/// The mask over `window` (absolute): the channel or luminance of `pass`, clamped to [0, 1]
+/// (NaN: 0), inverted on request; 0 outside the mask frame's data window.
+Image mask_image(const std::string &who,
+                 const NodeParams &params,
+                 const Frame &mask,
+                 const Rect &window)
+{
+    const std::string &name = params.get_string(kMaskPass);
+    const Image &src = mask.image(name, who + ": mask input");
+    const int channel = mask_channel(who, params, mask);
     const bool invert = params.get_bool(kMaskInvert);
     Image one(mask.width(), mask.height(), 1);
     parallel_for(0, one.height(), [&](int y) {
@@ -53,6 +63,7 @@ void apply_mask(const std::string &who,
                 const Frame &mask,
                 Frame &out)
 {
+    mask_channel(who, params, mask);  // a mask that cannot be is an error, used or not
     std::vector<std::string> changed;
     for (const auto &[name, pass] : out.passes()) {
         if (!in.has(name)) {

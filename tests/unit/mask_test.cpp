@@ -117,6 +117,12 @@ TEST(Mask, LuminanceAndChannelErrors)
             << e.what();
     }
     try {
+        run("grade", R"({"mask_pass": "nope"})");  // an identity grade: the mask is not needed
+        FAIL() << "a missing mask pass was accepted where the node changed nothing";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("nope"), std::string::npos) << e.what();
+    }
+    try {
         run("blur", R"({"sigma": 1, "mask_pass": "nope"})");
         FAIL() << "a missing pass was accepted";
     } catch (const Error &e) {
