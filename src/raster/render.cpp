@@ -191,19 +191,22 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     if (want_color || has(pass::kShadow)) {  // the shadow pass reads the shadow maps
         ls = std::make_unique<LightingState>(s, cache, g, o, stats);
     }
+    const bool want_crypto = o.passes.count(crypto_layer(kCryptoObject, 0)) ||
+                             o.passes.count(crypto_layer(kCryptoMaterial, 0));
+    // The beauty's samples at the supersampled size, once: the beauty's colour and the
+    // cryptomattes' coverage (a matte's edges are the beauty's) both read them.
+    const View vs =
+        make_view(cam, o.width * o.supersample, o.height * o.supersample, s.near_clip, glm::vec2(0.0f));
+    Visibility vis_ss;
+    if (o.supersample > 1 && (want_color || want_crypto)) {
+        vis_ss = visibility(g, vs, stats);
+    }
     if (want_color) {
         color = fresh_image(o.width, o.height, 4);
         if (want_specular) {
             specular = fresh_image(o.width, o.height, 3);
         }
         if (o.supersample > 1) {
-            // The beauty gets its own visibility at the supersampled size.
-            const View vs = make_view(cam,
-                                      o.width * o.supersample,
-                                      o.height * o.supersample,
-                                      s.near_clip,
-                                      glm::vec2(0.0f));
-            const Visibility vis_ss = visibility(g, vs, stats);
             t0 = Clock::now();
             shade_color(g,
                         vs,
@@ -216,6 +219,9 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
                 stats->shade_ms += ms_since(t0);
             }
         }
+    }
+    if (!want_crypto) {
+        vis_ss = Visibility{};  // its 8 bytes a sample freed before the data passes
     }
     const bool color_here = want_color && o.supersample == 1;
     auto store = [&](const char *name, Image &img) {
@@ -230,19 +236,7 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     }
     const View v = make_view(cam, o.width, o.height, s.near_clip, glm::vec2(0.0f));
     const Visibility vis = visibility(g, v, stats);
-    if (o.passes.count(crypto_layer(kCryptoObject, 0)) ||
-        o.passes.count(crypto_layer(kCryptoMaterial, 0))) {
-        // Coverage from the beauty's own samples: a matte's edges are the beauty's.
-        Visibility vis_ss;
-        if (o.supersample > 1) {
-            vis_ss = visibility(g,
-                                make_view(cam,
-                                          o.width * o.supersample,
-                                          o.height * o.supersample,
-                                          s.near_clip,
-                                          glm::vec2(0.0f)),
-                                stats);
-        }
+    if (want_crypto) {
         add_cryptomattes(s, g, o.supersample > 1 ? vis_ss : vis, o, f);
     }
     shade_passes(s, g, v, vis, o, ls.get(), color_here, want_specular, color, specular, f, stats);
