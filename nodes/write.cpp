@@ -126,9 +126,7 @@ void keep_cryptomattes_exact(NodeContext &ctx, const Frame &frame, WriteOptions 
                               "32-bit hashes), the other passes as asked");
     }
     const std::string &c = options.compression;
-    const std::string base = c.substr(0, c.find(':'));
-    if (!ranks.empty() && (base == "dwaa" || base == "dwab" || base == "pxr24" || base == "b44" ||
-                           base == "b44a")) {
+    if (!ranks.empty() && is_lossy_compression(c)) {
         throw_runtime(ctx.where(),
                       ": compression \"",
                       c,

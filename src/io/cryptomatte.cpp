@@ -3,6 +3,7 @@
 #include "io/cryptomatte.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -18,6 +19,14 @@ namespace {
 
 constexpr std::string_view kPrefix = "cryptomatte/";
 constexpr std::string_view kRequest = "cryptomatte:";
+
+/// Whether `pass` is a rank layer of the cryptomatte `name`: the name and two digits.
+bool is_rank_of(const std::string &name, const std::string &pass)
+{
+    return pass.size() == name.size() + 2 && pass.compare(0, name.size(), name) == 0 &&
+           std::isdigit(static_cast<unsigned char>(pass[pass.size() - 2])) &&
+           std::isdigit(static_cast<unsigned char>(pass[pass.size() - 1]));
+}
 
 }  // namespace
 
@@ -144,9 +153,7 @@ std::vector<std::string> rank_passes(const Layer &layer,
     int highest = -1;
     std::vector<bool> present(100, false);
     for (const std::string &p : pass_names) {
-        if (p.size() == layer.name.size() + 2 && p.compare(0, layer.name.size(), layer.name) == 0 &&
-            std::isdigit(static_cast<unsigned char>(p[p.size() - 2])) &&
-            std::isdigit(static_cast<unsigned char>(p[p.size() - 1]))) {
+        if (is_rank_of(layer.name, p)) {
             const int k = std::stoi(p.substr(p.size() - 2));
             present[std::size_t(k)] = true;
             highest = std::max(highest, k);
@@ -266,10 +273,7 @@ std::set<std::string> requested_ranks(const std::set<std::string> &optional,
         for (const std::string &type : types) {
             if (type.empty() || l.is(type)) {
                 for (const std::string &pass : pass_names) {
-                    if (pass.size() == l.name.size() + 2 &&
-                        pass.compare(0, l.name.size(), l.name) == 0 &&
-                        std::isdigit(static_cast<unsigned char>(pass[pass.size() - 2])) &&
-                        std::isdigit(static_cast<unsigned char>(pass[pass.size() - 1]))) {
+                    if (is_rank_of(l.name, pass)) {
                         out.insert(pass);
                     }
                 }

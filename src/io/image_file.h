@@ -137,6 +137,9 @@ struct WriteOptions {
 /// Validate an EXR compression name ("dwaa:45" allowed, "auto"); throws a usage Error naming
 /// `where`.
 void check_compression(const std::string &compression, const std::string &where);
+/// Whether an EXR compression name ("dwaa:45" allowed) changes values: dwaa, dwab, pxr24, b44,
+/// b44a.
+bool is_lossy_compression(const std::string &compression);
 
 /// Write an EXR atomically (temporary file, then rename). Camera and header attributes kept;
 /// the data and display windows are the frame's.

@@ -233,6 +233,12 @@ bool is_exr_path(const std::string &path)
     return ext == ".exr" || ext == ".sxr" || ext == ".mxr";
 }
 
+bool is_lossy_compression(const std::string &compression)
+{
+    const std::string base = compression.substr(0, compression.find(':'));
+    return base == "dwaa" || base == "dwab" || base == "pxr24" || base == "b44" || base == "b44a";
+}
+
 void check_compression(const std::string &compression, const std::string &where)
 {
     static const std::vector<std::string> kNames = {

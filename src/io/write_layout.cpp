@@ -16,12 +16,6 @@ namespace posthaste::io_detail {
 
 namespace {
 
-bool is_lossy(const std::string &compression)
-{
-    const std::string base = compression.substr(0, compression.find(':'));
-    return base == "dwaa" || base == "dwab" || base == "pxr24" || base == "b44" || base == "b44a";
-}
-
 OIIO::TypeDesc storage_type(PixelStorage s)
 {
     return s == PixelStorage::Half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT;
@@ -355,7 +349,7 @@ void finish_specs(std::vector<OutPart> &parts,
         if (compression == "auto") {
             const std::string was =
                 part.source ? part.source->spec.get_string_attribute("compression") : "";
-            compression = was.empty() ? "piz" : is_lossy(was) ? "zip" : was;
+            compression = was.empty() ? "piz" : is_lossy_compression(was) ? "zip" : was;
         }
         const std::string base = compression.substr(0, compression.find(':'));
         if ((base == "dwaa" || base == "dwab" || base == "pxr24") && !options.allow_lossy_data) {
