@@ -45,6 +45,22 @@ constexpr ParamSpec kPreview =
             "reads the ID there), G and B the coverage-weighted viewable colours of every rank "
             "(the specification's (hash << 8) and (hash << 16) over 2^32 - 1).");
 constexpr ParamSpec kParams[] = {kLayer, kMatte, kOutput, kPass, kPreview};
+/// What the node keys and writes, its parameters bound to the fields.
+struct KeySettings {
+    enum class Output { Matte, Alpha, Keyed };  ///< output's choices, in order
+    std::string layer;
+    Output output = Output::Matte;
+    std::string pass = "matte";
+    bool preview = false;
+};
+constexpr Binding<KeySettings> kFields[] = {
+    bind<&KeySettings::layer>(kLayer),
+    bind<&KeySettings::output>(kOutput),
+    bind<&KeySettings::pass>(kPass),
+    bind<&KeySettings::preview>(kPreview),
+};
+using Output = KeySettings::Output;
+
 constexpr PortSpec kInputs[] = {
     {"image", "", false, "A frame with a cryptomatte: its header and rank layers (<name>00, ...)."}};
 
@@ -265,7 +281,8 @@ void execute(NodeContext &ctx)
     } catch (const Error &e) {
         throw Error(e.code(), where + ": " + e.what());
     }
-    const cryptomatte::Layer &layer = choose_layer(layers, ctx.get_string(kLayer), where);
+    const KeySettings ks = fill(ctx.params(), kFields);
+    const cryptomatte::Layer &layer = choose_layer(layers, ks.layer, where);
     const std::vector<std::string> rank_names =
         cryptomatte::rank_passes(layer, in.pass_names(), where);
     if (rank_names.empty()) {
@@ -316,18 +333,18 @@ void execute(NodeContext &ctx)
     }
     const std::vector<std::uint32_t> ids = keyed_ids(ctx, layer, entries_of(ctx.params()));
     Image matte = matte_of(ranks, ids, in.width(), in.height());
-    const std::string &output = ctx.get_string(kOutput);
-    if (ctx.get_bool(kPreview)) {
+    const Output output = ks.output;
+    if (ks.preview) {
         ctx.output().set("cryptomatte_preview", preview_of(ranks, in.width(), in.height()),
                          {"R", "G", "B"});
     }
-    if (output == "matte") {
-        ctx.output().set(ctx.get_string(kPass), std::move(matte), {"A"});
+    if (output == Output::Matte) {
+        ctx.output().set(ks.pass, std::move(matte), {"A"});
         return;
     }
     const Pass &cp = in.pass(pass::kColor, where);
     const Image &color = *cp.image;
-    const int nc = output == "alpha" ? std::max(color.channels(), 4) : color.channels();
+    const int nc = output == Output::Alpha ? std::max(color.channels(), 4) : color.channels();
     Image out = Image::uninitialized(color.width(), color.height(), nc);
     parallel_for(0, out.height(), [&](int y) {
         for (int x = 0; x < out.width(); ++x) {
@@ -336,7 +353,7 @@ void execute(NodeContext &ctx)
             float *d = out.pixel(x, y);
             for (int c = 0; c < nc; ++c) {
                 const float v = c < color.channels() ? s[c] : 1.0f;
-                d[c] = output == "keyed" ? v * m : (c == 3 ? m : v);
+                d[c] = output == Output::Keyed ? v * m : (c == 3 ? m : v);
             }
         }
     });
@@ -350,11 +367,12 @@ void execute(NodeContext &ctx)
 
 void plan(PlanContext &ctx)
 {
-    ctx.inputs[0].add_optional(cryptomatte::request_for(ctx.params.get_string(kLayer)));
-    if (ctx.params.get_string(kOutput) != "matte") {
+    const KeySettings ks = fill(ctx.params, kFields);
+    ctx.inputs[0].add_optional(cryptomatte::request_for(ks.layer));
+    if (ks.output != Output::Matte) {
         ctx.inputs[0].add(pass::kColor);
     } else {
-        ctx.inputs[0].remove(ctx.params.get_string(kPass));  // the node makes it
+        ctx.inputs[0].remove(ks.pass);  // the node makes it
     }
     ctx.inputs[0].remove("cryptomatte_preview");
 }
@@ -381,7 +399,8 @@ void check(CheckContext &ctx)
             throw_param_expected(ctx, kMatte, "an ID as <8 hex digits> or <float>", quoted(s));
         }
     }
-    if (ctx.params.get_string(kOutput) == "matte" && ctx.params.get_string(kPass).empty()) {
+    const KeySettings ks = fill(ctx.params, kFields);
+    if (ks.output == Output::Matte && ks.pass.empty()) {
         throw_param_expected(ctx, kPass, "a pass name", "\"\"");
     }
 }
@@ -396,6 +415,8 @@ extern const NodeType kCryptomatte{
      ""},
     &execute,
     &plan,
-    &check};
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) { audit(kCryptomatte, kFields, problems); }};
 
 }  // namespace posthaste::nodes

@@ -216,7 +216,7 @@ void Graph::plan()
             }
             for (std::size_t p = 0; spec.maskable && p < spec.inputs.size(); ++p) {
                 if (spec.inputs[p].name == kMaskPort.name) {
-                    gn.input_passes[p].add(gn.params.get_string(kMaskPass));
+                    gn.input_passes[p].add(fill(gn.params, kMaskFields).pass);
                 }
             }
         }

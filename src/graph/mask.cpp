@@ -14,12 +14,12 @@ namespace {
 
 /// The channel of the mask pass the mask is (0..3, or 4 for the luminance), or an error naming
 /// the pass and channel when the frame on the mask port cannot give it.
-int mask_channel(const std::string &who, const NodeParams &params, const Frame &mask)
+int mask_channel(const std::string &who, const MaskSettings &m, const Frame &mask)
 {
-    const std::string &name = params.get_string(kMaskPass);
+    const std::string &name = m.pass;
     const Image &src = mask.image(name, who + ": mask input");
     // r, g, b, a, luminance; a one-channel pass (a matte) is its own mask whichever is named.
-    const int channel = src.channels() == 1 ? 0 : params.get_choice(kMaskChannel);
+    const int channel = src.channels() == 1 ? 0 : int(m.channel);
     if (channel < 4 && channel >= src.channels()) {
         throw_runtime(who, ": mask pass \"", name, "\" has ", src.channels(),
                       " channels, no ", "rgba"[channel], " (mask_channel)");
@@ -34,14 +34,13 @@ int mask_channel(const std::string &who, const NodeParams &params, const Frame &
 /// The mask over `window` (absolute): the channel or luminance of `pass`, clamped to [0, 1]
 /// (NaN: 0), inverted on request; 0 outside the mask frame's data window.
 Image mask_image(const std::string &who,
-                 const NodeParams &params,
+                 const MaskSettings &m,
                  const Frame &mask,
                  const Rect &window)
 {
-    const std::string &name = params.get_string(kMaskPass);
-    const Image &src = mask.image(name, who + ": mask input");
-    const int channel = mask_channel(who, params, mask);
-    const bool invert = params.get_bool(kMaskInvert);
+    const Image &src = mask.image(m.pass, who + ": mask input");
+    const int channel = mask_channel(who, m, mask);
+    const bool invert = m.invert;
     Image one(mask.width(), mask.height(), 1);
     parallel_for(0, one.height(), [&](int y) {
         for (int x = 0; x < one.width(); ++x) {
@@ -63,7 +62,8 @@ void apply_mask(const std::string &who,
                 const Frame &mask,
                 Frame &out)
 {
-    mask_channel(who, params, mask);  // a mask that cannot be is an error, used or not
+    const MaskSettings m = fill(params, kMaskFields);
+    mask_channel(who, m, mask);  // a mask that cannot be is an error, used or not
     std::vector<std::string> changed;
     for (const auto &[name, pass] : out.passes()) {
         if (!in.has(name)) {
@@ -80,7 +80,7 @@ void apply_mask(const std::string &who,
     if (changed.empty()) {
         return;
     }
-    const Image m = mask_image(who, params, mask, out.data_window);
+    const Image mi = mask_image(who, m, mask, out.data_window);
     for (const std::string &name : changed) {
         const Pass &p = out.pass(name);
         const Image &a = *in.pass(name).image, &b = *p.image;
@@ -88,7 +88,7 @@ void apply_mask(const std::string &who,
         const int nc = b.channels();
         parallel_for(0, b.height(), [&](int y) {
             const float *pa = a.pixel(0, y), *pb = b.pixel(0, y);
-            const float *pm = m.pixel(0, y);
+            const float *pm = mi.pixel(0, y);
             float *d = blended.pixel(0, y);
             for (int x = 0; x < b.width(); ++x) {
                 const float t = pm[x];

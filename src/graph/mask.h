@@ -11,6 +11,7 @@
 
 #include "core/frame.h"
 #include "graph/node.h"
+#include "graph/param_bind.h"
 
 namespace posthaste {
 
@@ -30,6 +31,19 @@ inline constexpr ParamSpec kMaskChannel =
             "one-channel pass is the mask whichever is named.");
 inline constexpr ParamSpec kMaskInvert =
     ParamSpec::boolean("mask_invert", false).doc("Use 1 - mask: the node applies outside it.");
+
+/// The mask's parameters, bound to their fields (graph/param_bind.h).
+struct MaskSettings {
+    enum class Channel { R, G, B, A, Luminance };  ///< mask_channel's choices, in order
+    std::string pass = "color";
+    Channel channel = Channel::A;
+    bool invert = false;
+};
+inline constexpr Binding<MaskSettings> kMaskFields[] = {
+    bind<&MaskSettings::pass>(kMaskPass),
+    bind<&MaskSettings::channel>(kMaskChannel),
+    bind<&MaskSettings::invert>(kMaskInvert),
+};
 
 /// Blend every pass `out` replaced with `in`'s by the mask of frame `mask` (the node's
 /// parameters name its pass and channel). Passes the node added, or whose size changed, are

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "graph/graph.h"
+#include "graph/mask.h"
 #include "graph/param_json.h"
 #include "nodes/registry.h"
 
@@ -25,6 +26,9 @@ TEST(ParamBind, EveryBindingInTheCatalogAgreesWithItsSpec)
         if (t->audit) {
             t->audit(problems);
             ++audited;
+        }
+        if (t->spec.maskable) {
+            audit(*t, kMaskFields, problems);  // the mask's parameters, declared once for all
         }
     }
     std::string all;
