@@ -5,8 +5,6 @@
 // worldToNDC (and the previous frame's) and the sensor size follow the new display window, so
 // the camera still projects onto the same pixels.
 
-#include <limits>
-
 #include "filter/frame_ops.h"
 #include "nodes/node.h"
 
@@ -74,19 +72,11 @@ void execute(NodeContext &ctx)
     }
     out.camera = filter::moved_camera(in.camera, shift, in.display_window, box.offset(dx, dy));
     out.display_window = box.offset(dx, dy);
-    out.data_window = window.offset(dx, dy);
     if (window == in.data_window) {
+        out.data_window = window.offset(dx, dy);
         return;  // only the windows moved: the pixels are shared
     }
-    for (const auto &[name, pass] : in.passes()) {
-        const bool depth = name.substr(0, name.find('@')) == "depth";
-        const float fill = depth ? std::numeric_limits<float>::infinity() : 0.0f;
-        Image cut = place_in_window(*pass.image,
-                                    in.data_window,
-                                    window,
-                                    std::vector<float>(std::size_t(pass.image->channels()), fill));
-        out.set(name, std::make_shared<const Image>(std::move(cut)), pass.channels, pass.storage);
-    }
+    filter::cut_data_window(in, window, out, dx, dy);
 }
 
 void check(CheckContext &ctx)

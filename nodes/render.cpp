@@ -62,9 +62,19 @@ constexpr ParamSpec kProjection =
             "(width x height, +y up, the top row straight up, the middle column looking down "
             "-z) with color and depth (distance, +inf for the sky); header "
             "posthaste:probePosition. For ssr's environment input.");
+constexpr ParamSpec kOverscan =
+    ParamSpec::real("overscan", 0.0)
+        .range(0.0, 4096.0)
+        .doc(
+            "Render beyond the frame: below 1, a fraction each dimension grows by (0.1: a "
+            "1920x1080 frame gets 96 px left and right, 54 px top and bottom, as Unreal's "
+            "overscan percentage); from 1, whole pixels on every side. The data window grows, "
+            "the display window and the camera stay width x height's; every pass and truth "
+            "covers the data window.");
 constexpr ParamSpec kParams[] = {kScene,
                                  kWidth,
                                  kHeight,
+                                 kOverscan,
                                  kSupersample,
                                  kShadows,
                                  kTruth,
@@ -89,9 +99,30 @@ constexpr Binding<raster::TruthOptions> kTruthFields[] = {
     bind<&raster::TruthOptions::seed>(kSeed),
 };
 
-raster::RenderOptions render_options(const NodeParams &params, const PassSet &requested)
+/// Overscan pixels a side (x, y) for `overscan` around a width x height frame; an error for a
+/// pixel count that is not whole.
+std::pair<int, int> overscan_pixels(const NodeParams &params, const std::string &where)
+{
+    const double v = params.get_real(kOverscan);
+    if (v < 1.0) {
+        return {int(std::lround(v * 0.5 * params.get_int(kWidth))),
+                int(std::lround(v * 0.5 * params.get_int(kHeight)))};
+    }
+    if (v != std::floor(v)) {
+        throw_param_expected(where,
+                             kOverscan.name,
+                             "a fraction below 1 or whole pixels a side",
+                             v);
+    }
+    return {int(v), int(v)};
+}
+
+raster::RenderOptions render_options(const NodeParams &params,
+                                     const PassSet &requested,
+                                     const std::string &where)
 {
     raster::RenderOptions o = fill(params, kRenderFields);
+    std::tie(o.overscan_x, o.overscan_y) = overscan_pixels(params, where);
     o.passes.clear();
     for (const std::string &p : raster::render_pass_names()) {
         if (requested.wants(p)) {
@@ -149,7 +180,7 @@ void execute(NodeContext &ctx)
         NodeContext &ctx;
         ~SunOnExit() { add_sun_attributes(scene, ctx.output()); }
     } sun_on_exit{scene, ctx};
-    raster::RenderOptions options = render_options(ctx.params(), ctx.requested());
+    raster::RenderOptions options = render_options(ctx.params(), ctx.requested(), ctx.where());
     const int truth = ctx.get_choice(kTruth);
     try {
         if (ctx.get_choice(kProjection) == kProjectionLatLong) {
@@ -233,6 +264,9 @@ void check(CheckContext &ctx)
         if (ctx.params.get_choice(kTruth) != 0) {
             throw_param(ctx, kProjection, "latlong makes no ground truth (truth none)");
         }
+        if (ctx.params.get_real(kOverscan) != 0.0) {
+            throw_param(ctx, kOverscan, "a latlong probe has no frame to overscan (give 0)");
+        }
         if (!ctx.downstream.all) {
             for (const std::string &p : ctx.downstream.names) {
                 if (p != pass::kColor && p != pass::kDepth) {
@@ -266,6 +300,15 @@ void check(CheckContext &ctx)
     if (ss == 3) {
         throw_param_expected(ctx, kSupersample, "1, 2 or 4", ss);
     }
+    const auto [ox, oy] = overscan_pixels(ctx.params, where);
+    const int wide_w = ctx.params.get_int(kWidth) + 2 * ox,
+              wide_h = ctx.params.get_int(kHeight) + 2 * oy;
+    if (wide_w > kMaxImageSide / 4 || wide_h > kMaxImageSide / 4) {
+        throw_param(ctx,
+                    kOverscan,
+                    str_cat("makes a ", wide_w, "x", wide_h, " frame, over ",
+                            kMaxImageSide / 4, " pixels a side"));
+    }
     // What a frame will allocate, before any is: the requested passes plus the rasterizer's
     // own buffers (G-buffer, depth, ids, about 16 floats a pixel), at the supersampled size.
     if (const std::size_t budget = image_memory_budget(); budget != 0) {
@@ -283,15 +326,15 @@ void check(CheckContext &ctx)
             const pass::CanonicalPass *cp = pass::find_canonical(p);
             channels += cp ? cp->channels.size() : 4;
         }
-        const std::size_t pixels = std::size_t(ctx.params.get_int(kWidth)) *
-                                   std::size_t(ctx.params.get_int(kHeight)) * std::size_t(ss * ss);
+        const std::size_t pixels =
+            std::size_t(wide_w) * std::size_t(wide_h) * std::size_t(ss * ss);
         const std::size_t estimate = pixels * channels * sizeof(float);
         if (estimate > budget) {
             throw_runtime(where,
                           ": a ",
-                          ctx.params.get_int(kWidth),
+                          wide_w,
                           "x",
-                          ctx.params.get_int(kHeight),
+                          wide_h,
                           " frame (supersample ",
                           ss,
                           ") needs about ",

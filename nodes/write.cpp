@@ -8,6 +8,7 @@
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "io/cryptomatte.h"
+#include "filter/frame_ops.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -61,7 +62,13 @@ constexpr ParamSpec kPngFilter =
 constexpr ParamSpec kDither =
     ParamSpec::boolean("dither", true)
         .doc("Preview: 8x8 ordered dither before 8-bit quantisation (no bands in gradients).");
+constexpr ParamSpec kCrop =
+    ParamSpec::choice("crop", "none|display", "none")
+        .doc(
+            "EXR: none writes the data window as it is (an overscan kept); display cuts it to the "
+            "display window (the delivered format). A preview always shows the display window.");
 constexpr ParamSpec kParams[] = {kPath,
+                                 kCrop,
                                  kPngLevel,
                                  kPngFilter,
                                  kDither,
@@ -165,6 +172,13 @@ void execute(NodeContext &ctx)
             }
         }
         keep_cryptomattes_exact(ctx, frame, options);
+        const Rect display = frame.data_window.intersect(frame.display_window);
+        if (params.get_choice(kCrop) == 1 && display != frame.data_window && !display.empty()) {
+            Frame cut = frame;
+            filter::cut_data_window(frame, display, cut);
+            write_exr(cut, path, options);
+            return;
+        }
         write_exr(frame, path, options);
     } catch (const Error &e) {
         throw Error(e.code(), ctx.where() + ": " + e.what());

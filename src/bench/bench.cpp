@@ -97,9 +97,21 @@ std::string resolve(const std::string &path, const std::string &base_dir)
 
 // --- Running -------------------------------------------------------------------------------
 
-const Image &measured_pass(const Frame &frame, const std::string &pass, const std::string &who)
+/// The part of `image` (a pass of `frame`) inside the frame's display window: what the metrics
+/// measure. An overscan's margin is the nodes' input, not their result, and a truth rendered
+/// without it covers the display window alone.
+ImagePtr display_part(const Frame &frame, const ImagePtr &image)
 {
-    return frame.image(pass, who);
+    const Rect d = frame.display_window.intersect(frame.data_window);
+    if (d == frame.data_window || d.empty()) {
+        return image;
+    }
+    return std::make_shared<const Image>(place_in_window(*image, frame.data_window, d));
+}
+
+ImagePtr measured_pass(const Frame &frame, const std::string &pass, const std::string &who)
+{
+    return display_part(frame, frame.pass(pass, who).image);
 }
 
 /// Channel `channel` of `image` alone (-1: the image itself).
@@ -442,7 +454,8 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         for (int f : result.frames) {
             const std::string path = expand_frame_pattern(spec.truth_pattern, f);
             const Frame fr = read_frame(path, &wanted, f);
-            truth.push_back(select_channel(fr.pass(truth_pass).image, spec.truth_channel, path));
+            truth.push_back(select_channel(
+                display_part(fr, fr.pass(truth_pass).image), spec.truth_channel, path));
         }
     } else {
         Prepared t = prepare(
@@ -451,7 +464,7 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         for (int f : result.frames) {
             const Frame fr = t.graph->evaluate(f);
             truth.push_back(
-                select_channel(fr.pass(truth_pass, "truth node " + quoted(spec.truth_node)).image,
+                select_channel(measured_pass(fr, truth_pass, "truth node " + quoted(spec.truth_node)),
                                spec.truth_channel,
                                spec.truth_graph));
         }
@@ -493,7 +506,8 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
             const Frame out = graphs[s].graph->evaluate(f);
             const std::string who = str_cat(
                 "setting ", quoted(r.setting.name), ", node ", quoted(spec.node), ", frame ", f);
-            const Image &test = measured_pass(out, spec.pass, who);
+            const ImagePtr test_part = measured_pass(out, spec.pass, who);
+            const Image &test = *test_part;
             const Image &ref = *truth[i];
             if (test.width() != ref.width() || test.height() != ref.height() ||
                 test.channels() != ref.channels()) {
@@ -516,7 +530,7 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                               ref.channels());
             }
             const metrics::CompareStats stats =
-                spec.exclude_sky ? metrics::compare_surface(ref, test, out.image("depth", who))
+                spec.exclude_sky ? metrics::compare_surface(ref, test, *measured_pass(out, "depth", who))
                                  : metrics::compare(ref, test);
             rmse += stats.all.rms_error;
             psnr += stats.all.psnr;

@@ -153,4 +153,18 @@ void warp_frame(const Frame &in, const FrameWarp &w, Frame &out)
     }
 }
 
+void cut_data_window(const Frame &in, const Rect &window, Frame &out, int dx, int dy)
+{
+    out.data_window = window.offset(dx, dy);
+    for (const auto &[name, pass] : in.passes()) {
+        const bool depth = name.substr(0, name.find('@')) == pass::kDepth;
+        const float fill = depth ? std::numeric_limits<float>::infinity() : 0.0f;
+        Image cut = place_in_window(*pass.image,
+                                    in.data_window,
+                                    window,
+                                    std::vector<float>(std::size_t(pass.image->channels()), fill));
+        out.set(name, std::make_shared<const Image>(std::move(cut)), pass.channels, pass.storage);
+    }
+}
+
 }  // namespace posthaste::filter

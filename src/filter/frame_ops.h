@@ -42,4 +42,9 @@ struct FrameWarp {
 /// as +inf), as every node that moves pixels.
 void warp_frame(const Frame &in, const FrameWarp &w, Frame &out);
 
+/// `out`'s passes replaced by `in`'s cut (or padded: 0, depth +inf) to `window`, and its data
+/// window set to it moved by (dx, dy); the channels' file origins kept, the camera and display
+/// window left as they are. Used by crop, and by write's crop to the display window.
+void cut_data_window(const Frame &in, const Rect &window, Frame &out, int dx = 0, int dy = 0);
+
 }  // namespace posthaste::filter

@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <memory>
 #include <set>
 
 #include "core/error.h"
@@ -171,6 +173,26 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
     return parts;
 }
 
+namespace {
+
+/// The rows and columns of `cut` from samples of `size` bytes over `from` (row-major).
+std::shared_ptr<const std::vector<unsigned char>> slice_samples(
+    const std::vector<unsigned char> &samples, std::size_t size, const Rect &from, const Rect &cut)
+{
+    auto out = std::make_shared<std::vector<unsigned char>>(std::size_t(cut.width()) *
+                                                            std::size_t(cut.height()) * size);
+    const std::size_t row = std::size_t(cut.width()) * size;
+    for (int y = cut.y0; y < cut.y1; ++y) {
+        const std::size_t at = (std::size_t(y - from.y0) * std::size_t(from.width()) +
+                                std::size_t(cut.x0 - from.x0)) *
+                               size;
+        std::memcpy(out->data() + std::size_t(y - cut.y0) * row, samples.data() + at, row);
+    }
+    return out;
+}
+
+}  // namespace
+
 std::vector<OutPart> source_layout(const Frame &frame,
                                    const std::vector<std::string> &names,
                                    const WriteOptions &options,
@@ -181,7 +203,12 @@ std::vector<OutPart> source_layout(const Frame &frame,
     for (std::size_t i = 0; i < parts.size(); ++i) {
         parts[i].source = &src.parts[i];
         parts[i].spec = src.parts[i].spec;
-        parts[i].data_window = src.parts[i].data_window();
+        // A part keeps its own window where the frame still has it; a crop (or a write's
+        // crop to the display window) cuts it to the frame's data window.
+        const Rect own = src.parts[i].data_window();
+        const Rect cut = own.intersect(frame.data_window);
+        parts[i].data_window = cut.empty() ? frame.data_window : cut;
+        parts[i].cut = parts[i].data_window != own;
     }
     std::set<std::pair<int, int>> written;  // source slots already filled
     std::vector<std::string> fresh;         // passes written under canonical names
@@ -261,7 +288,17 @@ std::vector<OutPart> source_layout(const Frame &frame,
             c.offset = o.offset;
             if (untouched && c.type == file_type) {
                 if (auto it = src.raw.find({o.part, o.channel}); it != src.raw.end()) {
-                    c.raw = it->second.get();
+                    const OutPart &part = parts[std::size_t(o.part)];
+                    if (!part.cut) {
+                        c.raw = it->second.get();
+                    } else if (part.data_window.intersect(part.source->data_window()) ==
+                               part.data_window) {
+                        c.raw_slice = slice_samples(*it->second,
+                                                    file_type.size(),
+                                                    part.source->data_window(),
+                                                    part.data_window);
+                        c.raw = c.raw_slice.get();
+                    }
                 }
             }
             add_channel(part, std::move(c), path);
@@ -367,7 +404,7 @@ void finish_specs(std::vector<OutPart> &parts,
         spec.attribute("compression", compression);
         // Mip levels travel only with a part written whole and untouched.
         part.copy_levels = false;
-        if (part.source && !part.source->levels.empty() &&
+        if (part.source && !part.cut && !part.source->levels.empty() &&
             int(part.channels.size()) == part.source->spec.nchannels) {
             part.copy_levels = true;
             for (const OutChannel &c : part.channels) {

@@ -28,6 +28,8 @@ struct OutChannel {
     float scale = 1.0f, offset = 0.0f;
     /// Or the file's own samples over the part's data window.
     const std::vector<unsigned char> *raw = nullptr;
+    /// raw's storage when the part's window was cut (a slice of the file's samples).
+    std::shared_ptr<const std::vector<unsigned char>> raw_slice;
 };
 
 struct OutPart {
@@ -35,6 +37,9 @@ struct OutPart {
     Rect data_window;
     std::vector<OutChannel> channels;
     const SourcePart *source = nullptr;
+    /// The source part's window was cut to the frame's data window (a crop): its levels are
+    /// made again, not copied.
+    bool cut = false;
     bool copy_levels = false;  ///< Write the source's lower levels as read.
     bool make_levels = false;  ///< Make the lower levels again (a touched MIP-mapped part).
 

@@ -6,6 +6,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <glm/geometric.hpp>
 #include <glm/gtc/matrix_transform.hpp>
@@ -42,11 +43,21 @@ using namespace render_detail;
 
 namespace {
 
-void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
+/// The camera at time t as a render of o's size sees it: the scene's, with the sensor widened
+/// by `sensor_scale` (an overscan render: the same pixels, more of them).
+CameraState camera_for(const Scene &s, double t, float sensor_scale)
+{
+    CameraState c = s.camera_at(t);
+    c.sensor_width_mm *= sensor_scale;
+    return c;
+}
+
+void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f, float sensor_scale)
 {
     f.number = frame;
     f.set_size(o.width, o.height);
-    const CameraState c = s.camera_at(frame), cp = s.camera_at(frame - 1);
+    const CameraState c = camera_for(s, frame, sensor_scale),
+                      cp = camera_for(s, frame - 1, sensor_scale);
     const float aspect = float(o.width) / float(o.height);
     const CameraMatrices m = make_camera_matrices(
         c.camera_to_world(), c.focal_length_mm, c.sensor_width_mm, aspect, s.near_clip);
@@ -69,6 +80,35 @@ void fill_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
         1000.0f;
     f.attributes["posthaste:scene"] = s.name;
     f.attributes["posthaste:fps"] = float(s.fps);
+}
+
+bool has_overscan(const RenderOptions &o)
+{
+    return o.overscan_x > 0 || o.overscan_y > 0;
+}
+
+/// The options of an overscan render's wide frame (the data window's size, no overscan left),
+/// and the factor its sensor is widened by.
+RenderOptions widened(const RenderOptions &o)
+{
+    RenderOptions w = o;
+    w.width = o.width + 2 * o.overscan_x;
+    w.height = o.height + 2 * o.overscan_y;
+    w.overscan_x = w.overscan_y = 0;
+    return w;
+}
+
+float sensor_scale(const RenderOptions &o)
+{
+    return float(o.width + 2 * o.overscan_x) / float(o.width);
+}
+
+/// The wide frame's header made the overscan frame's: the display window and camera of
+/// width x height, the data window around it.
+void set_overscan_header(const Scene &s, int frame, const RenderOptions &o, Frame &f)
+{
+    fill_header(s, frame, o, f, 1.0f);
+    f.data_window = {-o.overscan_x, -o.overscan_y, o.width + o.overscan_x, o.height + o.overscan_y};
 }
 
 SceneCache &cache_of(const Scene &s, std::shared_ptr<SceneCache> &local)
@@ -140,6 +180,21 @@ void validate(const RenderOptions &o)
                     "x",
                     o.height);
     }
+    if (o.overscan_x < 0 || o.overscan_y < 0 ||
+        o.width + 2 * std::int64_t(o.overscan_x) > kMaxImageSide / 4 ||
+        o.height + 2 * std::int64_t(o.overscan_y) > kMaxImageSide / 4) {
+        throw_usage("render: \"overscan\": ",
+                    o.overscan_x,
+                    "x",
+                    o.overscan_y,
+                    " pixels a side around ",
+                    o.width,
+                    "x",
+                    o.height,
+                    " makes a frame over ",
+                    kMaxImageSide / 4,
+                    " pixels a side (or is negative)");
+    }
     if (o.cryptomatte_ranks < 1 || o.cryptomatte_ranks > 16) {
         throw_usage("render: \"cryptomatte_ranks\": expected 1..16, got ", o.cryptomatte_ranks);
     }
@@ -160,18 +215,21 @@ void validate(const RenderOptions &o)
     }
 }
 
-Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStats *stats)
+namespace {
+
+/// render_frame of o's size with the sensor widened by `scale` (1: the scene's camera).
+Frame render_frame_at(
+    const Scene &s, int frame, const RenderOptions &o, float scale, RenderStats *stats)
 {
-    validate(o);
     std::shared_ptr<SceneCache> local;
     SceneCache &cache = cache_of(s, local);
     if (stats) {
         *stats = RenderStats{};
     }
     Frame f;
-    fill_header(s, frame, o, f);
+    fill_header(s, frame, o, f, scale);
     const double t = frame;
-    const CameraState cam = s.camera_at(t);
+    const CameraState cam = camera_for(s, t, scale);
     auto has = [&](const char *p) { return o.passes.count(p) != 0; };
 
     auto t0 = Clock::now();
@@ -243,16 +301,16 @@ Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStat
     return f;
 }
 
-Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const TruthOptions &truth)
+Frame render_truth_at(const Scene &s,
+                      int frame,
+                      const RenderOptions &o,
+                      const TruthOptions &truth,
+                      float scale)
 {
-    validate(o);
-    if (truth.samples < 1 || truth.samples > 1 << 20) {
-        throw_usage("render truth: \"samples\": expected [1, 1048576], got ", truth.samples);
-    }
     std::shared_ptr<SceneCache> local;
     SceneCache &cache = cache_of(s, local);
     Frame f;
-    fill_header(s, frame, o, f);
+    fill_header(s, frame, o, f, scale);
     const int n = truth.samples;
     // Time strata are a hashed permutation of the sample index, so that the joint (time, lens)
     // pattern is stratified in each dimension without correlating them.
@@ -268,7 +326,7 @@ Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const Trut
     const std::uint32_t scramble = hash4(std::uint32_t(frame), 3u, 5u, truth.seed);
     Image acc(o.width, o.height, 4);
     Image sample = Image::uninitialized(o.width, o.height, 4);
-    const CameraState centre = s.camera_at(frame);
+    const CameraState centre = camera_for(s, frame, scale);
     for (int i = 0; i < n; ++i) {
         double t = frame;
         if (truth.motion) {
@@ -277,7 +335,7 @@ Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const Trut
                 float(n);
             t = frame + (double(u) - 0.5) * double(centre.shutter);
         }
-        const CameraState cam = s.camera_at(t);
+        const CameraState cam = camera_for(s, t, scale);
         glm::vec2 lens(0.0f);
         if (truth.dof) {
             const float u1 = (float(i) + hash_unit(i, frame, 1, truth.seed)) / float(n);
@@ -307,6 +365,33 @@ Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const Trut
         }
     });
     f.set(pass::kColor, std::move(acc));
+    return f;
+}
+
+}  // namespace
+
+Frame render_frame(const Scene &s, int frame, const RenderOptions &o, RenderStats *stats)
+{
+    validate(o);
+    if (!has_overscan(o)) {
+        return render_frame_at(s, frame, o, 1.0f, stats);
+    }
+    Frame f = render_frame_at(s, frame, widened(o), sensor_scale(o), stats);
+    set_overscan_header(s, frame, o, f);
+    return f;
+}
+
+Frame render_truth(const Scene &s, int frame, const RenderOptions &o, const TruthOptions &truth)
+{
+    validate(o);
+    if (truth.samples < 1 || truth.samples > 1 << 20) {
+        throw_usage("render truth: \"samples\": expected [1, 1048576], got ", truth.samples);
+    }
+    if (!has_overscan(o)) {
+        return render_truth_at(s, frame, o, truth, 1.0f);
+    }
+    Frame f = render_truth_at(s, frame, widened(o), truth, sensor_scale(o));
+    set_overscan_header(s, frame, o, f);
     return f;
 }
 

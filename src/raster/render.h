@@ -48,6 +48,12 @@ struct RenderOptions {
     bool greedy_meshing = false;  ///< Fewer triangles, but T-junctions can crack edges.
     /// Ranks of each cryptomatte (CryptoObject, CryptoMaterial; 2 a rank layer), 1..16.
     int cryptomatte_ranks = 6;
+    /// Overscan: pixels rendered beyond the display window on the left and right (x) and on
+    /// the top and bottom (y). Every pass and truth covers the data window, (-overscan_x,
+    /// -overscan_y) to (width + overscan_x, height + overscan_y); the header's camera and
+    /// display window stay those of width x height, so a display pixel shows what it shows
+    /// without overscan (the wide render's sensor is widened by the same factor).
+    int overscan_x = 0, overscan_y = 0;
 };
 
 /// The cryptomattes the renderer writes, and the name of rank layer k of one ("CryptoObject03").
