@@ -60,5 +60,6 @@ extern const NodeType kSharpen;
 extern const NodeType kAo;
 extern const NodeType kSsr;
 extern const NodeType kCryptomatte;
+extern const NodeType kSsgi;
 
 }  // namespace posthaste::nodes

@@ -13,6 +13,7 @@ const NodeType *const kAllNodes[] = {
     &nodes::kMotionBlur, &nodes::kDof,     &nodes::kBloom,    &nodes::kExposure,  &nodes::kGrain,
     &nodes::kLens,       &nodes::kTonemap, &nodes::kReformat, &nodes::kTransform, &nodes::kCrop,
     &nodes::kBlur,       &nodes::kSharpen, &nodes::kAo,       &nodes::kSsr,       &nodes::kCryptomatte,
+    &nodes::kSsgi,
 };
 }  // namespace
 

@@ -27,11 +27,13 @@ constexpr ParamSpec kSupersample =
         .doc("Beauty supersampling per axis: 1, 2 or 4 (data passes stay one sample per pixel).");
 constexpr ParamSpec kShadows = ParamSpec::boolean("shadows", true).doc("Sun shadow map.");
 constexpr ParamSpec kTruth =
-    ParamSpec::choice("truth", "none|motion|dof|motion_dof|ao|reflections", "none")
+    ParamSpec::choice("truth", "none|motion|dof|motion_dof|ao|reflections|gi", "none")
         .doc(
             "Replace color by ground truth accumulated over the shutter, the aperture, or both; "
             "ao: add pass \"ao\", ambient occlusion by exact ray casting; reflections: color "
-            "with exactly traced glossy reflections (samples: GGX rays a pixel; supersample 1).");
+            "with exactly traced glossy reflections (samples: GGX rays a pixel; supersample 1); gi: "
+            "color plus one bounce of diffuse light, exactly traced (samples: cosine-weighted "
+            "rays a pixel; each hit lit by the sun with an exact shadow ray and the sky).");
 constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
                                    .range(1, 65536)
                                    .doc(
@@ -85,6 +87,7 @@ constexpr ParamSpec kParams[] = {kScene,
                                  kCryptomatteRanks};
 constexpr int kTruthAo = 4;
 constexpr int kTruthReflections = 5;
+constexpr int kTruthGi = 6;
 constexpr int kProjectionLatLong = 1;
 
 constexpr Binding<raster::RenderOptions> kRenderFields[] = {
@@ -233,6 +236,22 @@ void execute(NodeContext &ctx)
                                                           options,
                                                           ctx.get_int(kSamples),
                                                           std::uint32_t(ctx.get_int(kSeed)))));
+            }
+            ctx.output() = std::move(f);
+            return;
+        }
+        if (truth == kTruthGi) {
+            // The requested passes as usual, color replaced by beauty plus one bounce.
+            Frame f = raster::render_frame(scene, ctx.frame_number(), options);
+            if (ctx.requested().contains(pass::kColor)) {
+                f.set(pass::kColor,
+                      std::make_shared<const Image>(
+                          raster::render_gi_truth(scene,
+                                                  ctx.frame_number(),
+                                                  options,
+                                                  ctx.get_int(kSamples),
+                                                  std::uint32_t(ctx.get_int(kSeed)))
+                              .color));
             }
             ctx.output() = std::move(f);
             return;

@@ -363,6 +363,67 @@ Image render_reflection_truth(
     return out;
 }
 
+GiTruth render_gi_truth(
+    const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed)
+{
+    RenderOptions o = options;
+    o.passes = {
+        pass::kColor, pass::kPosition, pass::kNormal, pass::kDepth, pass::kAlbedo, pass::kMaterial};
+    const Frame g = render_frame(scene, frame, o);
+    const Image &pos = g.image(pass::kPosition), &nrm = g.image(pass::kNormal),
+                &depth = g.image(pass::kDepth), &albedo = g.image(pass::kAlbedo),
+                &material = g.image(pass::kMaterial);
+    GiTruth out{g.image(pass::kColor), Image(pos.width(), pos.height(), 3)};
+    const RayScene rays(scene, double(frame));
+    const shading::SceneSky &sky = shading::scene_sky(scene.sun.direction);
+    const glm::vec3 eye = scene.camera_at(double(frame)).position;
+    const float max_dist =
+        glm::length(
+            glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
+        1e3f;
+    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    parallel_for(0, pos.height(), [&](int y) {
+        for (int x = 0; x < pos.width(); ++x) {
+            if (!std::isfinite(depth.at(x, y, 0))) {
+                continue;  // the sky
+            }
+            const glm::vec3 diffuse =
+                glm::vec3(albedo.at(x, y, 0), albedo.at(x, y, 1), albedo.at(x, y, 2)) *
+                (1.0f - material.at(x, y, 1));
+            if (diffuse == glm::vec3(0.0f)) {
+                continue;
+            }
+            const glm::vec3 p(pos.at(x, y, 0), pos.at(x, y, 1), pos.at(x, y, 2));
+            glm::vec3 n =
+                glm::normalize(glm::vec3(nrm.at(x, y, 0), nrm.at(x, y, 1), nrm.at(x, y, 2)));
+            if (glm::dot(n, eye - p) < 0.0f) {
+                n = -n;  // as the rasterizer: shade the side we see
+            }
+            const glm::vec3 origin = p + n * 1e-3f;
+            glm::vec3 sum(0.0f);
+            for (int i = 0; i < strata * strata; ++i) {
+                const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
+                const float u2 =
+                    (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
+                const glm::vec3 l = shading::sample_cosine_hemisphere(n, u1, u2);
+                if (const auto hit = rays.closest(origin, l, max_dist)) {
+                    sum += shade_hit(scene, rays, sky, origin + l * hit->distance, *hit, -l);
+                }
+            }
+            // Cosine-weighted rays: irradiance pi mean(L), a Lambertian surface returns
+            // albedo / pi of it.
+            const glm::vec3 add = diffuse * sum / float(strata * strata);
+            float *px = out.color.pixel(x, y);
+            float *ind = out.indirect.pixel(x, y);
+            for (int c = 0; c < 3; ++c) {
+                px[c] += add[c];
+                ind[c] = add[c];
+            }
+        }
+    });
+    return out;
+}
+
 EnvironmentProbe render_environment_probe(
     const Scene &scene, int frame, int width, int height, int samples, std::uint32_t seed)
 {

@@ -94,6 +94,21 @@ Image render_ao_truth(const Scene &scene,
 Image render_reflection_truth(
     const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed);
 
+/// Ground-truth one-bounce diffuse global illumination of frame `frame` (data passes one sample
+/// a pixel): the rasterizer's beauty plus, at each surface pixel, the light one diffuse bounce
+/// brings: `samples` stratified cosine-weighted rays around the normal (the side facing the
+/// camera), each surface they meet shaded by its direct light as render_reflection_truth shades
+/// it (the sun with an exact shadow ray, the sky light), times the receiver's diffuse albedo
+/// (albedo (1 - metallic)); rays that leave the scene add nothing (the beauty's sky light has
+/// the whole sky). Returns {color (RGBA, premultiplied as the beauty), the added light alone
+/// (RGB)}; jitter hashed from pixel, sample and seed.
+struct GiTruth {
+    Image color;
+    Image indirect;
+};
+GiTruth render_gi_truth(
+    const Scene &scene, int frame, const RenderOptions &options, int samples, std::uint32_t seed);
+
 /// A reflection probe: the radiance seen from one point in every direction, exactly traced, in
 /// the latitude-longitude layout of shading/ssr/environment.h.
 struct EnvironmentProbe {

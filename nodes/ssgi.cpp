@@ -1,0 +1,182 @@
+// nodes/ssgi.cpp: screen-space diffuse global illumination (src/shading/gi/ssgi.h): one bounce of
+// the beauty's light from the surfaces the depth pass shows, gathered along GTAO-style slices at
+// a reduced resolution, denoised and brought back with the ao node's depth-aware filters, then
+// added to color times the diffuse albedo (albedo (1 - metallic) where a material pass is
+// given). Estimates what `render` with truth "gi" computes exactly. Outputs pass "gi" (RGB, the
+// light added); non-finite inputs read as in the ao node (depth: sky, normal: facing the
+// camera, colour: 0).
+
+#include <array>
+#include <cmath>
+
+#include "core/sanitize.h"
+#include "graph/mask.h"
+#include "nodes/node.h"
+#include "shading/camera_rays.h"
+#include "shading/gi/ssgi.h"
+
+namespace posthaste::nodes {
+namespace {
+
+constexpr ParamSpec kRadius = ParamSpec::real("radius", 4.0)
+                                  .range(1e-4, 1e4)
+                                  .units("scene units")
+                                  .doc("Surfaces farther than this from the point light nothing.");
+constexpr ParamSpec kSlices =
+    ParamSpec::integer("slices", 2).range(1, 16).doc("Slice directions per computed pixel.");
+constexpr ParamSpec kSteps =
+    ParamSpec::integer("steps", 8).range(1, 64).doc("Depth samples on each side of a slice.");
+constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 512.0)
+                                       .range(1.0, 8192.0)
+                                       .units("px")
+                                       .doc("Cap on the search's screen radius (close-ups).");
+constexpr ParamSpec kResolution =
+    ParamSpec::choice("resolution", "full|half|quarter", "quarter")
+        .doc(
+            "Computed pixels: every pixel, every other or every fourth in x and y, then a "
+            "depth-aware upsample.");
+constexpr ParamSpec kDenoise = ParamSpec::boolean("denoise", true)
+                                   .doc("Depth-aware 5x5 blur of the per-pixel rotation noise.");
+constexpr ParamSpec kIntensity =
+    ParamSpec::real("intensity", 1.0).range(0.0, 16.0).doc("Scale of the light added.");
+constexpr ParamSpec kApply =
+    ParamSpec::choice("apply", "add|none", "add")
+        .doc("add: color plus the bounce; none: only the gi pass.");
+constexpr ParamSpec kSeed =
+    ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
+constexpr ParamSpec kParams[] = {kRadius,
+                                 kSlices,
+                                 kSteps,
+                                 kMaxRadiusPx,
+                                 kResolution,
+                                 kDenoise,
+                                 kIntensity,
+                                 kApply,
+                                 kSeed,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
+constexpr PortSpec kInputs[] = {
+    {"image",
+     "color,depth,normal,albedo",
+     false,
+     "The lit beauty (no indirect light in it), depth, world normals, albedo and the camera."},
+    {"environment",
+     "color,depth",
+     true,
+     "Optional: a latitude-longitude probe from near the camera (render's projection latlong) "
+     "with color and depth (distance, +inf for the sky): what the screen does not show."},
+    kMaskPort};
+
+constexpr Binding<shading::SsgiParams> kFields[] = {
+    bind<&shading::SsgiParams::radius>(kRadius),
+    bind<&shading::SsgiParams::slices>(kSlices),
+    bind<&shading::SsgiParams::steps>(kSteps),
+    bind<&shading::SsgiParams::max_radius_px>(kMaxRadiusPx),
+    bind<&shading::SsgiParams::seed>(kSeed),
+};
+
+void execute(NodeContext &ctx)
+{
+    const Frame &in = ctx.input("image");
+    const Pass &color_pass = in.pass(pass::kColor, ctx.where());
+    const Image &depth_in = in.image(pass::kDepth, ctx.where());
+    const Image &normal_in = in.image(pass::kNormal, ctx.where());
+    const Image &albedo_in = in.image(pass::kAlbedo, ctx.where());
+    const Camera camera = in.pixel_camera();  // NDC spans the data window
+    const shading::CameraRays rays(camera.require_world_to_camera(ctx.where()),
+                                   camera.require_world_to_ndc(ctx.where()));
+    Image depth_storage, normal_storage, albedo_storage;
+    const Image &depth =
+        finite_view(depth_in, std::numeric_limits<float>::infinity(), depth_storage, true);
+    const Image &normal = finite_view(normal_in, 0.0f, normal_storage);
+    const Image &albedo = finite_view(albedo_in, 0.0f, albedo_storage);
+    const Image *material = in.has(pass::kMaterial) ? &in.image(pass::kMaterial) : nullptr;
+    const float intensity = ctx.get_float(kIntensity);
+    const int w = depth.width(), h = depth.height();
+    Image gi;
+    if (!(intensity > 0.0f)) {
+        gi = Image(w, h, 3);
+    } else {
+        shading::SsgiParams p = fill(ctx.params(), kFields);
+        p.stride = std::array{1, 2, 4}[std::size_t(ctx.get_choice(kResolution))];
+        shading::SsgiEnvironment env;
+        Image env_color_s, env_depth_s;
+        if (ctx.has_input("environment")) {
+            const Frame &e = ctx.input("environment");
+            const std::string where = ctx.where() + ": input \"environment\"";
+            const Image &ec = e.image(pass::kColor, where), &ed = e.image(pass::kDepth, where);
+            if (ed.width() != ec.width() || ed.height() != ec.height()) {
+                throw_runtime(where,
+                              ": pass \"depth\" is ",
+                              ed.width(),
+                              "x",
+                              ed.height(),
+                              ", pass \"color\" ",
+                              ec.width(),
+                              "x",
+                              ec.height());
+            }
+            env.radiance = &finite_view(ec, 0.0f, env_color_s);
+            env.distance = &finite_view(ed, std::numeric_limits<float>::infinity(), env_depth_s, true);
+        }
+        const Image light = shading::ssgi(
+            depth, normal, *color_pass.image, rays, p, env.radiance ? &env : nullptr);
+        gi = shading::ssgi_resolve(light, depth, p.stride, ctx.get_bool(kDenoise));
+        const int na = albedo.channels();
+        parallel_for(0, h, [&](int y) {
+            for (int x = 0; x < w; ++x) {
+                float metal = material && material->channels() > 1 ? material->at(x, y, 1) : 0.0f;
+                metal = std::isfinite(metal) ? std::clamp(metal, 0.0f, 1.0f) : 0.0f;
+                const float k = intensity * (1.0f - metal);
+                const float *a = albedo.pixel(x, y);
+                float *g = gi.pixel(x, y);  // the light arriving, made the light added
+                for (int c = 0; c < 3; ++c) {
+                    g[c] = k * a[std::min(c, na - 1)] * std::max(0.0f, g[c]);
+                }
+            }
+        });
+    }
+    if (ctx.get_choice(kApply) == 0) {
+        Image color = *color_pass.image;
+        const int nc = std::min(color.channels(), 3);
+        parallel_for(0, h, [&](int y) {
+            for (int x = 0; x < w; ++x) {
+                float *px = color.pixel(x, y);
+                for (int c = 0; c < nc; ++c) {
+                    px[c] += gi.at(x, y, c);
+                }
+            }
+        });
+        ctx.output().set(pass::kColor,
+                         std::make_shared<const Image>(std::move(color)),
+                         color_pass.channels,
+                         color_pass.storage);
+    }
+    ctx.output().set("gi", std::make_shared<const Image>(std::move(gi)), {"R", "G", "B"});
+}
+
+void plan(PlanContext &ctx)
+{
+    ctx.inputs[0].add_optional(pass::kMaterial);
+}
+
+}  // namespace
+
+extern const NodeType kSsgi{
+    {"ssgi",
+     "Screen-space diffuse global illumination: one bounce of the beauty's light from the "
+     "surfaces the depth pass shows; pass \"gi\".",
+     kInputs,
+     kParams,
+     "gi",
+     /*sink=*/false,
+     /*keeps_specular=*/false,
+     /*maskable=*/true},
+    &execute,
+    &plan,
+    nullptr,
+    nullptr,
+    [](std::vector<std::string> &problems) { audit(kSsgi, kFields, problems); }};
+
+}  // namespace posthaste::nodes

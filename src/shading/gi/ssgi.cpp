@@ -1,0 +1,375 @@
+#include "shading/gi/ssgi.h"
+
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+#include <vector>
+
+#include "core/parallel.h"
+#include "shading/fast_math.h"
+#include "shading/ssr/environment.h"
+
+namespace posthaste::shading {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+
+/// A 4x4 interleaved pattern: 16 values in [0, 1) spread over every 4x4 block of computed
+/// pixels, so a 5x5 denoise averages every rotation.
+float pattern(int x, int y, int k)
+{
+    static constexpr int kBayer[16] = {0, 8, 2, 10, 12, 4, 14, 6, 3, 11, 1, 9, 15, 7, 13, 5};
+    return (float(kBayer[((y & 3) << 2) | (x & 3)] ^ (k * 5 & 15)) + 0.5f) / 16.0f;
+}
+
+/// A slice's projected normal at signed angle g from the view vector.
+struct Arc {
+    float g, sin_g, cos_g;
+    // The cosine-weighted measure of the slice arc from the view vector (angle 0) to signed
+    // angle h is GTAO's inner integral, one side: (-cos(2h - g) + cos g + 2h sin g) / 4.
+
+    /// At a tangent of the hemisphere, h = g +- pi / 2, where cos(2h - g) = -cos g.
+    float tangent(float h) const { return 0.5f * (cos_g + h * sin_g); }
+    /// For the angle h of the in-slice vector (c, s) = |.| (cos h, sin h), without a cosine:
+    /// cos(2h - g) from the double-angle terms.
+    float measure(float h, float c, float s) const
+    {
+        const float r2 = c * c + s * s;
+        const float cos_2h_g = ((c * c - s * s) * cos_g + 2.0f * c * s * sin_g) / r2;
+        return 0.25f * (-cos_2h_g + cos_g + 2.0f * h * sin_g);
+    }
+};
+
+/// A computed pixel's surface as the march reads it: world position, and z = 0 for the sky.
+struct Texel {
+    glm::vec3 p{0.0f};
+    float z = 0.0f;
+};
+/// And as a lit sample reads it: the unit normal on the camera's side, the lit colour (its
+/// block's mean).
+struct Shade {
+    glm::vec3 n{0.0f}, l{0.0f};
+};
+
+/// The radiance image reduced to the computed pixels' blocks (stride x stride box means, RGB),
+/// non-finite values read as 0: what a sample sees is the mean of the pixels it stands for.
+Image block_radiance(const Image &radiance, int st)
+{
+    const int w = radiance.width(), h = radiance.height(), nc = radiance.channels();
+    const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+    Image out(ow, oh, 3);
+    parallel_for(0, oh, [&](int by) {
+        for (int bx = 0; bx < ow; ++bx) {
+            float sum[3] = {0.0f, 0.0f, 0.0f};
+            int n = 0;
+            for (int y = by * st; y < std::min(h, by * st + st); ++y) {
+                for (int x = bx * st; x < std::min(w, bx * st + st); ++x, ++n) {
+                    const float *px = radiance.pixel(x, y);
+                    for (int c = 0; c < std::min(nc, 3); ++c) {
+                        sum[c] += std::isfinite(px[c]) ? px[c] : 0.0f;
+                    }
+                }
+            }
+            for (int c = 0; c < 3; ++c) {
+                out.at(bx, by, c) = nc == 1 ? sum[0] / float(n) : sum[c] / float(n);
+            }
+        }
+    });
+    return out;
+}
+
+glm::vec3 normal_at(const Image &normal, int x, int y, const glm::vec3 &view)
+{
+    const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
+    const float len2 = glm::dot(n, n);
+    if (!(len2 > 1e-12f) || !std::isfinite(len2)) {
+        return view;
+    }
+    const glm::vec3 u = n / std::sqrt(len2);
+    return glm::dot(u, view) < 0.0f ? -u : u;  // the side the camera sees
+}
+
+/// The probe's radiance in direction d where it sees a surface, 0 where it sees the sky.
+glm::vec3 environment_radiance(const SsgiEnvironment &env, const glm::vec3 &d)
+{
+    const glm::vec2 uv = latlong_uv(d);
+    const int w = env.radiance->width(), h = env.radiance->height();
+    const int x = std::clamp(int(uv.x * float(w)), 0, w - 1);
+    const int y = std::clamp(int(uv.y * float(h)), 0, h - 1);
+    const float dist = env.distance->at(std::min(x, env.distance->width() - 1),
+                                        std::min(y, env.distance->height() - 1),
+                                        0);
+    if (!std::isfinite(dist)) {
+        return glm::vec3(0.0f);
+    }
+    const float *px = env.radiance->pixel(x, y);
+    return env.radiance->channels() >= 3 ? glm::vec3(px[0], px[1], px[2]) : glm::vec3(px[0]);
+}
+
+}  // namespace
+
+Image ssgi(const Image &depth,
+           const Image &normal,
+           const Image &radiance,
+           const CameraRays &rays,
+           const SsgiParams &p,
+           const SsgiEnvironment *environment)
+{
+    const int w = depth.width(), h = depth.height();
+    const int st = std::max(1, p.stride);
+    const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+    const glm::vec3 cam = rays.position();
+    const float inv_w = 1.0f / float(w), inv_h = 1.0f / float(h);
+    // The computed pixels' surfaces, once: world position, the normal on the camera's side,
+    // and whether there is one (the march reads these, not the full-resolution passes).
+    const std::size_t count = std::size_t(ow) * std::size_t(oh);
+    std::vector<Texel> texels(count);
+    std::vector<Shade> shades(count);
+    const Image lit = block_radiance(radiance, st);
+    parallel_for(0, oh, [&](int oy) {
+        for (int ox = 0; ox < ow; ++ox) {
+            const int x = ox * st, y = oy * st;
+            const std::size_t i = std::size_t(oy) * std::size_t(ow) + std::size_t(ox);
+            Texel &t = texels[i];
+            t.z = depth.at(x, y, 0);
+            if (!(t.z > 0.0f) || !std::isfinite(t.z)) {
+                t.z = 0.0f;  // the sky
+                continue;
+            }
+            t.p = cam + t.z * rays.depth_ray((float(x) + 0.5f) * inv_w, (float(y) + 0.5f) * inv_h);
+            shades[i].n = normal_at(normal, x, y, glm::normalize(cam - t.p));
+            const float *l = lit.pixel(ox, oy);
+            shades[i].l = glm::vec3(l[0], l[1], l[2]);
+        }
+    });
+    // World units per computed pixel at depth 1.
+    const float px_world_1 = glm::length(rays.ray_du()) * inv_w * float(st);
+    const int slices = std::max(1, p.slices), steps = std::max(1, p.steps);
+    // Screen directions of each slice for each of the pattern's 16 rotations.
+    std::vector<glm::vec2> slice_dirs(std::size_t(slices) * 16);
+    for (int s = 0; s < slices; ++s) {
+        for (int k = 0; k < 16; ++k) {
+            const float phi = kPi * (float(s) + (float(k) + 0.5f) / 16.0f) / float(slices);
+            slice_dirs[std::size_t(s) * 16 + std::size_t(k)] = {std::cos(phi), std::sin(phi)};
+        }
+    }
+    Image out(ow, oh, 3);
+    parallel_for(0, oh, [&](int oy) {
+        for (int ox = 0; ox < ow; ++ox) {
+            const std::size_t ci = std::size_t(oy) * std::size_t(ow) + std::size_t(ox);
+            const Texel &c = texels[ci];
+            if (c.z == 0.0f) {
+                continue;  // the sky: 0
+            }
+            const glm::vec3 &P = c.p, &N = shades[ci].n;
+            const glm::vec3 V = glm::normalize(cam - P);
+            // The search radius in computed pixels.
+            const float r_px = std::min(p.max_radius_px / float(st),
+                                        p.radius / std::max(c.z * px_world_1, 1e-20f));
+            if (!(r_px >= 1.0f)) {
+                continue;  // the radius is under a computed pixel: nothing to gather
+            }
+            glm::vec3 sum(0.0f);
+            float total = 0.0f;
+            for (int s = 0; s < slices; ++s) {
+                const glm::vec2 dir2 = slice_dirs[std::size_t(s) * 16 +
+                                                  std::size_t(pattern(ox + int(p.seed), oy, s) * 16.0f)];
+                const float dx = dir2.x, dy = dir2.y;
+                // The slice plane: the view vector and the world direction of the screen
+                // direction at the point's depth.
+                const glm::vec3 along =
+                    rays.ray_du() * (dx * inv_w) + rays.ray_dv() * (dy * inv_h);
+                glm::vec3 e2 = along - V * glm::dot(along, V);
+                const float e2len = glm::length(e2);
+                if (!(e2len > 0.0f)) {
+                    continue;
+                }
+                e2 /= e2len;
+                const float n1 = glm::dot(N, V), n2 = glm::dot(N, e2);
+                const float nlen = std::sqrt(n1 * n1 + n2 * n2);
+                if (!(nlen > 1e-6f)) {
+                    continue;
+                }
+                // The normal faces the camera (n1 >= 0): g in [-pi/2, pi/2], so the hemisphere
+                // spans [g - pi/2, g + pi/2] with the view vector (0) inside it.
+                const Arc arc{std::clamp(fast_atan2(n2, n1), -kPi / 2, kPi / 2), n2 / nlen, n1 / nlen};
+                total += nlen * (arc.cos_g + arc.g * arc.sin_g);  // both sides open
+                for (int side = 0; side < 2; ++side) {
+                    const float sign = side == 0 ? 1.0f : -1.0f;
+                    // The hemisphere's part on this side, as signed angles from V.
+                    const float lo = side == 0 ? 0.0f : arc.g - kPi / 2;
+                    const float hi = side == 0 ? arc.g + kPi / 2 : 0.0f;
+                    if (!(hi > lo)) {
+                        continue;
+                    }
+                    // The horizon so far, as an angle, its measure, and an in-slice vector
+                    // (cosine, sine) along it of any length. Nothing seen yet: the tangent.
+                    float horizon = side == 0 ? hi : lo;
+                    float f_horizon = arc.tangent(horizon);
+                    float hc = -sign * arc.sin_g, hs = sign * arc.cos_g;
+                    const float jitter = pattern(ox, oy + int(p.seed), s + 4 * side + 1);
+                    for (int k = 0; k < steps; ++k) {
+                        const float t = (float(k) + jitter) / float(steps);
+                        const float dist = std::max(1.0f, t * t * r_px);
+                        const float sx = float(ox) + 0.5f + sign * dx * dist;
+                        const float sy = float(oy) + 0.5f + sign * dy * dist;
+                        if (!(sx >= 0.0f && sy >= 0.0f && sx < float(ow) && sy < float(oh))) {
+                            break;  // off screen: nothing more this frame shows
+                        }
+                        const std::size_t qi =
+                            std::size_t(int(sy)) * std::size_t(ow) + std::size_t(int(sx));
+                        const Texel &q = texels[qi];
+                        if (q.z == 0.0f) {
+                            continue;  // sky
+                        }
+                        const glm::vec3 d = q.p - P;
+                        const float dc = glm::dot(d, V), ds = glm::dot(d, e2);
+                        // On this side of the slice (a sample rounded onto the slice's line or
+                        // the point itself is not) and above the horizon: sin(horizon - a) > 0
+                        // on side 0, sin(a - horizon) > 0 on side 1, both angles on the side.
+                        if (!(sign * ds > 0.0f) || !(sign * (hs * dc - hc * ds) > 0.0f)) {
+                            continue;
+                        }
+                        if (glm::dot(d, d) > p.radius * p.radius) {
+                            continue;
+                        }
+                        // The arc between the old horizon and q now sees q.
+                        const float a = fast_atan2(ds, dc);
+                        const float f_edge = arc.measure(a, dc, ds);
+                        const float m = std::abs(f_horizon - f_edge);
+                        horizon = a;
+                        f_horizon = f_edge;
+                        hc = dc;
+                        hs = ds;
+                        if (glm::dot(shades[qi].n, d) < 0.0f) {  // q faces the point
+                            sum += (nlen * m) * shades[qi].l;
+                        }
+                    }
+                    // The arc the march left open (the sky, beyond the radius or off screen):
+                    // the probe's surfaces, seen in the arc's middle direction.
+                    const float open_from = side == 0 ? lo : horizon;
+                    const float open_to = side == 0 ? horizon : hi;
+                    if (environment && open_to > open_from) {
+                        const float mid = 0.5f * (open_from + open_to);
+                        const float m = std::abs(f_horizon);  // to the view vector, measure 0
+                        const glm::vec3 dir = std::cos(mid) * V + std::sin(mid) * e2;
+                        sum += (nlen * m) * environment_radiance(*environment, dir);
+                    }
+                }
+            }
+            if (total > 0.0f) {
+                float *o = out.pixel(ox, oy);
+                for (int k = 0; k < 3; ++k) {
+                    o[k] = sum[k] / total;
+                }
+            }
+        }
+    });
+    return out;
+}
+
+namespace {
+
+/// The depth of the computed pixels (their top-left full-resolution pixel), NaN for no surface.
+std::vector<float> reduced_depth(const Image &depth, int st, int ow, int oh)
+{
+    std::vector<float> ld(std::size_t(ow) * std::size_t(oh));
+    for (int y = 0; y < oh; ++y) {
+        for (int x = 0; x < ow; ++x) {
+            const float z = depth.at(x * st, y * st, 0);
+            ld[std::size_t(y) * std::size_t(ow) + std::size_t(x)] =
+                z > 0.0f && std::isfinite(z) ? z : std::numeric_limits<float>::quiet_NaN();
+        }
+    }
+    return ld;
+}
+
+/// The depth tent of the ao node's filters: 1 - |dz| / (0.1 z), at least 0 (NaN: 0).
+float tent(float dz_abs, float inv_scale)
+{
+    const float t = 1.0f - dz_abs * inv_scale;
+    return 0.0f < t ? t : 0.0f;
+}
+
+}  // namespace
+
+Image ssgi_resolve(const Image &light, const Image &depth, int stride, bool denoise)
+{
+    const int st = std::max(1, stride);
+    const int ow = light.width(), oh = light.height(), w = depth.width(), h = depth.height();
+    const std::vector<float> ld = reduced_depth(depth, st, ow, oh);
+    auto lz = [&](int x, int y) { return ld[std::size_t(y) * std::size_t(ow) + std::size_t(x)]; };
+    Image low = light;
+    if (denoise) {
+        parallel_for(0, oh, [&](int y) {
+            for (int x = 0; x < ow; ++x) {
+                const float z = lz(x, y);
+                if (!(z > 0.0f)) {
+                    continue;  // no surface: kept
+                }
+                const float inv = 1.0f / (0.1f * z);
+                float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f;
+                for (int j = std::max(0, y - 2); j <= std::min(oh - 1, y + 2); ++j) {
+                    for (int i = std::max(0, x - 2); i <= std::min(ow - 1, x + 2); ++i) {
+                        const float wt = tent(std::abs(lz(i, j) - z), inv);
+                        const float *v = light.pixel(i, j);
+                        sum[0] += wt * v[0];
+                        sum[1] += wt * v[1];
+                        sum[2] += wt * v[2];
+                        wsum += wt;
+                    }
+                }
+                float *o = low.pixel(x, y);
+                for (int c = 0; c < 3; ++c) {
+                    o[c] = sum[c] / wsum;  // the centre's own weight is 1
+                }
+            }
+        });
+    }
+    Image out(w, h, 3);
+    parallel_for(0, h, [&](int y) {
+        const int j0 = std::min(y / st, oh - 1), j1 = std::min(j0 + 1, oh - 1);
+        const float fy = float(y - j0 * st) / float(st);
+        for (int x = 0; x < w; ++x) {
+            const float z = depth.at(x, y, 0);
+            if (!(z > 0.0f) || !std::isfinite(z)) {
+                continue;  // the sky: 0
+            }
+            const int i0 = std::min(x / st, ow - 1), i1 = std::min(i0 + 1, ow - 1);
+            const float fx = float(x - i0 * st) / float(st);
+            const float inv = 1.0f / (0.1f * z);
+            const int ti[4] = {i0, i1, i0, i1}, tj[4] = {j0, j0, j1, j1};
+            const float bw[4] = {(1.0f - fx) * (1.0f - fy), fx * (1.0f - fy), (1.0f - fx) * fy, fx * fy};
+            float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f, best = INFINITY;
+            int nearest = 0;
+            for (int k = 0; k < 4; ++k) {
+                const float dz = std::abs(lz(ti[k], tj[k]) - z);
+                const float wt = bw[k] * tent(dz, inv);
+                const float *v = low.pixel(ti[k], tj[k]);
+                sum[0] += wt * v[0];
+                sum[1] += wt * v[1];
+                sum[2] += wt * v[2];
+                wsum += wt;
+                if (dz < best) {  // false for NaN
+                    best = dz;
+                    nearest = k;
+                }
+            }
+            float *o = out.pixel(x, y);
+            if (wsum > 1e-6f) {
+                for (int c = 0; c < 3; ++c) {
+                    o[c] = sum[c] / wsum;
+                }
+            } else if (best < INFINITY) {
+                const float *v = low.pixel(ti[nearest], tj[nearest]);
+                o[0] = v[0];
+                o[1] = v[1];
+                o[2] = v[2];
+            }
+        }
+    });
+    return out;
+}
+
+}  // namespace posthaste::shading

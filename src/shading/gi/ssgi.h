@@ -1,0 +1,61 @@
+#pragma once
+// Screen-space diffuse global illumination: one bounce of light from the surfaces the depth pass
+// shows. Per pixel, a few slices through the view vector as GTAO's (Jimenez et al. 2016); along
+// each side of a slice the depth pass is marched outward, and every sample that rises above the
+// horizon found so far lights the arc between the old horizon and itself with its own lit colour
+// (a surface facing away lights nothing but still hides what lies behind it). Each arc counts by
+// its cosine-weighted measure in closed form, so the result estimates the cosine-weighted mean
+// radiance arriving from surfaces: irradiance / pi, what render's truth "gi" gathers by rays.
+// What the frame does not show (off screen, behind a visible surface) adds nothing; neither does
+// the sky, whose light the beauty already holds.
+
+#include <cstdint>
+
+#include "core/image.h"
+#include "shading/camera_rays.h"
+
+namespace posthaste::shading {
+
+struct SsgiParams {
+    float radius = 4.0f;           ///< World units: surfaces farther from the point do not count.
+    int slices = 2;                ///< Slice directions per pixel (rotated per pixel, 4x4 pattern).
+    int steps = 8;                 ///< Depth samples on each side of a slice.
+    float max_radius_px = 512.0f;  ///< Cap on the search's screen radius (full-resolution px).
+    /// 1, 2 or 4: every stride-th pixel in x and y; bring the result back with
+    /// gtao_denoise and gtao_upsample (shading/ao/gtao.h), as the ao node does.
+    int stride = 4;
+    std::uint32_t seed = 0;  ///< Shifts the pattern of slice rotations and step jitter.
+};
+
+/// What the screen does not show, from a latitude-longitude probe taken near the camera
+/// (render's `projection: latlong`, shading/ssr/environment.h's layout): in a direction the
+/// march leaves open, the probe's radiance where its distance is finite (a surface), nothing
+/// where it sees the sky (the beauty holds the sky's light already). No parallax: the probe is
+/// taken as seen from every pixel.
+struct SsgiEnvironment {
+    const Image *radiance = nullptr;  ///< RGB(A), finite.
+    const Image *distance = nullptr;  ///< One channel, +inf (or NaN) for the sky.
+};
+
+/// The light arriving at each computed pixel (RGB, ceil(size / stride)): the cosine-weighted mean
+/// radiance from the surfaces a depth pass (camera z, +inf sky) shows, with world-space
+/// `normal`s and lit `radiance` (RGB or RGBA scene-linear, the beauty without indirect light) of
+/// the same size, seen through `rays` (NDC [0,1]^2 spanning these images). A receiver's diffuse
+/// bounce is its diffuse albedo times this. Sky and non-finite depth give 0; a zero or
+/// non-finite normal faces the camera; non-finite radiance reads as 0. Rows in parallel, same
+/// bits for any thread count.
+Image ssgi(const Image &depth,
+           const Image &normal,
+           const Image &radiance,
+           const CameraRays &rays,
+           const SsgiParams &p,
+           const SsgiEnvironment *environment = nullptr);
+
+/// ssgi's reduced result brought to the depth pass's resolution (RGB): with `denoise`, first a
+/// depth-aware 5x5 blur of the rotation pattern at the reduced resolution; then each pixel
+/// blends its four nearest computed pixels, bilinear weights times a depth tent (the ao node's
+/// filters, shading/ao/gtao.h, on three channels), the closest in depth where no tap is on
+/// its surface. 0 on the sky.
+Image ssgi_resolve(const Image &light, const Image &depth, int stride, bool denoise);
+
+}  // namespace posthaste::shading
