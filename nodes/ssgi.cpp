@@ -23,7 +23,7 @@ constexpr ParamSpec kRadius = ParamSpec::real("radius", 4.0)
                                   .units("scene units")
                                   .doc("Surfaces farther than this from the point light nothing.");
 constexpr ParamSpec kSlices =
-    ParamSpec::integer("slices", 2).range(1, 16).doc("Slice directions per computed pixel.");
+    ParamSpec::integer("slices", 1).range(1, 16).doc("Slice directions per computed pixel (rotated over a 4x4 pattern that the denoise averages).");
 constexpr ParamSpec kSteps =
     ParamSpec::integer("steps", 8).range(1, 64).doc("Depth samples on each side of a slice.");
 constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 512.0)
@@ -42,6 +42,11 @@ constexpr ParamSpec kIntensity =
 constexpr ParamSpec kApply =
     ParamSpec::choice("apply", "add|none", "add")
         .doc("add: color plus the bounce; none: only the gi pass.");
+constexpr ParamSpec kFallback =
+    ParamSpec::choice("fallback", "environment|none", "environment")
+        .doc(
+            "What the arcs the march leaves open (the sky, beyond the radius, off screen) see: "
+            "the environment input's surfaces, or nothing (as without that input).");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
 constexpr ParamSpec kParams[] = {kRadius,
@@ -52,6 +57,7 @@ constexpr ParamSpec kParams[] = {kRadius,
                                  kDenoise,
                                  kIntensity,
                                  kApply,
+                                 kFallback,
                                  kSeed,
                                  kMaskPass,
                                  kMaskChannel,
@@ -102,7 +108,7 @@ void execute(NodeContext &ctx)
         p.stride = std::array{1, 2, 4}[std::size_t(ctx.get_choice(kResolution))];
         shading::SsgiEnvironment env;
         Image env_color_s, env_depth_s;
-        if (ctx.has_input("environment")) {
+        if (ctx.has_input("environment") && ctx.get_choice(kFallback) == 0) {
             const Frame &e = ctx.input("environment");
             const std::string where = ctx.where() + ": input \"environment\"";
             const Image &ec = e.image(pass::kColor, where), &ed = e.image(pass::kDepth, where);
@@ -122,29 +128,20 @@ void execute(NodeContext &ctx)
         }
         const Image light = shading::ssgi(
             depth, normal, *color_pass.image, rays, p, env.radiance ? &env : nullptr);
-        gi = shading::ssgi_resolve(light, depth, p.stride, ctx.get_bool(kDenoise));
-        const int na = albedo.channels();
-        parallel_for(0, h, [&](int y) {
-            for (int x = 0; x < w; ++x) {
-                float metal = material && material->channels() > 1 ? material->at(x, y, 1) : 0.0f;
-                metal = std::isfinite(metal) ? std::clamp(metal, 0.0f, 1.0f) : 0.0f;
-                const float k = intensity * (1.0f - metal);
-                const float *a = albedo.pixel(x, y);
-                float *g = gi.pixel(x, y);  // the light arriving, made the light added
-                for (int c = 0; c < 3; ++c) {
-                    g[c] = k * a[std::min(c, na - 1)] * std::max(0.0f, g[c]);
-                }
-            }
-        });
+        const shading::SsgiApply apply{&albedo, material, intensity};
+        gi = shading::ssgi_resolve(
+            light, depth, normal, p.stride, ctx.get_bool(kDenoise), &apply);
     }
     if (ctx.get_choice(kApply) == 0) {
-        Image color = *color_pass.image;
-        const int nc = std::min(color.channels(), 3);
+        const Image &in_color = *color_pass.image;
+        const int nc = in_color.channels();
+        Image color = Image::uninitialized(w, h, nc);
         parallel_for(0, h, [&](int y) {
+            const float *src = in_color.pixel(0, y), *g = gi.pixel(0, y);
+            float *dst = color.pixel(0, y);
             for (int x = 0; x < w; ++x) {
-                float *px = color.pixel(x, y);
                 for (int c = 0; c < nc; ++c) {
-                    px[c] += gi.at(x, y, c);
+                    dst[x * nc + c] = src[x * nc + c] + (c < 3 ? g[x * 3 + c] : 0.0f);
                 }
             }
         });

@@ -39,12 +39,17 @@ void report(benchmark::State &state, const RenderStats &st)
     state.counters["shadow_ms"] = st.shadow_ms;
 }
 
-void render_bench(benchmark::State &state, std::set<std::string> passes)
+void render_bench(benchmark::State &state,
+                  std::set<std::string> passes,
+                  int overscan_x = 0,
+                  int overscan_y = 0)
 {
     const Scene &s = default_scene();
     RenderOptions o;
     o.width = 1920;
     o.height = 1080;
+    o.overscan_x = overscan_x;
+    o.overscan_y = overscan_y;
     o.passes = std::move(passes);
     render_frame(s, 1, o);  // meshes and the static shadow map are cached per scene
     RenderStats st;
@@ -76,6 +81,20 @@ void BM_RasterFrameDepthOnly1080p(benchmark::State &state)
     render_bench(state, {"depth"});
 }
 BENCHMARK(BM_RasterFrameDepthOnly1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// Overscan's cost against its pixels: the passes ssgi reads, without and with render's
+// `overscan: 0.1` (96 px left and right, 54 top and bottom: 2112x1188, 1.21x the pixels).
+void BM_RasterFrameLit1080p(benchmark::State &state)
+{
+    render_bench(state, {"color", "depth", "normal", "albedo"});
+}
+BENCHMARK(BM_RasterFrameLit1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_RasterFrameLit1080pOverscan10(benchmark::State &state)
+{
+    render_bench(state, {"color", "depth", "normal", "albedo"}, 96, 54);
+}
+BENCHMARK(BM_RasterFrameLit1080pOverscan10)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_RasterTruthMotion256(benchmark::State &state)
 {

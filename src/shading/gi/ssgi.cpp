@@ -90,21 +90,46 @@ glm::vec3 normal_at(const Image &normal, int x, int y, const glm::vec3 &view)
     return glm::dot(u, view) < 0.0f ? -u : u;  // the side the camera sees
 }
 
-/// The probe's radiance in direction d where it sees a surface, 0 where it sees the sky.
-glm::vec3 environment_radiance(const SsgiEnvironment &env, const glm::vec3 &d)
+/// The probe's surfaces, box-filtered into a small latitude-longitude map: radiance where the
+/// probe sees a surface, 0 where it sees the sky. A bounce integrates light over wide arcs, so
+/// a coarse map loses little, and it stays in cache (the march's look-ups are scattered).
+Image surface_map(const SsgiEnvironment &env, int mw, int mh)
+{
+    const Image &r = *env.radiance, &d = *env.distance;
+    const int w = r.width(), h = r.height(), nc = r.channels();
+    Image out(mw, mh, 3);
+    parallel_for(0, mh, [&](int my) {
+        const int y0 = my * h / mh, y1 = std::max(y0 + 1, (my + 1) * h / mh);
+        for (int mx = 0; mx < mw; ++mx) {
+            const int x0 = mx * w / mw, x1 = std::max(x0 + 1, (mx + 1) * w / mw);
+            glm::vec3 sum(0.0f);
+            for (int y = y0; y < y1; ++y) {
+                for (int x = x0; x < x1; ++x) {
+                    if (!std::isfinite(d.at(std::min(x, d.width() - 1), std::min(y, d.height() - 1), 0))) {
+                        continue;  // the sky
+                    }
+                    const float *px = r.pixel(x, y);
+                    sum += nc >= 3 ? glm::vec3(px[0], px[1], px[2]) : glm::vec3(px[0]);
+                }
+            }
+            sum /= float((x1 - x0) * (y1 - y0));
+            float *o = out.pixel(mx, my);
+            o[0] = sum.x;
+            o[1] = sum.y;
+            o[2] = sum.z;
+        }
+    });
+    return out;
+}
+
+/// The surface map's radiance in direction d (unit): its nearest texel.
+glm::vec3 surface_radiance(const Image &map, const glm::vec3 &d)
 {
     const glm::vec2 uv = latlong_uv(d);
-    const int w = env.radiance->width(), h = env.radiance->height();
-    const int x = std::clamp(int(uv.x * float(w)), 0, w - 1);
-    const int y = std::clamp(int(uv.y * float(h)), 0, h - 1);
-    const float dist = env.distance->at(std::min(x, env.distance->width() - 1),
-                                        std::min(y, env.distance->height() - 1),
-                                        0);
-    if (!std::isfinite(dist)) {
-        return glm::vec3(0.0f);
-    }
-    const float *px = env.radiance->pixel(x, y);
-    return env.radiance->channels() >= 3 ? glm::vec3(px[0], px[1], px[2]) : glm::vec3(px[0]);
+    const int x = std::clamp(int(uv.x * float(map.width())), 0, map.width() - 1);
+    const int y = std::clamp(int(uv.y * float(map.height())), 0, map.height() - 1);
+    const float *px = map.pixel(x, y);
+    return glm::vec3(px[0], px[1], px[2]);
 }
 
 }  // namespace
@@ -146,6 +171,10 @@ Image ssgi(const Image &depth,
     // World units per computed pixel at depth 1.
     const float px_world_1 = glm::length(rays.ray_du()) * inv_w * float(st);
     const int slices = std::max(1, p.slices), steps = std::max(1, p.steps);
+    const Image env_map = environment ? surface_map(*environment,
+                                                    std::min(128, environment->radiance->width()),
+                                                    std::min(64, environment->radiance->height()))
+                                      : Image();
     // Screen directions of each slice for each of the pattern's 16 rotations.
     std::vector<glm::vec2> slice_dirs(std::size_t(slices) * 16);
     for (int s = 0; s < slices; ++s) {
@@ -251,10 +280,15 @@ Image ssgi(const Image &depth,
                     const float open_from = side == 0 ? lo : horizon;
                     const float open_to = side == 0 ? horizon : hi;
                     if (environment && open_to > open_from) {
-                        const float mid = 0.5f * (open_from + open_to);
-                        const float m = std::abs(f_horizon);  // to the view vector, measure 0
-                        const glm::vec3 dir = std::cos(mid) * V + std::sin(mid) * e2;
-                        sum += (nlen * m) * environment_radiance(*environment, dir);
+                        // The arc runs from the horizon to the view vector (measure 0 there);
+                        // its middle direction bisects them.
+                        const float m = std::abs(f_horizon);
+                        const float hl = std::sqrt(hc * hc + hs * hs);
+                        const glm::vec3 dir = V * (1.0f + hc / hl) + e2 * (hs / hl);
+                        const float dl = glm::length(dir);
+                        if (dl > 1e-6f) {
+                            sum += (nlen * m) * surface_radiance(env_map, dir / dl);
+                        }
                     }
                 }
             }
@@ -292,14 +326,50 @@ float tent(float dz_abs, float inv_scale)
     return 0.0f < t ? t : 0.0f;
 }
 
+/// The unit normal at (x, y), 0 where it is zero or not finite.
+glm::vec3 unit_normal(const Image &normal, int x, int y)
+{
+    const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
+    const float len2 = glm::dot(n, n);
+    return len2 > 1e-12f && std::isfinite(len2) ? n / std::sqrt(len2) : glm::vec3(0.0f);
+}
+
+/// How much two surfaces' normals agree: max(0, a.b)^8 (faces at right angles: 0); 1 when
+/// either is unknown.
+float normal_weight(const glm::vec3 &a, const glm::vec3 &b)
+{
+    if (a == glm::vec3(0.0f) || b == glm::vec3(0.0f)) {
+        return 1.0f;
+    }
+    float t = std::max(0.0f, glm::dot(a, b));
+    t *= t;
+    t *= t;
+    return t * t;
+}
+
 }  // namespace
 
-Image ssgi_resolve(const Image &light, const Image &depth, int stride, bool denoise)
+Image ssgi_resolve(const Image &light,
+                   const Image &depth,
+                   const Image &normal,
+                   int stride,
+                   bool denoise,
+                   const SsgiApply *apply)
 {
     const int st = std::max(1, stride);
     const int ow = light.width(), oh = light.height(), w = depth.width(), h = depth.height();
     const std::vector<float> ld = reduced_depth(depth, st, ow, oh);
     auto lz = [&](int x, int y) { return ld[std::size_t(y) * std::size_t(ow) + std::size_t(x)]; };
+    std::vector<glm::vec3> lnorm(ld.size());
+    parallel_for(0, oh, [&](int y) {
+        for (int x = 0; x < ow; ++x) {
+            lnorm[std::size_t(y) * std::size_t(ow) + std::size_t(x)] =
+                unit_normal(normal, x * st, y * st);
+        }
+    });
+    auto ln = [&](int x, int y) -> const glm::vec3 & {
+        return lnorm[std::size_t(y) * std::size_t(ow) + std::size_t(x)];
+    };
     Image low = light;
     if (denoise) {
         parallel_for(0, oh, [&](int y) {
@@ -309,10 +379,12 @@ Image ssgi_resolve(const Image &light, const Image &depth, int stride, bool deno
                     continue;  // no surface: kept
                 }
                 const float inv = 1.0f / (0.1f * z);
+                const glm::vec3 &n = ln(x, y);
                 float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f;
                 for (int j = std::max(0, y - 2); j <= std::min(oh - 1, y + 2); ++j) {
                     for (int i = std::max(0, x - 2); i <= std::min(ow - 1, x + 2); ++i) {
-                        const float wt = tent(std::abs(lz(i, j) - z), inv);
+                        const float wt =
+                            tent(std::abs(lz(i, j) - z), inv) * normal_weight(n, ln(i, j));
                         const float *v = light.pixel(i, j);
                         sum[0] += wt * v[0];
                         sum[1] += wt * v[1];
@@ -331,41 +403,80 @@ Image ssgi_resolve(const Image &light, const Image &depth, int stride, bool deno
     parallel_for(0, h, [&](int y) {
         const int j0 = std::min(y / st, oh - 1), j1 = std::min(j0 + 1, oh - 1);
         const float fy = float(y - j0 * st) / float(st);
-        for (int x = 0; x < w; ++x) {
-            const float z = depth.at(x, y, 0);
-            if (!(z > 0.0f) || !std::isfinite(z)) {
-                continue;  // the sky: 0
-            }
-            const int i0 = std::min(x / st, ow - 1), i1 = std::min(i0 + 1, ow - 1);
-            const float fx = float(x - i0 * st) / float(st);
-            const float inv = 1.0f / (0.1f * z);
+        const float *zrow = depth.pixel(0, y), *nrow = normal.pixel(0, y);
+        const int nc = normal.channels();
+        // Block by block: the four taps are the same for the pixels between two columns of
+        // computed pixels.
+        for (int i0 = 0; i0 < ow && i0 * st < w; ++i0) {
+            const int i1 = std::min(i0 + 1, ow - 1);
             const int ti[4] = {i0, i1, i0, i1}, tj[4] = {j0, j0, j1, j1};
-            const float bw[4] = {(1.0f - fx) * (1.0f - fy), fx * (1.0f - fy), (1.0f - fx) * fy, fx * fy};
-            float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f, best = INFINITY;
-            int nearest = 0;
+            float tz[4];
+            glm::vec3 tn[4];
+            const float *tv[4];
             for (int k = 0; k < 4; ++k) {
-                const float dz = std::abs(lz(ti[k], tj[k]) - z);
-                const float wt = bw[k] * tent(dz, inv);
-                const float *v = low.pixel(ti[k], tj[k]);
-                sum[0] += wt * v[0];
-                sum[1] += wt * v[1];
-                sum[2] += wt * v[2];
-                wsum += wt;
-                if (dz < best) {  // false for NaN
-                    best = dz;
-                    nearest = k;
-                }
+                tz[k] = lz(ti[k], tj[k]);
+                tn[k] = ln(ti[k], tj[k]);
+                tv[k] = low.pixel(ti[k], tj[k]);
             }
-            float *o = out.pixel(x, y);
-            if (wsum > 1e-6f) {
-                for (int c = 0; c < 3; ++c) {
-                    o[c] = sum[c] / wsum;
+            for (int x = i0 * st; x < std::min(w, i0 * st + st); ++x) {
+                const float z = zrow[x];
+                if (!(z > 0.0f) || !std::isfinite(z)) {
+                    continue;  // the sky: 0
                 }
-            } else if (best < INFINITY) {
-                const float *v = low.pixel(ti[nearest], tj[nearest]);
-                o[0] = v[0];
-                o[1] = v[1];
-                o[2] = v[2];
+                const float fx = float(x - i0 * st) / float(st);
+                const float inv = 1.0f / (0.1f * z);
+                const float *np = nrow + std::size_t(x) * std::size_t(nc);
+                const glm::vec3 n(np[0], np[1], np[2]);
+                const float len2 = glm::dot(n, n);
+                // max(0, n.m / |n|)^8 for a unit tap normal m; 1 where either is unknown.
+                const bool known = len2 > 1e-12f && std::isfinite(len2);
+                const float inv_len2 = known ? 1.0f / len2 : 0.0f;
+                const float bw[4] = {
+                    (1.0f - fx) * (1.0f - fy), fx * (1.0f - fy), (1.0f - fx) * fy, fx * fy};
+                float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f, best = INFINITY;
+                int nearest = 0;
+                for (int k = 0; k < 4; ++k) {
+                    const float dz = std::abs(tz[k] - z);
+                    float nw = 1.0f;
+                    if (known && tn[k] != glm::vec3(0.0f)) {
+                        const float t = std::max(0.0f, glm::dot(n, tn[k]));
+                        const float t2 = t * t * inv_len2;
+                        nw = t2 * t2;
+                        nw *= nw;
+                    }
+                    const float wt = bw[k] * tent(dz, inv) * nw;
+                    sum[0] += wt * tv[k][0];
+                    sum[1] += wt * tv[k][1];
+                    sum[2] += wt * tv[k][2];
+                    wsum += wt;
+                    if (dz < best) {  // false for NaN
+                        best = dz;
+                        nearest = k;
+                    }
+                }
+                float *o = out.pixel(x, y);
+                if (wsum > 1e-6f) {
+                    const float r = 1.0f / wsum;
+                    for (int c = 0; c < 3; ++c) {
+                        o[c] = sum[c] * r;
+                    }
+                } else if (best < INFINITY) {
+                    for (int c = 0; c < 3; ++c) {
+                        o[c] = tv[nearest][c];
+                    }
+                }
+                if (apply) {
+                    float k = apply->intensity;
+                    if (apply->material && apply->material->channels() > 1) {
+                        const float metal = apply->material->at(x, y, 1);
+                        k *= std::isfinite(metal) ? 1.0f - std::clamp(metal, 0.0f, 1.0f) : 1.0f;
+                    }
+                    const float *a = apply->albedo->pixel(x, y);
+                    const int na = apply->albedo->channels();
+                    for (int c = 0; c < 3; ++c) {
+                        o[c] = k * a[std::min(c, na - 1)] * std::max(0.0f, o[c]);
+                    }
+                }
             }
         }
     });

@@ -18,7 +18,7 @@ namespace posthaste::shading {
 
 struct SsgiParams {
     float radius = 4.0f;           ///< World units: surfaces farther from the point do not count.
-    int slices = 2;                ///< Slice directions per pixel (rotated per pixel, 4x4 pattern).
+    int slices = 1;                ///< Slice directions per pixel (rotated per pixel, 4x4 pattern).
     int steps = 8;                 ///< Depth samples on each side of a slice.
     float max_radius_px = 512.0f;  ///< Cap on the search's screen radius (full-resolution px).
     /// 1, 2 or 4: every stride-th pixel in x and y; bring the result back with
@@ -52,10 +52,26 @@ Image ssgi(const Image &depth,
            const SsgiEnvironment *environment = nullptr);
 
 /// ssgi's reduced result brought to the depth pass's resolution (RGB): with `denoise`, first a
-/// depth-aware 5x5 blur of the rotation pattern at the reduced resolution; then each pixel
-/// blends its four nearest computed pixels, bilinear weights times a depth tent (the ao node's
-/// filters, shading/ao/gtao.h, on three channels), the closest in depth where no tap is on
-/// its surface. 0 on the sky.
-Image ssgi_resolve(const Image &light, const Image &depth, int stride, bool denoise);
+/// 5x5 blur of the rotation pattern at the reduced resolution; then each pixel blends its four
+/// nearest computed pixels, bilinear weights. Every weight is times a depth tent (the ao
+/// node's, shading/ao/gtao.h) and max(0, n.n')^8 of the normals, so light does not leak
+/// across depth edges or onto a face at an angle (a voxel's top from its side); where no tap
+/// is on the pixel's surface, the closest in depth. 0 on the sky.
+///
+/// With `apply`, the result is the light a diffuse bounce adds instead of the light arriving:
+/// times intensity, the albedo (its channel 0 for a one-channel albedo) and, with a material
+/// pass, 1 - metallic (its channel 1, clamped to [0, 1]; non-finite reads as 0). Negative light
+/// (none is made) would read as 0.
+struct SsgiApply {
+    const Image *albedo = nullptr;    ///< Finite, the depth pass's size.
+    const Image *material = nullptr;  ///< Optional: roughness, metallic, ...
+    float intensity = 1.0f;
+};
+Image ssgi_resolve(const Image &light,
+                   const Image &depth,
+                   const Image &normal,
+                   int stride,
+                   bool denoise,
+                   const SsgiApply *apply = nullptr);
 
 }  // namespace posthaste::shading

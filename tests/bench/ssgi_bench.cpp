@@ -1,0 +1,90 @@
+// Benchmarks of the ssgi node (nodes/ssgi.cpp) at 1920x1080 on the default scene, frames 8 and
+// 40 of graphs/bench/ssgi.json, rendered once: the default settings (quarter resolution) with
+// the scene's probe (512x256, 4 rays a texel, from the camera) and without, half resolution,
+// and beside them the copy of the colour pass the node pays at least. cpu_ms is the process CPU
+// time per iteration (all threads).
+//   build/tests/posthaste_benchmarks --benchmark_filter=Ssgi --benchmark_repetitions=5
+//       --benchmark_report_aggregates_only=true   (one command line)
+#include <benchmark/benchmark.h>
+
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bench_util.h"
+#include "core/parallel.h"
+#include "raster/ray_cast.h"
+#include "raster/scene.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+const Frame &lit_frame(int frame)
+{
+    return bench::scene_frame(
+        "minecrappy.json", frame, {"color", "depth", "normal", "albedo", "material"}, true);
+}
+
+/// The default scene's probe at frame `frame`, as graphs/bench/graphs/ssgi_graph.json makes it.
+const Frame &probe(int frame)
+{
+    static std::map<int, Frame> probes;
+    auto it = probes.find(frame);
+    if (it == probes.end()) {
+        const raster::Scene s = raster::load_scene(test::scene_path("minecrappy.json"));
+        raster::EnvironmentProbe p = raster::render_environment_probe(s, frame, 512, 256, 4, 0);
+        Frame f;
+        f.set_size(512, 256);
+        f.set("color", std::move(p.color));
+        f.set("depth", std::move(p.distance));
+        it = probes.emplace(frame, std::move(f)).first;
+    }
+    return it->second;
+}
+
+void run_ssgi(benchmark::State &state, const std::string &params, bool with_probe)
+{
+    const int frame = int(state.range(0));
+    std::vector<std::pair<std::string, Frame>> inputs = {{"image", lit_frame(frame)}};
+    if (with_probe) {
+        inputs.emplace_back("environment", probe(frame));
+    }
+    const test::NodeRunner ssgi("ssgi", params);
+    set_thread_count(2);
+    double cpu = 0.0;
+    for (auto _ : state) {
+        const double c0 = bench::process_cpu_ms();
+        const Frame out = ssgi.run_ports(inputs, frame);
+        benchmark::DoNotOptimize(out.image("color").data());
+        cpu += bench::process_cpu_ms() - c0;
+    }
+    state.counters["cpu_ms"] = cpu / double(state.iterations());
+    set_thread_count(0);
+}
+
+void BM_SsgiNode(benchmark::State &state)
+{
+    run_ssgi(state, "{}", true);
+}
+void BM_SsgiNodeScreenOnly(benchmark::State &state)
+{
+    run_ssgi(state, "{}", false);
+}
+void BM_SsgiNodeHalf(benchmark::State &state)
+{
+    run_ssgi(state, R"({"resolution": "half"})", true);
+}
+void BM_SsgiCopyBaseline(benchmark::State &state)
+{
+    bench::copy_baseline(state, lit_frame(int(state.range(0))).image("color"));
+}
+
+BENCHMARK(BM_SsgiNode)->Arg(8)->Arg(40)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsgiNodeScreenOnly)->Arg(8)->Arg(40)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsgiNodeHalf)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsgiCopyBaseline)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+}  // namespace posthaste
