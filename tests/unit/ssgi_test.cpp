@@ -1,0 +1,405 @@
+// Screen-space GI: the node on an analytic floor-and-wall frame (a lit wall, a black floor)
+// against the closed form of the light one bounce brings to the floor within the radius; what
+// the probe adds for arcs the screen leaves open; overscan pixels used as input; the stability
+// cases (NaN/Inf in every input, all sky, a bright emitter beside a dark wall, a one-pixel wall,
+// the frame's edge, extreme parameters); same bits on any thread count; render's truth "gi".
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <glm/geometric.hpp>
+#include <limits>
+
+#include "core/error.h"
+#include "core/parallel.h"
+#include "raster/ray_cast.h"
+#include "raster/render.h"
+#include "raster/scene.h"
+#include "shading/camera_rays.h"
+#include "test_util.h"
+
+namespace posthaste {
+namespace {
+
+constexpr float kPi = 3.14159265358979f;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+const glm::vec3 kWallLight(1.0f, 0.5f, 0.25f);
+
+/// The floor y = 0 (black, albedo 1) and the wall x = 4 (radiance kWallLight) seen by a camera
+/// at (0, 3, 0) looking along +x, 35 degrees down, as a frame ssgi reads: color, depth, world
+/// normals, albedo and the camera. `margin` pixels of overscan on every side (the display
+/// window stays w x h); with `thin`, the wall is only the strip 0.5 <= z <= 0.52.
+Frame floor_wall_frame(int w, int h, int margin = 0, bool wall = true)
+{
+    glm::mat4 to_world(1.0f);
+    const float pitch = glm::radians(35.0f);
+    const glm::vec3 fwd(std::cos(pitch), -std::sin(pitch), 0.0f);
+    const glm::vec3 right(0.0f, 0.0f, -1.0f);
+    const glm::vec3 up = glm::cross(fwd, right);
+    to_world[0] = glm::vec4(right, 0.0f);
+    to_world[1] = glm::vec4(up, 0.0f);
+    to_world[2] = glm::vec4(fwd, 0.0f);
+    to_world[3] = glm::vec4(0.0f, 3.0f, 0.0f, 1.0f);
+    const CameraMatrices m = make_camera_matrices(to_world, 24.0f, 36.0f, float(w) / h, 0.1f);
+    Frame f;
+    f.display_window = {0, 0, w, h};
+    f.data_window = {-margin, -margin, w + margin, h + margin};
+    f.camera.world_to_camera = m.world_to_camera;
+    f.camera.world_to_ndc = m.world_to_ndc;
+    const int W = w + 2 * margin, H = h + 2 * margin;
+    const Camera pc = f.pixel_camera();
+    const shading::CameraRays rays(*pc.world_to_camera, *pc.world_to_ndc);
+    const glm::vec3 cam = rays.position();
+    Image color(W, H, 4), depth(W, H, 1), normal(W, H, 3), albedo(W, H, 3);
+    for (int y = 0; y < H; ++y) {
+        for (int x = 0; x < W; ++x) {
+            const glm::vec3 r = rays.depth_ray((x + 0.5f) / W, (y + 0.5f) / H);
+            float best = kInf;
+            glm::vec3 n(0.0f), l(0.0f);
+            if (r.y < 0.0f) {
+                best = -cam.y / r.y;
+                n = glm::vec3(0, 1, 0);
+            }
+            if (wall && r.x > 0.0f) {
+                const float t = (4.0f - cam.x) / r.x;
+                if (t < best) {
+                    best = t;
+                    n = glm::vec3(-1, 0, 0);
+                    l = kWallLight;
+                }
+            }
+            depth.at(x, y, 0) = best;
+            color.at(x, y, 3) = 1.0f;
+            for (int c = 0; c < 3; ++c) {
+                normal.at(x, y, c) = n[c];
+                color.at(x, y, c) = l[c];
+                albedo.at(x, y, c) = std::isfinite(best) ? 1.0f : 0.0f;
+            }
+        }
+    }
+    f.set("color", std::move(color));
+    f.set("depth", std::move(depth));
+    f.set("normal", std::move(normal));
+    f.set("albedo", std::move(albedo));
+    return f;
+}
+
+/// The largest absolute value of an image.
+float peak(const Image &img)
+{
+    float m = 0.0f;
+    for (std::size_t i = 0; i < img.value_count(); ++i) {
+        m = std::max(m, std::abs(img.data()[i]));
+    }
+    return m;
+}
+
+/// The cosine-weighted fraction of a floor point's hemisphere that meets an infinite wall at
+/// distance d within radius r (ao_test.cpp's corner form: one minus the visibility).
+double wall_fraction(double d, double r)
+{
+    const double c = std::min(1.0, d / r);
+    return (std::acos(c) - c * std::sqrt(1.0 - c * c)) / kPi;
+}
+
+/// Mean gi.R over floor pixels of the middle columns at distance [d0, d1) from the wall's
+/// foot, against the closed form's mean.
+void expect_floor_band(const Frame &in, const Frame &out, double r, double d0, double d1,
+                       double tolerance)
+{
+    const Image &gi = out.image("gi"), &depth = in.image("depth"), &normal = in.image("normal");
+    const int w = gi.width(), h = gi.height();
+    const Camera pc = in.pixel_camera();
+    const shading::CameraRays rays(*pc.world_to_camera, *pc.world_to_ndc);
+    double got = 0.0, want = 0.0;
+    int count = 0;
+    for (int y = 0; y < h; ++y) {
+        for (int x = w / 4; x < 3 * w / 4; ++x) {
+            if (normal.at(x, y, 1) != 1.0f) {
+                continue;
+            }
+            const glm::vec3 pt = rays.position() +
+                                 depth.at(x, y, 0) * rays.depth_ray((x + 0.5f) / w, (y + 0.5f) / h);
+            const double d = 4.0 - pt.x;
+            if (d >= d0 && d < d1) {
+                got += gi.at(x, y, 0);
+                want += wall_fraction(d, r) * kWallLight.x;
+                ++count;
+            }
+        }
+    }
+    ASSERT_GT(count, 50) << d0;
+    EXPECT_NEAR(got / count, want / count, tolerance) << "band from " << d0 << " m";
+}
+
+TEST(Ssgi, FloorBesideALitWallGetsTheClosedForm)
+{
+    // 640x480: at a quarter, the 5x5 denoise spans 20 pixels, a tenth of the floor's depth range.
+    const Frame f = floor_wall_frame(640, 480);
+    for (const char *res : {"full", "half", "quarter"}) {
+        SCOPED_TRACE(res);
+        const Frame out = test::run_node(
+            "ssgi", f, std::string(R"({"radius": 1, "slices": 4, "steps": 16, "resolution": ")") +
+                           res + "\"}");
+        // Bands from the wall's foot out to the radius (0.5 at the foot, 0 at 1 m).
+        for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
+            expect_floor_band(f, out, 1.0, d0, d0 + 0.25, 0.06);
+        }
+        // The wall's own pixels see the black floor: nothing added (but for samples on the wall
+        // itself, facing it within rounding); colour is light + gi.
+        const Image &gi = out.image("gi");
+        EXPECT_LT(gi.at(320, 20, 0), 1e-3f);
+        EXPECT_FLOAT_EQ(out.image("color").at(320, 400, 0),
+                        f.image("color").at(320, 400, 0) + gi.at(320, 400, 0));
+        EXPECT_EQ(out.image("color").at(320, 400, 3), 1.0f);
+    }
+}
+
+TEST(Ssgi, NothingLitNothingAddedAndTheSkyStaysAsItIs)
+{
+    // A black wall: no light to bounce.
+    Frame dark = floor_wall_frame(96, 64);
+    Image black = dark.image("color");
+    for (int y = 0; y < 64; ++y) {
+        for (int x = 0; x < 96; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                black.at(x, y, c) = 0.0f;
+            }
+        }
+    }
+    dark.set("color", std::move(black));
+    Frame out = test::run_node("ssgi", dark, "{}");
+EXPECT_EQ(peak(out.image("gi")), 0.0f);
+    // All sky: the colour passes through unchanged, gi is 0.
+    Frame sky = floor_wall_frame(96, 64);
+    Image inf_depth(96, 64, 1);
+    inf_depth.fill(kInf);
+    sky.set("depth", std::move(inf_depth));
+    out = test::run_node("ssgi", sky, "{}");
+EXPECT_EQ(peak(out.image("gi")), 0.0f);
+    EXPECT_TRUE(out.image("color").bit_equal(sky.image("color")));
+    // Metal (metallic 1) and black albedo take no diffuse bounce.
+    Frame metal = floor_wall_frame(96, 64);
+    Image mat(96, 64, 3);
+    for (int y = 0; y < 64; ++y) {
+        for (int x = 0; x < 96; ++x) {
+            mat.at(x, y, 1) = 1.0f;
+        }
+    }
+    metal.set("material", std::move(mat));
+EXPECT_EQ(peak(test::run_node("ssgi", metal, "{}").image("gi")), 0.0f);
+    // intensity 0: nothing added; apply none: the colour is the input's own image.
+    out = test::run_node("ssgi", floor_wall_frame(96, 64), R"({"intensity": 0})");
+EXPECT_EQ(peak(out.image("gi")), 0.0f);
+    const Frame lit = floor_wall_frame(96, 64);
+    out = test::run_node("ssgi", lit, R"({"apply": "none"})");
+    EXPECT_EQ(out.pass("color").image, lit.pass("color").image);
+EXPECT_GT(peak(out.image("gi")), 0.0f);
+}
+
+TEST(Ssgi, NonFiniteInputsGiveFiniteBoundedLight)
+{
+    Frame f = floor_wall_frame(128, 96);
+    Image color = f.image("color"), depth = f.image("depth"), normal = f.image("normal"),
+          albedo = f.image("albedo");
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int y = 0; y < 96; y += 3) {
+        for (int x = (y * 7) % 5; x < 128; x += 5) {
+            color.at(x, y, y % 3) = (x % 2) ? nan : kInf;
+            depth.at((x + 1) % 128, y, 0) = (x % 3) ? nan : -kInf;
+            normal.at((x + 2) % 128, y, x % 3) = (x % 2) ? kInf : nan;
+            albedo.at((x + 3) % 128, y, 0) = nan;
+        }
+    }
+    f.set("color", std::move(color));
+    f.set("depth", std::move(depth));
+    f.set("normal", std::move(normal));
+    f.set("albedo", std::move(albedo));
+    const Frame out = test::run_node("ssgi", f, "{}");
+    const Image &gi = out.image("gi");
+    for (std::size_t i = 0; i < gi.value_count(); ++i) {
+        ASSERT_TRUE(std::isfinite(gi.data()[i])) << i;
+        // The light a bounce adds is at most the brightest finite radiance times albedo 1.
+        ASSERT_GE(gi.data()[i], 0.0f);
+        ASSERT_LE(gi.data()[i], kWallLight.x + 1e-5f);
+    }
+}
+
+TEST(Ssgi, ABrightEmitterBesideADarkWallStaysBounded)
+{
+    // One bright column of the wall (1e4), the rest dark: every pixel's light is a weighted
+    // mean of radiances, so at most 1e4, and finite.
+    Frame f = floor_wall_frame(160, 120);
+    Image color = f.image("color");
+    for (int y = 0; y < 120; ++y) {
+        for (int x = 0; x < 160; ++x) {
+            const bool wall = f.image("normal").at(x, y, 0) == -1.0f;
+            for (int c = 0; c < 3; ++c) {
+                color.at(x, y, c) = wall ? (x >= 78 && x < 82 ? 1e4f : 0.0f) : 0.0f;
+            }
+        }
+    }
+    f.set("color", std::move(color));
+    for (const char *params : {"{}", R"({"radius": 1e4, "max_radius_px": 8192, "steps": 64})",
+                               R"({"radius": 1e-4})", R"({"resolution": "full", "slices": 16})"}) {
+        SCOPED_TRACE(params);
+        const Frame out = test::run_node("ssgi", f, params);
+        const Image &gi = out.image("gi");
+        float peak = 0.0f;
+        for (std::size_t i = 0; i < gi.value_count(); ++i) {
+            ASSERT_TRUE(std::isfinite(gi.data()[i]));
+            peak = std::max(peak, gi.data()[i]);
+        }
+        EXPECT_LE(peak, 1e4f);
+    }
+}
+
+TEST(Ssgi, OverscanPixelsLightTheFramesEdge)
+{
+    // The floor by the wall in the display window's leftmost columns: without overscan, half of
+    // its slices run off the frame at once; with 32 px of margin they march on through wall
+    // pixels beyond the edge, and the light comes closer to the closed form.
+    const Frame plain = floor_wall_frame(320, 240, 0);
+    const Frame wide = floor_wall_frame(320, 240, 32);
+    const Frame fa = test::run_node("ssgi", plain, R"({"radius": 1, "resolution": "full"})");
+    const Frame fb = test::run_node("ssgi", wide, R"({"radius": 1, "resolution": "full"})");
+    const Image &a = fa.image("gi"), &b = fb.image("gi");
+    ASSERT_EQ(b.width(), 384);
+    const Camera pc = plain.pixel_camera();
+    const shading::CameraRays rays(*pc.world_to_camera, *pc.world_to_ndc);
+    const Image &depth = plain.image("depth"), &normal = plain.image("normal");
+    double got_plain = 0.0, got_wide = 0.0, want = 0.0;
+    int count = 0;
+    for (int y = 0; y < 240; ++y) {
+        for (int x = 0; x < 6; ++x) {
+            if (normal.at(x, y, 1) != 1.0f) {
+                continue;
+            }
+            const glm::vec3 pt = rays.position() + depth.at(x, y, 0) *
+                                                       rays.depth_ray((x + 0.5f) / 320, (y + 0.5f) / 240);
+            const double d = 4.0 - pt.x;
+            if (d < 0.5) {
+                got_plain += a.at(x, y, 0);
+                got_wide += b.at(x + 32, y + 32, 0);
+                want += wall_fraction(d, 1.0) * kWallLight.x;
+                ++count;
+            }
+        }
+    }
+    ASSERT_GT(count, 20);
+    EXPECT_LT(std::abs(got_wide - want), std::abs(got_plain - want))
+        << got_plain / count << " " << got_wide / count << " " << want / count;
+    EXPECT_GT(got_wide, got_plain);
+    // Away from the edges the margin changes little.
+    double middle = 0.0;
+    for (int y = 80; y < 160; ++y) {
+        for (int x = 80; x < 240; ++x) {
+            middle = std::max(middle, double(std::abs(a.at(x, y, 0) - b.at(x + 32, y + 32, 0))));
+        }
+    }
+    EXPECT_LT(middle, 0.05);
+}
+
+TEST(Ssgi, TheProbeFillsWhatTheScreenLeavesOpen)
+{
+    // No wall on screen; a probe that sees a lit surface everywhere below the horizon and the
+    // sky above: the floor gets the probe's light over the arcs the march leaves open.
+    const Frame f = floor_wall_frame(128, 96, 0, false);
+    Frame probe;
+    probe.set_size(64, 32);
+    Image pc(64, 32, 4), pd(64, 32, 1);
+    for (int y = 0; y < 32; ++y) {
+        for (int x = 0; x < 64; ++x) {
+            const bool below = y >= 16;
+            pd.at(x, y, 0) = below ? 5.0f : kInf;
+            pc.at(x, y, 0) = pc.at(x, y, 1) = pc.at(x, y, 2) = 2.0f;  // the sky too: must not count
+            pc.at(x, y, 3) = 1.0f;
+        }
+    }
+    probe.set("color", std::move(pc));
+    probe.set("depth", std::move(pd));
+    const test::NodeRunner runner("ssgi", "{}");
+    const Frame with = runner.run_ports({{"image", f}, {"environment", probe}}, 1);
+    const Frame without = test::run_node("ssgi", f, "{}");
+    // The floor's hemisphere is the sky's (up): its open arcs look up, where the probe sees sky.
+EXPECT_LT(peak(with.image("gi")), 0.05f);
+EXPECT_EQ(peak(without.image("gi")), 0.0f);
+    // A probe that sees surfaces everywhere: open arcs are lit by them (the floor at most 2).
+    Image all = probe.image("depth");
+    all.fill(5.0f);
+    probe.set("depth", std::move(all));
+    const Frame lit_frame = runner.run_ports({{"image", f}, {"environment", probe}}, 1);
+    const Image &lit = lit_frame.image("gi");
+    EXPECT_GT(lit.at(64, 80, 0), 0.5f);
+    EXPECT_LE(peak(lit), 2.0f + 1e-4f);
+    // fallback none: as without the probe.
+    const test::NodeRunner none("ssgi", R"({"fallback": "none"})");
+    EXPECT_EQ(peak(none.run_ports({{"image", f}, {"environment", probe}}, 1).image("gi")),
+              0.0f);
+}
+
+TEST(Ssgi, SameBitsOnAnyThreadCount)
+{
+    const Frame f = floor_wall_frame(200, 150);
+    set_thread_count(1);
+    const Frame one = test::run_node("ssgi", f, "{}");
+    set_thread_count(2);
+    const Frame two = test::run_node("ssgi", f, "{}");
+    set_thread_count(0);
+    EXPECT_TRUE(one.image("gi").bit_equal(two.image("gi")));
+    EXPECT_TRUE(one.image("color").bit_equal(two.image("color")));
+}
+
+TEST(Ssgi, NodeNamesWhatIsMissing)
+{
+    Frame f = floor_wall_frame(32, 24);
+    Frame no_albedo = f;
+    no_albedo.erase("albedo");
+    try {
+        test::run_node("ssgi", no_albedo, "{}");
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("albedo"), std::string::npos) << e.what();
+    }
+    Frame no_camera = f;
+    no_camera.camera = Camera{};
+    try {
+        test::run_node("ssgi", no_camera, "{}");
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("worldTo"), std::string::npos) << e.what();
+    }
+}
+
+TEST(GiTruth, AddsLightOnlyToSurfacesAndIsRepeatable)
+{
+    const raster::Scene s = raster::load_scene(test::scene_path("minecrappy.json"));
+    raster::RenderOptions o;
+    o.width = 96;
+    o.height = 54;
+    const raster::GiTruth a = raster::render_gi_truth(s, 8, o, 16, 0);
+    const raster::GiTruth b = raster::render_gi_truth(s, 8, o, 16, 0);
+    EXPECT_TRUE(a.color.bit_equal(b.color));
+    o.passes = {"color", "depth"};
+    const Frame beauty = raster::render_frame(s, 8, o);
+    const Image &c = beauty.image("color"), &z = beauty.image("depth");
+    int lit = 0;
+    for (int y = 0; y < 54; ++y) {
+        for (int x = 0; x < 96; ++x) {
+            for (int k = 0; k < 3; ++k) {
+                const float add = a.indirect.at(x, y, k);
+                ASSERT_TRUE(std::isfinite(add));
+                ASSERT_GE(add, 0.0f);
+                EXPECT_FLOAT_EQ(a.color.at(x, y, k), c.at(x, y, k) + add);
+                if (!std::isfinite(z.at(x, y, 0))) {
+                    EXPECT_EQ(add, 0.0f);  // the sky takes no bounce
+                }
+                lit += add > 0.0f;
+            }
+        }
+    }
+    EXPECT_GT(lit, 96 * 54);  // most surfaces get some light back
+}
+
+}  // namespace
+}  // namespace posthaste
