@@ -11,6 +11,7 @@
 
 #include "core/sanitize.h"
 #include "graph/mask.h"
+#include "nodes/material_params.h"
 #include "nodes/node.h"
 #include "shading/camera_rays.h"
 #include "shading/gi/ssgi.h"
@@ -47,6 +48,29 @@ constexpr ParamSpec kFallback =
         .doc(
             "What the arcs the march leaves open (the sky, beyond the radius, off screen) see: "
             "the environment input's surfaces, or nothing (as without that input).");
+constexpr ParamSpec kReshade =
+    ParamSpec::boolean("reshade", false)
+        .doc(
+            "Re-shade each lit sample's sun response and sky light for the receiver's view, as "
+            "ssr re-shades its hits (a polished floor mirrors the horizon onto what stands on "
+            "it, darker as the camera sees it); several times slower. false: samples give the "
+            "colour the camera saw.");
+constexpr ParamSpec kSunIrradiance =
+    ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
+        .doc("reshade: the sun's colour times illuminance.")
+        .from_header("posthaste:sunIrradiance")
+        .only_when("reshade", "true");
+constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
+                                        .doc("reshade: world direction towards the sun (picks the sky).")
+                                        .from_header("posthaste:sunDirection")
+                                        .only_when("reshade", "true");
+constexpr ParamSpec kSkyScale = ParamSpec::real("sky_scale", 1.0)
+                                    .range(0.0, 1e6)
+                                    .doc("reshade: the renderer's sky-light scale (a scene's sky_ambient).")
+                                    .from_header("posthaste:skyAmbient")
+                                    .only_when("reshade", "true");
+constexpr ParamSpec kRoughness = ParamSpec(kMaterialRoughness).only_when("reshade", "true");
+constexpr ParamSpec kMetallic = ParamSpec(kMaterialMetallic).only_when("reshade", "true");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
 constexpr ParamSpec kParams[] = {kRadius,
@@ -58,6 +82,12 @@ constexpr ParamSpec kParams[] = {kRadius,
                                  kIntensity,
                                  kApply,
                                  kFallback,
+                                 kReshade,
+                                 kSunIrradiance,
+                                 kSunDirection,
+                                 kSkyScale,
+                                 kRoughness,
+                                 kMetallic,
                                  kSeed,
                                  kMaskPass,
                                  kMaskChannel,
@@ -80,6 +110,8 @@ constexpr Binding<shading::SsgiParams> kFields[] = {
     bind<&shading::SsgiParams::steps>(kSteps),
     bind<&shading::SsgiParams::max_radius_px>(kMaxRadiusPx),
     bind<&shading::SsgiParams::seed>(kSeed),
+    bind<&shading::SsgiParams::sun_irradiance>(kSunIrradiance),
+    bind<&shading::SsgiParams::sky_scale>(kSkyScale),
 };
 
 void execute(NodeContext &ctx)
@@ -104,7 +136,40 @@ void execute(NodeContext &ctx)
     if (!(intensity > 0.0f)) {
         gi = Image(w, h, 3);
     } else {
-        shading::SsgiParams p = fill(ctx.params(), kFields);
+        shading::SsgiParams p = fill(ctx, kFields, HeaderSource::of(in));
+        const bool reshade = ctx.get_bool(kReshade);
+        if (reshade && p.sun_irradiance == glm::vec3(0.0f)) {
+            throw_param(ctx.where(),
+                        kSunIrradiance.name,
+                        "reshade needs the sun's irradiance (give sun_irradiance, or a frame "
+                        "whose header has posthaste:sunIrradiance)");
+        }
+        const glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
+        const float sun_len = glm::length(sun_dir);
+        if (!(sun_len > 0.0f) || !std::isfinite(sun_len)) {
+            throw_runtime(ctx.where(),
+                          ": the sun direction must be a non-zero finite vector (param "
+                          "\"sun_direction\", header posthaste:sunDirection)");
+        }
+        p.sun_direction = sun_dir / sun_len;
+        for (int c = 0; c < 3; ++c) {
+            if (!std::isfinite(p.sun_irradiance[c]) || p.sun_irradiance[c] < 0.0f) {
+                throw_runtime(ctx.where(),
+                              ": param \"sun_irradiance\" (header posthaste:sunIrradiance) must "
+                              "be finite and >= 0");
+            }
+        }
+        // The samples' material and the sun's visibility, for the re-shading.
+        Image material_const, material_s, shadow_s;
+        shading::SsgiSurfaces surfaces;
+        if (reshade) {
+            surfaces.albedo = &albedo;
+            surfaces.material =
+                &finite_view(material_or_constant(ctx, "image", material_const), 1.0f, material_s);
+            if (in.has("shadow")) {
+                surfaces.shadow = &finite_view(in.image("shadow", ctx.where()), 0.0f, shadow_s);
+            }
+        }
         p.stride = std::array{1, 2, 4}[std::size_t(ctx.get_choice(kResolution))];
         shading::SsgiEnvironment env;
         Image env_color_s, env_depth_s;
@@ -126,8 +191,13 @@ void execute(NodeContext &ctx)
             env.radiance = &finite_view(ec, 0.0f, env_color_s);
             env.distance = &finite_view(ed, std::numeric_limits<float>::infinity(), env_depth_s, true);
         }
-        const Image light = shading::ssgi(
-            depth, normal, *color_pass.image, rays, p, env.radiance ? &env : nullptr);
+        const Image light = shading::ssgi(depth,
+                                          normal,
+                                          *color_pass.image,
+                                          rays,
+                                          p,
+                                          env.radiance ? &env : nullptr,
+                                          surfaces.material ? &surfaces : nullptr);
         const shading::SsgiApply apply{&albedo, material, intensity};
         gi = shading::ssgi_resolve(
             light, depth, normal, p.stride, ctx.get_bool(kDenoise), &apply);
@@ -155,7 +225,8 @@ void execute(NodeContext &ctx)
 
 void plan(PlanContext &ctx)
 {
-    ctx.inputs[0].add_optional(pass::kMaterial);
+    plan_material(ctx);
+    ctx.inputs[0].add_optional("shadow");  // the sun's visibility at the samples, where given
 }
 
 }  // namespace

@@ -24,6 +24,7 @@ struct RenderCommand : RunSettings {
     int samples = 64;
     int seed = 0;
     double ao_radius = 1.0;
+    double overscan = 0.0;
     std::string compression = "piz";
 };
 
@@ -36,14 +37,14 @@ int render(const RenderCommand &o)
         throw_usage("--size: expected WIDTHxHEIGHT, got \"", o.size, "\"");
     }
     std::string truth = "none";
-    if (o.truth == "ao" || o.truth == "reflections") {
+    if (o.truth == "ao" || o.truth == "reflections" || o.truth == "gi") {
         truth = o.truth;
     } else if (!o.truth.empty()) {
         const bool motion = o.truth.find("motion") != std::string::npos;
         const bool dof = o.truth.find("dof") != std::string::npos;
         for (const std::string &w : split_list(o.truth)) {
             if (w != "motion" && w != "dof") {
-                throw_usage("--truth: expected motion, dof, motion,dof, ao or reflections, got \"",
+                throw_usage("--truth: expected motion, dof, motion,dof, ao, reflections or gi, got \"",
                             o.truth,
                             "\"");
             }
@@ -67,6 +68,7 @@ int render(const RenderCommand &o)
                             {"truth", truth},
                             {"samples", o.samples},
                             {"seed", o.seed},
+                            {"overscan", o.overscan},
                             {"projection", o.probe ? "latlong" : "perspective"}}}});
     if (truth == "ao") {
         g["nodes"][0]["params"]["ao_radius"] = o.ao_radius;
@@ -111,7 +113,14 @@ void add_render_command(CLI::App &app, int &exit_code)
                   "position, exactly traced (color, and depth as distance; --samples rays a "
                   "texel); for ssr's environment input");
     cmd->add_option(
-        "--truth", o->truth, "Ground truth: motion, dof, motion,dof, ao or reflections");
+        "--truth",
+        o->truth,
+        "Ground truth: motion, dof, motion,dof, ao, reflections or gi (one diffuse bounce)");
+    cmd->add_option("--overscan",
+                    o->overscan,
+                    "Render beyond the frame: below 1 a fraction each dimension grows by, from 1 "
+                    "whole pixels a side (the data window grows, the display window stays)")
+        ->check(CLI::Range(0.0, 4096.0));
     cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")
         ->check(CLI::Range(1e-3, 100.0));
     cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")

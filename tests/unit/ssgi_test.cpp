@@ -338,6 +338,58 @@ EXPECT_EQ(peak(without.image("gi")), 0.0f);
               0.0f);
 }
 
+/// The floor-and-wall frame with a material pass: every surface `roughness`, metallic 0.
+Frame with_material(Frame f, float roughness)
+{
+    Image mat(f.width(), f.height(), 3);
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
+            mat.at(x, y, 0) = roughness;
+        }
+    }
+    f.set("material", std::move(mat));
+    return f;
+}
+
+TEST(Ssgi, ReshadingMovesOnlyViewDependentLight)
+{
+    // The sun below the floor and behind the wall (it lights neither face the frame shows) and
+    // rough surfaces (no sky reflection): nothing of their light depends on the view, so
+    // re-shading changes nothing but rounding.
+    const std::string low_sun = R"(, "sun_irradiance": [3, 3, 3], "sun_direction": [1, -0.5, 0])";
+    const Frame rough = with_material(floor_wall_frame(160, 120), 1.0f);
+    const Frame a = test::run_node("ssgi", rough, R"({"resolution": "half"})");
+    const Frame b = test::run_node(
+        "ssgi", rough, std::string(R"({"resolution": "half", "reshade": true)") + low_sun + "}");
+    float diff = 0.0f;
+    for (std::size_t i = 0; i < a.image("gi").value_count(); ++i) {
+        diff = std::max(diff, std::abs(a.image("gi").data()[i] - b.image("gi").data()[i]));
+    }
+    EXPECT_LT(diff, 1e-5f);
+    // A polished wall reflects the sky: toward the floor (grazing) more than toward the camera,
+    // so the floor gets more light once the wall's samples are re-shaded for it.
+    const std::string sun = R"(, "sun_irradiance": [3, 3, 3], "sun_direction": [1, 0.5, 0])";
+    const Frame polished = with_material(floor_wall_frame(160, 120), 0.05f);
+    const Frame c = test::run_node("ssgi", polished, R"({"resolution": "half"})");
+    const Frame d = test::run_node(
+        "ssgi", polished, std::string(R"({"resolution": "half", "reshade": true)") + sun + "}");
+    double before = 0.0, after = 0.0;
+    for (std::size_t i = 0; i < c.image("gi").value_count(); ++i) {
+        before += c.image("gi").data()[i];
+        after += d.image("gi").data()[i];
+        ASSERT_TRUE(std::isfinite(d.image("gi").data()[i]));
+        ASSERT_GE(d.image("gi").data()[i], 0.0f);
+    }
+    EXPECT_GT(after, before * 1.05);
+    // Without the sun's irradiance (no header, no parameter) re-shading is refused by name.
+    try {
+        test::run_node("ssgi", polished, R"({"reshade": true})");
+        ADD_FAILURE() << "no error";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("sun_irradiance"), std::string::npos) << e.what();
+    }
+}
+
 TEST(Ssgi, SameBitsOnAnyThreadCount)
 {
     const Frame f = floor_wall_frame(200, 150);

@@ -5,15 +5,18 @@
 #include <glm/geometric.hpp>
 #include <limits>
 #include <vector>
+#include <cstdlib>
 
 #include "core/parallel.h"
+#include "shading/atmosphere/scene_sky.h"
+#include "shading/atmosphere/sky.h"
 #include "shading/fast_math.h"
+#include "shading/lighting/lighting.h"
 #include "shading/ssr/environment.h"
 
 namespace posthaste::shading {
 namespace {
 
-constexpr float kPi = 3.14159265358979f;
 
 /// A 4x4 interleaved pattern: 16 values in [0, 1) spread over every 4x4 block of computed
 /// pixels, so a 5x5 denoise averages every rotation.
@@ -29,6 +32,11 @@ struct Arc {
     // The cosine-weighted measure of the slice arc from the view vector (angle 0) to signed
     // angle h is GTAO's inner integral, one side: (-cos(2h - g) + cos g + 2h sin g) / 4.
 
+    /// At any angle h.
+    float full_measure(float h) const
+    {
+        return 0.25f * (-std::cos(2.0f * h - g) + cos_g + 2.0f * h * sin_g);
+    }
     /// At a tangent of the hemisphere, h = g +- pi / 2, where cos(2h - g) = -cos g.
     float tangent(float h) const { return 0.5f * (cos_g + h * sin_g); }
     /// For the angle h of the in-slice vector (c, s) = |.| (cos h, sin h), without a cosine:
@@ -132,6 +140,31 @@ glm::vec3 surface_radiance(const Image &map, const glm::vec3 &d)
     return glm::vec3(px[0], px[1], px[2]);
 }
 
+/// A computed pixel's surface for the re-shading: its material, the sun's visibility, and its
+/// view-dependent shading as the camera sees it (sun response and sky light).
+struct Reshade {
+    Surface surf;
+    float vis = 0.0f;
+    glm::vec3 ambient{0.0f}, seen{0.0f};
+};
+
+/// The view-dependent shading of a surface toward v: the sun's response (with the lobe's
+/// roughness) and the sky light, as render and ssr shade it.
+glm::vec3 view_shading(const Reshade &r,
+                       const Surface &lobe,
+                       const glm::vec3 &n,
+                       const glm::vec3 &v,
+                       const SsgiParams &p,
+                       const SceneSky &sky)
+{
+    glm::vec3 c(0.0f);
+    if (r.vis > 0.0f && glm::dot(n, p.sun_direction) > 0.0f) {
+        c = direct_response(lobe, n, v, p.sun_direction, DirectOptions{}) *
+            (p.sun_irradiance * r.vis);
+    }
+    return add_sky_light(c, r.surf, n, v, sky, r.ambient, p.sky_scale);
+}
+
 }  // namespace
 
 Image ssgi(const Image &depth,
@@ -139,7 +172,8 @@ Image ssgi(const Image &depth,
            const Image &radiance,
            const CameraRays &rays,
            const SsgiParams &p,
-           const SsgiEnvironment *environment)
+           const SsgiEnvironment *environment,
+           const SsgiSurfaces *surfaces)
 {
     const int w = depth.width(), h = depth.height();
     const int st = std::max(1, p.stride);
@@ -151,6 +185,10 @@ Image ssgi(const Image &depth,
     const std::size_t count = std::size_t(ow) * std::size_t(oh);
     std::vector<Texel> texels(count);
     std::vector<Shade> shades(count);
+    const bool reshade = surfaces && surfaces->albedo && surfaces->material &&
+                         p.sun_irradiance != glm::vec3(0.0f);
+    std::vector<Reshade> reshades(reshade ? count : 0);
+    const SceneSky &sky = scene_sky(p.sun_direction);
     const Image lit = block_radiance(radiance, st);
     parallel_for(0, oh, [&](int oy) {
         for (int ox = 0; ox < ow; ++ox) {
@@ -163,9 +201,21 @@ Image ssgi(const Image &depth,
                 continue;
             }
             t.p = cam + t.z * rays.depth_ray((float(x) + 0.5f) * inv_w, (float(y) + 0.5f) * inv_h);
-            shades[i].n = normal_at(normal, x, y, glm::normalize(cam - t.p));
+            const glm::vec3 v_cam = glm::normalize(cam - t.p);
+            shades[i].n = normal_at(normal, x, y, v_cam);
             const float *l = lit.pixel(ox, oy);
             shades[i].l = glm::vec3(l[0], l[1], l[2]);
+            if (reshade) {
+                Reshade &r = reshades[i];
+                r.surf.albedo = glm::vec3(surfaces->albedo->at(x, y, 0),
+                                          surfaces->albedo->at(x, y, 1),
+                                          surfaces->albedo->at(x, y, 2));
+                r.surf.roughness = std::clamp(surfaces->material->at(x, y, 0), 0.0f, 1.0f);
+                r.surf.metallic = std::clamp(surfaces->material->at(x, y, 1), 0.0f, 1.0f);
+                r.vis = surfaces->shadow ? surfaces->shadow->at(x, y, 0) : 1.0f;
+                r.ambient = sky.ambient(shades[i].n);
+                r.seen = view_shading(r, r.surf, shades[i].n, v_cam, p, sky);
+            }
         }
     });
     // World units per computed pixel at depth 1.
@@ -272,7 +322,19 @@ Image ssgi(const Image &depth,
                         hc = dc;
                         hs = ds;
                         if (glm::dot(shades[qi].n, d) < 0.0f) {  // q faces the point
-                            sum += (nlen * m) * shades[qi].l;
+                            glm::vec3 L = shades[qi].l;
+                            if (reshade) {
+                                // q's radiance toward the point, not toward the camera.
+                                const Reshade &r = reshades[qi];
+                                Surface lobe = r.surf;
+                                lobe.roughness =
+                                    std::max(lobe.roughness, kReflectedSunMinRoughness);
+                                const glm::vec3 to_p = -d / std::sqrt(glm::dot(d, d));
+                                L = glm::max(
+                                    L + view_shading(r, lobe, shades[qi].n, to_p, p, sky) - r.seen,
+                                    glm::vec3(0.0f));
+                            }
+                            sum += (nlen * m) * L;
                         }
                     }
                     // The arc the march left open (the sky, beyond the radius or off screen):
@@ -280,14 +342,22 @@ Image ssgi(const Image &depth,
                     const float open_from = side == 0 ? lo : horizon;
                     const float open_to = side == 0 ? horizon : hi;
                     if (environment && open_to > open_from) {
-                        // The arc runs from the horizon to the view vector (measure 0 there);
-                        // its middle direction bisects them.
-                        const float m = std::abs(f_horizon);
-                        const float hl = std::sqrt(hc * hc + hs * hs);
-                        const glm::vec3 dir = V * (1.0f + hc / hl) + e2 * (hs / hl);
-                        const float dl = glm::length(dir);
-                        if (dl > 1e-6f) {
-                            sum += (nlen * m) * surface_radiance(env_map, dir / dl);
+                        // The arc runs from the horizon to the view vector: kOpenSamples
+                        // sub-arcs of equal angle, each seen in one direction inside it
+                        // (jittered with the pattern), weighted by its measure.
+                        const char *n_env_s = std::getenv("SSGI_NENV");
+                        const int n_env = n_env_s ? std::atoi(n_env_s) : 3;
+                        const float jit = std::getenv("SSGI_NOJIT") ? 0.5f : pattern(oy, ox + int(p.seed), s + 4 * side + 9);
+                        float prev = arc.full_measure(open_from);
+                        for (int j = 0; j < n_env; ++j) {
+                            const float t0 = open_from + (open_to - open_from) * float(j) / float(n_env);
+                            const float t1 = open_from + (open_to - open_from) * float(j + 1) / float(n_env);
+                            const float f1 = arc.full_measure(t1);
+                            const float m = std::abs(f1 - prev);
+                            prev = f1;
+                            const float th = t0 + (t1 - t0) * jit;
+                            const glm::vec3 dir = std::cos(th) * V + std::sin(th) * e2;
+                            sum += (nlen * m) * surface_radiance(env_map, dir);
                         }
                     }
                 }

@@ -25,6 +25,23 @@ struct SsgiParams {
     /// gtao_denoise and gtao_upsample (shading/ao/gtao.h), as the ao node does.
     int stride = 4;
     std::uint32_t seed = 0;  ///< Shifts the pattern of slice rotations and step jitter.
+    /// Re-shading of the lit samples for the receiver's view, as ssr re-shades its hits: the
+    /// sun's irradiance (colour times illuminance). A sample's colour is its radiance toward the
+    /// camera; toward the receiver its sun highlight and its sky reflection differ (a polished
+    /// floor mirrors the bright horizon to what stands on it, and the camera sees it darker).
+    /// Zero: samples keep the colour the camera saw.
+    glm::vec3 sun_irradiance{0.0f};
+    glm::vec3 sun_direction{0.4f, 0.75f, 0.3f};  ///< Unit; chooses the sky.
+    float sky_scale = 1.0f;                       ///< The renderer's sky-light scale.
+};
+
+/// The surfaces' material for the re-shading (SsgiParams::sun_irradiance non-zero), the depth
+/// pass's size, finite: albedo (RGB), material (roughness, metallic) and, optionally, the
+/// sun's visibility (the shadow pass; without one, 1 wherever a surface faces the sun).
+struct SsgiSurfaces {
+    const Image *albedo = nullptr;
+    const Image *material = nullptr;
+    const Image *shadow = nullptr;
 };
 
 /// What the screen does not show, from a latitude-longitude probe taken near the camera
@@ -49,7 +66,8 @@ Image ssgi(const Image &depth,
            const Image &radiance,
            const CameraRays &rays,
            const SsgiParams &p,
-           const SsgiEnvironment *environment = nullptr);
+           const SsgiEnvironment *environment = nullptr,
+           const SsgiSurfaces *surfaces = nullptr);
 
 /// ssgi's reduced result brought to the depth pass's resolution (RGB): with `denoise`, first a
 /// 5x5 blur of the rotation pattern at the reduced resolution; then each pixel blends its four
