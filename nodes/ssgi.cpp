@@ -6,6 +6,8 @@
 // light added); non-finite inputs read as in the ao node (depth: sky, normal: facing the
 // camera, colour: 0).
 
+#include "shading/gi/ssgi.h"
+
 #include <array>
 #include <cmath>
 
@@ -14,7 +16,6 @@
 #include "nodes/material_params.h"
 #include "nodes/node.h"
 #include "shading/camera_rays.h"
-#include "shading/gi/ssgi.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -23,8 +24,11 @@ constexpr ParamSpec kRadius = ParamSpec::real("radius", 4.0)
                                   .range(1e-4, 1e4)
                                   .units("scene units")
                                   .doc("Surfaces farther than this from the point light nothing.");
-constexpr ParamSpec kSlices =
-    ParamSpec::integer("slices", 1).range(1, 16).doc("Slice directions per computed pixel (rotated over a 4x4 pattern that the denoise averages).");
+constexpr ParamSpec kSlices = ParamSpec::integer("slices", 1)
+                                  .range(1, 16)
+                                  .doc(
+                                      "Slice directions per computed pixel (rotated over a 4x4 "
+                                      "pattern that the denoise averages).");
 constexpr ParamSpec kSteps =
     ParamSpec::integer("steps", 8).range(1, 64).doc("Depth samples on each side of a slice.");
 constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 512.0)
@@ -40,9 +44,8 @@ constexpr ParamSpec kDenoise = ParamSpec::boolean("denoise", true)
                                    .doc("Depth-aware 5x5 blur of the per-pixel rotation noise.");
 constexpr ParamSpec kIntensity =
     ParamSpec::real("intensity", 1.0).range(0.0, 16.0).doc("Scale of the light added.");
-constexpr ParamSpec kApply =
-    ParamSpec::choice("apply", "add|none", "add")
-        .doc("add: color plus the bounce; none: only the gi pass.");
+constexpr ParamSpec kApply = ParamSpec::choice("apply", "add|none", "add")
+                                 .doc("add: color plus the bounce; none: only the gi pass.");
 constexpr ParamSpec kFallback =
     ParamSpec::choice("fallback", "environment|none", "environment")
         .doc(
@@ -55,20 +58,21 @@ constexpr ParamSpec kReshade =
             "ssr re-shades its hits (a polished floor mirrors the horizon onto what stands on "
             "it, darker as the camera sees it); several times slower. false: samples give the "
             "colour the camera saw.");
-constexpr ParamSpec kSunIrradiance =
-    ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
-        .doc("reshade: the sun's colour times illuminance.")
-        .from_header("posthaste:sunIrradiance")
+constexpr ParamSpec kSunIrradiance = ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
+                                         .doc("reshade: the sun's colour times illuminance.")
+                                         .from_header("posthaste:sunIrradiance")
+                                         .only_when("reshade", "true");
+constexpr ParamSpec kSunDirection =
+    ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
+        .doc("reshade: world direction towards the sun (picks the sky).")
+        .from_header("posthaste:sunDirection")
         .only_when("reshade", "true");
-constexpr ParamSpec kSunDirection = ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
-                                        .doc("reshade: world direction towards the sun (picks the sky).")
-                                        .from_header("posthaste:sunDirection")
-                                        .only_when("reshade", "true");
-constexpr ParamSpec kSkyScale = ParamSpec::real("sky_scale", 1.0)
-                                    .range(0.0, 1e6)
-                                    .doc("reshade: the renderer's sky-light scale (a scene's sky_ambient).")
-                                    .from_header("posthaste:skyAmbient")
-                                    .only_when("reshade", "true");
+constexpr ParamSpec kSkyScale =
+    ParamSpec::real("sky_scale", 1.0)
+        .range(0.0, 1e6)
+        .doc("reshade: the renderer's sky-light scale (a scene's sky_ambient).")
+        .from_header("posthaste:skyAmbient")
+        .only_when("reshade", "true");
 constexpr ParamSpec kRoughness = ParamSpec(kMaterialRoughness).only_when("reshade", "true");
 constexpr ParamSpec kMetallic = ParamSpec(kMaterialMetallic).only_when("reshade", "true");
 constexpr ParamSpec kSeed =
@@ -189,7 +193,8 @@ void execute(NodeContext &ctx)
                               ec.height());
             }
             env.radiance = &finite_view(ec, 0.0f, env_color_s);
-            env.distance = &finite_view(ed, std::numeric_limits<float>::infinity(), env_depth_s, true);
+            env.distance =
+                &finite_view(ed, std::numeric_limits<float>::infinity(), env_depth_s, true);
         }
         const Image light = shading::ssgi(depth,
                                           normal,
@@ -199,8 +204,7 @@ void execute(NodeContext &ctx)
                                           env.radiance ? &env : nullptr,
                                           surfaces.material ? &surfaces : nullptr);
         const shading::SsgiApply apply{&albedo, material, intensity};
-        gi = shading::ssgi_resolve(
-            light, depth, normal, p.stride, ctx.get_bool(kDenoise), &apply);
+        gi = shading::ssgi_resolve(light, depth, normal, p.stride, ctx.get_bool(kDenoise), &apply);
     }
     if (ctx.get_choice(kApply) == 0) {
         const Image &in_color = *color_pass.image;

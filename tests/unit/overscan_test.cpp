@@ -131,8 +131,8 @@ Frame run_graph(const std::string &json, const std::string &capture = "")
 
 std::string render_node(const std::string &extra)
 {
-    return R"({"id": "r", "type": "render", "params": {"scene": ")" + test::scene_path("minecrappy.json") +
-           R"(", "width": 200, "height": 100)" + extra + "}}";
+    return R"({"id": "r", "type": "render", "params": {"scene": ")" +
+           test::scene_path("minecrappy.json") + R"(", "width": 200, "height": 100)" + extra + "}}";
 }
 
 TEST(Overscan, TheParameterTakesAFractionOrWholePixels)
@@ -141,7 +141,8 @@ TEST(Overscan, TheParameterTakesAFractionOrWholePixels)
     auto window = [&](const std::string &extra) {
         const Frame f = run_graph(R"({"nodes": [)" + render_node(extra) +
                                       R"(, {"id": "w", "type": "write", "inputs": {"image": "r"},
-                                  "params": {"path": ")" + dir + R"(/o.####.exr", "passes": "depth"}}]})",
+                                  "params": {"path": ")" +
+                                      dir + R"(/o.####.exr", "passes": "depth"}}]})",
                                   "r");
         return f.data_window;
     };
@@ -160,7 +161,8 @@ TEST(Overscan, TheParameterTakesAFractionOrWholePixels)
                   test::scene_path("minecrappy.json") +
                   R"(", "width": 64, "height": 32, "projection": "latlong", "overscan": 4}},
                   {"id": "w", "type": "write", "inputs": {"image": "r"},
-                   "params": {"path": ")" + dir + R"(/p.####.exr"}}]})");
+                   "params": {"path": ")" +
+                  dir + R"(/p.####.exr"}}]})");
         ADD_FAILURE() << "no error";
     } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("overscan"), std::string::npos) << e.what();
@@ -172,9 +174,11 @@ TEST(Overscan, WriteKeepsOrCropsTheMarginAndACropReachesTheFile)
     const std::string dir = test::scratch_dir("overscan_write");
     run_graph(R"({"nodes": [)" + render_node(R"(, "overscan": 8)") +
               R"(, {"id": "keep", "type": "write", "inputs": {"image": "r"},
-                   "params": {"path": ")" + dir + R"(/keep.####.exr", "passes": "color,depth"}},
+                   "params": {"path": ")" +
+              dir + R"(/keep.####.exr", "passes": "color,depth"}},
                  {"id": "cut", "type": "write", "inputs": {"image": "r"},
-                   "params": {"path": ")" + dir + R"(/cut.####.exr", "passes": "color,depth", "crop": "display"}}]})");
+                   "params": {"path": ")" +
+              dir + R"(/cut.####.exr", "passes": "color,depth", "crop": "display"}}]})");
     const Frame keep = read_frame(dir + "/keep.0008.exr", nullptr, 8);
     const Frame crop = read_frame(dir + "/cut.0008.exr", nullptr, 8);
     EXPECT_EQ(keep.data_window, (Rect{-8, -8, 208, 108}));
@@ -188,7 +192,8 @@ TEST(Overscan, WriteKeepsOrCropsTheMarginAndACropReachesTheFile)
               R"(/keep.####.exr"}},
                  {"id": "c", "type": "crop", "inputs": {"image": "rd"}},
                  {"id": "w", "type": "write", "inputs": {"image": "c"},
-                   "params": {"path": ")" + dir + R"(/recut.####.exr"}}]})");
+                   "params": {"path": ")" +
+              dir + R"(/recut.####.exr"}}]})");
     const Frame recut = read_frame(dir + "/recut.0008.exr", nullptr, 8);
     EXPECT_EQ(recut.data_window, (Rect{0, 0, 200, 100}));
     EXPECT_TRUE(recut.image("depth").bit_equal(crop.image("depth")));

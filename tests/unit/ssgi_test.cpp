@@ -104,8 +104,8 @@ double wall_fraction(double d, double r)
 
 /// Mean gi.R over floor pixels of the middle columns at distance [d0, d1) from the wall's
 /// foot, against the closed form's mean.
-void expect_floor_band(const Frame &in, const Frame &out, double r, double d0, double d1,
-                       double tolerance)
+void expect_floor_band(
+    const Frame &in, const Frame &out, double r, double d0, double d1, double tolerance)
 {
     const Image &gi = out.image("gi"), &depth = in.image("depth"), &normal = in.image("normal");
     const int w = gi.width(), h = gi.height();
@@ -139,8 +139,10 @@ TEST(Ssgi, FloorBesideALitWallGetsTheClosedForm)
     for (const char *res : {"full", "half", "quarter"}) {
         SCOPED_TRACE(res);
         const Frame out = test::run_node(
-            "ssgi", f, std::string(R"({"radius": 1, "slices": 4, "steps": 16, "resolution": ")") +
-                           res + "\"}");
+            "ssgi",
+            f,
+            std::string(R"({"radius": 1, "slices": 4, "steps": 16, "resolution": ")") + res +
+                "\"}");
         // Bands from the wall's foot out to the radius (0.5 at the foot, 0 at 1 m).
         for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
             expect_floor_band(f, out, 1.0, d0, d0 + 0.25, 0.06);
@@ -169,14 +171,14 @@ TEST(Ssgi, NothingLitNothingAddedAndTheSkyStaysAsItIs)
     }
     dark.set("color", std::move(black));
     Frame out = test::run_node("ssgi", dark, "{}");
-EXPECT_EQ(peak(out.image("gi")), 0.0f);
+    EXPECT_EQ(peak(out.image("gi")), 0.0f);
     // All sky: the colour passes through unchanged, gi is 0.
     Frame sky = floor_wall_frame(96, 64);
     Image inf_depth(96, 64, 1);
     inf_depth.fill(kInf);
     sky.set("depth", std::move(inf_depth));
     out = test::run_node("ssgi", sky, "{}");
-EXPECT_EQ(peak(out.image("gi")), 0.0f);
+    EXPECT_EQ(peak(out.image("gi")), 0.0f);
     EXPECT_TRUE(out.image("color").bit_equal(sky.image("color")));
     // Metal (metallic 1) and black albedo take no diffuse bounce.
     Frame metal = floor_wall_frame(96, 64);
@@ -187,14 +189,14 @@ EXPECT_EQ(peak(out.image("gi")), 0.0f);
         }
     }
     metal.set("material", std::move(mat));
-EXPECT_EQ(peak(test::run_node("ssgi", metal, "{}").image("gi")), 0.0f);
+    EXPECT_EQ(peak(test::run_node("ssgi", metal, "{}").image("gi")), 0.0f);
     // intensity 0: nothing added; apply none: the colour is the input's own image.
     out = test::run_node("ssgi", floor_wall_frame(96, 64), R"({"intensity": 0})");
-EXPECT_EQ(peak(out.image("gi")), 0.0f);
+    EXPECT_EQ(peak(out.image("gi")), 0.0f);
     const Frame lit = floor_wall_frame(96, 64);
     out = test::run_node("ssgi", lit, R"({"apply": "none"})");
     EXPECT_EQ(out.pass("color").image, lit.pass("color").image);
-EXPECT_GT(peak(out.image("gi")), 0.0f);
+    EXPECT_GT(peak(out.image("gi")), 0.0f);
 }
 
 TEST(Ssgi, NonFiniteInputsGiveFiniteBoundedLight)
@@ -240,8 +242,10 @@ TEST(Ssgi, ABrightEmitterBesideADarkWallStaysBounded)
         }
     }
     f.set("color", std::move(color));
-    for (const char *params : {"{}", R"({"radius": 1e4, "max_radius_px": 8192, "steps": 64})",
-                               R"({"radius": 1e-4})", R"({"resolution": "full", "slices": 16})"}) {
+    for (const char *params : {"{}",
+                               R"({"radius": 1e4, "max_radius_px": 8192, "steps": 64})",
+                               R"({"radius": 1e-4})",
+                               R"({"resolution": "full", "slices": 16})"}) {
         SCOPED_TRACE(params);
         const Frame out = test::run_node("ssgi", f, params);
         const Image &gi = out.image("gi");
@@ -275,8 +279,9 @@ TEST(Ssgi, OverscanPixelsLightTheFramesEdge)
             if (normal.at(x, y, 1) != 1.0f) {
                 continue;
             }
-            const glm::vec3 pt = rays.position() + depth.at(x, y, 0) *
-                                                       rays.depth_ray((x + 0.5f) / 320, (y + 0.5f) / 240);
+            const glm::vec3 pt =
+                rays.position() +
+                depth.at(x, y, 0) * rays.depth_ray((x + 0.5f) / 320, (y + 0.5f) / 240);
             const double d = 4.0 - pt.x;
             if (d < 0.5) {
                 got_plain += a.at(x, y, 0);
@@ -322,8 +327,8 @@ TEST(Ssgi, TheProbeFillsWhatTheScreenLeavesOpen)
     const Frame with = runner.run_ports({{"image", f}, {"environment", probe}}, 1);
     const Frame without = test::run_node("ssgi", f, "{}");
     // The floor's hemisphere is the sky's (up): its open arcs look up, where the probe sees sky.
-EXPECT_LT(peak(with.image("gi")), 0.05f);
-EXPECT_EQ(peak(without.image("gi")), 0.0f);
+    EXPECT_LT(peak(with.image("gi")), 0.05f);
+    EXPECT_EQ(peak(without.image("gi")), 0.0f);
     // A probe that sees surfaces everywhere: open arcs are lit by them (the floor at most 2).
     Image all = probe.image("depth");
     all.fill(5.0f);
@@ -334,8 +339,7 @@ EXPECT_EQ(peak(without.image("gi")), 0.0f);
     EXPECT_LE(peak(lit), 2.0f + 1e-4f);
     // fallback none: as without the probe.
     const test::NodeRunner none("ssgi", R"({"fallback": "none"})");
-    EXPECT_EQ(peak(none.run_ports({{"image", f}, {"environment", probe}}, 1).image("gi")),
-              0.0f);
+    EXPECT_EQ(peak(none.run_ports({{"image", f}, {"environment", probe}}, 1).image("gi")), 0.0f);
 }
 
 /// The floor-and-wall frame with a material pass: every surface `roughness`, metallic 0.

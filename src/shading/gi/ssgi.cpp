@@ -5,7 +5,6 @@
 #include <glm/geometric.hpp>
 #include <limits>
 #include <vector>
-#include <cstdlib>
 
 #include "core/parallel.h"
 #include "shading/atmosphere/scene_sky.h"
@@ -17,6 +16,9 @@
 namespace posthaste::shading {
 namespace {
 
+/// Directions a probe is seen in over the arc a march leaves open (sub-arcs of equal angle):
+/// on the default scene at 960x540, 1, 2, 3 and 4 gave 0.0188, 0.0162, 0.0159 and 0.0158 RMSE.
+constexpr int kOpenSamples = 3;
 
 /// A 4x4 interleaved pattern: 16 values in [0, 1) spread over every 4x4 block of computed
 /// pixels, so a 5x5 denoise averages every rotation.
@@ -113,7 +115,8 @@ Image surface_map(const SsgiEnvironment &env, int mw, int mh)
             glm::vec3 sum(0.0f);
             for (int y = y0; y < y1; ++y) {
                 for (int x = x0; x < x1; ++x) {
-                    if (!std::isfinite(d.at(std::min(x, d.width() - 1), std::min(y, d.height() - 1), 0))) {
+                    if (!std::isfinite(
+                            d.at(std::min(x, d.width() - 1), std::min(y, d.height() - 1), 0))) {
                         continue;  // the sky
                     }
                     const float *px = r.pixel(x, y);
@@ -185,8 +188,8 @@ Image ssgi(const Image &depth,
     const std::size_t count = std::size_t(ow) * std::size_t(oh);
     std::vector<Texel> texels(count);
     std::vector<Shade> shades(count);
-    const bool reshade = surfaces && surfaces->albedo && surfaces->material &&
-                         p.sun_irradiance != glm::vec3(0.0f);
+    const bool reshade =
+        surfaces && surfaces->albedo && surfaces->material && p.sun_irradiance != glm::vec3(0.0f);
     std::vector<Reshade> reshades(reshade ? count : 0);
     const SceneSky &sky = scene_sky(p.sun_direction);
     const Image lit = block_radiance(radiance, st);
@@ -252,13 +255,13 @@ Image ssgi(const Image &depth,
             glm::vec3 sum(0.0f);
             float total = 0.0f;
             for (int s = 0; s < slices; ++s) {
-                const glm::vec2 dir2 = slice_dirs[std::size_t(s) * 16 +
-                                                  std::size_t(pattern(ox + int(p.seed), oy, s) * 16.0f)];
+                const glm::vec2 dir2 =
+                    slice_dirs[std::size_t(s) * 16 +
+                               std::size_t(pattern(ox + int(p.seed), oy, s) * 16.0f)];
                 const float dx = dir2.x, dy = dir2.y;
                 // The slice plane: the view vector and the world direction of the screen
                 // direction at the point's depth.
-                const glm::vec3 along =
-                    rays.ray_du() * (dx * inv_w) + rays.ray_dv() * (dy * inv_h);
+                const glm::vec3 along = rays.ray_du() * (dx * inv_w) + rays.ray_dv() * (dy * inv_h);
                 glm::vec3 e2 = along - V * glm::dot(along, V);
                 const float e2len = glm::length(e2);
                 if (!(e2len > 0.0f)) {
@@ -272,7 +275,8 @@ Image ssgi(const Image &depth,
                 }
                 // The normal faces the camera (n1 >= 0): g in [-pi/2, pi/2], so the hemisphere
                 // spans [g - pi/2, g + pi/2] with the view vector (0) inside it.
-                const Arc arc{std::clamp(fast_atan2(n2, n1), -kPi / 2, kPi / 2), n2 / nlen, n1 / nlen};
+                const Arc arc{
+                    std::clamp(fast_atan2(n2, n1), -kPi / 2, kPi / 2), n2 / nlen, n1 / nlen};
                 total += nlen * (arc.cos_g + arc.g * arc.sin_g);  // both sides open
                 for (int side = 0; side < 2; ++side) {
                     const float sign = side == 0 ? 1.0f : -1.0f;
@@ -345,13 +349,14 @@ Image ssgi(const Image &depth,
                         // The arc runs from the horizon to the view vector: kOpenSamples
                         // sub-arcs of equal angle, each seen in one direction inside it
                         // (jittered with the pattern), weighted by its measure.
-                        const char *n_env_s = std::getenv("SSGI_NENV");
-                        const int n_env = n_env_s ? std::atoi(n_env_s) : 3;
-                        const float jit = std::getenv("SSGI_NOJIT") ? 0.5f : pattern(oy, ox + int(p.seed), s + 4 * side + 9);
+                        const int n_env = kOpenSamples;
+                        const float jit = pattern(oy, ox + int(p.seed), s + 4 * side + 9);
                         float prev = arc.full_measure(open_from);
                         for (int j = 0; j < n_env; ++j) {
-                            const float t0 = open_from + (open_to - open_from) * float(j) / float(n_env);
-                            const float t1 = open_from + (open_to - open_from) * float(j + 1) / float(n_env);
+                            const float t0 =
+                                open_from + (open_to - open_from) * float(j) / float(n_env);
+                            const float t1 =
+                                open_from + (open_to - open_from) * float(j + 1) / float(n_env);
                             const float f1 = arc.full_measure(t1);
                             const float m = std::abs(f1 - prev);
                             prev = f1;

@@ -32,7 +32,7 @@ struct SsgiParams {
     /// Zero: samples keep the colour the camera saw.
     glm::vec3 sun_irradiance{0.0f};
     glm::vec3 sun_direction{0.4f, 0.75f, 0.3f};  ///< Unit; chooses the sky.
-    float sky_scale = 1.0f;                       ///< The renderer's sky-light scale.
+    float sky_scale = 1.0f;                      ///< The renderer's sky-light scale.
 };
 
 /// The surfaces' material for the re-shading (SsgiParams::sun_irradiance non-zero), the depth
