@@ -76,6 +76,14 @@ void BM_SsgiNodeHalf(benchmark::State &state)
 {
     run_ssgi(state, R"({"resolution": "half"})", true);
 }
+void BM_SsgiNodeSteps4(benchmark::State &state)
+{
+    run_ssgi(state, R"({"steps": 4})", true);
+}
+void BM_SsgiNodeNoDenoise(benchmark::State &state)
+{
+    run_ssgi(state, R"({"denoise": false})", true);
+}
 void BM_SsgiCopyBaseline(benchmark::State &state)
 {
     bench::copy_baseline(state, lit_frame(int(state.range(0))).image("color"));
@@ -84,6 +92,8 @@ void BM_SsgiCopyBaseline(benchmark::State &state)
 BENCHMARK(BM_SsgiNode)->Arg(8)->Arg(40)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsgiNodeScreenOnly)->Arg(8)->Arg(40)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsgiNodeHalf)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsgiNodeSteps4)->Arg(8)->Arg(40)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsgiNodeNoDenoise)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsgiCopyBaseline)->Arg(8)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -34,11 +34,6 @@ struct Arc {
     // The cosine-weighted measure of the slice arc from the view vector (angle 0) to signed
     // angle h is GTAO's inner integral, one side: (-cos(2h - g) + cos g + 2h sin g) / 4.
 
-    /// At any angle h.
-    float full_measure(float h) const
-    {
-        return 0.25f * (-std::cos(2.0f * h - g) + cos_g + 2.0f * h * sin_g);
-    }
     /// At a tangent of the hemisphere, h = g +- pi / 2, where cos(2h - g) = -cos g.
     float tangent(float h) const { return 0.5f * (cos_g + h * sin_g); }
     /// For the angle h of the in-slice vector (c, s) = |.| (cos h, sin h), without a cosine:
@@ -133,15 +128,49 @@ Image surface_map(const SsgiEnvironment &env, int mw, int mh)
     return out;
 }
 
-/// The surface map's radiance in direction d (unit): its nearest texel.
-glm::vec3 surface_radiance(const Image &map, const glm::vec3 &d)
-{
-    const glm::vec2 uv = latlong_uv(d);
-    const int x = std::clamp(int(uv.x * float(map.width())), 0, map.width() - 1);
-    const int y = std::clamp(int(uv.y * float(map.height())), 0, map.height() - 1);
-    const float *px = map.pixel(x, y);
-    return glm::vec3(px[0], px[1], px[2]);
-}
+/// The surface map resampled onto the six faces of a cube (nearest texel at each cube texel's
+/// centre, as the ssr node's DistanceCube): a look-up is a division, not an arctangent and an
+/// arccosine.
+class SurfaceCube {
+   public:
+    SurfaceCube() = default;
+    SurfaceCube(const Image &latlong, int n) : n_(n), texels_(std::size_t(6 * n * n))
+    {
+        const int w = latlong.width(), h = latlong.height();
+        for (int f = 0; f < 6; ++f) {
+            const int m = f / 2, u = (m + 1) % 3, v = (m + 2) % 3;
+            for (int j = 0; j < n_; ++j) {
+                for (int i = 0; i < n_; ++i) {
+                    glm::vec3 d(0.0f);
+                    d[m] = f % 2 == 0 ? 1.0f : -1.0f;
+                    d[u] = (float(i) + 0.5f) / float(n_) * 2.0f - 1.0f;
+                    d[v] = (float(j) + 0.5f) / float(n_) * 2.0f - 1.0f;
+                    const glm::vec2 uv = latlong_uv(glm::normalize(d));
+                    const int x = std::min(int(uv.x * float(w)), w - 1);
+                    const int y = std::min(int(uv.y * float(h)), h - 1);
+                    const float *px = latlong.pixel(x, y);
+                    texels_[std::size_t((f * n_ + j) * n_ + i)] = glm::vec3(px[0], px[1], px[2]);
+                }
+            }
+        }
+    }
+    /// The radiance seen in the direction of x (any non-zero vector).
+    const glm::vec3 &at(const glm::vec3 &x) const
+    {
+        const glm::vec3 a = glm::abs(x);
+        const int m = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+        const int u = (m + 1) % 3, v = (m + 2) % 3;
+        const float inv = 0.5f * float(n_) / a[m];
+        const int i = std::clamp(int((x[u] + a[m]) * inv), 0, n_ - 1);
+        const int j = std::clamp(int((x[v] + a[m]) * inv), 0, n_ - 1);
+        const int f = 2 * m + (x[m] >= 0.0f ? 0 : 1);
+        return texels_[std::size_t((f * n_ + j) * n_ + i)];
+    }
+
+   private:
+    int n_ = 1;
+    std::vector<glm::vec3> texels_;
+};
 
 /// A computed pixel's surface for the re-shading: its material, the sun's visibility, and its
 /// view-dependent shading as the camera sees it (sun response and sky light).
@@ -224,10 +253,12 @@ Image ssgi(const Image &depth,
     // World units per computed pixel at depth 1.
     const float px_world_1 = glm::length(rays.ray_du()) * inv_w * float(st);
     const int slices = std::max(1, p.slices), steps = std::max(1, p.steps);
-    const Image env_map = environment ? surface_map(*environment,
-                                                    std::min(128, environment->radiance->width()),
-                                                    std::min(64, environment->radiance->height()))
-                                      : Image();
+    const SurfaceCube env_cube =
+        environment ? SurfaceCube(surface_map(*environment,
+                                              std::min(128, environment->radiance->width()),
+                                              std::min(64, environment->radiance->height())),
+                                  32)
+                    : SurfaceCube();
     // Screen directions of each slice for each of the pattern's 16 rotations.
     std::vector<glm::vec2> slice_dirs(std::size_t(slices) * 16);
     for (int s = 0; s < slices; ++s) {
@@ -342,27 +373,31 @@ Image ssgi(const Image &depth,
                         }
                     }
                     // The arc the march left open (the sky, beyond the radius or off screen):
-                    // the probe's surfaces, seen in the arc's middle direction.
+                    // the probe's surfaces, kOpenSamples sub-arcs of equal angle, each seen in
+                    // one direction inside it (jittered with the pattern) and weighted by its
+                    // measure. Boundaries and directions step by a rotation of the sub-arc's
+                    // angle, so each side takes three sine-cosine pairs.
                     const float open_from = side == 0 ? lo : horizon;
                     const float open_to = side == 0 ? horizon : hi;
                     if (environment && open_to > open_from) {
-                        // The arc runs from the horizon to the view vector: kOpenSamples
-                        // sub-arcs of equal angle, each seen in one direction inside it
-                        // (jittered with the pattern), weighted by its measure.
-                        const int n_env = kOpenSamples;
+                        const float step = (open_to - open_from) / float(kOpenSamples);
                         const float jit = pattern(oy, ox + int(p.seed), s + 4 * side + 9);
-                        float prev = arc.full_measure(open_from);
-                        for (int j = 0; j < n_env; ++j) {
-                            const float t0 =
-                                open_from + (open_to - open_from) * float(j) / float(n_env);
-                            const float t1 =
-                                open_from + (open_to - open_from) * float(j + 1) / float(n_env);
-                            const float f1 = arc.full_measure(t1);
+                        const float cs = std::cos(step), ss = std::sin(step);
+                        float bc = std::cos(open_from), bs = std::sin(open_from);
+                        float dc = std::cos(open_from + jit * step),
+                              dsn = std::sin(open_from + jit * step);
+                        float prev = arc.measure(open_from, bc, bs);
+                        for (int j = 0; j < kOpenSamples; ++j) {
+                            const float nbc = bc * cs - bs * ss, nbs = bs * cs + bc * ss;
+                            bc = nbc;
+                            bs = nbs;
+                            const float f1 = arc.measure(open_from + float(j + 1) * step, bc, bs);
                             const float m = std::abs(f1 - prev);
                             prev = f1;
-                            const float th = t0 + (t1 - t0) * jit;
-                            const glm::vec3 dir = std::cos(th) * V + std::sin(th) * e2;
-                            sum += (nlen * m) * surface_radiance(env_map, dir);
+                            sum += (nlen * m) * env_cube.at(dc * V + dsn * e2);
+                            const float ndc = dc * cs - dsn * ss, nds = dsn * cs + dc * ss;
+                            dc = ndc;
+                            dsn = nds;
                         }
                     }
                 }
