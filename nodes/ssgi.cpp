@@ -52,29 +52,30 @@ constexpr ParamSpec kFallback =
             "What the arcs the march leaves open (the sky, beyond the radius, off screen) see: "
             "the environment input's surfaces, or nothing (as without that input).");
 constexpr ParamSpec kReshade =
-    ParamSpec::boolean("reshade", false)
+    ParamSpec::choice("reshade", "auto|on|off", "auto")
         .doc(
             "Re-shade each lit sample's sun response and sky light for the receiver's view, as "
             "ssr re-shades its hits (a polished floor mirrors the horizon onto what stands on "
-            "it, darker as the camera sees it); several times slower. false: samples give the "
-            "colour the camera saw.");
+            "it, darker as the camera sees it). auto: on where the sun's irradiance is known "
+            "(param or header posthaste:sunIrradiance), else off with a note; off: samples give "
+            "the colour the camera saw.");
 constexpr ParamSpec kSunIrradiance = ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
                                          .doc("reshade: the sun's colour times illuminance.")
                                          .from_header("posthaste:sunIrradiance")
-                                         .only_when("reshade", "true");
+                                         .only_when("reshade", "auto|on");
 constexpr ParamSpec kSunDirection =
     ParamSpec::vec3("sun_direction", 0.4, 0.75, 0.3)
         .doc("reshade: world direction towards the sun (picks the sky).")
         .from_header("posthaste:sunDirection")
-        .only_when("reshade", "true");
+        .only_when("reshade", "auto|on");
 constexpr ParamSpec kSkyScale =
     ParamSpec::real("sky_scale", 1.0)
         .range(0.0, 1e6)
         .doc("reshade: the renderer's sky-light scale (a scene's sky_ambient).")
         .from_header("posthaste:skyAmbient")
-        .only_when("reshade", "true");
-constexpr ParamSpec kRoughness = ParamSpec(kMaterialRoughness).only_when("reshade", "true");
-constexpr ParamSpec kMetallic = ParamSpec(kMaterialMetallic).only_when("reshade", "true");
+        .only_when("reshade", "auto|on");
+constexpr ParamSpec kRoughness = ParamSpec(kMaterialRoughness).only_when("reshade", "auto|on");
+constexpr ParamSpec kMetallic = ParamSpec(kMaterialMetallic).only_when("reshade", "auto|on");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
 constexpr ParamSpec kParams[] = {kRadius,
@@ -141,12 +142,19 @@ void execute(NodeContext &ctx)
         gi = Image(w, h, 3);
     } else {
         shading::SsgiParams p = fill(ctx, kFields, HeaderSource::of(in));
-        const bool reshade = ctx.get_bool(kReshade);
-        if (reshade && p.sun_irradiance == glm::vec3(0.0f)) {
+        const int reshade_mode = ctx.get_choice(kReshade);  // 0 auto, 1 on, 2 off
+        bool reshade = reshade_mode != 2 && p.sun_irradiance != glm::vec3(0.0f);
+        if (reshade_mode == 1 && !reshade) {
             throw_param(ctx.where(),
                         kSunIrradiance.name,
-                        "reshade needs the sun's irradiance (give sun_irradiance, or a frame "
+                        "reshade on needs the sun's irradiance (give sun_irradiance, or a frame "
                         "whose header has posthaste:sunIrradiance)");
+        }
+        if (reshade_mode == 0 && !reshade) {
+            ctx.state().note_once(ctx.node().describe() +
+                                  ": the sun's irradiance is not known (no sun_irradiance, no "
+                                  "header posthaste:sunIrradiance): samples keep the colour the "
+                                  "camera saw (reshade off)");
         }
         const glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
         const float sun_len = glm::length(sun_dir);

@@ -364,7 +364,7 @@ TEST(Ssgi, ReshadingMovesOnlyViewDependentLight)
     const Frame rough = with_material(floor_wall_frame(160, 120), 1.0f);
     const Frame a = test::run_node("ssgi", rough, R"({"resolution": "half"})");
     const Frame b = test::run_node(
-        "ssgi", rough, std::string(R"({"resolution": "half", "reshade": true)") + low_sun + "}");
+        "ssgi", rough, std::string(R"({"resolution": "half", "reshade": "on")") + low_sun + "}");
     float diff = 0.0f;
     for (std::size_t i = 0; i < a.image("gi").value_count(); ++i) {
         diff = std::max(diff, std::abs(a.image("gi").data()[i] - b.image("gi").data()[i]));
@@ -376,7 +376,7 @@ TEST(Ssgi, ReshadingMovesOnlyViewDependentLight)
     const Frame polished = with_material(floor_wall_frame(160, 120), 0.05f);
     const Frame c = test::run_node("ssgi", polished, R"({"resolution": "half"})");
     const Frame d = test::run_node(
-        "ssgi", polished, std::string(R"({"resolution": "half", "reshade": true)") + sun + "}");
+        "ssgi", polished, std::string(R"({"resolution": "half", "reshade": "on")") + sun + "}");
     double before = 0.0, after = 0.0;
     for (std::size_t i = 0; i < c.image("gi").value_count(); ++i) {
         before += c.image("gi").data()[i];
@@ -387,7 +387,7 @@ TEST(Ssgi, ReshadingMovesOnlyViewDependentLight)
     EXPECT_GT(after, before * 1.05);
     // Without the sun's irradiance (no header, no parameter) re-shading is refused by name.
     try {
-        test::run_node("ssgi", polished, R"({"reshade": true})");
+        test::run_node("ssgi", polished, R"({"reshade": "on"})");
         ADD_FAILURE() << "no error";
     } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("sun_irradiance"), std::string::npos) << e.what();
