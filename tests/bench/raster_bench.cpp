@@ -82,8 +82,9 @@ void BM_RasterFrameDepthOnly1080p(benchmark::State &state)
 }
 BENCHMARK(BM_RasterFrameDepthOnly1080p)->Unit(benchmark::kMillisecond)->UseRealTime();
 
-// Overscan's cost against its pixels: the passes ssgi reads, without and with render's
-// `overscan: 0.1` (96 px left and right, 54 top and bottom: 2112x1188, 1.21x the pixels).
+// The passes ssgi reads, without and with render's `overscan: 0.1` (96 px left and right, 54
+// top and bottom: 2112x1188, 1.21x the pixels). Like the others these walk the camera path, so
+// the two render different frames; docs/PERFORMANCE.md pairs them over the same frames.
 void BM_RasterFrameLit1080p(benchmark::State &state)
 {
     render_bench(state, {"color", "depth", "normal", "albedo"});
