@@ -20,6 +20,7 @@ struct BenchCliOptions {
     std::string spec;
     std::string out;
     std::string stability;
+    std::string frames;
     int runs = 0;
     int warmup = -1;
     int threads = -1;
@@ -55,6 +56,9 @@ int run(const BenchCliOptions &o)
         return 0;
     }
     bench::BenchSpec spec = bench::load_spec(o.spec);
+    if (!o.frames.empty()) {
+        spec.frames = o.frames;
+    }
     if (o.runs > 0) {
         spec.runs = o.runs;
     }
@@ -111,6 +115,7 @@ void add_bench_command(CLI::App &app, int &exit_code)
         "bench", "Time a node over a sweep of settings against a ground truth: CSV, SVG, HTML");
     cmd->add_option("spec", o->spec, "Bench spec (JSON; see docs/DIFF.md)");
     cmd->add_option("--out,-o", o->out, "Output folder (default: bench_out/<spec name>)");
+    cmd->add_option("--frames,-f", o->frames, "Frames to run (default: the spec's), e.g. 8 or 1-2");
     cmd->add_option("--runs,-n", o->runs, "Timed runs per setting (default: the spec's)")
         ->check(CLI::Range(1, 100000));
     cmd->add_option("--warmup", o->warmup, "Warm-up runs per setting (default: the spec's)")
