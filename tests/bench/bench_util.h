@@ -76,6 +76,30 @@ inline const Frame &scene_frame(const std::string &scene_file,
     return it->second;
 }
 
+/// scene_frame with the header's sun and sky as the render node writes them (posthaste:
+/// sunDirection, skyAmbient, sunIrradiance), for the nodes that default to them (ssr, ssgi).
+inline const Frame &sun_frame(const std::string &scene_file,
+                              int frame,
+                              const std::set<std::string> &passes)
+{
+    using Key = std::tuple<std::string, int, std::set<std::string>>;
+    static std::map<Key, Frame> frames;
+    const Key key{scene_file, frame, passes};
+    auto it = frames.find(key);
+    if (it == frames.end()) {
+        Frame f = scene_frame(scene_file, frame, passes, true);
+        const raster::Scene s =
+            raster::load_scene(std::string(POSTHASTE_SOURCE_DIR) + "/samples/scenes/" + scene_file);
+        const glm::vec3 d = s.sun.direction, sun = s.sun.color * s.sun.illuminance;
+        f.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
+        f.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", s.sky_ambient));
+        f.attributes.push_back(
+            OIIO::ParamValue("posthaste:sunIrradiance", OIIO::TypeVector, 1, &sun));
+        it = frames.emplace(key, std::move(f)).first;
+    }
+    return it->second;
+}
+
 /// Frame `frame` of samples/scenes/minecrappy.json at 1920x1080 with `passes`, rendered once.
 inline const Frame &minecrappy_frame(int frame,
                                      const std::set<std::string> &passes,

@@ -27,22 +27,7 @@ namespace {
 /// re-shading) and the header's sun and sky.
 const Frame &lit_frame(int frame)
 {
-    static std::map<int, Frame> frames;
-    auto it = frames.find(frame);
-    if (it == frames.end()) {
-        Frame f = bench::scene_frame("minecrappy.json",
-                                     frame,
-                                     {"color", "depth", "normal", "albedo", "material", "shadow"},
-                                     true);
-        const raster::Scene s = raster::load_scene(test::scene_path("minecrappy.json"));
-        const glm::vec3 d = s.sun.direction, sun = s.sun.color * s.sun.illuminance;
-        f.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
-        f.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", s.sky_ambient));
-        f.attributes.push_back(
-            OIIO::ParamValue("posthaste:sunIrradiance", OIIO::TypeVector, 1, &sun));
-        it = frames.emplace(frame, std::move(f)).first;
-    }
-    return it->second;
+    return bench::sun_frame("minecrappy.json", frame, {"color", "depth", "normal", "albedo", "material", "shadow"});
 }
 
 /// The default scene's probe at frame `frame`, as graphs/bench/graphs/ssgi_graph.json makes it.

@@ -27,22 +27,7 @@ namespace {
 /// re-shading) and the header's sun and sky.
 const Frame &glossy_frame(int frame)
 {
-    static std::map<int, Frame> frames;
-    auto it = frames.find(frame);
-    if (it == frames.end()) {
-        Frame f = bench::scene_frame("glossy.json",
-                                     frame,
-                                     {"color", "depth", "normal", "albedo", "material", "shadow"},
-                                     true);
-        const raster::Scene s = raster::load_scene(test::scene_path("glossy.json"));
-        const glm::vec3 d = s.sun.direction, sun = s.sun.color * s.sun.illuminance;
-        f.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
-        f.attributes.push_back(OIIO::ParamValue("posthaste:skyAmbient", s.sky_ambient));
-        f.attributes.push_back(
-            OIIO::ParamValue("posthaste:sunIrradiance", OIIO::TypeVector, 1, &sun));
-        it = frames.emplace(frame, std::move(f)).first;
-    }
-    return it->second;
+    return bench::sun_frame("glossy.json", frame, {"color", "depth", "normal", "albedo", "material", "shadow"});
 }
 
 /// The glossy scene's reflection probe at frame `frame` (1024x512, 16 rays a texel), once.
