@@ -42,3 +42,23 @@ endif()
 if(POSTHASTE_BENCHMARKS)
   find_package(benchmark CONFIG REQUIRED)
 endif()
+
+# The Python module: Debian's python3-dev, python3-numpy and pybind11-dev, for Debian's own
+# interpreter (/usr/bin/python3, where python3-numpy and python3-pytest live) unless
+# Python_EXECUTABLE names another. Without them the module is left out, with a note.
+if(POSTHASTE_PYTHON AND (POSTHASTE_SANITIZE OR POSTHASTE_FUZZ))
+  set(POSTHASTE_PYTHON OFF)
+endif()
+if(POSTHASTE_PYTHON)
+  if(NOT DEFINED Python_EXECUTABLE AND EXISTS /usr/bin/python3)
+    set(Python_EXECUTABLE /usr/bin/python3 CACHE FILEPATH "The Python the module is built for")
+  endif()
+  find_package(Python 3.9 COMPONENTS Interpreter Development.Module NumPy)
+  set(PYBIND11_FINDPYTHON ON)
+  find_package(pybind11 2.10 CONFIG QUIET)
+  if(NOT Python_FOUND OR NOT Python_NumPy_FOUND OR NOT pybind11_FOUND)
+    message(STATUS "posthaste: the Python module is not built (needs python3-dev, "
+                   "python3-numpy and pybind11-dev)")
+    set(POSTHASTE_PYTHON OFF)
+  endif()
+endif()

@@ -2,7 +2,6 @@
 // error (README.md "Exit codes"). Every error is one line on stderr.
 
 #include <malloc.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <string>
@@ -10,15 +9,6 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/simd.h"
-
-namespace posthaste::cli {
-
-bool stderr_is_terminal()
-{
-    return ::isatty(2) != 0;
-}
-
-}  // namespace posthaste::cli
 
 int main(int argc, char **argv)
 {

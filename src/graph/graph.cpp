@@ -267,17 +267,24 @@ std::vector<int> Graph::default_frames() const
 void Graph::check(const std::vector<int> &frames) const
 {
     for (int i : order_) {
-        const GraphNode &gn = nodes_[std::size_t(i)];
-        if (!live_[std::size_t(i)] || !gn.type->check) {
-            continue;
+        if (live_[std::size_t(i)]) {
+            check_node(i, frames);
         }
-        std::vector<bool> connected;
-        for (int src : gn.inputs) {
-            connected.push_back(src >= 0);
-        }
-        CheckContext ctx{gn.params, gn.identity, gn.requested, frames, connected};
-        gn.type->check(ctx);
     }
+}
+
+void Graph::check_node(int index, const std::vector<int> &frames) const
+{
+    const GraphNode &gn = nodes_.at(std::size_t(index));
+    if (!gn.type->check) {
+        return;
+    }
+    std::vector<bool> connected;
+    for (int src : gn.inputs) {
+        connected.push_back(src >= 0);
+    }
+    CheckContext ctx{gn.params, gn.identity, gn.requested, frames, connected};
+    gn.type->check(ctx);
 }
 
 NodeTimes Graph::make_times() const
@@ -326,21 +333,27 @@ Frame Graph::run_node(int index,
 Frame Graph::evaluate(int frame, NodeTimes *times) const
 {
     Frame captured;
-    run_nodes(frame, times, -1, &captured);
+    run_nodes(frame, times, {}, &captured);
     return captured;
 }
 
-std::shared_ptr<const Frame> Graph::run_nodes(int frame,
-                                              NodeTimes *times,
-                                              int target,
-                                              Frame *captured) const
+std::vector<std::shared_ptr<const Frame>> Graph::evaluate_outputs(int frame,
+                                                                  const std::vector<int> &nodes) const
+{
+    return run_nodes(frame, nullptr, nodes, nullptr);
+}
+
+std::vector<std::shared_ptr<const Frame>> Graph::run_nodes(int frame,
+                                                           NodeTimes *times,
+                                                           const std::vector<int> &targets,
+                                                           Frame *captured) const
 {
     const std::size_t count = nodes_.size();
-    // The nodes to run: the live ones, or the target and its ancestors.
+    // The nodes to run: the live ones, or the targets and their ancestors.
     std::vector<bool> run = live_;
-    if (target >= 0) {
+    if (!targets.empty()) {
         run.assign(count, false);
-        std::vector<int> stack = {target};
+        std::vector<int> stack = targets;
         while (!stack.empty()) {
             const int i = stack.back();
             stack.pop_back();
@@ -362,7 +375,7 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
             remaining[i] += run[std::size_t(c)] ? 1 : 0;
         }
     }
-    if (target >= 0) {
+    for (int target : targets) {
         ++remaining[std::size_t(target)];  // kept for the caller
     }
     for (int i : order_) {
@@ -396,12 +409,12 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
                 // computing (a node's cache of earlier frames).
                 std::shared_ptr<const Frame> out;
                 tbb::this_task_arena::isolate(
-                    [&] { out = run_nodes(other, nullptr, src, nullptr); });
+                    [&] { out = run_nodes(other, nullptr, {src}, nullptr).front(); });
                 return out;
             }};
         ctx.set_history(&history);
         const auto t0 = std::chrono::steady_clock::now();
-        if (target < 0 || !gn.type->spec.sink) {
+        if (targets.empty() || !gn.type->spec.sink) {
             execute_step(gn, ctx, first_input.get());
         } else {
             drop_stale_specular(gn.type->spec, first_input.get(), ctx.output());
@@ -440,7 +453,11 @@ std::shared_ptr<const Frame> Graph::run_nodes(int frame,
             }
         }
     }
-    return target >= 0 ? results[std::size_t(target)] : nullptr;
+    std::vector<std::shared_ptr<const Frame>> outputs;
+    for (int target : targets) {
+        outputs.push_back(results[std::size_t(target)]);
+    }
+    return outputs;
 }
 
 }  // namespace posthaste

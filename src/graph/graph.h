@@ -71,8 +71,10 @@ class Graph {
     const std::vector<int> &sequence_frames() const;
     /// The files the graph's live `write` nodes make for `frame` (their paths expanded).
     std::vector<std::string> outputs(int frame) const;
-    /// Run every node's check hook for these frames (files exist, passes exist, ...).
+    /// Run every live node's check hook for these frames (files exist, passes exist, ...).
     void check(const std::vector<int> &frames) const;
+    /// Run node `index`'s check hook alone (for a node run on frames held in memory).
+    void check_node(int index, const std::vector<int> &frames) const;
     /// Evaluate one frame through the whole graph. Sinks write their files. Thread-safe for
     /// different frames. Adds each node's time to `times` when given. Returns the output frame
     /// of the capture node (see set_capture), or an empty Frame.
@@ -85,6 +87,11 @@ class Graph {
                    std::vector<std::shared_ptr<const Frame>> inputs,
                    std::vector<std::string> ports,
                    int frame) const;
+    /// Evaluate one frame up to the given nodes and return each one's output, computing what
+    /// they share once. A sink among them passes its input on without writing (the frame it
+    /// would write). Thread-safe for different frames.
+    std::vector<std::shared_ptr<const Frame>> evaluate_outputs(int frame,
+                                                               const std::vector<int> &nodes) const;
     /// Keep the output of node `id` (all its passes) for evaluate() to return; re-plans.
     void set_capture(const std::string &id);
     /// Index of node `id`, or -1.
@@ -98,12 +105,13 @@ class Graph {
     static void execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *first_input);
     Graph() = default;
     void plan();
-    /// Evaluate frame `frame`: every live node (target < 0), or only node `target` and what it
-    /// reads, sinks passing their input on (a history request). Returns the target's output.
-    std::shared_ptr<const Frame> run_nodes(int frame,
-                                           NodeTimes *times,
-                                           int target,
-                                           Frame *captured) const;
+    /// Evaluate frame `frame`: every live node (no targets), or only the targets and what they
+    /// read, sinks passing their input on (a history request, evaluate_outputs). Returns the
+    /// targets' outputs.
+    std::vector<std::shared_ptr<const Frame>> run_nodes(int frame,
+                                                        NodeTimes *times,
+                                                        const std::vector<int> &targets,
+                                                        Frame *captured) const;
 
     struct SequenceCache {
         std::once_flag once;

@@ -1,0 +1,235 @@
+// Running a graph over frames (graph/run.h): several frames at once (jobs), tiles in parallel
+// inside each node (threads), with a progress bar on a terminal and a summary.
+
+#include "graph/run.h"
+
+#include <tbb/parallel_pipeline.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <mutex>
+
+#include "core/error.h"
+#include "core/memory.h"
+#include "core/parallel.h"
+#include "graph/graph.h"
+#include "io/image_file.h"
+
+namespace posthaste {
+namespace {
+
+std::string format_seconds(double s)
+{
+    char buf[32];
+    if (s < 60.0) {
+        std::snprintf(buf, sizeof(buf), "%.1fs", s);
+    } else {
+        std::snprintf(buf, sizeof(buf), "%dm%02ds", int(s) / 60, int(s) % 60);
+    }
+    return buf;
+}
+
+}  // namespace
+
+std::vector<int> frames_done(const Graph &graph, const std::vector<int> &frames)
+{
+    std::vector<int> done;
+    for (int f : frames) {
+        const std::vector<std::string> outputs = graph.outputs(f);
+        bool whole = !outputs.empty();
+        for (const std::string &path : outputs) {
+            std::error_code ec;
+            whole = whole && std::filesystem::exists(path, ec) && verify_image_file(path).empty();
+        }
+        if (whole) {
+            done.push_back(f);
+        }
+    }
+    return done;
+}
+
+void apply_memory_budget(const std::string &max_memory)
+{
+    if (max_memory.empty()) {
+        set_image_memory_budget(available_memory_bytes() / 10 * 8);
+        return;
+    }
+    set_image_memory_budget(parse_memory_size(max_memory, "--max-memory"));
+}
+
+int run_graph(Graph &graph, const RunSettings &o)
+{
+    set_thread_count(o.threads);
+    apply_memory_budget(o.max_memory);
+    std::vector<int> frames =
+        o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
+    graph.check(frames);
+    if (o.skip_existing) {
+        const std::vector<int> done = frames_done(graph, frames);
+        std::erase_if(frames,
+                      [&](int f) { return std::find(done.begin(), done.end(), f) != done.end(); });
+        if (!o.quiet && !done.empty()) {
+            std::fprintf(stderr, "%zu frame(s) already written and whole, skipped\n", done.size());
+        }
+    }
+    if (o.dry_run) {
+        if (!o.quiet) {
+            std::printf("%s: valid; %zu frame(s)\n", graph.origin().c_str(), frames.size());
+        }
+        return 0;
+    }
+    const int jobs = std::max(1, o.jobs > 0 ? o.jobs : std::min(4, std::max(1, thread_count())));
+    NodeTimes times = graph.make_times();
+    const bool terminal = stderr_is_terminal() && !o.quiet;
+    std::mutex mutex;
+    std::map<int, std::string> failures;  // frame -> message
+    std::map<int, int> failure_codes;
+    std::atomic<bool> stop{false};
+    std::atomic<int> done{0};
+    std::size_t next = 0;
+    const auto start = std::chrono::steady_clock::now();
+    auto elapsed = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+
+    tbb::parallel_pipeline(
+        std::size_t(jobs),
+        tbb::make_filter<void, int>(tbb::filter_mode::serial_in_order,
+                                    [&](tbb::flow_control &fc) -> int {
+                                        if (next >= frames.size() || stop.load() ||
+                                            (o.should_stop && o.should_stop())) {
+                                            fc.stop();
+                                            return 0;
+                                        }
+                                        return frames[next++];
+                                    }) &
+            tbb::make_filter<int, void>(tbb::filter_mode::parallel, [&](int frame) {
+                const auto t0 = std::chrono::steady_clock::now();
+                std::string error;
+                int code = 0;
+                try {
+                    graph.evaluate(frame, &times);
+                } catch (const Error &e) {
+                    error = e.what();
+                    code = e.exit_code();
+                } catch (const std::exception &e) {
+                    error = e.what();
+                    code = int(ExitCode::Runtime);
+                }
+                const double dt =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+                std::lock_guard lock(mutex);
+                const int n = ++done;
+                if (o.on_frame) {
+                    const double started = std::chrono::duration<double>(
+                                               std::chrono::system_clock::now().time_since_epoch())
+                                               .count() -
+                                           dt;
+                    o.on_frame(frame, started, dt, error);
+                }
+                if (error.empty() && o.frames_written) {
+                    o.frames_written->push_back(frame);
+                }
+                if (!error.empty()) {
+                    failures[frame] = error;
+                    failure_codes[frame] = code;
+                    if (!o.skip_bad_frames && !o.keep_going) {
+                        stop = true;
+                    } else {
+                        std::fprintf(stderr,
+                                     "%swarning: frame %d skipped: %s\n",
+                                     terminal ? "\r\033[K" : "",
+                                     frame,
+                                     error.c_str());
+                    }
+                }
+                if (o.quiet) {
+                    return;
+                }
+                const double t = elapsed();
+                const double fps = n / std::max(t, 1e-9);
+                const double eta = (double(frames.size()) - n) / std::max(fps, 1e-9);
+                if (terminal) {
+                    const int width = 30;
+                    const int filled = int(width * double(n) / double(frames.size()));
+                    // The node that has taken the most time so far, per frame done.
+                    std::string slowest;
+                    double slowest_ns = -1.0;
+                    for (int i : graph.order()) {
+                        const double ns = double(*times.nanoseconds[std::size_t(i)]);
+                        if (ns > slowest_ns) {
+                            slowest_ns = ns;
+                            slowest = graph.nodes()[std::size_t(i)].identity.id;
+                        }
+                    }
+                    std::fprintf(stderr,
+                                 "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s  slowest: %s %.0f "
+                                 "ms/frame\033[K",
+                                 std::string(std::size_t(filled), '#').c_str(),
+                                 std::string(std::size_t(width - filled), '-').c_str(),
+                                 n,
+                                 frames.size(),
+                                 fps,
+                                 format_seconds(eta).c_str(),
+                                 slowest.c_str(),
+                                 slowest_ns * 1e-6 / n);
+                } else if (error.empty()) {
+                    std::fprintf(
+                        stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n, frames.size());
+                }
+            }));
+    if (terminal) {
+        std::fprintf(stderr, "\n");
+    }
+    const double wall = elapsed();
+    if (o.node_seconds) {
+        for (int i : graph.order()) {
+            const GraphNode &gn = graph.nodes()[std::size_t(i)];
+            (*o.node_seconds)[gn.identity.id + " (" + gn.identity.type + ")"] =
+                double(*times.nanoseconds[std::size_t(i)]) * 1e-9;
+        }
+    }
+    if (!failures.empty() && !o.skip_bad_frames) {
+        const auto &[frame, message] = *failures.begin();
+        if (o.keep_going && failures.size() > 1) {
+            throw Error(ExitCode(failure_codes[frame]),
+                        message + " (and " + std::to_string(failures.size() - 1) +
+                            " more failed frame(s))");
+        }
+        throw Error(ExitCode(failure_codes[frame]), message);
+    }
+    if (!o.quiet) {
+        const int ok = done.load() - int(failures.size());
+        std::printf(
+            "%d frame(s) in %.3f s (%.2f frames/s, %d job(s), %d thread(s))%s\n",
+            ok,
+            wall,
+            ok / std::max(wall, 1e-9),
+            jobs,
+            thread_count(),
+            failures.empty() ? "" : (", " + std::to_string(failures.size()) + " skipped").c_str());
+        std::printf("%-20s %-12s %12s %14s\n", "node", "type", "total s", "ms/frame");
+        for (int i : graph.order()) {
+            const GraphNode &gn = graph.nodes()[std::size_t(i)];
+            const double s = double(*times.nanoseconds[std::size_t(i)]) * 1e-9;
+            std::printf("%-20s %-12s %12.3f %14.2f\n",
+                        gn.identity.id.c_str(),
+                        gn.identity.type.c_str(),
+                        s,
+                        1000.0 * s / std::max(1, done.load()));
+        }
+    }
+    return 0;
+}
+
+bool stderr_is_terminal()
+{
+    return ::isatty(2) != 0;
+}
+
+}  // namespace posthaste

@@ -1,0 +1,36 @@
+// The Python module `posthaste` (docs/PYTHON.md): frames as numpy arrays over their own memory,
+// any node run on frames in memory, graphs run over frames, diffs; every error of the tool a
+// posthaste.Error with the CLI's one-line message.
+
+#include "python/py_module.h"
+
+#include <pybind11/pybind11.h>
+
+#include "core/parallel.h"
+#include "core/simd.h"
+#include "graph/run.h"
+#include "python/py_convert.h"
+#include "python/py_frame.h"
+
+namespace py = pybind11;
+
+PYBIND11_MODULE(posthaste, m)
+{
+    using namespace posthaste;
+    if (const std::string bad = simd::environment_error(); !bad.empty()) {
+        throw py::import_error(bad);
+    }
+    // Pass images are held to the same budget as in the CLI: a share of the available memory.
+    apply_memory_budget("");
+    m.doc() = "posthaste: a node-graph compositor for multi-layer OpenEXR frames, from Python.";
+    m.attr("__version__") = POSTHASTE_VERSION;
+    python::register_errors(m);
+    python::bind_frame(m);
+    python::bind_nodes(m);
+    python::bind_graph(m);
+    m.def("set_threads",
+          &set_thread_count,
+          py::arg("threads"),
+          "Worker threads for the nodes' parallel loops (0: every core), for the whole process.");
+    m.def("_stub_text", &python::stub_text, "The text of posthaste.pyi.");
+}

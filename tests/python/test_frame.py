@@ -1,0 +1,122 @@
+"""posthaste.Frame: passes as numpy arrays over the frame's own memory, copy-on-write when shared,
+frames made from numpy, camera, attributes and windows."""
+
+import numpy as np
+import pytest
+
+import posthaste as ph
+
+
+def test_pass_arrays_view_the_frames_memory(small):
+    frame = ph.read(small[1])
+    color = frame.passes["color"]
+    assert color.dtype == np.float32 and color.shape == (54, 96, 4)
+    # No copy: the array's data is the pass image's memory, and asking again gives the same.
+    assert color.ctypes.data == frame._data_address("color")
+    assert frame.passes["color"].ctypes.data == color.ctypes.data
+    assert frame.owns("color") and color.flags.writeable
+
+
+def test_a_write_through_the_array_shows_in_the_frame_and_the_nodes(small):
+    frame = ph.read(small[1])
+    color = frame.passes["color"]
+    color[5, 7, :3] = [3.0, 2.0, 1.0]
+    assert list(frame.passes["color"][5, 7, :3]) == [3.0, 2.0, 1.0]
+    # A node sees the written pixel: grade with gain 2 doubles it.
+    out = ph.node("grade", frame, gain=[2, 2, 2])
+    assert list(out.passes["color"][5, 7, :3]) == [6.0, 4.0, 2.0]
+    # The written pass reaches a file.
+    np.testing.assert_array_equal(ph.node("channels", frame).passes["color"], frame.passes["color"])
+
+
+def test_shared_passes_are_read_only_and_writable_copies(small):
+    frame = ph.read(small[1])
+    before = frame.passes["depth"]
+    assert before.flags.writeable
+    out = ph.node("grade", frame, gain=[2, 2, 2])
+    # depth is shared with the node's output now: the earlier array became read-only.
+    assert not before.flags.writeable
+    assert not frame.owns("depth") and not out.owns("depth")
+    assert out._data_address("depth") == frame._data_address("depth")
+    with pytest.raises(ValueError):
+        frame.passes["depth"][0, 0, 0] = 1.0
+    # writable() gives the frame its own copy; the node's output keeps the old pixels.
+    mine = frame.writable("depth")
+    assert frame._data_address("depth") != out._data_address("depth")
+    mine[0, 0, 0] = -5.0
+    assert frame.passes["depth"][0, 0, 0] == -5.0
+    assert out.passes["depth"][0, 0, 0] != -5.0
+    # The color the node replaced is the node's own.
+    assert out.owns("color")
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64])
+def test_frame_from_numpy(dtype, rgba):
+    depth = np.linspace(1, 2, 16 * 24).reshape(16, 24).astype(dtype)
+    f = ph.Frame(passes={"color": rgba.astype(dtype), "depth": depth}, number=12)
+    assert (f.width, f.height, f.number) == (24, 16, 12)
+    assert f.display_window == (0, 0, 24, 16) == f.data_window
+    np.testing.assert_array_equal(f.passes["color"], rgba.astype(dtype).astype(np.float32))
+    assert f.passes["depth"].shape == (16, 24, 1)
+    assert f.channels("color") == ["R", "G", "B", "A"]
+    assert f.channels("depth") == ["Z"]
+    # Converted once: the frame holds its own float32 copy.
+    assert f.owns("color") and f.passes["color"].ctypes.data != rgba.ctypes.data
+
+
+def test_frame_from_numpy_refuses_what_is_not_a_pass(rgba):
+    with pytest.raises(ValueError, match='pass "color": dtype int32 is not float16, float32 or float64'):
+        ph.Frame(passes={"color": rgba.astype(np.int32)})
+    with pytest.raises(ValueError, match='pass "color": expected shape'):
+        ph.Frame(passes={"color": rgba[None]})
+    with pytest.raises(ValueError, match='pass "depth": 8x8, but the frame\'s data window is 24x16'):
+        ph.Frame(passes={"color": rgba, "depth": np.zeros((8, 8), np.float32)})
+    with pytest.raises(ValueError, match='pass "n": expected a numpy array, got list'):
+        ph.Frame(passes={"n": [[1.0]]})
+    with pytest.raises(ValueError, match='pass "x": 65 channels'):
+        ph.Frame(passes={"x": np.zeros((2, 2, 65), np.float32)})
+    with pytest.raises(ValueError, match="display_window: expected"):
+        ph.Frame(passes={"color": rgba}, display_window=(0, 0, 4))
+
+
+def test_windows_camera_and_attributes_round_trip(tmp_path, rgba):
+    w2c = np.eye(4, dtype=np.float32)
+    w2c[3, 2] = 5.0  # a translation, in OpenEXR's row-vector convention
+    f = ph.Frame(passes={"color": rgba}, display_window=(0, 0, 20, 12), data_window=(-2, -2, 22, 14),
+                 camera={"worldToCamera": w2c, "focalLength": 35.0},
+                 attributes={"studio:artist": "test", "take": 3, "gains": [0.5, 2.0], "tags": ["a", "b"]})
+    path = tmp_path / "f.exr"
+    ph.write(f, path, storage="float")
+    g = ph.read(path)
+    assert g.display_window == (0, 0, 20, 12) and g.data_window == (-2, -2, 22, 14)
+    np.testing.assert_array_equal(g.passes["color"], rgba)
+    np.testing.assert_array_equal(g.camera["worldToCamera"], w2c)
+    assert g.camera["focalLength"] == 35.0
+    assert g.attributes["studio:artist"] == "test" and g.attributes["take"] == 3
+    assert g.attributes["gains"] == [0.5, 2.0] and g.attributes["tags"] == ["a", "b"]
+    with pytest.raises(ValueError, match='camera: unknown key "worldToCam"'):
+        f.camera = {"worldToCam": w2c}
+    with pytest.raises(ValueError, match='camera "worldToNDC": expected a 4x4 matrix'):
+        f.camera = {"worldToNDC": np.eye(3)}
+
+
+def test_passes_mapping(rgba):
+    f = ph.Frame(passes={"color": rgba})
+    f.passes["mask"] = np.ones((16, 24), np.float32)
+    assert "mask" in f.passes and len(f.passes) == 2 and sorted(f.passes) == ["color", "mask"]
+    del f.passes["mask"]
+    assert "mask" not in f.passes and f.passes.get("mask") is None
+    with pytest.raises(KeyError, match='no pass "mask" in the frame \\(it has: color\\)'):
+        f.passes["mask"]
+    # A replaced pass keeps its channel names; arrays of the old image stay valid.
+    old = f.passes["color"]
+    f.passes["color"] = rgba * 2
+    assert f.channels("color") == ["R", "G", "B", "A"]
+    np.testing.assert_array_equal(old, rgba)
+    np.testing.assert_array_equal(f.passes["color"], rgba * 2)
+
+
+def test_arrays_outlive_their_frame(small):
+    color = ph.read(small[1]).passes["color"]
+    reference = ph.read(small[1]).passes["color"].copy()
+    np.testing.assert_array_equal(color, reference)
