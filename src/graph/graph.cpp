@@ -432,7 +432,9 @@ std::vector<std::shared_ptr<const Frame>> Graph::run_nodes(int frame,
             // pass): a G-buffer pass nobody downstream reads is freed now, not when the last
             // frame that carried it along is.
             Frame out = ctx.take_output();
-            if (!gn.requested.all) {
+            // A sink asked for its frame (evaluate_outputs) keeps what it was given.
+            const bool sink_target = !targets.empty() && gn.type->spec.sink;
+            if (!gn.requested.all && !sink_target) {
                 // A cryptomatte request keeps the rank layers the frame's header declares.
                 const std::set<std::string> ranks =
                     cryptomatte::requested_ranks(gn.requested.optional, out.attributes, out.pass_names());
