@@ -4,6 +4,7 @@
 
 #include "python/py_module.h"
 
+#include <malloc.h>
 #include <pybind11/pybind11.h>
 
 #include "core/parallel.h"
@@ -22,6 +23,11 @@ PYBIND11_MODULE(posthaste, m)
     }
     // Pass images are held to the same budget as in the CLI: a share of the available memory.
     apply_memory_budget("");
+    // As the CLI does (src/cli/main.cpp): pass images are large and made anew by every node;
+    // glibc would serve each with mmap and unmap it on free, so every call would page-fault its
+    // images in again. Freed memory stays in the heap for the next call instead.
+    mallopt(M_MMAP_THRESHOLD, 1 << 30);
+    mallopt(M_TRIM_THRESHOLD, 1 << 30);
     m.doc() = "posthaste: a node-graph compositor for multi-layer OpenEXR frames, from Python.";
     m.attr("__version__") = POSTHASTE_VERSION;
     python::register_errors(m);
