@@ -24,10 +24,12 @@ add_custom_command(TARGET posthaste_python POST_BUILD
   VERBATIM)
 
 if(NOT POSTHASTE_PYTHON_INSTALL_DIR)
+  # The interpreter's site folder relative to the prefix, so `cmake --install --prefix DIR`
+  # puts the module under DIR: lib/python3.X/site-packages, or dist-packages where the
+  # interpreter reads those (Debian's, which reads /usr/local/lib/python3.X/dist-packages).
   execute_process(
     COMMAND ${Python_EXECUTABLE} -c
-            "import sys, sysconfig; p = sys.argv[1]; print(sysconfig.get_path('platlib', vars={'platbase': p, 'base': p}))"
-            ${CMAKE_INSTALL_PREFIX}
+            "import sys, sysconfig; v = 'python%d.%d/dist-packages' % sys.version_info[:2]; p = sysconfig.get_path('platlib', 'posix_prefix', vars={'platbase': '/P', 'base': '/P'})[3:]; print(p.replace('site-packages', 'dist-packages') if any(x.endswith(v) for x in sys.path) else p)"
     OUTPUT_VARIABLE POSTHASTE_PYTHON_INSTALL_DIR OUTPUT_STRIP_TRAILING_WHITESPACE)
 endif()
 install(TARGETS posthaste_python LIBRARY DESTINATION ${POSTHASTE_PYTHON_INSTALL_DIR})

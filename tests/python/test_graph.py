@@ -159,3 +159,25 @@ def test_nodes_from_two_threads_give_the_bits_of_one_at_a_time(small):
         t.join()
     for a, b in zip(alone, results):
         np.testing.assert_array_equal(a, b)
+
+
+def test_run_argument_errors(tmp_path, scene):
+    g = ph.Graph.from_dict(graph_dict(scene, tmp_path / "x.####.exr"))
+    with pytest.raises(ph.GraphError, match="frames") as e:
+        g.run(frames="3-x")
+    assert e.value.exit_code == 2
+    with pytest.raises(ph.GraphError, match="empty list"):
+        g.run(frames=[])
+    with pytest.raises(ph.GraphError, match="max-memory"):
+        g.run(max_memory="lots")
+    with pytest.raises(ph.GraphError, match='from_dict:/nodes: expected a non-empty array of nodes'):
+        ph.Graph.from_dict({"nodes": 3})
+    assert not any(tmp_path.iterdir())
+
+
+def test_an_absurd_size_is_refused_before_any_allocation(scene):
+    code, line = run_cli("render", scene, "--size", "16384x16384", "-o", "/tmp/never.####.exr",
+                         "--frames", "1")
+    with pytest.raises(ph.Error) as e:
+        ph.node("render", scene=scene, width=16384, height=16384, frame=1)
+    assert code == e.value.exit_code != 0

@@ -175,8 +175,8 @@ def test_diff_reports_metrics(rgba):
     report = ph.diff(a, b, fail=0.1, warn=0.01)
     assert report["verdict"] == "FAILURE" and report["exit_code"] == 2
     color = report["passes"][0]
-    assert color["name"] == "color"
-    assert abs(color["rms"] - 0.5) < 1e-6 if "rms" in color else True
+    assert color["name"] == "color" and color["verdict"] == "FAILURE"
+    assert abs(color["stats"]["max_error"] - 0.5) < 1e-6 and color["stats"]["rms_error"] > 0.3
     assert ph.diff(a, a)["verdict"] == "PASS"
     with pytest.raises(ph.GraphError, match='unknown option "failz"'):
         ph.diff(a, b, failz=1)
