@@ -60,8 +60,15 @@ up() {
     if ! pgrep -x munged >/dev/null; then
         mkdir -p /run/munge
         chown munge:munge /run/munge
-        runuser -u munge -- munged
-        pgrep -x munged >"$STATE/munged.pid"
+        # munged forks into the background: its own PID file names the daemon, not the parent
+        # pgrep might catch before the fork (which left a munged running after `down`).
+        rm -f /run/munge/posthaste-munged.pid
+        runuser -u munge -- munged --pid-file=/run/munge/posthaste-munged.pid
+        for _ in $(seq 1 50); do
+            [[ -s /run/munge/posthaste-munged.pid ]] && break
+            sleep 0.1
+        done
+        cp /run/munge/posthaste-munged.pid "$STATE/munged.pid"
     fi
     [[ -f $CONF ]] || write_conf
     running "$STATE/slurmctld.pid" || slurmctld -f "$CONF"
@@ -82,11 +89,19 @@ down() {
         scancel --full -u "$(id -un)" 2>/dev/null || true
         sleep 1  # a job's slurmstepd outlives slurmd on TERM: cancel first
     fi
+    local pids=()
     for d in slurmd slurmctld munged; do
         if running "$STATE/$d.pid"; then
-            kill "$(cat "$STATE/$d.pid")" 2>/dev/null || true
+            pids+=("$(cat "$STATE/$d.pid")")
+            kill "${pids[-1]}" 2>/dev/null || true
         fi
         rm -f "$STATE/$d.pid"
+    done
+    for pid in "${pids[@]}"; do  # gone before `down` returns (at most 10 s each)
+        for _ in $(seq 1 100); do
+            kill -0 "$pid" 2>/dev/null || break
+            sleep 0.1
+        done
     done
     echo "slurm-local: down"
 }

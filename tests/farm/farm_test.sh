@@ -10,9 +10,11 @@ if [[ $(id -u) -ne 0 ]] && ! command -v slurmctld >/dev/null; then
     echo "farm: skipped (Slurm is not installed and installing it needs root)"
     exit 77
 fi
+W=$(mktemp -d /tmp/posthaste-farm-test.XXXXXX)
+# Whatever way the test ends (a failed `up`, an early exit), the cluster it started goes away.
+trap 'cd /; rm -rf "$W"; "$ROOT/tests/slurm-local.sh" down >/dev/null' EXIT
 "$ROOT/tests/slurm-local.sh" up || exit 1
 export SLURM_CONF=${POSTHASTE_SLURM_DIR:-/tmp/posthaste-slurm}/slurm.conf
-W=$(mktemp -d /tmp/posthaste-farm-test.XXXXXX)
 cd "$W" || exit 1
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
@@ -125,7 +127,5 @@ grep -q "already written and whole, skipped" resume.txt || fail "resume skipped 
 r=$(same ref killed "1 12") && ok "resumed after SIGKILL with $done_before frames done: $r" ||
     fail "resumed outputs differ"
 
-cd / && rm -rf "$W"
-"$ROOT/tests/slurm-local.sh" down >/dev/null
 echo "farm: $((failures == 0 ? 1 : 0)) passed, $((failures == 0 ? 0 : 1)) failed"
 exit $((failures == 0 ? 0 : 1))
