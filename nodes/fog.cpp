@@ -17,6 +17,7 @@
 #include "core/sanitize.h"
 #include "graph/mask.h"
 #include "nodes/node.h"
+#include "nodes/sun_params.h"
 #include "shading/atmosphere/atmosphere.h"
 #include "shading/camera_rays.h"
 #include "shading/fog/height_fog.h"
@@ -305,11 +306,7 @@ void execute(NodeContext &ctx)
         }
     }
 
-    glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
-    if (!(glm::length(sun_dir) > 0.0f) || !std::isfinite(glm::length(sun_dir))) {
-        throw_runtime(who, ": sun direction must be a non-zero finite vector");
-    }
-    sun_dir = to_y_up * glm::normalize(sun_dir);
+    const glm::vec3 sun_dir = to_y_up * glm::normalize(sun_direction(ctx, kSunDirection, in));
 
     // The height fog and atmosphere kernels read the input and write the output in one sweep;
     // the other models work on a copy.

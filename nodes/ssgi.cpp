@@ -15,6 +15,7 @@
 #include "graph/mask.h"
 #include "nodes/material_params.h"
 #include "nodes/node.h"
+#include "nodes/sun_params.h"
 #include "shading/camera_rays.h"
 
 namespace posthaste::nodes {
@@ -156,21 +157,9 @@ void execute(NodeContext &ctx)
                                   "header posthaste:sunIrradiance): samples keep the colour the "
                                   "camera saw (reshade off)");
         }
-        const glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
-        const float sun_len = glm::length(sun_dir);
-        if (!(sun_len > 0.0f) || !std::isfinite(sun_len)) {
-            throw_runtime(ctx.where(),
-                          ": the sun direction must be a non-zero finite vector (param "
-                          "\"sun_direction\", header posthaste:sunDirection)");
-        }
-        p.sun_direction = sun_dir / sun_len;
-        for (int c = 0; c < 3; ++c) {
-            if (!std::isfinite(p.sun_irradiance[c]) || p.sun_irradiance[c] < 0.0f) {
-                throw_runtime(ctx.where(),
-                              ": param \"sun_irradiance\" (header posthaste:sunIrradiance) must "
-                              "be finite and >= 0");
-            }
-        }
+        const glm::vec3 sun_dir = sun_direction(ctx, kSunDirection, in);
+        p.sun_direction = sun_dir / glm::length(sun_dir);
+        check_sun_irradiance(ctx, kSunIrradiance, p.sun_irradiance);
         // The samples' material and the sun's visibility, for the re-shading.
         Image material_const, material_s, shadow_s;
         shading::SsgiSurfaces surfaces;

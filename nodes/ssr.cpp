@@ -14,6 +14,7 @@
 #include "nodes/material_params.h"
 #include "graph/mask.h"
 #include "nodes/node.h"
+#include "nodes/sun_params.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -249,21 +250,10 @@ void execute(NodeContext &ctx)
     shading::SsrParams p = fill(ctx, kFields, HeaderSource::of(in));
     const std::string &resolution = ctx.get_string(kResolution);
     p.stride = ssr_stride(resolution, depth_in.width());  // derived from the image's width
-    const glm::vec3 sun_dir = param_value<glm::vec3>(ctx, kSunDirection, HeaderSource::of(in));
-    const float len = glm::length(sun_dir);
-    if (!(len > 0.0f) || !std::isfinite(len) || !std::isfinite(p.sky_scale) || p.sky_scale < 0.0f) {
-        throw_runtime(ctx.where(),
-                      ": the sun direction must be a non-zero finite vector and the sky scale "
-                      "finite and >= 0 (header posthaste:sunDirection, posthaste:skyAmbient)");
-    }
-    p.sun_direction = sun_dir / len;
-    if (!std::isfinite(p.sun_irradiance.x) || !std::isfinite(p.sun_irradiance.y) ||
-        !std::isfinite(p.sun_irradiance.z) || p.sun_irradiance.x < 0.0f ||
-        p.sun_irradiance.y < 0.0f || p.sun_irradiance.z < 0.0f) {
-        throw_runtime(ctx.where(),
-                      ": param \"sun_irradiance\" (header posthaste:sunIrradiance) must be "
-                      "finite and >= 0");
-    }
+    // sky_scale, from the graph or the header, is held to its range by the parameter's rules.
+    const glm::vec3 sun_dir = sun_direction(ctx, kSunDirection, in);
+    p.sun_direction = sun_dir / glm::length(sun_dir);
+    check_sun_irradiance(ctx, kSunIrradiance, p.sun_irradiance);
     Image shadow_s;
     if (p.sun_irradiance != glm::vec3(0.0f) && in.has("shadow")) {
         si.shadow = &finite_view(in.image("shadow", ctx.where()), 0.0f, shadow_s);

@@ -180,3 +180,15 @@ def test_diff_reports_metrics(rgba):
     assert ph.diff(a, a)["verdict"] == "PASS"
     with pytest.raises(ph.GraphError, match='unknown option "failz"'):
         ph.diff(a, b, failz=1)
+
+
+@pytest.mark.parametrize("node_type,extra", [("fog", {"model": "height"}), ("ssr", {}), ("ssgi", {})])
+def test_a_zero_sun_is_refused_alike_by_every_node_that_reads_it(small, node_type, extra):
+    with pytest.raises(ph.RunError) as e:
+        ph.node(node_type, ph.read(small[1]), sun_direction=[0, 0, 0], **extra)
+    assert str(e.value).endswith(': param "sun_direction" (header posthaste:sunDirection) must be '
+                                 "a non-zero finite vector")
+    if node_type != "fog":
+        with pytest.raises(ph.RunError, match='param "sun_irradiance" \\(header posthaste:sunIrradiance\\) '
+                                              "must be finite and >= 0"):
+            ph.node(node_type, ph.read(small[1]), sun_irradiance=[1, -1, 1], **extra)
