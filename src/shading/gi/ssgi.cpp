@@ -128,49 +128,9 @@ Image surface_map(const SsgiEnvironment &env, int mw, int mh)
     return out;
 }
 
-/// The surface map resampled onto the six faces of a cube (nearest texel at each cube texel's
-/// centre, as the ssr node's DistanceCube): a look-up is a division, not an arctangent and an
-/// arccosine.
-class SurfaceCube {
-   public:
-    SurfaceCube() = default;
-    SurfaceCube(const Image &latlong, int n) : n_(n), texels_(std::size_t(6 * n * n))
-    {
-        const int w = latlong.width(), h = latlong.height();
-        for (int f = 0; f < 6; ++f) {
-            const int m = f / 2, u = (m + 1) % 3, v = (m + 2) % 3;
-            for (int j = 0; j < n_; ++j) {
-                for (int i = 0; i < n_; ++i) {
-                    glm::vec3 d(0.0f);
-                    d[m] = f % 2 == 0 ? 1.0f : -1.0f;
-                    d[u] = (float(i) + 0.5f) / float(n_) * 2.0f - 1.0f;
-                    d[v] = (float(j) + 0.5f) / float(n_) * 2.0f - 1.0f;
-                    const glm::vec2 uv = latlong_uv(glm::normalize(d));
-                    const int x = std::min(int(uv.x * float(w)), w - 1);
-                    const int y = std::min(int(uv.y * float(h)), h - 1);
-                    const float *px = latlong.pixel(x, y);
-                    texels_[std::size_t((f * n_ + j) * n_ + i)] = glm::vec3(px[0], px[1], px[2]);
-                }
-            }
-        }
-    }
-    /// The radiance seen in the direction of x (any non-zero vector).
-    const glm::vec3 &at(const glm::vec3 &x) const
-    {
-        const glm::vec3 a = glm::abs(x);
-        const int m = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
-        const int u = (m + 1) % 3, v = (m + 2) % 3;
-        const float inv = 0.5f * float(n_) / a[m];
-        const int i = std::clamp(int((x[u] + a[m]) * inv), 0, n_ - 1);
-        const int j = std::clamp(int((x[v] + a[m]) * inv), 0, n_ - 1);
-        const int f = 2 * m + (x[m] >= 0.0f ? 0 : 1);
-        return texels_[std::size_t((f * n_ + j) * n_ + i)];
-    }
-
-   private:
-    int n_ = 1;
-    std::vector<glm::vec3> texels_;
-};
+/// The probe's surfaces on a cube (LatLongCube): a look-up is a division, not an arctangent and
+/// an arccosine.
+using SurfaceCube = LatLongCube<glm::vec3>;
 
 /// A computed pixel's surface for the re-shading: its material, the sun's visibility, and its
 /// view-dependent shading as the camera sees it (sun response and sky light).
@@ -257,7 +217,8 @@ Image ssgi(const Image &depth,
         environment ? SurfaceCube(surface_map(*environment,
                                               std::min(128, environment->radiance->width()),
                                               std::min(64, environment->radiance->height())),
-                                  32)
+                                  32,
+                                  [](const float *px) { return glm::vec3(px[0], px[1], px[2]); })
                     : SurfaceCube();
     // Screen directions of each slice for each of the pattern's 16 rotations.
     std::vector<glm::vec2> slice_dirs(std::size_t(slices) * 16);

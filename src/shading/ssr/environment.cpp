@@ -57,49 +57,17 @@ glm::vec3 LatLongMap::radiance(const glm::vec3 &d) const
 }
 
 DistanceCube::DistanceCube(const Image &latlong, int size)
-    : n_(size > 0 ? size : std::clamp(latlong.width() / 4, 1, 128)),
-      texels_(std::size_t(6) * std::size_t(n_) * std::size_t(n_))
+    : cube_(
+          latlong, size > 0 ? size : std::clamp(latlong.width() / 4, 1, 128), [](const float *px) {
+              return std::isnan(px[0]) ? std::numeric_limits<float>::infinity() : px[0];
+          })
 {
-    const int w = latlong.width(), h = latlong.height();
-    for (int f = 0; f < 6; ++f) {
-        const int m = f / 2, u = (m + 1) % 3, v = (m + 2) % 3;
-        for (int j = 0; j < n_; ++j) {
-            for (int i = 0; i < n_; ++i) {
-                glm::vec3 d(0.0f);
-                d[m] = f % 2 == 0 ? 1.0f : -1.0f;
-                d[u] = (float(i) + 0.5f) / float(n_) * 2.0f - 1.0f;
-                d[v] = (float(j) + 0.5f) / float(n_) * 2.0f - 1.0f;
-                const glm::vec2 uv = latlong_uv(glm::normalize(d));
-                const int x = std::min(int(uv.x * float(w)), w - 1);
-                const int y = std::min(int(uv.y * float(h)), h - 1);
-                float dist = latlong.at(x, y, 0);
-                if (std::isnan(dist)) {
-                    dist = std::numeric_limits<float>::infinity();
-                }
-                texels_[(std::size_t(f) * std::size_t(n_) + std::size_t(j)) * std::size_t(n_) +
-                        std::size_t(i)] = dist;
-            }
-        }
-    }
     for (std::size_t i = 0; i < latlong.value_count(); i += std::size_t(latlong.channels())) {
         const float dist = latlong.data()[i];
         if (std::isfinite(dist)) {
             reach_ = std::max(reach_, dist);
         }
     }
-}
-
-float DistanceCube::at(const glm::vec3 &x) const
-{
-    const glm::vec3 a = glm::abs(x);
-    const int m = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
-    const int u = (m + 1) % 3, v = (m + 2) % 3;
-    const float inv = 0.5f * float(n_) / a[m];
-    const int i = std::clamp(int((x[u] + a[m]) * inv), 0, n_ - 1);
-    const int j = std::clamp(int((x[v] + a[m]) * inv), 0, n_ - 1);
-    const int f = 2 * m + (x[m] >= 0.0f ? 0 : 1);
-    return texels_[(std::size_t(f) * std::size_t(n_) + std::size_t(j)) * std::size_t(n_) +
-                   std::size_t(i)];
 }
 
 glm::vec3 Probe::seen(const glm::vec3 &origin, const glm::vec3 &dir) const

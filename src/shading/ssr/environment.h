@@ -6,6 +6,9 @@
 // row v in [0, 1] from straight up (v = 0, the top row) to straight down. A direction d maps
 // to u = 0.5 + atan2(d.x, -d.z) / 2 pi, v = acos(d.y) / pi.
 
+#include <algorithm>
+#include <cmath>
+#include <glm/geometric.hpp>
 #include <glm/vec2.hpp>
 #include <glm/vec3.hpp>
 #include <limits>
@@ -35,9 +38,61 @@ class LatLongMap {
     const Image *image_;
 };
 
-/// A probe's distances resampled onto the six faces of a cube (nearest texel of the
-/// latitude-longitude map at each cube texel's centre), so that a march looks them up with a
-/// division instead of an arctangent and an arccosine per step.
+/// A latitude-longitude map resampled onto the six faces of a cube (the nearest texel of the
+/// map at each cube texel's centre), so that a look-up is a division instead of an arctangent
+/// and an arccosine. T is what a texel holds, made from the map's pixel by `texel`.
+template <typename T>
+class LatLongCube {
+   public:
+    LatLongCube() = default;
+    /// Faces of n x n texels; texel(const float *pixel) -> T.
+    template <typename Texel>
+    LatLongCube(const Image &latlong, int n, Texel texel)
+        : n_(n), texels_(std::size_t(6) * std::size_t(n) * std::size_t(n))
+    {
+        const int w = latlong.width(), h = latlong.height();
+        for (int f = 0; f < 6; ++f) {
+            const int m = f / 2, u = (m + 1) % 3, v = (m + 2) % 3;
+            for (int j = 0; j < n_; ++j) {
+                for (int i = 0; i < n_; ++i) {
+                    glm::vec3 d(0.0f);
+                    d[m] = f % 2 == 0 ? 1.0f : -1.0f;
+                    d[u] = (float(i) + 0.5f) / float(n_) * 2.0f - 1.0f;
+                    d[v] = (float(j) + 0.5f) / float(n_) * 2.0f - 1.0f;
+                    const glm::vec2 uv = latlong_uv(glm::normalize(d));
+                    const int x = std::min(int(uv.x * float(w)), w - 1);
+                    const int y = std::min(int(uv.y * float(h)), h - 1);
+                    texels_[index(f, i, j)] = texel(latlong.pixel(x, y));
+                }
+            }
+        }
+    }
+
+    /// The texel seen in the direction of x (any non-zero vector).
+    const T &at(const glm::vec3 &x) const
+    {
+        const glm::vec3 a = glm::abs(x);
+        const int m = a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+        const int u = (m + 1) % 3, v = (m + 2) % 3;
+        const float inv = 0.5f * float(n_) / a[m];
+        const int i = std::clamp(int((x[u] + a[m]) * inv), 0, n_ - 1);
+        const int j = std::clamp(int((x[v] + a[m]) * inv), 0, n_ - 1);
+        return texels_[index(2 * m + (x[m] >= 0.0f ? 0 : 1), i, j)];
+    }
+    int size() const { return n_; }
+
+   private:
+    std::size_t index(int f, int i, int j) const
+    {
+        return (std::size_t(f) * std::size_t(n_) + std::size_t(j)) * std::size_t(n_) +
+               std::size_t(i);
+    }
+    int n_ = 1;
+    std::vector<T> texels_;  ///< Face-major: face (0..5: +x -x +y -y +z -z), row, column.
+};
+
+/// A probe's distances on a cube (LatLongCube), so that a march looks them up with a division
+/// per step.
 class DistanceCube {
    public:
     /// From a latitude-longitude distance map (one channel, >= 0 or +inf; NaN reads as +inf),
@@ -45,16 +100,15 @@ class DistanceCube {
     explicit DistanceCube(const Image &latlong, int size = 0);
 
     /// The distance seen in the direction of x (any non-zero vector).
-    float at(const glm::vec3 &x) const;
+    float at(const glm::vec3 &x) const { return cube_.at(x); }
     /// The farthest finite distance (0 when there is none): past the sphere of this radius
     /// around the probe a ray meets nothing the probe saw.
     float reach() const { return reach_; }
-    int size() const { return n_; }
+    int size() const { return cube_.size(); }
 
    private:
-    int n_;
+    LatLongCube<float> cube_;
     float reach_ = 0.0f;
-    std::vector<float> texels_;  ///< Face-major: face (0..5: +x -x +y -y +z -z), row, column.
 };
 
 /// A reflection probe taken at `position`: its radiance map and, optionally, the distance from
