@@ -10,10 +10,10 @@
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "core/passes.h"
-#include "shading/ssr/environment.h"
-#include "shading/lighting/lighting.h"
 #include "shading/atmosphere/scene_sky.h"
 #include "shading/atmosphere/sky.h"
+#include "shading/lighting/lighting.h"
+#include "shading/ssr/environment.h"
 
 namespace posthaste::raster {
 
@@ -101,6 +101,29 @@ std::optional<std::pair<float, int>> box_entry(
         return std::nullopt;
     }
     return std::make_pair(span->enter, span->axis);
+}
+
+/// Rays that may cross the whole world: its diagonal plus a kilometre.
+float world_reach(const Scene &scene)
+{
+    return glm::length(
+               glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
+           1e3f;
+}
+
+/// The truths' strata a side for a sample count (its square root, rounded; at least 1).
+int strata_for(int samples)
+{
+    return std::max(1, int(std::lround(std::sqrt(double(samples)))));
+}
+
+/// Sample i of strata x strata over [0, 1)^2: its stratum (row i / strata, column i % strata)
+/// jittered by the pixel's and seed's hash.
+glm::vec2 stratified(int i, int strata, int x, int y, std::uint32_t seed)
+{
+    const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
+    const float u2 = (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
+    return {u1, u2};
 }
 
 }  // namespace
@@ -203,15 +226,14 @@ float ao_truth_at(const RayScene &rays,
                   int y,
                   std::uint32_t seed)
 {
-    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    const int strata = strata_for(samples);
     const int n = strata * strata;
     const glm::vec3 origin = p + nn * 1e-3f;
     int open = 0;
     for (int i = 0; i < n; ++i) {
-        const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
-        const float u2 = (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
+        const glm::vec2 u = stratified(i, strata, x, y, seed);
         open +=
-            rays.occluded(origin, shading::sample_cosine_hemisphere(nn, u1, u2), radius) ? 0 : 1;
+            rays.occluded(origin, shading::sample_cosine_hemisphere(nn, u.x, u.y), radius) ? 0 : 1;
     }
     return float(open) / float(n);
 }
@@ -301,11 +323,8 @@ Image render_reflection_truth(
     const shading::SceneSky &sky = shading::scene_sky(scene.sun.direction);
     const glm::vec3 sky_camera(0.0f, shading::kSkyCameraY, 0.0f);
     const glm::vec3 eye = scene.camera_at(double(frame)).position;
-    const float max_dist =
-        glm::length(
-            glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
-        1e3f;
-    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    const float max_dist = world_reach(scene);
+    const int strata = strata_for(samples);
     parallel_for(0, out.height(), [&](int y) {
         for (int x = 0; x < out.width(); ++x) {
             if (!std::isfinite(depth.at(x, y, 0))) {
@@ -331,10 +350,8 @@ Image render_reflection_truth(
             glm::vec3 sum(0.0f);
             float wsum = 0.0f;
             for (int i = 0; i < strata * strata; ++i) {
-                const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
-                const float u2 =
-                    (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
-                const glm::vec3 l = shading::sample_ggx_reflection(n, v, alpha, u1, u2);
+                const glm::vec2 u = stratified(i, strata, x, y, seed);
+                const glm::vec3 l = shading::sample_ggx_reflection(n, v, alpha, u.x, u.y);
                 const float nl = glm::dot(n, l);
                 if (!(nl > 0.0f)) {
                     continue;
@@ -377,11 +394,8 @@ GiTruth render_gi_truth(
     const RayScene rays(scene, double(frame));
     const shading::SceneSky &sky = shading::scene_sky(scene.sun.direction);
     const glm::vec3 eye = scene.camera_at(double(frame)).position;
-    const float max_dist =
-        glm::length(
-            glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
-        1e3f;
-    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    const float max_dist = world_reach(scene);
+    const int strata = strata_for(samples);
     parallel_for(0, pos.height(), [&](int y) {
         for (int x = 0; x < pos.width(); ++x) {
             if (!std::isfinite(depth.at(x, y, 0))) {
@@ -402,10 +416,8 @@ GiTruth render_gi_truth(
             const glm::vec3 origin = p + n * 1e-3f;
             glm::vec3 sum(0.0f);
             for (int i = 0; i < strata * strata; ++i) {
-                const float u1 = (float(i / strata) + hash_unit(x, y, 2 * i, seed)) / float(strata);
-                const float u2 =
-                    (float(i % strata) + hash_unit(x, y, 2 * i + 1, seed)) / float(strata);
-                const glm::vec3 l = shading::sample_cosine_hemisphere(n, u1, u2);
+                const glm::vec2 u = stratified(i, strata, x, y, seed);
+                const glm::vec3 l = shading::sample_cosine_hemisphere(n, u.x, u.y);
                 if (const auto hit = rays.closest(origin, l, max_dist)) {
                     sum += shade_hit(scene, rays, sky, origin + l * hit->distance, *hit, -l);
                 }
@@ -434,11 +446,8 @@ EnvironmentProbe render_environment_probe(
     const RayScene rays(scene, double(frame));
     const shading::SceneSky &sky = shading::scene_sky(scene.sun.direction);
     const glm::vec3 sky_camera(0.0f, shading::kSkyCameraY, 0.0f);
-    const float max_dist =
-        glm::length(
-            glm::vec3(float(scene.world.nx), float(scene.world.ny), float(scene.world.nz))) +
-        1e3f;
-    const int strata = std::max(1, int(std::lround(std::sqrt(double(samples)))));
+    const float max_dist = world_reach(scene);
+    const int strata = strata_for(samples);
     const float inf = std::numeric_limits<float>::infinity();
     const glm::vec3 o = probe.position;
     const auto radiance = [&](const glm::vec3 &l) {
