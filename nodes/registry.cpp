@@ -2,6 +2,11 @@
 
 #include "nodes/registry.h"
 
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "graph/graph.h"
 #include "nodes/node.h"
 
 namespace posthaste {
@@ -31,6 +36,19 @@ std::span<const NodeType *const> all_node_types()
 const NodeType *find_node_type(std::string_view type)
 {
     return nodes::catalog().find(type);
+}
+
+const NodeType &require_node_type(std::string_view type)
+{
+    const NodeType *t = find_node_type(type);
+    if (!t) {
+        std::vector<std::string> known;
+        for (const NodeType *k : all_node_types()) {
+            known.emplace_back(k->spec.type);
+        }
+        throw_usage("unknown node type \"", type, "\"", did_you_mean(type, known));
+    }
+    return *t;
 }
 
 }  // namespace posthaste

@@ -18,5 +18,8 @@ const NodeCatalog &catalog();
 std::span<const NodeType *const> all_node_types();
 /// nodes::catalog().find(type): the node type named `type`, or nullptr.
 const NodeType *find_node_type(std::string_view type);
+/// The node type named `type`; a usage error "unknown node type ..." with a "did you mean"
+/// hint otherwise (`posthaste nodes TYPE`, Python's posthaste.node).
+const NodeType &require_node_type(std::string_view type);
 
 }  // namespace posthaste

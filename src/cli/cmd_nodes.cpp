@@ -78,15 +78,7 @@ int nodes(const std::string &type)
         }
         return 0;
     }
-    const NodeType *t = find_node_type(type);
-    if (!t) {
-        std::vector<std::string> known;
-        for (const NodeType *k : all_node_types()) {
-            known.emplace_back(k->spec.type);
-        }
-        throw_usage("unknown node type \"", type, "\"", did_you_mean(type, known));
-    }
-    print_type(*t);
+    print_type(require_node_type(type));
     return 0;
 }
 

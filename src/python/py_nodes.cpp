@@ -28,19 +28,6 @@ struct NodeCall {
     std::vector<std::string> ports;
 };
 
-const NodeType &node_type(const std::string &type)
-{
-    const NodeType *t = find_node_type(type);
-    if (!t) {
-        std::vector<std::string> known;
-        for (const NodeType *k : all_node_types()) {
-            known.emplace_back(k->spec.type);
-        }
-        throw_usage("unknown node type \"", type, "\"", did_you_mean(type, known));
-    }
-    return *t;
-}
-
 std::shared_ptr<const NodeCall> node_call(const std::string &type,
                                           const std::vector<std::string> &ports,
                                           const nlohmann::json &params)
@@ -70,7 +57,7 @@ std::shared_ptr<const NodeCall> node_call(const std::string &type,
         g["nodes"].push_back(
             {{"id", p + "_input"}, {"type", "read"}, {"params", {{"path", "memory.exr"}}}});
     }
-    if (!node_type(type).spec.sink) {
+    if (!require_node_type(type).spec.sink) {
         // A graph needs a sink; this one is never run (the node is captured instead).
         g["nodes"].push_back({{"id", "_sink"},
                               {"type", "write"},
@@ -124,7 +111,7 @@ std::shared_ptr<PyFrame> run_node(
 
 py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
 {
-    const NodeType &t = node_type(type);
+    const NodeType &t = require_node_type(type);
     std::vector<std::pair<std::string, std::shared_ptr<PyFrame>>> inputs;
     const auto &ports = t.spec.inputs;
     if (frames.size() > ports.size()) {

@@ -192,3 +192,16 @@ def test_a_zero_sun_is_refused_alike_by_every_node_that_reads_it(small, node_typ
         with pytest.raises(ph.RunError, match='param "sun_irradiance" \\(header posthaste:sunIrradiance\\) '
                                               "must be finite and >= 0"):
             ph.node(node_type, ph.read(small[1]), sun_irradiance=[1, -1, 1], **extra)
+
+
+def test_a_cycles_frame_reads_with_its_solved_camera_and_gives_the_clis_pixels(tmp_path):
+    # A Blender 3.4 / Cycles render (samples/cycles): no camera in its header, filtered passes.
+    from conftest import SOURCE_DIR
+    source = SOURCE_DIR / "samples" / "cycles" / "yard.passes.exr"
+    frame = ph.read(source)
+    assert frame.camera["origin"].startswith("solved from position + depth")
+    assert frame.camera["worldToNDC"].shape == (4, 4)
+    code, line, out = run_graph_cli(tmp_path, "ao", {"radius": 2.0}, source)
+    assert code == 0, line
+    mine = ph.node("ao", frame, radius=2.0)
+    np.testing.assert_array_equal(mine.passes["color"], ph.read(out).passes["color"])
