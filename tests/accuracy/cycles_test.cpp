@@ -162,17 +162,19 @@ TEST(CyclesAccuracySlow, DofBeatsBlendersDefocus)
             shot + ".dof_f" + c.fstop + ".exr",
             shot + ".blender_defocus_f" + c.fstop + ".exr");
         print(r);
-        // Measured on 2026-11-28 (RMSE): the close-up removes 56 % (f/1.4) and 11 % (f/4) of the
-        // do-nothing error, at 0.87 and 0.90 of Blender's calibrated Defocus. On the wide yard
-        // shot the node changes next to nothing (0.1087 against 0.1089 at f/1.4): the error is
-        // the sun's glint on the chrome ball (value 142, a circle of confusion of 0.49 px) whose
-        // peak Cycles' lens lowers by 12 %, and the node leaves discs under half a pixel alone.
-        // Held here: no worse than doing nothing; docs/ACCURACY.md has the rest.
-        if (shot == "closeup") {
-            EXPECT_LT(r.node, r.nothing) << r.what;
+        // Measured on 2026-11-29 (RMSE): the close-up removes 56 % (f/1.4) and 13 % (f/4) of the
+        // do-nothing error, at 0.87 and 0.88 of Blender's calibrated Defocus. On the wide yard
+        // shot the error is the sun's glint on the chrome ball (value 142, a circle of confusion
+        // of 0.49 px at f/1.4) whose peak Cycles' lens lowers by 12 %: the sub-pixel blur (the
+        // disc's variance, r^2 / 4) takes the yard from 0.1087 (the node left such discs alone)
+        // to 0.0402 at f/1.4, 63 % removed (Blender's calibrated Defocus: 0.0338), and to 0.0258
+        // at f/2.8, 41 % removed and 0.59 of Defocus's error. docs/ACCURACY.md has the rest.
+        EXPECT_LT(r.node, r.nothing) << r.what;
+        if (shot == "closeup" || std::string(c.fstop) == "2.8") {
             EXPECT_LT(r.node, r.blender) << r.what;
-        } else {
-            EXPECT_LE(r.node, r.nothing * 1.001) << r.what;
+        }
+        if (shot == "yard") {
+            EXPECT_GT(r.removed(), std::string(c.fstop) == "1.4" ? 0.60 : 0.35) << r.what;
         }
     }
 }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <utility>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -233,6 +234,56 @@ TEST(Dof, FlatFieldStaysFlatAndConservesEnergy)
     }
     EXPECT_NEAR(sum, 1000.0, 150.0);
     EXPECT_LT(out.at(48, 48, 0), 100.0f);  // spread, not left as a spike
+}
+
+TEST(Dof, SubPixelCocSpreadsByTheDiscsVariance)
+{
+    // A CoC radius r under half a pixel reaches no neighbour's centre, but the lens spreads the
+    // pixel by a disc of variance r^2 / 4 per axis: one bright pixel becomes the 4-neighbour
+    // stencil a = r^2 / 8 around it, energy kept, nothing beyond.
+    const int w = 16, h = 16;
+    Image color(w, h, 4), depth(w, h, 1), out;
+    color.fill(0.0f);
+    depth.fill(2.0f);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            color.at(x, y, 3) = 1.0f;
+        }
+    }
+    color.at(8, 8, 0) = 100.0f;
+    // 50 mm at f/1 focused at 1 m: 50 * 50 * 1000 / (2000 * 950) mm = 1.3158 mm over 36 mm at
+    // 16 px, a radius of 0.29240 px.
+    const shading::DofLens l{1.0f, 1.0f, 50.0f, 36.0f};
+    const float r = 0.5f * shading::coc_diameter_px(l, 2.0f, w);
+    ASSERT_NEAR(r, 0.29240f, 1e-4f);
+    shading::DofSettings s;
+    ASSERT_TRUE(shading::apply_dof(color, depth, l, s, out));
+    const float a = r * r / 8.0f;
+    EXPECT_NEAR(out.at(8, 8, 0), 100.0f * (1.0f - 4.0f * a), 1e-4f);
+    for (auto [x, y] : {std::pair{7, 8}, std::pair{9, 8}, std::pair{8, 7}, std::pair{8, 9}}) {
+        EXPECT_NEAR(out.at(x, y, 0), 100.0f * a, 1e-5f) << x << "," << y;
+    }
+    double sum = 0.0, second = 0.0;
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const double v = out.at(x, y, 0);
+            sum += v;
+            second += v * double((x - 8) * (x - 8));
+            EXPECT_EQ(out.at(x, y, 3), 1.0f);
+            if (std::abs(x - 8) + std::abs(y - 8) > 1) {
+                EXPECT_EQ(v, 0.0) << x << "," << y;
+            }
+        }
+    }
+    EXPECT_NEAR(sum, 100.0, 1e-3);
+    EXPECT_NEAR(second / sum, double(r) * r / 4.0, 1e-5);  // the disc's variance along x
+    // The simple method (the seeds' baseline) leaves it alone.
+    s.method = shading::DofMethod::Simple;
+    EXPECT_FALSE(shading::apply_dof(color, depth, l, s, out));
+    // Under 1/16 px the pixel is left as it is: the input back, bit for bit.
+    s.method = shading::DofMethod::Gather;
+    const shading::DofLens nearly{1.0f, 1.0f, 50.0f, 36.0f * 6.0f};  // r = 0.0487 px
+    EXPECT_FALSE(shading::apply_dof(color, depth, nearly, s, out));
 }
 
 std::string render_dof_graph(const std::string &dof_params)

@@ -256,6 +256,49 @@ glm::vec4 composite_half(const Level &full,
     return bg * (1.0f - alpha) + front;
 }
 
+// Blur under half a pixel. A CoC of radius r < 0.5 px reaches no neighbour's centre, so the
+// gather leaves such a pixel alone, yet the lens spreads it by a disc of variance r^2 / 4 per
+// axis: a highlight on a surface just off the focus plane loses a tenth of its peak to its
+// neighbours (the Cycles set's sun glint at r = 0.49, docs/ACCURACY.md). The 4-neighbour stencil
+// (1 - 4a, a) with a = r^2 / 8 adds exactly that variance (its frequency response is the disc's to
+// second order): deterministic, no jittered taps. Gather form, the pixel's own radius: a pixel
+// keeps its own weight whatever its neighbours' CoC, so the edge where the gather takes over at
+// r = 0.5 shows no seam. Below kSubPixelMin the change is under 5e-4 of the local contrast and
+// the pixel is left as it is. Adds the blur of row y (its colour less `subtract`, as the planes
+// hold it) to `dst`.
+constexpr float kSubPixelMin = 0.0625f;
+
+void add_sub_pixel_blur(
+    const Image &color, const DofSettings &st, const float *radius, int y, float *const *dst)
+{
+    const int w = color.width(), h = color.height(), nc = std::min(color.channels(), 4);
+    const Image *sub = st.subtract;
+    const auto value = [&](int x, int yy, int k) {
+        float v = color.pixel(x, yy)[k];
+        if (sub && k < 3 && yy >= st.subtract_y0 && yy < st.subtract_y0 + sub->height() &&
+            x >= st.subtract_x0 && x < st.subtract_x0 + sub->width()) {
+            v -= sub->pixel(x - st.subtract_x0, yy - st.subtract_y0)[k];
+        }
+        // Non-finite values as 0, as the planes read them (dof::split_row).
+        return std::fabs(v) <= std::numeric_limits<float>::max() ? v : 0.0f;
+    };
+    const int ym = std::max(y - 1, 0), yp = std::min(y + 1, h - 1);
+    for (int x = 0; x < w; ++x) {
+        const float r = std::fabs(radius[x]);
+        if (!(r >= kSubPixelMin && r < 0.5f)) {
+            continue;
+        }
+        const float a = 0.125f * r * r;
+        const int xm = std::max(x - 1, 0), xp = std::min(x + 1, w - 1);
+        for (int k = 0; k < nc; ++k) {
+            const float c = value(x, y, k);
+            const float around =
+                (value(xm, y, k) + value(xp, y, k)) + (value(x, ym, k) + value(x, yp, k));
+            dst[k][x] = c + a * (around - 4.0f * c);
+        }
+    }
+}
+
 }  // namespace
 
 bool apply_dof(const Image &color,
@@ -277,7 +320,8 @@ bool apply_dof(const Image &color,
     reduce_tiles(field);
     tm.tiles_ms = ms_since(t0);
     tm.tiles_cpu_ms = process_cpu_ms() - c0;
-    if (field.max_radius < 0.5f) {
+    // The simple method (the seeds' baseline) leaves every CoC under half a pixel alone.
+    if (field.max_radius < (settings.method == DofMethod::Simple ? 0.5f : kSubPixelMin)) {
         if (times) {
             *times = tm;
         }
@@ -315,6 +359,9 @@ bool apply_dof(const Image &color,
                 dst[1][x] -= src[1];
                 dst[2][x] -= src[2];
             }
+        }
+        if (settings.method == DofMethod::Gather) {
+            add_sub_pixel_blur(color, settings, c, y, dst);
         }
     });
 

@@ -64,8 +64,10 @@ struct DofTimes {
 };
 
 /// Blur `color` (1-4 channels, premultiplied) by the thin-lens CoC of `depth` (metres). Returns
-/// false, leaving `out` untouched, when every pixel's CoC radius is under half a pixel (the
-/// caller keeps its input: bit for bit). Otherwise `out` is a new image of color's shape;
+/// false, leaving `out` untouched, when every pixel's CoC radius is under 1/16 px (the simple
+/// method: under half a pixel; the caller keeps its input: bit for bit). The gather blurs a CoC
+/// under half a pixel, which reaches no neighbour's centre, by the 4-neighbour stencil that adds
+/// the disc's variance (r^2 / 4 per axis). Otherwise `out` is a new image of color's shape;
 /// non-finite colour values (NaN, +-Inf) are read as 0 so the output stays finite.
 /// Same bits for any thread count (jitter hashed from (x / 8, y): eight adjacent pixels share
 /// their taps) and, within rounding, for the AVX2 and scalar paths.
