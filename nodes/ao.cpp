@@ -166,6 +166,7 @@ void execute(NodeContext &ctx)
 
 void plan(PlanContext &ctx)
 {
+    ctx.inputs[0].camera = true;
     if (ctx.params.get_string(kApply) == "multiply") {
         ctx.inputs[0].add("color");
     }

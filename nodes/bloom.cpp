@@ -192,6 +192,12 @@ void check(CheckContext &ctx)
     }
 }
 
+void plan(PlanContext &ctx)
+{
+    // The PSF's pixel pitch comes from the sensor width, which a solved camera gives.
+    ctx.inputs[0].camera = true;
+}
+
 }  // namespace
 
 extern const NodeType kBloom{
@@ -201,7 +207,7 @@ extern const NodeType kBloom{
      kParams,
      "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
     &execute,
-    nullptr,
+    &plan,
     &check,
     nullptr,
     [](std::vector<std::string> &problems) {

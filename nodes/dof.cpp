@@ -283,6 +283,9 @@ void execute(NodeContext &ctx)
 
 void plan(PlanContext &ctx)
 {
+    // The lens values a solved camera gives (focal length, sensor width) where the header has
+    // none, unless the graph gives both.
+    ctx.inputs[0].camera = !(ctx.params.given(kFocal) && ctx.params.given(kSensor));
     // The lighting split, where a source can give its passes (blur_split).
     if (ctx.params.get_choice(kSpecular) == 0 && ctx.params.get_choice(kMethod) == 0 &&
         ctx.params.get_choice(kResolution) == 0) {

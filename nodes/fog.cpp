@@ -419,6 +419,12 @@ void check(CheckContext &ctx)
     }
 }
 
+void plan(PlanContext &ctx)
+{
+    // The world-space models place each pixel through the camera.
+    ctx.inputs[0].camera = true;
+}
+
 }  // namespace
 
 extern const NodeType kFog{{"fog",
@@ -428,7 +434,7 @@ extern const NodeType kFog{{"fog",
                             kParams,
                             "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
                            &execute,
-                           nullptr,
+                           &plan,
                            &check,
     nullptr,
     [](std::vector<std::string> &problems) {

@@ -290,6 +290,15 @@ void execute(NodeContext &ctx)
     }
 }
 
+void plan(PlanContext &ctx)
+{
+    // The focal length and sensor width, which a solved camera gives.
+    if (ctx.params.get_string(kNormalize) == "focal_length" ||
+        ctx.params.get_real(kNatural) > 0.0) {
+        ctx.inputs[0].camera = true;
+    }
+}
+
 }  // namespace
 
 extern const NodeType kLens{
@@ -300,7 +309,7 @@ extern const NodeType kLens{
      kParams,
      "stmap"},
     &execute,
-    nullptr,
+    &plan,
     nullptr,
     nullptr,
     [](std::vector<std::string> &problems) {

@@ -294,6 +294,9 @@ void execute(NodeContext &ctx)
 
 void plan(PlanContext &ctx)
 {
+    if (ctx.params.get_choice(kSource) == 1) {
+        ctx.inputs[0].camera = true;  // camera-only motion reprojects depth through it
+    }
     if (ctx.params.get_choice(kSource) == 0) {
         ctx.inputs[0].add(ctx.params.get_string(kMotionPass));
         if (ctx.params.get_choice(kSpecular) == 0) {

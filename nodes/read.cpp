@@ -64,8 +64,8 @@ constexpr ParamSpec kSolveCamera =
     ParamSpec::choice("solve_camera", "auto|never", "auto")
         .doc(
             "auto: a file without worldToCamera/worldToNDC that has position and depth passes "
-            "gets its pinhole camera solved from them (posthaste info shows the residual); "
-            "never: leave such a frame without a camera.");
+            "gets its pinhole camera solved from them where a node downstream reads the camera "
+            "(posthaste info shows the residual); never: leave such a frame without a camera.");
 constexpr ParamSpec kCameraResidual =
     ParamSpec::real("camera_residual", kDefaultMaxResidualPx)
         .range(1e-6, 10.0)
@@ -122,10 +122,12 @@ ParamWhere camera_where(const NodeIdentity &node)
     return {node.json_path + "/params/camera", node.describe()};
 }
 
-/// Give the frame the graph's camera, or the one solved from its passes, or mark the header's.
+/// Give the frame the graph's camera, or the one solved from its passes (where something
+/// downstream reads the camera: `wanted`), or mark the header's.
 void resolve_camera(const ReadState &state,
                     const NodeContext &ctx,
                     const std::string &path,
+                    bool wanted,
                     Frame &frame)
 {
     Camera &cam = frame.camera;
@@ -135,6 +137,12 @@ void resolve_camera(const ReadState &state,
     }
     if (cam.world_to_camera && cam.world_to_ndc) {
         cam.origin = "header";
+        return;
+    }
+    if (state.solve && !wanted) {
+        // Nothing downstream reads the camera (PassSet::camera): its passes were not read.
+        cam.origin = "none: " + path +
+                     " has no camera matrices (not solved: no node of the graph reads the camera)";
         return;
     }
     if (!state.solve || !frame.has("position") || !frame.has("depth")) {
@@ -185,10 +193,12 @@ void execute(NodeContext &ctx)
         const ReadState &state = ctx.state().get_or_create<ReadState>(
             [&] { return make_state(ctx.params(), ctx.node(), path); });
         const ReadOptions &options = state.options;
-        // The solve's two passes, read for it alone where nothing downstream asked for them.
+        // The solve's two passes, read for it alone where nothing downstream asked for them;
+        // the solve only where something downstream reads the camera.
+        const bool solve = state.solve && (wanted.all || wanted.camera);
         std::set<std::string> optional = wanted.optional;
         std::vector<std::string> only_for_solve;
-        if (state.solve && !wanted.all) {
+        if (solve && !wanted.all) {
             for (const char *name : {"position", "depth"}) {
                 if (!wanted.wants(name)) {
                     optional.insert(name);
@@ -203,7 +213,7 @@ void execute(NodeContext &ctx)
                                   options,
                                   &non_finite,
                                   &optional);
-        resolve_camera(state, ctx, path, ctx.output());
+        resolve_camera(state, ctx, path, solve, ctx.output());
         for (const std::string &name : only_for_solve) {
             ctx.output().erase(name);
             non_finite.erase(name);

@@ -269,6 +269,7 @@ void plan(PlanContext &ctx)
 {
     PassSet &in = ctx.inputs[0];
     const NodeParams &p = ctx.params;
+    in.camera = true;
     plan_material(ctx);
     in.add(p.get_choice(kPositionFrom) == 0 ? pass::kPosition : pass::kDepth);
     if (p.get_bool(kAnisotropic)) {

@@ -226,6 +226,7 @@ void execute(NodeContext &ctx)
 
 void plan(PlanContext &ctx)
 {
+    ctx.inputs[0].camera = true;
     plan_material(ctx);
     ctx.inputs[0].add_optional("shadow");  // the sun's visibility at the samples, where given
 }

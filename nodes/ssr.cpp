@@ -208,6 +208,7 @@ void environment_probe(NodeContext &ctx,
 
 void plan(PlanContext &ctx)
 {
+    ctx.inputs[0].camera = true;
     // The sun's visibility at the hits, for their re-shading, where the frame has it.
     ctx.inputs[0].add_optional("shadow");
     plan_material(ctx);

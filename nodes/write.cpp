@@ -188,7 +188,11 @@ void execute(NodeContext &ctx)
 void plan(PlanContext &ctx)
 {
     PassSet &in = ctx.inputs[0];
+    // A node reading the write's frame downstream (a write passes its input on) may read the
+    // camera; the write itself only writes what the frame has.
+    const bool camera = ctx.downstream.camera;
     in = PassSet{};
+    in.camera = camera;
     if (is_preview(ctx.params)) {
         in.add(pass::kColor);
         return;

@@ -252,13 +252,16 @@ std::string write_without_camera(const std::string &dir, Frame f, bool keep_lens
 TEST(CameraSolve, ReadSolvesAFileWithoutMatricesAndInfoSaysSo)
 {
     const std::string dir = test::scratch_dir("camera_solve_read");
-    const Frame f = rendered(20);
+    static const raster::Scene scene = raster::load_scene(test::scene_path("minecrappy.json"));
+    const Frame f = raster::render_frame(
+        scene, 20, test::render_options(320, 180, {"position", "depth", "normal"}));
     const std::string path = write_without_camera(dir, f, true);
-    // A read feeding ao, which needs the camera and asks for depth and normal only.
+    // A read feeding ao, which reads the camera and asks for depth and normal only.
     const std::string graph = dir + "/g.json";
     std::ofstream(graph) << R"({"nodes": [
         {"id": "in", "type": "read", "params": {"path": "nocam.exr"}},
-        {"id": "out", "type": "write", "inputs": {"image": "in"},
+        {"id": "ao", "type": "ao", "inputs": {"image": "in"}},
+        {"id": "out", "type": "write", "inputs": {"image": "ao"},
          "params": {"path": "out.exr", "passes": "depth"}}]})";
     std::string log;
     ASSERT_EQ(0, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
@@ -270,6 +273,17 @@ TEST(CameraSolve, ReadSolvesAFileWithoutMatricesAndInfoSaysSo)
     for (const PassSource &ps : out.passes) {
         EXPECT_NE(ps.pass, "position");
     }
+    // Without a node that reads the camera, the read neither reads position for it nor solves:
+    // the output is the depth pass alone, without matrices.
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": "nocam.exr"}},
+        {"id": "out", "type": "write", "inputs": {"image": "in"},
+         "params": {"path": "plain.exr", "passes": "depth"}}]})";
+    ASSERT_EQ(0, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
+    EXPECT_EQ(log.find("camera solved"), std::string::npos) << log;
+    const FileInfo plain = read_file_info(dir + "/plain.exr");
+    EXPECT_FALSE(plain.camera.world_to_ndc.has_value());
+    EXPECT_FALSE(plain.camera.world_to_camera.has_value());
     ASSERT_EQ(0, test::run_command(std::string(POSTHASTE_BINARY) + " info " + path, &log));
     EXPECT_NE(log.find("camera             solved from position + depth, residual"),
               std::string::npos)

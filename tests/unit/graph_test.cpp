@@ -348,6 +348,44 @@ TEST(GraphPlan, SourcesAreAskedOnlyForWhatIsUsed)
     EXPECT_EQ(m.nodes()[2].requested.to_string(), "id");
 }
 
+TEST(GraphPlan, OnlyANodeThatReadsTheCameraAsksASourceForIt)
+{
+    // A read solves a camera from position + depth only where something downstream reads the
+    // camera (PassSet::camera); a pass-through node carries the request, a write keeps it for
+    // what reads its frame, and `all` (a write of every pass) asks for everything.
+    const auto plan = [](const std::string &middle, const std::string &out_params) {
+        const std::string json = R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": "x.exr"}},
+            {"id": "mid", "type": )" +
+                                 middle + R"(, "inputs": {"image": "src"}},
+            {"id": "cc", "type": "grade", "inputs": {"image": "mid"}},
+            {"id": "out", "type": "write", "inputs": {"image": "cc"}, "params": )" +
+                                 out_params + "}]}";
+        return Graph::parse(json, "g.json", nodes::catalog());
+    };
+    const std::string color = R"({"path": "o.exr", "passes": "color"})";
+    EXPECT_FALSE(plan(R"("grade")", color).nodes()[0].requested.camera);
+    EXPECT_FALSE(plan(R"("motion_blur")", color).nodes()[0].requested.camera);
+    EXPECT_FALSE(plan(R"("lens", "params": {"k1": 0.1})", color).nodes()[0].requested.camera);
+    for (const char *reads : {R"("ao")",
+                              R"("ssr")",
+                              R"("ssgi")",
+                              R"("dof")",
+                              R"("fog")",
+                              R"("bloom")",
+                              R"("relight")",
+                              R"("motion_blur", "params": {"source": "camera"})",
+                              R"("lens", "params": {"natural_vignetting": 1})"}) {
+        const Graph g = plan(reads, color);
+        EXPECT_TRUE(g.nodes()[0].requested.camera) << reads;
+        EXPECT_FALSE(g.nodes()[2].requested.camera) << reads;  // the grade after it does not
+    }
+    EXPECT_FALSE(plan(R"("dof", "params": {"focal_length_mm": 50, "sensor_width_mm": 36})", color)
+                     .nodes()[0]
+                     .requested.camera);
+    EXPECT_TRUE(plan(R"("grade")", R"({"path": "o.exr"})").nodes()[0].requested.all);
+}
+
 /// Write two analytic frames and a graph reading them; returns the directory.
 std::string prepare_inputs(const std::string &name, int width, int height)
 {
