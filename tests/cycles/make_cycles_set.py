@@ -3,7 +3,12 @@
 # occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
 #
 #   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
-#                                                              [--only-unfiltered | --noise]
+#       [--only-unfiltered | --noise] [--shots yard,closeup] [--scale K] [--skip-ao]
+#
+# --shots renders only the shots named (the others' files, times and calibrations are kept);
+# --scale K multiplies the passes' and the truths' samples (not the AO pass's) by K: the
+# close-up's errors are near its renders' own noise at 1024 / 2048 samples (docs/ACCURACY.md),
+# so it is rendered at 4x; --skip-ao keeps the shot's AO truths as they are.
 #
 # Writes, per shot, into OUT_DIR:
 #   SHOT.passes.exr         multilayer: Combined, Depth, Normal, Position, Vector, DiffCol, AO
@@ -35,11 +40,20 @@ ONLY_UNFILTERED = "--only-unfiltered" in argv
 # Only a second render of each shot's sharp frame and of its shutter-0.5 truth with another seed,
 # into OUT_DIR/noise/, to measure the renders' own noise (not checked in).
 NOISE = "--noise" in argv
+
+
+def option(name, default):
+    return argv[argv.index(name) + 1] if name in argv else default
+
+
+SHOTS = option("--shots", "yard,closeup").split(",")
+SCALE = int(option("--scale", "1"))
+SKIP_AO = "--skip-ao" in argv
 os.makedirs(OUT, exist_ok=True)
 
 WIDTH, HEIGHT = (160, 90) if QUICK else (320, 180)
-PASS_SAMPLES = 16 if QUICK else 1024
-TRUTH_SAMPLES = 16 if QUICK else 2048
+PASS_SAMPLES = (16 if QUICK else 1024) * SCALE
+TRUTH_SAMPLES = (16 if QUICK else 2048) * SCALE
 AO_SAMPLES = 16 if QUICK else 1024
 FRAME = 2  # the shot frame: frame 1 is the previous frame of the motion vectors
 
@@ -334,7 +348,7 @@ def noise_renders(scene, cam):
     the set's is sqrt(2) times each render's noise."""
     out = os.path.join(OUT, "noise")
     os.makedirs(out, exist_ok=True)
-    for shot in ("yard", "closeup"):
+    for shot in SHOTS:
         set_shot(scene, cam, shot)
         base_settings(scene, PASS_SAMPLES)
         scene.cycles.seed = 8
@@ -353,7 +367,7 @@ def main():
     if NOISE:
         noise_renders(scene, cam)
         return
-    for shot in ("yard", "closeup"):
+    for shot in SHOTS:
         stops = set_shot(scene, cam, shot)
         # The passes (and Blender's compositor nodes on them).
         base_settings(scene, PASS_SAMPLES)
@@ -395,6 +409,8 @@ def main():
         cam.data.dof.use_dof = False
         base_settings(scene, TRUTH_SAMPLES)
         blender_defocus(scene, shot, stops)
+        if SKIP_AO:
+            continue
         # Cycles' AO pass alone at two distances (no bounces: only the AO pass is kept).
         base_settings(scene, AO_SAMPLES)
         scene.cycles.max_bounces = 0
@@ -405,19 +421,33 @@ def main():
                    'OPEN_EXR_MULTILAYER')
         scene.world.light_settings.distance = 1.0
     for f in sorted(os.listdir(OUT)):
-        if f.endswith(".exr") and (not ONLY_UNFILTERED or "_unfiltered" in f):
+        if (f.endswith(".exr") and f.split(".")[0] in SHOTS and
+                (not ONLY_UNFILTERED or "_unfiltered" in f)):
             to_half(os.path.join(OUT, f))
-    with open(os.path.join(OUT, "render_times.txt"), "a" if ONLY_UNFILTERED else "w") as f:
-        if not ONLY_UNFILTERED:
-            f.write(f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
-                    f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
+    # The other shots' lines are kept (--shots).
+    def kept(name, shot_of):
+        path = os.path.join(OUT, name)
+        if not os.path.exists(path):
+            return []
+        with open(path) as f:
+            return [l for l in f if not l.startswith("#") and shot_of(l) not in SHOTS]
+    fresh = {name for name, _, _ in times}
+    old_times = [l for l in kept("render_times.txt", lambda l: "") if l.split()[0] not in fresh]
+    with open(os.path.join(OUT, "render_times.txt"), "w") as f:
+        f.write(f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
+                f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
+        for line in old_times:
+            f.write(line)
         for name, samples, dt in times:
             f.write(f"{name} {samples} {dt:.1f}\n")
     if ONLY_UNFILTERED:
         return
+    old_calibration = kept("blender_calibration.txt", lambda l: l.split()[0])
     with open(os.path.join(OUT, "blender_calibration.txt"), "w") as f:
         f.write("# Blender's Defocus: the node f-stop closest to Cycles' truth at each lens f-stop\n"
                 "# shot lens_fstop node_fstop rmse_rgb\n")
+        for line in old_calibration:
+            f.write(line)
         for shot, fstop, node_fstop, err in calibration:
             f.write(f"{shot} {fstop:g} {node_fstop:.4g} {err:.5f}\n")
 
