@@ -30,7 +30,7 @@ constexpr ParamSpec kShutter =
         .doc("Shutter open time as a fraction of the frame interval, centred on the frame.")
         .from_header(attr::kShutter);
 constexpr ParamSpec kSamples =
-    ParamSpec::integer("samples", 16)
+    ParamSpec::integer("samples", 32)
         .range(1, 256)
         .doc(
             "Most samples along the neighbourhood's motion per pixel (fewer for short motion; "

@@ -135,11 +135,15 @@ TEST(CyclesAccuracySlow, MotionBlurBeatsBlendersVectorBlur)
                         s + ".mb_s" + shutter + ".exr",
                         s + ".blender_vblur_s" + shutter + ".exr");
             print(r);
-            // Measured on 2026-11-28: 86 / 76 % of the do-nothing error removed on the yard, 50 /
-            // 48 % on the close-up; 0.48, 0.97, 0.59, 0.85 of Blender's Vector Blur's RMSE. The
-            // data passes without the pixel filter give the same errors to four digits.
-            EXPECT_LT(r.node, r.nothing) << r.what;
-            EXPECT_LT(r.node, r.blender) << r.what;
+            // Measured on 2026-11-29 (32 samples at two per pixel of the path; the close-up at
+            // 4x the samples): 91 / 85 % of the do-nothing error removed on the yard, 61 / 61 %
+            // on the close-up; 0.31, 0.60, 0.45, 0.64 of Blender's Vector Blur's RMSE (the last
+            // is the chrome ball's reflections of moving objects, which no pass Blender writes
+            // moves). The data passes without the pixel filter give the same errors to four
+            // digits.
+            EXPECT_GT(r.removed(), 0.60) << r.what;
+            EXPECT_LT(r.node, r.blender * (s == "closeup" && shutter[0] == '1' ? 0.7 : 0.61))
+                << r.what;
         }
     }
 }
@@ -162,8 +166,9 @@ TEST(CyclesAccuracySlow, DofBeatsBlendersDefocus)
             shot + ".dof_f" + c.fstop + ".exr",
             shot + ".blender_defocus_f" + c.fstop + ".exr");
         print(r);
-        // Measured on 2026-11-29 (RMSE): the close-up removes 56 % (f/1.4) and 13 % (f/4) of the
-        // do-nothing error, at 0.87 and 0.88 of Blender's calibrated Defocus. On the wide yard
+        // Measured on 2026-11-29 (RMSE; the close-up at 4x the samples): the close-up removes
+        // 64 % (f/1.4) and 25 % (f/4) of the do-nothing error, at 0.81 and 0.78 of Blender's
+        // calibrated Defocus. On the wide yard
         // shot the error is the sun's glint on the chrome ball (value 142, a circle of confusion
         // of 0.49 px at f/1.4) whose peak Cycles' lens lowers by 12 %: the sub-pixel blur (the
         // disc's variance, r^2 / 4) takes the yard from 0.1087 (the node left such discs alone)

@@ -20,7 +20,7 @@ struct MotionBlurOptions {
     /// Fraction of the frame interval the shutter is open, centred on the frame: a pixel blurs
     /// over +-shutter/2 x motion.
     float shutter = 0.5f;
-    int samples = 16;           ///< Most samples per pixel (fewer for short motion).
+    int samples = 32;           ///< Most samples per pixel (fewer for short motion).
     float max_radius = 64.0f;   ///< Longest blur half-extent, pixels.
     int tile = 16;              ///< Tile size of the tile-max reduction, pixels.
     float soft_z = 0.05f;       ///< Depth ramp of the front/back test, relative to depth.

@@ -65,7 +65,9 @@ HWY_INLINE V Unit(VU h)
 HWY_INLINE V Count(V len, V most)
 {
     const D d;
-    const V n = hn::Min(most, hn::Max(hn::Set(d, 2.0f), hn::Ceil(hn::Add(len, len))));
+    const V n = hn::Min(most,
+                        hn::Max(hn::Set(d, 2.0f),
+                                hn::Ceil(hn::Mul(hn::Set(d, Gather::kSamplesPerHalfLength), len))));
     return hn::Max(hn::Set(d, 1.0f), n);
 }
 HWY_INLINE float MinLane(V x)
@@ -198,8 +200,8 @@ constexpr int kTabulated = 32;
 /// Gather::run_origin for samples t_i = -1 + (i + u) step, i < n <= kTabulated, eight at a
 /// time: first columns (unclamped) and row offsets (clamped row x width). Tabulated in the
 /// plan, a sample's loads no longer wait on its chain of float-to-int conversions. t and the
-/// column round once each (fused); the reference rounds the products first, so a sample lands
-/// on the next pixel now and then (within the tolerance the tests state).
+/// column are rounded as Gather::run_origin rounds them (the products first), so every target
+/// reads the reference's pixels.
 HWY_INLINE void Origins(const Gather &g,
                         int x0,
                         int y,
@@ -216,11 +218,11 @@ HWY_INLINE void Origins(const Gather &g,
     const V lanef = hn::Iota(d, 0.0f);
     const V ox = hn::Set(d, float(x0) + 0.5f), oy = hn::Set(d, float(y) + 0.5f);
     for (int i = 0; i < n; i += 8) {
-        const V t = hn::MulAdd(hn::Add(hn::Add(hn::Set(d, float(i)), lanef), hn::Set(d, u)),
-                               hn::Set(d, step),
-                               hn::Set(d, -1.0f));
-        const VI cx = hn::ConvertTo(di, hn::Floor(hn::MulAdd(t, hn::Set(d, vx), ox)));
-        VI cy = hn::ConvertTo(di, hn::Floor(hn::MulAdd(t, hn::Set(d, vy), oy)));
+        const V t = hn::Add(
+            hn::Set(d, -1.0f),
+            hn::Mul(hn::Add(hn::Add(hn::Set(d, float(i)), lanef), hn::Set(d, u)), hn::Set(d, step)));
+        const VI cx = hn::ConvertTo(di, hn::Floor(hn::Add(ox, hn::Mul(t, hn::Set(d, vx)))));
+        VI cy = hn::ConvertTo(di, hn::Floor(hn::Add(oy, hn::Mul(t, hn::Set(d, vy)))));
         cy = hn::Min(hn::Max(cy, hn::Zero(di)), hn::Set(di, g.h - 1));
         hn::Store(cx, di, bx + i);
         hn::Store(hn::Mul(cy, hn::Set(di, g.w)), di, row + i);
