@@ -210,10 +210,10 @@ void BM_IoOpenExrWrite(benchmark::State &state)
                 parallel_for(0, h, [&](int y) {
                     const std::size_t row = std::size_t(y) * std::size_t(w);
                     io_detail::floats_to_halves(img.data() + row * std::size_t(nc),
-                                     nc,
-                                     w,
-                                     dst_half + row * std::size_t(nc) * 2,
-                                     std::size_t(nc) * 2);
+                                                nc,
+                                                w,
+                                                dst_half + row * std::size_t(nc) * 2,
+                                                std::size_t(nc) * 2);
                 });
                 base = reinterpret_cast<const char *>(dst_half);
                 xstride = std::size_t(nc) * 2;
