@@ -1,9 +1,11 @@
 #include "core/parallel.h"
 
+#include <OpenImageIO/imageio.h>
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -56,6 +58,11 @@ void set_thread_count(int threads)
             tbb::global_control::max_allowed_parallelism, std::size_t(threads));
     }
     g_threads = threads;
+    // OpenImageIO's own pool and OpenEXR's (which compresses and decompresses a file's blocks)
+    // follow: a job given two threads on a 64-core farm node compresses on two, not on 64.
+    // 0: both take the hardware's count, as they do by default.
+    OIIO::attribute("threads", std::max(threads, 0));
+    OIIO::attribute("exr_threads", std::max(threads, 0));
 }
 
 int thread_count()

@@ -1,5 +1,6 @@
 #include "core/image.h"
 
+#include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -100,6 +101,25 @@ TEST(Parallel, TilesCoverEveryPixelOnce)
     for (std::size_t i = 0; i < img.value_count(); ++i) {
         ASSERT_EQ(img.data()[i], 1.0f);
     }
+}
+
+TEST(Parallel, TheThreadCountReachesOpenImageIOAndOpenExr)
+{
+    // --threads bounds the image libraries' pools too: OpenEXR compresses a file's blocks on
+    // its own threads, which otherwise number the machine's cores whatever the job was given.
+    const auto oiio = [](const char *name) {
+        int v = -1;
+        OIIO::getattribute(name, v);
+        return v;
+    };
+    set_thread_count(1);
+    EXPECT_EQ(thread_count(), 1);
+    EXPECT_EQ(oiio("threads"), 1);
+    EXPECT_EQ(oiio("exr_threads"), 1);
+    set_thread_count(3);
+    EXPECT_EQ(oiio("exr_threads"), 3);
+    set_thread_count(0);  // back to the defaults: the hardware's count
+    EXPECT_EQ(oiio("exr_threads"), 0);
 }
 
 TEST(Hash, UnitRangeAndDeterminism)
