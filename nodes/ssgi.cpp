@@ -207,13 +207,24 @@ void execute(NodeContext &ctx)
         const Image &in_color = *color_pass.image;
         const int nc = in_color.channels();
         Image color = Image::uninitialized(w, h, nc);
-        parallel_for(0, h, [&](int y) {
+        // Channel counts known at compile time where they usually are (the loop vectorises).
+        const auto add_row = [&]<int kNc>(int y) {
+            const int n = kNc > 0 ? kNc : nc;
             const float *src = in_color.pixel(0, y), *g = gi.pixel(0, y);
             float *dst = color.pixel(0, y);
             for (int x = 0; x < w; ++x) {
-                for (int c = 0; c < nc; ++c) {
-                    dst[x * nc + c] = src[x * nc + c] + (c < 3 ? g[x * 3 + c] : 0.0f);
+                for (int c = 0; c < n; ++c) {
+                    dst[x * n + c] = src[x * n + c] + (c < 3 ? g[x * 3 + c] : 0.0f);
                 }
+            }
+        };
+        parallel_for(0, h, [&](int y) {
+            if (nc == 4) {
+                add_row.template operator()<4>(y);
+            } else if (nc == 3) {
+                add_row.template operator()<3>(y);
+            } else {
+                add_row.template operator()<0>(y);
             }
         });
         ctx.output().set(pass::kColor,

@@ -4,9 +4,13 @@
 // cases (NaN/Inf in every input, all sky, a bright emitter beside a dark wall, a one-pixel wall,
 // the frame's edge, extreme parameters); same bits on any thread count; render's truth "gi".
 
+#include "shading/gi/ssgi.h"
+
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <glm/geometric.hpp>
 #include <limits>
 
@@ -391,6 +395,209 @@ TEST(Ssgi, ReshadingMovesOnlyViewDependentLight)
         ADD_FAILURE() << "no error";
     } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("sun_irradiance"), std::string::npos) << e.what();
+    }
+}
+
+/// A computed pixel's depth (its top-left full-resolution pixel's; NaN for no surface) and unit
+/// normal (0 where unknown), as the resolve takes them.
+float reduced_depth(const Image &depth, int st, int x, int y)
+{
+    const float z = depth.at(x * st, y * st, 0);
+    return z > 0.0f && std::isfinite(z) ? z : std::numeric_limits<float>::quiet_NaN();
+}
+glm::vec3 reduced_normal(const Image &normal, int st, int x, int y)
+{
+    const glm::vec3 n(
+        normal.at(x * st, y * st, 0), normal.at(x * st, y * st, 1), normal.at(x * st, y * st, 2));
+    const float len2 = glm::dot(n, n);
+    return len2 > 1e-12f && std::isfinite(len2) ? n / std::sqrt(len2) : glm::vec3(0.0f);
+}
+
+/// The upsample as a plain loop (the code the Highway rows replaced): bilinear weights times the
+/// depth tent times max(0, n.m / |n|)^8 over the four reduced taps, the tap nearest in depth
+/// where none weighs, 0 on the sky; no denoise, no albedo.
+Image reference_upsample(const Image &light, const Image &depth, const Image &normal, int st)
+{
+    const int ow = light.width(), oh = light.height(), w = depth.width(), h = depth.height();
+    const auto lz = [&](int x, int y) { return reduced_depth(depth, st, x, y); };
+    const auto ln = [&](int x, int y) { return reduced_normal(normal, st, x, y); };
+    Image out(w, h, 3);
+    for (int y = 0; y < h; ++y) {
+        const int j0 = std::min(y / st, oh - 1), j1 = std::min(j0 + 1, oh - 1);
+        const float fy = float(y - j0 * st) / float(st);
+        for (int x = 0; x < w; ++x) {
+            const int i0 = std::min(x / st, ow - 1), i1 = std::min(i0 + 1, ow - 1);
+            const float fx = float(x - i0 * st) / float(st);
+            const float z = depth.at(x, y, 0);
+            if (!(z > 0.0f) || !std::isfinite(z)) {
+                continue;
+            }
+            const float inv = 1.0f / (0.1f * z);
+            const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
+            const float len2 = glm::dot(n, n);
+            const bool known = len2 > 1e-12f && std::isfinite(len2);
+            const float inv_len2 = known ? 1.0f / len2 : 0.0f;
+            const int ti[4] = {i0, i1, i0, i1}, tj[4] = {j0, j0, j1, j1};
+            const float bw[4] = {
+                (1.0f - fx) * (1.0f - fy), fx * (1.0f - fy), (1.0f - fx) * fy, fx * fy};
+            float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f, best = INFINITY;
+            int nearest = -1;
+            for (int k = 0; k < 4; ++k) {
+                const float dz = std::abs(lz(ti[k], tj[k]) - z);
+                const glm::vec3 tn = ln(ti[k], tj[k]);
+                float nw = 1.0f;
+                if (known && tn != glm::vec3(0.0f)) {
+                    const float t = std::max(0.0f, glm::dot(n, tn));
+                    const float t2 = t * t * inv_len2;
+                    nw = t2 * t2;
+                    nw *= nw;
+                }
+                const float tent = std::max(0.0f, 1.0f - dz * inv);
+                const float wt = bw[k] * tent * nw;
+                const float *v = light.pixel(ti[k], tj[k]);
+                for (int c = 0; c < 3; ++c) {
+                    sum[c] += wt * v[c];
+                }
+                wsum += wt;
+                if (dz < best) {
+                    best = dz;
+                    nearest = k;
+                }
+            }
+            float *o = out.pixel(x, y);
+            for (int c = 0; c < 3; ++c) {
+                o[c] = wsum > 1e-6f   ? sum[c] * (1.0f / wsum)
+                       : nearest >= 0 ? light.pixel(ti[nearest], tj[nearest])[c]
+                                      : 0.0f;
+            }
+        }
+    }
+    return out;
+}
+
+/// The denoise as a plain loop: a 5 x 5 window at the reduced resolution, weights the depth
+/// tent times max(0, a.b)^8 of the unit normals (1 where either is unknown).
+Image reference_denoise(const Image &light, const Image &depth, const Image &normal, int st)
+{
+    const int ow = light.width(), oh = light.height();
+    const auto lz = [&](int x, int y) { return reduced_depth(depth, st, x, y); };
+    const auto ln = [&](int x, int y) { return reduced_normal(normal, st, x, y); };
+    Image low = light;
+    for (int y = 0; y < oh; ++y) {
+        for (int x = 0; x < ow; ++x) {
+            const float z = lz(x, y);
+            if (!(z > 0.0f)) {
+                continue;
+            }
+            const float inv = 1.0f / (0.1f * z);
+            const glm::vec3 n = ln(x, y);
+            float sum[3] = {0.0f, 0.0f, 0.0f}, wsum = 0.0f;
+            for (int j = std::max(0, y - 2); j <= std::min(oh - 1, y + 2); ++j) {
+                for (int i = std::max(0, x - 2); i <= std::min(ow - 1, x + 2); ++i) {
+                    const glm::vec3 m = ln(i, j);
+                    float nw = 1.0f;
+                    if (n != glm::vec3(0.0f) && m != glm::vec3(0.0f)) {
+                        float t = std::max(0.0f, glm::dot(n, m));
+                        t *= t;
+                        t *= t;
+                        nw = t * t;
+                    }
+                    const float wt = std::max(0.0f, 1.0f - std::abs(lz(i, j) - z) * inv) * nw;
+                    for (int c = 0; c < 3; ++c) {
+                        sum[c] += wt * light.at(i, j, c);
+                    }
+                    wsum += wt;
+                }
+            }
+            for (int c = 0; c < 3; ++c) {
+                low.at(x, y, c) = sum[c] / wsum;
+            }
+        }
+    }
+    return low;
+}
+
+TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
+{
+    // A width that is no multiple of the lanes, depth edges, sky, NaN depth, zero and
+    // unnormalised normals, a depth no tap's tent reaches: the Highway rows of the denoise and
+    // the upsample give the plain loops' bits, on every target this CPU has.
+    const int w = 203, h = 37;
+    Image depth(w, h, 1), normal(w, h, 3);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const std::uint32_t k = std::uint32_t(x * 7919 + y * 104729);
+            float z = 2.0f + 0.05f * float(x % 13) + (x > 90 ? 6.0f : 0.0f);
+            if (k % 23 == 0) {
+                z = std::numeric_limits<float>::infinity();  // sky
+            } else if (k % 29 == 0) {
+                z = std::numeric_limits<float>::quiet_NaN();
+            } else if (k % 31 == 0) {
+                z = 100.0f;  // far from every tap
+            }
+            depth.at(x, y, 0) = z;
+            const float a = 0.1f * float(k % 17);
+            normal.at(x, y, 0) = k % 19 == 0 ? 0.0f : 2.0f * std::sin(a);
+            normal.at(x, y, 1) = k % 19 == 0 ? 0.0f : 2.0f * std::cos(a);
+            normal.at(x, y, 2) = k % 19 == 0 ? 0.0f : 0.3f;
+        }
+    }
+    for (const int st : {2, 4}) {
+        const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+        Image light(ow, oh, 3);
+        for (int y = 0; y < oh; ++y) {
+            for (int x = 0; x < ow; ++x) {
+                for (int c = 0; c < 3; ++c) {
+                    light.at(x, y, c) = 0.01f * float((x * 31 + y * 17 + c * 5) % 97);
+                }
+            }
+        }
+        const Image ref = reference_upsample(light, depth, normal, st);
+        // The albedo (three and four channels) and 1 - metallic (NaN, below 0, above 1).
+        Image albedo3(w, h, 3), albedo4(w, h, 4), material(w, h, 3);
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                for (int c = 0; c < 4; ++c) {
+                    const float a = 0.1f + 0.2f * float((x + 3 * y + c) % 5);
+                    if (c < 3) {
+                        albedo3.at(x, y, c) = a;
+                    }
+                    albedo4.at(x, y, c) = a;
+                }
+                const int k = (x + y) % 7;
+                material.at(x, y, 1) = k == 0   ? std::numeric_limits<float>::quiet_NaN()
+                                       : k == 1 ? -0.5f
+                                       : k == 2 ? 1.5f
+                                                : 0.1f * float(k);
+            }
+        }
+        const Image denoised =
+            reference_upsample(reference_denoise(light, depth, normal, st), depth, normal, st);
+        test::for_each_highway_target([&](const char *target) {
+            const Image out = shading::ssgi_resolve(light, depth, normal, st, false, nullptr);
+            EXPECT_TRUE(out.bit_equal(ref)) << "stride " << st << ", " << target;
+            EXPECT_TRUE(
+                shading::ssgi_resolve(light, depth, normal, st, true, nullptr).bit_equal(denoised))
+                << "denoised, stride " << st << ", " << target;
+            for (const Image *albedo : {&albedo3, &albedo4}) {
+                const shading::SsgiApply apply{albedo, &material, 0.7f};
+                const Image lit = shading::ssgi_resolve(light, depth, normal, st, false, &apply);
+                Image want = ref;
+                for (int y = 0; y < h; ++y) {
+                    for (int x = 0; x < w; ++x) {
+                        const float metal = material.at(x, y, 1);
+                        float k = 0.7f;
+                        k *= std::isfinite(metal) ? 1.0f - std::clamp(metal, 0.0f, 1.0f) : 1.0f;
+                        for (int c = 0; c < 3; ++c) {
+                            float &v = want.at(x, y, c);
+                            v = k * albedo->at(x, y, c) * std::max(0.0f, v);
+                        }
+                    }
+                }
+                EXPECT_TRUE(lit.bit_equal(want))
+                    << "stride " << st << ", albedo " << albedo->channels() << ", " << target;
+            }
+        });
     }
 }
 
