@@ -207,20 +207,28 @@ TEST(Dof, VectorAndScalarPathsAgree)
     }
 }
 
+/// An opaque black RGBA image with one pixel of red `value` at (x, y).
+Image one_bright_pixel(int w, int h, int x, int y, float value)
+{
+    Image color(w, h, 4);
+    color.fill(0.0f);
+    for (int j = 0; j < h; ++j) {
+        for (int i = 0; i < w; ++i) {
+            color.at(i, j, 3) = 1.0f;
+        }
+    }
+    color.at(x, y, 0) = value;
+    return color;
+}
+
 TEST(Dof, FlatFieldStaysFlatAndConservesEnergy)
 {
     // A uniform image at one depth is unchanged by any blur; a single bright pixel keeps its
     // energy (sum over the image) to within sampling noise.
     const int w = 96, h = 96;
-    Image color(w, h, 4), depth(w, h, 1), out;
-    color.fill(0.0f);
+    const Image color = one_bright_pixel(w, h, 48, 48, 1000.0f);
+    Image depth(w, h, 1), out;
     depth.fill(1000.0f);
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-            color.at(x, y, 3) = 1.0f;
-        }
-    }
-    color.at(48, 48, 0) = 1000.0f;
     shading::DofLens l{1.0f, 1.0f, 50.0f, 36.0f};  // 7 px CoC at 96 px
     shading::DofSettings s;
     s.half_res = false;
@@ -242,15 +250,9 @@ TEST(Dof, SubPixelCocSpreadsByTheDiscsVariance)
     // pixel by a disc of variance r^2 / 4 per axis: one bright pixel becomes the 4-neighbour
     // stencil a = r^2 / 8 around it, energy kept, nothing beyond.
     const int w = 16, h = 16;
-    Image color(w, h, 4), depth(w, h, 1), out;
-    color.fill(0.0f);
+    const Image color = one_bright_pixel(w, h, 8, 8, 100.0f);
+    Image depth(w, h, 1), out;
     depth.fill(2.0f);
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-            color.at(x, y, 3) = 1.0f;
-        }
-    }
-    color.at(8, 8, 0) = 100.0f;
     // 50 mm at f/1 focused at 1 m: 50 * 50 * 1000 / (2000 * 950) mm = 1.3158 mm over 36 mm at
     // 16 px, a radius of 0.29240 px.
     const shading::DofLens l{1.0f, 1.0f, 50.0f, 36.0f};

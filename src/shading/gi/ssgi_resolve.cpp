@@ -84,8 +84,9 @@ Image ssgi_resolve(const Image &light,
         return lnorm[std::size_t(y) * std::size_t(ow) + std::size_t(x)];
     };
     Image low = light;
+    // The unit normals as three floats a pixel, for the Highway rows.
+    const float *lnf = reinterpret_cast<const float *>(lnorm.data());
     if (denoise) {
-        const float *lnf = reinterpret_cast<const float *>(lnorm.data());
         parallel_for(0, oh, [&](int y) {
             const auto scalar = [&](int x) {
                 const float z = lz(x, y);
@@ -143,7 +144,6 @@ Image ssgi_resolve(const Image &light,
         col1[std::size_t(x)] = std::min(i0 + 1, ow - 1);
         colf[std::size_t(x)] = float(x - i0 * st) / float(st);
     }
-    const float *lnu = reinterpret_cast<const float *>(lnorm.data());
     parallel_for(0, h, [&](int y) {
         const int j0 = std::min(y / st, oh - 1), j1 = std::min(j0 + 1, oh - 1);
         const int nc = normal.channels();
@@ -168,8 +168,8 @@ Image ssgi_resolve(const Image &light,
         }
         r.z0 = ld.data() + std::size_t(j0) * std::size_t(ow);
         r.z1 = ld.data() + std::size_t(j1) * std::size_t(ow);
-        r.n0 = lnu + 3 * std::size_t(j0) * std::size_t(ow);
-        r.n1 = lnu + 3 * std::size_t(j1) * std::size_t(ow);
+        r.n0 = lnf + 3 * std::size_t(j0) * std::size_t(ow);
+        r.n1 = lnf + 3 * std::size_t(j1) * std::size_t(ow);
         r.v0 = low.pixel(0, j0);
         r.v1 = low.pixel(0, j1);
         r.fy = float(y - j0 * st) / float(st);
