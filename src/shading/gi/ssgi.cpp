@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <glm/geometric.hpp>
 #include <limits>
 #include <vector>
@@ -46,39 +47,58 @@ struct Arc {
     }
 };
 
-/// A computed pixel's surface as the march reads it: world position, and z = 0 for the sky.
-struct Texel {
-    glm::vec3 p{0.0f};
-    float z = 0.0f;
-};
-/// And as a lit sample reads it: the unit normal on the camera's side, the lit colour (its
-/// block's mean).
+/// A computed pixel's surface as a lit sample reads it: the unit normal on the camera's side, the
+/// lit colour (its block's mean).
 struct Shade {
     glm::vec3 n{0.0f}, l{0.0f};
 };
 
 /// The radiance image reduced to the computed pixels' blocks (stride x stride box means, RGB),
 /// non-finite values read as 0: what a sample sees is the mean of the pixels it stands for.
+/// Each block's sums run over its rows, then its pixels, in order; a band of blocks is read a
+/// row at a time.
 Image block_radiance(const Image &radiance, int st)
 {
     const int w = radiance.width(), h = radiance.height(), nc = radiance.channels();
     const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
     Image out(ow, oh, 3);
-    parallel_for(0, oh, [&](int by) {
-        for (int bx = 0; bx < ow; ++bx) {
-            float sum[3] = {0.0f, 0.0f, 0.0f};
-            int n = 0;
-            for (int y = by * st; y < std::min(h, by * st + st); ++y) {
-                for (int x = bx * st; x < std::min(w, bx * st + st); ++x, ++n) {
-                    const float *px = radiance.pixel(x, y);
-                    for (int c = 0; c < std::min(nc, 3); ++c) {
-                        sum[c] += std::isfinite(px[c]) ? px[c] : 0.0f;
+    const auto finite = [](float v) {
+        std::uint32_t u;
+        std::memcpy(&u, &v, sizeof(u));
+        return (u & 0x7f800000u) != 0x7f800000u ? v : 0.0f;
+    };
+    // The channel count known at compile time where it usually is (4 or 3).
+    const auto band = [&]<int kNc>(int by) {
+        const int n = kNc > 0 ? kNc : nc, used = std::min(n, 3);
+        std::vector<float> sum(std::size_t(ow) * 3, 0.0f);
+        const int y0 = by * st, y1 = std::min(h, by * st + st);
+        for (int y = y0; y < y1; ++y) {
+            const float *row = radiance.pixel(0, y);
+            for (int bx = 0; bx < ow; ++bx) {
+                float *s = &sum[std::size_t(bx) * 3];
+                for (int x = bx * st; x < std::min(w, bx * st + st); ++x) {
+                    for (int c = 0; c < used; ++c) {
+                        s[c] += finite(row[std::size_t(x) * std::size_t(n) + std::size_t(c)]);
                     }
                 }
             }
+        }
+        for (int bx = 0; bx < ow; ++bx) {
+            const float count = float((y1 - y0) * (std::min(w, bx * st + st) - bx * st));
+            const float *s = &sum[std::size_t(bx) * 3];
+            float *o = out.pixel(bx, by);
             for (int c = 0; c < 3; ++c) {
-                out.at(bx, by, c) = nc == 1 ? sum[0] / float(n) : sum[c] / float(n);
+                o[c] = (n == 1 ? s[0] : s[c]) / count;
             }
+        }
+    };
+    parallel_for(0, oh, [&](int by) {
+        if (nc == 4) {
+            band.template operator()<4>(by);
+        } else if (nc == 3) {
+            band.template operator()<3>(by);
+        } else {
+            band.template operator()<0>(by);
         }
     });
     return out;
@@ -134,15 +154,28 @@ using SurfaceCube = LatLongCube<glm::vec3>;
 
 /// A computed pixel's surface for the re-shading: its material, the sun's visibility, and its
 /// view-dependent shading as the camera sees it (sun response and sky light).
+/// 48 bytes (a Surface with its unused tangent would make 64): the march reads one per lit
+/// sample, scattered.
 struct Reshade {
-    Surface surf;
+    glm::vec3 albedo{0.0f};
+    float roughness = 0.0f, metallic = 0.0f;
     float vis = 0.0f;
     glm::vec3 ambient{0.0f}, seen{0.0f};
+
+    Surface surface() const
+    {
+        Surface s;
+        s.albedo = albedo;
+        s.roughness = roughness;
+        s.metallic = metallic;
+        return s;
+    }
 };
 
 /// The view-dependent shading of a surface toward v: the sun's response (with the lobe's
 /// roughness) and the sky light, as render and ssr shade it.
 glm::vec3 view_shading(const Reshade &r,
+                       const Surface &surf,
                        const Surface &lobe,
                        const glm::vec3 &n,
                        const glm::vec3 &v,
@@ -154,7 +187,7 @@ glm::vec3 view_shading(const Reshade &r,
         c = direct_response(lobe, n, v, p.sun_direction, DirectOptions{}) *
             (p.sun_irradiance * r.vis);
     }
-    return add_sky_light(c, r.surf, n, v, sky, r.ambient, p.sky_scale);
+    return add_sky_light(c, surf, n, v, sky, r.ambient, p.sky_scale);
 }
 
 }  // namespace
@@ -172,10 +205,17 @@ Image ssgi(const Image &depth,
     const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
     const glm::vec3 cam = rays.position();
     const float inv_w = 1.0f / float(w), inv_h = 1.0f / float(h);
-    // The computed pixels' surfaces, once: world position, the normal on the camera's side,
-    // and whether there is one (the march reads these, not the full-resolution passes).
+    // The computed pixels' surfaces, once: camera depth (0 for the sky), the normal on the
+    // camera's side and the lit colour (the march reads these, not the full-resolution passes).
+    // A sample's world position is made again from its depth: the depths alone (4 bytes a
+    // computed pixel) stay in cache where positions would not, and the march's samples are
+    // scattered.
     const std::size_t count = std::size_t(ow) * std::size_t(oh);
-    std::vector<Texel> texels(count);
+    std::vector<float> zs(count);
+    const auto position = [&](int ox, int oy, float z) {
+        return cam +
+               z * rays.depth_ray((float(ox * st) + 0.5f) * inv_w, (float(oy * st) + 0.5f) * inv_h);
+    };
     std::vector<Shade> shades(count);
     const bool reshade =
         surfaces && surfaces->albedo && surfaces->material && p.sun_irradiance != glm::vec3(0.0f);
@@ -186,27 +226,27 @@ Image ssgi(const Image &depth,
         for (int ox = 0; ox < ow; ++ox) {
             const int x = ox * st, y = oy * st;
             const std::size_t i = std::size_t(oy) * std::size_t(ow) + std::size_t(ox);
-            Texel &t = texels[i];
-            t.z = depth.at(x, y, 0);
-            if (!(t.z > 0.0f) || !std::isfinite(t.z)) {
-                t.z = 0.0f;  // the sky
+            const float z = depth.at(x, y, 0);
+            if (!(z > 0.0f) || !std::isfinite(z)) {
+                zs[i] = 0.0f;  // the sky
                 continue;
             }
-            t.p = cam + t.z * rays.depth_ray((float(x) + 0.5f) * inv_w, (float(y) + 0.5f) * inv_h);
-            const glm::vec3 v_cam = glm::normalize(cam - t.p);
+            zs[i] = z;
+            const glm::vec3 v_cam = glm::normalize(cam - position(ox, oy, z));
             shades[i].n = normal_at(normal, x, y, v_cam);
             const float *l = lit.pixel(ox, oy);
             shades[i].l = glm::vec3(l[0], l[1], l[2]);
             if (reshade) {
                 Reshade &r = reshades[i];
-                r.surf.albedo = glm::vec3(surfaces->albedo->at(x, y, 0),
-                                          surfaces->albedo->at(x, y, 1),
-                                          surfaces->albedo->at(x, y, 2));
-                r.surf.roughness = std::clamp(surfaces->material->at(x, y, 0), 0.0f, 1.0f);
-                r.surf.metallic = std::clamp(surfaces->material->at(x, y, 1), 0.0f, 1.0f);
+                r.albedo = glm::vec3(surfaces->albedo->at(x, y, 0),
+                                     surfaces->albedo->at(x, y, 1),
+                                     surfaces->albedo->at(x, y, 2));
+                r.roughness = std::clamp(surfaces->material->at(x, y, 0), 0.0f, 1.0f);
+                r.metallic = std::clamp(surfaces->material->at(x, y, 1), 0.0f, 1.0f);
                 r.vis = surfaces->shadow ? surfaces->shadow->at(x, y, 0) : 1.0f;
                 r.ambient = sky.ambient(shades[i].n);
-                r.seen = view_shading(r, r.surf, shades[i].n, v_cam, p, sky);
+                const Surface surf = r.surface();
+                r.seen = view_shading(r, surf, surf, shades[i].n, v_cam, p, sky);
             }
         }
     });
@@ -232,15 +272,15 @@ Image ssgi(const Image &depth,
     parallel_for(0, oh, [&](int oy) {
         for (int ox = 0; ox < ow; ++ox) {
             const std::size_t ci = std::size_t(oy) * std::size_t(ow) + std::size_t(ox);
-            const Texel &c = texels[ci];
-            if (c.z == 0.0f) {
+            const float cz = zs[ci];
+            if (cz == 0.0f) {
                 continue;  // the sky: 0
             }
-            const glm::vec3 &P = c.p, &N = shades[ci].n;
+            const glm::vec3 P = position(ox, oy, cz), &N = shades[ci].n;
             const glm::vec3 V = glm::normalize(cam - P);
             // The search radius in computed pixels.
-            const float r_px = std::min(p.max_radius_px / float(st),
-                                        p.radius / std::max(c.z * px_world_1, 1e-20f));
+            const float r_px =
+                std::min(p.max_radius_px / float(st), p.radius / std::max(cz * px_world_1, 1e-20f));
             if (!(r_px >= 1.0f)) {
                 continue;  // the radius is under a computed pixel: nothing to gather
             }
@@ -292,13 +332,13 @@ Image ssgi(const Image &depth,
                         if (!(sx >= 0.0f && sy >= 0.0f && sx < float(ow) && sy < float(oh))) {
                             break;  // off screen: nothing more this frame shows
                         }
-                        const std::size_t qi =
-                            std::size_t(int(sy)) * std::size_t(ow) + std::size_t(int(sx));
-                        const Texel &q = texels[qi];
-                        if (q.z == 0.0f) {
+                        const int qx = int(sx), qy = int(sy);
+                        const std::size_t qi = std::size_t(qy) * std::size_t(ow) + std::size_t(qx);
+                        const float qz = zs[qi];
+                        if (qz == 0.0f) {
                             continue;  // sky
                         }
-                        const glm::vec3 d = q.p - P;
+                        const glm::vec3 d = position(qx, qy, qz) - P;
                         const float dc = glm::dot(d, V), ds = glm::dot(d, e2);
                         // On this side of the slice (a sample rounded onto the slice's line or
                         // the point itself is not) and above the horizon: sin(horizon - a) > 0
@@ -322,12 +362,14 @@ Image ssgi(const Image &depth,
                             if (reshade) {
                                 // q's radiance toward the point, not toward the camera.
                                 const Reshade &r = reshades[qi];
-                                Surface lobe = r.surf;
+                                const Surface surf = r.surface();
+                                Surface lobe = surf;
                                 lobe.roughness =
                                     std::max(lobe.roughness, kReflectedSunMinRoughness);
                                 const glm::vec3 to_p = -d / std::sqrt(glm::dot(d, d));
                                 L = glm::max(
-                                    L + view_shading(r, lobe, shades[qi].n, to_p, p, sky) - r.seen,
+                                    L + view_shading(r, surf, lobe, shades[qi].n, to_p, p, sky) -
+                                        r.seen,
                                     glm::vec3(0.0f));
                             }
                             sum += (nlen * m) * L;
