@@ -2,8 +2,9 @@
 // tile max CoC with dilation, then a near/far separated gather (src/shading/dof/dof_gather.h; Jimenez
 // 2014, Abadie 2018). Lens values come from the frame header (aperture, focus, focalLength,
 // sensorWidth) unless a parameter overrides them. Jitter is hashed from (x / 8, y): the output does
-// not depend on the thread count. A CoC under half a pixel blurs by a 4-neighbour stencil of the
-// disc's variance; when no pixel's CoC reaches 1/16 px the color pass is passed on untouched
+// not depend on the thread count. A CoC under 3/4 px behind the focus plane (1/2 px in front)
+// blurs by a 4-neighbour stencil of the disc's variance; when no pixel's CoC reaches 1/16 px the
+// color pass is passed on untouched
 // (same bits). method "simple" is the baseline: a disc of each pixel's own
 // CoC, no depth test.
 

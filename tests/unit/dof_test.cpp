@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <limits>
 #include <utility>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -286,6 +287,59 @@ TEST(Dof, SubPixelCocSpreadsByTheDiscsVariance)
     s.method = shading::DofMethod::Gather;
     const shading::DofLens nearly{1.0f, 1.0f, 50.0f, 36.0f * 6.0f};  // r = 0.0487 px
     EXPECT_FALSE(shading::apply_dof(color, depth, nearly, s, out));
+}
+
+/// The added variance along x of one bright pixel at (8, 8) of a 16x16 image blurred with a
+/// constant CoC of signed radius r (behind the focus plane for r > 0, in front for r < 0).
+double impulse_variance(float r, Image *result = nullptr)
+{
+    const int w = 16, h = 16;
+    const Image color = one_bright_pixel(w, h, 8, 8, 100.0f);
+    Image depth(w, h, 1), out;
+    // 50 mm focused at 1 m: at depth 2 m the radius is 0.29240 px at f/1 (16 px over 36 mm),
+    // at 0.8 m -0.18275 px.
+    const float z = r > 0.0f ? 2.0f : 0.8f;
+    depth.fill(z);
+    const float r1 = 0.5f * shading::coc_diameter_px({1.0f, 1.0f, 50.0f, 36.0f}, z, w);
+    const shading::DofLens l{std::fabs(r1 / r), 1.0f, 50.0f, 36.0f};
+    EXPECT_TRUE(shading::apply_dof(color, depth, l, shading::DofSettings{}, out));
+    double sum = 0.0, second = 0.0;
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            sum += out.at(x, y, 0);
+            second += out.at(x, y, 0) * double((x - 8) * (x - 8));
+        }
+    }
+    if (r > 0.0f && r < 0.75f) {
+        EXPECT_NEAR(sum, 100.0, 1e-3) << r;  // the stencil keeps the energy
+    }
+    if (result) {
+        *result = out;
+    }
+    return second / sum;
+}
+
+TEST(Dof, TheStencilTakesBackgroundsUnderThreeQuartersOfAPixel)
+{
+    // The gather weighs a neighbour by the disc's overlap with a pixel-wide edge: at r = 0.52 it
+    // spread an impulse by 0.15 of the disc's variance, at 0.7 by 0.68. Behind the focus plane
+    // the stencil now takes every radius under 0.75: exactly the disc's variance, the 4
+    // neighbours only.
+    for (float r : {0.3f, 0.52f, 0.6f, 0.74f}) {
+        Image out;
+        EXPECT_NEAR(impulse_variance(r, &out), double(r) * r / 4.0, 1e-5) << r;
+        EXPECT_NEAR(out.at(8, 8, 0), 100.0f * (1.0f - r * r / 2.0f), 1e-3f) << r;
+        EXPECT_NEAR(out.at(9, 8, 0), 100.0f * r * r / 8.0f, 1e-4f) << r;
+        EXPECT_EQ(out.at(9, 9, 0), 0.0f) << r;
+        EXPECT_EQ(out.at(10, 8, 0), 0.0f) << r;
+    }
+    // From 0.75 on the gather (its taps' pattern then spreads the pixel).
+    Image out;
+    impulse_variance(0.8f, &out);
+    EXPECT_NE(out.at(8, 8, 0), 100.0f * (1.0f - 0.32f));
+    // In front of the focus plane a pixel from r = 0.5 on is in the near field, whose layer the
+    // gather makes: not the stencil.
+    EXPECT_GT(std::fabs(impulse_variance(-0.6f) - 0.09), 0.01);
 }
 
 std::string render_dof_graph(const std::string &dof_params)

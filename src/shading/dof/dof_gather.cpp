@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdlib>
 #include <ctime>
 #include <glm/vec2.hpp>
 #include <glm/vec4.hpp>
@@ -111,6 +110,30 @@ glm::vec4 gather_simple(const Context &cx, const Level &lv, int x, int y)
     return sum / float(n + 1);
 }
 
+// Blur under three quarters of a pixel. A CoC of radius r < 0.5 px reaches no neighbour's
+// centre, yet the lens spreads the pixel by a disc of variance r^2 / 4 per axis: a highlight on
+// a surface just off the focus plane loses a tenth of its peak to its neighbours (the Cycles
+// set's sun glint at r = 0.49, docs/ACCURACY.md). The gather's taps weigh a neighbour by the
+// disc's overlap with a pixel-wide edge, which is not that variance until the disc covers the
+// neighbours' centres well: one bright pixel gathered at r = 0.52 spreads by 0.15 of the disc's
+// variance, at 0.6 by 0.51, at 0.75 by 0.72, from 0.76 on by 0.85-1.17 (measured on an impulse,
+// docs/nodes/dof.md). So the background of a pixel with r under kStencilMax takes the
+// 4-neighbour stencil (1 - 4a, a) with a = r^2 / 8 instead, which adds exactly the disc's
+// variance (its frequency response is the disc's to second order): deterministic, no jittered
+// taps. Gather form, the pixel's own radius. A pixel in the near field (in front of the focus
+// plane, r >= 0.5) keeps the gather, which its own layer needs. Below kSubPixelMin the change is
+// under 5e-4 of the local contrast and the pixel is left as it is. Adds the blur of row y (its
+// colour less `subtract`, as the planes hold it) to `dst`.
+constexpr float kSubPixelMin = 0.0625f;
+constexpr float kStencilMax = 0.75f;
+
+/// Whether a pixel of signed CoC radius c takes the stencil (its background is not gathered).
+inline bool takes_stencil(float c)
+{
+    const float r = std::fabs(c);
+    return r >= kSubPixelMin && (r < 0.5f || (c > 0.0f && c < kStencilMax));
+}
+
 // Near/far gather over a group of up to eight horizontally adjacent pixels (x0 .. x0 + 7, y) that
 // share their tap offsets, so that the vector path reads each tap as one contiguous load of eight
 // pixels per plane. Per pixel p with signed radius c_p:
@@ -153,7 +176,8 @@ float gather_group(
     }
     unsigned remaining = 0;
     for (int j = 0; j < count; ++j) {
-        if (g.acp[j] >= 0.5f && g.near_w[j] * sample_area < 1.0f) {
+        // A background pixel under kStencilMax has its blur from add_sub_pixel_blur.
+        if ((g.cp[j] <= -0.5f || g.cp[j] >= kStencilMax) && g.near_w[j] * sample_area < 1.0f) {
             remaining |= 1u << j;
         }
     }
@@ -256,18 +280,6 @@ glm::vec4 composite_half(const Level &full,
     return bg * (1.0f - alpha) + front;
 }
 
-// Blur under half a pixel. A CoC of radius r < 0.5 px reaches no neighbour's centre, so the
-// gather leaves such a pixel alone, yet the lens spreads it by a disc of variance r^2 / 4 per
-// axis: a highlight on a surface just off the focus plane loses a tenth of its peak to its
-// neighbours (the Cycles set's sun glint at r = 0.49, docs/ACCURACY.md). The 4-neighbour stencil
-// (1 - 4a, a) with a = r^2 / 8 adds exactly that variance (its frequency response is the disc's to
-// second order): deterministic, no jittered taps. Gather form, the pixel's own radius: a pixel
-// keeps its own weight whatever its neighbours' CoC, so the edge where the gather takes over at
-// r = 0.5 shows no seam. Below kSubPixelMin the change is under 5e-4 of the local contrast and
-// the pixel is left as it is. Adds the blur of row y (its colour less `subtract`, as the planes
-// hold it) to `dst`.
-constexpr float kSubPixelMin = 0.0625f;
-
 void add_sub_pixel_blur(
     const Image &color, const DofSettings &st, const float *radius, int y, float *const *dst)
 {
@@ -283,13 +295,32 @@ void add_sub_pixel_blur(
         return std::fabs(v) <= std::numeric_limits<float>::max() ? v : 0.0f;
     };
     const int ym = std::max(y - 1, 0), yp = std::min(y + 1, h - 1);
+    // Without a lighting split the pixels are read straight from the rows (the same values).
+    const int cs = color.channels();
+    const float *row = color.pixel(0, y), *up = color.pixel(0, ym), *down = color.pixel(0, yp);
+    const auto finite = [](float v) {
+        return std::fabs(v) <= std::numeric_limits<float>::max() ? v : 0.0f;
+    };
     for (int x = 0; x < w; ++x) {
-        const float r = std::fabs(radius[x]);
-        if (!(r >= kSubPixelMin && r < 0.5f)) {
+        if (!takes_stencil(radius[x])) {
             continue;
         }
+        const float r = std::fabs(radius[x]);
         const float a = 0.125f * r * r;
         const int xm = std::max(x - 1, 0), xp = std::min(x + 1, w - 1);
+        if (!sub) {
+            const std::size_t i = std::size_t(x) * std::size_t(cs);
+            const std::size_t im = std::size_t(xm) * std::size_t(cs),
+                              ip = std::size_t(xp) * std::size_t(cs);
+            for (int k = 0; k < nc; ++k) {
+                const float c = finite(row[i + std::size_t(k)]);
+                const float around =
+                    (finite(row[im + std::size_t(k)]) + finite(row[ip + std::size_t(k)])) +
+                    (finite(up[i + std::size_t(k)]) + finite(down[i + std::size_t(k)]));
+                dst[k][x] = c + a * (around - 4.0f * c);
+            }
+            continue;
+        }
         for (int k = 0; k < nc; ++k) {
             const float c = value(x, y, k);
             const float around =
