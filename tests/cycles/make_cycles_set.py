@@ -3,7 +3,7 @@
 # occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
 #
 #   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
-#       [--only-unfiltered | --noise] [--shots yard,closeup] [--scale K] [--skip-ao]
+#       [--only-unfiltered | --noise | --glint] [--shots yard,closeup] [--scale K] [--skip-ao]
 #
 # --shots renders only the shots named (the others' files, times and calibrations are kept);
 # --scale K multiplies the passes' and the truths' samples (not the AO pass's) by K: the
@@ -37,9 +37,13 @@ OUT = os.path.abspath(argv[0] if argv else "samples/cycles")
 QUICK = "--quick" in argv
 # Only the unfiltered data passes (to add them to a set made before they were).
 ONLY_UNFILTERED = "--only-unfiltered" in argv
-# Only a second render of each shot's sharp frame and of its shutter-0.5 truth with another seed,
-# into OUT_DIR/noise/, to measure the renders' own noise (not checked in).
+# Only a second render of each shot's sharp frame and its motion-blur and depth-of-field truths
+# with another seed, into OUT_DIR/noise/, to measure the renders' own noise (not checked in).
 NOISE = "--noise" in argv
+# Only the yard's sun glint (a 16x16 border around it) at 32x the samples: its sharp frame and
+# its depth-of-field truths, into OUT_DIR/glint/ (the glint's render noise is of the size of the
+# differences between methods at the set's counts).
+GLINT = "--glint" in argv
 
 
 def option(name, default):
@@ -344,12 +348,12 @@ def compositor(scene, shot, stops):
 
 
 def noise_renders(scene, cam):
-    """The sharp frame and the shutter-0.5 truth again with another seed: their RMSE against
-    the set's is sqrt(2) times each render's noise."""
+    """The sharp frame and every truth but the AO passes again with another seed: their RMSE
+    against the set's is sqrt(2) times each render's noise."""
     out = os.path.join(OUT, "noise")
     os.makedirs(out, exist_ok=True)
     for shot in SHOTS:
-        set_shot(scene, cam, shot)
+        stops = set_shot(scene, cam, shot)
         base_settings(scene, PASS_SAMPLES)
         scene.cycles.seed = 8
         render(scene, os.path.join(out, f"{shot}.sharp_seed8.exr"), 'OPEN_EXR')
@@ -357,15 +361,60 @@ def noise_renders(scene, cam):
         scene.cycles.seed = 8
         scene.render.use_motion_blur = True
         scene.cycles.motion_blur_position = 'CENTER'
-        scene.render.motion_blur_shutter = 0.5
-        render(scene, os.path.join(out, f"{shot}.mb_s050_seed8.exr"), 'OPEN_EXR')
+        for shutter in (0.5, 1.0):
+            scene.render.motion_blur_shutter = shutter
+            scene.cycles.seed = 8
+            render(scene, os.path.join(out, f"{shot}.mb_s{int(shutter * 100):03d}_seed8.exr"),
+                   'OPEN_EXR')
         scene.render.use_motion_blur = False
+        cam.data.dof.use_dof = True
+        for fstop in stops:
+            cam.data.dof.aperture_fstop = fstop
+            scene.cycles.seed = 8
+            render(scene, os.path.join(out, f"{shot}.dof_f{fstop:g}_seed8.exr"), 'OPEN_EXR')
+        cam.data.dof.use_dof = False
+
+
+# The yard's glint: pixel (178, 66) from the top left of the 320x180 frame.
+GLINT_BOX = (170, 58, 186, 74)  # x0, y0, x1, y1, pixels from the top left
+
+
+def glint_renders(scene, cam):
+    """The yard's glint, a 16x16 border render at 32x the samples (of the sharp frame and of
+    both depth-of-field truths), cropped to the border."""
+    out = os.path.join(OUT, "glint")
+    os.makedirs(out, exist_ok=True)
+    stops = set_shot(scene, cam, "yard")
+    x0, y0, x1, y1 = GLINT_BOX
+
+    def border():
+        scene.render.use_border = True
+        scene.render.use_crop_to_border = True
+        scene.render.border_min_x = x0 / WIDTH
+        scene.render.border_max_x = x1 / WIDTH
+        scene.render.border_min_y = 1.0 - y1 / HEIGHT  # Blender's border starts at the bottom
+        scene.render.border_max_y = 1.0 - y0 / HEIGHT
+
+    base_settings(scene, PASS_SAMPLES * 32)
+    border()
+    render(scene, os.path.join(out, "yard.glint_sharp.exr"), 'OPEN_EXR')
+    base_settings(scene, TRUTH_SAMPLES * 16)
+    border()
+    cam.data.dof.use_dof = True
+    for fstop in stops:
+        cam.data.dof.aperture_fstop = fstop
+        render(scene, os.path.join(out, f"yard.glint_dof_f{fstop:g}.exr"), 'OPEN_EXR')
+    cam.data.dof.use_dof = False
+    scene.render.use_border = False
 
 
 def main():
     scene, cam = build_scene()
     if NOISE:
         noise_renders(scene, cam)
+        return
+    if GLINT:
+        glint_renders(scene, cam)
         return
     for shot in SHOTS:
         stops = set_shot(scene, cam, shot)
