@@ -521,7 +521,9 @@ TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
 {
     // A width that is no multiple of the lanes, depth edges, sky, NaN depth, zero and
     // unnormalised normals, a depth no tap's tent reaches: the Highway rows of the denoise and
-    // the upsample give the plain loops' bits, on every target this CPU has.
+    // the upsample give the plain loops' bits, on every target this CPU has, with the taps
+    // permuted from the reduced rows (strides 2 and 4 inside a row) and gathered (stride 1, and
+    // a row's last vectors).
     const int w = 203, h = 37;
     Image depth(w, h, 1), normal(w, h, 3);
     for (int y = 0; y < h; ++y) {
@@ -542,7 +544,7 @@ TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
             normal.at(x, y, 2) = k % 19 == 0 ? 0.0f : 0.3f;
         }
     }
-    for (const int st : {2, 4}) {
+    for (const int st : {1, 2, 4}) {
         const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
         Image light(ow, oh, 3);
         for (int y = 0; y < oh; ++y) {

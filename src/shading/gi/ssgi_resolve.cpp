@@ -174,6 +174,7 @@ Image ssgi_resolve(const Image &light,
         r.v1 = low.pixel(0, j1);
         r.fy = float(y - j0 * st) / float(st);
         r.z = depth.pixel(0, y);
+        r.ow = ow;
         r.i0 = col0.data();
         r.i1 = col1.data();
         r.fx = colf.data();

@@ -1,5 +1,6 @@
 // ssgi's depth- and normal-aware upsample of a row (ssgi_resolve_kernels.h), one source over
-// Highway's lane types: one output pixel a lane, its four reduced-resolution taps gathered.
+// Highway's lane types: one output pixel a lane, its four reduced-resolution taps permuted from
+// the reduced rows' columns (gathered where a vector's taps span more columns than lanes).
 // Compiled without FMA contraction (CMakeLists.txt), so every target gives the bits of the
 // scalar loop it replaced: the same operations in the same order.
 
@@ -27,6 +28,7 @@ using DI = hn::RebindToSigned<D>;
 using V = hn::Vec<D>;
 using VI = hn::Vec<DI>;
 using M = hn::Mask<D>;
+using Idx = decltype(hn::IndicesFromVec(D(), hn::Zero(DI())));
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
 /// The full-resolution pixel a lane stands for.
@@ -40,16 +42,55 @@ struct Sums {
     V r, g, b, w, best, nr, ng, nb;
 };
 
-/// One tap: reduced row (z, n, v) at column idx, bilinear weight bw.
-HWY_INLINE void Tap(
-    const Pixel &p, V bw, const float *zr, const float *nr, const float *vr, VI idx, Sums &s)
+/// A tap's values per lane: the reduced pixel's depth, normal and light.
+struct TapValues {
+    V z, nx, ny, nz, r, g, b;
+};
+
+/// A tap's values gathered from a reduced row (z, n, v) at the columns idx.
+HWY_INLINE TapValues GatherTap(const float *zr, const float *nr, const float *vr, VI idx)
+{
+    const D d;
+    const VI i3 = hn::Mul(idx, hn::Set(DI(), 3));
+    return {hn::GatherIndex(d, zr, idx),
+            hn::GatherIndex(d, nr, i3),
+            hn::GatherIndex(d, nr + 1, i3),
+            hn::GatherIndex(d, nr + 2, i3),
+            hn::GatherIndex(d, vr, i3),
+            hn::GatherIndex(d, vr + 1, i3),
+            hn::GatherIndex(d, vr + 2, i3)};
+}
+
+/// A reduced row's columns base .. base + lanes - 1, loaded once: where a vector's taps all lie
+/// among them (the upsample's columns step by one every stride pixels), each tap is a lane
+/// permutation of these instead of seven gathers. The same values, so the same bits.
+HWY_INLINE TapValues LoadColumns(const float *zr, const float *nr, const float *vr, int base)
+{
+    const D d;
+    TapValues t;
+    t.z = hn::LoadU(d, zr + base);
+    hn::LoadInterleaved3(d, nr + 3 * std::size_t(base), t.nx, t.ny, t.nz);
+    hn::LoadInterleaved3(d, vr + 3 * std::size_t(base), t.r, t.g, t.b);
+    return t;
+}
+
+HWY_INLINE TapValues LookupTap(const TapValues &c, Idx idx)
+{
+    return {hn::TableLookupLanes(c.z, idx),
+            hn::TableLookupLanes(c.nx, idx),
+            hn::TableLookupLanes(c.ny, idx),
+            hn::TableLookupLanes(c.nz, idx),
+            hn::TableLookupLanes(c.r, idx),
+            hn::TableLookupLanes(c.g, idx),
+            hn::TableLookupLanes(c.b, idx)};
+}
+
+/// One tap of values tv, bilinear weight bw.
+HWY_INLINE void Tap(const Pixel &p, V bw, const TapValues &tv, Sums &s)
 {
     const D d;
     const V zero = hn::Zero(d);
-    const VI i3 = hn::Mul(idx, hn::Set(DI(), 3));
-    const V tz = hn::GatherIndex(d, zr, idx);
-    const V tnx = hn::GatherIndex(d, nr, i3), tny = hn::GatherIndex(d, nr + 1, i3),
-            tnz = hn::GatherIndex(d, nr + 2, i3);
+    const V tz = tv.z, tnx = tv.nx, tny = tv.ny, tnz = tv.nz;
     const V dz = hn::Abs(hn::Sub(tz, p.z));
     // max(0, n.m)^2 / |n|^2, to the 4th: max(0, n.m / |n|)^8; 1 where either is unknown.
     const M tap_known = hn::Or(hn::Or(hn::Ne(tnx, zero), hn::Ne(tny, zero)), hn::Ne(tnz, zero));
@@ -61,9 +102,7 @@ HWY_INLINE void Tap(
     nw = hn::IfThenElse(hn::And(p.known, tap_known), nw, hn::Set(d, 1.0f));
     const V tent = hn::Sub(hn::Set(d, 1.0f), hn::Mul(dz, p.inv));
     const V wt = hn::Mul(hn::Mul(bw, hn::IfThenElseZero(hn::Lt(zero, tent), tent)), nw);
-    const VI v3 = i3;
-    const V vr_ = hn::GatherIndex(d, vr, v3), vg = hn::GatherIndex(d, vr + 1, v3),
-            vb = hn::GatherIndex(d, vr + 2, v3);
+    const V vr_ = tv.r, vg = tv.g, vb = tv.b;
     s.r = hn::Add(s.r, hn::Mul(wt, vr_));
     s.g = hn::Add(s.g, hn::Mul(wt, vg));
     s.b = hn::Add(s.b, hn::Mul(wt, vb));
@@ -75,9 +114,22 @@ HWY_INLINE void Tap(
     s.nb = hn::IfThenElse(closer, vb, s.nb);
 }
 
+/// The four taps of a vector of pixels: (row 0, i0), (row 0, i1), (row 1, i0), (row 1, i1).
+struct Taps {
+    TapValues t00, t01, t10, t11;
+};
+
+HWY_INLINE Taps GatherTaps(const SsgiUpsampleRow &r, VI i0, VI i1)
+{
+    return {GatherTap(r.z0, r.n0, r.v0, i0),
+            GatherTap(r.z0, r.n0, r.v0, i1),
+            GatherTap(r.z1, r.n1, r.v1, i0),
+            GatherTap(r.z1, r.n1, r.v1, i1)};
+}
+
 /// The upsampled light of one vector of pixels starting at x (lanes past the row padded).
 HWY_INLINE void UpsampleVector(
-    const SsgiUpsampleRow &r, V z, V nx, V ny, V nz, VI i0, VI i1, V fx, V &o0, V &o1, V &o2)
+    const SsgiUpsampleRow &r, V z, V nx, V ny, V nz, const Taps &taps, V fx, V &o0, V &o1, V &o2)
 {
     const D d;
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
@@ -94,10 +146,10 @@ HWY_INLINE void UpsampleVector(
     p.inv_len2 = hn::IfThenElseZero(p.known, hn::Div(one, len2));
     const V fy = hn::Set(d, r.fy), one_fy = hn::Set(d, 1.0f - r.fy), one_fx = hn::Sub(one, fx);
     Sums s{zero, zero, zero, zero, inf, zero, zero, zero};
-    Tap(p, hn::Mul(one_fx, one_fy), r.z0, r.n0, r.v0, i0, s);
-    Tap(p, hn::Mul(fx, one_fy), r.z0, r.n0, r.v0, i1, s);
-    Tap(p, hn::Mul(one_fx, fy), r.z1, r.n1, r.v1, i0, s);
-    Tap(p, hn::Mul(fx, fy), r.z1, r.n1, r.v1, i1, s);
+    Tap(p, hn::Mul(one_fx, one_fy), taps.t00, s);
+    Tap(p, hn::Mul(fx, one_fy), taps.t01, s);
+    Tap(p, hn::Mul(one_fx, fy), taps.t10, s);
+    Tap(p, hn::Mul(fx, fy), taps.t11, s);
     const V rw = hn::Div(one, s.w);
     const M weighs = hn::Gt(s.w, hn::Set(d, 1e-6f));
     const M near = hn::Lt(s.best, inf);
@@ -157,17 +209,22 @@ void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
             ny = hn::LoadU(d, r.ny + x);
             nz = hn::LoadU(d, r.nz + x);
         }
-        UpsampleVector(r,
-                       hn::LoadU(d, r.z + x),
-                       nx,
-                       ny,
-                       nz,
-                       hn::LoadU(di, r.i0 + x),
-                       hn::LoadU(di, r.i1 + x),
-                       hn::LoadU(d, r.fx + x),
-                       o0,
-                       o1,
-                       o2);
+        const VI i0 = hn::LoadU(di, r.i0 + x), i1 = hn::LoadU(di, r.i1 + x);
+        // The columns are non-decreasing: the vector's taps lie in [i0[x], i1[x + lanes - 1]].
+        const int base = r.i0[x];
+        Taps taps;
+        if (r.i1[x + lanes - 1] - base < lanes && base + lanes <= r.ow) {
+            const VI vbase = hn::Set(di, base);
+            const Idx l0 = hn::IndicesFromVec(d, hn::Sub(i0, vbase));
+            const Idx l1 = hn::IndicesFromVec(d, hn::Sub(i1, vbase));
+            const TapValues c0 = LoadColumns(r.z0, r.n0, r.v0, base);
+            const TapValues c1 = LoadColumns(r.z1, r.n1, r.v1, base);
+            taps = {LookupTap(c0, l0), LookupTap(c0, l1), LookupTap(c1, l0), LookupTap(c1, l1)};
+        } else {
+            taps = GatherTaps(r, i0, i1);
+        }
+        UpsampleVector(
+            r, hn::LoadU(d, r.z + x), nx, ny, nz, taps, hn::LoadU(d, r.fx + x), o0, o1, o2);
         if (r.albedo) {
             Apply(r, x, o0, o1, o2);
         }
@@ -197,8 +254,7 @@ void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
                    hn::Load(d, pnx),
                    hn::Load(d, pny),
                    hn::Load(d, pnz),
-                   hn::Load(di, i0),
-                   hn::Load(di, i1),
+                   GatherTaps(r, hn::Load(di, i0), hn::Load(di, i1)),
                    hn::Load(d, fx),
                    o0,
                    o1,

@@ -20,7 +20,9 @@ struct SsgiUpsampleRow {
     /// has another channel count, three planes.
     const float *n3 = nullptr;
     const float *nx = nullptr, *ny = nullptr, *nz = nullptr;
-    const std::int32_t *i0, *i1;  ///< Reduced columns left and right of each pixel.
+    int ow = 0;                   ///< The reduced rows' length (columns).
+    /// Reduced columns left and right of each pixel, non-decreasing along the row.
+    const std::int32_t *i0, *i1;
     const float *fx;              ///< Horizontal weight of each pixel.
     /// Optional (albedo null: none): each pixel times intensity, (1 - metallic) where a
     /// material row is given (its channel 1, mc channels a pixel), and its albedo (na channels:
