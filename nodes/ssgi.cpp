@@ -161,14 +161,14 @@ void execute(NodeContext &ctx)
         p.sun_direction = sun_dir / glm::length(sun_dir);
         check_sun_irradiance(ctx, kSunIrradiance, p.sun_irradiance);
         // The samples' material and the sun's visibility, for the re-shading.
-        Image material_const, material_s, shadow_s;
+        // Read at the computed pixels only, which ssgi makes finite as it reads them.
+        Image material_const;
         shading::SsgiSurfaces surfaces;
         if (reshade) {
             surfaces.albedo = &albedo;
-            surfaces.material =
-                &finite_view(material_or_constant(ctx, "image", material_const), 1.0f, material_s);
+            surfaces.material = &material_or_constant(ctx, "image", material_const);
             if (in.has("shadow")) {
-                surfaces.shadow = &finite_view(in.image("shadow", ctx.where()), 0.0f, shadow_s);
+                surfaces.shadow = &in.image("shadow", ctx.where());
             }
         }
         p.stride = std::array{1, 2, 4}[std::size_t(ctx.get_choice(kResolution))];

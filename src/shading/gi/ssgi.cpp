@@ -241,9 +241,15 @@ Image ssgi(const Image &depth,
                 r.albedo = glm::vec3(surfaces->albedo->at(x, y, 0),
                                      surfaces->albedo->at(x, y, 1),
                                      surfaces->albedo->at(x, y, 2));
-                r.roughness = std::clamp(surfaces->material->at(x, y, 0), 0.0f, 1.0f);
-                r.metallic = std::clamp(surfaces->material->at(x, y, 1), 0.0f, 1.0f);
-                r.vis = surfaces->shadow ? surfaces->shadow->at(x, y, 0) : 1.0f;
+                // Non-finite material reads as 1, a non-finite shadow as 0 (SsgiSurfaces).
+                const auto finite_or = [](float v, float other) {
+                    return std::isfinite(v) ? v : other;
+                };
+                r.roughness =
+                    std::clamp(finite_or(surfaces->material->at(x, y, 0), 1.0f), 0.0f, 1.0f);
+                r.metallic =
+                    std::clamp(finite_or(surfaces->material->at(x, y, 1), 1.0f), 0.0f, 1.0f);
+                r.vis = surfaces->shadow ? finite_or(surfaces->shadow->at(x, y, 0), 0.0f) : 1.0f;
                 r.ambient = sky.ambient(shades[i].n);
                 const Surface surf = r.surface();
                 r.seen = view_shading(r, surf, surf, shades[i].n, v_cam, p, sky);

@@ -36,8 +36,9 @@ struct SsgiParams {
 };
 
 /// The surfaces' material for the re-shading (SsgiParams::sun_irradiance non-zero), the depth
-/// pass's size, finite: albedo (RGB), material (roughness, metallic) and, optionally, the
-/// sun's visibility (the shadow pass; without one, 1 wherever a surface faces the sun).
+/// pass's size: albedo (RGB, finite), material (roughness, metallic; a non-finite value reads
+/// as 1) and, optionally, the sun's visibility (the shadow pass, a non-finite value read as 0;
+/// without one, 1 wherever a surface faces the sun). Only the computed pixels are read.
 struct SsgiSurfaces {
     const Image *albedo = nullptr;
     const Image *material = nullptr;
