@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -555,8 +556,13 @@ TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
             }
         }
         const Image ref = reference_upsample(light, depth, normal, st);
-        // The albedo (three and four channels) and 1 - metallic (NaN, below 0, above 1).
-        Image albedo3(w, h, 3), albedo4(w, h, 4), material(w, h, 3);
+        // The albedo (three and four channels) and 1 - metallic (NaN, below 0, above 1), in a
+        // material pass of 2 to 5 channels (loaded as interleaved vectors, or gathered).
+        Image albedo3(w, h, 3), albedo4(w, h, 4);
+        std::vector<Image> materials;
+        for (int mc : {3, 2, 4, 5}) {
+            materials.emplace_back(w, h, mc);
+        }
         for (int y = 0; y < h; ++y) {
             for (int x = 0; x < w; ++x) {
                 for (int c = 0; c < 4; ++c) {
@@ -567,10 +573,12 @@ TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
                     albedo4.at(x, y, c) = a;
                 }
                 const int k = (x + y) % 7;
-                material.at(x, y, 1) = k == 0   ? std::numeric_limits<float>::quiet_NaN()
-                                       : k == 1 ? -0.5f
-                                       : k == 2 ? 1.5f
-                                                : 0.1f * float(k);
+                for (Image &material : materials) {
+                    material.at(x, y, 1) = k == 0   ? std::numeric_limits<float>::quiet_NaN()
+                                           : k == 1 ? -0.5f
+                                           : k == 2 ? 1.5f
+                                                    : 0.1f * float(k);
+                }
             }
         }
         const Image denoised =
@@ -581,7 +589,9 @@ TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
             EXPECT_TRUE(
                 shading::ssgi_resolve(light, depth, normal, st, true, nullptr).bit_equal(denoised))
                 << "denoised, stride " << st << ", " << target;
-            for (const Image *albedo : {&albedo3, &albedo4}) {
+            for (std::size_t i = 0; i < materials.size() + 1; ++i) {
+                const Image *albedo = i == 0 ? &albedo4 : &albedo3;
+                const Image &material = materials[i == 0 ? 0 : i - 1];
                 const shading::SsgiApply apply{albedo, &material, 0.7f};
                 const Image lit = shading::ssgi_resolve(light, depth, normal, st, false, &apply);
                 Image want = ref;
@@ -597,7 +607,8 @@ TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
                     }
                 }
                 EXPECT_TRUE(lit.bit_equal(want))
-                    << "stride " << st << ", albedo " << albedo->channels() << ", " << target;
+                    << "stride " << st << ", albedo " << albedo->channels() << ", material "
+                    << material.channels() << ", " << target;
             }
         });
     }

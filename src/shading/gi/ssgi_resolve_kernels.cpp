@@ -172,7 +172,18 @@ HWY_INLINE void Apply(const SsgiUpsampleRow &r, int x, V &o0, V &o1, V &o2)
     V k = hn::Set(d, r.intensity);
     const VI xi = hn::Add(hn::Set(di, x), hn::Iota(di, 0));
     if (r.material) {
-        const V metal = hn::GatherIndex(d, r.material + 1, hn::Mul(xi, hn::Set(di, r.mc)));
+        // Channel 1 of mc: loaded where mc is 2, 3 or 4, gathered otherwise.
+        const float *m = r.material + std::size_t(x) * std::size_t(r.mc);
+        V m0, metal, m2, m3;
+        if (r.mc == 3) {
+            hn::LoadInterleaved3(d, m, m0, metal, m2);
+        } else if (r.mc == 4) {
+            hn::LoadInterleaved4(d, m, m0, metal, m2, m3);
+        } else if (r.mc == 2) {
+            hn::LoadInterleaved2(d, m, m0, metal);
+        } else {
+            metal = hn::GatherIndex(d, r.material + 1, hn::Mul(xi, hn::Set(di, r.mc)));
+        }
         // std::clamp(metal, 0, 1), then 1 - it where metal is finite, else 1.
         const V lo = hn::IfThenElse(hn::Lt(metal, zero), zero, metal);
         const V clamped = hn::IfThenElse(hn::Lt(one, lo), one, lo);
