@@ -17,6 +17,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/sanitize.h"
 #include "raster/ray_cast.h"
 #include "raster/render.h"
 #include "raster/scene.h"
@@ -516,6 +517,55 @@ Image reference_denoise(const Image &light, const Image &depth, const Image &nor
         }
     }
     return low;
+}
+
+TEST(Ssgi, TheResolveReadsNonFiniteValuesAsAScanWouldReplaceThem)
+{
+    // The node no longer scans depth, normals and albedo for NaN and infinities before the
+    // resolve (58 MB at 1080p): the resolve reads a non-finite normal component or albedo as 0
+    // and a non-finite depth as the sky, which is what finite_view gave it before, bit for bit.
+    const int w = 203, h = 37, st = 4, ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+    const float nan = std::numeric_limits<float>::quiet_NaN(),
+                inf = std::numeric_limits<float>::infinity();
+    Image depth(w, h, 1), normal(w, h, 3), albedo(w, h, 3), material(w, h, 2), light(ow, oh, 3);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            const std::uint32_t k = std::uint32_t(x * 7919 + y * 104729);
+            const float bad = k % 3 == 0 ? nan : k % 3 == 1 ? inf : -inf;
+            depth.at(x, y, 0) = k % 37 == 0 ? bad : 2.0f + 0.05f * float(x % 13);
+            const float a = 0.1f * float(k % 17);
+            normal.at(x, y, 0) = k % 41 == 0 ? bad : std::sin(a);
+            normal.at(x, y, 1) = k % 43 == 0 ? bad : std::cos(a);
+            normal.at(x, y, 2) = 0.3f;
+            for (int c = 0; c < 3; ++c) {
+                albedo.at(x, y, c) = (k + std::uint32_t(c)) % 47 == 0 ? bad : 0.5f;
+            }
+            material.at(x, y, 1) = 0.2f;
+        }
+    }
+    for (int y = 0; y < oh; ++y) {
+        for (int x = 0; x < ow; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                light.at(x, y, c) = 0.1f + 0.01f * float((x + 2 * y + c) % 11);
+            }
+        }
+    }
+    Image sd, sn, sa;
+    const Image &depth_f = finite_view(depth, inf, sd, true);
+    const Image &normal_f = finite_view(normal, 0.0f, sn);
+    const Image &albedo_f = finite_view(albedo, 0.0f, sa);
+    ASSERT_NE(&normal_f, &normal);
+    ASSERT_NE(&albedo_f, &albedo);
+    test::for_each_highway_target([&](const char *target) {
+        for (const bool denoise : {false, true}) {
+            const shading::SsgiApply raw{&albedo, &material, 1.0f},
+                scanned{&albedo_f, &material, 1.0f};
+            EXPECT_TRUE(shading::ssgi_resolve(light, depth, normal, st, denoise, &raw)
+                            .bit_equal(shading::ssgi_resolve(
+                                light, depth_f, normal_f, st, denoise, &scanned)))
+                << target << (denoise ? ", denoised" : "");
+        }
+    });
 }
 
 TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)

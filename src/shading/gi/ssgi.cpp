@@ -104,9 +104,17 @@ Image block_radiance(const Image &radiance, int st)
     return out;
 }
 
+/// v, or 0 where it is not finite.
+float finite_or_zero(float v)
+{
+    return std::isfinite(v) ? v : 0.0f;
+}
+
 glm::vec3 normal_at(const Image &normal, int x, int y, const glm::vec3 &view)
 {
-    const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
+    const glm::vec3 n(finite_or_zero(normal.at(x, y, 0)),
+                      finite_or_zero(normal.at(x, y, 1)),
+                      finite_or_zero(normal.at(x, y, 2)));
     const float len2 = glm::dot(n, n);
     if (!(len2 > 1e-12f) || !std::isfinite(len2)) {
         return view;
@@ -238,9 +246,9 @@ Image ssgi(const Image &depth,
             shades[i].l = glm::vec3(l[0], l[1], l[2]);
             if (reshade) {
                 Reshade &r = reshades[i];
-                r.albedo = glm::vec3(surfaces->albedo->at(x, y, 0),
-                                     surfaces->albedo->at(x, y, 1),
-                                     surfaces->albedo->at(x, y, 2));
+                r.albedo = glm::vec3(finite_or_zero(surfaces->albedo->at(x, y, 0)),
+                                     finite_or_zero(surfaces->albedo->at(x, y, 1)),
+                                     finite_or_zero(surfaces->albedo->at(x, y, 2)));
                 // Non-finite material reads as 1, a non-finite shadow as 0 (SsgiSurfaces).
                 const auto finite_or = [](float v, float other) {
                     return std::isfinite(v) ? v : other;

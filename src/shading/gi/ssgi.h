@@ -59,9 +59,9 @@ struct SsgiEnvironment {
 /// radiance from the surfaces a depth pass (camera z, +inf sky) shows, with world-space
 /// `normal`s and lit `radiance` (RGB or RGBA scene-linear, the beauty without indirect light) of
 /// the same size, seen through `rays` (NDC [0,1]^2 spanning these images). A receiver's diffuse
-/// bounce is its diffuse albedo times this. Sky and non-finite depth give 0; a zero or
-/// non-finite normal faces the camera; non-finite radiance reads as 0. Rows in parallel, same
-/// bits for any thread count.
+/// bounce is its diffuse albedo times this. Sky and non-finite depth give 0; a normal's
+/// non-finite components read as 0, and a zero normal faces the camera; non-finite radiance
+/// reads as 0. Rows in parallel, same bits for any thread count.
 Image ssgi(const Image &depth,
            const Image &normal,
            const Image &radiance,
@@ -80,9 +80,10 @@ Image ssgi(const Image &depth,
 /// With `apply`, the result is the light a diffuse bounce adds instead of the light arriving:
 /// times intensity, the albedo (its channel 0 for a one-channel albedo) and, with a material
 /// pass, 1 - metallic (its channel 1, clamped to [0, 1]; non-finite reads as 0). Negative light
-/// (none is made) would read as 0.
+/// (none is made) would read as 0. Non-finite depth reads as the sky, a normal's or the
+/// albedo's non-finite components as 0 (what a scan replacing them gives, bit for bit).
 struct SsgiApply {
-    const Image *albedo = nullptr;    ///< Finite, the depth pass's size.
+    const Image *albedo = nullptr;    ///< The depth pass's size.
     const Image *material = nullptr;  ///< Optional: roughness, metallic, ...
     float intensity = 1.0f;
 };

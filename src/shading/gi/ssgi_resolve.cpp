@@ -39,10 +39,11 @@ float tent(float dz_abs, float inv_scale)
     return 0.0f < t ? t : 0.0f;
 }
 
-/// The unit normal at (x, y), 0 where it is zero or not finite.
+/// The unit normal at (x, y) (non-finite components as 0), 0 where it is zero.
 glm::vec3 unit_normal(const Image &normal, int x, int y)
 {
-    const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
+    const auto fin = [](float v) { return std::isfinite(v) ? v : 0.0f; };
+    const glm::vec3 n(fin(normal.at(x, y, 0)), fin(normal.at(x, y, 1)), fin(normal.at(x, y, 2)));
     const float len2 = glm::dot(n, n);
     return len2 > 1e-12f && std::isfinite(len2) ? n / std::sqrt(len2) : glm::vec3(0.0f);
 }

@@ -31,6 +31,17 @@ using M = hn::Mask<D>;
 using Idx = decltype(hn::IndicesFromVec(D(), hn::Zero(DI())));
 constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 
+/// v, or 0 where it is not finite (the values a scan replacing them would give).
+HWY_INLINE V FiniteOrZero(V v)
+{
+    return hn::IfThenElseZero(hn::IsFinite(v), v);
+}
+
+inline float finite_or_zero(float v)
+{
+    return std::isfinite(v) ? v : 0.0f;
+}
+
 /// The full-resolution pixel a lane stands for.
 struct Pixel {
     V z, inv, nx, ny, nz, inv_len2;
@@ -199,6 +210,9 @@ HWY_INLINE void Apply(const SsgiUpsampleRow &r, int x, V &o0, V &o1, V &o2)
         a1 = hn::GatherIndex(d, r.albedo + std::min(1, r.na - 1), ai);
         a2 = hn::GatherIndex(d, r.albedo + std::min(2, r.na - 1), ai);
     }
+    a0 = FiniteOrZero(a0);
+    a1 = FiniteOrZero(a1);
+    a2 = FiniteOrZero(a2);
     // k a max(0, o), in that order.
     o0 = hn::Mul(hn::Mul(k, a0), hn::IfThenElseZero(hn::Lt(zero, o0), o0));
     o1 = hn::Mul(hn::Mul(k, a1), hn::IfThenElseZero(hn::Lt(zero, o1), o1));
@@ -220,6 +234,9 @@ void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
             ny = hn::LoadU(d, r.ny + x);
             nz = hn::LoadU(d, r.nz + x);
         }
+        nx = FiniteOrZero(nx);
+        ny = FiniteOrZero(ny);
+        nz = FiniteOrZero(nz);
         const VI i0 = hn::LoadU(di, r.i0 + x), i1 = hn::LoadU(di, r.i1 + x);
         // The columns are non-decreasing: the vector's taps lie in [i0[x], i1[x + lanes - 1]].
         const int base = r.i0[x];
@@ -252,9 +269,9 @@ void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
     HWY_ALIGN std::int32_t i0[kMaxLanes] = {}, i1[kMaxLanes] = {};
     for (int j = 0; j < m; ++j) {
         const std::size_t i = std::size_t(x + j);
-        pnx[j] = r.n3 ? r.n3[3 * i] : r.nx[i];
-        pny[j] = r.n3 ? r.n3[3 * i + 1] : r.ny[i];
-        pnz[j] = r.n3 ? r.n3[3 * i + 2] : r.nz[i];
+        pnx[j] = finite_or_zero(r.n3 ? r.n3[3 * i] : r.nx[i]);
+        pny[j] = finite_or_zero(r.n3 ? r.n3[3 * i + 1] : r.ny[i]);
+        pnz[j] = finite_or_zero(r.n3 ? r.n3[3 * i + 2] : r.nz[i]);
     }
     std::copy_n(r.z + x, m, z);
     std::copy_n(r.fx + x, m, fx);
@@ -281,7 +298,7 @@ void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
         const float *a = r.albedo + i * std::size_t(r.na);
         for (int c = 0; c < 3; ++c) {
             float &v = o[3 * j + c];
-            v = k * a[std::min(c, r.na - 1)] * std::max(0.0f, v);
+            v = k * finite_or_zero(a[std::min(c, r.na - 1)]) * std::max(0.0f, v);
         }
     }
     std::copy_n(o, 3 * m, out + 3 * x);
