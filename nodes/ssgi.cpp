@@ -136,9 +136,22 @@ void execute(NodeContext &ctx)
     const Image *material = in.has(pass::kMaterial) ? &in.image(pass::kMaterial) : nullptr;
     const float intensity = ctx.get_float(kIntensity);
     const int w = depth.width(), h = depth.height();
+    // apply: add, into a new colour pass.
+    const bool adding = ctx.get_choice(kApply) == 0;
+    const Image &in_color = *color_pass.image;
+    Image color = adding ? Image::uninitialized(w, h, in_color.channels()) : Image();
     Image gi;
     if (!(intensity > 0.0f)) {
         gi = Image(w, h, 3);
+        if (adding) {
+            parallel_for(0, h, [&](int y) {
+                shading::ssgi_add_row(in_color.pixel(0, y),
+                                      gi.pixel(0, y),
+                                      w,
+                                      in_color.channels(),
+                                      color.pixel(0, y));
+            });
+        }
     } else {
         shading::SsgiParams p = fill(ctx, kFields, HeaderSource::of(in));
         const int reshade_mode = ctx.get_choice(kReshade);  // 0 auto, 1 on, 2 off
@@ -198,33 +211,15 @@ void execute(NodeContext &ctx)
                                           p,
                                           env.radiance ? &env : nullptr,
                                           surfaces.material ? &surfaces : nullptr);
-        const shading::SsgiApply apply{&albedo, material, intensity};
+        shading::SsgiApply apply{&albedo, material, intensity};
+        if (adding) {
+            // The sum made row by row in the resolve, while each row of gi is in cache.
+            apply.color = &in_color;
+            apply.sum = &color;
+        }
         gi = shading::ssgi_resolve(light, depth, normal, p.stride, ctx.get_bool(kDenoise), &apply);
     }
-    if (ctx.get_choice(kApply) == 0) {
-        const Image &in_color = *color_pass.image;
-        const int nc = in_color.channels();
-        Image color = Image::uninitialized(w, h, nc);
-        // Channel counts known at compile time where they usually are (the loop vectorises).
-        const auto add_row = [&]<int kNc>(int y) {
-            const int n = kNc > 0 ? kNc : nc;
-            const float *src = in_color.pixel(0, y), *g = gi.pixel(0, y);
-            float *dst = color.pixel(0, y);
-            for (int x = 0; x < w; ++x) {
-                for (int c = 0; c < n; ++c) {
-                    dst[x * n + c] = src[x * n + c] + (c < 3 ? g[x * 3 + c] : 0.0f);
-                }
-            }
-        };
-        parallel_for(0, h, [&](int y) {
-            if (nc == 4) {
-                add_row.template operator()<4>(y);
-            } else if (nc == 3) {
-                add_row.template operator()<3>(y);
-            } else {
-                add_row.template operator()<0>(y);
-            }
-        });
+    if (adding) {
         ctx.output().set(pass::kColor,
                          std::make_shared<const Image>(std::move(color)),
                          color_pass.channels,

@@ -568,6 +568,59 @@ TEST(Ssgi, TheResolveReadsNonFiniteValuesAsAScanWouldReplaceThem)
     });
 }
 
+TEST(Ssgi, TheResolveAddsItsLightToTheColourRowByRow)
+{
+    // apply: add makes colour + gi inside the resolve, each row while its light is in cache:
+    // bit for bit the sum of the colour and the gi the resolve returns, other channels as they
+    // are, for colour passes of 1, 3, 4 and 5 channels; a colour of another size is refused.
+    const int w = 61, h = 23, st = 4, ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+    Image depth(w, h, 1), normal(w, h, 3), albedo(w, h, 3), light(ow, oh, 3);
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            depth.at(x, y, 0) = (x + y) % 11 == 0 ? std::numeric_limits<float>::infinity()
+                                                  : 2.0f + 0.1f * float(x % 5);
+            normal.at(x, y, 1) = 1.0f;
+            for (int c = 0; c < 3; ++c) {
+                albedo.at(x, y, c) = 0.2f + 0.1f * float(c);
+            }
+        }
+    }
+    for (int y = 0; y < oh; ++y) {
+        for (int x = 0; x < ow; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                light.at(x, y, c) = 0.3f + 0.01f * float((x * 7 + y * 3 + c) % 13);
+            }
+        }
+    }
+    for (const int nc : {1, 3, 4, 5}) {
+        Image color(w, h, nc), sum(w, h, nc);
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                for (int c = 0; c < nc; ++c) {
+                    color.at(x, y, c) = 0.1f * float((x + 2 * y + 3 * c) % 17) + 1e-3f;
+                }
+            }
+        }
+        shading::SsgiApply apply{&albedo, nullptr, 0.8f};
+        apply.color = &color;
+        apply.sum = &sum;
+        const Image gi = shading::ssgi_resolve(light, depth, normal, st, true, &apply);
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                for (int c = 0; c < nc; ++c) {
+                    const float want = color.at(x, y, c) + (c < 3 ? gi.at(x, y, c) : 0.0f);
+                    ASSERT_EQ(sum.at(x, y, c), want) << nc << " channels, " << x << "," << y;
+                }
+            }
+        }
+    }
+    Image small(w - 1, h, 4), sum(w - 1, h, 4);
+    shading::SsgiApply apply{&albedo, nullptr, 1.0f};
+    apply.color = &small;
+    apply.sum = &sum;
+    EXPECT_THROW(shading::ssgi_resolve(light, depth, normal, st, false, &apply), Error);
+}
+
 TEST(Ssgi, TheResolveGivesThePlainLoopsBitsOnEveryTarget)
 {
     // A width that is no multiple of the lanes, depth edges, sky, NaN depth, zero and

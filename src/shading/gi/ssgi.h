@@ -86,7 +86,14 @@ struct SsgiApply {
     const Image *albedo = nullptr;    ///< The depth pass's size.
     const Image *material = nullptr;  ///< Optional: roughness, metallic, ...
     float intensity = 1.0f;
+    /// Optional: `color` plus the result (its first three channels; the others as they are)
+    /// into `sum` (color's size and channels), row by row while the result's row is in cache.
+    const Image *color = nullptr;
+    Image *sum = nullptr;
 };
+
+/// One row of SsgiApply's sum: dst = src + the light's RGB, nc channels a pixel.
+void ssgi_add_row(const float *src, const float *light, int w, int nc, float *dst);
 Image ssgi_resolve(const Image &light,
                    const Image &depth,
                    const Image &normal,

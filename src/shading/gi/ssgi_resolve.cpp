@@ -134,6 +134,11 @@ Image ssgi_resolve(const Image &light,
     if (light.channels() != 3) {
         throw_runtime("ssgi_resolve: the reduced light has ", light.channels(), " channels, not 3");
     }
+    if (apply && apply->color && apply->sum &&
+        (apply->color->width() != w || apply->color->height() != h || apply->sum->width() != w ||
+         apply->sum->height() != h || apply->sum->channels() != apply->color->channels())) {
+        throw_runtime("ssgi_resolve: the colour to add to is not the depth pass's size");
+    }
     Image out = Image::uninitialized(w, h, 3);
     // Per output column: the reduced columns left and right, and the horizontal weight.
     const std::size_t wn = std::size_t(w);
@@ -189,8 +194,35 @@ Image ssgi_resolve(const Image &light,
             }
         }
         ssgi_upsample_row(r, w, out.pixel(0, y));
+        if (apply && apply->color && apply->sum) {
+            ssgi_add_row(apply->color->pixel(0, y),
+                         out.pixel(0, y),
+                         w,
+                         apply->color->channels(),
+                         apply->sum->pixel(0, y));
+        }
     });
     return out;
+}
+
+void ssgi_add_row(const float *src, const float *light, int w, int nc, float *dst)
+{
+    // Channel counts known at compile time where they usually are (the loop vectorises).
+    const auto add = [&]<int kNc>() {
+        const int n = kNc > 0 ? kNc : nc;
+        for (int x = 0; x < w; ++x) {
+            for (int c = 0; c < n; ++c) {
+                dst[x * n + c] = src[x * n + c] + (c < 3 ? light[x * 3 + c] : 0.0f);
+            }
+        }
+    };
+    if (nc == 4) {
+        add.template operator()<4>();
+    } else if (nc == 3) {
+        add.template operator()<3>();
+    } else {
+        add.template operator()<0>();
+    }
 }
 
 }  // namespace posthaste::shading
