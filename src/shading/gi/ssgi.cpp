@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/parallel.h"
+#include "core/sanitize.h"
 #include "shading/atmosphere/scene_sky.h"
 #include "shading/atmosphere/sky.h"
 #include "shading/fast_math.h"
@@ -102,12 +103,6 @@ Image block_radiance(const Image &radiance, int st)
         }
     });
     return out;
-}
-
-/// v, or 0 where it is not finite.
-float finite_or_zero(float v)
-{
-    return std::isfinite(v) ? v : 0.0f;
 }
 
 glm::vec3 normal_at(const Image &normal, int x, int y, const glm::vec3 &view)

@@ -11,6 +11,7 @@
 
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/sanitize.h"
 #include "shading/gi/ssgi.h"
 #include "shading/gi/ssgi_resolve_kernels.h"
 
@@ -42,8 +43,9 @@ float tent(float dz_abs, float inv_scale)
 /// The unit normal at (x, y) (non-finite components as 0), 0 where it is zero.
 glm::vec3 unit_normal(const Image &normal, int x, int y)
 {
-    const auto fin = [](float v) { return std::isfinite(v) ? v : 0.0f; };
-    const glm::vec3 n(fin(normal.at(x, y, 0)), fin(normal.at(x, y, 1)), fin(normal.at(x, y, 2)));
+    const glm::vec3 n(finite_or_zero(normal.at(x, y, 0)),
+                      finite_or_zero(normal.at(x, y, 1)),
+                      finite_or_zero(normal.at(x, y, 2)));
     const float len2 = glm::dot(n, n);
     return len2 > 1e-12f && std::isfinite(len2) ? n / std::sqrt(len2) : glm::vec3(0.0f);
 }

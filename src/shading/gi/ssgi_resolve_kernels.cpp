@@ -19,6 +19,8 @@
 #include <cstddef>
 #include <limits>
 
+#include "core/sanitize.h"
+
 HWY_BEFORE_NAMESPACE();
 namespace posthaste::shading::HWY_NAMESPACE {
 namespace hn = hwy::HWY_NAMESPACE;
@@ -35,11 +37,6 @@ constexpr int kMaxLanes = HWY_MAX_BYTES / sizeof(float);
 HWY_INLINE V FiniteOrZero(V v)
 {
     return hn::IfThenElseZero(hn::IsFinite(v), v);
-}
-
-inline float finite_or_zero(float v)
-{
-    return std::isfinite(v) ? v : 0.0f;
 }
 
 /// The full-resolution pixel a lane stands for.
