@@ -7,6 +7,7 @@
 #include <string>
 
 #include "cli/commands.h"
+#include "core/disk_cache.h"
 #include "core/error.h"
 #include "core/simd.h"
 
@@ -29,6 +30,15 @@ int main(int argc, char **argv)
         "Exit codes: 0 success, 1 I/O or runtime error, 2 usage or graph error\n"
         "(diff: idiff's 0 ok, 1 warning, 2 failure, 3 size mismatch, 4 file error).\n"
         "Run 'posthaste COMMAND --help' for a command's options.");
+    // Options of the whole program, accepted before or after the command's own.
+    app.fallthrough();
+    app.add_flag_callback(
+           "--no-cache",
+           [] { disk_cache::set_enabled(false); },
+           "Neither read nor write the cache of start-up tables (atmosphere LUTs, hatching "
+           "maps, voxel meshes) in $POSTHASTE_CACHE_DIR, else $XDG_CACHE_HOME/posthaste, else "
+           "~/.cache/posthaste")
+        ->trigger_on_parse();
     int exit_code = 0;
     cli::add_run_command(app, exit_code);
     cli::add_render_command(app, exit_code);

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "core/disk_cache.h"
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/simd.h"
@@ -87,7 +88,8 @@ TEST(HatchingTam, NestingAcrossTonesAndLevels)
 
 TEST(HatchingTam, DeterministicFromSeedAndFast)
 {
-    TamParams p;  // the node's default: 256, 4 stroke levels
+    disk_cache::set_enabled(false);  // the builder itself, not the disk cache's copy
+    TamParams p;                     // the node's default: 256, 4 stroke levels
     const Tam a = build_tam(p);
     const Tam b = build_tam(p);
     std::printf("TAM 256 build: %.1f ms wall, %.1f ms CPU, %zu strokes\n",
@@ -108,6 +110,7 @@ TEST(HatchingTam, DeterministicFromSeedAndFast)
     EXPECT_FALSE(std::equal(a.texels(0, 0), a.texels(0, 0) + 256 * 256, c.texels(0, 0)));
     // Start-up cost: tens of milliseconds on an idle core; loose bound for a loaded machine.
     EXPECT_LT(a.build_cpu_ms(), 1000.0);
+    disk_cache::set_enabled(true);
 }
 
 TEST(HatchingTam, RejectsBadParams)

@@ -182,9 +182,12 @@ Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
     inv_mie_height_ = 1.0f / p.mie_scale_height_m;
     inv_ozone_half_width_ = 2.0f / p.ozone_width_m;
     cos_sun_radius_ = std::cos(p.sun_angular_radius_rad);
-    build_transmittance();
-    build_multi_scattering();
-    sky_view_ = make_sky_view(glm::vec3(0.0f, p.sky_view_y, 0.0f));
+    if (!load_tables()) {
+        build_transmittance();
+        build_multi_scattering();
+        sky_view_ = make_sky_view(glm::vec3(0.0f, p.sky_view_y, 0.0f));
+        store_tables();
+    }
 }
 
 glm::dvec3 Atmosphere::planet_position(const glm::vec3 &world) const
@@ -408,9 +411,13 @@ ScatteringResult Atmosphere::integrate(const Ray &ray,
 
 SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
 {
+    return make_sky_view(camera_pos, nullptr);
+}
+
+SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos, Lut2D *cached) const
+{
     SkyView view;
     const int w = params_.sky_view_width, h = params_.sky_view_height;
-    view.lut_ = Lut2D(w, h);
     glm::dvec3 p = planet_position(camera_pos);
     if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))) {
         p = planet_position(glm::vec3(0.0f));
@@ -433,6 +440,11 @@ SkyView Atmosphere::make_sky_view(const glm::vec3 &camera_pos) const
     view.theta_horizon_ = float(theta_h);
     view.inv_theta_above_ = float(1.0 / theta_h);
     view.inv_theta_below_ = float(1.0 / (kPiD - theta_h));
+    if (cached) {
+        view.lut_ = std::move(*cached);
+        return view;
+    }
+    view.lut_ = Lut2D(w, h);
     const double sin_sun = std::sqrt(std::max(0.0, 1.0 - double(mus) * double(mus)));
     const int half = h / 2;
     parallel_for(0, h, [&](int y) {

@@ -126,6 +126,21 @@ class Lut2D {
     }
     /// Bilinear lookup over the whole table (see sample_rows).
     glm::vec3 sample(float u, float v) const { return sample_rows(u, v, 0, height_); }
+    /// Every texel, the padding one last (the disk cache's payload).
+    const std::vector<glm::vec3> &texel_vector() const { return texels_; }
+    /// A table over `texels` (width * height + 1 of them, as texel_vector gives); false, and the
+    /// table left alone, when the count does not match.
+    bool assign(int width, int height, std::vector<glm::vec3> texels)
+    {
+        if (width < 2 || height < 2 ||
+            texels.size() != std::size_t(width) * std::size_t(height) + 1) {
+            return false;
+        }
+        width_ = width;
+        height_ = height;
+        texels_ = std::move(texels);
+        return true;
+    }
 
    private:
     int width_ = 0, height_ = 0;
@@ -416,6 +431,11 @@ class Atmosphere {
                                bool quadratic = false) const;
     void build_transmittance();
     void build_multi_scattering();
+    /// The three tables from the disk cache (core/disk_cache.h); false on a miss.
+    bool load_tables();
+    void store_tables() const;
+    /// make_sky_view, with the LUT taken from `cached` (moved from) when it is not null.
+    SkyView make_sky_view(const glm::vec3 &camera_pos, Lut2D *cached) const;
 
     AtmosphereParams params_;
     glm::vec3 sun_dir_;

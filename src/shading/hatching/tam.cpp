@@ -2,8 +2,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <ctime>
+#include <stdexcept>
 
+#include "core/disk_cache.h"
 #include "core/error.h"
 #include "core/hash.h"
 #include "core/timing.h"
@@ -146,6 +149,40 @@ Tam build_tam(const TamParams &p)
     validate(p);
     const auto t0 = std::chrono::steady_clock::now();
     const double cpu0 = thread_cpu_ms();
+    // TamParams is 4-byte fields only: its bytes are the key as they are.
+    static_assert(sizeof(TamParams) == 11 * 4 && alignof(TamParams) == 4);
+    disk_cache::Key key("tam");
+    key.add(p);
+    Tam tam = disk_cache::cached<Tam>(
+        key,
+        [&] { return Tam::build(p); },
+        [](const Tam &t, disk_cache::Writer &w) {
+            w.put(std::int32_t(t.size_));
+            w.put(std::int32_t(t.stroke_levels_));
+            w.put_vector(t.data_);
+            w.put_vector(t.strokes_);
+        },
+        [&](disk_cache::Reader &r) {
+            Tam t = Tam::layout(p);
+            if (r.get<std::int32_t>() != p.size || r.get<std::int32_t>() != p.stroke_levels) {
+                throw std::out_of_range("tam: another layout");
+            }
+            std::vector<float> data = r.get_vector<float>(t.data_.size());
+            if (data.size() != t.data_.size()) {
+                throw std::out_of_range("tam: another size");
+            }
+            t.data_ = std::move(data);
+            t.strokes_ = r.get_vector<TamStroke>(std::size_t(1) << 24);
+            return t;
+        });
+    tam.pack();
+    tam.build_cpu_ms_ = thread_cpu_ms() - cpu0;
+    tam.build_ms_ = ms_since(t0);
+    return tam;
+}
+
+Tam Tam::layout(const TamParams &p)
+{
     Tam tam;
     tam.size_ = p.size;
     tam.stroke_levels_ = p.stroke_levels;
@@ -158,6 +195,14 @@ Tam build_tam(const TamParams &p)
     tam.tone_stride_ = offset;
     tam.levels_ = all_levels;
     tam.data_.assign(offset * kTamTones, 0.0f);
+    return tam;
+}
+
+Tam Tam::build(const TamParams &p)
+{
+    Tam tam = layout(p);
+    const std::size_t offset = tam.tone_stride_;
+    const int all_levels = tam.levels_;
 
     std::uint32_t counter = 0;
     auto random = [&]() { return hash_to_unit(hash4(counter++, 0x7a3u, 0x1f5u, p.seed)); };
@@ -242,18 +287,21 @@ Tam build_tam(const TamParams &p)
             }
         }
     }
+    return tam;
+}
+
+void Tam::pack()
+{
     // Texel-major copy for sampling: [0, tone 0 .. tone 5, tone 5] per texel.
-    tam.packed_.assign(offset * Tam::kPacked, 0.0f);
+    const std::size_t offset = tone_stride_;
+    packed_.assign(offset * kPacked, 0.0f);
     for (std::size_t i = 0; i < offset; ++i) {
-        float *dst = tam.packed_.data() + i * Tam::kPacked;
+        float *dst = packed_.data() + i * kPacked;
         for (int t = 0; t < kTamTones; ++t) {
-            dst[t + 1] = tam.data_[std::size_t(t) * offset + i];
+            dst[t + 1] = data_[std::size_t(t) * offset + i];
         }
         dst[kTamTones + 1] = dst[kTamTones];
     }
-    tam.build_cpu_ms_ = thread_cpu_ms() - cpu0;
-    tam.build_ms_ = ms_since(t0);
-    return tam;
 }
 
 }  // namespace posthaste::shading

@@ -91,6 +91,12 @@ class Tam {
 
    private:
     friend Tam build_tam(const TamParams &p);
+    /// Sizes and offsets for `p`, texels zero.
+    static Tam layout(const TamParams &p);
+    /// The strokes and levels (build_tam without the disk cache and the packing).
+    static Tam build(const TamParams &p);
+    /// packed_ from data_.
+    void pack();
     /// Filtered blend of ramp entries k and k + 1 (weight f) of the packed texels.
     float ramp_at(int k, float f, float u, float v, float lod) const
     {
