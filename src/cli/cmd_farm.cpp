@@ -50,7 +50,7 @@ struct SlurmOptions {
 struct SubmitOptions {
     std::string graph;
     std::string frames;
-    int chunk = 8;
+    std::string chunk = "8";  ///< frames per task, or "auto" (one wave over the partition)
     std::string job_dir;
     std::vector<std::string> sets;
     SlurmOptions slurm;
@@ -134,6 +134,73 @@ std::string join_frames(const std::vector<int> &frames)
         s += (s.empty() ? "" : ",") + std::to_string(f);
     }
     return s;
+}
+
+/// Tasks the partition runs at once: its usable CPUs (sinfo's total less those down or
+/// drained) over the CPUs a task asks for, at most --max-running. Throws naming sinfo when it
+/// cannot tell.
+int partition_slots(const SlurmOptions &s)
+{
+    require_slurm("sinfo");
+    std::string out;
+    const std::string command =
+        "sinfo -h -o '%C %P'" + (s.partition.empty() ? "" : " -p " + shell_quote(s.partition));
+    if (!capture(command, out)) {
+        std::replace(out.begin(), out.end(), '\n', ' ');
+        throw_runtime("farm submit: --chunk auto: sinfo failed: ", out);
+    }
+    // Lines "allocated/idle/other/total PARTITION", the default partition's name ending in '*'.
+    long usable = -1;
+    std::istringstream lines(out);
+    for (std::string line; std::getline(lines, line);) {
+        long a = 0, i = 0, other = 0, total = 0;
+        char name[256] = {0};
+        if (std::sscanf(line.c_str(), "%ld/%ld/%ld/%ld %255s", &a, &i, &other, &total, name) != 5) {
+            continue;
+        }
+        const std::string n = name;
+        const bool is_default = !n.empty() && n.back() == '*';
+        if (usable < 0 || (s.partition.empty() ? is_default : n == s.partition)) {
+            usable = std::max(0L, total - other);
+        }
+        if (s.partition.empty() ? is_default : n == s.partition) {
+            break;
+        }
+    }
+    if (usable <= 0) {
+        throw_runtime("farm submit: --chunk auto: sinfo reports no usable CPUs",
+                      s.partition.empty() ? "" : " in partition " + s.partition,
+                      " (give --chunk N)");
+    }
+    long slots = usable / std::max(1, s.cpus_per_task);
+    if (s.max_running > 0) {
+        slots = std::min(slots, long(s.max_running));
+    }
+    return int(std::clamp(slots, 1L, 1000000L));
+}
+
+/// --chunk: a count, or "auto": the frames spread over one wave of the partition's slots, so
+/// that each task pays a process's start-up once (chunk = ceil(frames / slots)).
+int chunk_size(const std::string &text, const SlurmOptions &s, std::size_t frames, bool *automatic)
+{
+    *automatic = text == "auto";
+    if (*automatic) {
+        const int slots = partition_slots(s);
+        return int(std::max<std::size_t>(1, (frames + std::size_t(slots) - 1) / std::size_t(slots)));
+    }
+    int chunk = 0;
+    std::size_t used = 0;
+    try {
+        chunk = std::stoi(text, &used);
+    } catch (const std::exception &) {
+        used = 0;
+    }
+    if (used != text.size() || chunk < 1) {
+        throw_usage("farm submit: --chunk must be a whole number of at least 1 or auto, got \"",
+                    text,
+                    "\"");
+    }
+    return chunk;
 }
 
 std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames, int chunk)
@@ -228,8 +295,9 @@ void submit(json &job, const fs::path &dir, int s)
 
 int submit_command(const SubmitOptions &o)
 {
-    if (o.chunk < 1) {
-        throw_usage("farm submit: --chunk must be at least 1, got ", o.chunk);
+    if (o.chunk != "auto") {
+        bool automatic = false;
+        chunk_size(o.chunk, o.slurm, 0, &automatic);  // a bad count fails before anything else
     }
     const fs::path dir = fs::absolute(o.job_dir);
     std::error_code ec;
@@ -271,6 +339,8 @@ int submit_command(const SubmitOptions &o)
     if (!o.dry_run) {
         require_slurm("sbatch");
     }
+    bool automatic = false;
+    const int chunk = chunk_size(o.chunk, o.slurm, frames.size(), &automatic);
     json job;
     job["graph"] = "graph.json";
     job["source_graph"] = fs::absolute(o.graph).string();
@@ -278,23 +348,27 @@ int submit_command(const SubmitOptions &o)
     job["cwd"] = fs::current_path().string();
     job["binary"] = self_binary();
     job["frames"] = frames;
-    job["chunk"] = o.chunk;
+    job["chunk"] = chunk;
+    job["chunk_auto"] = automatic;
     job["slurm"] = {{"max_running", o.slurm.max_running},
                     {"partition", o.slurm.partition},
                     {"cpus_per_task", o.slurm.cpus_per_task},
                     {"mem", o.slurm.mem},
                     {"time", o.slurm.time}};
     json sub;
-    sub["chunks"] = make_chunks(frames, o.chunk);
+    sub["chunks"] = make_chunks(frames, chunk);
     job["submissions"] = json::array({sub});
     const std::string graph_text = apply_sets(o.graph, graph, o.sets);
     if (o.dry_run) {
-        std::printf("# %s/graph.json: %s with %zu --set value(s); %zu frame(s) in %zu chunk(s)\n",
-                    dir.string().c_str(),
-                    o.graph.c_str(),
-                    o.sets.size(),
-                    frames.size(),
-                    sub["chunks"].size());
+        std::printf(
+            "# %s/graph.json: %s with %zu --set value(s); %zu frame(s) in %zu chunk(s) of %d%s\n",
+            dir.string().c_str(),
+            o.graph.c_str(),
+            o.sets.size(),
+            frames.size(),
+            sub["chunks"].size(),
+            chunk,
+            automatic ? " (auto)" : "");
         std::printf("# run-s0.sbatch\n%s",
                     batch_script(job, dir, 0, int(sub["chunks"].size())).c_str());
         std::printf("# check-s0.sbatch (afterany on the array, --kill-on-invalid-dep=yes)\n%s",
@@ -335,8 +409,17 @@ int resubmit_command(const std::string &dir_text, bool dry_run)
         std::printf("nothing to resubmit: every frame is done, running or queued\n");
         return 0;
     }
+    int chunk = job["chunk"].get<int>();
+    if (job.value("chunk_auto", false)) {  // one wave again, over the frames left
+        SlurmOptions so;
+        so.partition = job["slurm"].value("partition", "");
+        so.cpus_per_task = job["slurm"].value("cpus_per_task", 0);
+        so.max_running = job["slurm"].value("max_running", 0);
+        bool automatic = false;
+        chunk = chunk_size("auto", so, todo.size(), &automatic);
+    }
     json sub;
-    sub["chunks"] = make_chunks(todo, job["chunk"].get<int>());
+    sub["chunks"] = make_chunks(todo, chunk);
     const int s = int(job["submissions"].size());
     if (dry_run) {
         std::printf("# would resubmit frames %s in %zu chunk(s)\n",
@@ -432,8 +515,11 @@ void add_farm_command(CLI::App &app, int &exit_code)
         "submit", "Validate a graph, write a job directory, submit a job array and a check job");
     sub->add_option("graph", so->graph, "Graph file (JSON)")->required();
     sub->add_option("--frames,-f", so->frames, "Frames: 1-480, 1-48x2, 1,5,10-20");
-    sub->add_option("--chunk", so->chunk, "Frames per array task (default 8)")
-        ->check(CLI::Range(1, 1000000));
+    sub->add_option("--chunk",
+                    so->chunk,
+                    "Frames per array task (default 8), or auto: the frames spread over the "
+                    "tasks the partition runs at once (its CPUs over --cpus-per-task, at most "
+                    "--max-running), so each task starts once");
     sub->add_option("--job-dir", so->job_dir, "Job directory (must not exist)")->required();
     sub->add_option("--max-running", so->slurm.max_running, "Array tasks running at once")
         ->check(CLI::Range(0, 100000));

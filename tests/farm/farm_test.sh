@@ -107,6 +107,26 @@ before=$(squeue -h | wc -l)
     fail "frames outside the scene: $(cat err.txt)"
 "$P" farm submit "$graph" --frames 1-4 --chunk 0 --job-dir job4 2>err.txt
 [[ $? -ne 0 && ! -e job4 ]] && ok "chunk 0 refused" || fail "chunk 0 accepted"
+"$P" farm submit "$graph" --frames 1-4 --chunk 3x --job-dir job4 2>err.txt
+[[ $? -eq 2 && ! -e job4 ]] && grep -q 'got "3x"' err.txt && ok "chunk 3x refused: $(cat err.txt)" ||
+    fail "chunk 3x: $(cat err.txt)"
+
+# 4b. --chunk auto: one wave over the tasks the node runs at once (its CPUs over
+# --cpus-per-task, at most --max-running).
+cpus=$(sinfo -h -o %C | head -n 1 | cut -d/ -f4)
+auto() {  # frames, extra options -> "N chunk(s) of K (auto)"
+    "$P" farm submit "$graph" --frames "1-$1" --chunk auto --dry-run --job-dir job7 \
+        $(sets 160 90 auto) "${@:2}" | head -n 1 | grep -o '[0-9]* chunk(s) of [0-9]* (auto)'
+}
+per=$(((13 + cpus - 1) / cpus)); tasks=$(((13 + per - 1) / per))
+[[ $(auto 12 --max-running 1) == "1 chunk(s) of 12 (auto)" ]] &&
+    [[ $(auto 12 --cpus-per-task "$cpus") == "1 chunk(s) of 12 (auto)" ]] &&
+    [[ $(auto 13 --cpus-per-task 1) == "$tasks chunk(s) of $per (auto)" ]] &&
+    ok "chunk auto: $(auto 13 --cpus-per-task 1) on $cpus CPU(s)" ||
+    fail "chunk auto: $(auto 12 --max-running 1); $(auto 13 --cpus-per-task 1) on $cpus CPU(s)"
+"$P" farm submit "$graph" --frames 1-4 --chunk auto --partition nosuch --job-dir job4 2>err.txt
+[[ $? -ne 0 && ! -e job4 ]] && ok "chunk auto, no such partition: $(cut -c1-100 err.txt)" ||
+    fail "chunk auto on a missing partition: $(cat err.txt)"
 PATH=/nonexistent "$P" farm submit "$graph" --frames 1-4 --job-dir job5 $(sets 160 90 x) 2>err.txt
 [[ $? -eq 1 ]] && grep -q "sbatch is not on PATH" err.txt && ok "no sbatch: $(cut -c1-80 err.txt)" ||
     fail "no sbatch: $(cat err.txt)"
