@@ -186,7 +186,8 @@ int chunk_size(const std::string &text, const SlurmOptions &s, std::size_t frame
     *automatic = text == "auto";
     if (*automatic) {
         const int slots = partition_slots(s);
-        return int(std::max<std::size_t>(1, (frames + std::size_t(slots) - 1) / std::size_t(slots)));
+        return int(
+            std::max<std::size_t>(1, (frames + std::size_t(slots) - 1) / std::size_t(slots)));
     }
     int chunk = 0;
     std::size_t used = 0;

@@ -1,6 +1,11 @@
 // posthaste run GRAPH: evaluate a graph over frames (graph/run.h does the work).
 
 #include "cli/commands.h"
+
+#include <exception>
+#include <string>
+
+#include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
@@ -11,7 +16,30 @@ namespace {
 struct RunOptions : RunSettings {
     std::string graph;
     std::vector<std::string> sets;
+    std::string jobs_text;
 };
+
+/// --jobs: a count in [0, 256] (0: the default), or auto (-1, graph/run.cpp).
+int parse_jobs(const std::string &text)
+{
+    if (text.empty()) {
+        return 0;
+    }
+    if (text == "auto") {
+        return -1;
+    }
+    std::size_t used = 0;
+    int jobs = -1;
+    try {
+        jobs = std::stoi(text, &used);
+    } catch (const std::exception &) {
+        used = 0;
+    }
+    if (used != text.size() || jobs < 0 || jobs > 256) {
+        throw_usage("--jobs: expected a number in [0, 256] or auto, got \"", text, "\"");
+    }
+    return jobs;
+}
 
 }  // namespace
 
@@ -25,8 +53,11 @@ void add_run_command(CLI::App &app, int &exit_code)
                     "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the graph's, else those on disk)");
     cmd->add_option("--set,-s", opts->sets, "Override a parameter: node.param=value")
         ->allow_extra_args(false);
-    cmd->add_option("--jobs,-j", opts->jobs, "Frames evaluated at once (default: min(4, threads))")
-        ->check(CLI::Range(0, 256));
+    cmd->add_option("--jobs,-j",
+                    opts->jobs_text,
+                    "Frames evaluated at once (default: min(4, threads)); auto: the first frame "
+                    "alone, then one per thread, at most what 3/4 of --max-memory holds of the "
+                    "first frame's pass images");
     cmd->add_option("--threads,-t", opts->threads, "Worker threads (default: all cores)")
         ->check(CLI::Range(0, 1024));
     cmd->add_flag("--quiet,-q", opts->quiet, "No progress and no summary");
@@ -45,6 +76,7 @@ void add_run_command(CLI::App &app, int &exit_code)
                   opts->keep_going,
                   "Carry on past failing frames, then exit non-zero naming the first");
     cmd->callback([opts, &exit_code] {
+        opts->jobs = parse_jobs(opts->jobs_text);
         set_thread_count(opts->threads);
         Graph graph = Graph::load(opts->graph, nodes::catalog(), opts->sets);
         exit_code = run_graph(graph, *opts);

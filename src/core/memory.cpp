@@ -142,6 +142,7 @@ void scratch_give(void *block, std::size_t bytes)
 namespace {
 std::atomic<std::size_t> g_budget{0};
 std::atomic<std::size_t> g_in_use{0};
+std::atomic<std::size_t> g_peak{0};
 }  // namespace
 
 void set_image_memory_budget(std::size_t bytes)
@@ -157,6 +158,16 @@ std::size_t image_memory_budget()
 std::size_t image_memory_in_use()
 {
     return g_in_use.load();
+}
+
+std::size_t image_memory_peak()
+{
+    return g_peak.load();
+}
+
+void reset_image_memory_peak()
+{
+    g_peak = g_in_use.load();
 }
 
 void reserve_image_memory(std::size_t bytes, int width, int height, int channels)
@@ -178,6 +189,10 @@ void reserve_image_memory(std::size_t bytes, int width, int height, int channels
                       ", over --max-memory ",
                       format_bytes(budget),
                       " (fewer --jobs, a smaller frame, or a larger budget)");
+    }
+    const std::size_t now = before + bytes;
+    std::size_t peak = g_peak.load();
+    while (now > peak && !g_peak.compare_exchange_weak(peak, now)) {
     }
 }
 

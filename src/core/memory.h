@@ -23,6 +23,10 @@ void set_image_memory_budget(std::size_t bytes);
 std::size_t image_memory_budget();
 /// Bytes held by live pass images now.
 std::size_t image_memory_in_use();
+/// The most bytes pass images held at once since the last reset_image_memory_peak.
+std::size_t image_memory_peak();
+/// Start a new high-water mark from what is in use now.
+void reset_image_memory_peak();
 /// Count `bytes` against the budget; throws Error (exit 1) naming the image, what is in use and
 /// the budget when it would be exceeded, instead of letting the kernel's OOM killer end the run.
 void reserve_image_memory(std::size_t bytes, int width, int height, int channels);

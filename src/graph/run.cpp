@@ -83,7 +83,11 @@ int run_graph(Graph &graph, const RunSettings &o)
         }
         return 0;
     }
-    const int jobs = std::max(1, o.jobs > 0 ? o.jobs : std::min(4, std::max(1, thread_count())));
+    // --jobs auto (o.jobs < 0) runs the first frame alone, then as many frames at once as the
+    // threads, at most what the memory budget holds of the first frame's peak of pass images.
+    const bool automatic = o.jobs < 0;
+    int jobs = automatic ? 1
+                         : std::max(1, o.jobs > 0 ? o.jobs : std::min(4, std::max(1, thread_count())));
     NodeTimes times = graph.make_times();
     const bool terminal = stderr_is_terminal() && !o.quiet;
     std::mutex mutex;
@@ -97,11 +101,14 @@ int run_graph(Graph &graph, const RunSettings &o)
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
 
+    // Frames [next, last) with `tokens` of them in flight.
+    std::size_t last = frames.size();
+    const auto run_frames = [&](int tokens) {
     tbb::parallel_pipeline(
-        std::size_t(jobs),
+        std::size_t(tokens),
         tbb::make_filter<void, int>(tbb::filter_mode::serial_in_order,
                                     [&](tbb::flow_control &fc) -> int {
-                                        if (next >= frames.size() || stop.load() ||
+                                        if (next >= last || stop.load() ||
                                             (o.should_stop && o.should_stop())) {
                                             fc.stop();
                                             return 0;
@@ -183,6 +190,31 @@ int run_graph(Graph &graph, const RunSettings &o)
                         stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n, frames.size());
                 }
             }));
+    };
+    if (automatic && frames.size() > 1) {
+        const std::size_t before = image_memory_in_use();
+        reset_image_memory_peak();
+        last = 1;
+        run_frames(1);
+        last = frames.size();
+        const std::size_t per_frame = std::max<std::size_t>(image_memory_peak() - before, 1);
+        const std::size_t budget = image_memory_budget();
+        // Three quarters of the budget: later frames may peak higher than the first.
+        const std::size_t by_memory =
+            budget ? std::max<std::size_t>(budget / 4 * 3 / per_frame, 1) : 1024;
+        jobs = int(std::clamp<std::size_t>(
+            std::min(by_memory, std::size_t(std::max(1, thread_count()))), 1, 256));
+        if (!o.quiet) {
+            std::fprintf(stderr,
+                         "%s--jobs auto: %d (%d thread(s); a frame peaked at %s of pass images%s)\n",
+                         terminal ? "\r\033[K" : "",
+                         jobs,
+                         thread_count(),
+                         format_bytes(per_frame).c_str(),
+                         budget ? (", budget " + format_bytes(budget)).c_str() : "");
+        }
+    }
+    run_frames(jobs);
     if (terminal) {
         std::fprintf(stderr, "\n");
     }

@@ -15,6 +15,7 @@ class Graph;
 /// Options of a run (the CLI's run and render, a farm chunk, Python's Graph.run).
 struct RunSettings {
     std::string frames;
+    /// Frames in flight: 0 the default (min(4, threads)), -1 auto (run_graph), else the count.
     int jobs = 0;
     int threads = 0;
     /// No progress and no summary on stdout/stderr.

@@ -2,7 +2,7 @@
 # The farm path's overhead: FRAMES frames of the demo graph at WxH, a local `run --jobs 2`
 # against `farm submit --chunk CHUNK` on the local one-node cluster, in the same session,
 # alternating, ROUNDS rounds. Prints wall seconds and the overhead in percent and per chunk.
-# Usage: farm_bench.sh POSTHASTE [FRAMES=48] [CHUNK=8] [W=1920] [H=1080] [ROUNDS=2] [CPUS=1]
+# Usage: farm_bench.sh POSTHASTE [FRAMES=48] [CHUNK=8|auto] [W=1920] [H=1080] [ROUNDS=2] [CPUS=1]
 set -euo pipefail
 P=$(realpath "$1"); FRAMES=${2:-48}; CHUNK=${3:-8}; W=${4:-1920}; H=${5:-1080}
 ROUNDS=${6:-2}; CPUS=${7:-1}
@@ -27,7 +27,7 @@ for r in $(seq "$ROUNDS"); do
     while [[ -n $(squeue -h) ]]; do sleep 0.1; done
     t3=$(now)
     "$P" farm status "job$r" >/dev/null
-    chunks=$(((FRAMES + CHUNK - 1) / CHUNK))
+    chunks=$(python3 -c "import json, sys; print(len(json.load(open(sys.argv[1]))['submissions'][0]['chunks']))" "job$r/job.json")
     python3 - "$t0" "$t1" "$t2" "$t3" "$chunks" "$r" <<'PY'
 import sys
 t0, t1, t2, t3, chunks, r = map(float, sys.argv[1:])

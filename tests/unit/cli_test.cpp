@@ -247,6 +247,48 @@ TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
         << out;
 }
 
+TEST(Cli, JobsAutoTakesAThreadEachUnlessTheBudgetHoldsFewer)
+{
+    const std::string dir = test::scratch_dir("cli_jobs_auto");
+    write_inputs(dir, {1, 2, 3, 4, 5});
+    const std::string graph = write_graph(dir);
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 3 --jobs 1 --quiet", &out), 0)
+        << out;
+    const std::string reference = dir + "/ref";
+    fs::rename(dir + "/out", reference);
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 3 --jobs auto", &out), 0) << out;
+    EXPECT_NE(out.find("--jobs auto: 3 (3 thread(s); a frame peaked at "), std::string::npos)
+        << out;
+    EXPECT_NE(out.find("5 frame(s) in"), std::string::npos) << out;
+    EXPECT_NE(out.find("3 job(s), 3 thread(s)"), std::string::npos) << out;
+    for (int f = 1; f <= 5; ++f) {  // the same bits as one frame at a time
+        const std::string name = expand_frame_pattern("/o.####.exr", f);
+        std::string diff;
+        EXPECT_EQ(run_command(kBin + " diff " + reference + name + " " + dir + "/out" + name +
+                                  " --fail 0 --quiet",
+                              &diff),
+                  0)
+            << f << ": " << diff;
+    }
+    // A budget a third larger than the first frame's peak holds one frame at a time (3/4 of it
+    // is under a frame).
+    const std::size_t at = out.find("peaked at ") + 10;
+    const long peak = std::stol(out.substr(at));
+    const bool mib = out.compare(out.find(' ', at) + 1, 3, "MiB") == 0;
+    const long budget_k = (mib ? peak * 1024 : peak) * 4 / 3 + 1;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 3 --jobs auto --max-memory " +
+                              std::to_string(budget_k) + "K",
+                          &out),
+              0)
+        << out;
+    EXPECT_NE(out.find("--jobs auto: 1 (3 thread(s)"), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --jobs lots", &out), 2) << out;
+    EXPECT_NE(out.find("--jobs: expected a number in [0, 256] or auto, got \"lots\""),
+              std::string::npos)
+        << out;
+}
+
 TEST(Cli, RenderProbeWritesTheMapWithItsDistancesAndPosition)
 {
     const std::string dir = test::scratch_dir("cli_probe");
