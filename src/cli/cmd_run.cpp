@@ -1,10 +1,9 @@
 // posthaste run GRAPH: evaluate a graph over frames (graph/run.h does the work).
 
-#include "cli/commands.h"
-
 #include <exception>
 #include <string>
 
+#include "cli/commands.h"
 #include "core/error.h"
 #include "core/parallel.h"
 #include "graph/graph.h"

@@ -86,8 +86,8 @@ int run_graph(Graph &graph, const RunSettings &o)
     // --jobs auto (o.jobs < 0) runs the first frame alone, then as many frames at once as the
     // threads, at most what the memory budget holds of the first frame's peak of pass images.
     const bool automatic = o.jobs < 0;
-    int jobs = automatic ? 1
-                         : std::max(1, o.jobs > 0 ? o.jobs : std::min(4, std::max(1, thread_count())));
+    int jobs =
+        automatic ? 1 : std::max(1, o.jobs > 0 ? o.jobs : std::min(4, std::max(1, thread_count())));
     NodeTimes times = graph.make_times();
     const bool terminal = stderr_is_terminal() && !o.quiet;
     std::mutex mutex;
@@ -104,92 +104,98 @@ int run_graph(Graph &graph, const RunSettings &o)
     // Frames [next, last) with `tokens` of them in flight.
     std::size_t last = frames.size();
     const auto run_frames = [&](int tokens) {
-    tbb::parallel_pipeline(
-        std::size_t(tokens),
-        tbb::make_filter<void, int>(tbb::filter_mode::serial_in_order,
-                                    [&](tbb::flow_control &fc) -> int {
-                                        if (next >= last || stop.load() ||
-                                            (o.should_stop && o.should_stop())) {
-                                            fc.stop();
-                                            return 0;
-                                        }
-                                        return frames[next++];
-                                    }) &
-            tbb::make_filter<int, void>(tbb::filter_mode::parallel, [&](int frame) {
-                const auto t0 = std::chrono::steady_clock::now();
-                std::string error;
-                int code = 0;
-                try {
-                    graph.evaluate(frame, &times);
-                } catch (const Error &e) {
-                    error = e.what();
-                    code = e.exit_code();
-                } catch (const std::exception &e) {
-                    error = e.what();
-                    code = int(ExitCode::Runtime);
-                }
-                const double dt =
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-                std::lock_guard lock(mutex);
-                const int n = ++done;
-                if (o.on_frame) {
-                    const double started = std::chrono::duration<double>(
-                                               std::chrono::system_clock::now().time_since_epoch())
-                                               .count() -
-                                           dt;
-                    o.on_frame(frame, started, dt, error);
-                }
-                if (error.empty() && o.frames_written) {
-                    o.frames_written->push_back(frame);
-                }
-                if (!error.empty()) {
-                    failures[frame] = error;
-                    failure_codes[frame] = code;
-                    if (!o.skip_bad_frames && !o.keep_going) {
-                        stop = true;
-                    } else {
-                        std::fprintf(stderr,
-                                     "%swarning: frame %d skipped: %s\n",
-                                     terminal ? "\r\033[K" : "",
-                                     frame,
-                                     error.c_str());
+        tbb::parallel_pipeline(
+            std::size_t(tokens),
+            tbb::make_filter<void, int>(tbb::filter_mode::serial_in_order,
+                                        [&](tbb::flow_control &fc) -> int {
+                                            if (next >= last || stop.load() ||
+                                                (o.should_stop && o.should_stop())) {
+                                                fc.stop();
+                                                return 0;
+                                            }
+                                            return frames[next++];
+                                        }) &
+                tbb::make_filter<int, void>(tbb::filter_mode::parallel, [&](int frame) {
+                    const auto t0 = std::chrono::steady_clock::now();
+                    std::string error;
+                    int code = 0;
+                    try {
+                        graph.evaluate(frame, &times);
+                    } catch (const Error &e) {
+                        error = e.what();
+                        code = e.exit_code();
+                    } catch (const std::exception &e) {
+                        error = e.what();
+                        code = int(ExitCode::Runtime);
                     }
-                }
-                if (o.quiet) {
-                    return;
-                }
-                const double t = elapsed();
-                const double fps = n / std::max(t, 1e-9);
-                const double eta = (double(frames.size()) - n) / std::max(fps, 1e-9);
-                if (terminal) {
-                    const int width = 30;
-                    const int filled = int(width * double(n) / double(frames.size()));
-                    // The node that has taken the most time so far, per frame done.
-                    std::string slowest;
-                    double slowest_ns = -1.0;
-                    for (int i : graph.order()) {
-                        const double ns = double(*times.nanoseconds[std::size_t(i)]);
-                        if (ns > slowest_ns) {
-                            slowest_ns = ns;
-                            slowest = graph.nodes()[std::size_t(i)].identity.id;
+                    const double dt =
+                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+                            .count();
+                    std::lock_guard lock(mutex);
+                    const int n = ++done;
+                    if (o.on_frame) {
+                        const double started =
+                            std::chrono::duration<double>(
+                                std::chrono::system_clock::now().time_since_epoch())
+                                .count() -
+                            dt;
+                        o.on_frame(frame, started, dt, error);
+                    }
+                    if (error.empty() && o.frames_written) {
+                        o.frames_written->push_back(frame);
+                    }
+                    if (!error.empty()) {
+                        failures[frame] = error;
+                        failure_codes[frame] = code;
+                        if (!o.skip_bad_frames && !o.keep_going) {
+                            stop = true;
+                        } else {
+                            std::fprintf(stderr,
+                                         "%swarning: frame %d skipped: %s\n",
+                                         terminal ? "\r\033[K" : "",
+                                         frame,
+                                         error.c_str());
                         }
                     }
-                    std::fprintf(stderr,
-                                 "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s  slowest: %s %.0f "
-                                 "ms/frame\033[K",
-                                 std::string(std::size_t(filled), '#').c_str(),
-                                 std::string(std::size_t(width - filled), '-').c_str(),
-                                 n,
-                                 frames.size(),
-                                 fps,
-                                 format_seconds(eta).c_str(),
-                                 slowest.c_str(),
-                                 slowest_ns * 1e-6 / n);
-                } else if (error.empty()) {
-                    std::fprintf(
-                        stderr, "frame %d done in %.3fs (%d/%zu)\n", frame, dt, n, frames.size());
-                }
-            }));
+                    if (o.quiet) {
+                        return;
+                    }
+                    const double t = elapsed();
+                    const double fps = n / std::max(t, 1e-9);
+                    const double eta = (double(frames.size()) - n) / std::max(fps, 1e-9);
+                    if (terminal) {
+                        const int width = 30;
+                        const int filled = int(width * double(n) / double(frames.size()));
+                        // The node that has taken the most time so far, per frame done.
+                        std::string slowest;
+                        double slowest_ns = -1.0;
+                        for (int i : graph.order()) {
+                            const double ns = double(*times.nanoseconds[std::size_t(i)]);
+                            if (ns > slowest_ns) {
+                                slowest_ns = ns;
+                                slowest = graph.nodes()[std::size_t(i)].identity.id;
+                            }
+                        }
+                        std::fprintf(stderr,
+                                     "\r[%s%s] %d/%zu frames  %.2f fps  ETA %s  slowest: %s %.0f "
+                                     "ms/frame\033[K",
+                                     std::string(std::size_t(filled), '#').c_str(),
+                                     std::string(std::size_t(width - filled), '-').c_str(),
+                                     n,
+                                     frames.size(),
+                                     fps,
+                                     format_seconds(eta).c_str(),
+                                     slowest.c_str(),
+                                     slowest_ns * 1e-6 / n);
+                    } else if (error.empty()) {
+                        std::fprintf(stderr,
+                                     "frame %d done in %.3fs (%d/%zu)\n",
+                                     frame,
+                                     dt,
+                                     n,
+                                     frames.size());
+                    }
+                }));
     };
     if (automatic && frames.size() > 1) {
         const std::size_t before = image_memory_in_use();
@@ -205,13 +211,14 @@ int run_graph(Graph &graph, const RunSettings &o)
         jobs = int(std::clamp<std::size_t>(
             std::min(by_memory, std::size_t(std::max(1, thread_count()))), 1, 256));
         if (!o.quiet) {
-            std::fprintf(stderr,
-                         "%s--jobs auto: %d (%d thread(s); a frame peaked at %s of pass images%s)\n",
-                         terminal ? "\r\033[K" : "",
-                         jobs,
-                         thread_count(),
-                         format_bytes(per_frame).c_str(),
-                         budget ? (", budget " + format_bytes(budget)).c_str() : "");
+            std::fprintf(
+                stderr,
+                "%s--jobs auto: %d (%d thread(s); a frame peaked at %s of pass images%s)\n",
+                terminal ? "\r\033[K" : "",
+                jobs,
+                thread_count(),
+                format_bytes(per_frame).c_str(),
+                budget ? (", budget " + format_bytes(budget)).c_str() : "");
         }
     }
     run_frames(jobs);
