@@ -471,6 +471,16 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
                      {"status", error.empty() ? "done" : "failed"}};
         if (!error.empty()) {
             line["error"] = error;
+        } else {
+            // What was written, as status and the check job verify it (farm_job.h).
+            std::vector<farm::OutputRecord> records;
+            for (const std::string &p : graph.outputs(frame)) {
+                farm::OutputRecord r;
+                if (farm::record_output(p, r)) {
+                    records.push_back(std::move(r));
+                }
+            }
+            line["outputs"] = farm::records_json(records);
         }
         log << line.dump() << "\n" << std::flush;
         ++finished;

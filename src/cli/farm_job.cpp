@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/hash.h"
 #include "core/parallel.h"
 #include "core/text.h"
 #include "io/image_file.h"
@@ -71,6 +72,61 @@ Graph load_job_graph(const json &job, const fs::path &dir)
         throw_runtime(dir.string(), ": cannot enter the job's working directory ", job["cwd"]);
     }
     return Graph::load((dir / "graph.json").string(), nodes::catalog());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output records
+
+bool record_output(const std::string &path, OutputRecord &out)
+{
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {
+        return false;
+    }
+    std::vector<char> block(std::size_t(1) << 20);  // a multiple of 8: hash_bytes continues
+    std::uint64_t h = kHashBytesSeed, bytes = 0;
+    while (in) {
+        in.read(block.data(), std::streamsize(block.size()));
+        const auto got = std::size_t(in.gcount());
+        h = hash_bytes(h, block.data(), got);
+        bytes += got;
+    }
+    if (in.bad()) {
+        return false;
+    }
+    char hex[17];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+    out.path = path;
+    out.bytes = bytes;
+    out.hash = hex;
+    return true;
+}
+
+json records_json(const std::vector<OutputRecord> &records)
+{
+    json a = json::array();
+    for (const OutputRecord &r : records) {
+        a.push_back({{"path", r.path}, {"bytes", r.bytes}, {"hash", r.hash}});
+    }
+    return a;
+}
+
+std::vector<OutputRecord> records_from(const json &line)
+{
+    std::vector<OutputRecord> out;
+    const auto it = line.find("outputs");
+    if (it == line.end() || !it->is_array()) {
+        return out;
+    }
+    for (const json &r : *it) {
+        if (r.is_object() && r.value("path", "").size() && r.contains("bytes") &&
+            r["bytes"].is_number_unsigned() && r.value("hash", "").size() == 16) {
+            out.push_back({r["path"].get<std::string>(),
+                           r["bytes"].get<std::uint64_t>(),
+                           r["hash"].get<std::string>()});
+        }
+    }
+    return out;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -137,6 +193,7 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
                 st.seconds = l.value("seconds", -1.0);
                 st.error = l.value("error", "");
                 st.state = l.value("status", "") == "failed" ? "failed" : "logged";
+                st.written = st.state == "logged" ? records_from(l) : std::vector<OutputRecord>{};
             }
         }
     }
@@ -150,6 +207,14 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
     std::vector<char> whole_of(numbers.size(), 0);
     parallel_for(0, int(numbers.size()), [&](int i) {
         const std::vector<std::string> outputs = graph.outputs(numbers[std::size_t(i)]);
+        const std::vector<OutputRecord> &written = states[numbers[std::size_t(i)]].written;
+        // The task's records, when they name exactly these outputs; else read every pixel.
+        bool recorded = written.size() == outputs.size();
+        for (const std::string &p : outputs) {
+            recorded = recorded && std::any_of(written.begin(),
+                                               written.end(),
+                                               [&](const OutputRecord &r) { return r.path == p; });
+        }
         bool whole = !outputs.empty();
         for (const std::string &p : outputs) {
             std::error_code ec;
@@ -157,7 +222,24 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
                 whole = false;
                 continue;
             }
-            if (const std::string problem = verify_image_file(p); !problem.empty()) {
+            std::string problem;
+            if (recorded) {
+                const OutputRecord &want =
+                    *std::find_if(written.begin(), written.end(), [&](const OutputRecord &r) {
+                        return r.path == p;
+                    });
+                OutputRecord now;
+                if (!record_output(p, now)) {
+                    problem = p + ": cannot be read";
+                } else if (now.bytes != want.bytes) {
+                    problem = str_cat(p, ": ", now.bytes, " bytes, the task wrote ", want.bytes);
+                } else if (now.hash != want.hash) {
+                    problem = p + ": its bytes differ from what the task wrote";
+                }
+            } else {
+                problem = verify_image_file(p);
+            }
+            if (!problem.empty()) {
                 whole = false;
                 damaged_of[std::size_t(i)] = problem;
             }

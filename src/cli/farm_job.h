@@ -2,10 +2,12 @@
 // The farm job directory, shared by `farm submit`/`resubmit`/`task` (cmd_farm.cpp) and
 // `farm status`/`check` (farm_job.cpp). docs/FARM.md has the layout.
 
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "graph/graph.h"
 
@@ -23,15 +25,31 @@ json read_json(const fs::path &path);
 /// Load the job's graph from its working directory (graph paths are relative to it).
 Graph load_job_graph(const json &job, const fs::path &dir);
 
+/// What a task records of an output it wrote (after the atomic rename): its size and a 64-bit
+/// hash of its bytes (core/hash.h hash_bytes, hex).
+struct OutputRecord {
+    std::string path;
+    std::uint64_t bytes = 0;
+    std::string hash;
+};
+/// The record of the file at `path` as it is now; false when it cannot be read.
+bool record_output(const std::string &path, OutputRecord &out);
+/// Records as a task's log line holds them, and back (entries that do not parse are dropped).
+json records_json(const std::vector<OutputRecord> &records);
+std::vector<OutputRecord> records_from(const json &line);
+
 struct FrameState {
     std::string state = "missing";  ///< done, failed, running, queued, missing
     std::string error;
     double seconds = -1.0;
     int submission = -1, chunk = -1;
+    std::vector<OutputRecord> written;  ///< from the task's "done" line, when it has them
 };
 
-/// Each frame's state: done (its outputs read back whole), failed, running, queued or missing,
-/// from the job directory and squeue.
+/// Each frame's state: done, failed, running, queued or missing, from the job directory and
+/// squeue. Done means every output of the frame is there and whole: byte for byte what the task
+/// recorded having written (its size and hash), or, for a frame without records (a job
+/// directory of an older version), every pixel of every part and level read back.
 std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, const Graph &graph);
 
 /// `farm status DIR [--json]`.

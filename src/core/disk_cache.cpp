@@ -16,6 +16,7 @@
 #include <mutex>
 #include <random>
 
+#include "core/hash.h"
 #include "core/simd.h"
 
 namespace posthaste::disk_cache {
@@ -33,24 +34,6 @@ std::atomic<bool> g_enabled{true};
 std::atomic<int> g_hits{0}, g_misses{0}, g_stores{0}, g_rejected{0};
 std::mutex g_dir_mutex;
 std::string g_dir_override;
-
-/// A 64-bit hash of bytes, eight at a time (FNV-1a's multiply on words, with a shift to mix the
-/// high bits down): names entries and checks them; not cryptographic.
-std::uint64_t fnv1a(std::uint64_t h, const unsigned char *p, std::size_t n)
-{
-    std::size_t i = 0;
-    for (; i + 8 <= n; i += 8) {
-        std::uint64_t w;
-        std::memcpy(&w, p + i, 8);
-        h = (h ^ w) * 0x100000001b3ull;
-        h ^= h >> 29;
-    }
-    for (; i < n; ++i) {
-        h = (h ^ p[i]) * 0x100000001b3ull;
-    }
-    return h;
-}
-constexpr std::uint64_t kFnvBasis = 0xcbf29ce484222325ull;
 
 /// The note segment's NT_GNU_BUILD_ID of the object that holds this function.
 int find_build_id(dl_phdr_info *info, std::size_t, void *data)
@@ -141,7 +124,7 @@ std::string entry_path(const std::string &dir, const Key &key, const std::vector
     std::snprintf(name,
                   sizeof name,
                   "-%016llx.bin",
-                  static_cast<unsigned long long>(fnv1a(kFnvBasis, k.data(), k.size())));
+                  static_cast<unsigned long long>(hash_bytes(kHashBytesSeed, k.data(), k.size())));
     std::string kind;
     for (char c : key.kind()) {
         kind.push_back((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' ? c : '_');
@@ -283,7 +266,8 @@ std::optional<std::vector<unsigned char>> load(const Key &key)
     if (payload_size > kMaxPayload || file.size() - pos != payload_size + 8) {
         return reject();
     }
-    const std::uint64_t sum = fnv1a(kFnvBasis, file.data(), pos + std::size_t(payload_size));
+    const std::uint64_t sum =
+        hash_bytes(kHashBytesSeed, file.data(), pos + std::size_t(payload_size));
     if (sum != u64_at(pos + std::size_t(payload_size))) {
         return reject();
     }
@@ -319,7 +303,7 @@ void store(const Key &key, std::span<const unsigned char> payload)
     append(file, k.data(), k.size());
     put_u64(payload.size());
     append(file, payload.data(), payload.size());
-    put_u64(fnv1a(kFnvBasis, file.data(), file.size()));
+    put_u64(hash_bytes(kHashBytesSeed, file.data(), file.size()));
 
     static std::atomic<unsigned> counter{0};
     thread_local std::mt19937_64 rng{std::random_device{}()};

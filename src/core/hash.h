@@ -2,7 +2,9 @@
 // Stateless hashing for per-pixel randomness: hash(x, y, sample, seed). Same inputs give the same
 // numbers on every thread, which keeps outputs independent of the thread count.
 
+#include <cstddef>
 #include <cstdint>
+#include <cstring>
 
 namespace posthaste {
 
@@ -41,6 +43,27 @@ constexpr float radical_inverse_base2(std::uint32_t i)
     i = ((i & 0x0F0F0F0Fu) << 4u) | ((i & 0xF0F0F0F0u) >> 4u);
     i = ((i & 0x00FF00FFu) << 8u) | ((i & 0xFF00FF00u) >> 8u);
     return float(i >> 8) * (1.0f / 16777216.0f);
+}
+
+/// A 64-bit hash of bytes, eight at a time (FNV-1a's multiply on words, with a shift that mixes
+/// the high bits down), continued from `h` (start from kHashBytesSeed): names and checks files
+/// (the disk cache's entries, the farm's outputs). Not cryptographic. Blocks fed in turn give the
+/// hash of their concatenation when every block but the last is a multiple of 8 bytes long.
+inline constexpr std::uint64_t kHashBytesSeed = 0xcbf29ce484222325ull;
+inline std::uint64_t hash_bytes(std::uint64_t h, const void *data, std::size_t n)
+{
+    const auto *p = static_cast<const unsigned char *>(data);
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+        std::uint64_t w;
+        std::memcpy(&w, p + i, 8);
+        h = (h ^ w) * 0x100000001b3ull;
+        h ^= h >> 29;
+    }
+    for (; i < n; ++i) {
+        h = (h ^ p[i]) * 0x100000001b3ull;
+    }
+    return h;
 }
 
 }  // namespace posthaste

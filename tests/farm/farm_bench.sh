@@ -34,7 +34,7 @@ t0, t1, t2, t3, chunks, r = map(float, sys.argv[1:])
 local, farm, check = t1 - t0, t2 - t1, t3 - t2
 print(f"round {int(r)}: local {local:.1f} s; farm array {farm:.1f} s "
       f"(overhead {100 * (farm - local) / local:+.1f} %, {(farm - local) / chunks:+.2f} s per "
-      f"chunk); check job (reads every output back) {check:.1f} s; "
+      f"chunk); check job (verifies every output) {check:.1f} s; "
       f"total {100 * (farm + check - local) / local:+.1f} %")
 PY
     rm -rf "local$r" "farm$r"
