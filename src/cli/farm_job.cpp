@@ -12,6 +12,7 @@
 #include <map>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "core/error.h"
 #include "core/hash.h"
@@ -207,7 +208,8 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
     std::vector<char> whole_of(numbers.size(), 0);
     parallel_for(0, int(numbers.size()), [&](int i) {
         const std::vector<std::string> outputs = graph.outputs(numbers[std::size_t(i)]);
-        const std::vector<OutputRecord> &written = states[numbers[std::size_t(i)]].written;
+        const std::vector<OutputRecord> &written =
+            std::as_const(states).at(numbers[std::size_t(i)]).written;
         // The task's records, when they name exactly these outputs; else read every pixel.
         bool recorded = written.size() == outputs.size();
         for (const std::string &p : outputs) {
