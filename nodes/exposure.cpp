@@ -261,6 +261,7 @@ extern const NodeType kExposure{{"exposure",
     [](std::vector<std::string> &problems) {
         audit(nodes::kExposure, kMeterFields, problems);
         audit(nodes::kExposure, kPhotographicFields, problems);
-    }};
+    },
+    [](const NodeParams &params) { return params.get_string(kMode) == "auto"; }};
 
 }  // namespace posthaste::nodes

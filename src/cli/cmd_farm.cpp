@@ -204,9 +204,22 @@ int chunk_size(const std::string &text, const SlurmOptions &s, std::size_t frame
     return chunk;
 }
 
-std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames, int chunk)
+/// Chunks of `chunk` frames: contiguous, or `interleaved` (chunk k of n takes frames k, k + n,
+/// ...), so that a cost drifting along the sequence is shared evenly by the tasks; only for
+/// graphs that do not look back (Graph::looks_back), where a frame costs the same in any chunk.
+std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames,
+                                          int chunk,
+                                          bool interleaved)
 {
     std::vector<std::vector<int>> chunks;
+    if (interleaved) {
+        const std::size_t n = (frames.size() + std::size_t(chunk) - 1) / std::size_t(chunk);
+        chunks.resize(n);
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+            chunks[i % n].push_back(frames[i]);
+        }
+        return chunks;
+    }
     for (std::size_t i = 0; i < frames.size(); i += std::size_t(chunk)) {
         chunks.emplace_back(
             frames.begin() + std::ptrdiff_t(i),
@@ -351,13 +364,16 @@ int submit_command(const SubmitOptions &o)
     job["frames"] = frames;
     job["chunk"] = chunk;
     job["chunk_auto"] = automatic;
+    // One wave of tasks: deal the frames round-robin unless a node looks back.
+    const bool interleaved = automatic && !graph.looks_back();
+    job["interleaved"] = interleaved;
     job["slurm"] = {{"max_running", o.slurm.max_running},
                     {"partition", o.slurm.partition},
                     {"cpus_per_task", o.slurm.cpus_per_task},
                     {"mem", o.slurm.mem},
                     {"time", o.slurm.time}};
     json sub;
-    sub["chunks"] = make_chunks(frames, chunk);
+    sub["chunks"] = make_chunks(frames, chunk, interleaved);
     job["submissions"] = json::array({sub});
     const std::string graph_text = apply_sets(o.graph, graph, o.sets);
     if (o.dry_run) {
@@ -369,7 +385,7 @@ int submit_command(const SubmitOptions &o)
             frames.size(),
             sub["chunks"].size(),
             chunk,
-            automatic ? " (auto)" : "");
+            automatic ? (interleaved ? " (auto, interleaved)" : " (auto)") : "");
         std::printf("# run-s0.sbatch\n%s",
                     batch_script(job, dir, 0, int(sub["chunks"].size())).c_str());
         std::printf("# check-s0.sbatch (afterany on the array, --kill-on-invalid-dep=yes)\n%s",
@@ -420,7 +436,7 @@ int resubmit_command(const std::string &dir_text, bool dry_run)
         chunk = chunk_size("auto", so, todo.size(), &automatic);
     }
     json sub;
-    sub["chunks"] = make_chunks(todo, chunk);
+    sub["chunks"] = make_chunks(todo, chunk, job.value("interleaved", false));
     const int s = int(job["submissions"].size());
     if (dry_run) {
         std::printf("# would resubmit frames %s in %zu chunk(s)\n",

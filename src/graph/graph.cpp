@@ -247,6 +247,17 @@ std::vector<std::string> Graph::outputs(int frame) const
     return paths;
 }
 
+bool Graph::looks_back() const
+{
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+        const GraphNode &gn = nodes_[i];
+        if (live_[i] && gn.type->looks_back && gn.type->looks_back(gn.params)) {
+            return true;
+        }
+    }
+    return false;
+}
+
 std::vector<int> Graph::default_frames() const
 {
     if (!frames_.empty()) {

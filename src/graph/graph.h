@@ -71,6 +71,8 @@ class Graph {
     const std::vector<int> &sequence_frames() const;
     /// The files the graph's live `write` nodes make for `frame` (their paths expanded).
     std::vector<std::string> outputs(int frame) const;
+    /// Whether a live node evaluates earlier frames of the sequence (NodeType::looks_back).
+    bool looks_back() const;
     /// Run every live node's check hook for these frames (files exist, passes exist, ...).
     void check(const std::vector<int> &frames) const;
     /// Run node `index`'s check hook alone (for a node run on frames held in memory).

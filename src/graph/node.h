@@ -120,6 +120,10 @@ struct NodeType {
     /// line to `problems` for each binding that disagrees with its spec. The node catalog test
     /// runs it for every node.
     void (*audit)(std::vector<std::string> &problems) = nullptr;
+    /// Optional: true when the node, with these parameters, evaluates earlier frames of the
+    /// sequence (FrameHistory: auto exposure's adaptation), so a frame's cost depends on the
+    /// frames evaluated before it in the same process (the farm keeps such chunks contiguous).
+    bool (*looks_back)(const NodeParams &params) = nullptr;
 };
 
 /// Parameters of one node instance, validated and defaulted.

@@ -133,14 +133,39 @@ before=$(squeue -h | wc -l)
 cpus=$(sinfo -h -o %C | head -n 1 | cut -d/ -f4)
 auto() {  # frames, extra options -> "N chunk(s) of K (auto)"
     "$P" farm submit "$graph" --frames "1-$1" --chunk auto --dry-run --job-dir job7 \
-        $(sets 160 90 auto) "${@:2}" | head -n 1 | grep -o '[0-9]* chunk(s) of [0-9]* (auto)'
+        $(sets 160 90 auto) "${@:2}" | head -n 1 | grep -o '[0-9]* chunk(s) of [0-9]* (auto'
 }
 per=$(((13 + cpus - 1) / cpus)); tasks=$(((13 + per - 1) / per))
-[[ $(auto 12 --max-running 1) == "1 chunk(s) of 12 (auto)" ]] &&
-    [[ $(auto 12 --cpus-per-task "$cpus") == "1 chunk(s) of 12 (auto)" ]] &&
-    [[ $(auto 13 --cpus-per-task 1) == "$tasks chunk(s) of $per (auto)" ]] &&
+[[ $(auto 12 --max-running 1) == "1 chunk(s) of 12 (auto" ]] &&
+    [[ $(auto 12 --cpus-per-task "$cpus") == "1 chunk(s) of 12 (auto" ]] &&
+    [[ $(auto 13 --cpus-per-task 1) == "$tasks chunk(s) of $per (auto" ]] &&
     ok "chunk auto: $(auto 13 --cpus-per-task 1) on $cpus CPU(s)" ||
     fail "chunk auto: $(auto 12 --max-running 1); $(auto 13 --cpus-per-task 1) on $cpus CPU(s)"
+# Interleaved when no node looks back: chunk k takes frames k, k + n, ...; the outputs are the
+# local run's bits. A graph with auto exposure (it evaluates earlier frames) stays contiguous.
+out=$("$P" farm submit "$graph" --frames 1-8 --chunk auto --cpus-per-task 1 --job-dir job8 \
+    $(sets 160 90 farm8)) || fail "submit auto: $out"
+wait_idle
+tasks=$(python3 -c "import json; print(len(json.load(open('job8/job.json'))['submissions'][0]['chunks']))")
+first=$(python3 -c "import json; print(json.load(open('job8/job.json'))['submissions'][0]['chunks'][0])")
+want=$(python3 -c "print(list(range(1, 9, $tasks)))")
+[[ $first == "$want" ]] && "$P" farm status job8 >/dev/null && r=$(same local farm8 "1 8") &&
+    ok "chunk auto interleaved: chunk 0 is $first of $tasks; $r" ||
+    fail "chunk auto: chunk 0 $first (want $want), $(same local farm8 "1 8")"
+python3 - "$graph" auto_exposure.json <<'PY'
+import json, sys
+g = json.load(open(sys.argv[1]))
+for n in g["nodes"]:
+    if n["id"] == "motion_blur":
+        n["inputs"]["image"] = "exposure"
+g["nodes"].append({"id": "exposure", "type": "exposure", "inputs": {"image": "dof"},
+                   "params": {"mode": "auto"}})
+json.dump(g, open(sys.argv[2], "w"))
+PY
+line=$("$P" farm submit auto_exposure.json --frames 1-12 --chunk auto --cpus-per-task 1 \
+    --dry-run --job-dir job9 $(sets 160 90 x) 2>&1 | head -n 1)
+[[ $line == *" (auto)" ]] && ok "chunk auto stays contiguous with auto exposure" ||
+    fail "auto exposure: $line"
 "$P" farm submit "$graph" --frames 1-4 --chunk auto --partition nosuch --job-dir job4 2>err.txt
 [[ $? -ne 0 && ! -e job4 ]] && ok "chunk auto, no such partition: $(cut -c1-100 err.txt)" ||
     fail "chunk auto on a missing partition: $(cat err.txt)"
