@@ -182,12 +182,7 @@ Atmosphere::Atmosphere(const AtmosphereParams &p) : params_(p)
     inv_mie_height_ = 1.0f / p.mie_scale_height_m;
     inv_ozone_half_width_ = 2.0f / p.ozone_width_m;
     cos_sun_radius_ = std::cos(p.sun_angular_radius_rad);
-    if (!load_tables()) {
-        build_transmittance();
-        build_multi_scattering();
-        sky_view_ = make_sky_view(glm::vec3(0.0f, p.sky_view_y, 0.0f));
-        store_tables();
-    }
+    build_tables();
 }
 
 glm::dvec3 Atmosphere::planet_position(const glm::vec3 &world) const

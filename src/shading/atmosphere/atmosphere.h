@@ -431,9 +431,8 @@ class Atmosphere {
                                bool quadratic = false) const;
     void build_transmittance();
     void build_multi_scattering();
-    /// The three tables from the disk cache (core/disk_cache.h); false on a miss.
-    bool load_tables();
-    void store_tables() const;
+    /// The three tables: from the disk cache (core/disk_cache.h), else built and stored.
+    void build_tables();
     /// make_sky_view, with the LUT taken from `cached` (moved from) when it is not null.
     SkyView make_sky_view(const glm::vec3 &camera_pos, Lut2D *cached) const;
 

@@ -3,7 +3,6 @@
 // of integrating them again (about 100 ms at two threads).
 
 #include <cstdint>
-#include <optional>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -43,39 +42,37 @@ bool get_lut(disk_cache::Reader &r, Lut2D &lut, int width, int height)
 
 }  // namespace
 
-bool Atmosphere::load_tables()
+void Atmosphere::build_tables()
 {
-    const std::optional<std::vector<unsigned char>> bytes = disk_cache::load(tables_key(params_));
-    if (!bytes) {
-        return false;
-    }
+    struct Tables {
+        Lut2D transmittance, multi_scattering, sky;
+    };
     const AtmosphereParams &p = params_;
-    try {
-        disk_cache::Reader r(*bytes);
-        Lut2D t, ms, sky;
-        if (get_lut(r, t, p.transmittance_width, p.transmittance_height) &&
-            get_lut(r, ms, p.multi_scattering_size, p.multi_scattering_size) &&
-            get_lut(r, sky, p.sky_view_width, p.sky_view_height) && r.at_end()) {
-            transmittance_ = std::move(t);
-            multi_scattering_ = std::move(ms);
-            sky_view_ = make_sky_view(glm::vec3(0.0f, p.sky_view_y, 0.0f), &sky);
-            return true;
-        }
-    } catch (const std::out_of_range &) {
-    }
-    return false;
-}
-
-void Atmosphere::store_tables() const
-{
-    if (!disk_cache::enabled()) {
-        return;
-    }
-    disk_cache::Writer w;
-    put_lut(w, transmittance_);
-    put_lut(w, multi_scattering_);
-    put_lut(w, sky_view_.lut_);
-    disk_cache::store(tables_key(params_), w.bytes());
+    const glm::vec3 sky_camera(0.0f, p.sky_view_y, 0.0f);
+    Tables tables = disk_cache::cached<Tables>(
+        tables_key(p),
+        [&] {
+            build_transmittance();
+            build_multi_scattering();
+            return Tables{transmittance_, multi_scattering_, make_sky_view(sky_camera).lut_};
+        },
+        [](const Tables &t, disk_cache::Writer &w) {
+            put_lut(w, t.transmittance);
+            put_lut(w, t.multi_scattering);
+            put_lut(w, t.sky);
+        },
+        [&](disk_cache::Reader &r) {
+            Tables t;
+            if (!get_lut(r, t.transmittance, p.transmittance_width, p.transmittance_height) ||
+                !get_lut(r, t.multi_scattering, p.multi_scattering_size, p.multi_scattering_size) ||
+                !get_lut(r, t.sky, p.sky_view_width, p.sky_view_height)) {
+                throw std::out_of_range("atmosphere: tables of another size");
+            }
+            return t;
+        });
+    transmittance_ = std::move(tables.transmittance);
+    multi_scattering_ = std::move(tables.multi_scattering);
+    sky_view_ = make_sky_view(sky_camera, &tables.sky);  // the view's frame; the LUT as it is
 }
 
 }  // namespace posthaste::shading
