@@ -14,6 +14,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -21,6 +22,7 @@
 #include "cli/farm_job.h"
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/text.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
 #include "nodes/registry.h"
@@ -189,19 +191,13 @@ int chunk_size(const std::string &text, const SlurmOptions &s, std::size_t frame
         return int(
             std::max<std::size_t>(1, (frames + std::size_t(slots) - 1) / std::size_t(slots)));
     }
-    int chunk = 0;
-    std::size_t used = 0;
-    try {
-        chunk = std::stoi(text, &used);
-    } catch (const std::exception &) {
-        used = 0;
-    }
-    if (used != text.size() || chunk < 1) {
+    const std::optional<int> chunk = parse_int(text);
+    if (!chunk || *chunk < 1) {
         throw_usage("farm submit: --chunk must be a whole number of at least 1 or auto, got \"",
                     text,
                     "\"");
     }
-    return chunk;
+    return *chunk;
 }
 
 /// Chunks of `chunk` frames: contiguous, or `interleaved` (chunk k of n takes frames k, k + n,

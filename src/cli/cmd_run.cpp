@@ -1,11 +1,12 @@
 // posthaste run GRAPH: evaluate a graph over frames (graph/run.h does the work).
 
-#include <exception>
+#include <optional>
 #include <string>
 
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/parallel.h"
+#include "core/text.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
 
@@ -27,17 +28,11 @@ int parse_jobs(const std::string &text)
     if (text == "auto") {
         return -1;
     }
-    std::size_t used = 0;
-    int jobs = -1;
-    try {
-        jobs = std::stoi(text, &used);
-    } catch (const std::exception &) {
-        used = 0;
-    }
-    if (used != text.size() || jobs < 0 || jobs > 256) {
+    const std::optional<int> jobs = parse_int(text);
+    if (!jobs || *jobs < 0 || *jobs > 256) {
         throw_usage("--jobs: expected a number in [0, 256] or auto, got \"", text, "\"");
     }
-    return jobs;
+    return *jobs;
 }
 
 }  // namespace

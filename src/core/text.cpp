@@ -1,5 +1,7 @@
 #include "core/text.h"
 
+#include <charconv>
+
 namespace posthaste {
 
 std::string join(const std::vector<std::string> &items, std::string_view sep)
@@ -42,6 +44,17 @@ std::string xml_escape(const std::string &text)
         }
     }
     return out;
+}
+
+std::optional<int> parse_int(std::string_view text)
+{
+    int value = 0;
+    const char *end = text.data() + text.size();
+    const auto [ptr, ec] = std::from_chars(text.data(), end, value);
+    if (text.empty() || ec != std::errc() || ptr != end) {
+        return std::nullopt;
+    }
+    return value;
 }
 
 }  // namespace posthaste

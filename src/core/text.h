@@ -1,7 +1,8 @@
 #pragma once
-// Text for messages and reports: lists joined for one-line errors, and escaping for the HTML,
-// SVG and XML reports (bench charts, diff and suite reports, JUnit).
+// Text for messages and reports: lists joined for one-line errors, escaping for the HTML, SVG
+// and XML reports (bench charts, diff and suite reports, JUnit), and whole numbers of options.
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -15,5 +16,8 @@ std::string join(const std::vector<std::string> &items, std::string_view sep = "
 /// characters XML 1.0 does not allow (all below 0x20 but tab, newline and carriage return)
 /// dropped.
 std::string xml_escape(const std::string &text);
+
+/// `text` as a whole decimal integer (an optional minus, digits, nothing else), or nothing.
+std::optional<int> parse_int(std::string_view text);
 
 }  // namespace posthaste
