@@ -15,6 +15,8 @@ target_link_libraries(posthaste_python PRIVATE posthaste_nodes posthaste_metrics
 # The floors' symbols stay inside the module (no clash with another module in the process, and
 # calls between them bind directly instead of through the procedure linkage table).
 target_link_options(posthaste_python PRIVATE -Wl,--exclude-libs,ALL)
+# Its needed libraries in the loader's best order, as the executables' (cmake/LoadOrder.cmake).
+posthaste_fast_load(posthaste_python)
 add_custom_command(TARGET posthaste_python POST_BUILD
   COMMAND ${CMAKE_COMMAND} -E env PYTHONPATH=${POSTHASTE_PYTHON_DIR}
           ${Python_EXECUTABLE} -c

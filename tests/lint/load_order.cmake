@@ -1,0 +1,23 @@
+# The executable's needed libraries begin with the load order cmake/LoadOrder.cmake measured
+# (the libraries most of the loader's lookups end in, first). Arguments: -DBINARY=...
+# -DEXPECTED="soname;soname;..." (the first few of the order).
+execute_process(COMMAND readelf -d ${BINARY} RESULT_VARIABLE rc OUTPUT_VARIABLE dynamic)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "readelf -d ${BINARY} failed (${rc})")
+endif()
+string(REGEX MATCHALL "\\(NEEDED\\)[^[]*\\[[^]]+\\]" needed "${dynamic}")
+set(names "")
+foreach(entry IN LISTS needed)
+  string(REGEX REPLACE ".*\\[([^]]+)\\]" "\\1" name "${entry}")
+  list(APPEND names ${name})
+endforeach()
+list(LENGTH EXPECTED count)
+list(LENGTH names have)
+if(have LESS count)
+  message(FATAL_ERROR "${BINARY} needs ${have} libraries, fewer than the ${count} expected first")
+endif()
+list(SUBLIST names 0 ${count} first)
+if(NOT first STREQUAL EXPECTED)
+  message(FATAL_ERROR "${BINARY}'s first needed libraries are\n  ${first}\nnot the load order\n  ${EXPECTED}")
+endif()
+message(STATUS "${BINARY}: the first ${count} of ${have} needed libraries in the load order")
