@@ -22,12 +22,16 @@ for r in $(seq "$ROUNDS"); do
     t1=$(now)
     job=$("$P" farm submit "$ROOT/graphs/minecrappy.json" --frames "1-$FRAMES" --chunk "$CHUNK" \
         --cpus-per-task "$CPUS" --job-dir "job$r" $(sets "farm$r") | cut -d' ' -f1)
-    while [[ -n $(squeue -h -j "$job") ]]; do sleep 0.1; done
-    t2=$(now)
-    while [[ -n $(squeue -h) ]]; do sleep 0.1; done
-    t3=$(now)
-    "$P" farm status "job$r" >/dev/null
+    # The array's frames are done when every task has written its node times (its last act);
+    # the check job when its report is there. Polling files, not squeue, puts no RPCs to
+    # slurmctld and munged beside the tasks.
     chunks=$(python3 -c "import json, sys; print(len(json.load(open(sys.argv[1]))['submissions'][0]['chunks']))" "job$r/job.json")
+    until (( $(compgen -G "job$r/logs/s0-chunk*.nodes.json" | wc -l) >= chunks )); do sleep 0.05; done
+    t2=$(now)
+    until [[ -e job$r/report.json ]]; do sleep 0.05; done
+    t3=$(now)
+    while [[ -n $(squeue -h) ]]; do sleep 0.2; done
+    "$P" farm status "job$r" >/dev/null
     python3 - "$t0" "$t1" "$t2" "$t3" "$chunks" "$r" <<'PY'
 import sys
 t0, t1, t2, t3, chunks, r = map(float, sys.argv[1:])
