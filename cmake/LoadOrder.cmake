@@ -23,11 +23,36 @@
 option(POSTHASTE_LOAD_ORDER "Order the needed libraries by the loader's lookups (start-up time)"
        ON)
 
+# A key for a measured order: the modification times of its libraries, or "" when one is gone
+# (an upgrade that renamed it).
+function(posthaste_load_order_key libs out)
+  set(stamps "")
+  foreach(lib IN LISTS libs)
+    if(NOT EXISTS "${lib}")
+      set(${out} "" PARENT_SCOPE)
+      return()
+    endif()
+    file(TIMESTAMP "${lib}" stamp "%s" UTC)
+    string(APPEND stamps "${lib}=${stamp};")
+  endforeach()
+  string(MD5 key "${stamps}")
+  set(${out} "${key}" PARENT_SCOPE)
+endfunction()
+
 function(posthaste_load_order out)
   set(${out} "" PARENT_SCOPE)
   if(NOT POSTHASTE_LOAD_ORDER OR POSTHASTE_SANITIZE OR POSTHASTE_FUZZ OR CMAKE_CROSSCOMPILING
      OR NOT CMAKE_SYSTEM_NAME STREQUAL "Linux")
     return()
+  endif()
+  # The probe takes about 5 s; a re-configure keeps the last order while every one of its
+  # libraries is still there, unchanged (any library OpenImageIO gains changes its own file).
+  if(POSTHASTE_LOAD_ORDER_MEASURED)
+    posthaste_load_order_key("${POSTHASTE_LOAD_ORDER_MEASURED}" key)
+    if(key AND key STREQUAL POSTHASTE_LOAD_ORDER_MEASURED_KEY)
+      set(${out} "${POSTHASTE_LOAD_ORDER_MEASURED}" PARENT_SCOPE)
+      return()
+    endif()
   endif()
   set(dir ${PROJECT_BINARY_DIR}/load_order)
   file(WRITE ${dir}/probe.cpp [=[
@@ -80,6 +105,9 @@ int main(int argc, char **)
   endforeach()
   list(LENGTH libs count)
   message(STATUS "posthaste: load order of ${count} libraries from the loader's lookups")
+  posthaste_load_order_key("${libs}" key)
+  set(POSTHASTE_LOAD_ORDER_MEASURED "${libs}" CACHE INTERNAL "The measured load order")
+  set(POSTHASTE_LOAD_ORDER_MEASURED_KEY "${key}" CACHE INTERNAL "Its libraries' times")
   set(${out} "${libs}" PARENT_SCOPE)
 endfunction()
 
