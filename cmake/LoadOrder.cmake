@@ -22,11 +22,14 @@
 
 option(POSTHASTE_LOAD_ORDER "Order the needed libraries by the loader's lookups (start-up time)"
        ON)
+# What the probe links: the shared libraries the floors link (CMakeLists.txt).
+set(POSTHASTE_LOAD_ORDER_PROBE_LIBS OpenImageIO::OpenImageIO OpenEXR::OpenEXR PkgConfig::OCIO
+    TBB::tbb hwy::hwy PkgConfig::FFTW3F)
 
-# A key for a measured order: the modification times of its libraries, or "" when one is gone
-# (an upgrade that renamed it).
+# A key for a measured order: what the probe links and the modification times of the order's
+# libraries, or "" when one is gone (an upgrade that renamed it).
 function(posthaste_load_order_key libs out)
-  set(stamps "")
+  set(stamps "${POSTHASTE_LOAD_ORDER_PROBE_LIBS};")
   foreach(lib IN LISTS libs)
     if(NOT EXISTS "${lib}")
       set(${out} "" PARENT_SCOPE)
@@ -73,7 +76,7 @@ int main(int argc, char **)
   try_compile(built ${dir}/build
     SOURCES ${dir}/probe.cpp
     CXX_STANDARD 20
-    LINK_LIBRARIES OpenImageIO::OpenImageIO OpenEXR::OpenEXR PkgConfig::OCIO TBB::tbb hwy::hwy
+    LINK_LIBRARIES ${POSTHASTE_LOAD_ORDER_PROBE_LIBS}
     LINK_OPTIONS -Wl,--no-as-needed
     COPY_FILE ${dir}/probe
     OUTPUT_VARIABLE log)
