@@ -7,9 +7,9 @@
 // Departure from Praun et al.: no lapped-texture parametrisation (world-space planar projection
 // instead) and procedural strokes instead of scanned ones. See docs/nodes/hatching.md.
 
-#include <charconv>
 #include <glm/geometric.hpp>
 
+#include "core/text.h"
 #include "graph/mask.h"
 #include "nodes/node.h"
 #include "shading/hatching/hatch.h"
@@ -143,13 +143,12 @@ constexpr PortSpec kInputs[] = {
 bool parse_ids(const std::string &text, std::vector<int> &ids, std::string &bad)
 {
     for (const std::string &word : split_list(text)) {
-        int v = 0;
-        const auto [end, ec] = std::from_chars(word.data(), word.data() + word.size(), v);
-        if (ec != std::errc() || end != word.data() + word.size() || v < 0) {
+        const std::optional<int> v = parse_int(word);
+        if (!v || *v < 0) {
             bad = word;
             return false;
         }
-        ids.push_back(v);
+        ids.push_back(*v);
     }
     return true;
 }
