@@ -54,7 +54,9 @@ void Atmosphere::build_tables()
         [&] {
             build_transmittance();
             build_multi_scattering();
-            return Tables{transmittance_, multi_scattering_, make_sky_view(sky_camera).lut_};
+            // The sky view reads the other two, so it is made before they move.
+            Lut2D sky = make_sky_view(sky_camera).lut_;
+            return Tables{std::move(transmittance_), std::move(multi_scattering_), std::move(sky)};
         },
         [](const Tables &t, disk_cache::Writer &w) {
             put_lut(w, t.transmittance);
