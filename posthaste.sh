@@ -14,7 +14,7 @@ cd "$(dirname "$0")"
 PACKAGES=(build-essential cmake ninja-build pkg-config
           libopenimageio-dev openimageio-tools libopenexr-dev libopencolorio-dev
           libglm-dev nlohmann-json3-dev libcli11-dev libtbb-dev libgtest-dev libbenchmark-dev
-          libfftw3-dev libhwy-dev pybind11-dev python3-dev python3-numpy python3-pytest)
+          libfftw3-dev libhwy-dev zlib1g-dev pybind11-dev python3-dev python3-numpy python3-pytest)
 BUILD_DIR=${POSTHASTE_BUILD_DIR:-build}
 JOBS=$(nproc 2>/dev/null || echo 2)
 

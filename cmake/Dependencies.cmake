@@ -9,6 +9,8 @@ find_package(nlohmann_json CONFIG REQUIRED)
 find_package(CLI11 CONFIG REQUIRED)
 find_package(TBB CONFIG REQUIRED)
 find_package(Threads REQUIRED)
+# zlib: the previews' PNG encoder deflates pieces of a frame in parallel (src/io/png_write.cpp).
+find_package(ZLIB REQUIRED)
 
 # OpenImageIO's imported target names /usr/include/opencv4, which exists only when
 # libopencv-core-dev is installed; drop include directories that do not exist.

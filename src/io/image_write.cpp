@@ -15,6 +15,7 @@
 #include "io/color.h"
 #include "io/image_file.h"
 #include "io/io_detail.h"
+#include "io/png_write.h"
 #include "io/source_file.h"
 #include "io/write_layout.h"
 
@@ -223,13 +224,54 @@ void write_part_pixels(OIIO::ImageOutput &out,
     }
 }
 
-}  // namespace
-
-bool is_exr_path(const std::string &path)
+/// The extension of `path` in lower case (".exr").
+std::string lower_extension(const std::string &path)
 {
     std::string ext = fs::path(path).extension().string();
     std::transform(
         ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    return ext;
+}
+
+bool is_png_path(const std::string &path)
+{
+    return lower_extension(path) == ".png";
+}
+
+/// Write 8-bit interleaved pixels atomically: a PNG through the parallel encoder (png_write.h),
+/// any other format through OpenImageIO.
+void write_8bit(const std::string &path,
+                const std::vector<std::uint8_t> &buf,
+                int w,
+                int h,
+                int nch,
+                int png_level,
+                const std::string &png_filter)
+{
+    atomic_write(path, [&](const std::string &tmp) {
+        if (is_png_path(path)) {
+            write_png_file(
+                tmp, buf.data(), w, h, nch, png_level, png_filter_from_name(png_filter), path);
+            return;
+        }
+        auto out = OIIO::ImageOutput::create(path);
+        if (!out) {
+            throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
+        }
+        OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
+        spec.attribute("oiio:ColorSpace", "sRGB");
+        if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
+            !out->close()) {
+            throw_runtime(path, ": cannot write preview: ", out->geterror());
+        }
+    });
+}
+
+}  // namespace
+
+bool is_exr_path(const std::string &path)
+{
+    const std::string ext = lower_extension(path);
     return ext == ".exr" || ext == ".sxr" || ext == ".mxr";
 }
 
@@ -395,6 +437,9 @@ void write_display_preview(const Image &color,
     const int w = display.width(), h = display.height();
     std::vector<std::uint8_t> buf(std::size_t(w) * std::size_t(h) * std::size_t(nch));
     const Rect inside = data.intersect(display);
+    // A PNG's alpha is straight (unassociated): its colour is the display values divided by
+    // alpha (OpenImageIO's other formats take them premultiplied and convert themselves).
+    const bool straight = nch == 4 && is_png_path(path);
     parallel_for(0, h, [&](int y) {
         thread_local std::vector<float> row;
         row.assign(std::size_t(w) * std::size_t(in_ch), 0.0f);
@@ -425,47 +470,31 @@ void write_display_preview(const Image &color,
             const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
             const float t = thresholds[x & 7];
             std::uint8_t *o = out + std::size_t(x) * std::size_t(nch);
+            const float a = straight ? p[3] : 1.0f;
             int c = 0;
             for (; c < have; ++c) {
-                o[c] = quantise(p[c], t);
+                o[c] = quantise(c < 3 && a > 0.0f && a != 1.0f ? p[c] / a : p[c], t);
             }
             for (; c < nch; ++c) {
                 o[c] = quantise(1.0f, t);
             }
         }
     });
-    atomic_write(path, [&](const std::string &tmp) {
-        auto out = OIIO::ImageOutput::create(path);
-        if (!out) {
-            throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
-        }
-        OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
-        spec.attribute("oiio:ColorSpace", "sRGB");
-        spec.attribute("png:compressionLevel", std::clamp(options.png_level, 0, 9));
-        // libpng's PNG_FILTER_* flags.
-        const int filter = options.png_filter == "sub"       ? 0x10
-                           : options.png_filter == "up"      ? 0x20
-                           : options.png_filter == "average" ? 0x40
-                           : options.png_filter == "paeth"   ? 0x80
-                           : options.png_filter == "none"    ? 0x08
-                                                             : 0xF8;
-        spec.attribute("png:filter", filter);
-        if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
-            !out->close()) {
-            throw_runtime(path, ": cannot write preview: ", out->geterror());
-        }
-    });
+    write_8bit(path, buf, w, h, nch, options.png_level, options.png_filter);
 }
 
 void write_preview(const Image &display_rgba, const std::string &path, bool with_alpha)
 {
     const int nch = with_alpha && display_rgba.channels() >= 4 ? 4 : 3;
+    const bool straight = nch == 4 && is_png_path(path);  // as write_display_preview
     std::vector<std::uint8_t> buf(display_rgba.pixel_count() * std::size_t(nch));
     for (int y = 0; y < display_rgba.height(); ++y) {
         for (int x = 0; x < display_rgba.width(); ++x) {
             const float *p = display_rgba.pixel(x, y);
+            const float a = straight ? p[3] : 1.0f;
             for (int c = 0; c < nch; ++c) {
                 float v = c < display_rgba.channels() ? p[c] : 1.0f;
+                v = c < 3 && a > 0.0f && a != 1.0f ? v / a : v;
                 v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
                 buf[(std::size_t(y) * std::size_t(display_rgba.width()) + std::size_t(x)) *
                         std::size_t(nch) +
@@ -473,19 +502,7 @@ void write_preview(const Image &display_rgba, const std::string &path, bool with
             }
         }
     }
-    atomic_write(path, [&](const std::string &tmp) {
-        auto out = OIIO::ImageOutput::create(path);
-        if (!out) {
-            throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
-        }
-        OIIO::ImageSpec spec(
-            display_rgba.width(), display_rgba.height(), nch, OIIO::TypeDesc::UINT8);
-        spec.attribute("oiio:ColorSpace", "sRGB");
-        if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
-            !out->close()) {
-            throw_runtime(path, ": cannot write preview: ", out->geterror());
-        }
-    });
+    write_8bit(path, buf, display_rgba.width(), display_rgba.height(), nch, 6, "adaptive");
 }
 
 }  // namespace posthaste
