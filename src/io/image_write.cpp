@@ -440,6 +440,27 @@ void write_display_preview(const Image &color,
     // A PNG's alpha is straight (unassociated): its colour is the display values divided by
     // alpha (OpenImageIO's other formats take them premultiplied and convert themselves).
     const bool straight = nch == 4 && is_png_path(path);
+    // When the input has every channel the output writes, a row (its first nch channels) is
+    // quantised as one flat run of values (a loop the compiler vectorises) against the
+    // thresholds spread over every value: the eight rows of the dither pattern (one without
+    // dither), w * nch values each.
+    const bool flat = in_ch >= nch;
+    const int pattern_rows = options.dither ? 8 : 1;
+    std::vector<float> spread;
+    if (flat) {
+        spread.resize(std::size_t(pattern_rows) * std::size_t(w) * std::size_t(nch));
+        for (int r = 0; r < pattern_rows; ++r) {
+            for (int x = 0; x < w; ++x) {
+                const int k = kBayer[r][(x + display.x0) & 7];
+                const float t = options.dither ? (float(k) + 0.5f) / 64.0f : 0.5f;
+                std::fill_n(spread.begin() + std::ptrdiff_t((std::size_t(r) * std::size_t(w) +
+                                                              std::size_t(x)) *
+                                                             std::size_t(nch)),
+                            nch,
+                            t);
+            }
+        }
+    }
     parallel_for(0, h, [&](int y) {
         thread_local std::vector<float> row;
         row.assign(std::size_t(w) * std::size_t(in_ch), 0.0f);
@@ -465,6 +486,41 @@ void write_display_preview(const Image &color,
                 std::isfinite(v) ? std::min(std::max(v * 255.0f + t, 0.0f), 255.0f) : 0.0f;
             return std::uint8_t(q);
         };
+        if (flat) {
+            if (straight) {
+                for (int x = 0; x < w; ++x) {
+                    float *p = row.data() + std::size_t(x) * 4;
+                    const float a = p[3];
+                    for (int c = 0; a > 0.0f && a != 1.0f && c < 3; ++c) {
+                        p[c] /= a;
+                    }
+                }
+            }
+            const float *t =
+                spread.data() + std::size_t(options.dither ? (ay & 7) : 0) * std::size_t(w) *
+                                    std::size_t(nch);
+            const float *v = row.data();
+            if (in_ch > nch) {  // keep the first nch channels of each pixel
+                thread_local std::vector<float> kept;
+                kept.resize(std::size_t(w) * std::size_t(nch));
+                for (int x = 0; x < w; ++x) {
+                    std::copy_n(row.data() + std::size_t(x) * std::size_t(in_ch),
+                                nch,
+                                kept.data() + std::size_t(x) * std::size_t(nch));
+                }
+                v = kept.data();
+            }
+            const std::size_t n = std::size_t(w) * std::size_t(nch);
+            for (std::size_t i = 0; i < n; ++i) {
+                // quantise() without branches: v - v is 0 exactly when v is finite, and the
+                // comparisons send NaN to 0.
+                float q = v[i] * 255.0f + t[i];
+                q = q > 0.0f ? q : 0.0f;
+                q = q < 255.0f ? q : 255.0f;
+                out[i] = std::uint8_t(v[i] - v[i] == 0.0f ? q : 0.0f);
+            }
+            return;
+        }
         const int have = std::min(nch, in_ch);  // output channels the row has; the rest read 1
         for (int x = 0; x < w; ++x) {
             const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
