@@ -49,7 +49,7 @@ void add_run_command(CLI::App &app, int &exit_code)
         ->allow_extra_args(false);
     cmd->add_option("--jobs,-j",
                     opts->jobs_text,
-                    "Frames evaluated at once (default: min(4, threads)); auto: the first frame "
+                    "Frames evaluated at once (default: threads / 2, 1 to 4); auto: the first frame "
                     "alone, then one per thread, at most what 3/4 of --max-memory holds of the "
                     "first frame's pass images");
     cmd->add_option("--threads,-t", opts->threads, "Worker threads (default: all cores)")

@@ -15,7 +15,7 @@ class Graph;
 /// Options of a run (the CLI's run and render, a farm chunk, Python's Graph.run).
 struct RunSettings {
     std::string frames;
-    /// Frames in flight: 0 the default (min(4, threads)), -1 auto (run_graph), else the count.
+    /// Frames in flight: 0 the default (default_jobs), -1 auto (run_graph), else the count.
     int jobs = 0;
     int threads = 0;
     /// No progress and no summary on stdout/stderr.
@@ -45,6 +45,10 @@ void apply_memory_budget(const std::string &max_memory);
 
 /// Frames of `frames` whose outputs in `graph` all exist and read back whole.
 std::vector<int> frames_done(const Graph &graph, const std::vector<int> &frames);
+
+/// The default frames in flight for `threads` worker threads: threads / 2, from 1 to 4 (each
+/// frame gets two threads or more).
+int default_jobs(int threads);
 
 /// Check and evaluate `graph` over the frames (settings.frames, else the graph's default), with
 /// progress and a summary unless quiet. Returns the exit code; throws Error on failure.

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "graph/run.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
 #include "test_util.h"
@@ -245,6 +246,22 @@ TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
         << out;
     EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 1G", &out), 0)
         << out;
+}
+
+// The default jobs give each frame two threads or more, one job at least and four at most; the
+// summary of a run without --jobs says what it took.
+TEST(Cli, DefaultJobsGiveEachFrameTwoThreads)
+{
+    const int want[][2] = {{1, 1}, {2, 1}, {3, 1}, {4, 2}, {5, 2}, {6, 3}, {8, 4}, {64, 4}};
+    for (const auto &[threads, jobs] : want) {
+        EXPECT_EQ(default_jobs(threads), jobs) << threads << " threads";
+    }
+    const std::string dir = test::scratch_dir("cli_jobs_default");
+    write_inputs(dir, {1, 2});
+    const std::string graph = write_graph(dir);
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 4", &out), 0) << out;
+    EXPECT_NE(out.find("2 job(s), 4 thread(s)"), std::string::npos) << out;
 }
 
 TEST(Cli, JobsAutoTakesAThreadEachUnlessTheBudgetHoldsFewer)
