@@ -122,15 +122,20 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
     }
 }
 
-void write_text_file(const std::string &path, const std::string &text)
+void write_file_bytes(const std::string &path, const void *data, std::size_t size)
 {
     atomic_write(path, [&](const std::string &tmp) {
         std::FILE *f = std::fopen(tmp.c_str(), "wb");
-        const bool ok = f && std::fwrite(text.data(), 1, text.size(), f) == text.size();
+        const bool ok = f && std::fwrite(data, 1, size, f) == size;
         if (!f || std::fclose(f) != 0 || !ok) {
             throw_runtime(path, ": cannot write");
         }
     });
+}
+
+void write_text_file(const std::string &path, const std::string &text)
+{
+    write_file_bytes(path, text.data(), text.size());
 }
 
 }  // namespace posthaste

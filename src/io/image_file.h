@@ -13,6 +13,7 @@
 
 #include "core/frame.h"
 #include "io/aliases.h"
+#include "io/png_write.h"
 
 namespace posthaste {
 
@@ -154,8 +155,8 @@ class ColorProcessor;
 struct PreviewOptions {
     bool alpha = false;  ///< Write alpha as a fourth channel.
     int png_level = 1;   ///< zlib level of a PNG, 0-9.
-    /// PNG row filter: none, sub, up, average, paeth, or adaptive (libpng tries all per row).
-    std::string png_filter = "none";
+    /// PNG row filter (the write node's png_filter choice, in the enum's order).
+    PngFilter png_filter = PngFilter::none;
     bool dither = true;  ///< 8x8 ordered dither before quantising to 8 bits.
 };
 
@@ -175,6 +176,10 @@ void write_display_preview(const Image &color,
 /// Run `write(temporary_path)` and rename the result onto `path`; the temporary is removed if
 /// `write` throws. The directory of `path` is created if missing.
 void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write);
+
+/// Write `size` bytes to `path` atomically (atomic_write); a one-line error naming the path (and
+/// the free space when the disk is full) otherwise.
+void write_file_bytes(const std::string &path, const void *data, std::size_t size);
 
 /// Write `text` to `path` atomically (atomic_write); a one-line error naming the path (and the
 /// free space when the disk is full) otherwise.

@@ -246,14 +246,15 @@ void write_8bit(const std::string &path,
                 int h,
                 int nch,
                 int png_level,
-                const std::string &png_filter)
+                PngFilter png_filter)
 {
+    if (is_png_path(path)) {
+        const std::vector<std::uint8_t> png =
+            encode_png(buf.data(), w, h, nch, png_level, png_filter, path);
+        write_file_bytes(path, png.data(), png.size());
+        return;
+    }
     atomic_write(path, [&](const std::string &tmp) {
-        if (is_png_path(path)) {
-            write_png_file(
-                tmp, buf.data(), w, h, nch, png_level, png_filter_from_name(png_filter), path);
-            return;
-        }
         auto out = OIIO::ImageOutput::create(path);
         if (!out) {
             throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
@@ -439,26 +440,24 @@ void write_display_preview(const Image &color,
     const Rect inside = data.intersect(display);
     // A PNG's alpha is straight (unassociated): its colour is the display values divided by
     // alpha (OpenImageIO's other formats take them premultiplied and convert themselves).
+    // Alpha is written only from an input that has it, so such a row is always flat (below).
     const bool straight = nch == 4 && is_png_path(path);
     // When the input has every channel the output writes, a row (its first nch channels) is
-    // quantised as one flat run of values (a loop the compiler vectorises) against the
-    // thresholds spread over every value: the eight rows of the dither pattern (one without
-    // dither), w * nch values each.
+    // quantised as one flat run of values (a loop the compiler vectorises).
     const bool flat = in_ch >= nch;
+    // The dither thresholds, (pattern + 0.5) / 64, spread over every value a row writes: the
+    // eight rows of the pattern (one without dither), w * nch values each.
     const int pattern_rows = options.dither ? 8 : 1;
-    std::vector<float> spread;
-    if (flat) {
-        spread.resize(std::size_t(pattern_rows) * std::size_t(w) * std::size_t(nch));
-        for (int r = 0; r < pattern_rows; ++r) {
-            for (int x = 0; x < w; ++x) {
-                const int k = kBayer[r][(x + display.x0) & 7];
-                const float t = options.dither ? (float(k) + 0.5f) / 64.0f : 0.5f;
-                std::fill_n(spread.begin() + std::ptrdiff_t((std::size_t(r) * std::size_t(w) +
-                                                              std::size_t(x)) *
-                                                             std::size_t(nch)),
-                            nch,
-                            t);
-            }
+    std::vector<float> spread(std::size_t(pattern_rows) * std::size_t(w) * std::size_t(nch));
+    for (int r = 0; r < pattern_rows; ++r) {
+        for (int x = 0; x < w; ++x) {
+            const int k = kBayer[r][(x + display.x0) & 7];
+            const float t = options.dither ? (float(k) + 0.5f) / 64.0f : 0.5f;
+            std::fill_n(spread.begin() + std::ptrdiff_t((std::size_t(r) * std::size_t(w) +
+                                                          std::size_t(x)) *
+                                                         std::size_t(nch)),
+                        nch,
+                        t);
         }
     }
     parallel_for(0, h, [&](int y) {
@@ -472,13 +471,8 @@ void write_display_preview(const Image &color,
         }
         to_display.apply_row(row.data(), w, in_ch, /*unpremultiply=*/true);
         std::uint8_t *out = buf.data() + std::size_t(y) * std::size_t(w) * std::size_t(nch);
-        // The row's eight dither thresholds, (pattern + 0.5) / 64, once a row.
-        const int *pattern = kBayer[ay & 7];
-        float thresholds[8];
-        for (int i = 0; i < 8; ++i) {
-            thresholds[i] =
-                options.dither ? (float(pattern[(i + display.x0) & 7]) + 0.5f) / 64.0f : 0.5f;
-        }
+        const float *t = spread.data() + std::size_t(options.dither ? (ay & 7) : 0) *
+                                             std::size_t(w) * std::size_t(nch);
         // floor(v 255 + t) clamped to [0, 255], as the truncation of the clamped value (the same
         // for every value: both are 0 below 0 and 255 from 255 up); 0 for NaN and infinities.
         auto quantise = [](float v, float t) {
@@ -496,9 +490,6 @@ void write_display_preview(const Image &color,
                     }
                 }
             }
-            const float *t =
-                spread.data() + std::size_t(options.dither ? (ay & 7) : 0) * std::size_t(w) *
-                                    std::size_t(nch);
             const float *v = row.data();
             if (in_ch > nch) {  // keep the first nch channels of each pixel
                 thread_local std::vector<float> kept;
@@ -521,18 +512,13 @@ void write_display_preview(const Image &color,
             }
             return;
         }
-        const int have = std::min(nch, in_ch);  // output channels the row has; the rest read 1
+        // Fewer input channels than the output writes (a grey pass): the rest read 1.
         for (int x = 0; x < w; ++x) {
             const float *p = row.data() + std::size_t(x) * std::size_t(in_ch);
-            const float t = thresholds[x & 7];
+            const float tx = t[std::size_t(x) * std::size_t(nch)];
             std::uint8_t *o = out + std::size_t(x) * std::size_t(nch);
-            const float a = straight ? p[3] : 1.0f;
-            int c = 0;
-            for (; c < have; ++c) {
-                o[c] = quantise(c < 3 && a > 0.0f && a != 1.0f ? p[c] / a : p[c], t);
-            }
-            for (; c < nch; ++c) {
-                o[c] = quantise(1.0f, t);
+            for (int c = 0; c < nch; ++c) {
+                o[c] = quantise(c < in_ch ? p[c] : 1.0f, tx);
             }
         }
     });
@@ -558,7 +544,8 @@ void write_preview(const Image &display_rgba, const std::string &path, bool with
             }
         }
     }
-    write_8bit(path, buf, display_rgba.width(), display_rgba.height(), nch, 6, "adaptive");
+    write_8bit(
+        path, buf, display_rgba.width(), display_rgba.height(), nch, 6, PngFilter::adaptive);
 }
 
 }  // namespace posthaste

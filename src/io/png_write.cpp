@@ -7,8 +7,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
-#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <limits>
@@ -147,16 +145,6 @@ std::vector<std::uint8_t> deflate_piece(
 
 }  // namespace
 
-PngFilter png_filter_from_name(const std::string &name)
-{
-    return name == "none"      ? PngFilter::none
-           : name == "sub"     ? PngFilter::sub
-           : name == "up"      ? PngFilter::up
-           : name == "average" ? PngFilter::average
-           : name == "paeth"   ? PngFilter::paeth
-                               : PngFilter::adaptive;
-}
-
 std::vector<std::uint8_t> encode_png(const std::uint8_t *pixels,
                                      int width,
                                      int height,
@@ -268,28 +256,6 @@ std::vector<std::uint8_t> encode_png(const std::uint8_t *pixels,
     }
     put_chunk(png, "IEND", nullptr, 0);
     return png;
-}
-
-void write_png_file(const std::string &path,
-                    const std::uint8_t *pixels,
-                    int width,
-                    int height,
-                    int channels,
-                    int level,
-                    PngFilter filter,
-                    const std::string &what)
-{
-    const std::vector<std::uint8_t> png =
-        encode_png(pixels, width, height, channels, level, filter, what);
-    std::FILE *f = std::fopen(path.c_str(), "wb");
-    if (!f) {
-        throw_runtime(what, ": cannot write: ", std::strerror(errno));
-    }
-    const bool wrote = std::fwrite(png.data(), 1, png.size(), f) == png.size();
-    const int write_errno = errno;
-    if (std::fclose(f) != 0 || !wrote) {
-        throw_runtime(what, ": cannot write: ", std::strerror(wrote ? errno : write_errno));
-    }
 }
 
 }  // namespace posthaste

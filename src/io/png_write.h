@@ -14,13 +14,11 @@
 
 namespace posthaste {
 
-/// The PNG row filters; `adaptive` picks, per row, the filter whose output has the smallest sum
-/// of absolute values (taking bytes as signed), the heuristic the PNG specification suggests
-/// and libpng's default.
+/// The PNG row filters, in the order of the write node's png_filter choice (the first five are
+/// also their filter-type bytes); `adaptive` picks, per row, the filter whose output has the
+/// smallest sum of absolute values (taking bytes as signed), the heuristic the PNG
+/// specification suggests and libpng's default.
 enum class PngFilter { none, sub, up, average, paeth, adaptive };
-
-/// The filter named `name` (none, sub, up, average, paeth, adaptive); anything else: adaptive.
-PngFilter png_filter_from_name(const std::string &name);
 
 /// Filtered bytes one piece holds (rounded up to whole rows).
 inline constexpr std::size_t kPngPieceBytes = std::size_t(1) << 18;
@@ -34,16 +32,5 @@ std::vector<std::uint8_t> encode_png(const std::uint8_t *pixels,
                                      int level,
                                      PngFilter filter,
                                      const std::string &what);
-
-/// encode_png written to `path` (not atomic: pass atomic_write's temporary); a one-line error
-/// naming `what` when the file cannot be written.
-void write_png_file(const std::string &path,
-                    const std::uint8_t *pixels,
-                    int width,
-                    int height,
-                    int channels,
-                    int level,
-                    PngFilter filter,
-                    const std::string &what);
 
 }  // namespace posthaste

@@ -1159,11 +1159,12 @@ TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
     const std::string s2((std::istreambuf_iterator<char>(f2)), {});
     EXPECT_EQ(s1, s2);
     // The PNG row filter changes the bytes, never the pixels.
-    for (const char *filter : {"adaptive", "sub", "up", "average", "paeth"}) {
+    for (const PngFilter filter :
+         {PngFilter::adaptive, PngFilter::sub, PngFilter::up, PngFilter::average, PngFilter::paeth}) {
         PreviewOptions o = dithered;
         o.png_filter = filter;
         write_display_preview(ramp, window, window, srgb, dir + "/filtered.png", o);
-        EXPECT_EQ(png_red(dir + "/filtered.png", pw, ph), b) << filter;
+        EXPECT_EQ(png_red(dir + "/filtered.png", pw, ph), b) << int(filter);
     }
 }
 

@@ -9,6 +9,7 @@
 #include <zlib.h>
 
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 
 #include "core/parallel.h"
@@ -108,7 +109,9 @@ TEST(PngWrite, LibpngReadsBackEveryPixel)
                                       PngFilter::adaptive}) {
                 for (const int level : {0, 1, 6, 9}) {
                     const std::string path = dir + "/p.png";
-                    write_png_file(path, pixels.data(), size.w, size.h, nch, level, f, "p.png");
+                    const std::vector<std::uint8_t> png =
+                        encode_png(pixels.data(), size.w, size.h, nch, level, f, "p.png");
+                    write_file_bytes(path, png.data(), png.size());
                     // The file's straight values, as they are (not premultiplied on read).
                     OIIO::ImageSpec config;
                     config.attribute("oiio:UnassociatedAlpha", 1);
@@ -309,10 +312,17 @@ TEST(PngWrite, ErrorsNameTheImage)
         EXPECT_NE(m.find("thumb.png"), std::string::npos) << m;
         EXPECT_EQ(m.find('\n'), std::string::npos) << m;
     }
-    const std::string m = message([&] {
-        write_png_file("/nonexistent-dir/x.png", px, 1, 1, 3, 1, PngFilter::none, "out/x.png");
-    });
-    EXPECT_NE(m.find("out/x.png: cannot write"), std::string::npos) << m;
+    // A preview whose folder cannot be made (a file stands in its place).
+    const std::string dir = scratch_dir("png_errors");
+    std::ofstream(dir + "/file") << "x";
+    Image img(1, 1, 3);
+    const ColorProcessor identity = ColorProcessor::between("lin_rec709", "lin_rec709", "test");
+    const Rect window{0, 0, 1, 1};
+    const std::string path = dir + "/file/x.png";
+    const std::string m =
+        message([&] { write_display_preview(img, window, window, identity, path, {}); });
+    EXPECT_EQ(m.rfind(path + ": cannot create directory", 0), 0u) << m;
+    EXPECT_EQ(m.find('\n'), std::string::npos) << m;
 }
 
 }  // namespace
