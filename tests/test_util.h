@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
@@ -181,6 +183,13 @@ inline Frame run_node(const std::string &type,
 }
 
 /// Run a shell command, capturing stdout+stderr; returns the exit status.
+/// A file's bytes ("" when it cannot be read).
+inline std::string read_bytes(const std::string &path)
+{
+    std::ifstream in(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
 inline int run_command(const std::string &command, std::string *output = nullptr)
 {
     FILE *pipe = ::popen((command + " 2>&1").c_str(), "r");

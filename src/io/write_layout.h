@@ -1,8 +1,9 @@
 #pragma once
 // Internal to the EXR writer (image_write.cpp): the output's parts and channels, either in the
 // layout of the file the frame was read from or rebuilt with canonical names, with their specs
-// (write_layout.cpp).
+// (write_layout.cpp), their OpenEXR headers (exr_header.cpp) and the writing (exr_write.cpp).
 
+#include <OpenEXR/ImfHeader.h>
 #include <OpenImageIO/imageio.h>
 
 #include <string>
@@ -77,5 +78,16 @@ void finish_specs(std::vector<OutPart> &parts,
                   const Frame &frame,
                   const WriteOptions &options,
                   const std::string &path);
+
+/// The OpenEXR header of part `index` of `parts` (exr_header.cpp): windows, channels,
+/// compression, tiles and levels from the spec, and its attributes under OpenEXR's names.
+Imf::Header exr_header(const OutPart &part, int index, int parts, const std::string &path);
+
+/// Write the parts into `file` through OpenEXR (exr_write.cpp): level 0 of each part, then its
+/// MIP levels copied or made again; errors are one line naming `path`.
+void write_exr_parts(const std::vector<OutPart> &parts,
+                     const Frame &frame,
+                     const std::string &file,
+                     const std::string &path);
 
 }  // namespace posthaste::io_detail

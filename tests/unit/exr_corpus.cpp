@@ -10,6 +10,9 @@
 #include <ImfChannelList.h>
 #include <ImfCompression.h>
 #include <ImfDeepFrameBuffer.h>
+#include <ImfDoubleAttribute.h>
+#include <ImfFloatVectorAttribute.h>
+#include <ImfIntAttribute.h>
 #include <ImfDeepScanLineInputPart.h>
 #include <ImfDeepScanLineOutputFile.h>
 #include <ImfDeepTiledInputPart.h>
@@ -18,6 +21,7 @@
 #include <ImfEnvmapAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfIO.h>
 #include <ImfInputPart.h>
 #include <ImfMultiPartInputFile.h>
 #include <ImfMultiPartOutputFile.h>
@@ -732,6 +736,61 @@ void write_channel_sets(Writer &w)
     write_scanline_file(w.add("rgb_no_alpha", Kind::Flat, "R,G,B half, no alpha"),
                         make_header(display, display, Imf::ZIP_COMPRESSION, kRgb),
                         Values{40, 0, false, false});
+    {
+        // Every attribute type OpenEXR defines that a header carries beside the picture,
+        // standard names and a studio's own.
+        const std::string path = w.add("attributes",
+                                       Kind::Flat,
+                                       "R,G,B half with attributes of every type: int, float, "
+                                       "double, string, vectors, matrices, boxes, string and "
+                                       "float vectors, rational, time and key codes, "
+                                       "chromaticities, and the standard capDate, comments, owner, "
+                                       "expTime, aperture, xDensity, utcOffset");
+        Imf::Header h = make_header(display, display, Imf::PIZ_COMPRESSION, kRgb);
+        h.insert("studio:int", Imf::IntAttribute(-7));
+        h.insert("studio:float", Imf::FloatAttribute(0.1f));
+        h.insert("studio:double", Imf::DoubleAttribute(1.0 / 3.0));
+        h.insert("studio:string", Imf::StringAttribute("shot 010, take 3"));
+        h.insert("studio:v2i", Imf::V2iAttribute(Imath::V2i(3, -4)));
+        h.insert("studio:v2f", Imf::V2fAttribute(Imath::V2f(0.25f, -1.5f)));
+        h.insert("studio:v2d", Imf::V2dAttribute(Imath::V2d(0.1, 0.2)));
+        h.insert("studio:v3i", Imf::V3iAttribute(Imath::V3i(1, 2, 3)));
+        h.insert("studio:v3f", Imf::V3fAttribute(Imath::V3f(0.5f, 0.25f, 0.125f)));
+        h.insert("studio:v3d", Imf::V3dAttribute(Imath::V3d(0.1, 0.2, 0.3)));
+        h.insert("studio:m33f", Imf::M33fAttribute(Imath::M33f(1, 2, 3, 4, 5, 6, 7, 8, 9.5f)));
+        h.insert("studio:m33d", Imf::M33dAttribute(Imath::M33d(1, 2, 3, 4, 5, 6, 7, 8, 0.1)));
+        Imath::M44f m44f;
+        Imath::M44d m44d;
+        for (int i = 0; i < 16; ++i) {
+            m44f[i / 4][i % 4] = float(i) * 0.3f - 1.0f;
+            m44d[i / 4][i % 4] = double(i) * 0.7 - 2.0;
+        }
+        h.insert("studio:m44f", Imf::M44fAttribute(m44f));
+        h.insert("studio:m44d", Imf::M44dAttribute(m44d));
+        h.insert("studio:box2i", Imf::Box2iAttribute(box(-3, 4, 50, 60)));
+        h.insert("studio:box2f",
+                 Imf::Box2fAttribute(Imath::Box2f(Imath::V2f(-0.5f, 0.0f), Imath::V2f(1.0f, 2.5f))));
+        h.insert("studio:strings",
+                 Imf::StringVectorAttribute(Imf::StringVector{"alpha", "", "gamma delta"}));
+        h.insert("studio:floats",
+                 Imf::FloatVectorAttribute(Imf::FloatVector{1.0f, -2.0f, 0.5f, 1e-20f, 3e30f}));
+        h.insert("studio:rational", Imf::RationalAttribute(Imf::Rational(-24000, 1001)));
+        Imf::addFramesPerSecond(h, Imf::Rational(24000, 1001));
+        Imf::addTimeCode(h, Imf::TimeCode(1, 2, 3, 4, true, false, true, true, 5));
+        Imf::addKeyCode(h, Imf::KeyCode(12, 34, 567890, 1234, 56, 4, 64));
+        Imf::addChromaticities(h, Imf::Chromaticities(Imath::V2f(0.7f, 0.3f),
+                                                      Imath::V2f(0.2f, 0.7f),
+                                                      Imath::V2f(0.15f, 0.06f),
+                                                      Imath::V2f(0.3127f, 0.329f)));
+        Imf::addCapDate(h, "2026:11:30 01:02:03");
+        Imf::addComments(h, "a comment");
+        Imf::addOwner(h, "a studio");
+        Imf::addExpTime(h, 0.02f);
+        Imf::addAperture(h, 2.8f);
+        Imf::addXDensity(h, 72.0f);
+        Imf::addUtcOffset(h, -3600.0f);
+        write_scanline_file(path, h, Values{43, 0, false, false});
+    }
     write_scanline_file(
         w.add("y_only", Kind::LumaOnly, "luminance only: a single Y half channel, no chroma"),
         make_header(display, display, Imf::ZIP_COMPRESSION, {{"Y", Imf::HALF}}),
@@ -1256,6 +1315,71 @@ std::vector<Entry> write_corpus(const std::string &dir)
     write_multipart(w);
     write_deep(w);
     return w.take();
+}
+
+namespace {
+
+/// An attribute's value as the bytes OpenEXR writes for it.
+class ValueBytes : public Imf::OStream {
+   public:
+    ValueBytes() : Imf::OStream("attribute value") {}
+    void write(const char c[], int n) override { bytes.append(c, std::size_t(n)); }
+    uint64_t tellp() override { return bytes.size(); }
+    void seekp(uint64_t) override {}
+    std::string bytes;
+};
+
+std::string value_bytes(const Imf::Attribute &a)
+{
+    ValueBytes out;
+    a.writeValueTo(out, 2);
+    return out.bytes;
+}
+
+}  // namespace
+
+std::string compare_attributes(const std::string &a,
+                               const std::string &b,
+                               const std::vector<std::string> &ignore)
+{
+    try {
+        Imf::MultiPartInputFile fa(a.c_str()), fb(b.c_str());
+        if (fa.parts() != fb.parts()) {
+            return "parts: " + std::to_string(fa.parts()) + " vs " + std::to_string(fb.parts());
+        }
+        auto ignored = [&](const char *name) {
+            return std::find(ignore.begin(), ignore.end(), name) != ignore.end();
+        };
+        for (int p = 0; p < fa.parts(); ++p) {
+            const Imf::Header &ha = fa.header(p), &hb = fb.header(p);
+            for (auto it = ha.begin(); it != ha.end(); ++it) {
+                if (ignored(it.name())) {
+                    continue;
+                }
+                const Imf::Attribute *other = hb.find(it.name()) != hb.end()
+                                                  ? &hb[it.name()]
+                                                  : nullptr;
+                if (!other) {
+                    return "part " + std::to_string(p) + ": \"" + it.name() + "\" missing";
+                }
+                if (std::string(other->typeName()) != it.attribute().typeName()) {
+                    return "part " + std::to_string(p) + ": \"" + it.name() + "\" is " +
+                           other->typeName() + ", was " + it.attribute().typeName();
+                }
+                if (value_bytes(*other) != value_bytes(it.attribute())) {
+                    return "part " + std::to_string(p) + ": \"" + it.name() + "\" differs";
+                }
+            }
+            for (auto it = hb.begin(); it != hb.end(); ++it) {
+                if (!ignored(it.name()) && ha.find(it.name()) == ha.end()) {
+                    return "part " + std::to_string(p) + ": \"" + it.name() + "\" added";
+                }
+            }
+        }
+        return "";
+    } catch (const std::exception &e) {
+        return std::string("cannot compare: ") + e.what();
+    }
 }
 
 std::string compare_exr(const std::string &a, const std::string &b)

@@ -41,6 +41,13 @@ std::vector<Entry> write_corpus(const std::string &dir);
 /// pixel x y, values as hex bits). Never throws: errors come back as a one-line message.
 std::string compare_exr(const std::string &a, const std::string &b);
 
+/// Compare the header attributes of two EXR files, part by part: the same names, types and
+/// value bytes (as OpenEXR writes them), except the names in `ignore`. "" when equal, else one
+/// line naming the first difference.
+std::string compare_attributes(const std::string &a,
+                               const std::string &b,
+                               const std::vector<std::string> &ignore);
+
 /// A flattened deep image: the data window and 5 floats per pixel (R, G, B, A, Z), row-major.
 struct Flat {
     int x0, y0, width, height;
