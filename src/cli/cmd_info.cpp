@@ -116,7 +116,11 @@ int info(const std::vector<std::string> &files, const std::string &convention)
                                      std::to_string(part.tile_height)
                                : "scanline";
             if (part.mip_levels > 1) {
-                kind += ", " + part.level_mode + " " + std::to_string(part.mip_levels) + " levels";
+                kind += part.level_mode == "ripmap"
+                            ? ", ripmap " + std::to_string(part.rip_levels.first) + "x" +
+                                  std::to_string(part.rip_levels.second) + " levels"
+                            : ", " + part.level_mode + " " + std::to_string(part.mip_levels) +
+                                  " levels";
             }
             if (!part.envmap.empty()) {
                 kind += ", " + part.envmap + " environment";

@@ -371,7 +371,9 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
         h.setTileDescription(
             Imf::TileDescription(spec.tile_width,
                                  spec.tile_height,
-                                 levels ? Imf::MIPMAP_LEVELS : Imf::ONE_LEVEL,
+                                 !levels                              ? Imf::ONE_LEVEL
+                                 : part.source && part.source->ripmap ? Imf::RIPMAP_LEVELS
+                                                                      : Imf::MIPMAP_LEVELS,
                                  rounding == Imf::ROUND_UP ? Imf::ROUND_UP : Imf::ROUND_DOWN));
     }
 

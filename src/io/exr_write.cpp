@@ -84,16 +84,27 @@ std::vector<float> part_floats(const OutPart &part, const Frame &frame)
     return out;
 }
 
-/// The next MIP level: each pixel the mean of the 2x2 (or 2x1, 1x2) block above it. Rounding
-/// down (OpenEXR's default) drops an odd last row or column of the level above, as maketx's box
-/// filter does; rounding up gives it a level pixel of its own, the mean of what the block holds.
-std::vector<float> half_size(
-    const std::vector<float> &src, int w, int h, int nch, bool round_up, int &nw, int &nh)
+/// The next level along x, y or both: each pixel the mean of the block of up to 2x2 pixels
+/// above it. Rounding down (OpenEXR's default) drops an odd last row or column of the level
+/// above, as maketx's box filter does; rounding up gives it a pixel of its own, the mean of what
+/// its block holds.
+std::vector<float> halve(const std::vector<float> &src,
+                         int w,
+                         int h,
+                         int nch,
+                         bool along_x,
+                         bool along_y,
+                         bool round_up,
+                         int &nw,
+                         int &nh)
 {
-    nw = std::max(1, round_up ? (w + 1) / 2 : w / 2);
-    nh = std::max(1, round_up ? (h + 1) / 2 : h / 2);
+    auto next = [&](int n, bool along) {
+        return !along ? n : std::max(1, round_up ? (n + 1) / 2 : n / 2);
+    };
+    nw = next(w, along_x);
+    nh = next(h, along_y);
     std::vector<float> dst(std::size_t(nw) * std::size_t(nh) * std::size_t(nch));
-    const int fx = w > 1 ? 2 : 1, fy = h > 1 ? 2 : 1;
+    const int fx = along_x && w > 1 ? 2 : 1, fy = along_y && h > 1 ? 2 : 1;
     for (int y = 0; y < nh; ++y) {
         for (int x = 0; x < nw; ++x) {
             for (int c = 0; c < nch; ++c) {
@@ -101,8 +112,8 @@ std::vector<float> half_size(
                 float sum = 0.0f;
                 for (int j = 0; j < fy; ++j) {
                     for (int i = 0; i < fx; ++i) {
-                        const int sx = std::min(x * fx + i, w - 1),
-                                  sy = std::min(y * fy + j, h - 1);
+                        const int sx = std::min(x * fx + i, w - 1);
+                        const int sy = std::min(y * fy + j, h - 1);
                         sum += src[(std::size_t(sy) * std::size_t(w) + std::size_t(sx)) *
                                        std::size_t(nch) +
                                    std::size_t(c)];
@@ -323,10 +334,19 @@ void write_level0(Imf::MultiPartOutputFile &file,
     }
 }
 
-/// A touched MIP-mapped part's lower levels, made again from its new pixels.
-void write_made_levels(Imf::TiledOutputPart &out, const OutPart &part, const Frame &frame)
+/// A level's floats (W x H x C) stored at the part's types and written as level (lx, ly).
+void write_level(Imf::TiledOutputPart &out,
+                 const OutPart &part,
+                 const std::vector<float> &level,
+                 int w,
+                 int h,
+                 int lx,
+                 int ly)
 {
-    const int nch = int(part.channels.size());
+    if (w != out.levelWidth(lx) || h != out.levelHeight(ly)) {
+        throw Iex::ArgExc("a made level's size differs from the file's");
+    }
+    const std::size_t nch = part.channels.size();
     std::vector<std::string> names;
     std::vector<OIIO::TypeDesc> types;
     std::size_t pixel_bytes = 0;
@@ -335,53 +355,70 @@ void write_made_levels(Imf::TiledOutputPart &out, const OutPart &part, const Fra
         types.push_back(c.type);
         pixel_bytes += c.type.size();
     }
-    const Imath::V2i origin(part.data_window.x0, part.data_window.y0);
-    std::vector<float> level = part_floats(part, frame);
-    int w = part.data_window.width(), h = part.data_window.height();
-    for (int l = 1; l < out.numLevels(); ++l) {
-        int nw = 0, nh = 0;
-        level = half_size(level, w, h, nch, out.levelRoundingMode() == Imf::ROUND_UP, nw, nh);
-        w = nw;
-        h = nh;
-        if (w != out.levelWidth(l) || h != out.levelHeight(l)) {
-            throw Iex::ArgExc("a made level's size differs from the file's");
+    std::vector<unsigned char> buf(std::size_t(w) * std::size_t(h) * pixel_bytes);
+    std::vector<float> column(std::size_t(w) * std::size_t(h));
+    std::size_t offset = 0;
+    for (std::size_t c = 0; c < nch; ++c) {
+        for (std::size_t i = 0; i < column.size(); ++i) {
+            column[i] = level[i * nch + c];
         }
-        std::vector<unsigned char> buf(std::size_t(w) * std::size_t(h) * pixel_bytes);
-        std::vector<float> column(std::size_t(w) * std::size_t(h));
-        std::size_t offset = 0;
-        for (int c = 0; c < nch; ++c) {
-            for (std::size_t i = 0; i < column.size(); ++i) {
-                column[i] = level[i * std::size_t(nch) + std::size_t(c)];
+        store_values(column.data(), int(column.size()), types[c], buf.data() + offset, pixel_bytes);
+        offset += types[c].size();
+    }
+    Imf::FrameBuffer fb;
+    insert_interleaved(
+        fb, names, types, buf.data(), Imath::V2i(part.data_window.x0, part.data_window.y0), w, h);
+    out.setFrameBuffer(fb);
+    out.writeTiles(0, out.numXTiles(lx) - 1, 0, out.numYTiles(ly) - 1, lx, ly);
+}
+
+/// A touched MIP- or rip-mapped part's other levels, made again from its new pixels: a MIP
+/// map's by halving both sides, a ripmap's (lx, ly) by halving the width lx times and the
+/// height ly times.
+void write_made_levels(Imf::TiledOutputPart &out, const OutPart &part, const Frame &frame)
+{
+    const int nch = int(part.channels.size());
+    const bool up = out.levelRoundingMode() == Imf::ROUND_UP;
+    const bool rip = out.levelMode() == Imf::RIPMAP_LEVELS;
+    std::vector<float> column = part_floats(part, frame);  // level (0, ly)
+    int cw = part.data_window.width(), ch = part.data_window.height();
+    for (int ly = 0; ly < (rip ? out.numYLevels() : out.numLevels()); ++ly) {
+        if (ly > 0) {
+            column = halve(column, cw, ch, nch, !rip, true, up, cw, ch);
+            if (!rip) {
+                write_level(out, part, column, cw, ch, ly, ly);
+                continue;
             }
-            store_values(column.data(),
-                         int(column.size()),
-                         types[std::size_t(c)],
-                         buf.data() + offset,
-                         pixel_bytes);
-            offset += types[std::size_t(c)].size();
+            write_level(out, part, column, cw, ch, 0, ly);
         }
-        Imf::FrameBuffer fb;
-        insert_interleaved(fb, names, types, buf.data(), origin, w, h);
-        out.setFrameBuffer(fb);
-        out.writeTiles(0, out.numXTiles(l) - 1, 0, out.numYTiles(l) - 1, l);
+        if (!rip) {
+            continue;
+        }
+        std::vector<float> level = column;
+        int w = cw, h = ch;
+        for (int lx = 1; lx < out.numXLevels(); ++lx) {
+            level = halve(level, w, h, nch, true, false, up, w, h);
+            write_level(out, part, level, w, h, lx, ly);
+        }
     }
 }
 
-/// An untouched MIP-mapped part's lower levels, as read.
+/// An untouched MIP- or rip-mapped part's other levels, as read.
 void write_copied_levels(Imf::TiledOutputPart &out, const OutPart &part, const std::string &path)
 {
     const Imath::V2i origin(part.data_window.x0, part.data_window.y0);
-    if (int(part.source->levels.size()) + 1 != out.numLevels()) {
+    const int count = out.levelMode() == Imf::RIPMAP_LEVELS ? out.numXLevels() * out.numYLevels()
+                                                            : out.numLevels();
+    if (int(part.source->levels.size()) + 1 != count) {
         throw_runtime(path,
                       ": part \"",
                       part.spec.get_string_attribute("name"),
                       "\" has ",
                       part.source->levels.size() + 1,
                       " levels where its tiles need ",
-                      out.numLevels());
+                      count);
     }
-    for (int l = 1; l < out.numLevels(); ++l) {
-        const SourceLevel &level = part.source->levels[std::size_t(l - 1)];
+    for (const SourceLevel &level : part.source->levels) {
         Imf::FrameBuffer fb;
         insert_interleaved(
             fb,
@@ -394,7 +431,8 @@ void write_copied_levels(Imf::TiledOutputPart &out, const OutPart &part, const s
             level.spec.width,
             level.spec.height);
         out.setFrameBuffer(fb);
-        out.writeTiles(0, out.numXTiles(l) - 1, 0, out.numYTiles(l) - 1, l);
+        out.writeTiles(
+            0, out.numXTiles(level.lx) - 1, 0, out.numYTiles(level.ly) - 1, level.lx, level.ly);
     }
 }
 

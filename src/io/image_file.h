@@ -34,6 +34,7 @@ struct FilePart {
     int tile_width = 0, tile_height = 0;
     int mip_levels = 1;
     std::string level_mode;  ///< "", "mipmap" or "ripmap".
+    std::pair<int, int> rip_levels{1, 1};  ///< A ripmap's levels along x and y.
     std::string compression;
     std::string envmap;  ///< "latlong", "cube" or "".
     bool deep = false;

@@ -92,8 +92,23 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         while (o.in->seek_subimage(sub, part.mip_levels)) {
             ++part.mip_levels;
         }
-        // OpenImageIO shows a ripmap's diagonal levels as a MIP chain.
         part.level_mode = part.mip_levels > 1 ? "mipmap" : "";
+        // OpenImageIO shows a ripmap as a chain of levels all of level 0's size.
+        const int width0 = spec.width, height0 = spec.height;  // `spec` follows the seeks
+        if (part.mip_levels > 1 && o.in->seek_subimage(sub, 1) &&
+            o.in->spec().width == width0 && o.in->spec().height == height0) {
+            part.level_mode = "ripmap";
+            const bool up = o.in->spec().get_int_attribute("openexr:roundingmode", 0) == 1;
+            auto levels = [up](int n) {
+                int count = 1;
+                for (; n > 1; ++count) {
+                    n = up ? (n + 1) / 2 : n / 2;
+                }
+                return count;
+            };
+            part.rip_levels = {levels(width0), levels(height0)};
+        }
+        o.in->seek_subimage(sub, 0);
         if (sub == 0) {
             info.display_window = part.display_window;
         } else if (part.display_window != info.display_window) {
@@ -215,7 +230,8 @@ std::string verify_image_file(const std::string &path)
                 }
                 continue;
             }
-            for (int level = 0; level < part.mip_levels; ++level) {
+            const bool rip = part.level_mode == "ripmap";
+            for (int level = 0; level < (rip ? 1 : part.mip_levels); ++level) {
                 if (!o.in->seek_subimage(int(p), level)) {
                     throw_runtime(path, ": part ", p, " level ", level, ": cannot seek");
                 }
@@ -226,12 +242,11 @@ std::string verify_image_file(const std::string &path)
                         int(p), level, 0, spec.nchannels, OIIO::TypeUnknown, buf.get())) {
                     std::string err = o.in->geterror();
                     std::replace(err.begin(), err.end(), '\n', ' ');
-                    if (part.level_mode == "mipmap" && level > 0 &&
-                        err.find("not a valid tile") != std::string::npos) {
-                        break;  // a ripmap's levels, which OpenImageIO 2.4 cannot address
-                    }
                     throw_runtime(path, ": part ", p, " level ", level, ": ", err);
                 }
+            }
+            if (rip) {
+                read_ripmap_levels(path, int(p), o.specs[p]);
             }
         }
         return "";
@@ -433,7 +448,10 @@ Frame read_frame(const std::string &path,
         pd.bytes = std::size_t(spec.width) * std::size_t(spec.height) * pd.pixel_bytes;
         banded[p] = 1;
         // Lower mip levels of a part read whole travel as read, for an untouched write.
-        if (source && whole && part.mip_levels > 1 && part.level_mode == "mipmap") {
+        if (source && whole && part.level_mode == "ripmap") {
+            source->parts.back().levels = read_ripmap_levels(path, int(p), spec);
+            source->parts.back().ripmap = true;
+        } else if (source && whole && part.mip_levels > 1 && part.level_mode == "mipmap") {
             for (int level = 1; level < part.mip_levels; ++level) {
                 if (!o.in->seek_subimage(int(p), level)) {
                     break;
@@ -445,14 +463,10 @@ Frame read_frame(const std::string &path,
                     sl.spec.pixel_bytes(/*native=*/true));
                 if (!o.in->read_image(
                         int(p), level, 0, sl.spec.nchannels, OIIO::TypeUnknown, buf->data())) {
-                    // A ripmap: OpenImageIO 2.4 cannot read its levels. Level 0 travels alone
-                    // (docs/ARCHITECTURE.md, "Windows, channels and views").
-                    o.in->geterror();
-                    source->parts.back().levels.clear();
-                    source->parts.back().mip_levels = 1;
-                    break;
+                    throw_runtime(path, ": part ", p, " level ", level, ": ", o.in->geterror());
                 }
                 sl.pixels = std::move(buf);
+                sl.lx = sl.ly = level;
                 source->parts.back().levels.push_back(std::move(sl));
             }
         }

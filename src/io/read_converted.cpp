@@ -1,9 +1,14 @@
 // Files OpenImageIO does not hand over as flat native pixels: luminance/chroma EXRs through
-// OpenEXR's RGBA interface, deep parts flattened front to back (io/read_detail.h).
+// OpenEXR's RGBA interface, deep parts flattened front to back, ripmap levels through OpenEXR
+// (io/read_detail.h).
 
+#include <IexBaseExc.h>
+#include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfMatrixAttribute.h>
+#include <ImfMultiPartInputFile.h>
 #include <ImfRgbaFile.h>
+#include <ImfTiledInputPart.h>
 #include <OpenImageIO/deepdata.h>
 
 #include <algorithm>
@@ -213,6 +218,59 @@ PartPixels flatten_deep(OIIO::ImageInput &in, int sub, const std::string &path)
         }
     });
     return pd;
+}
+
+std::vector<SourceLevel> read_ripmap_levels(const std::string &path,
+                                            int part,
+                                            const OIIO::ImageSpec &spec)
+{
+    std::vector<SourceLevel> levels;
+    try {
+        Imf::MultiPartInputFile file(path.c_str());
+        Imf::TiledInputPart in(file, part);
+        const Imath::V2i origin = in.header().dataWindow().min;
+        const std::size_t pixel_bytes = spec.pixel_bytes(/*native=*/true);
+        for (int ly = 0; ly < in.numYLevels(); ++ly) {
+            for (int lx = 0; lx < in.numXLevels(); ++lx) {
+                if (lx == 0 && ly == 0) {
+                    continue;
+                }
+                SourceLevel level;
+                level.lx = lx;
+                level.ly = ly;
+                level.spec = spec;
+                level.spec.width = level.spec.full_width = in.levelWidth(lx);
+                level.spec.height = level.spec.full_height = in.levelHeight(ly);
+                auto buf = std::make_shared<std::vector<unsigned char>>(
+                    std::size_t(level.spec.width) * std::size_t(level.spec.height) * pixel_bytes);
+                Imf::FrameBuffer fb;
+                std::size_t offset = 0;
+                for (int c = 0; c < spec.nchannels; ++c) {
+                    const OIIO::TypeDesc t = spec.channelformat(c);
+                    fb.insert(spec.channel_name(c),
+                              Imf::Slice::Make(t.basetype == OIIO::TypeDesc::UINT    ? Imf::UINT
+                                               : t.basetype == OIIO::TypeDesc::FLOAT ? Imf::FLOAT
+                                                                                     : Imf::HALF,
+                                               buf->data() + offset,
+                                               origin,
+                                               level.spec.width,
+                                               level.spec.height,
+                                               pixel_bytes,
+                                               pixel_bytes * std::size_t(level.spec.width)));
+                    offset += t.size();
+                }
+                in.setFrameBuffer(fb);
+                in.readTiles(0, in.numXTiles(lx) - 1, 0, in.numYTiles(ly) - 1, lx, ly);
+                level.pixels = std::move(buf);
+                levels.push_back(std::move(level));
+            }
+        }
+    } catch (const Iex::BaseExc &e) {
+        std::string m = e.what();
+        std::replace(m.begin(), m.end(), '\n', ' ');
+        throw_runtime(path, ": part ", part, ": cannot read its ripmap levels: ", m);
+    }
+    return levels;
 }
 
 }  // namespace posthaste::io_detail

@@ -14,6 +14,7 @@
 #include "core/image.h"
 #include "io/aliases.h"
 #include "io/image_file.h"
+#include "io/source_file.h"
 
 namespace posthaste::io_detail {
 
@@ -118,6 +119,12 @@ bool is_luminance_chroma(const std::string &path);
 FileInfo luminance_chroma_info(const std::string &path);
 /// Every channel of part 0 of a luminance/chroma file, as RGB(A) floats.
 PartPixels read_luminance_chroma(const std::string &path, const FilePart &part);
+
+/// A ripmap part's levels other than (0, 0), read through OpenEXR (OpenImageIO 2.4 cannot
+/// address them), at native types interleaved in the part's channel order, ly major.
+std::vector<posthaste::SourceLevel> read_ripmap_levels(const std::string &path,
+                                            int part,
+                                            const OIIO::ImageSpec &spec);
 
 /// A deep part flattened: per pixel the samples sorted by Z (stable), composited front to back
 /// with `over` on premultiplied values (c += (1 - a_acc) * c_s; alpha likewise), Z the nearest

@@ -21,6 +21,7 @@ namespace posthaste {
 struct SourceLevel {
     OIIO::ImageSpec spec;
     std::shared_ptr<const std::vector<unsigned char>> pixels;
+    int lx = 0, ly = 0;  ///< OpenEXR's level indices (lx == ly in a MIP map)
 };
 
 struct SourcePart {
@@ -32,7 +33,10 @@ struct SourcePart {
     /// "layer.view.channel"; multi-part files give the view per part).
     std::vector<std::string> channel_views;
     int mip_levels = 1;
-    /// Levels 1.. as read (only for tiled mip-mapped parts that were read whole).
+    /// A ripmap: its levels halve the width and the height independently.
+    bool ripmap = false;
+    /// The levels other than level 0, as read (only for tiled mip- or rip-mapped parts that
+    /// were read whole): a MIP map's 1.., a ripmap's every (lx, ly) but (0, 0), ly major.
     std::vector<SourceLevel> levels;
     Rect data_window() const { return {spec.x, spec.y, spec.x + spec.width, spec.y + spec.height}; }
 };
