@@ -5,6 +5,7 @@
 // MIP levels are copied as read, or made again from a touched part.
 
 #include <OpenEXR/IexBaseExc.h>
+#include <OpenEXR/IlmThreadPool.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfMultiPartOutputFile.h>
@@ -15,6 +16,7 @@
 #include <cmath>
 #include <cstring>
 #include <memory>
+#include <mutex>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -446,6 +448,17 @@ void write_exr_parts(const std::vector<OutPart> &parts,
     std::vector<Imf::Header> headers;
     for (std::size_t i = 0; i < parts.size(); ++i) {
         headers.push_back(exr_header(parts[i], int(i), int(parts.size()), path));
+    }
+    // OpenEXR's pool compresses the blocks: sized to the threads the job has (set_thread_count),
+    // as OpenImageIO sizes it when it opens an EXR (a frame that read no EXR would otherwise
+    // compress on one thread).
+    {
+        static std::mutex mutex;
+        std::lock_guard lock(mutex);
+        const int threads = thread_count();
+        if (IlmThread::ThreadPool::globalThreadPool().numThreads() != threads) {
+            IlmThread::ThreadPool::globalThreadPool().setNumThreads(threads);
+        }
     }
     try {
         Imf::MultiPartOutputFile out(file.c_str(), headers.data(), int(headers.size()));

@@ -3,6 +3,7 @@
 // Blender, Nuke and Arnold channel names), data windows, integer channels, and bad input.
 
 #include <Imath/half.h>
+#include <OpenEXR/IlmThreadPool.h>
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
@@ -18,6 +19,7 @@
 
 #include "core/error.h"
 #include "core/memory.h"
+#include "core/parallel.h"
 #include "io/color.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
@@ -791,6 +793,26 @@ TEST(IoWrite, CompressionNamesAreValidated)
     o.passes = {};
     o.allow_lossy_data = true;
     EXPECT_NO_THROW(write_exr(f, dir + "/c.exr", o));
+}
+
+TEST(IoWrite, CompressesOnTheJobsThreadsAndGivesTheSameBytes)
+{
+    // A frame that read no EXR (a render) still compresses on the threads the job has, and the
+    // file's bytes do not depend on how many.
+    const std::string dir = scratch_dir("write_threads");
+    const Frame f = make_sample_frame(300, 200, 3);
+    const int before = thread_count();
+    std::string bytes[2];
+    for (int threads : {1, 2}) {
+        set_thread_count(threads);
+        const std::string path = dir + "/t" + std::to_string(threads) + ".exr";
+        write_exr(f, path, {});
+        EXPECT_EQ(IlmThread::ThreadPool::globalThreadPool().numThreads(), threads);
+        bytes[threads - 1] = test::read_bytes(path);
+    }
+    set_thread_count(before);
+    EXPECT_FALSE(bytes[0].empty());
+    EXPECT_EQ(bytes[0], bytes[1]);
 }
 
 TEST(IoWrite, FailedWriteLeavesNothingBehind)
