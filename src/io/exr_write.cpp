@@ -5,16 +5,20 @@
 // MIP levels are copied as read, or made again from a touched part.
 
 #include <OpenEXR/IexBaseExc.h>
+#include <OpenEXR/IexThrowErrnoExc.h>
 #include <OpenEXR/IlmThreadPool.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
 #include <OpenEXR/ImfMultiPartOutputFile.h>
 #include <OpenEXR/ImfOutputPart.h>
 #include <OpenEXR/ImfTiledOutputPart.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <memory>
 #include <mutex>
 
@@ -438,6 +442,62 @@ void write_copied_levels(Imf::TiledOutputPart &out, const OutPart &part, const s
     }
 }
 
+/// The file OpenEXR writes through, remembering any failure: OpenEXR writes a part's offset
+/// table when the file object is destroyed and drops what fails there, so a disk that fills
+/// up at the very end would otherwise leave a file without its offsets, renamed into place.
+class CheckedFile : public Imf::OStream {
+   public:
+    explicit CheckedFile(const std::string &name) : Imf::OStream(name.c_str())
+    {
+        out_.open(name, std::ios::binary | std::ios::trunc);
+        if (!out_) {
+            Iex::throwErrnoExc();
+        }
+    }
+    void write(const char c[], int n) override
+    {
+        errno = 0;
+        out_.write(c, n);
+        check();
+    }
+    uint64_t tellp() override { return uint64_t(std::streamoff(out_.tellp())); }
+    void seekp(uint64_t pos) override
+    {
+        out_.seekp(std::streamoff(pos));
+        check();
+    }
+    /// Flush and close; throws if this or any earlier write failed.
+    void close()
+    {
+        if (!failed_) {
+            errno = 0;
+            out_.close();
+        }
+        if (failed_ || out_.fail()) {
+            failed_ = true;
+            if (errno != 0) {
+                Iex::throwErrnoExc();
+            }
+            throw Iex::IoExc("file output failed");
+        }
+    }
+
+   private:
+    void check()
+    {
+        if (!out_) {
+            failed_ = true;
+            if (errno != 0) {
+                Iex::throwErrnoExc();
+            }
+            throw Iex::IoExc("file output failed");
+        }
+    }
+
+    std::ofstream out_;
+    bool failed_ = false;
+};
+
 }  // namespace
 
 void write_exr_parts(const std::vector<OutPart> &parts,
@@ -461,19 +521,23 @@ void write_exr_parts(const std::vector<OutPart> &parts,
         }
     }
     try {
-        Imf::MultiPartOutputFile out(file.c_str(), headers.data(), int(headers.size()));
-        for (std::size_t i = 0; i < parts.size(); ++i) {
-            const OutPart &part = parts[i];
-            write_level0(out, int(i), part, frame);
-            if (part.make_levels || part.copy_levels) {
-                Imf::TiledOutputPart tiles(out, int(i));
-                if (part.make_levels) {
-                    write_made_levels(tiles, part, frame);
-                } else {
-                    write_copied_levels(tiles, part, path);
+        CheckedFile stream(file);
+        {
+            Imf::MultiPartOutputFile out(stream, headers.data(), int(headers.size()));
+            for (std::size_t i = 0; i < parts.size(); ++i) {
+                const OutPart &part = parts[i];
+                write_level0(out, int(i), part, frame);
+                if (part.make_levels || part.copy_levels) {
+                    Imf::TiledOutputPart tiles(out, int(i));
+                    if (part.make_levels) {
+                        write_made_levels(tiles, part, frame);
+                    } else {
+                        write_copied_levels(tiles, part, path);
+                    }
                 }
             }
-        }
+        }  // OpenEXR writes the offset tables here, and swallows what fails
+        stream.close();
     } catch (const Iex::BaseExc &e) {
         std::string m = e.what();
         std::replace(m.begin(), m.end(), '\n', ' ');
