@@ -400,6 +400,7 @@ Frame read_frame(const std::string &path,
     // band by band below, at native types.
     std::vector<PartPixels> data(info.parts.size());
     std::vector<char> banded(info.parts.size(), 0);
+    std::vector<ExrPartLayout> layouts;
     bool srgb_encoded = false;
     for (std::size_t p = 0; p < info.parts.size(); ++p) {
         const FilePart &part = info.parts[p];
@@ -414,6 +415,15 @@ Frame read_frame(const std::string &path,
         if (source) {
             SourcePart sp;
             sp.spec = spec;
+            // The line order, which OpenImageIO does not report, from the header itself.
+            if (p == 0 && info.format == "openexr") {
+                layouts = exr_part_layouts(path);
+            }
+            if (p < layouts.size() && layouts[p].line_order == 1) {
+                sp.spec.attribute("openexr:lineOrder", "decreasingY");
+            } else if (p < layouts.size() && layouts[p].line_order == 2) {
+                sp.spec.attribute("openexr:lineOrder", "randomY");
+            }
             sp.name = part.name;
             sp.view = part.view;
             sp.mip_levels = part.mip_levels;

@@ -311,6 +311,8 @@ std::string exr_header_problem(std::istream &in,
                 } else if (name == "tiles" && type == "tiledesc") {
                     part.tile_width = le32(&v[0]);
                     part.tile_height = le32(&v[4]);
+                } else if (name == "lineOrder" && type == "lineOrder") {
+                    part.line_order = v[0];
                 }
             } else {
                 in.seekg(std::streamoff(size), std::ios::cur);
@@ -385,6 +387,22 @@ std::size_t exr_open_bytes(const ExrPartLayout &part)
     // more per chunk): a low estimate on purpose.
     return std::size_t(block_pixels) * std::size_t(part.bytes_per_pixel) * 4 +
            std::size_t(exr_chunk_count(part)) * 16;
+}
+
+std::vector<ExrPartLayout> exr_part_layouts(const std::string &path)
+{
+    std::error_code ec;
+    const std::uint64_t size = fs::file_size(path, ec);
+    std::ifstream f(path, std::ios::binary);
+    char magic[4] = {};
+    if (ec || !f || !f.read(magic, 4) || std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0) {
+        return {};
+    }
+    std::vector<ExrPartLayout> parts;
+    if (!exr_header_problem(f, size, &parts).empty()) {
+        return {};
+    }
+    return parts;
 }
 
 void check_exr_header(const std::string &path)

@@ -40,6 +40,7 @@ struct ExrPartLayout {
     int compression = 0;         ///< OpenEXR's compression id
     int tile_width = 0;          ///< 0: scan lines
     int tile_height = 0;
+    int line_order = 0;          ///< OpenEXR's: 0 increasing y, 1 decreasing y, 2 random y
 };
 std::string exr_header_problem(std::istream &in,
                                std::uint64_t file_size,
@@ -51,6 +52,9 @@ std::size_t exr_open_bytes(const ExrPartLayout &part);
 
 /// Throws a one-line error naming the file when exr_header_problem finds something.
 void check_exr_header(const std::string &path);
+/// The parts' layouts as the header walk reads them; empty when the file is not an EXR or the
+/// walk finds a problem (what OpenImageIO does not report: the line order).
+std::vector<ExrPartLayout> exr_part_layouts(const std::string &path);
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path);
 /// Convert `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels)
