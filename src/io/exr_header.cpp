@@ -71,19 +71,6 @@ const Rename kRenames[] = {
     {"compression", "", TypeDesc::UNKNOWN},
 };
 
-Imf::PixelType pixel_type(TypeDesc t)
-{
-    switch (t.basetype) {
-        case TypeDesc::UINT:
-            return Imf::UINT;
-        case TypeDesc::FLOAT:
-        case TypeDesc::DOUBLE:
-            return Imf::FLOAT;
-        default:
-            return Imf::HALF;
-    }
-}
-
 Imf::Compression compression_id(const std::string &name)
 {
     static const std::pair<const char *, Imf::Compression> kIds[] = {
@@ -318,6 +305,19 @@ bool put_attribute(const std::string &name, TypeDesc type, const void *data, Imf
 
 }  // namespace
 
+Imf::PixelType exr_pixel_type(OIIO::TypeDesc t)
+{
+    switch (t.basetype) {
+        case TypeDesc::UINT:
+            return Imf::UINT;
+        case TypeDesc::FLOAT:
+        case TypeDesc::DOUBLE:
+            return Imf::FLOAT;
+        default:
+            return Imf::HALF;
+    }
+}
+
 Imf::Header exr_header(const OutPart &part, int index, int parts, const std::string &path)
 {
     const OIIO::ImageSpec &spec = part.spec;
@@ -330,7 +330,7 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
         if (h.channels().findChannel(c.name)) {
             throw_runtime(path, ": part ", index, " names channel \"", c.name, "\" twice");
         }
-        h.channels().insert(c.name, Imf::Channel(pixel_type(c.type)));
+        h.channels().insert(c.name, Imf::Channel(exr_pixel_type(c.type)));
     }
 
     // Compression and its level: "zip:6", "dwaa:45"; zip at level 4 unless one is given (what

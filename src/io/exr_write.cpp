@@ -31,13 +31,6 @@ namespace posthaste::io_detail {
 
 namespace {
 
-Imf::PixelType pixel_type(OIIO::TypeDesc t)
-{
-    return t.basetype == OIIO::TypeDesc::UINT    ? Imf::UINT
-           : t.basetype == OIIO::TypeDesc::FLOAT ? Imf::FLOAT
-                                                 : Imf::HALF;
-}
-
 /// Convert `count` floats to `type` at dst + i * stride.
 void store_values(
     const float *v, int count, OIIO::TypeDesc type, unsigned char *dst, std::size_t stride)
@@ -244,7 +237,7 @@ void insert_interleaved(Imf::FrameBuffer &fb,
     std::size_t offset = 0;
     for (std::size_t c = 0; c < names.size(); ++c) {
         fb.insert(names[c],
-                  Imf::Slice::Make(pixel_type(types[c]),
+                  Imf::Slice::Make(exr_pixel_type(types[c]),
                                    base + offset,
                                    origin,
                                    w,
@@ -271,7 +264,7 @@ void write_level0(Imf::MultiPartOutputFile &file,
         if (c.raw) {
             const std::size_t size = c.type.size();
             direct.insert(c.name,
-                          Imf::Slice::Make(pixel_type(c.type),
+                          Imf::Slice::Make(exr_pixel_type(c.type),
                                            c.raw->data(),
                                            Imath::V2i(dw.x0, dw.y0),
                                            dw.width(),
@@ -321,7 +314,7 @@ void write_level0(Imf::MultiPartOutputFile &file,
         for (std::size_t ci = 0; ci < converted.channels.size(); ++ci) {
             const OutChannel &c = converted.channels[ci];
             fb.insert(c.name,
-                      Imf::Slice::Make(pixel_type(c.type),
+                      Imf::Slice::Make(exr_pixel_type(c.type),
                                        buf.get() + packer.offset(ci),
                                        Imath::V2i(dw.x0, dw.y0 + y),
                                        dw.width(),

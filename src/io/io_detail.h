@@ -2,6 +2,7 @@
 // Internal to src/io: header attribute tables, the camera's attributes, and pixel conversions
 // between a file's native types and float passes, shared by the reader and the writer.
 
+#include <OpenEXR/ImfPixelType.h>
 #include <OpenImageIO/imageio.h>
 
 #include <cstddef>
@@ -85,6 +86,8 @@ void convert_channel(const unsigned char *src,
 /// work on side by side, at most 32 MiB: small enough to stay in cache between the library's
 /// copy and posthaste's conversion, and never the whole frame a second time.
 int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes);
+/// OpenEXR's pixel type for a channel's type: uint, float (also for double) or half.
+Imf::PixelType exr_pixel_type(OIIO::TypeDesc t);
 /// Pixel types the reader converts.
 bool supported_native(OIIO::TypeDesc t);
 

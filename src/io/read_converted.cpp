@@ -248,9 +248,7 @@ std::vector<SourceLevel> read_ripmap_levels(const std::string &path,
                 for (int c = 0; c < spec.nchannels; ++c) {
                     const OIIO::TypeDesc t = spec.channelformat(c);
                     fb.insert(spec.channel_name(c),
-                              Imf::Slice::Make(t.basetype == OIIO::TypeDesc::UINT    ? Imf::UINT
-                                               : t.basetype == OIIO::TypeDesc::FLOAT ? Imf::FLOAT
-                                                                                     : Imf::HALF,
+                              Imf::Slice::Make(exr_pixel_type(t),
                                                buf->data() + offset,
                                                origin,
                                                level.spec.width,
