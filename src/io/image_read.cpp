@@ -427,6 +427,7 @@ Frame read_frame(const std::string &path,
             sp.name = part.name;
             sp.view = part.view;
             sp.mip_levels = part.mip_levels;
+            sp.ripmap = part.level_mode == "ripmap";  // levels made again stay a ripmap
             for (const FileChannel &c : part.channels) {
                 sp.channel_views.push_back(c.view);
             }
@@ -460,7 +461,6 @@ Frame read_frame(const std::string &path,
         // Lower mip levels of a part read whole travel as read, for an untouched write.
         if (source && whole && part.level_mode == "ripmap") {
             source->parts.back().levels = read_ripmap_levels(path, int(p), spec);
-            source->parts.back().ripmap = true;
         } else if (source && whole && part.mip_levels > 1 && part.level_mode == "mipmap") {
             for (int level = 1; level < part.mip_levels; ++level) {
                 if (!o.in->seek_subimage(int(p), level)) {

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
@@ -314,6 +315,13 @@ TEST(ExrFidelity, TouchedRipmapGetsItsLevelsAgain)
     // 0.5 2.5 .. 18.5; 1.5 5.5 .. 17.5; 3.5 11.5 17.5; 7.5 17.5; 12.5.
     const std::vector<half> last = level(5, 0);
     EXPECT_EQ(float(last[0]), 12.5f);
+    // Read in part (the colour alone), it stays a ripmap: its levels are made again.
+    const std::set<std::string> color_only = {"color"};
+    write_exr(read_frame(in, &color_only, 1), out_path("ripmap_color"), {});
+    Imf::TiledInputFile part(out_path("ripmap_color").c_str());
+    EXPECT_EQ(part.header().tileDescription().mode, Imf::RIPMAP_LEVELS);
+    EXPECT_EQ(part.numXLevels(), 6);
+    EXPECT_EQ(part.numYLevels(), 5);
 }
 
 TEST(ExrFidelity, ViewsComeFromOneEye)
