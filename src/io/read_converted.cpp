@@ -230,6 +230,24 @@ std::vector<SourceLevel> read_ripmap_levels(const std::string &path,
         Imf::TiledInputPart in(file, part);
         const Imath::V2i origin = in.header().dataWindow().min;
         const std::size_t pixel_bytes = spec.pixel_bytes(/*native=*/true);
+        // The levels together are up to three times level 0: within what the budget has left.
+        std::size_t total = 0;
+        for (int ly = 0; ly < in.numYLevels(); ++ly) {
+            for (int lx = 0; lx < in.numXLevels(); ++lx) {
+                total += (lx || ly) ? std::size_t(in.levelWidth(lx)) *
+                                          std::size_t(in.levelHeight(ly)) * pixel_bytes
+                                    : 0;
+            }
+        }
+        const std::size_t budget = image_memory_budget(), used = image_memory_in_use();
+        if (budget != 0 && total > (budget > used ? budget - used : 0)) {
+            throw_runtime(path,
+                          ": part ",
+                          part,
+                          ": its ripmap levels need ",
+                          format_bytes(total),
+                          ", more than the memory budget has left");
+        }
         for (int ly = 0; ly < in.numYLevels(); ++ly) {
             for (int lx = 0; lx < in.numXLevels(); ++lx) {
                 if (lx == 0 && ly == 0) {
