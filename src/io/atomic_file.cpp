@@ -9,6 +9,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
 #include <random>
@@ -106,8 +107,11 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
             fs::space(target.has_parent_path() ? target.parent_path() : fs::path("."), space_ec);
         fs::remove(tmp, ec);
         if (!space_ec && space.available < std::max<std::uintmax_t>(written, 1) + (64u << 10)) {
+            // Where the library already gave the cause (strerror's words), only the free space.
+            const std::string what = e.what();
+            const bool said = what.find(std::strerror(ENOSPC)) != std::string::npos;
             throw Error(e.code(),
-                        std::string(e.what()) + " (no space left on the device: " +
+                        what + (said ? " (" : " (no space left on the device: ") +
                             std::to_string(space.available >> 10) + " KiB free)");
         }
         throw;

@@ -534,6 +534,10 @@ void write_exr_parts(const std::vector<OutPart> &parts,
     } catch (const Iex::BaseExc &e) {
         std::string m = e.what();
         std::replace(m.begin(), m.end(), '\n', ' ');
+        // OpenEXR names the temporary file; the user's is the one to name.
+        for (auto at = m.find(file); at != std::string::npos; at = m.find(file, at + path.size())) {
+            m.replace(at, file.size(), path);
+        }
         throw_runtime(path, ": cannot write: ", m);
     }
 }
