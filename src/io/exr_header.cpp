@@ -27,6 +27,7 @@
 #include <cstdlib>
 
 #include "core/error.h"
+#include "io/io_detail.h"
 #include "io/write_layout.h"
 
 namespace posthaste::io_detail {
@@ -70,29 +71,6 @@ const Rename kRenames[] = {
     {"textureformat", "", TypeDesc::UNKNOWN},
     {"compression", "", TypeDesc::UNKNOWN},
 };
-
-Imf::Compression compression_id(const std::string &name)
-{
-    static const std::pair<const char *, Imf::Compression> kIds[] = {
-        {"none", Imf::NO_COMPRESSION},
-        {"rle", Imf::RLE_COMPRESSION},
-        {"zips", Imf::ZIPS_COMPRESSION},
-        {"zip", Imf::ZIP_COMPRESSION},
-        {"deflate", Imf::ZIP_COMPRESSION},
-        {"piz", Imf::PIZ_COMPRESSION},
-        {"pxr24", Imf::PXR24_COMPRESSION},
-        {"b44", Imf::B44_COMPRESSION},
-        {"b44a", Imf::B44A_COMPRESSION},
-        {"dwaa", Imf::DWAA_COMPRESSION},
-        {"dwab", Imf::DWAB_COMPRESSION},
-    };
-    for (const auto &[n, id] : kIds) {
-        if (iequals(name, n)) {
-            return id;
-        }
-    }
-    return Imf::ZIP_COMPRESSION;
-}
 
 /// Insert one carried attribute under its OpenEXR name and type; false when it has no place in
 /// an OpenEXR header (a directive, a type OpenEXR cannot hold).
@@ -345,7 +323,8 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
          (spec.tile_height & (spec.tile_height - 1)))) {
         codec = "zip";  // OpenEXR's DWA fails on one-channel tiles of such sizes
     }
-    h.compression() = compression_id(codec);
+    const int id = exr_compression_id(codec);  // validated by check_compression; zip else
+    h.compression() = id >= 0 ? Imf::Compression(id) : Imf::ZIP_COMPRESSION;
     if (istarts_with(codec, "zip")) {
         h.zipCompressionLevel() = level >= 1 && level <= 9 ? level : 4;
     }

@@ -37,6 +37,7 @@ struct Opened {
     FileInfo info;
     std::vector<OIIO::ImageSpec> specs;
     bool single_part_views = false;
+    std::vector<ExrPartLayout> layouts;  ///< An EXR's parts as the header walk read them.
 };
 
 Opened open_file(const std::string &path, const ReadOptions &options)
@@ -45,7 +46,7 @@ Opened open_file(const std::string &path, const ReadOptions &options)
     // OpenImageIO refuses luminance/chroma files (subsampled channels); only then is the file
     // asked whether it is one (opening it through OpenEXR's RGBA interface costs a header read).
     try {
-        o.in = open_input(path);
+        o.in = open_input(path, &o.layouts);
     } catch (const Error &) {
         if (!has_exr_magic(path) || !is_luminance_chroma(path)) {
             throw;
@@ -400,7 +401,6 @@ Frame read_frame(const std::string &path,
     // band by band below, at native types.
     std::vector<PartPixels> data(info.parts.size());
     std::vector<char> banded(info.parts.size(), 0);
-    std::vector<ExrPartLayout> layouts;
     bool srgb_encoded = false;
     for (std::size_t p = 0; p < info.parts.size(); ++p) {
         const FilePart &part = info.parts[p];
@@ -415,10 +415,8 @@ Frame read_frame(const std::string &path,
         if (source) {
             SourcePart sp;
             sp.spec = spec;
-            // The line order, which OpenImageIO does not report, from the header itself.
-            if (p == 0 && info.format == "openexr") {
-                layouts = exr_part_layouts(path);
-            }
+            // The line order, which OpenImageIO does not report, from the header walk.
+            const std::vector<ExrPartLayout> &layouts = o.layouts;
             if (p < layouts.size() && layouts[p].line_order == 1) {
                 sp.spec.attribute("openexr:lineOrder", "decreasingY");
             } else if (p < layouts.size() && layouts[p].line_order == 2) {

@@ -389,23 +389,7 @@ std::size_t exr_open_bytes(const ExrPartLayout &part)
            std::size_t(exr_chunk_count(part)) * 16;
 }
 
-std::vector<ExrPartLayout> exr_part_layouts(const std::string &path)
-{
-    std::error_code ec;
-    const std::uint64_t size = fs::file_size(path, ec);
-    std::ifstream f(path, std::ios::binary);
-    char magic[4] = {};
-    if (ec || !f || !f.read(magic, 4) || std::memcmp(magic, "\x76\x2f\x31\x01", 4) != 0) {
-        return {};
-    }
-    std::vector<ExrPartLayout> parts;
-    if (!exr_header_problem(f, size, &parts).empty()) {
-        return {};
-    }
-    return parts;
-}
-
-void check_exr_header(const std::string &path)
+std::vector<ExrPartLayout> check_exr_header(const std::string &path)
 {
     std::error_code ec;
     const std::uint64_t size = fs::file_size(path, ec);
@@ -444,22 +428,31 @@ void check_exr_header(const std::string &path)
                           format_bytes(budget));
         }
     }
+    return parts;
+}
+
+int exr_compression_id(std::string_view name)
+{
+    // OpenEXR's compressions in the order of their ids; "deflate" is OpenImageIO's name for zip.
+    static constexpr std::string_view kCodecs[] = {
+        "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
+    const std::string_view base = name.substr(0, name.find(':'));
+    if (OIIO::Strutil::iequals(base, "deflate")) {
+        return 3;
+    }
+    for (int id = 0; id < int(std::size(kCodecs)); ++id) {
+        if (OIIO::Strutil::iequals(base, kCodecs[id])) {
+            return id;
+        }
+    }
+    return -1;
 }
 
 int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes)
 {
-    // Scan lines per block of the codec OpenImageIO names, in OpenEXR's order of ids (1 for
-    // formats other than EXR).
-    static constexpr std::string_view kCodecs[] = {
-        "none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
-    const std::string codec = spec.get_string_attribute("compression");
-    const std::string_view base = std::string_view(codec).substr(0, codec.find(':'));
-    int block = 1;
-    for (int id = 0; id < int(std::size(kCodecs)); ++id) {
-        if (OIIO::Strutil::iequals(base, kCodecs[id])) {
-            block = lines_per_chunk(id);
-        }
-    }
+    // Scan lines per block of the part's codec (1 for formats other than EXR).
+    const int id = exr_compression_id(spec.get_string_attribute("compression"));
+    int block = id >= 0 ? lines_per_chunk(id) : 1;
     if (spec.tile_width > 0) {
         block = std::max(1, spec.tile_height);  // a row of tiles: many blocks side by side
     }
@@ -476,7 +469,8 @@ int band_rows(const OIIO::ImageSpec &spec, std::size_t row_bytes)
     return step * int(std::min<std::size_t>(steps, 64));
 }
 
-std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path,
+                                             std::vector<ExrPartLayout> *layouts)
 {
     std::error_code ec;
     if (!fs::exists(path, ec)) {
@@ -497,7 +491,10 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path)
         f.read(reinterpret_cast<char *>(magic), 4);
     }
     if (magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 && magic[3] == 0x01) {
-        check_exr_header(path);
+        std::vector<ExrPartLayout> walked = check_exr_header(path);
+        if (layouts) {
+            *layouts = std::move(walked);
+        }
         auto exr = OIIO::ImageInput::create("openexr");
         OIIO::ImageSpec spec;
         if (exr && exr->open(path, spec)) {

@@ -10,6 +10,7 @@
 #include <istream>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/camera.h"
@@ -51,13 +52,17 @@ std::int64_t exr_chunk_count(const ExrPartLayout &part);
 /// What OpenEXR allocates for a part's block buffers when it opens the file (a low estimate).
 std::size_t exr_open_bytes(const ExrPartLayout &part);
 
-/// Throws a one-line error naming the file when exr_header_problem finds something.
-void check_exr_header(const std::string &path);
-/// The parts' layouts as the header walk reads them; empty when the file is not an EXR or the
-/// walk finds a problem (what OpenImageIO does not report: the line order).
-std::vector<ExrPartLayout> exr_part_layouts(const std::string &path);
+/// Throws a one-line error naming the file when exr_header_problem finds something; else the
+/// parts' layouts as the walk read them (also what OpenImageIO does not report: the line order).
+std::vector<ExrPartLayout> check_exr_header(const std::string &path);
+/// OpenEXR's id of a compression named as OpenImageIO names it ("zip", "dwaa:45", "deflate"),
+/// or -1.
+int exr_compression_id(std::string_view name);
 
-std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path);
+/// An EXR's header is walked first (check_exr_header); its layouts go to `layouts` if given
+/// (empty for other formats).
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path,
+                                             std::vector<ExrPartLayout> *layouts = nullptr);
 /// Convert `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels)
 /// to halves at dst + i * dst_stride. Rounds to nearest even (F16C where the CPU has it).
 void floats_to_halves(const float *src,
