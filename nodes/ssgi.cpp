@@ -75,29 +75,21 @@ constexpr ParamSpec kSkyScale =
         .doc("reshade: the renderer's sky-light scale (a scene's sky_ambient).")
         .from_header("posthaste:skyAmbient")
         .only_when("reshade", "auto|on");
+constexpr ParamSpec kReflectedSun =
+    ParamSpec::boolean("reflected_sun", true)
+        .doc(
+            "reshade: trace the sun's light that the frame's glossy planes reflect (a polished "
+            "floor's or a mirror's highlight) toward its mirror image, one ray per computed "
+            "pixel and plane, instead of leaving it to the slices' few samples.")
+        .only_when("reshade", "auto|on");
 constexpr ParamSpec kRoughness = ParamSpec(kMaterialRoughness).only_when("reshade", "auto|on");
 constexpr ParamSpec kMetallic = ParamSpec(kMaterialMetallic).only_when("reshade", "auto|on");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Slice rotation pattern.");
-constexpr ParamSpec kParams[] = {kRadius,
-                                 kSlices,
-                                 kSteps,
-                                 kMaxRadiusPx,
-                                 kResolution,
-                                 kDenoise,
-                                 kIntensity,
-                                 kApply,
-                                 kFallback,
-                                 kReshade,
-                                 kSunIrradiance,
-                                 kSunDirection,
-                                 kSkyScale,
-                                 kRoughness,
-                                 kMetallic,
-                                 kSeed,
-                                 kMaskPass,
-                                 kMaskChannel,
-                                 kMaskInvert};
+constexpr ParamSpec kParams[] = {
+    kRadius,    kSlices,   kSteps,   kMaxRadiusPx,   kResolution,   kDenoise,   kIntensity,
+    kApply,     kFallback, kReshade, kSunIrradiance, kSunDirection, kSkyScale,  kReflectedSun,
+    kRoughness, kMetallic, kSeed,    kMaskPass,      kMaskChannel,  kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,depth,normal,albedo",
@@ -118,6 +110,7 @@ constexpr Binding<shading::SsgiParams> kFields[] = {
     bind<&shading::SsgiParams::seed>(kSeed),
     bind<&shading::SsgiParams::sun_irradiance>(kSunIrradiance),
     bind<&shading::SsgiParams::sky_scale>(kSkyScale),
+    bind<&shading::SsgiParams::reflected_sun>(kReflectedSun),
 };
 
 void execute(NodeContext &ctx)

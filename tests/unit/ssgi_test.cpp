@@ -22,6 +22,7 @@
 #include "raster/render.h"
 #include "raster/scene.h"
 #include "shading/camera_rays.h"
+#include "shading/lighting/lighting.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -400,6 +401,127 @@ TEST(Ssgi, ReshadingMovesOnlyViewDependentLight)
     }
 }
 
+/// The floor-and-wall frame with a mirror floor (metal, albedo 1, roughness 0.05) and a rough
+/// wall (roughness 1, dielectric).
+Frame with_mirror_floor(Frame f)
+{
+    Image mat(f.width(), f.height(), 3);
+    const Image &normal = f.image("normal");
+    for (int y = 0; y < f.height(); ++y) {
+        for (int x = 0; x < f.width(); ++x) {
+            const bool floor = normal.at(x, y, 1) == 1.0f;
+            mat.at(x, y, 0) = floor ? 0.05f : 1.0f;
+            mat.at(x, y, 1) = floor ? 1.0f : 0.0f;
+        }
+    }
+    f.set("material", std::move(mat));
+    return f;
+}
+
+/// The cosine-weighted mean radiance a wall point (4, y, 0) receives from the mirror floor
+/// y = 0 lit by the sun `s` of irradiance 1, within radius 4 of the point: the floor's response
+/// (the truth's lobe, roughness at least 0.3) integrated numerically over the directions about
+/// the sun's mirror image, by the midpoint rule in (sqrt of the angle from it, turn): the lobe's
+/// tail matters (a tenth of it lies beyond 30 degrees).
+double wall_glint(double y, const glm::vec3 &s)
+{
+    shading::Surface floor;
+    floor.albedo = glm::vec3(1.0f);
+    floor.metallic = 1.0f;
+    floor.roughness = shading::kReflectedSunMinRoughness;
+    const glm::vec3 up(0, 1, 0), wall_n(-1, 0, 0);
+    const glm::vec3 axis = glm::normalize(s - 2.0f * glm::dot(up, s) * up);
+    const glm::vec3 t1 = glm::normalize(glm::cross(axis, up)), t2 = glm::cross(axis, t1);
+    constexpr int kN = 400;
+    const double cone = kPi / 2.0;
+    double sum = 0.0;
+    for (int i = 0; i < kN; ++i) {
+        const double u = (i + 0.5) / kN, th = cone * u * u, dth = cone * 2.0 * u / kN;
+        for (int j = 0; j < kN; ++j) {
+            const double ph = (j + 0.5) * 2.0 * kPi / kN;
+            const glm::vec3 w =
+                float(std::cos(th)) * axis +
+                float(std::sin(th)) * (float(std::cos(ph)) * t1 + float(std::sin(ph)) * t2);
+            const double cos_r = glm::dot(w, wall_n), t = -y / w.y;
+            if (!(w.y < 0.0f) || !(cos_r > 0.0) || t > 4.0) {
+                continue;
+            }
+            const double l = shading::direct_response(floor, up, -w, s).x;
+            sum += l * cos_r * std::sin(th) * dth * (2.0 * kPi / kN);
+        }
+    }
+    return sum / kPi;
+}
+
+TEST(Ssgi, AMirrorFloorsReflectedSunReachesTheWallFacingIt)
+{
+    // The sun behind the camera, 45 degrees up: the floor mirrors it onto the wall, whose points
+    // see the sun's image 45 degrees down, toward the camera. No sky light (sky_scale 0) and a
+    // black metal floor: that light is all the wall gets.
+    const glm::vec3 s = glm::normalize(glm::vec3(-1.0f, 1.0f, 0.0f));
+    const Frame f = with_mirror_floor(floor_wall_frame(320, 240));
+    const std::string sun =
+        R"("reshade": "on", "sun_irradiance": [1, 1, 1], "sun_direction": [-1, 1, 0], "sky_scale": 0)";
+    const Frame on = test::run_node("ssgi", f, "{" + sun + "}");
+    const Frame off = test::run_node("ssgi", f, "{" + sun + R"(, "reflected_sun": false})");
+    const Camera pc = f.pixel_camera();
+    const shading::CameraRays rays(*pc.world_to_camera, *pc.world_to_ndc);
+    const Image &depth = f.image("depth"), &normal = f.image("normal");
+    int count = 0;
+    double err_on = 0.0, err_off = 0.0;
+    for (int y = 0; y < 240; y += 3) {
+        double want = -1.0;  // the same height along a row of the wall
+        for (int x = 120; x < 200; x += 7) {
+            if (normal.at(x, y, 0) != -1.0f) {
+                continue;
+            }
+            const glm::vec3 pt =
+                rays.position() +
+                depth.at(x, y, 0) * rays.depth_ray((x + 0.5f) / 320, (y + 0.5f) / 240);
+            if (pt.y < 0.3f || pt.y > 2.0f) {
+                continue;  // the floor the wall's points see lies on screen and within the radius
+            }
+            want = want < 0.0 ? wall_glint(pt.y, s) : want;
+            ASSERT_GT(want, 0.05) << pt.y;
+            // The node takes the lobe whole at its centre's direction: the part of its tail
+            // beyond the wall's horizon or above the floor's (about a tenth here) counts too.
+            EXPECT_NEAR(on.image("gi").at(x, y, 0), want, 0.15 * want) << x << "," << y;
+            err_on += std::abs(on.image("gi").at(x, y, 0) - want);
+            err_off += std::abs(off.image("gi").at(x, y, 0) - want);
+            ++count;
+        }
+    }
+    ASSERT_GT(count, 20);
+    // Left to the slices (one a pixel, eight samples a side), the highlight is mostly missed.
+    EXPECT_GT(err_off, 3.0 * err_on);
+    // The floor itself faces away from the sun's image: nothing traced for it.
+    EXPECT_LT(on.image("gi").at(160, 230, 0), 1e-3f);
+    // NaN and Inf in the material, the normals and a shadow pass: finite, and at most the
+    // sun's irradiance over pi from each of the two planes traced.
+    Frame bad = f;
+    Image mat = bad.image("material"), normal_bad = bad.image("normal"), shadow(320, 240, 1);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int y = 0; y < 240; ++y) {
+        for (int x = 0; x < 320; ++x) {
+            shadow.at(x, y, 0) = (x + y) % 7 == 0 ? nan : 1.0f;
+            if ((x * 3 + y) % 11 == 0) {
+                mat.at(x, y, x % 2) = x % 3 ? nan : kInf;
+                normal_bad.at(x, y, y % 3) = nan;
+            }
+        }
+    }
+    bad.set("material", std::move(mat));
+    bad.set("normal", std::move(normal_bad));
+    bad.set("shadow", std::move(shadow));
+    const Frame bad_out = test::run_node("ssgi", bad, "{" + sun + "}");
+    const Image &gi = bad_out.image("gi");
+    for (std::size_t i = 0; i < gi.value_count(); ++i) {
+        ASSERT_TRUE(std::isfinite(gi.data()[i])) << i;
+        ASSERT_GE(gi.data()[i], 0.0f);
+        ASSERT_LE(gi.data()[i], 2.0f / kPi + kWallLight.x);
+    }
+}
+
 /// A computed pixel's depth (its top-left full-resolution pixel's; NaN for no surface) and unit
 /// normal (0 where unknown), as the resolve takes them.
 float reduced_depth(const Image &depth, int st, int x, int y)
@@ -727,6 +849,16 @@ TEST(Ssgi, SameBitsOnAnyThreadCount)
     set_thread_count(0);
     EXPECT_TRUE(one.image("gi").bit_equal(two.image("gi")));
     EXPECT_TRUE(one.image("color").bit_equal(two.image("color")));
+    // Re-shaded, with the mirror floor's reflected sun traced.
+    const Frame m = with_mirror_floor(floor_wall_frame(200, 150));
+    const std::string p =
+        R"({"reshade": "on", "sun_irradiance": [1, 1, 1], "sun_direction": [-1, 1, 0]})";
+    set_thread_count(1);
+    const Frame m1 = test::run_node("ssgi", m, p);
+    set_thread_count(2);
+    const Frame m2 = test::run_node("ssgi", m, p);
+    set_thread_count(0);
+    EXPECT_TRUE(m1.image("gi").bit_equal(m2.image("gi")));
 }
 
 TEST(Ssgi, NodeNamesWhatIsMissing)

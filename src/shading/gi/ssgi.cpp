@@ -12,11 +12,15 @@
 #include "shading/atmosphere/scene_sky.h"
 #include "shading/atmosphere/sky.h"
 #include "shading/fast_math.h"
+#include "shading/gi/ssgi_detail.h"
 #include "shading/lighting/lighting.h"
 #include "shading/ssr/environment.h"
 
 namespace posthaste::shading {
 namespace {
+
+using gi_detail::Reshade;
+using gi_detail::Shade;
 
 /// Directions a probe is seen in over the arc a march leaves open (sub-arcs of equal angle):
 /// on the default scene at 960x540, 1, 2, 3 and 4 gave 0.0188, 0.0162, 0.0159 and 0.0158 RMSE.
@@ -46,12 +50,6 @@ struct Arc {
         const float cos_2h_g = ((c * c - s * s) * cos_g + 2.0f * c * s * sin_g) / r2;
         return 0.25f * (-cos_2h_g + cos_g + 2.0f * h * sin_g);
     }
-};
-
-/// A computed pixel's surface as a lit sample reads it: the unit normal on the camera's side, the
-/// lit colour (its block's mean).
-struct Shade {
-    glm::vec3 n{0.0f}, l{0.0f};
 };
 
 /// The radiance image reduced to the computed pixels' blocks (stride x stride box means, RGB),
@@ -155,40 +153,25 @@ Image surface_map(const SsgiEnvironment &env, int mw, int mh)
 /// an arccosine.
 using SurfaceCube = LatLongCube<glm::vec3>;
 
-/// A computed pixel's surface for the re-shading: its material, the sun's visibility, and its
-/// view-dependent shading as the camera sees it (sun response and sky light).
-/// 48 bytes (a Surface with its unused tangent would make 64): the march reads one per lit
-/// sample, scattered.
-struct Reshade {
-    glm::vec3 albedo{0.0f};
-    float roughness = 0.0f, metallic = 0.0f;
-    float vis = 0.0f;
-    glm::vec3 ambient{0.0f}, seen{0.0f};
-
-    Surface surface() const
-    {
-        Surface s;
-        s.albedo = albedo;
-        s.roughness = roughness;
-        s.metallic = metallic;
-        return s;
-    }
-};
-
 /// The view-dependent shading of a surface toward v: the sun's response (with the lobe's
 /// roughness) and the sky light, as render and ssr shade it.
+/// Without `sun_specular`, the sun's diffuse response alone (a glossy plane's highlight that
+/// the reflected sun's trace carries instead).
 glm::vec3 view_shading(const Reshade &r,
                        const Surface &surf,
                        const Surface &lobe,
                        const glm::vec3 &n,
                        const glm::vec3 &v,
                        const SsgiParams &p,
-                       const SceneSky &sky)
+                       const SceneSky &sky,
+                       bool sun_specular = true)
 {
     glm::vec3 c(0.0f);
-    if (r.vis > 0.0f && glm::dot(n, p.sun_direction) > 0.0f) {
-        c = direct_response(lobe, n, v, p.sun_direction, DirectOptions{}) *
-            (p.sun_irradiance * r.vis);
+    const float nl = glm::dot(n, p.sun_direction);
+    if (r.vis > 0.0f && nl > 0.0f) {
+        c = sun_specular ? direct_response(lobe, n, v, p.sun_direction, DirectOptions{})
+                         : lambert(diffuse_albedo(surf)) * nl;
+        c *= p.sun_irradiance * r.vis;
     }
     return add_sky_light(c, surf, n, v, sky, r.ambient, p.sky_scale);
 }
@@ -259,6 +242,12 @@ Image ssgi(const Image &depth,
             }
         }
     });
+    // The glossy planes whose reflected sun is traced, and the computed pixels on them.
+    const gi_detail::Grid grid{&rays, w, h, st, ow, oh};
+    const gi_detail::Glints glints =
+        reshade && p.reflected_sun
+            ? gi_detail::find_glints(zs, shades, reshades, p.sun_direction, grid)
+            : gi_detail::Glints{};
     // World units per computed pixel at depth 1.
     const float px_world_1 = glm::length(rays.ray_du()) * inv_w * float(st);
     const int slices = std::max(1, p.slices), steps = std::max(1, p.steps);
@@ -376,8 +365,12 @@ Image ssgi(const Image &depth,
                                 lobe.roughness =
                                     std::max(lobe.roughness, kReflectedSunMinRoughness);
                                 const glm::vec3 to_p = -d / std::sqrt(glm::dot(d, d));
+                                const bool traced =
+                                    !glints.family.empty() && glints.family[qi] >= 0;
                                 L = glm::max(
-                                    L + view_shading(r, surf, lobe, shades[qi].n, to_p, p, sky) -
+                                    L +
+                                        view_shading(
+                                            r, surf, lobe, shades[qi].n, to_p, p, sky, !traced) -
                                         r.seen,
                                     glm::vec3(0.0f));
                             }
@@ -414,10 +407,25 @@ Image ssgi(const Image &depth,
                     }
                 }
             }
-            if (total > 0.0f) {
+            // The sun reflected by the glossy planes (ssgi_glint.cpp).
+            const glm::vec3 glint =
+                glints.count > 0
+                    ? gi_detail::glint_light(glints,
+                                             zs,
+                                             reshades,
+                                             grid,
+                                             p.sun_direction,
+                                             p.radius,
+                                             P,
+                                             N,
+                                             cz,
+                                             pattern(ox + 2, oy + 1 + int(p.seed), 13)) *
+                          p.sun_irradiance
+                    : glm::vec3(0.0f);
+            if (total > 0.0f || glints.count > 0) {
                 float *o = out.pixel(ox, oy);
                 for (int k = 0; k < 3; ++k) {
-                    o[k] = sum[k] / total;
+                    o[k] = (total > 0.0f ? sum[k] / total : 0.0f) + glint[k];
                 }
             }
         }

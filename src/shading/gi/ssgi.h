@@ -33,6 +33,12 @@ struct SsgiParams {
     glm::vec3 sun_irradiance{0.0f};
     glm::vec3 sun_direction{0.4f, 0.75f, 0.3f};  ///< Unit; chooses the sky.
     float sky_scale = 1.0f;                      ///< The renderer's sky-light scale.
+    /// With the re-shading: the sun's light that glossy planes of the frame (the largest two
+    /// families of parallel glossy surfaces) reflect, traced per computed pixel in the sun's
+    /// mirror direction about each plane instead of left to the slices, whose few samples
+    /// rarely meet a narrow highlight. The slices then take those planes' sun response
+    /// without its specular lobe, so no light is counted twice.
+    bool reflected_sun = true;
 };
 
 /// The surfaces' material for the re-shading (SsgiParams::sun_irradiance non-zero), the depth
