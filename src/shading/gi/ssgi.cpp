@@ -209,6 +209,8 @@ Image ssgi(const Image &depth,
     const SceneSky &sky = scene_sky(p.sun_direction);
     const Image lit = block_radiance(radiance, st);
     parallel_for(0, oh, [&](int oy) {
+        // The sky's ambient light for the last normal seen: a row of a flat face repeats it.
+        glm::vec3 last_n(std::numeric_limits<float>::quiet_NaN()), last_ambient(0.0f);
         for (int ox = 0; ox < ow; ++ox) {
             const int x = ox * st, y = oy * st;
             const std::size_t i = std::size_t(oy) * std::size_t(ow) + std::size_t(ox);
@@ -236,7 +238,11 @@ Image ssgi(const Image &depth,
                 r.metallic =
                     std::clamp(finite_or(surfaces->material->at(x, y, 1), 1.0f), 0.0f, 1.0f);
                 r.vis = surfaces->shadow ? finite_or(surfaces->shadow->at(x, y, 0), 0.0f) : 1.0f;
-                r.ambient = sky.ambient(shades[i].n);
+                if (shades[i].n != last_n) {
+                    last_n = shades[i].n;
+                    last_ambient = sky.ambient(last_n);
+                }
+                r.ambient = last_ambient;
                 const Surface surf = r.surface();
                 r.seen = view_shading(r, surf, surf, shades[i].n, v_cam, p, sky);
             }
