@@ -16,9 +16,9 @@
 #include "raster/ray_cast.h"
 #include "raster/render.h"
 #include "raster/scene.h"
-#include "shading/fast_math.h"
 #include "shading/atmosphere/scene_sky.h"
 #include "shading/atmosphere/sky.h"
+#include "shading/fast_math.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -134,6 +134,14 @@ TEST(Environment, ProbeParallaxMeetsTheSurfaceWhereTheRayCrossesIt)
     EXPECT_NEAR(probe.seen(origin, east).y, 1.0f, 0.01f);
 }
 
+/// A direction toward each face of a cube (+x, -x, +y, -y, +z, -z), of various lengths.
+const glm::vec3 kOneOnEachFace[] = {glm::vec3(1, 0.2f, -0.3f),
+                                    glm::vec3(-1, 0.1f, 0.4f),
+                                    glm::vec3(0.2f, 2, 0.1f),
+                                    glm::vec3(-0.3f, -3, 0.2f),
+                                    glm::vec3(0.1f, -0.4f, 1),
+                                    glm::vec3(0.3f, 0.2f, -5)};
+
 TEST(Environment, DistanceCubeFacesHoldTheirDirections)
 {
     // A map whose distance is 1 + the index of the direction's major axis and sign (+x 1, -x
@@ -154,16 +162,34 @@ TEST(Environment, DistanceCubeFacesHoldTheirDirections)
     }
     const shading::DistanceCube cube(distance);
     EXPECT_EQ(cube.size(), 32);
-    for (const glm::vec3 d : {glm::vec3(1, 0.2f, -0.3f),
-                              glm::vec3(-1, 0.1f, 0.4f),
-                              glm::vec3(0.2f, 2, 0.1f),
-                              glm::vec3(-0.3f, -3, 0.2f),
-                              glm::vec3(0.1f, -0.4f, 1),
-                              glm::vec3(0.3f, 0.2f, -5)}) {
+    for (const glm::vec3 &d : kOneOnEachFace) {
         EXPECT_EQ(cube.at(d), float(1 + face_of(d))) << d.x << "," << d.y << "," << d.z;
         EXPECT_EQ(cube.at(d * 100.0f), cube.at(d));  // any length
     }
     EXPECT_EQ(cube.reach(), 6.0f);
+}
+
+TEST(Environment, ACubeFromDirectionsHoldsEachTexelsCentre)
+{
+    // Each texel holds the unit direction through its centre; any direction reads the texel
+    // it passes through, whose centre lies within half a texel's diagonal of it.
+    constexpr int n = 8;
+    const auto cube =
+        shading::LatLongCube<glm::vec3>::from_directions(n, [](const glm::vec3 &d) { return d; });
+    EXPECT_EQ(cube.size(), n);
+    // A texel's centre on face +x: (1, -1 + (i + 0.5) 2 / n, ...) for y then z.
+    const glm::vec3 centre =
+        glm::normalize(glm::vec3(1.0f, -1.0f + 2.5f * 2.0f / n, -1.0f + 6.5f * 2.0f / n));
+    EXPECT_NEAR(glm::length(cube.at(centre) - centre), 0.0f, 1e-6f);
+    EXPECT_NEAR(glm::length(cube.at(centre * 7.0f) - centre), 0.0f, 1e-6f);  // any length
+    // Half a texel's diagonal at a face's centre, where texels are widest: atan(sqrt(2) / n).
+    const float half_diagonal = std::atan(std::sqrt(2.0f) / n);
+    for (const glm::vec3 &d : kOneOnEachFace) {
+        const glm::vec3 u = glm::normalize(d), got = cube.at(d);
+        EXPECT_NEAR(glm::length(got), 1.0f, 1e-6f);
+        EXPECT_LE(std::acos(std::min(1.0f, glm::dot(got, u))), half_diagonal)
+            << d.x << "," << d.y << "," << d.z;
+    }
 }
 
 /// A 64 x 8 x 64 voxel world with a floor (top at y = 1) and, with `block`, a 5 x 1 x 5 slab

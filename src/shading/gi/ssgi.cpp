@@ -5,6 +5,9 @@
 #include <cstring>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <memory>
+#include <mutex>
+#include <utility>
 #include <vector>
 
 #include "core/parallel.h"
@@ -153,17 +156,40 @@ Image surface_map(const SsgiEnvironment &env, int mw, int mh)
 /// an arccosine.
 using SurfaceCube = LatLongCube<glm::vec3>;
 
+/// The sky's radiance as add_sky_light looks it up (SceneSky::radiance from the sky camera, no
+/// sun disc) on a cube of 64 x 64 texels a face (1.4 degrees), made once per sky: the
+/// re-shading looks it up for the computed pixels and for every sample of a glossy surface, and
+/// the sky's own look-up (square roots, an arccosine, a bilinear fetch and, below the horizon,
+/// three exponentials) was a sixteenth of the node's time.
+using SkyCube = LatLongCube<glm::vec3>;
+const SkyCube &sky_cube(const SceneSky &sky)
+{
+    static std::mutex mutex;
+    static std::vector<std::pair<const SceneSky *, std::unique_ptr<SkyCube>>> cubes;
+    std::lock_guard lock(mutex);
+    for (const auto &[key, cube] : cubes) {
+        if (key == &sky) {
+            return *cube;
+        }
+    }
+    auto cube = std::make_unique<SkyCube>(SkyCube::from_directions(64, [&](const glm::vec3 &d) {
+        return sky.radiance(d, glm::vec3(0.0f, kSkyCameraY, 0.0f), false);
+    }));
+    cubes.emplace_back(&sky, std::move(cube));
+    return *cubes.back().second;
+}
+
 /// The view-dependent shading of a surface toward v: the sun's response (with the lobe's
-/// roughness) and the sky light, as render and ssr shade it.
-/// Without `sun_specular`, the sun's diffuse response alone (a glossy plane's highlight that
-/// the reflected sun's trace carries instead).
+/// roughness) and the sky light, as render and ssr shade it (add_sky_light's terms, the sky
+/// looked up on the cube). Without `sun_specular`, the sun's diffuse response alone (a glossy
+/// plane's highlight that the reflected sun's trace carries instead).
 glm::vec3 view_shading(const Reshade &r,
                        const Surface &surf,
                        const Surface &lobe,
                        const glm::vec3 &n,
                        const glm::vec3 &v,
                        const SsgiParams &p,
-                       const SceneSky &sky,
+                       const SkyCube &sky,
                        bool sun_specular = true)
 {
     glm::vec3 c(0.0f);
@@ -173,7 +199,12 @@ glm::vec3 view_shading(const Reshade &r,
                          : lambert(diffuse_albedo(surf)) * nl;
         c *= p.sun_irradiance * r.vis;
     }
-    return add_sky_light(c, surf, n, v, sky, r.ambient, p.sky_scale);
+    const glm::vec3 amb = r.ambient * p.sky_scale;
+    c += diffuse_albedo(surf) * amb;
+    const float gloss = (1.0f - surf.roughness) * (1.0f - surf.roughness);
+    const glm::vec3 env =
+        gloss < 0.05f ? amb : glm::mix(amb, sky.at(glm::reflect(-v, n)) * p.sky_scale, gloss);
+    return c + fresnel_schlick(specular_f0(surf), std::max(glm::dot(n, v), 0.0f)) * env;
 }
 
 }  // namespace
@@ -206,7 +237,8 @@ Image ssgi(const Image &depth,
     const bool reshade =
         surfaces && surfaces->albedo && surfaces->material && p.sun_irradiance != glm::vec3(0.0f);
     std::vector<Reshade> reshades(reshade ? count : 0);
-    const SceneSky &sky = scene_sky(p.sun_direction);
+    const SceneSky &scene = scene_sky(p.sun_direction);
+    const SkyCube *sky = reshade ? &sky_cube(scene) : nullptr;
     const Image lit = block_radiance(radiance, st);
     parallel_for(0, oh, [&](int oy) {
         // The sky's ambient light for the last normal seen: a row of a flat face repeats it.
@@ -240,11 +272,11 @@ Image ssgi(const Image &depth,
                 r.vis = surfaces->shadow ? finite_or(surfaces->shadow->at(x, y, 0), 0.0f) : 1.0f;
                 if (shades[i].n != last_n) {
                     last_n = shades[i].n;
-                    last_ambient = sky.ambient(last_n);
+                    last_ambient = scene.ambient(last_n);
                 }
                 r.ambient = last_ambient;
                 const Surface surf = r.surface();
-                r.seen = view_shading(r, surf, surf, shades[i].n, v_cam, p, sky);
+                r.seen = view_shading(r, surf, surf, shades[i].n, v_cam, p, *sky);
             }
         }
     });
@@ -376,7 +408,7 @@ Image ssgi(const Image &depth,
                                 L = glm::max(
                                     L +
                                         view_shading(
-                                            r, surf, lobe, shades[qi].n, to_p, p, sky, !traced) -
+                                            r, surf, lobe, shades[qi].n, to_p, p, *sky, !traced) -
                                         r.seen,
                                     glm::vec3(0.0f));
                             }

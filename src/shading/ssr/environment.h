@@ -48,24 +48,35 @@ class LatLongCube {
     /// Faces of n x n texels; texel(const float *pixel) -> T.
     template <typename Texel>
     LatLongCube(const Image &latlong, int n, Texel texel)
-        : n_(n), texels_(std::size_t(6) * std::size_t(n) * std::size_t(n))
+        : LatLongCube(from_directions(n, [&](const glm::vec3 &d) {
+              const glm::vec2 uv = latlong_uv(d);
+              const int x = std::min(int(uv.x * float(latlong.width())), latlong.width() - 1);
+              const int y = std::min(int(uv.y * float(latlong.height())), latlong.height() - 1);
+              return texel(latlong.pixel(x, y));
+          }))
     {
-        const int w = latlong.width(), h = latlong.height();
+    }
+
+    /// Faces of n x n texels, each `texel(d)` of the unit direction d through its centre.
+    template <typename Texel>
+    static LatLongCube from_directions(int n, Texel texel)
+    {
+        LatLongCube c;
+        c.n_ = n;
+        c.texels_.resize(std::size_t(6) * std::size_t(n) * std::size_t(n));
         for (int f = 0; f < 6; ++f) {
             const int m = f / 2, u = (m + 1) % 3, v = (m + 2) % 3;
-            for (int j = 0; j < n_; ++j) {
-                for (int i = 0; i < n_; ++i) {
+            for (int j = 0; j < n; ++j) {
+                for (int i = 0; i < n; ++i) {
                     glm::vec3 d(0.0f);
                     d[m] = f % 2 == 0 ? 1.0f : -1.0f;
-                    d[u] = (float(i) + 0.5f) / float(n_) * 2.0f - 1.0f;
-                    d[v] = (float(j) + 0.5f) / float(n_) * 2.0f - 1.0f;
-                    const glm::vec2 uv = latlong_uv(glm::normalize(d));
-                    const int x = std::min(int(uv.x * float(w)), w - 1);
-                    const int y = std::min(int(uv.y * float(h)), h - 1);
-                    texels_[index(f, i, j)] = texel(latlong.pixel(x, y));
+                    d[u] = (float(i) + 0.5f) / float(n) * 2.0f - 1.0f;
+                    d[v] = (float(j) + 0.5f) / float(n) * 2.0f - 1.0f;
+                    c.texels_[c.index(f, i, j)] = texel(glm::normalize(d));
                 }
             }
         }
+        return c;
     }
 
     /// The texel seen in the direction of x (any non-zero vector).
