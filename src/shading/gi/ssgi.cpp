@@ -180,8 +180,8 @@ const SkyCube &sky_cube(const SceneSky &sky)
 }
 
 /// The view-dependent shading of a surface toward v: the sun's response (with the lobe's
-/// roughness) and the sky light, as render and ssr shade it (add_sky_light's terms, the sky
-/// looked up on the cube). Without `sun_specular`, the sun's diffuse response alone (a glossy
+/// roughness) and the sky light, as render and ssr shade it (add_sky_light, the sky looked up
+/// on the cube). Without `sun_specular`, the sun's diffuse response alone (a glossy
 /// plane's highlight that the reflected sun's trace carries instead).
 glm::vec3 view_shading(const Reshade &r,
                        const Surface &surf,
@@ -199,12 +199,8 @@ glm::vec3 view_shading(const Reshade &r,
                          : lambert(diffuse_albedo(surf)) * nl;
         c *= p.sun_irradiance * r.vis;
     }
-    const glm::vec3 amb = r.ambient * p.sky_scale;
-    c += diffuse_albedo(surf) * amb;
-    const float gloss = (1.0f - surf.roughness) * (1.0f - surf.roughness);
-    const glm::vec3 env =
-        gloss < 0.05f ? amb : glm::mix(amb, sky.at(glm::reflect(-v, n)) * p.sky_scale, gloss);
-    return c + fresnel_schlick(specular_f0(surf), std::max(glm::dot(n, v), 0.0f)) * env;
+    return add_sky_light_from(
+        c, surf, n, v, r.ambient, p.sky_scale, [&](const glm::vec3 &d) { return sky.at(d); });
 }
 
 }  // namespace
@@ -217,11 +213,10 @@ Image ssgi(const Image &depth,
            const SsgiEnvironment *environment,
            const SsgiSurfaces *surfaces)
 {
-    const int w = depth.width(), h = depth.height();
-    const int st = std::max(1, p.stride);
-    const int ow = (w + st - 1) / st, oh = (h + st - 1) / st;
+    const gi_detail::Grid grid(rays, depth.width(), depth.height(), std::max(1, p.stride));
+    const int st = grid.stride, ow = grid.ow, oh = grid.oh;
     const glm::vec3 cam = rays.position();
-    const float inv_w = 1.0f / float(w), inv_h = 1.0f / float(h);
+    const float inv_w = grid.inv_w, inv_h = grid.inv_h;
     // The computed pixels' surfaces, once: camera depth (0 for the sky), the normal on the
     // camera's side and the lit colour (the march reads these, not the full-resolution passes).
     // A sample's world position is made again from its depth: the depths alone (4 bytes a
@@ -229,10 +224,6 @@ Image ssgi(const Image &depth,
     // scattered.
     const std::size_t count = std::size_t(ow) * std::size_t(oh);
     std::vector<float> zs(count);
-    const auto position = [&](int ox, int oy, float z) {
-        return cam +
-               z * rays.depth_ray((float(ox * st) + 0.5f) * inv_w, (float(oy * st) + 0.5f) * inv_h);
-    };
     std::vector<Shade> shades(count);
     const bool reshade =
         surfaces && surfaces->albedo && surfaces->material && p.sun_irradiance != glm::vec3(0.0f);
@@ -252,7 +243,7 @@ Image ssgi(const Image &depth,
                 continue;
             }
             zs[i] = z;
-            const glm::vec3 v_cam = glm::normalize(cam - position(ox, oy, z));
+            const glm::vec3 v_cam = glm::normalize(cam - grid.position(ox, oy, z));
             shades[i].n = normal_at(normal, x, y, v_cam);
             const float *l = lit.pixel(ox, oy);
             shades[i].l = glm::vec3(l[0], l[1], l[2]);
@@ -281,13 +272,11 @@ Image ssgi(const Image &depth,
         }
     });
     // The glossy planes whose reflected sun is traced, and the computed pixels on them.
-    const gi_detail::Grid grid{&rays, w, h, st, ow, oh};
     const gi_detail::Glints glints =
         reshade && p.reflected_sun
             ? gi_detail::find_glints(zs, shades, reshades, p.sun_direction, grid)
             : gi_detail::Glints{};
-    // World units per computed pixel at depth 1.
-    const float px_world_1 = glm::length(rays.ray_du()) * inv_w * float(st);
+    const float px_world_1 = grid.px_world_1;
     const int slices = std::max(1, p.slices), steps = std::max(1, p.steps);
     const SurfaceCube env_cube =
         environment ? SurfaceCube(surface_map(*environment,
@@ -312,7 +301,7 @@ Image ssgi(const Image &depth,
             if (cz == 0.0f) {
                 continue;  // the sky: 0
             }
-            const glm::vec3 P = position(ox, oy, cz), &N = shades[ci].n;
+            const glm::vec3 P = grid.position(ox, oy, cz), &N = shades[ci].n;
             const glm::vec3 V = glm::normalize(cam - P);
             // The search radius in computed pixels.
             const float r_px =
@@ -374,7 +363,7 @@ Image ssgi(const Image &depth,
                         if (qz == 0.0f) {
                             continue;  // sky
                         }
-                        const glm::vec3 d = position(qx, qy, qz) - P;
+                        const glm::vec3 d = grid.position(qx, qy, qz) - P;
                         const float dc = glm::dot(d, V), ds = glm::dot(d, e2);
                         // On this side of the slice (a sample rounded onto the slice's line or
                         // the point itself is not) and above the horizon: sin(horizon - a) > 0

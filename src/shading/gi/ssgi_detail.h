@@ -3,6 +3,7 @@
 // (ssgi_glint.cpp) share: the computed pixels' surfaces, and the planes found among them.
 
 #include <cstdint>
+#include <glm/geometric.hpp>
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 #include <vector>
@@ -41,13 +42,28 @@ struct Reshade {
 /// The computed pixels' grid: ow x oh pixels, each the top-left of a stride x stride block of
 /// the w x h passes, and a point of it at camera depth z in the world.
 struct Grid {
-    const CameraRays *rays = nullptr;
-    int w = 0, h = 0, stride = 1, ow = 0, oh = 0;
+    Grid(const CameraRays &r, int width, int height, int st)
+        : rays(&r),
+          w(width),
+          h(height),
+          stride(st),
+          ow((width + st - 1) / st),
+          oh((height + st - 1) / st),
+          inv_w(1.0f / float(width)),
+          inv_h(1.0f / float(height)),
+          px_world_1(glm::length(r.ray_du()) * inv_w * float(st))
+    {
+    }
+
+    const CameraRays *rays;
+    int w, h, stride, ow, oh;
+    float inv_w, inv_h;
+    float px_world_1;  ///< World units per computed pixel at depth 1.
 
     glm::vec3 position(int ox, int oy, float z) const
     {
-        return rays->position() + z * rays->depth_ray((float(ox * stride) + 0.5f) / float(w),
-                                                      (float(oy * stride) + 0.5f) / float(h));
+        return rays->position() + z * rays->depth_ray((float(ox * stride) + 0.5f) * inv_w,
+                                                      (float(oy * stride) + 0.5f) * inv_h);
     }
 };
 

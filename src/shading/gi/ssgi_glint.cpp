@@ -189,7 +189,7 @@ glm::vec3 glint_light(const Glints &g,
     const float sx_scale = float(grid.w) / float(grid.stride);
     const float sy_scale = float(grid.h) / float(grid.stride);
     // Past the point's own pixels: two computed pixels at its depth.
-    const float t0 = 2.0f * z * glm::length(rays.ray_du()) * float(grid.stride) / float(grid.w);
+    const float t0 = 2.0f * z * grid.px_world_1;
     glm::vec3 light(0.0f);
     for (int k = 0; k < g.count; ++k) {
         const glm::vec3 &dir = g.toward[k];

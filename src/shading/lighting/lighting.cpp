@@ -72,20 +72,9 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const glm::vec3 &ambient,
                         float scale)
 {
-    const glm::vec3 amb = ambient * scale;
-    c += diffuse_albedo(s) * amb;
-    const float nv = std::max(glm::dot(n, v), 0.0f);
-    const glm::vec3 r = glm::reflect(-v, n);
-    const float gloss = (1.0f - s.roughness) * (1.0f - s.roughness);
-    // Rough materials (gloss < 0.05, roughness > 0.78) reflect the ambient term alone: the sky
-    // lookup would change them by less than 5% of a small term.
-    const glm::vec3 env =
-        gloss < 0.05f
-            ? amb
-            : glm::mix(
-                  amb, sky.radiance(r, glm::vec3(0.0f, kSkyCameraY, 0.0f), false) * scale, gloss);
-    c += fresnel_schlick(specular_f0(s), nv) * env;
-    return c;
+    return add_sky_light_from(c, s, n, v, ambient, scale, [&](const glm::vec3 &r) {
+        return sky.radiance(r, glm::vec3(0.0f, kSkyCameraY, 0.0f), false);
+    });
 }
 
 glm::vec3 sky_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v)

@@ -4,9 +4,12 @@
 // (metallic-workflow BRDF, toon bands, optional Burley diffuse and Kulla-Conty compensation) and
 // the sky light (hemispherical diffuse plus a specular sky stand-in).
 //
-// Conventions as shading/lighting/brdf.h: unit vectors, n faces the viewer, v toward the viewer, l toward
-// the light.
+// Conventions as shading/lighting/brdf.h: unit vectors, n faces the viewer, v toward the viewer, l
+// toward the light.
 
+#include <algorithm>
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
 
 #include "shading/lighting/brdf.h"
@@ -54,8 +57,8 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         float scale);
 
 /// add_sky_light for callers that look the sky up once per tile: `sky` is shading::scene_sky
-/// (shading/atmosphere/sky.h) of the sun direction and `ambient` its ambient(n), unscaled. The same result,
-/// bit for bit.
+/// (shading/atmosphere/sky.h) of the sun direction and `ambient` its ambient(n), unscaled. The same
+/// result, bit for bit.
 glm::vec3 add_sky_light(glm::vec3 c,
                         const Surface &s,
                         const glm::vec3 &n,
@@ -63,6 +66,31 @@ glm::vec3 add_sky_light(glm::vec3 c,
                         const SceneSky &sky,
                         const glm::vec3 &ambient,
                         float scale);
+
+/// add_sky_light with the sky's radiance in a direction given by `sky_at(dir)` (unscaled, as
+/// SceneSky::radiance from the sky camera without the sun's disc; a caller may look it up on a
+/// table of it), called only for glossy surfaces. The overloads above are this with the sky's
+/// own look-up.
+template <typename SkyAt>
+glm::vec3 add_sky_light_from(glm::vec3 c,
+                             const Surface &s,
+                             const glm::vec3 &n,
+                             const glm::vec3 &v,
+                             const glm::vec3 &ambient,
+                             float scale,
+                             const SkyAt &sky_at)
+{
+    const glm::vec3 amb = ambient * scale;
+    c += diffuse_albedo(s) * amb;
+    const float nv = std::max(glm::dot(n, v), 0.0f);
+    const glm::vec3 r = glm::reflect(-v, n);
+    const float gloss = (1.0f - s.roughness) * (1.0f - s.roughness);
+    // Rough materials (gloss < 0.05, roughness > 0.78) reflect the ambient term alone: the sky
+    // lookup would change them by less than 5% of a small term.
+    const glm::vec3 env = gloss < 0.05f ? amb : glm::mix(amb, sky_at(r) * scale, gloss);
+    c += fresnel_schlick(specular_f0(s), nv) * env;
+    return c;
+}
 
 /// The weight of the sky lookup in add_sky_light's specular term: Schlick F(n.v) times the
 /// gloss (1 - roughness)^2, zero for rough materials (gloss < 0.05) that reflect the ambient
