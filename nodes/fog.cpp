@@ -1,11 +1,11 @@
 // nodes/fog.cpp: fog and atmosphere over a frame, from depth and the camera matrices.
 // Models: linear (start, end), exp and exp2 (density), exponential height fog with the exact
 // line integral (src/shading/fog/height_fog.h), and a physically based atmosphere after Hillaire
-// 2020 (src/shading/atmosphere/atmosphere.h: transmittance, multi-scattering and sky-view LUTs, an aerial
-// perspective froxel volume), plus `atmosphere_raymarch`, the per-pixel reference it is judged by.
-// Composite: RGB = RGB * T + inscatter; alpha untouched. Sky pixels (depth +inf) get the fog
-// color (linear, exp, exp2, height with sky=fog) or the sky radiance (atmosphere).
-// Departure: NaN depths are left untouched and negative depths count as 0.
+// 2020 (src/shading/atmosphere/atmosphere.h: transmittance, multi-scattering and sky-view LUTs, an
+// aerial perspective froxel volume), plus `atmosphere_raymarch`, the per-pixel reference it is
+// judged by. Composite: RGB = RGB * T + inscatter; alpha untouched. Sky pixels (depth +inf) get the
+// fog color (linear, exp, exp2, height with sky=fog) or the sky radiance (atmosphere). Departure:
+// NaN depths are left untouched and negative depths count as 0.
 
 #include <OpenImageIO/paramlist.h>
 
@@ -19,9 +19,9 @@
 #include "nodes/node.h"
 #include "nodes/sun_params.h"
 #include "shading/atmosphere/atmosphere.h"
+#include "shading/atmosphere/scene_sky.h"
 #include "shading/camera_rays.h"
 #include "shading/fog/height_fog.h"
-#include "shading/atmosphere/scene_sky.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -121,11 +121,12 @@ constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64)
                                  .doc("atmosphere_raymarch: integration steps per pixel.")
                                  .only_when("model", "atmosphere_raymarch");
 constexpr ParamSpec kParams[] = {
-    kModel,    kColor,      kStart,       kEnd,           kDensity,
-    kFalloff,  kBaseHeight, kSky,         kSunDirection,  kUp,
-    kSunColor, kSunG,       kIlluminance, kMetresPerUnit, kGroundAltitude,
-    kFroxels,  kSlices,     kMaxDistance, kSunDisc,       kSteps, kMaskPass, kMaskChannel, kMaskInvert};
-constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."}, kMaskPort};
+    kModel,       kColor,         kStart,          kEnd,         kDensity,   kFalloff,
+    kBaseHeight,  kSky,           kSunDirection,   kUp,          kSunColor,  kSunG,
+    kIlluminance, kMetresPerUnit, kGroundAltitude, kFroxels,     kSlices,    kMaxDistance,
+    kSunDisc,     kSteps,         kMaskPass,       kMaskChannel, kMaskInvert};
+constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."},
+                                kMaskPort};
 
 enum Model { Linear, Exp, Exp2, Height, Atmo, AtmoRayMarch };
 
@@ -330,7 +331,8 @@ void execute(NodeContext &ctx)
         }
         case Atmo:
         case AtmoRayMarch: {
-            const glm::vec3 illuminance = param_value<glm::vec3>(ctx, kIlluminance, HeaderSource::of(in));
+            const glm::vec3 illuminance =
+                param_value<glm::vec3>(ctx, kIlluminance, HeaderSource::of(in));
             const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
             const auto &atmosphere = built.atmosphere;
             const bool disc = ctx.get_bool(kSunDisc);
@@ -432,15 +434,18 @@ extern const NodeType kFog{{"fog",
                             "based atmosphere (Hillaire 2020).",
                             kInputs,
                             kParams,
-                            "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
+                            "",
+                            /*sink=*/false,
+                            /*keeps_specular=*/false,
+                            /*maskable=*/true},
                            &execute,
                            &plan,
                            &check,
-    nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kFog, kHeightFields, problems);
-        audit(kFog, kAtmosphereFields, problems);
-        audit(kFog, kFroxelFields, problems);
-    }};
+                           nullptr,
+                           [](std::vector<std::string> &problems) {
+                               audit(kFog, kHeightFields, problems);
+                               audit(kFog, kAtmosphereFields, problems);
+                               audit(kFog, kFroxelFields, problems);
+                           }};
 
 }  // namespace posthaste::nodes
