@@ -21,6 +21,7 @@
 #include "shading/atmosphere/atmosphere.h"
 #include "shading/atmosphere/scene_sky.h"
 #include "shading/camera_rays.h"
+#include "shading/fog/filtered_edges.h"
 #include "shading/fog/height_fog.h"
 
 namespace posthaste::nodes {
@@ -56,10 +57,11 @@ constexpr ParamSpec kFalloff =
         .units("1/unit")
         .doc("Height: density falls by exp(-falloff) per unit of height above base_height.")
         .only_when("model", "height");
-constexpr ParamSpec kBaseHeight = ParamSpec::real("base_height", 0.0)
-                                      .units("scene units")
-                                      .doc("Height: world y where the density equals `density`.")
-                                      .only_when("model", "height");
+constexpr ParamSpec kBaseHeight =
+    ParamSpec::real("base_height", 0.0)
+        .units("scene units")
+        .doc("Height: the height along `up` where the density equals `density`.")
+        .only_when("model", "height");
 constexpr ParamSpec kSky =
     ParamSpec::choice("sky", "fog|ray", "fog")
         .doc("Height: sky pixels get the fog color (fog) or the fog of the infinite ray (ray).")
@@ -120,11 +122,20 @@ constexpr ParamSpec kSteps = ParamSpec::integer("steps", 64)
                                  .range(1, 4096)
                                  .doc("atmosphere_raymarch: integration steps per pixel.")
                                  .only_when("model", "atmosphere_raymarch");
+constexpr ParamSpec kPixelFilter =
+    ParamSpec::real("pixel_filter", 0.0)
+        .range(0.0, 1.5)
+        .units("px")
+        .doc(
+            "The renderer's pixel filter, as a Gaussian's sigma, where the colour is filtered at "
+            "depth edges and the depth is not (a production render): each edge pixel is fogged "
+            "as the mix of its neighbours' distances (Cycles' default Blackman-Harris 1.5 px "
+            "measures best at 0.6). 0: passes of one sample a pixel (the rasterizer's).");
 constexpr ParamSpec kParams[] = {
-    kModel,       kColor,         kStart,          kEnd,         kDensity,   kFalloff,
-    kBaseHeight,  kSky,           kSunDirection,   kUp,          kSunColor,  kSunG,
-    kIlluminance, kMetresPerUnit, kGroundAltitude, kFroxels,     kSlices,    kMaxDistance,
-    kSunDisc,     kSteps,         kMaskPass,       kMaskChannel, kMaskInvert};
+    kModel,       kColor,         kStart,          kEnd,      kDensity,     kFalloff,
+    kBaseHeight,  kSky,           kSunDirection,   kUp,       kSunColor,    kSunG,
+    kIlluminance, kMetresPerUnit, kGroundAltitude, kFroxels,  kSlices,      kMaxDistance,
+    kSunDisc,     kSteps,         kPixelFilter,    kMaskPass, kMaskChannel, kMaskInvert};
 constexpr PortSpec kInputs[] = {{"image", "color,depth", false, "Frame with color and depth."},
                                 kMaskPort};
 
@@ -309,100 +320,117 @@ void execute(NodeContext &ctx)
 
     const glm::vec3 sun_dir = to_y_up * glm::normalize(sun_direction(ctx, kSunDirection, in));
 
-    // The height fog and atmosphere kernels read the input and write the output in one sweep;
-    // the other models work on a copy.
-    const Image &source = color_in;
-    Image out = model == Height || model == Atmo
-                    ? Image::uninitialized(source.width(), source.height(), source.channels())
-                    : source;
-    switch (model) {
-        case Linear:
-        case Exp:
-        case Exp2:
-            apply_classic(model, ctx, rays, *depth, out);
-            break;
-        case Height: {
-            // sky "fog": sky pixels get the fog's radiance (colour plus the sun lobe), folded
-            // into the same sweep.
-            shading::HeightFog fog = fill(ctx.params(), kHeightFields);
-            fog.sun_direction = sun_dir;
-            shading::apply_height_fog(fog, rays, *depth, source, out);
-            break;
-        }
-        case Atmo:
-        case AtmoRayMarch: {
-            const glm::vec3 illuminance =
-                param_value<glm::vec3>(ctx, kIlluminance, HeaderSource::of(in));
-            const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
-            const auto &atmosphere = built.atmosphere;
-            const bool disc = ctx.get_bool(kSunDisc);
-            if (model == Atmo) {
-                shading::AerialPerspectiveSettings s = fill(ctx.params(), kFroxelFields);
-                s.height = s.width;  // square froxels in NDC
-                // Froxels only as deep as this frame's geometry reaches.
-                const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s, *depth);
-                shading::apply_atmosphere(
-                    *atmosphere, atmosphere->cached_sky_view(), ap, *depth, source, out, disc);
-                // Sky pixels below the horizon see the lit ground (as the rasterizer draws it).
-                // Rows in bands; a pixel's ray points down when its depth-1 vector does, so the
-                // unit direction is only made for those.
+    // The model over a colour image. The height fog and atmosphere kernels read the input and
+    // write the output in one sweep; the other models work on a copy.
+    auto fogged = [&](const Image &source) {
+        Image out = model == Height || model == Atmo
+                        ? Image::uninitialized(source.width(), source.height(), source.channels())
+                        : source;
+        switch (model) {
+            case Linear:
+            case Exp:
+            case Exp2:
+                apply_classic(model, ctx, rays, *depth, out);
+                break;
+            case Height: {
+                // sky "fog": sky pixels get the fog's radiance (colour plus the sun lobe), folded
+                // into the same sweep.
+                shading::HeightFog fog = fill(ctx.params(), kHeightFields);
+                fog.sun_direction = sun_dir;
+                shading::apply_height_fog(fog, rays, *depth, source, out);
+                break;
+            }
+            case Atmo:
+            case AtmoRayMarch: {
+                const glm::vec3 illuminance =
+                    param_value<glm::vec3>(ctx, kIlluminance, HeaderSource::of(in));
+                const AtmosphereCache::Built built = atmosphere_for(ctx, sun_dir, illuminance);
+                const auto &atmosphere = built.atmosphere;
+                const bool disc = ctx.get_bool(kSunDisc);
+                if (model == Atmo) {
+                    shading::AerialPerspectiveSettings s = fill(ctx.params(), kFroxelFields);
+                    s.height = s.width;  // square froxels in NDC
+                    // Froxels only as deep as this frame's geometry reaches.
+                    const shading::AerialPerspective ap(*atmosphere, w2c, w2ndc, s, *depth);
+                    shading::apply_atmosphere(
+                        *atmosphere, atmosphere->cached_sky_view(), ap, *depth, source, out, disc);
+                    // Sky pixels below the horizon see the lit ground (as the rasterizer draws it).
+                    // Rows in bands; a pixel's ray points down when its depth-1 vector does, so the
+                    // unit direction is only made for those.
+                    const int nch = out.channels();
+                    const float inv_w = 1.0f / float(out.width()),
+                                inv_h = 1.0f / float(out.height());
+                    parallel_for(0, out.height(), [&](int y) {
+                        const float v = (y + 0.5f) * inv_h;
+                        const glm::vec3 r0 = rays.depth_ray(0.0f, v);
+                        const glm::vec3 dr = rays.depth_ray(1.0f, v) - r0;
+                        const float *z = depth->pixel(0, y);
+                        for (int x = 0; x < out.width(); ++x) {
+                            const float u = (x + 0.5f) * inv_w;
+                            if (!(z[x] == std::numeric_limits<float>::infinity()) ||
+                                !(r0.y + u * dr.y < 0.0f)) {
+                                continue;
+                            }
+                            const glm::vec3 dir = rays.direction(u, v);
+                            if (dir.y >= 0.0f) {
+                                continue;
+                            }
+                            const glm::vec3 g = built.sky->ground(dir, rays.position());
+                            float *p = out.pixel(x, y);
+                            for (int k = 0; k < std::min(nch, 3); ++k) {
+                                p[k] += g[k];
+                            }
+                        }
+                    });
+                    break;
+                }
+                const int steps = ctx.get_int(kSteps);
                 const int nch = out.channels();
                 const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
-                parallel_for(0, out.height(), [&](int y) {
-                    const float v = (y + 0.5f) * inv_h;
-                    const glm::vec3 r0 = rays.depth_ray(0.0f, v);
-                    const glm::vec3 dr = rays.depth_ray(1.0f, v) - r0;
-                    const float *z = depth->pixel(0, y);
-                    for (int x = 0; x < out.width(); ++x) {
-                        const float u = (x + 0.5f) * inv_w;
-                        if (!(z[x] == std::numeric_limits<float>::infinity()) ||
-                            !(r0.y + u * dr.y < 0.0f)) {
-                            continue;
-                        }
-                        const glm::vec3 dir = rays.direction(u, v);
-                        if (dir.y >= 0.0f) {
-                            continue;
-                        }
-                        const glm::vec3 g = built.sky->ground(dir, rays.position());
-                        float *p = out.pixel(x, y);
-                        for (int k = 0; k < std::min(nch, 3); ++k) {
-                            p[k] += g[k];
+                parallel_for_tiles(out.bounds(), [&](const Rect &t) {
+                    for (int y = t.y0; y < t.y1; ++y) {
+                        for (int x = t.x0; x < t.x1; ++x) {
+                            const float z = depth->at(x, y, 0);
+                            if (std::isnan(z)) {
+                                continue;
+                            }
+                            const float u = (x + 0.5f) * inv_w, v = (y + 0.5f) * inv_h;
+                            const glm::vec3 dir = rays.direction(u, v);
+                            float *p = out.pixel(x, y);
+                            if (std::isinf(z)) {
+                                const glm::vec3 sky =
+                                    built.sky->radiance(dir, rays.position(), disc);
+                                for (int k = 0; k < std::min(nch, 3); ++k) {
+                                    p[k] = sky[k];
+                                }
+                                continue;
+                            }
+                            const float dist = z * glm::length(rays.depth_ray(u, v));
+                            const shading::ScatteringResult r =
+                                atmosphere->ray_march(rays.position(), dir, dist, steps);
+                            for (int k = 0; k < std::min(nch, 3); ++k) {
+                                p[k] = p[k] * r.transmittance[k] + r.inscatter[k];
+                            }
                         }
                     }
                 });
                 break;
             }
-            const int steps = ctx.get_int(kSteps);
-            const int nch = out.channels();
-            const float inv_w = 1.0f / float(out.width()), inv_h = 1.0f / float(out.height());
-            parallel_for_tiles(out.bounds(), [&](const Rect &t) {
-                for (int y = t.y0; y < t.y1; ++y) {
-                    for (int x = t.x0; x < t.x1; ++x) {
-                        const float z = depth->at(x, y, 0);
-                        if (std::isnan(z)) {
-                            continue;
-                        }
-                        const float u = (x + 0.5f) * inv_w, v = (y + 0.5f) * inv_h;
-                        const glm::vec3 dir = rays.direction(u, v);
-                        float *p = out.pixel(x, y);
-                        if (std::isinf(z)) {
-                            const glm::vec3 sky = built.sky->radiance(dir, rays.position(), disc);
-                            for (int k = 0; k < std::min(nch, 3); ++k) {
-                                p[k] = sky[k];
-                            }
-                            continue;
-                        }
-                        const float dist = z * glm::length(rays.depth_ray(u, v));
-                        const shading::ScatteringResult r =
-                            atmosphere->ray_march(rays.position(), dir, dist, steps);
-                        for (int k = 0; k < std::min(nch, 3); ++k) {
-                            p[k] = p[k] * r.transmittance[k] + r.inscatter[k];
-                        }
-                    }
-                }
-            });
-            break;
         }
+        return out;
+    };
+    Image out = fogged(color_in);
+    if (const float sigma = ctx.get_float(kPixelFilter); sigma > 0.0f) {
+        // Each pixel's transmittance and in-scattering: the model over colours 1 and 0.
+        Image ones(color_in.width(), color_in.height(), color_in.channels());
+        ones.fill(1.0f);
+        const Image inscatter =
+            fogged(Image(color_in.width(), color_in.height(), color_in.channels()));
+        Image transmittance = fogged(ones);
+        for (std::size_t i = 0; i < transmittance.value_count(); ++i) {
+            transmittance.data()[i] -= inscatter.data()[i];
+        }
+        shading::correct_filtered_edges(color_in, transmittance, inscatter, *depth, sigma, out);
     }
     ctx.output().set(pass::kColor,
                      std::make_shared<const Image>(std::move(out)),

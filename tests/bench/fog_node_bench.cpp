@@ -68,6 +68,17 @@ void BM_FogNodeHeightScalar(benchmark::State &state)
 }
 BENCHMARK(BM_FogNodeHeightScalar)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// With the composite at a filtered colour's depth edges (pixel_filter, for a production
+// render's passes): the model run twice more (over colours 1 and 0) and the 3x3 correction.
+void BM_FogNodeHeightPixelFilter(benchmark::State &state)
+{
+    run_fog(state,
+            R"({"model": "height", "density": 0.02, "falloff": 0.08,
+                "sun_color": [0.5, 0.45, 0.4], "pixel_filter": 0.6})",
+            false);
+}
+BENCHMARK(BM_FogNodeHeightPixelFilter)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_FogNodeAtmosphere(benchmark::State &state)
 {
     run_fog(state, kAtmosphere, false);

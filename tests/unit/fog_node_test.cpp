@@ -15,6 +15,7 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "shading/camera_rays.h"
+#include "shading/fog/filtered_edges.h"
 #include "shading/fog/height_fog.h"
 #include "test_util.h"
 
@@ -145,7 +146,10 @@ TEST(FogNode, StabilityCasesStayFiniteAndBounded)
          R"({"model": "exp2", "density": 10})",
          R"({"model": "linear", "start": 0, "end": 0})",
          R"({"model": "atmosphere", "sun_direction": [0.3, -0.2, 0.9]})",
-         R"({"model": "atmosphere", "sun_direction": [0.0, 1.0, 0.0], "metres_per_unit": 1000})"}) {
+         R"({"model": "atmosphere", "sun_direction": [0.0, 1.0, 0.0], "metres_per_unit": 1000})",
+         R"({"model": "exp", "density": 0.05, "pixel_filter": 0.6})",
+         R"({"model": "height", "density": 1e3, "falloff": 50, "pixel_filter": 1.5})",
+         R"({"model": "atmosphere", "pixel_filter": 0.6})"}) {
         SCOPED_TRACE(params);
         const Frame out = run_fog(in, params);
         const Image &c = out.image("color");
@@ -206,7 +210,8 @@ TEST(FogNode, SameBitsForOneAndManyThreads)
     const Frame in = test::make_sample_frame(96, 64, 1);
     for (const char *params : {R"({"model": "height", "density": 0.05, "sun_color": [1, 1, 1]})",
                                R"({"model": "atmosphere"})",
-                               R"({"model": "exp2"})"}) {
+                               R"({"model": "exp2"})",
+                               R"({"model": "height", "density": 0.05, "pixel_filter": 0.6})"}) {
         set_thread_count(1);
         const Frame a = run_fog(in, params);
         set_thread_count(3);
@@ -214,6 +219,78 @@ TEST(FogNode, SameBitsForOneAndManyThreads)
         set_thread_count(0);
         EXPECT_TRUE(a.image("color").bit_equal(b.image("color"))) << params;
     }
+}
+
+// A filtered edge by hand: pixel 0 a surface left unfogged (T 1, I 0, colour 1), pixel 1 the sky
+// (T 0, I 0.8, colour 0.2), sigma 1 (a side neighbour weighs exp(-1/2)). Pixel 0 takes
+// w ((0 - 1) 0.2 + 0.8 - 0) / (1 + w) of its neighbour's composite, pixel 1
+// w ((1 - 0) 1 + 0 - 0.8) / (1 + w).
+TEST(FogFilteredEdges, TwoPixelsByHand)
+{
+    Image color(2, 1, 3), t(2, 1, 3), i(2, 1, 3), depth(2, 1, 1), out(2, 1, 3);
+    for (int c = 0; c < 3; ++c) {
+        color.at(0, 0, c) = 1.0f;
+        color.at(1, 0, c) = 0.2f;
+        t.at(0, 0, c) = 1.0f;
+        i.at(1, 0, c) = 0.8f;
+        out.at(0, 0, c) = 1.0f;  // T c + I
+        out.at(1, 0, c) = 0.8f;
+    }
+    depth.at(0, 0, 0) = 5.0f;
+    depth.at(1, 0, 0) = std::numeric_limits<float>::infinity();
+    shading::correct_filtered_edges(color, t, i, depth, 1.0f, out);
+    const double w = std::exp(-0.5);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(out.at(0, 0, c), 1.0 + w * 0.6 / (1.0 + w), 1e-6);
+        EXPECT_NEAR(out.at(1, 0, c), 0.8 + w * 0.2 / (1.0 + w), 1e-6);
+    }
+}
+
+// Uniform T and I: nothing changes, bit for bit; a NaN depth neither changes nor counts, and
+// the result stays within [0, max T * max c + max I] at a contrast that would overshoot.
+TEST(FogFilteredEdges, UniformFogIsUntouchedAndNaNDepthsAreLeftOut)
+{
+    Image color(3, 3, 3), t(3, 3, 3), i(3, 3, 3), depth(3, 3, 1);
+    color.fill(0.3f);
+    color.at(1, 1, 0) = 7.0f;
+    t.fill(0.5f);
+    i.fill(0.2f);
+    depth.fill(4.0f);
+    Image out(3, 3, 3);
+    for (std::size_t k = 0; k < out.value_count(); ++k) {
+        out.data()[k] = t.data()[k] * color.data()[k] + i.data()[k];
+    }
+    const Image before = out;
+    shading::correct_filtered_edges(color, t, i, depth, 0.6f, out);
+    EXPECT_TRUE(out.bit_equal(before));
+
+    // A NaN-depth neighbour with another T: ignored, so the centre stays as it was.
+    depth.at(0, 0, 0) = std::numeric_limits<float>::quiet_NaN();
+    t.at(0, 0, 0) = 0.0f;
+    shading::correct_filtered_edges(color, t, i, depth, 0.6f, out);
+    EXPECT_TRUE(out.bit_equal(before));
+
+    // A dark surface (T 1) ringed by a bright sky of T 0: the correction would take the centre
+    // below 0; it is clamped there.
+    Image c2(3, 3, 3), t2(3, 3, 3), i2(3, 3, 3), d2(3, 3, 1), o2(3, 3, 3);
+    c2.fill(50.0f);
+    i2.fill(0.1f);
+    d2.fill(std::numeric_limits<float>::infinity());
+    for (int c = 0; c < 3; ++c) {
+        c2.at(1, 1, c) = 0.0f;
+        t2.at(1, 1, c) = 1.0f;
+        i2.at(1, 1, c) = 0.0f;
+    }
+    d2.at(1, 1, 0) = 2.0f;
+    for (std::size_t k = 0; k < o2.value_count(); ++k) {
+        o2.data()[k] = t2.data()[k] * c2.data()[k] + i2.data()[k];
+    }
+    shading::correct_filtered_edges(c2, t2, i2, d2, 1.5f, o2);
+    for (std::size_t k = 0; k < o2.value_count(); ++k) {
+        EXPECT_TRUE(std::isfinite(o2.data()[k]));
+        EXPECT_GE(o2.data()[k], 0.0f);
+    }
+    EXPECT_EQ(o2.at(1, 1, 0), 0.0f);
 }
 
 TEST(FogNode, MissingCameraIsNamed)
