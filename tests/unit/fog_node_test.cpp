@@ -221,28 +221,31 @@ TEST(FogNode, SameBitsForOneAndManyThreads)
     }
 }
 
-// A filtered edge by hand: pixel 0 a surface left unfogged (T 1, I 0, colour 1), pixel 1 the sky
-// (T 0, I 0.8, colour 0.2), sigma 1 (a side neighbour weighs exp(-1/2)). Pixel 0 takes
-// w ((0 - 1) 0.2 + 0.8 - 0) / (1 + w) of its neighbour's composite, pixel 1
-// w ((1 - 0) 1 + 0 - 0.8) / (1 + w).
-TEST(FogFilteredEdges, TwoPixelsByHand)
+// A filtered edge by hand, four pixels in a row: 0 and 1 a surface left unfogged (T 1, I 0,
+// colour 1), 2 and 3 the sky (T 0, I 0.8, colour 0.2), sigma 1 (a side neighbour weighs
+// w = exp(-1/2)). Pixel 1 takes w ((0 - 1) 0.2 + 0.8 - 0) / (1 + 2 w) of the sky beside it,
+// pixel 2 w ((1 - 0) 1 + 0 - 0.8) / (1 + 2 w) of the surface; the end pixels have no whole
+// line through them and stay.
+TEST(FogFilteredEdges, FourPixelsByHand)
 {
-    Image color(2, 1, 3), t(2, 1, 3), i(2, 1, 3), depth(2, 1, 1), out(2, 1, 3);
-    for (int c = 0; c < 3; ++c) {
-        color.at(0, 0, c) = 1.0f;
-        color.at(1, 0, c) = 0.2f;
-        t.at(0, 0, c) = 1.0f;
-        i.at(1, 0, c) = 0.8f;
-        out.at(0, 0, c) = 1.0f;  // T c + I
-        out.at(1, 0, c) = 0.8f;
+    Image color(4, 1, 3), t(4, 1, 3), i(4, 1, 3), depth(4, 1, 1), out(4, 1, 3);
+    for (int x = 0; x < 4; ++x) {
+        const bool sky = x >= 2;
+        depth.at(x, 0, 0) = sky ? std::numeric_limits<float>::infinity() : 5.0f;
+        for (int c = 0; c < 3; ++c) {
+            color.at(x, 0, c) = sky ? 0.2f : 1.0f;
+            t.at(x, 0, c) = sky ? 0.0f : 1.0f;
+            i.at(x, 0, c) = sky ? 0.8f : 0.0f;
+            out.at(x, 0, c) = sky ? 0.8f : 1.0f;  // T c + I
+        }
     }
-    depth.at(0, 0, 0) = 5.0f;
-    depth.at(1, 0, 0) = std::numeric_limits<float>::infinity();
     shading::correct_filtered_edges(color, t, i, depth, 1.0f, out);
     const double w = std::exp(-0.5);
     for (int c = 0; c < 3; ++c) {
-        EXPECT_NEAR(out.at(0, 0, c), 1.0 + w * 0.6 / (1.0 + w), 1e-6);
-        EXPECT_NEAR(out.at(1, 0, c), 0.8 + w * 0.2 / (1.0 + w), 1e-6);
+        EXPECT_EQ(out.at(0, 0, c), 1.0f);
+        EXPECT_NEAR(out.at(1, 0, c), 1.0 + w * 0.6 / (1.0 + 2.0 * w), 1e-6);
+        EXPECT_NEAR(out.at(2, 0, c), 0.8 + w * 0.2 / (1.0 + 2.0 * w), 1e-6);
+        EXPECT_EQ(out.at(3, 0, c), 0.8f);
     }
 }
 
@@ -291,6 +294,49 @@ TEST(FogFilteredEdges, UniformFogIsUntouchedAndNaNDepthsAreLeftOut)
         EXPECT_GE(o2.data()[k], 0.0f);
     }
     EXPECT_EQ(o2.at(1, 1, 0), 0.0f);
+}
+
+// A tilted plane (inverse depth affine on the screen) is no edge, however its fog varies
+// from pixel to pixel: left bit for bit; a step in depth within it is corrected.
+TEST(FogFilteredEdges, APlaneIsNoEdgeAStepIs)
+{
+    const int w = 8, h = 6;
+    Image color(w, h, 3), t(w, h, 3), i(w, h, 3), depth(w, h, 1), out(w, h, 3);
+    auto fill = [&] {
+        for (int y = 0; y < h; ++y) {
+            for (int x = 0; x < w; ++x) {
+                const float z = depth.at(x, y, 0), tr = std::exp(-0.1f * z);
+                for (int c = 0; c < 3; ++c) {
+                    color.at(x, y, c) = 0.1f * float((x * 7 + y * 3 + c) % 5);
+                    t.at(x, y, c) = tr;
+                    i.at(x, y, c) = 0.6f * (1.0f - tr);
+                    out.at(x, y, c) = tr * color.at(x, y, c) + i.at(x, y, c);
+                }
+            }
+        }
+    };
+    for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+            depth.at(x, y, 0) = 1.0f / (0.05f + 0.01f * float(x) + 0.02f * float(y));
+        }
+    }
+    fill();
+    Image before = out;
+    shading::correct_filtered_edges(color, t, i, depth, 0.6f, out);
+    EXPECT_TRUE(out.bit_equal(before));
+
+    for (int y = 0; y < h; ++y) {
+        for (int x = 4; x < w; ++x) {
+            depth.at(x, y, 0) *= 3.0f;  // a step between columns 3 and 4
+        }
+    }
+    fill();
+    before = out;
+    shading::correct_filtered_edges(color, t, i, depth, 0.6f, out);
+    EXPECT_NE(out.at(3, 2, 0), before.at(3, 2, 0));
+    EXPECT_NE(out.at(4, 2, 0), before.at(4, 2, 0));
+    EXPECT_EQ(out.at(1, 2, 0), before.at(1, 2, 0));
+    EXPECT_EQ(out.at(6, 2, 0), before.at(6, 2, 0));
 }
 
 TEST(FogNode, MissingCameraIsNamed)

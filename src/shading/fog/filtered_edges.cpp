@@ -8,6 +8,37 @@
 #include "core/parallel.h"
 
 namespace posthaste::shading {
+namespace {
+
+/// Whether the 3x3 depths around (x, y) leave one plane, from the inverse depths `inv` (the
+/// sky 0, no depth -1). A plane's inverse depth is affine on the screen, so along each of the
+/// four lines through the pixel (a row, a column, the two diagonals) the second difference is
+/// 0 up to rounding: more than 1 % of the pixel's own is an edge or a crease (the sky beside a
+/// surface is one). A line with an end outside the frame or without depth is not looked at.
+bool depth_edge(const Image &inv, int x, int y)
+{
+    const int w = inv.width(), h = inv.height();
+    const float sp = inv.at(x, y, 0);
+    auto line = [sp](float a, float b) {
+        return (a >= 0.0f) & (b >= 0.0f) & (std::abs(a + b - 2.0f * sp) > 0.01f * sp);
+    };
+    if (x > 0 && y > 0 && x + 1 < w && y + 1 < h) {
+        const float *up = inv.pixel(x, y - 1), *row = inv.pixel(x, y), *down = inv.pixel(x, y + 1);
+        return line(row[-1], row[1]) | line(up[0], down[0]) | line(up[-1], down[1]) |
+               line(down[-1], up[1]);
+    }
+    constexpr int kLines[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    for (const auto &d : kLines) {
+        const int ax = x - d[0], ay = y - d[1], bx = x + d[0], by = y + d[1];
+        if (ax >= 0 && ay >= 0 && ax < w && ay < h && bx >= 0 && by >= 0 && bx < w && by < h &&
+            line(inv.at(ax, ay, 0), inv.at(bx, by, 0))) {
+            return true;
+        }
+    }
+    return false;
+}
+
+}  // namespace
 
 void correct_filtered_edges(const Image &color,
                             const Image &transmittance,
@@ -25,11 +56,23 @@ void correct_filtered_edges(const Image &color,
         }
     }
     // Reads the inputs only: each tile writes its own pixels of `out`.
+    // Inverse depths: the sky 0, no depth (NaN, at most 0) -1.
+    Image inv = Image::uninitialized(w, h, 1);
+    parallel_for(0, h, [&](int y) {
+        for (int x = 0; x < w; ++x) {
+            const float z = depth.at(x, y, 0);
+            inv.at(x, y, 0) = z > 0.0f ? 1.0f / z : -1.0f;
+        }
+    });
     parallel_for_tiles(out.bounds(), [&](const Rect &t) {
         for (int y = t.y0; y < t.y1; ++y) {
             for (int x = t.x0; x < t.x1; ++x) {
-                if (!(depth.at(x, y, 0) > 0.0f)) {
+                const float zp = depth.at(x, y, 0);
+                if (!(zp > 0.0f)) {
                     continue;
+                }
+                if (!depth_edge(inv, x, y)) {
+                    continue;  // one plane: the correction is of the second order
                 }
                 const float *tp = transmittance.pixel(x, y), *ip = inscatter.pixel(x, y);
                 float sum[3] = {0.0f, 0.0f, 0.0f}, total = 0.0f;

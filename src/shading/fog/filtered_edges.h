@@ -10,8 +10,13 @@
 // its own depth) applied to its colour c_q, a Gaussian weight w_q over the 3x3 neighbourhood,
 //   out_p = T_p c_p + I_p + sum_q w_q ((T_q - T_p) c_q + (I_q - I_p)) / sum_q w_q.
 // Where the neighbours' depths give the pixel's own T and I the sum is exactly 0: only edges
-// change, and nothing is blurred. The result is clamped to [0, max T * max c + max I] over the
-// neighbourhood (a high-contrast edge could otherwise overshoot: radiance is never negative).
+// change, and nothing is blurred. Pixels whose 3x3 depths lie on one plane (inverse depths
+// affine within 1 % along each line through the pixel; a line with an end outside the frame
+// or without depth is not looked at) are left as they are: there the sum is
+// of the second order (the rays' lengths differ, not their surfaces), and the cost stays with
+// the edges. The result is clamped to [0, max T * max c + max I]
+// over the neighbourhood (a high-contrast edge could otherwise overshoot: radiance is never
+// negative).
 
 #include "core/image.h"
 
