@@ -187,6 +187,81 @@ TEST(CyclesAccuracySlow, DofBeatsBlendersDefocus)
     }
 }
 
+/// RMSE over RGB outside a box (pixels x0..x1-1, y0..y1-1 of the frame).
+double rmse_rgb_outside(const Image &a, const Image &b, const Rect &box)
+{
+    double sum = 0.0;
+    std::size_t n = 0;
+    for (int y = 0; y < a.height(); ++y) {
+        for (int x = 0; x < a.width(); ++x) {
+            if (x >= box.x0 && x < box.x1 && y >= box.y0 && y < box.y1) {
+                continue;
+            }
+            for (int c = 0; c < 3; ++c) {
+                const double d = double(a.pixel(x, y)[c]) - double(b.pixel(x, y)[c]);
+                sum += d * d;
+                ++n;
+            }
+        }
+    }
+    return std::sqrt(sum / double(n));
+}
+
+TEST(CyclesAccuracySlow, FogAgainstCyclesMedium)
+{
+    // The yard through an absorbing, emitting medium that camera rays alone meet (Cycles'
+    // truths, tests/cycles/make_cycles_set.py --fog): the models' own composite, so the error
+    // is what the passes hold (filtered edges, the solved camera, the sky) and the renders'
+    // noise. Beside it Blender's Mist pass mixed toward the fog colour, calibrated on the truth,
+    // and the node fogging each pixel by its own depth alone (pixel_filter 0).
+    struct Case {
+        const char *kind, *model;
+    };
+    const Rect glint{170, 58, 186, 74};  // the chrome ball's sun glint (GlintAtThirtyTwo...)
+    for (const Case &c : {Case{"exp", R"("model": "exp", "density": 0.08)"},
+                          Case{"height",
+                               R"("model": "height", "density": 0.3, "falloff": 1.0,
+                                  "base_height": 0, "up": [0, 0, 1], "sky": "ray")"}}) {
+        const std::string kind = c.kind;
+        const std::string params =
+            std::string("{") + c.model + R"(, "color": [0.75, 0.78, 0.82], "pixel_filter": )";
+        const Row r = measure("yard fog " + kind,
+                              "yard",
+                              "fog",
+                              params + "0.6}",
+                              "yard.fog_" + kind + ".exr",
+                              "yard.blender_mist_" + kind + ".exr");
+        print(r);
+        const Frame f = shot_frame("yard");
+        const Frame truth = read_color("yard.fog_" + kind + ".exr");
+        const Image &t = truth.image("color");
+        auto outside = [&](const std::string &p) {
+            return rmse_rgb_outside(test::run_node("fog", f, p, kFrame).image("color"), t, glint);
+        };
+        const double node = outside(params + "0.6}"), own_depth = outside(params + "0}");
+        const double nothing = rmse_rgb_outside(f.image("color"), t, glint);
+        const double blender = rmse_rgb_outside(
+            read_color("yard.blender_mist_" + kind + ".exr").image("color"), t, glint);
+        std::printf(
+            "%-30s outside the glint: nothing %.4f  node %.4f  own depth alone %.4f  blender "
+            "%.4f\n",
+            r.what.c_str(),
+            nothing,
+            node,
+            own_depth,
+            blender);
+        // Measured on 2026-11-30: exp 0.0125 (98 % of the do-nothing error removed), 0.53 of
+        // the calibrated Mist's error; height 0.0129 (97 %), 0.20 (the Mist has no height).
+        // Most of it is the sun's glint on the chrome ball, noise of the renders; outside it
+        // exp 0.0030 (own depth alone 0.0043, Mist 0.0089), height 0.0067 (0.0083, 0.0571),
+        // the rest noise and what is left at the edges.
+        EXPECT_GT(r.removed(), 0.95) << r.what;
+        EXPECT_LT(r.node, 0.6 * r.blender) << r.what;
+        EXPECT_LT(node, 0.6 * blender) << r.what;
+        EXPECT_LT(node, 0.85 * own_depth) << r.what;
+    }
+}
+
 /// Errors net of the renders' own noise, from second renders with another seed
 /// (samples/cycles/noise/): the sharp frame and every motion-blur and depth-of-field truth. For
 /// truths t1, t2 of noise variance v each (v = mean (t1 - t2)^2 / 2) and a result a1 made from

@@ -22,6 +22,9 @@
 #   SHOT.blender_vblur_s050.exr / _s100   Blender's Vector Blur node on the passes
 #   SHOT.blender_defocus_fA.exr            Blender's Defocus node (Z buffer, the scene camera),
 #                                          its f-stop calibrated (blender_calibration.txt)
+# and with --fog, for the yard alone:
+#   yard.fog_exp.exr        the yard through homogeneous fog (fog's exp model)
+#   yard.fog_height.exr     the yard through exponential height fog (fog's height model)
 # and render_times.txt. Stored as half-float EXRs, depth, position and motion as float (oiiotool).
 # CI never runs Blender; the files are checked in (samples/cycles/).
 import math
@@ -44,6 +47,9 @@ NOISE = "--noise" in argv
 # its depth-of-field truths, into OUT_DIR/glint/ (the glint's render noise is of the size of the
 # differences between methods at the set's counts).
 GLINT = "--glint" in argv
+# Only the yard seen through fog (yard.fog_exp.exr, yard.fog_height.exr): the fog node's truths.
+FOG = "--fog" in argv
+MIST_ONLY = "--mist-only" in argv  # with --fog: only Blender's Mist calibration, on fog truths made before
 
 
 def option(name, default):
@@ -53,6 +59,7 @@ def option(name, default):
 SHOTS = option("--shots", "yard,closeup").split(",")
 SCALE = int(option("--scale", "1"))
 SKIP_AO = "--skip-ao" in argv
+FOG_KINDS = option("--fog-kinds", "exp,height").split(",")  # with --fog: which fogs
 os.makedirs(OUT, exist_ok=True)
 
 WIDTH, HEIGHT = (160, 90) if QUICK else (320, 180)
@@ -408,8 +415,226 @@ def glint_renders(scene, cam):
     scene.render.use_border = False
 
 
+# The fog the fog node models: extinction and emission along camera rays only, so that every
+# surface is lit as in the sharp frame (the node fogs what the camera saw; it does not darken
+# the sun or the sky on the surfaces). An absorbing, emitting medium of extinction s(p) and
+# emission s(p) c has, along a ray to a surface of radiance L at distance d, the radiance
+# T L + (1 - T) c with T = exp(-integral of s): exactly the models' composite, whatever s is.
+FOG_COLOR = (0.75, 0.78, 0.82)
+FOG_EXP_DENSITY = 0.08  # 1/m
+FOG_HEIGHT_DENSITY = 0.3  # 1/m at z = 0
+FOG_HEIGHT_FALLOFF = 1.0  # the density falls by exp(-1) per metre of height (Blender's z is up)
+
+
+def fog_material(name, density):
+    """Homogeneous absorption of extinction `density` and emission `density` FOG_COLOR."""
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    nodes.remove(nodes["Principled BSDF"])
+    absorb = nodes.new("ShaderNodeVolumeAbsorption")
+    absorb.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)  # extinction = density
+    emit = nodes.new("ShaderNodeEmission")
+    emit.inputs["Color"].default_value = (*FOG_COLOR, 1.0)
+    # Only camera rays meet the medium: a ray that leaves a surface inside the box (a shadow
+    # ray, a reflection, a bounce) still carries the box on its volume stack whatever the
+    # box's ray visibility, and would be dimmed by it; its density is 0 for them.
+    path = nodes.new("ShaderNodeLightPath")
+    dens = nodes.new("ShaderNodeMath")
+    dens.operation = 'MULTIPLY'
+    dens.inputs[1].default_value = density
+    links.new(path.outputs["Is Camera Ray"], dens.inputs[0])
+    links.new(dens.outputs[0], absorb.inputs["Density"])
+    links.new(dens.outputs[0], emit.inputs["Strength"])
+    # Homogeneous: integrated exactly (Cycles would otherwise ray march the Light Path node's
+    # output in steps sized by the box, up to its step limit: 12 m of fog at most).
+    m.cycles.homogeneous_volume = True
+    add_shader = nodes.new("ShaderNodeAddShader")
+    links.new(absorb.outputs[0], add_shader.inputs[0])
+    links.new(emit.outputs[0], add_shader.inputs[1])
+    links.new(add_shader.outputs[0], nodes["Material Output"].inputs["Volume"])
+    return m
+
+
+def fog_slab(name, x, y, z0, z1, half, density):
+    """A box of fog from height z0 to z1, met by camera rays alone."""
+    bpy.ops.mesh.primitive_cube_add(size=1, location=(x, y, 0.5 * (z0 + z1)),
+                                    scale=(2 * half, 2 * half, z1 - z0))
+    box = bpy.context.active_object
+    box.name = name
+    # Visible to every ray (fog_material gives other rays no density): a volume box hidden
+    # from all rays but the camera's darkened the lit surfaces by up to 7 % in Cycles 3.4,
+    # even at density 0.
+    box.data.materials.append(fog_material(name, density))
+    return box
+
+
+def fog_boxes(cam, kind):
+    """The fog around the camera and everything it sees.
+
+    exp: one box, 400 m of fog beyond any surface (the sky's transmittance is exp(-32)).
+    height: s0 exp(-k z) as horizontal slabs of homogeneous fog, each of the exponential's mean
+    density over its heights (Cycles integrates a homogeneous medium exactly; the density
+    itself, ray marched, took 460 s for 16 samples at 160x90). A ray that crosses a slab whole
+    meets exactly the exponential's optical depth there, since its path per unit of height is
+    constant; only the slab a ray ends in is approximated, so the slabs are 5 cm thick up to
+    3.05 m, where every surface lies (above it only the sky's rays end, at infinity), the ground
+    (z = 0) is a slab boundary, and the camera sits inside a 1 cm slab. Below the ground lies one dense slab: the rays that pass the ground's edge have met
+    an optical depth of 11 or more before it."""
+    x, y, zc = cam.location
+    if kind == "exp":
+        return [fog_slab("fog", x, y, zc - 400.0, zc + 400.0, 400.0, FOG_EXP_DENSITY)]
+    s0, k = FOG_HEIGHT_DENSITY, FOG_HEIGHT_FALLOFF
+
+    def mean(z0, z1):
+        return s0 * (math.exp(-k * z0) - math.exp(-k * z1)) / (k * (z1 - z0))
+
+    edges = [i * 0.05 for i in range(int(round((zc - 0.005) / 0.05)) + 1)]
+    edges += [zc - 0.005, zc + 0.005]
+    z = (math.floor((zc + 0.005) / 0.05) + 1) * 0.05
+    for top, step in ((3.05, 0.05), (6.0, 0.25), (30.0, 1.0)):  # no surface above 3 m
+        while z < top - 1e-9:
+            edges.append(z)
+            z += step
+    edges.append(30.0)
+    edges = sorted(set(round(e, 6) for e in edges))
+    # Neighbouring slabs do not touch: at a shared face a ray's exit from one and entry into the
+    # next fell at the same distance, one of them was lost, and the fog grew many times denser
+    # (T near 0 on the ground at 5 m). Each slab keeps 0.5 mm off its neighbours, its density
+    # scaled so that a crossing meets the optical depth of its whole height.
+    gap = 0.0005
+    boxes = [fog_slab("fog_below", x, y, -20.0, -gap, 600.0, s0 * math.exp(k))]
+    for i in range(len(edges) - 1):
+        z0, z1 = edges[i], edges[i + 1]
+        boxes.append(fog_slab(f"fog{i}", x, y, z0 + gap, z1 - gap, 600.0,
+                              mean(z0, z1) * (z1 - z0) / (z1 - z0 - 2 * gap)))
+    return boxes
+
+
+def blender_mist(scene, kind):
+    """Blender's own way to fog a render in its compositor: the Mist pass as the factor of a Mix
+    of the sharp frame (the set's passes) toward the fog colour. The Mist pass has no
+    exponential or height falloff, so, as a user matching a reference would, its falloff
+    (quadratic, linear, inverse quadratic) and depth (0.5-128 m in half-octaves, start 0) are
+    scanned and the setting closest to Cycles' truth (RMSE over RGB) kept; the choice is
+    written to blender_mist_calibration.txt. This favours Blender: its row is its best case."""
+    base_settings(scene, 16)
+    scene.cycles.max_bounces = 0  # only the Mist pass of this render is used
+    scene.view_layers[0].use_pass_mist = True
+    scene.use_nodes = True
+    scene.render.use_compositing = True
+    tree = scene.node_tree
+    tree.nodes.clear()
+    rl = tree.nodes.new("CompositorNodeRLayers")
+    image = tree.nodes.new("CompositorNodeImage")
+    image.image = bpy.data.images.load(os.path.join(OUT, "yard.passes.exr"))
+    mix = tree.nodes.new("CompositorNodeMixRGB")
+    mix.blend_type = 'MIX'
+    mix.inputs[2].default_value = (*FOG_COLOR, 1.0)
+    comp = tree.nodes.new("CompositorNodeComposite")
+    tree.links.new(rl.outputs["Mist"], mix.inputs[0])
+    tree.links.new(image.outputs["Combined"], mix.inputs[1])
+    tree.links.new(mix.outputs["Image"], comp.inputs["Image"])
+    s = scene.render.image_settings
+    s.file_format = 'OPEN_EXR'
+    s.color_depth = '32'
+    s.exr_codec = 'ZIP'
+    s.color_mode = 'RGBA'
+    truth = os.path.join(OUT, f"yard.fog_{kind}.exr")
+    trial = os.path.join(OUT, "mist_trial.exr")
+    mist = scene.world.mist_settings
+    saved = (mist.start, mist.depth, mist.falloff)
+    best = None
+    for falloff in ('QUADRATIC', 'LINEAR', 'INVERSE_QUADRATIC'):
+        for i in range(17):
+            mist.start, mist.depth, mist.falloff = 0.0, 0.5 * 2 ** (i / 2), falloff
+            scene.render.filepath = trial
+            bpy.ops.render.render(write_still=True)
+            err = rms_rgb(trial, truth)
+            if best is None or err < best[0]:
+                best = (err, falloff, mist.depth)
+                os.replace(trial, os.path.join(OUT, f"yard.blender_mist_{kind}.exr"))
+    if os.path.exists(trial):
+        os.remove(trial)
+    mist.start, mist.depth, mist.falloff = saved
+    mist_calibration.append((kind, best[1], best[2], best[0]))
+    print(f"cycles set: Mist for fog {kind}: {best[1].lower()} over {best[2]:.3g} m, "
+          f"RMSE {best[0]:.4f}", flush=True)
+    scene.use_nodes = False
+    scene.render.use_compositing = False
+    bpy.data.images.remove(image.image)
+
+
+mist_calibration = []
+
+
+def fog_renders(scene, cam):
+    set_shot(scene, cam, "yard")
+    scene.frame_set(FRAME)
+    # Camera rays start at the near clip, and the fog with them: 1 mm instead of 10 cm, so that
+    # the medium begins at the eye as the models' does (T was 0.8 % high at 0.1 m); nothing
+    # lies that close, the image is otherwise the same.
+    cam.data.clip_start = 0.001
+    for kind in FOG_KINDS:
+        if not MIST_ONLY:
+            boxes = fog_boxes(cam, kind)
+            # Every ray crosses the height fog's hundred slab boundaries: 1 h 7 min for 2048
+            # samples, so a quarter of them (its noise is measured in docs/ACCURACY.md).
+            base_settings(scene, TRUTH_SAMPLES if kind == "exp" else TRUTH_SAMPLES // 4)
+            # A slab's faces are transparent surfaces to every ray, and a ray stops after
+            # transparent_max_bounces of them (8 by default): the sun's shadow rays from the
+            # ground, crossing dozens of slabs, were cut and the ground went dark.
+            scene.cycles.transparent_max_bounces = 1024
+            render(scene, os.path.join(OUT, f"yard.fog_{kind}.exr"), 'OPEN_EXR')
+            for box in boxes:
+                bpy.data.objects.remove(box, do_unlink=True)
+        blender_mist(scene, kind)
+    for kind in FOG_KINDS:
+        for name in (f"yard.fog_{kind}.exr", f"yard.blender_mist_{kind}.exr"):
+            if not MIST_ONLY or "mist" in name:
+                to_half(os.path.join(OUT, name))
+    old = [l for l in kept("blender_mist_calibration.txt", lambda l: "")
+           if l.split()[0][len("yard.fog_"):] not in FOG_KINDS]
+    write_table("blender_mist_calibration.txt",
+                "# Blender's Mist pass mixed toward the fog colour: the falloff and depth (start 0)\n"
+                "# closest to Cycles' fog truth\n# truth falloff depth_m rmse_rgb\n", old,
+                [f"yard.fog_{kind} {falloff.lower()} {depth:.4g} {err:.5f}\n"
+                 for kind, falloff, depth, err in mist_calibration])
+
+
+def kept(name, shot_of):
+    """The lines of OUT/name whose shot (shot_of(line)) was not rendered (--shots keeps them)."""
+    path = os.path.join(OUT, name)
+    if not os.path.exists(path):
+        return []
+    with open(path) as f:
+        return [l for l in f if not l.startswith("#") and shot_of(l) not in SHOTS]
+
+
+def write_table(name, header, old_lines, new_lines):
+    """OUT/name: the header, the lines kept from before, then this run's."""
+    with open(os.path.join(OUT, name), "w") as f:
+        f.write(header)
+        f.writelines(old_lines)
+        f.writelines(new_lines)
+
+
+def write_times():
+    """render_times.txt: this run's renders, and the earlier lines of files not rendered again."""
+    fresh = {name for name, _, _ in times}
+    old_times = [l for l in kept("render_times.txt", lambda l: "") if l.split()[0] not in fresh]
+    write_table("render_times.txt",
+                f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
+                f"{WIDTH}x{HEIGHT}\n# file samples seconds\n", old_times,
+                [f"{name} {samples} {dt:.1f}\n" for name, samples, dt in times])
+
+
 def main():
     scene, cam = build_scene()
+    if FOG:
+        fog_renders(scene, cam)
+        write_times()
+        return
     if NOISE:
         noise_renders(scene, cam)
         return
@@ -473,32 +698,15 @@ def main():
         if (f.endswith(".exr") and f.split(".")[0] in SHOTS and
                 (not ONLY_UNFILTERED or "_unfiltered" in f)):
             to_half(os.path.join(OUT, f))
-    # The other shots' lines are kept (--shots).
-    def kept(name, shot_of):
-        path = os.path.join(OUT, name)
-        if not os.path.exists(path):
-            return []
-        with open(path) as f:
-            return [l for l in f if not l.startswith("#") and shot_of(l) not in SHOTS]
-    fresh = {name for name, _, _ in times}
-    old_times = [l for l in kept("render_times.txt", lambda l: "") if l.split()[0] not in fresh]
-    with open(os.path.join(OUT, "render_times.txt"), "w") as f:
-        f.write(f"# {bpy.app.version_string}, Cycles on the CPU, {os.cpu_count()} threads, "
-                f"{WIDTH}x{HEIGHT}\n# file samples seconds\n")
-        for line in old_times:
-            f.write(line)
-        for name, samples, dt in times:
-            f.write(f"{name} {samples} {dt:.1f}\n")
+    write_times()
     if ONLY_UNFILTERED:
         return
-    old_calibration = kept("blender_calibration.txt", lambda l: l.split()[0])
-    with open(os.path.join(OUT, "blender_calibration.txt"), "w") as f:
-        f.write("# Blender's Defocus: the node f-stop closest to Cycles' truth at each lens f-stop\n"
-                "# shot lens_fstop node_fstop rmse_rgb\n")
-        for line in old_calibration:
-            f.write(line)
-        for shot, fstop, node_fstop, err in calibration:
-            f.write(f"{shot} {fstop:g} {node_fstop:.4g} {err:.5f}\n")
+    write_table("blender_calibration.txt",
+                "# Blender's Defocus: the node f-stop closest to Cycles' truth at each lens f-stop\n"
+                "# shot lens_fstop node_fstop rmse_rgb\n",
+                kept("blender_calibration.txt", lambda l: l.split()[0]),
+                [f"{shot} {fstop:g} {node_fstop:.4g} {err:.5f}\n"
+                 for shot, fstop, node_fstop, err in calibration])
 
 
 main()
