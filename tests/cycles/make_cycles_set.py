@@ -479,8 +479,9 @@ def fog_boxes(cam, kind):
     meets exactly the exponential's optical depth there, since its path per unit of height is
     constant; only the slab a ray ends in is approximated, so the slabs are 5 cm thick up to
     3.05 m, where every surface lies (above it only the sky's rays end, at infinity), the ground
-    (z = 0) is a slab boundary, and the camera sits inside a 1 cm slab. Below the ground lies one dense slab: the rays that pass the ground's edge have met
-    an optical depth of 11 or more before it."""
+    (z = 0) is a slab boundary, and the camera sits inside a 1 cm slab. Below the ground lies
+    one dense slab: the rays that pass the ground's edge have met an optical depth of 11 or
+    more before it."""
     x, y, zc = cam.location
     if kind == "exp":
         return [fog_slab("fog", x, y, zc - 400.0, zc + 400.0, 400.0, FOG_EXP_DENSITY)]
@@ -498,10 +499,9 @@ def fog_boxes(cam, kind):
             z += step
     edges.append(30.0)
     edges = sorted(set(round(e, 6) for e in edges))
-    # Neighbouring slabs do not touch: at a shared face a ray's exit from one and entry into the
-    # next fell at the same distance, one of them was lost, and the fog grew many times denser
-    # (T near 0 on the ground at 5 m). Each slab keeps 0.5 mm off its neighbours, its density
-    # scaled so that a crossing meets the optical depth of its whole height.
+    # Neighbouring slabs do not touch, so that no ray meets two faces at one distance (a
+    # precaution): each keeps 0.5 mm off its neighbours, its density scaled so that a crossing
+    # meets the optical depth of its whole height.
     gap = 0.0005
     boxes = [fog_slab("fog_below", x, y, -20.0, -gap, 600.0, s0 * math.exp(k))]
     for i in range(len(edges) - 1):
@@ -582,8 +582,9 @@ def fog_renders(scene, cam):
             # samples, so a quarter of them (its noise is measured in docs/ACCURACY.md).
             base_settings(scene, TRUTH_SAMPLES if kind == "exp" else TRUTH_SAMPLES // 4)
             # A slab's faces are transparent surfaces to every ray, and a ray stops after
-            # transparent_max_bounces of them (8 by default): the sun's shadow rays from the
-            # ground, crossing dozens of slabs, were cut and the ground went dark.
+            # transparent_max_bounces of them (8 by default): camera rays crossing dozens of
+            # slabs were cut before the surface (the ground showed the fog's emission alone),
+            # and so were the sun's shadow rays from the ground (it went dark).
             scene.cycles.transparent_max_bounces = 1024
             render(scene, os.path.join(OUT, f"yard.fog_{kind}.exr"), 'OPEN_EXR')
             for box in boxes:
