@@ -427,9 +427,14 @@ void execute(NodeContext &ctx)
         const Image inscatter =
             fogged(Image(color_in.width(), color_in.height(), color_in.channels()));
         Image transmittance = fogged(ones);
-        for (std::size_t i = 0; i < transmittance.value_count(); ++i) {
-            transmittance.data()[i] -= inscatter.data()[i];
-        }
+        const std::size_t row = std::size_t(ones.width()) * std::size_t(ones.channels());
+        parallel_for(0, ones.height(), [&](int y) {  // a full frame: rows on every thread
+            float *t = transmittance.data() + std::size_t(y) * row;
+            const float *i = inscatter.data() + std::size_t(y) * row;
+            for (std::size_t k = 0; k < row; ++k) {
+                t[k] -= i[k];
+            }
+        });
         shading::correct_filtered_edges(color_in, transmittance, inscatter, *depth, sigma, out);
     }
     ctx.output().set(pass::kColor,
