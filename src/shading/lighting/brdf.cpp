@@ -269,7 +269,7 @@ namespace {
 
 }  // namespace
 
-float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
+float specular_albedo(float roughness, float mu, Geometry geometry, int samples, float f0)
 {
     // Local frame n = z, v in the xz plane. h is drawn from the distribution of visible normals
     // (Heitz 2018, "Sampling the GGX Distribution of Visible Normals"), l = reflect(v, h), so
@@ -279,8 +279,8 @@ float specular_albedo(float roughness, float mu, Geometry geometry, int samples)
     const float nv = std::clamp(mu, kMinCosine, 1.0f);
     const glm::vec3 n(0, 0, 1), v(std::sqrt(1.0f - nv * nv), 0.0f, nv);
     Surface s;
-    s.albedo = glm::vec3(1.0f);
-    s.metallic = 1.0f;  // F0 = 1: F = 1 exactly, no diffuse
+    s.albedo = glm::vec3(f0);
+    s.metallic = 1.0f;  // F0 = f0 (1: F = 1 exactly), no diffuse
     s.roughness = roughness;
     const float alpha = roughness_to_alpha(roughness);
     const glm::vec3 vh_dir = glm::normalize(glm::vec3(alpha * v.x, alpha * v.y, v.z));

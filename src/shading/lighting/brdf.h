@@ -126,8 +126,9 @@ float toon_band(float n_dot_l, int bands);
 
 /// Directional albedo of the specular lobe alone with F = 1 (the Kulla-Conty E(mu)): the
 /// integral over l of evaluate() for a metal of albedo 1, view cosine mu = n.v, computed by GGX
-/// visible-normal sampling of h with `samples` Hammersley points. Deterministic.
-float specular_albedo(float roughness, float mu, Geometry geometry, int samples);
+/// visible-normal sampling of h with `samples` Hammersley points. Deterministic. With `f0`, a
+/// metal of albedo f0 (Schlick's Fresnel from F0 = f0; f0 0 leaves Schlick's weight alone).
+float specular_albedo(float roughness, float mu, Geometry geometry, int samples, float f0 = 1.0f);
 
 /// Kulla & Conty 2017 energy tables for one masking term: E(mu, roughness) on a kMu x kRoughness
 /// grid (mu at cell centres (i + 0.5) / kMu, roughness at j / (kRoughness - 1)) and
