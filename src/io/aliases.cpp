@@ -71,6 +71,11 @@ const std::vector<AliasRule> &builtin_alias_rules()
         r.push_back(rule("position", {"*.Position.X", "*.Position.Y", "*.Position.Z"}, "Blender"));
         r.push_back(rule("motion", {"*.Vector.X", "*.Vector.Y"}, "Blender", {-1.0f, 1.0f}));
         r.push_back(rule("motion_next", {"*.Vector.Z", "*.Vector.W"}, "Blender", {-1.0f, 1.0f}));
+        // Shader AOVs a user adds for the passes Blender does not write (docs/CONVENTIONS.md):
+        // albedo (colour, the Principled base colour: DiffCol is black on a metal), roughness
+        // and metallic (values); anisotropy 0.
+        r.push_back(rule("albedo", {"*.albedo.R", "*.albedo.G", "*.albedo.B"}, "Blender"));
+        r.push_back(rule("material", {"*.roughness.X", "*.metallic.X", ""}, "Blender"));
         r.push_back(rule("albedo", {"*.DiffCol.R", "*.DiffCol.G", "*.DiffCol.B"}, "Blender"));
         // Nuke: depth.Z as distance; backward = previous minus current (y up), forward = next
         // minus current (y up).

@@ -269,6 +269,51 @@ TEST(IoAliases, BlenderMultilayerNames)
     EXPECT_TRUE(std::isinf(read_frame(sky, nullptr, 1).image("depth").at(0, 0, 0)));
 }
 
+TEST(IoAliases, BlenderShaderAovsAreAlbedoAndMaterial)
+{
+    // Blender writes no base colour, roughness or metallic: shader AOVs named albedo (colour),
+    // roughness and metallic (values) are read as albedo and material (anisotropy 0), the AOV
+    // albedo before DiffCol (black on a metal).
+    const std::string dir = scratch_dir("blender_aovs");
+    const std::string path =
+        make_named_file(dir,
+                        "aovs.exr",
+                        {"ViewLayer.Combined.R",
+                         "ViewLayer.Combined.G",
+                         "ViewLayer.Combined.B",
+                         "ViewLayer.DiffCol.R",
+                         "ViewLayer.DiffCol.G",
+                         "ViewLayer.DiffCol.B",
+                         "ViewLayer.albedo.R",
+                         "ViewLayer.albedo.G",
+                         "ViewLayer.albedo.B",
+                         "ViewLayer.albedo.A",
+                         "ViewLayer.metallic.X",
+                         "ViewLayer.roughness.X"},
+                        {0.1f, 0.2f, 0.3f, 0.0f, 0.0f, 0.0f, 0.9f, 0.8f, 0.7f, 1.0f, 1.0f, 0.25f});
+    const Frame f = read_frame(path, nullptr, 1);
+    EXPECT_FLOAT_EQ(f.image("albedo").at(1, 1, 0), 0.9f);
+    EXPECT_FLOAT_EQ(f.image("albedo").at(1, 1, 2), 0.7f);
+    ASSERT_EQ(f.image("material").channels(), 3);
+    EXPECT_FLOAT_EQ(f.image("material").at(1, 1, 0), 0.25f);
+    EXPECT_FLOAT_EQ(f.image("material").at(1, 1, 1), 1.0f);
+    EXPECT_FLOAT_EQ(f.image("material").at(1, 1, 2), 0.0f);
+    // Without the AOVs DiffCol is the albedo, and there is no material pass.
+    const std::string plain = make_named_file(dir,
+                                              "plain.exr",
+                                              {"ViewLayer.Combined.R",
+                                               "ViewLayer.Combined.G",
+                                               "ViewLayer.Combined.B",
+                                               "ViewLayer.DiffCol.R",
+                                               "ViewLayer.DiffCol.G",
+                                               "ViewLayer.DiffCol.B",
+                                               "ViewLayer.roughness.X"},
+                                              {0.1f, 0.2f, 0.3f, 0.6f, 0.5f, 0.4f, 0.3f});
+    const Frame g = read_frame(plain, nullptr, 1);
+    EXPECT_FLOAT_EQ(g.image("albedo").at(1, 1, 0), 0.6f);
+    EXPECT_FALSE(g.has("material"));  // roughness alone: the rule needs metallic too
+}
+
 TEST(IoAliases, NukeNames)
 {
     const std::string dir = scratch_dir("nuke");
@@ -1181,8 +1226,11 @@ TEST(IoWrite, PreviewDitherBreaksBandsAndKeepsTheMean)
     const std::string s2((std::istreambuf_iterator<char>(f2)), {});
     EXPECT_EQ(s1, s2);
     // The PNG row filter changes the bytes, never the pixels.
-    for (const PngFilter filter :
-         {PngFilter::adaptive, PngFilter::sub, PngFilter::up, PngFilter::average, PngFilter::paeth}) {
+    for (const PngFilter filter : {PngFilter::adaptive,
+                                   PngFilter::sub,
+                                   PngFilter::up,
+                                   PngFilter::average,
+                                   PngFilter::paeth}) {
         PreviewOptions o = dithered;
         o.png_filter = filter;
         write_display_preview(ramp, window, window, srgb, dir + "/filtered.png", o);
