@@ -11,8 +11,8 @@
 #include <string>
 
 #include "core/sanitize.h"
-#include "nodes/material_params.h"
 #include "graph/mask.h"
+#include "nodes/material_params.h"
 #include "nodes/node.h"
 #include "nodes/sun_params.h"
 
@@ -90,6 +90,12 @@ constexpr ParamSpec kSunIrradiance =
             "The sun's colour times illuminance, to re-shade a hit's sun response and sky light "
             "as the reflected ray sees them (0: hits keep the colour the camera saw).")
         .from_header("posthaste:sunIrradiance");
+constexpr ParamSpec kBrdf =
+    ParamSpec::choice("brdf", "posthaste|ggx", "posthaste")
+        .doc(
+            "The colour pass's specular term, which weighs the reflections: posthaste's (Schlick "
+            "at n.v times the gloss (1 - roughness)^2, the bundled renderer's), or a physically "
+            "based GGX lobe's directional albedo (a production renderer's: Cycles, Arnold...).");
 constexpr ParamSpec kParams[] = {kRays,
                                  kSteps,
                                  kRefine,
@@ -107,8 +113,12 @@ constexpr ParamSpec kParams[] = {kRays,
                                  kEnvironmentPosition,
                                  kParallax,
                                  kSunIrradiance,
+                                 kBrdf,
                                  kMaterialRoughness,
-                                 kMaterialMetallic, kMaskPass, kMaskChannel, kMaskInvert};
+                                 kMaterialMetallic,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,depth,normal,albedo",
@@ -121,7 +131,15 @@ constexpr PortSpec kInputs[] = {
      "Optional: what rays the screen does not answer see instead of the sky: a "
      "latitude-longitude map (render's projection latlong, a renderer's panorama or HDRI; +y "
      "up, the middle column looking down -z), with an optional depth pass of distances from "
-     "environment_position."}, kMaskPort};
+     "environment_position."},
+    {"world",
+     "color",
+     true,
+     "Optional: what the colour pass's glossy surfaces reflect already, which the reflections "
+     "replace: a renderer's world as a latitude-longitude panorama (the layout of "
+     "environment), looked up in the mirror direction. Without it, the sky model "
+     "(sun_direction, sky_scale): the bundled renderer's."},
+    kMaskPort};
 
 constexpr Binding<shading::SsrParams> kFields[] = {
     bind<&shading::SsrParams::rays>(kRays),
@@ -135,8 +153,12 @@ constexpr Binding<shading::SsrParams> kFields[] = {
     bind<&shading::SsrParams::intensity>(kIntensity),
     bind<&shading::SsrParams::extend>(kOffscreen, "extend"),
     bind<&shading::SsrParams::denoise>(kDenoise),
-    bind<&shading::SsrParams::sky_scale>(kSkyScale),
     bind<&shading::SsrParams::sun_irradiance>(kSunIrradiance),
+    bind<&shading::SsrParams::ggx>(kBrdf, "ggx"),
+};
+/// The sky model's scale: bound only where the sky is seen (execute).
+constexpr Binding<shading::SsrParams> kSkyFields[] = {
+    bind<&shading::SsrParams::sky_scale>(kSkyScale),
 };
 constexpr Binding<shading::Probe> kProbeFields[] = {
     bind<&shading::Probe::position>(kEnvironmentPosition),
@@ -195,7 +217,8 @@ void environment_probe(NodeContext &ctx,
                       ": has a depth pass but no position (param \"environment_position\" or "
                       "header posthaste:probePosition; or parallax false)");
     }
-    fill_into(probe, ctx, std::span<const Binding<shading::Probe>>(kProbeFields), HeaderSource::of(env));
+    fill_into(
+        probe, ctx, std::span<const Binding<shading::Probe>>(kProbeFields), HeaderSource::of(env));
     if (!std::isfinite(probe.position.x) || !std::isfinite(probe.position.y) ||
         !std::isfinite(probe.position.z)) {
         throw_runtime(where, ": param \"environment_position\" must be finite");
@@ -251,10 +274,18 @@ void execute(NodeContext &ctx)
     shading::SsrParams p = fill(ctx, kFields, HeaderSource::of(in));
     const std::string &resolution = ctx.get_string(kResolution);
     p.stride = ssr_stride(resolution, depth_in.width());  // derived from the image's width
-    // sky_scale, from the graph or the header, is held to its range by the parameter's rules.
-    const glm::vec3 sun_dir = sun_direction(ctx, kSunDirection, in);
-    p.sun_direction = sun_dir / glm::length(sun_dir);
     check_sun_irradiance(ctx, kSunIrradiance, p.sun_irradiance);
+    // The sky model is seen by the rays an environment input does not answer, as what the
+    // colour reflects already (without a world input) and in re-shaded hits; a renderer's frame
+    // with its world and environment connected uses none of it, and says nothing of it.
+    if (!ctx.has_input("environment") || !ctx.has_input("world") ||
+        p.sun_irradiance != glm::vec3(0.0f)) {
+        // sky_scale, from the graph or the header, is held to its range by the parameter's rules.
+        fill_into(
+            p, ctx, std::span<const Binding<shading::SsrParams>>(kSkyFields), HeaderSource::of(in));
+        const glm::vec3 sun_dir = sun_direction(ctx, kSunDirection, in);
+        p.sun_direction = sun_dir / glm::length(sun_dir);
+    }
     Image shadow_s;
     if (p.sun_irradiance != glm::vec3(0.0f) && in.has("shadow")) {
         si.shadow = &finite_view(in.image("shadow", ctx.where()), 0.0f, shadow_s);
@@ -265,6 +296,16 @@ void execute(NodeContext &ctx)
     if (ctx.has_input("environment")) {
         environment_probe(ctx, probe, env_color_s, env_cube);
         si.environment = &probe;
+    }
+    Image world_s;
+    if (ctx.has_input("world")) {
+        const std::string where = ctx.where() + ": input \"world\"";
+        const Image &world = ctx.input("world").image("color", where);
+        if (world.channels() < 3) {
+            throw_runtime(
+                where, ": expected an RGB(A) color pass, got ", world.channels(), " channels");
+        }
+        si.world = &finite_view(world, 0.0f, world_s);
     }
     Image out = shading::ssr(si, p);
     ctx.output().set("color",
@@ -281,13 +322,17 @@ extern const NodeType kSsr{
      "and the camera.",
      kInputs,
      kParams,
-     "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
+     "color",
+     /*sink=*/false,
+     /*keeps_specular=*/false,
+     /*maskable=*/true},
     &execute,
     &plan,
     nullptr,
     nullptr,
     [](std::vector<std::string> &problems) {
         audit(kSsr, kFields, problems);
+        audit(kSsr, kSkyFields, problems);
         audit(kSsr, kProbeFields, problems);
     }};
 

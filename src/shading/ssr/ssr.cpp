@@ -14,9 +14,9 @@
 #include "core/simd.h"
 #include "shading/atmosphere/atmosphere.h"
 #include "shading/atmosphere/atmosphere_kernels.h"
-#include "shading/lighting/lighting.h"
 #include "shading/atmosphere/scene_sky.h"
 #include "shading/atmosphere/sky.h"
+#include "shading/lighting/lighting.h"
 #include "shading/ssr/ssr_kernels.h"
 #include "shading/ssr/ssr_march.h"
 #include "shading/ssr/ssr_rows.h"
@@ -313,7 +313,7 @@ void RowTracer::meet()
         hits += ray.hit.w > 0.0f ? 1 : 0;
     }
     for (Pixel &px : batch_pixels_) {
-        if (px.wsum > 0.0f) {
+        if (px.wsum > 0.0f && !cx_.in.world) {
             px.sky = int(sky_dirs_.size());
             sky_dirs_.push_back(glm::reflect(-px.g.view, px.g.n));
         }
@@ -341,8 +341,11 @@ void RowTracer::resolve_pixels()
             continue;
         }
         const GlossyPixel &g = px.g;
-        const glm::vec3 change =
-            px.sum / px.wsum - sky_values_[std::size_t(px.sky)] * cx_.p.sky_scale;
+        // What the colour pass reflected already: the sky model, or the renderer's world.
+        const glm::vec3 reflected =
+            cx_.in.world ? LatLongMap(*cx_.in.world).radiance(glm::reflect(-g.view, g.n))
+                         : sky_values_[std::size_t(px.sky)] * cx_.p.sky_scale;
+        const glm::vec3 change = px.sum / px.wsum - reflected;
         cx_.cells.set(px.x / cx_.st,
                       ty_,
                       {g.z,
@@ -375,7 +378,9 @@ void RowTracer::trace()
     // weights, normals, view directions and points side by side.
     thread_local std::vector<float> setup;
     float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
-    if (cx_.vector_kernels) {
+    // The kernel weighs as the rasterizer: GGX weights pick their pixels in scalar code.
+    const bool kernel = cx_.vector_kernels && !p.ggx;
+    if (kernel) {
         // (weight_row_inputs zeroes its inputs' pads.)
         const std::size_t spitch = soa_arrays(setup, std::size_t(tw), 21, 0);
         for (int c = 0; c < 9; ++c) {
@@ -399,7 +404,7 @@ void RowTracer::trace()
     for (int tx = 0; tx < tw; ++tx) {
         const int x = tx * cx_.st;
         std::optional<GlossyPixel> g;
-        if (!cx_.vector_kernels) {
+        if (!kernel) {
             g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
         } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
             g = GlossyPixel{sin[0][tx],
@@ -422,10 +427,11 @@ void RowTracer::trace()
         batch_pixels_.push_back(Pixel{x, *g, origin, alpha});
         for (int i = 0; i < count; ++i) {
             // Stratified in the first coordinate (the lobe's angle from its axis).
-            candidates_.push_back(Candidate{pixel,
-                                            (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count),
-                                            hash_unit(x, y, 3 * i + 1, p.seed),
-                                            hash_unit(x, y, 3 * i + 2, p.seed)});
+            candidates_.push_back(
+                Candidate{pixel,
+                          (float(i) + hash_unit(x, y, 3 * i, p.seed)) / float(count),
+                          hash_unit(x, y, 3 * i + 1, p.seed),
+                          hash_unit(x, y, 3 * i + 2, p.seed)});
         }
         if (int(candidates_.size()) >= kBatchRays) {
             flush();

@@ -31,7 +31,8 @@ struct SsrParams {
     float edge_fade = 0.02f;      ///< Fraction of the smaller image side over which hits fade.
     float max_roughness = 0.78f;  ///< Rougher pixels are left as they are.
     float sky_scale = 1.0f;       ///< The renderer's sky-light scale (a scene's sky_ambient).
-    glm::vec3 sun_direction{0.4f, 0.75f, 0.3f};  ///< Unit; chooses the sky (shading/atmosphere/sky.h).
+    glm::vec3 sun_direction{
+        0.4f, 0.75f, 0.3f};  ///< Unit; chooses the sky (shading/atmosphere/sky.h).
     /// A ray that leaves the screen in front of the surface its last sample saw meets that
     /// surface's colour (the surface taken to go on past the edge) instead of the sky.
     bool extend = false;
@@ -49,6 +50,10 @@ struct SsrParams {
     int denoise = 3;
     float intensity = 1.0f;  ///< Share of the change applied.
     std::uint32_t seed = 0;
+    /// The colour pass's specular term: false, the rasterizer's (sky_reflection_weight:
+    /// Schlick at n.v times the gloss); true, a physically based GGX lobe's directional albedo
+    /// (ggx_reflection_weight, shading/lighting/env_brdf.h): a production renderer's.
+    bool ggx = false;
 };
 
 /// The frame's passes, all of one size (the colour RGB(A), depth Z with +inf sky, world unit
@@ -65,6 +70,11 @@ struct SsrInputs {
     /// Optional: what a ray that the screen does not answer sees instead of the sky (a
     /// reflection probe or the scene's environment map, shading/ssr/environment.h).
     const Probe *environment = nullptr;
+    /// Optional: what the colour pass's glossy surfaces reflect already, which the reflections
+    /// replace: a renderer's world, a latitude-longitude map (shading/ssr/environment.h) looked
+    /// up in each pixel's mirror direction. Without it, the sky model (sun_direction,
+    /// sky_scale), as the rasterizer's beauty reflects. RGB(A), finite.
+    const Image *world = nullptr;
     /// Optional: the sun's visibility (shadow pass, 1 lit .. 0 shadowed) for re-shading hits;
     /// without it a hit facing the sun is taken to be lit.
     const Image *shadow = nullptr;

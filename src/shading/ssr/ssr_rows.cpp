@@ -6,6 +6,7 @@
 #include <glm/geometric.hpp>
 
 #include "core/parallel.h"
+#include "shading/lighting/env_brdf.h"
 #include "shading/lighting/lighting.h"
 
 namespace posthaste::shading::ssr_detail {
@@ -41,7 +42,10 @@ std::optional<GlossyPixel> glossy_pixel(
     surf.albedo = glm::vec3(albedo.at(x, y, 0), albedo.at(x, y, 1), albedo.at(x, y, 2));
     surf.roughness = g.roughness;
     surf.metallic = material.at(x, y, 1);
-    g.weight = sky_reflection_weight(surf, g.n, g.view);
+    // The rasterizer's weight is 0 from roughness 0.776 (it reflects the ambient alone there);
+    // a GGX lobe's is not.
+    g.weight =
+        p.ggx ? ggx_reflection_weight(surf, g.n, g.view) : sky_reflection_weight(surf, g.n, g.view);
     if (g.weight == glm::vec3(0.0f)) {
         return std::nullopt;
     }
@@ -145,6 +149,16 @@ Image resolve(const SsrInputs &in,
                 ch[c] = buf.data() + std::size_t(3 + c) * row;
             }
             ssr_weight_row(weight_row_inputs(in, rays, p, y, 1, w, ch), wr, wg, wb);
+            // The kernel weighs as the rasterizer; GGX weights come from the scalar reference
+            // on every target (the kernel still lays out the row's channels for the window).
+            for (int x = 0; p.ggx && x < w; ++x) {
+                const std::optional<GlossyPixel> g =
+                    glossy_pixel(in, rays, p, x, y, /*with_point=*/false);
+                const glm::vec3 weight = g ? g->weight : glm::vec3(0.0f);
+                wr[x] = weight.x;
+                wg[x] = weight.y;
+                wb[x] = weight.z;
+            }
         } else {
             std::fill(wr, wr + 3 * row, 0.0f);
             for (int x = 0; x < w; ++x) {
