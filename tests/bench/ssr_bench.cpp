@@ -1,7 +1,8 @@
 // Benchmarks of the ssr node (nodes/ssr.cpp) at 1920x1080 on the glossy scene
 // (samples/scenes/glossy.json: polished floor, mirror panel, balls), the frames of
 // graphs/bench/ssr.json (1: wide view; 16: close to the floor), rendered once: the default
-// settings (quarter resolution at this size), hits not re-shaded (as the camera saw them), with
+// settings (quarter resolution at this size), hits not re-shaded (as the camera saw them), those
+// weighed as a GGX lobe (brdf ggx), with
 // the scene's reflection probe, one ray a pixel, half and full resolution; beside the copy of the
 // colour pass the node pays at least. cpu_ms is the process CPU time per iteration (all threads).
 //   build/tests/posthaste_benchmarks --benchmark_filter=Ssr --benchmark_repetitions=5
@@ -27,7 +28,8 @@ namespace {
 /// re-shading) and the header's sun and sky.
 const Frame &glossy_frame(int frame)
 {
-    return bench::sun_frame("glossy.json", frame, {"color", "depth", "normal", "albedo", "material", "shadow"});
+    return bench::sun_frame(
+        "glossy.json", frame, {"color", "depth", "normal", "albedo", "material", "shadow"});
 }
 
 /// The glossy scene's reflection probe at frame `frame` (1024x512, 16 rays a texel), once.
@@ -78,6 +80,12 @@ void BM_SsrNodeAsSeen(benchmark::State &state)
 {
     run_ssr(state, R"({"sun_irradiance": [0, 0, 0]})");
 }
+void BM_SsrNodeGgx(benchmark::State &state)
+{
+    // Weighed as a path tracer's GGX lobe (its pixels picked and weighed in scalar code), beside
+    // AsSeen: the same rays.
+    run_ssr(state, R"({"sun_irradiance": [0, 0, 0], "brdf": "ggx"})");
+}
 void BM_SsrNodeProbe(benchmark::State &state)
 {
     run_ssr(state, "{}", true);
@@ -101,6 +109,7 @@ void BM_SsrCopyBaseline(benchmark::State &state)
 
 BENCHMARK(BM_SsrNode)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeAsSeen)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SsrNodeGgx)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeProbe)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeRays1)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_SsrNodeHalf)->Arg(1)->Arg(16)->Unit(benchmark::kMillisecond)->UseRealTime();

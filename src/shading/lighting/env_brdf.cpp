@@ -48,10 +48,15 @@ glm::vec2 ggx_directional_albedo(float n_dot_v, float roughness)
         glm::mix(at(i, j), at(i + 1, j), fx), glm::mix(at(i, j + 1), at(i + 1, j + 1), fx), fy);
 }
 
+glm::vec3 ggx_reflection_weight(const Surface &s, float n_dot_v)
+{
+    const glm::vec2 ab = ggx_directional_albedo(n_dot_v, s.roughness);
+    return specular_f0(s) * ab.x + ab.y;
+}
+
 glm::vec3 ggx_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v)
 {
-    const glm::vec2 ab = ggx_directional_albedo(glm::dot(n, v), s.roughness);
-    return specular_f0(s) * ab.x + ab.y;
+    return ggx_reflection_weight(s, glm::dot(n, v));
 }
 
 }  // namespace posthaste::shading

@@ -21,5 +21,7 @@ glm::vec2 ggx_directional_albedo(float n_dot_v, float roughness);
 /// toward v (unit n and v); the weight of a physically based renderer's reflections, where
 /// sky_reflection_weight is the rasterizer's.
 glm::vec3 ggx_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v);
+/// The same from n.v: ggx_reflection_weight(s, n, v) is ggx_reflection_weight(s, dot(n, v)).
+glm::vec3 ggx_reflection_weight(const Surface &s, float n_dot_v);
 
 }  // namespace posthaste::shading

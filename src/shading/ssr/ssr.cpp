@@ -378,8 +378,7 @@ void RowTracer::trace()
     // weights, normals, view directions and points side by side.
     thread_local std::vector<float> setup;
     float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
-    // The kernel weighs as the rasterizer: GGX weights pick their pixels in scalar code.
-    const bool kernel = cx_.vector_kernels && !p.ggx;
+    const bool kernel = cx_.vector_kernels;
     if (kernel) {
         // (weight_row_inputs zeroes its inputs' pads.)
         const std::size_t spitch = soa_arrays(setup, std::size_t(tw), 21, 0);
@@ -407,12 +406,18 @@ void RowTracer::trace()
         if (!kernel) {
             g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
         } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
+            // (The weight is the rasterizer's even with brdf ggx: the trace reads only which
+            // pixels have one; the resolve weighs.)
             g = GlossyPixel{sin[0][tx],
                             sin[7][tx],
                             glm::vec3(sp[0][tx], sp[1][tx], sp[2][tx]),
                             glm::vec3(sn[0][tx], sn[1][tx], sn[2][tx]),
                             glm::vec3(sv[0][tx], sv[1][tx], sv[2][tx]),
                             glm::vec3(sw[0][tx], sw[1][tx], sw[2][tx])};
+        } else if (p.ggx && sin[7][tx] <= p.max_roughness) {
+            // What a GGX lobe reflects and the rasterizer's weight does not (roughness from
+            // 0.776, F = 0): the scalar reference.
+            g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
         }
         if (!g) {
             continue;

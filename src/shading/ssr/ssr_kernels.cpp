@@ -370,6 +370,9 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
             hn::StoreU(zero, d, wr + x);
             hn::StoreU(zero, d, wg + x);
             hn::StoreU(zero, d, wb + x);
+            if (r.nv_out) {
+                hn::StoreU(zero, d, r.nv_out + x);
+            }
             continue;
         }
         nx = hn::Div(nx, nlen);
@@ -401,6 +404,9 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
             }
         }
         const V nv = hn::Max(Dot3Unfused(nx, ny, nz, vx, vy, vz), zero);
+        if (r.nv_out) {
+            hn::StoreU(hn::IfThenElseZero(glossy, nv), d, r.nv_out + x);
+        }
         const V m = hn::Sub(one, ClampToRange(nv, zero, one));
         const V m2 = hn::Mul(m, m);
         const V m5 = hn::Mul(hn::Mul(m2, m2), m);

@@ -138,8 +138,8 @@ void ssr_segments(const SsrSegmentCamera &c,
 /// t and crossed hold s.steps + kSsrStepPad values.
 void ssr_march_steps(const SsrDepthGrid &g, const SsrSegment &s, float *t, float *crossed);
 
-/// SkyView::radiance (shading/atmosphere/atmosphere.h) of n unit directions (x[i], y[i], z[i]), bit for
-/// bit on every target, into r, g, b; `p` from SkyView::coord_params. All arrays hold n +
+/// SkyView::radiance (shading/atmosphere/atmosphere.h) of n unit directions (x[i], y[i], z[i]), bit
+/// for bit on every target, into r, g, b; `p` from SkyView::coord_params. All arrays hold n +
 /// kSsrStepPad values.
 void ssr_sky_view_radiance(const SkyCoordParams &p,
                            const float *x,
@@ -169,6 +169,10 @@ struct SsrWeightRow {
     /// (position + depth_ray z), glossy_pixel's bits where the weight is not 0.
     float position[3] = {};
     float *n_out[3] = {}, *view_out[3] = {}, *point_out[3] = {};
+    /// Optional (where non-null): per value max(n . v, 0) of the normal turned to the camera and
+    /// the view direction, glossy_pixel's bits where the weight is not 0 (else 0): what a GGX
+    /// lobe's weight needs (brdf ggx).
+    float *nv_out = nullptr;
 };
 
 /// The sky reflection weight (shading::sky_reflection_weight: Fresnel-Schlick at n.v times the

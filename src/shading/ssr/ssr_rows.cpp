@@ -141,20 +141,34 @@ Image resolve(const SsrInputs &in,
         // The weights, then the row's channels (kept by each thread from row to row;
         // weight_row_inputs zeroes the channels' pads).
         thread_local std::vector<float> buf;
-        const std::size_t row = soa_arrays(buf, std::size_t(w), 12, 0);
+        const std::size_t row = soa_arrays(buf, std::size_t(w), 13, 0);
         float *wr = buf.data(), *wg = wr + row, *wb = wg + row;
         if (vector_kernels) {
             float *ch[9];
             for (int c = 0; c < 9; ++c) {
                 ch[c] = buf.data() + std::size_t(3 + c) * row;
             }
-            ssr_weight_row(weight_row_inputs(in, rays, p, y, 1, w, ch), wr, wg, wb);
-            // The kernel weighs as the rasterizer; GGX weights come from the scalar reference
-            // on every target (the kernel still lays out the row's channels for the window).
+            SsrWeightRow r = weight_row_inputs(in, rays, p, y, 1, w, ch);
+            float *nv = buf.data() + 12 * row;
+            r.nv_out = p.ggx ? nv : nullptr;
+            ssr_weight_row(r, wr, wg, wb);
+            // The kernel weighs as the rasterizer; with brdf ggx its n.v gives the lobe's
+            // weight (glossy_pixel's bits), and the pixels it leaves out that a GGX lobe
+            // reflects (roughness from 0.776, F = 0) take glossy_pixel itself.
             for (int x = 0; p.ggx && x < w; ++x) {
-                const std::optional<GlossyPixel> g =
-                    glossy_pixel(in, rays, p, x, y, /*with_point=*/false);
-                const glm::vec3 weight = g ? g->weight : glm::vec3(0.0f);
+                glm::vec3 weight(0.0f);
+                if (wr[x] != 0.0f || wg[x] != 0.0f || wb[x] != 0.0f) {
+                    Surface surf;
+                    surf.albedo = glm::vec3(ch[4][x], ch[5][x], ch[6][x]);
+                    surf.roughness = ch[7][x];
+                    surf.metallic = ch[8][x];
+                    weight = ggx_reflection_weight(surf, nv[x]);
+                } else if (ch[7][x] <= p.max_roughness) {
+                    if (const std::optional<GlossyPixel> g =
+                            glossy_pixel(in, rays, p, x, y, /*with_point=*/false)) {
+                        weight = g->weight;
+                    }
+                }
                 wr[x] = weight.x;
                 wg[x] = weight.y;
                 wb[x] = weight.z;
