@@ -3,7 +3,7 @@
 # occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
 #
 #   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
-#       [--only-unfiltered | --noise | --glint] [--shots yard,closeup] [--scale K] [--skip-ao]
+#       [--only-unfiltered | --noise | --glint | --fog | --ssr] [--shots yard,closeup] [--scale K] [--skip-ao]
 #
 # --shots renders only the shots named (the others' files, times and calibrations are kept);
 # --scale K multiplies the passes' and the truths' samples (not the AO pass's) by K: the
@@ -25,6 +25,14 @@
 # and with --fog, for the yard alone:
 #   yard.fog_exp.exr        the yard through homogeneous fog (fog's exp model)
 #   yard.fog_height.exr     the yard through exponential height fog (fog's height model)
+# and with --ssr, per shot:
+#   SHOT.ssr_sky.exr        multilayer: Combined with every object hidden from glossy rays (glossy
+#                           surfaces reflect the world alone), Depth, Normal, Position, DiffCol and
+#                           shader AOVs albedo (the base colour), roughness and metallic
+#   SHOT.ssr_truth.exr      Combined, everything visible to glossy rays (the same seed)
+#   world.exr               the world alone as an equirectangular panorama (what the input reflects)
+#   chrome_probe.exr        a reflection probe: a panorama from the chrome ball's centre, the ball
+#                           hidden, with its distances (Depth)
 # and render_times.txt. Stored as half-float EXRs, depth, position and motion as float (oiiotool).
 # CI never runs Blender; the files are checked in (samples/cycles/).
 import math
@@ -49,6 +57,10 @@ NOISE = "--noise" in argv
 GLINT = "--glint" in argv
 # Only the yard seen through fog (yard.fog_exp.exr, yard.fog_height.exr): the fog node's truths.
 FOG = "--fog" in argv
+# Only the reflections' frames (SHOT.ssr_sky.exr, SHOT.ssr_truth.exr, world.exr): the ssr node's
+# input and truth.
+SSR = "--ssr" in argv
+PROBE_ONLY = "--probe-only" in argv  # with --ssr: only chrome_probe.exr and world.exr
 MIST_ONLY = "--mist-only" in argv  # with --fog: only Blender's Mist calibration, on fog truths made before
 
 
@@ -603,6 +615,90 @@ def fog_renders(scene, cam):
                  for kind, falloff, depth, err in mist_calibration])
 
 
+def material_aovs(scene):
+    """Shader AOVs albedo (colour), roughness and metallic (values) fed from each material's
+    Principled BSDF, the passes a renderer rarely writes: read as posthaste's albedo and
+    material passes (docs/CONVENTIONS.md). The base colour, not DiffCol: Cycles' DiffCol is
+    the diffuse weight, black on a metal."""
+    vl = scene.view_layers[0]
+    for name, kind in (("albedo", 'COLOR'), ("roughness", 'VALUE'), ("metallic", 'VALUE')):
+        aov = vl.aovs.add()
+        aov.name = name
+        aov.type = kind
+    for m in bpy.data.materials:
+        if not m.use_nodes or "Principled BSDF" not in m.node_tree.nodes:
+            continue
+        nodes, links = m.node_tree.nodes, m.node_tree.links
+        bsdf = nodes["Principled BSDF"]
+        for name, socket, out in (("albedo", "Base Color", "Color"),
+                                  ("roughness", "Roughness", "Value"),
+                                  ("metallic", "Metallic", "Value")):
+            aov = nodes.new("ShaderNodeOutputAOV")
+            aov.name = name  # Blender 3.4: the node's name is the AOV's
+            src = bsdf.inputs[socket]
+            if src.is_linked:
+                links.new(src.links[0].from_socket, aov.inputs[out])
+            elif out == "Color":
+                aov.inputs[out].default_value = src.default_value[:]
+            else:
+                aov.inputs[out].default_value = src.default_value
+
+
+def ssr_renders(scene, cam):
+    """The reflections' input and truth. Cycles' glossy surfaces reflect everything; with every
+    object hidden from glossy rays they reflect the world alone, as the rasterizer's beauty
+    reflects its sky alone: the ssr node's input. The truth is the same render with the
+    objects visible (the same seed, so the two differ by the reflections, not by noise)."""
+    material_aovs(scene)
+    meshes = [o for o in bpy.data.objects if o.type == 'MESH']
+    for shot in [] if PROBE_ONLY else SHOTS:
+        set_shot(scene, cam, shot)
+        base_settings(scene, PASS_SAMPLES)
+        vl = scene.view_layers[0]
+        for p in ("z", "normal", "position", "diffuse_color"):
+            setattr(vl, "use_pass_" + p, True)
+        for o in meshes:
+            o.visible_glossy = False
+        render(scene, os.path.join(OUT, f"{shot}.ssr_sky.exr"), 'OPEN_EXR_MULTILAYER')
+        for o in meshes:
+            o.visible_glossy = True
+        base_settings(scene, PASS_SAMPLES)
+        render(scene, os.path.join(OUT, f"{shot}.ssr_truth.exr"), 'OPEN_EXR')
+        for name in (f"{shot}.ssr_sky.exr", f"{shot}.ssr_truth.exr"):
+            to_half(os.path.join(OUT, name))
+    # A reflection probe at the chrome ball's centre: what the ball's reflected rays see, the
+    # ball itself hidden, as a panorama with distances (Cycles' Depth pass is the distance along
+    # the ray for a panoramic camera). Unrotated, Blender's equirectangular camera lays world
+    # directions out as the ssr node's environment input does (shading/ssr/environment.h).
+    base_settings(scene, PASS_SAMPLES)
+    scene.view_layers[0].use_pass_z = True
+    chrome = bpy.data.objects["chrome_ball"]
+    chrome.visible_camera = False
+    cam.animation_data_clear()
+    cam.location = chrome.location
+    cam.rotation_euler = (0.0, 0.0, 0.0)
+    cam.data.type = 'PANO'
+    cam.data.cycles.panorama_type = 'EQUIRECTANGULAR'
+    scene.render.resolution_x, scene.render.resolution_y = 512, 256
+    render(scene, os.path.join(OUT, "chrome_probe.exr"), 'OPEN_EXR_MULTILAYER')
+    to_half(os.path.join(OUT, "chrome_probe.exr"))
+    chrome.visible_camera = True
+    cam.data.type = 'PERSP'
+    # What the input's glossy surfaces reflect: the world, as a panorama from the camera with
+    # every object hidden (the ssr node's world input).
+    base_settings(scene, 16)
+    for o in meshes:
+        o.visible_camera = False
+    cam.data.type = 'PANO'
+    cam.data.cycles.panorama_type = 'EQUIRECTANGULAR'
+    scene.render.resolution_x, scene.render.resolution_y = 64, 32
+    render(scene, os.path.join(OUT, "world.exr"), 'OPEN_EXR')
+    to_half(os.path.join(OUT, "world.exr"))
+    cam.data.type = 'PERSP'
+    for o in meshes:
+        o.visible_camera = True
+
+
 def kept(name, shot_of):
     """The lines of OUT/name whose shot (shot_of(line)) was not rendered (--shots keeps them)."""
     path = os.path.join(OUT, name)
@@ -634,6 +730,10 @@ def main():
     scene, cam = build_scene()
     if FOG:
         fog_renders(scene, cam)
+        write_times()
+        return
+    if SSR:
+        ssr_renders(scene, cam)
         write_times()
         return
     if NOISE:
