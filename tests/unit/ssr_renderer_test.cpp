@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <limits>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -91,6 +92,26 @@ TEST(SsrRenderer, AWorldTheColourReflectsAlreadyIsNotAddedTwice)
         }
     }
     EXPECT_GT(changed, in.width() * in.height() / 10);
+    // Non-finite texels in the world read as black: the output stays finite.
+    Frame bad = world;
+    Image texels = bad.image("color");
+    texels.at(3, 2, 0) = std::numeric_limits<float>::quiet_NaN();
+    texels.at(20, 9, 1) = std::numeric_limits<float>::infinity();
+    texels.at(31, 15, 2) = -std::numeric_limits<float>::infinity();
+    for (int y = 0; y < 16; ++y) {
+        texels.at(16, y, 0) = std::numeric_limits<float>::quiet_NaN();  // a whole column
+    }
+    bad.set("color", std::move(texels));
+    const Image finite = test::NodeRunner("ssr", R"({"brdf": "ggx"})")
+                             .run_ports({{"image", f}, {"environment", bad}, {"world", bad}})
+                             .image("color");
+    for (int y = 0; y < finite.height(); ++y) {
+        for (int x = 0; x < finite.width(); ++x) {
+            for (int c = 0; c < 4; ++c) {
+                ASSERT_TRUE(std::isfinite(finite.at(x, y, c))) << x << "," << y;
+            }
+        }
+    }
     // A world without RGB is refused, naming the input.
     Frame two = world;
     two.set("color", Image(32, 16, 2), {"R", "G"});
