@@ -111,7 +111,7 @@ accuracy() {
     # graphs/bench/long/: specs the test suite does not run (each renders another 1080p truth).
     for spec in motion_blur spin dof fog full_stack bloom ao ssr ssr_default cycles_motion_blur \
         cycles_dof cycles_ao_yard_d1 cycles_ao_yard_d2 cycles_ao_closeup_d1 cycles_ao_closeup_d2 \
-        cycles_fog_exp cycles_fog_height cycles_ssr_yard cycles_ssr_closeup \
+        cycles_fog_exp cycles_fog_height cycles_ssr_yard cycles_ssr_closeup cycles_relight \
         long/ssr_probe; do
         name=$(basename "$spec")
         "$BUILD_DIR"/posthaste bench "graphs/bench/$spec.json" --out "out/bench/$name" -q

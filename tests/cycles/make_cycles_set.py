@@ -3,7 +3,7 @@
 # occlusion) and Blender's own compositor nodes on the same frames (Vector Blur, Defocus).
 #
 #   blender -b --factory-startup -P tests/cycles/make_cycles_set.py -- OUT_DIR [--quick]
-#       [--only-unfiltered | --noise | --glint | --fog | --ssr] [--shots yard,closeup] [--scale K] [--skip-ao]
+#       [--only-unfiltered | --noise | --glint | --fog | --ssr | --relight] [--shots yard,closeup] [--scale K] [--skip-ao]
 #
 # --shots renders only the shots named (the others' files, times and calibrations are kept);
 # --scale K multiplies the passes' and the truths' samples (not the AO pass's) by K: the
@@ -33,6 +33,10 @@
 #   world.exr               the world alone as an equirectangular panorama (what the input reflects)
 #   chrome_probe.exr        a reflection probe: a panorama from the chrome ball's centre, the ball
 #                           hidden, with its distances (Depth)
+# and with --relight, for the yard alone (after --ssr):
+#   yard.relight_fill.exr   Combined lit by a second sun alone, direct light only
+#   yard.relight_truth.exr  yard.ssr_sky.exr's Combined plus that: the relight node's truth
+#   relight_fill.txt        the second sun's direction (toward it), colour and strength
 # and render_times.txt. Stored as half-float EXRs, depth, position and motion as float (oiiotool).
 # CI never runs Blender; the files are checked in (samples/cycles/).
 import math
@@ -61,6 +65,9 @@ FOG = "--fog" in argv
 # input and truth.
 SSR = "--ssr" in argv
 PROBE_ONLY = "--probe-only" in argv  # with --ssr: only chrome_probe.exr and world.exr
+# Only the yard lit by a second sun alone (yard.relight_fill.exr), and the relight node's truth,
+# the ssr input plus that light (yard.relight_truth.exr); after --ssr.
+RELIGHT = "--relight" in argv
 MIST_ONLY = "--mist-only" in argv  # with --fog: only Blender's Mist calibration, on fog truths made before
 
 
@@ -699,6 +706,46 @@ def ssr_renders(scene, cam):
         o.visible_camera = True
 
 
+# The relight node's fill light: a second sun from the camera's left, warm, low.
+FILL_TOWARD = (-0.55, -0.65, 0.52)
+FILL_COLOR = (1.0, 0.8, 0.6)
+FILL_STRENGTH = 2.0
+
+
+def relight_renders(scene, cam):
+    """The yard lit by a second sun alone, direct light only (no world, the scene's sun dark, no
+    bounces: what the relight node adds), and the node's truth, the ssr input (every surface
+    lit by the scene) plus that light."""
+    import mathutils
+    set_shot(scene, cam, "yard")
+    base_settings(scene, PASS_SAMPLES)
+    scene.cycles.max_bounces = 0
+    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    for o in bpy.data.objects:
+        if o.type == 'LIGHT':
+            o.data.energy = 0.0
+    bpy.ops.object.light_add(type='SUN', location=(0, 0, 10))
+    fill = bpy.context.active_object
+    toward = mathutils.Vector(FILL_TOWARD).normalized()
+    fill.rotation_euler = toward.to_track_quat('Z', 'Y').to_euler()  # the sun shines along -Z
+    fill.data.energy = FILL_STRENGTH
+    fill.data.color = FILL_COLOR
+    fill.data.angle = math.radians(0.5)
+    render(scene, os.path.join(OUT, "yard.relight_fill.exr"), 'OPEN_EXR')
+    truth = os.path.join(OUT, "yard.relight_truth.exr")
+    subprocess.run(["oiiotool", os.path.join(OUT, "yard.ssr_sky.exr"), "--ch",
+                    "R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B,"
+                    "A=ViewLayer.Combined.A",
+                    os.path.join(OUT, "yard.relight_fill.exr"), "--ch", "R,G,B,A=0", "--add",
+                    "-d", "half", "--compression", "zip", "-o", truth], check=True)
+    to_half(os.path.join(OUT, "yard.relight_fill.exr"))
+    with open(os.path.join(OUT, "relight_fill.txt"), "w") as f:
+        f.write("# the relight node's fill light: a Blender sun; direction toward it (world, Z up),"
+                "\n# colour, strength (irradiance at normal incidence, W/m^2)\n")
+        f.write(f"direction {toward.x:.6f} {toward.y:.6f} {toward.z:.6f}\n")
+        f.write("color {} {} {}\nstrength {}\n".format(*FILL_COLOR, FILL_STRENGTH))
+
+
 def kept(name, shot_of):
     """The lines of OUT/name whose shot (shot_of(line)) was not rendered (--shots keeps them)."""
     path = os.path.join(OUT, name)
@@ -734,6 +781,10 @@ def main():
         return
     if SSR:
         ssr_renders(scene, cam)
+        write_times()
+        return
+    if RELIGHT:
+        relight_renders(scene, cam)
         write_times()
         return
     if NOISE:
