@@ -318,7 +318,15 @@ void execute(NodeContext &ctx)
         }
     }
 
-    const glm::vec3 sun_dir = to_y_up * glm::normalize(sun_direction(ctx, kSunDirection, in));
+    // The sun's direction: for the atmospheres, and for the height model's sun lobe where it
+    // draws one (sun_color 0 draws none: the node asks for, and notes, no direction it does not
+    // use).
+    const bool uses_sun =
+        model == Atmo || model == AtmoRayMarch ||
+        (model == Height && fill(ctx.params(), kHeightFields).sun_color != glm::vec3(0.0f));
+    const glm::vec3 sun_dir = uses_sun
+                                  ? to_y_up * glm::normalize(sun_direction(ctx, kSunDirection, in))
+                                  : glm::vec3(0.0f, 1.0f, 0.0f);
 
     // The model over a colour image. The height fog and atmosphere kernels read the input and
     // write the output in one sweep; the other models work on a copy.

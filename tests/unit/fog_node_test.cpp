@@ -339,6 +339,25 @@ TEST(FogFilteredEdges, APlaneIsNoEdgeAStepIs)
     EXPECT_EQ(out.at(6, 2, 0), before.at(6, 2, 0));
 }
 
+TEST(FogNode, NoNoteOfASunDirectionItDoesNotUse)
+{
+    // The height model draws a sun lobe only with sun_color: without one it neither reads nor
+    // notes a sun direction (the frame's header has none); with one it says it took the
+    // default. The exp model never uses the sun.
+    const Frame f = fog_frame(16, 9, glm::vec3(0.0f, 2.0f, 0.0f), 5.0f, 20.0f);
+    const auto notes = [&](const std::string &params) {
+        testing::internal::CaptureStderr();
+        run_fog(f, params);
+        return testing::internal::GetCapturedStderr();
+    };
+    const std::string height = R"({"model": "height", "density": 0.1)";
+    EXPECT_EQ(notes(height + "}").find("sun_direction"), std::string::npos);
+    EXPECT_EQ(notes(R"({"model": "exp", "density": 0.1})").find("sun_direction"),
+              std::string::npos);
+    EXPECT_NE(notes(height + R"(, "sun_color": [1, 1, 1]})").find("sun_direction"),
+              std::string::npos);
+}
+
 TEST(FogNode, MissingCameraIsNamed)
 {
     Frame in = fog_frame(4, 4, {0, 1, 0}, 0.0f, 5.0f);
