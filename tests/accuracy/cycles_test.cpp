@@ -250,8 +250,8 @@ TEST(CyclesAccuracySlow, FogAgainstCyclesMedium)
             node,
             own_depth,
             blender);
-        // Measured on 2026-11-30: exp 0.0125 (98 % of the do-nothing error removed), 0.53 of
-        // the calibrated Mist's error; height 0.0129 (97 %), 0.20 (the Mist has no height).
+        // Measured on 2026-11-30: exp 0.0124 (98 % of the do-nothing error removed), 0.52 of
+        // the calibrated Mist's error; height 0.0128 (97 %), 0.19 (the Mist has no height).
         // Most of it is the sun's glint on the chrome ball, noise of the renders; outside it
         // exp 0.0030 (own depth alone 0.0043, Mist 0.0089), height 0.0067 (0.0083, 0.0571),
         // the rest noise and what is left at the edges.
