@@ -319,10 +319,10 @@ void execute(NodeContext &ctx)
     }
 
     // The sun's direction: for the atmospheres, and for the height model's sun lobe where it
-    // draws one (sun_color 0 draws none: the node asks for, and notes, no direction it does not
-    // use).
+    // draws one (sun_color 0 draws none: the node notes no default for a direction it does not
+    // use). One the graph gives is checked whatever the model does with it.
     const bool uses_sun =
-        model == Atmo || model == AtmoRayMarch ||
+        model == Atmo || model == AtmoRayMarch || ctx.params().given(kSunDirection) ||
         (model == Height && fill(ctx.params(), kHeightFields).sun_color != glm::vec3(0.0f));
     const glm::vec3 sun_dir = uses_sun
                                   ? to_y_up * glm::normalize(sun_direction(ctx, kSunDirection, in))

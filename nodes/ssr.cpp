@@ -278,8 +278,10 @@ void execute(NodeContext &ctx)
     // The sky model is seen by the rays an environment input does not answer, as what the
     // colour reflects already (without a world input) and in re-shaded hits; a renderer's frame
     // with its world and environment connected uses none of it, and says nothing of it.
+    // (Values the graph gives are checked whether or not they are used.)
     if (!ctx.has_input("environment") || !ctx.has_input("world") ||
-        p.sun_irradiance != glm::vec3(0.0f)) {
+        p.sun_irradiance != glm::vec3(0.0f) || ctx.params().given(kSunDirection) ||
+        ctx.params().given(kSkyScale)) {
         // sky_scale, from the graph or the header, is held to its range by the parameter's rules.
         fill_into(
             p, ctx, std::span<const Binding<shading::SsrParams>>(kSkyFields), HeaderSource::of(in));
