@@ -9,9 +9,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <glm/glm.hpp>
 #include <glm/gtc/matrix_transform.hpp>
+#include <iterator>
 #include <limits>
 #include <memory>
 #include <set>
@@ -180,6 +180,27 @@ inline Frame run_node(const std::string &type,
                       int frame_number = 1)
 {
     return NodeRunner(type, params_json).run(in, frame_number);
+}
+
+/// Node `node`'s output for `frame` in `graph` (a parsed graph file), its sinks writing nothing.
+inline Frame graph_output(const Graph &graph, const std::string &node, int frame = 1)
+{
+    return *graph.evaluate_outputs(frame, {graph.find(node)})[0];
+}
+
+/// Whether every R, G and B value of `image` is finite.
+inline bool all_finite_rgb(const Image &image)
+{
+    for (int y = 0; y < image.height(); ++y) {
+        for (int x = 0; x < image.width(); ++x) {
+            for (int c = 0; c < 3; ++c) {
+                if (!std::isfinite(image.at(x, y, c))) {
+                    return false;
+                }
+            }
+        }
+    }
+    return true;
 }
 
 /// Run a shell command, capturing stdout+stderr; returns the exit status.

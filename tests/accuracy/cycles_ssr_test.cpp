@@ -1,17 +1,19 @@
 // ssr against Cycles' reflections (samples/cycles/, tests/cycles/make_cycles_set.py --ssr;
-// docs/ACCURACY.md, "Against Cycles"). The input is Cycles' render with every object hidden from
-// glossy rays, so that its glossy surfaces reflect the world alone, as the rasterizer's beauty
-// reflects its sky alone; the truth is the same render (the same seed) with the objects visible.
-// Blender writes no base colour, roughness or metallic: the set's shader AOVs give them. The
-// camera is solved from the passes; the world and a reflection probe at the chrome ball's centre
-// are Cycles panoramas.
+// docs/ACCURACY.md, "Against Cycles"), through the checked-in graphs/cycles/SHOT_ssr.json. The
+// input is Cycles' render with every object hidden from glossy rays, so that its glossy surfaces
+// reflect the world alone, as the rasterizer's beauty reflects its sky alone; the truth is the
+// same render (the same seed) with the objects visible. Blender writes no base colour, roughness
+// or metallic: the set's shader AOVs give them. The camera is solved from the passes; the world
+// and a reflection probe at the chrome ball's centre are Cycles panoramas.
 
 #include <gtest/gtest.h>
 
-#include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "graph/graph.h"
 #include "io/image_file.h"
@@ -22,55 +24,43 @@ namespace posthaste {
 namespace {
 
 const std::string kDir = std::string(POSTHASTE_SOURCE_DIR) + "/samples/cycles/";
+const std::string kGraphs = std::string(POSTHASTE_SOURCE_DIR) + "/graphs/cycles/";
 constexpr int kFrame = 2;
 
-/// The shot's ssr input through ssr with `params`, its environment `env` (a file of the set) and,
-/// where `world`, the world panorama as what the input reflects.
-Image ssr(const std::string &shot, const std::string &params, const std::string &env, bool world)
+/// graphs/cycles/SHOT_ssr.json's ssr output with `overrides`; with `world` false, the graph
+/// without its world input (the node subtracts its sky model instead).
+Image ssr(const std::string &shot, const std::vector<std::string> &overrides, bool world = true)
 {
-    const std::string graph = R"({"nodes": [
-        {"id": "in", "type": "read", "params": {"path": ")" +
-                              kDir + shot + R"(.ssr_sky.exr"}},
-        {"id": "world", "type": "read", "params": {"path": ")" +
-                              kDir + R"(world.exr"}},
-        {"id": "env", "type": "read", "params": {"path": ")" +
-                              kDir + env + R"("}},
-        {"id": "ssr", "type": "ssr", "inputs": {"image": "in", "environment": "env")" +
-                              (world ? R"(, "world": "world")" : "") + R"(}, "params": )" + params +
-                              R"(},
-        {"id": "out", "type": "write", "inputs": {"image": "ssr"}, "params": {"path": "unused.exr"}}]})";
-    Graph g = Graph::parse(graph, "cycles ssr " + shot, nodes::catalog());
-    g.set_capture("ssr");
-    Frame f = g.evaluate(kFrame);
-    const Image out = f.image("color");
-    for (int y = 0; y < out.height(); ++y) {
-        for (int x = 0; x < out.width(); ++x) {
-            for (int c = 0; c < 3; ++c) {
-                EXPECT_TRUE(std::isfinite(out.at(x, y, c))) << shot << " " << params;
-            }
-        }
+    const std::string path = kGraphs + shot + "_ssr.json";
+    std::ifstream in(path);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!world) {
+        const std::string input = R"(, "world": "world")";
+        const auto at = text.find(input);
+        EXPECT_NE(at, std::string::npos) << path;
+        text.erase(at, input.size());
     }
+    const Graph g = Graph::parse(text, path, nodes::catalog(), overrides, kGraphs);
+    const Image out = test::graph_output(g, "ssr", kFrame).image("color");
+    EXPECT_TRUE(test::all_finite_rgb(out)) << shot;
     return out;
 }
 
 TEST(CyclesSsrSlow, ReflectionsAgainstCycles)
 {
-    const std::string probe = R"({"brdf": "ggx", "environment_position": [0.3, 1.2, 0.6])";
     for (const char *shot : {"yard", "closeup"}) {
         const std::string s = shot;
         const std::set<std::string> color = {"color"};
         const Image truth = read_frame(kDir + s + ".ssr_truth.exr", &color, kFrame).image("color");
         const Image input = read_frame(kDir + s + ".ssr_sky.exr", &color, kFrame).image("color");
         const double nothing = test::rms_rgb(input, truth);
-        const double node = test::rms_rgb(ssr(s, probe + "}", "chrome_probe.exr", true), truth);
-        const double screen = test::rms_rgb(ssr(s, R"({"brdf": "ggx"})", "world.exr", true), truth);
-        const double flat = test::rms_rgb(
-            ssr(s, probe + R"(, "parallax": false})", "chrome_probe.exr", true), truth);
-        const double posthaste = test::rms_rgb(
-            ssr(s, R"({"environment_position": [0.3, 1.2, 0.6]})", "chrome_probe.exr", true),
-            truth);
-        const double sky_model =
-            test::rms_rgb(ssr(s, R"({"brdf": "ggx"})", "world.exr", false), truth);
+        const double node = test::rms_rgb(ssr(s, {}), truth);
+        // The environment the world itself: misses see the world, the screen alone helps.
+        const std::string screen_only = "probe.path=" + kDir + "world.exr";
+        const double screen = test::rms_rgb(ssr(s, {screen_only}), truth);
+        const double flat = test::rms_rgb(ssr(s, {"ssr.parallax=false"}), truth);
+        const double posthaste = test::rms_rgb(ssr(s, {"ssr.brdf=posthaste"}), truth);
+        const double sky_model = test::rms_rgb(ssr(s, {screen_only}, false), truth);
         std::printf(
             "%-8s nothing %.4f  ssr + probe %.4f (%2.0f %%)  screen alone %.4f (%2.0f %%)  probe "
             "without distances %.4f  brdf posthaste %.4f  sky model as reflected %.4f\n",

@@ -378,8 +378,7 @@ void RowTracer::trace()
     // weights, normals, view directions and points side by side.
     thread_local std::vector<float> setup;
     float *sw[3] = {}, *sn[3] = {}, *sv[3] = {}, *sp[3] = {}, *sin[9] = {};
-    const bool kernel = cx_.vector_kernels;
-    if (kernel) {
+    if (cx_.vector_kernels) {
         // (weight_row_inputs zeroes its inputs' pads.)
         const std::size_t spitch = soa_arrays(setup, std::size_t(tw), 21, 0);
         for (int c = 0; c < 9; ++c) {
@@ -403,7 +402,7 @@ void RowTracer::trace()
     for (int tx = 0; tx < tw; ++tx) {
         const int x = tx * cx_.st;
         std::optional<GlossyPixel> g;
-        if (!kernel) {
+        if (!cx_.vector_kernels) {
             g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
         } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
             // (The weight is the rasterizer's even with brdf ggx: the trace reads only which
