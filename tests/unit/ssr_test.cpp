@@ -543,8 +543,9 @@ TEST(SsrRenderer, GgxWeighsTheSameRaysAsTheLobesAlbedo)
 
 TEST(SsrRenderer, SameBitsOnEveryTargetAndThreadCount)
 {
-    // brdf ggx picks and weighs its pixels in scalar code; the march and the resolve's window
-    // stay on the kernels: the scalar reference's bits on every Highway target.
+    // brdf ggx's weights (the GGX table's gathers in the weight kernel, and the pixels from
+    // roughness 0.776 that only a GGX lobe reflects, at max_roughness 1), the march and the
+    // resolve's window: the scalar reference's bits on every Highway target.
     const Frame f = glossy_frame(raster::load_scene(scene_path("glossy.json")), 101, 57);
     const Frame world = constant_world(glm::vec3(0.45f, 0.6f, 0.9f));
     const std::vector<std::pair<std::string, Frame>> ports = {

@@ -8,7 +8,7 @@
 namespace posthaste::shading {
 namespace {
 
-constexpr int kSize = 32;      // table points along n.v and roughness, ends included
+constexpr int kSize = kGgxAlbedoTableSize;  // points along n.v and roughness, ends included
 constexpr int kSamples = 256;  // lobe samples a point (specular_albedo's visible normals)
 
 using Table = std::array<glm::vec2, kSize * kSize>;
@@ -52,6 +52,12 @@ glm::vec3 ggx_reflection_weight(const Surface &s, float n_dot_v)
 {
     const glm::vec2 ab = ggx_directional_albedo(n_dot_v, s.roughness);
     return specular_f0(s) * ab.x + ab.y;
+}
+
+const float *ggx_albedo_table()
+{
+    static_assert(sizeof(glm::vec2) == 2 * sizeof(float), "the table's pairs are packed");
+    return &table()[0].x;
 }
 
 glm::vec3 ggx_reflection_weight(const Surface &s, const glm::vec3 &n, const glm::vec3 &v)

@@ -24,4 +24,10 @@ glm::vec3 ggx_reflection_weight(const Surface &s, const glm::vec3 &n, const glm:
 /// The same from n.v: ggx_reflection_weight(s, n, v) is ggx_reflection_weight(s, dot(n, v)).
 glm::vec3 ggx_reflection_weight(const Surface &s, float n_dot_v);
 
+/// The table ggx_directional_albedo interpolates, for vector kernels that give its bits: (A, B)
+/// pairs, kGgxAlbedoTableSize of them a row along n.v = i / (size - 1), one row per roughness
+/// j / (size - 1): A of point (i, j) at [2 (j size + i)], B after it.
+inline constexpr int kGgxAlbedoTableSize = 32;
+const float *ggx_albedo_table();
+
 }  // namespace posthaste::shading

@@ -405,18 +405,12 @@ void RowTracer::trace()
         if (!cx_.vector_kernels) {
             g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
         } else if (sw[0][tx] != 0.0f || sw[1][tx] != 0.0f || sw[2][tx] != 0.0f) {
-            // (The weight is the rasterizer's even with brdf ggx: the trace reads only which
-            // pixels have one; the resolve weighs.)
             g = GlossyPixel{sin[0][tx],
                             sin[7][tx],
                             glm::vec3(sp[0][tx], sp[1][tx], sp[2][tx]),
                             glm::vec3(sn[0][tx], sn[1][tx], sn[2][tx]),
                             glm::vec3(sv[0][tx], sv[1][tx], sv[2][tx]),
                             glm::vec3(sw[0][tx], sw[1][tx], sw[2][tx])};
-        } else if (p.ggx && sin[7][tx] <= p.max_roughness) {
-            // What a GGX lobe reflects and the rasterizer's weight does not (roughness from
-            // 0.776, F = 0): the scalar reference.
-            g = glossy_pixel(cx_.in, cx_.rays, p, x, y);
         }
         if (!g) {
             continue;

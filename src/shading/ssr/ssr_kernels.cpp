@@ -17,6 +17,7 @@
 
 #include "core/hwy_math-inl.h"
 #include "shading/atmosphere/atmosphere_kernels.h"
+#include "shading/lighting/env_brdf.h"
 
 HWY_BEFORE_NAMESPACE();
 namespace posthaste::shading::HWY_NAMESPACE {
@@ -338,6 +339,39 @@ void SkyViewRadiance(const SkyCoordParams &p,
     }
 }
 
+/// ggx_directional_albedo's (A, B) at n.v (nv) and roughness, bilinear in its table
+/// (env_brdf.cpp), rounded as it rounds them. The indices are clamped as integers too, so lanes
+/// the caller discards (a NaN roughness) read inside the table.
+template <class D, class V = hn::Vec<D>>
+HWY_INLINE void GgxDirectionalAlbedo(D d, const float *table, V nv, V rough, V &a, V &b)
+{
+    const hn::RebindToSigned<D> di;
+    const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
+    const V last = hn::Set(d, float(kGgxAlbedoTableSize - 1));
+    const V x = hn::Mul(ClampToRange(nv, zero, one), last);
+    const V y = hn::Mul(ClampToRange(rough, zero, one), last);
+    const auto top = hn::Set(di, kGgxAlbedoTableSize - 2);
+    const auto i = hn::Min(hn::Max(hn::ConvertTo(di, x), hn::Zero(di)), top);
+    const auto j = hn::Min(hn::Max(hn::ConvertTo(di, y), hn::Zero(di)), top);
+    const V fx = hn::Sub(x, hn::ConvertTo(d, i)), fy = hn::Sub(y, hn::ConvertTo(d, j));
+    const V gx = hn::Sub(one, fx), gy = hn::Sub(one, fy);
+    // Pair (i, j) at 2 (j size + i); (i + 1, j) two floats on, (i, j + 1) a row of pairs on.
+    const auto p00 = hn::ShiftLeft<1>(hn::Add(hn::Mul(j, hn::Set(di, kGgxAlbedoTableSize)), i));
+    const auto p10 = hn::Add(p00, hn::Set(di, 2));
+    const auto p01 = hn::Add(p00, hn::Set(di, 2 * kGgxAlbedoTableSize));
+    const auto p11 = hn::Add(p01, hn::Set(di, 2));
+    // glm::mix(p, q, f) = p (1 - f) + q f, along n.v, then along roughness.
+    const auto lerp = [&](const float *t) {
+        const V row0 = hn::Add(hn::Mul(hn::GatherIndex(d, t, p00), gx),
+                               hn::Mul(hn::GatherIndex(d, t, p10), fx));
+        const V row1 = hn::Add(hn::Mul(hn::GatherIndex(d, t, p01), gx),
+                               hn::Mul(hn::GatherIndex(d, t, p11), fx));
+        return hn::Add(hn::Mul(row0, gy), hn::Mul(row1, fy));
+    };
+    a = lerp(table);
+    b = lerp(table + 1);
+}
+
 void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
 {
     const hn::ScalableTag<float> d;
@@ -355,6 +389,7 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
     const V stride = hn::Set(d, float(r.stride));  // exact: i stride is an integer below 2^24
     const bool terms = r.n_out[0] != nullptr;
     const V f0_dielectric = hn::Set(d, 0.04f);
+    const auto ggx = hn::Ne(hn::Set(d, r.ggx_table ? 1.0f : 0.0f), zero);  // all lanes or none
     const std::size_t lanes = hn::Lanes(d);
     for (int x = 0; x < r.n; x += int(lanes)) {
         const V z = hn::LoadU(d, r.z + x);
@@ -362,17 +397,15 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
         V nx = hn::LoadU(d, r.nx + x), ny = hn::LoadU(d, r.ny + x), nz = hn::LoadU(d, r.nz + x);
         const V nlen = hn::Sqrt(Dot3Unfused(nx, ny, nz, nx, ny, nz));
         const V gloss = hn::Mul(hn::Sub(one, rough), hn::Sub(one, rough));
+        // (The rasterizer's weight is 0 below a gloss of 0.05; a GGX lobe's is not.)
         const auto glossy =
             hn::And(hn::And(hn::Gt(z, zero), hn::Lt(z, inf)),
                     hn::And(hn::And(hn::Le(rough, max_roughness), hn::Gt(nlen, zero)),
-                            hn::Ge(gloss, hn::Set(d, 0.05f))));
+                            hn::Or(hn::Ge(gloss, hn::Set(d, 0.05f)), ggx)));
         if (hn::AllFalse(d, glossy)) {
             hn::StoreU(zero, d, wr + x);
             hn::StoreU(zero, d, wg + x);
             hn::StoreU(zero, d, wb + x);
-            if (r.nv_out) {
-                hn::StoreU(zero, d, r.nv_out + x);
-            }
             continue;
         }
         nx = hn::Div(nx, nlen);
@@ -404,15 +437,24 @@ void WeightRow(const SsrWeightRow &r, float *wr, float *wg, float *wb)
             }
         }
         const V nv = hn::Max(Dot3Unfused(nx, ny, nz, vx, vy, vz), zero);
-        if (r.nv_out) {
-            hn::StoreU(hn::IfThenElseZero(glossy, nv), d, r.nv_out + x);
+        // F0 = mix(0.04, albedo, metallic) = 0.04 (1 - metallic) + albedo metallic.
+        const V metal = hn::LoadU(d, r.metallic + x);
+        const V base = hn::Mul(f0_dielectric, hn::Sub(one, metal));
+        if (r.ggx_table) {
+            V a, b;
+            GgxDirectionalAlbedo(d, r.ggx_table, nv, rough, a, b);
+            const auto weight = [&](const float *albedo) {
+                const V f0 = hn::Add(base, hn::Mul(hn::LoadU(d, albedo + x), metal));
+                return hn::IfThenElseZero(glossy, hn::Add(hn::Mul(f0, a), b));
+            };
+            hn::StoreU(weight(r.ar), d, wr + x);
+            hn::StoreU(weight(r.ag), d, wg + x);
+            hn::StoreU(weight(r.ab), d, wb + x);
+            continue;
         }
         const V m = hn::Sub(one, ClampToRange(nv, zero, one));
         const V m2 = hn::Mul(m, m);
         const V m5 = hn::Mul(hn::Mul(m2, m2), m);
-        // F0 = mix(0.04, albedo, metallic) = 0.04 (1 - metallic) + albedo metallic.
-        const V metal = hn::LoadU(d, r.metallic + x);
-        const V base = hn::Mul(f0_dielectric, hn::Sub(one, metal));
         const auto weight = [&](const float *albedo) {
             const V f0 = hn::Add(base, hn::Mul(hn::LoadU(d, albedo + x), metal));
             const V f = hn::Add(f0, hn::Mul(hn::Sub(one, f0), m5));

@@ -169,16 +169,16 @@ struct SsrWeightRow {
     /// (position + depth_ray z), glossy_pixel's bits where the weight is not 0.
     float position[3] = {};
     float *n_out[3] = {}, *view_out[3] = {}, *point_out[3] = {};
-    /// Optional (where non-null): per value max(n . v, 0) of the normal turned to the camera and
-    /// the view direction, glossy_pixel's bits where the weight is not 0 (else 0): what a GGX
-    /// lobe's weight needs (brdf ggx).
-    float *nv_out = nullptr;
+    /// Where non-null (brdf ggx), the weight is the GGX lobe's directional albedo
+    /// (shading::ggx_reflection_weight) looked up in this table (shading::ggx_albedo_table).
+    const float *ggx_table = nullptr;
 };
 
-/// The sky reflection weight (shading::sky_reflection_weight: Fresnel-Schlick at n.v times the
-/// gloss) of each pixel of the row that ssr changes, 0 for the others (sky, rough, no normal, no
-/// weight), as ssr_rows.cpp's glossy_pixel computes it, bit for bit; into wr, wg, wb (n +
-/// kSsrStepPad values each), and glossy_pixel's other terms where asked for.
+/// The reflection weight of each pixel of the row that ssr changes, 0 for the others (sky,
+/// rough, no normal, no weight), as ssr_rows.cpp's glossy_pixel computes it, bit for bit: the
+/// sky reflection weight (shading::sky_reflection_weight: Fresnel-Schlick at n.v times the
+/// gloss), or with a ggx_table the GGX lobe's; into wr, wg, wb (n + kSsrStepPad values each),
+/// and glossy_pixel's other terms where asked for.
 void ssr_weight_row(const SsrWeightRow &r, float *wr, float *wg, float *wb);
 
 /// The traced cells' estimates near one output row, and that row's pixels, for the resolve's

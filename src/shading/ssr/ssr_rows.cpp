@@ -113,6 +113,7 @@ SsrWeightRow weight_row_inputs(const SsrInputs &in,
         r.dv[c] = rays.ray_dv()[c];
     }
     r.max_roughness = p.max_roughness;
+    r.ggx_table = p.ggx ? ggx_albedo_table() : nullptr;
     return r;
 }
 
@@ -136,43 +137,19 @@ Image resolve(const SsrInputs &in,
     const int radius = st > 1 ? std::max(p.denoise, st) : p.denoise;
     parallel_for(0, h, [&](int y) {
         std::copy_n(color.pixel(0, y), row_values, out.pixel(0, y));
-        // The row's sky reflection weights (0 where the pixel is left alone): on the vector
+        // The row's reflection weights (0 where the pixel is left alone): on the vector
         // kernel from the row's channels side by side, or glossy_pixel's scalar reference.
         // The weights, then the row's channels (kept by each thread from row to row;
         // weight_row_inputs zeroes the channels' pads).
         thread_local std::vector<float> buf;
-        const std::size_t row = soa_arrays(buf, std::size_t(w), 13, 0);
+        const std::size_t row = soa_arrays(buf, std::size_t(w), 12, 0);
         float *wr = buf.data(), *wg = wr + row, *wb = wg + row;
         if (vector_kernels) {
             float *ch[9];
             for (int c = 0; c < 9; ++c) {
                 ch[c] = buf.data() + std::size_t(3 + c) * row;
             }
-            SsrWeightRow r = weight_row_inputs(in, rays, p, y, 1, w, ch);
-            float *nv = buf.data() + 12 * row;
-            r.nv_out = p.ggx ? nv : nullptr;
-            ssr_weight_row(r, wr, wg, wb);
-            // The kernel weighs as the rasterizer; with brdf ggx its n.v gives the lobe's
-            // weight (glossy_pixel's bits), and the pixels it leaves out that a GGX lobe
-            // reflects (roughness from 0.776, F = 0) take glossy_pixel itself.
-            for (int x = 0; p.ggx && x < w; ++x) {
-                glm::vec3 weight(0.0f);
-                if (wr[x] != 0.0f || wg[x] != 0.0f || wb[x] != 0.0f) {
-                    Surface surf;
-                    surf.albedo = glm::vec3(ch[4][x], ch[5][x], ch[6][x]);
-                    surf.roughness = ch[7][x];
-                    surf.metallic = ch[8][x];
-                    weight = ggx_reflection_weight(surf, nv[x]);
-                } else if (ch[7][x] <= p.max_roughness) {
-                    if (const std::optional<GlossyPixel> g =
-                            glossy_pixel(in, rays, p, x, y, /*with_point=*/false)) {
-                        weight = g->weight;
-                    }
-                }
-                wr[x] = weight.x;
-                wg[x] = weight.y;
-                wb[x] = weight.z;
-            }
+            ssr_weight_row(weight_row_inputs(in, rays, p, y, 1, w, ch), wr, wg, wb);
         } else {
             std::fill(wr, wr + 3 * row, 0.0f);
             for (int x = 0; x < w; ++x) {
