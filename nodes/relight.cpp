@@ -1,11 +1,11 @@
 // nodes/relight.cpp: add lights to a frame, or replace its lighting, from its G-buffer: normal,
 // position (or depth plus the camera matrices), albedo, material (roughness, metallic,
 // anisotropy), tangent and material id. Directional, point and spot lights; the metallic-workflow
-// BRDF of shading/lighting/brdf.h (Lambert or Burley diffuse, GGX with Smith or Cook-Torrance masking,
-// anisotropic GGX, Kulla & Conty 2017 energy compensation) and the rasterizer's toon bands and
-// sky light (shading/lighting/lighting.h), so that mode "replace" with the scene's sun and sky_ambient
-// reproduces Minecrappy's beauty. Optional screen-space shadows march the depth buffer toward
-// each light. Background pixels (no surface) keep their input color. This file declares the
+// BRDF of shading/lighting/brdf.h (Lambert or Burley diffuse, GGX with Smith or Cook-Torrance
+// masking, anisotropic GGX, Kulla & Conty 2017 energy compensation) and the rasterizer's toon bands
+// and sky light (shading/lighting/lighting.h), so that mode "replace" with the scene's sun and
+// sky_ambient reproduces Minecrappy's beauty. Optional screen-space shadows march the depth buffer
+// toward each light. Background pixels (no surface) keep their input color. This file declares the
 // parameters, checks them, plans the passes and fills shading::relight::Inputs; the method is in
 // src/shading/relight.{h,cpp} and relight_kernels.cpp.
 
@@ -23,11 +23,12 @@
 #include <set>
 
 #include "core/sanitize.h"
-#include "nodes/material_params.h"
 #include "graph/mask.h"
+#include "nodes/material_params.h"
 #include "nodes/node.h"
 #include "shading/lighting/brdf.h"
 #include "shading/lighting/lighting.h"
+#include "shading/lighting/occluder_thickness.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -150,8 +151,16 @@ constexpr ParamSpec kShadowDistance = ParamSpec::real("shadow_distance", 2.0)
 constexpr ParamSpec kShadowThickness = ParamSpec::real("shadow_thickness", 0.5)
                                            .range(0.0, 1e6)
                                            .units("m")
-                                           .doc("Assumed depth of every surface in the buffer.")
+                                           .doc(
+                                               "Assumed depth of every surface in the buffer "
+                                               "(with shadow_occluders extent, the most).")
                                            .only_when("shadows", "true");
+constexpr ParamSpec kShadowOccluders =
+    ParamSpec::choice("shadow_occluders", "extent|constant", "extent")
+        .doc(
+            "How deep an occluder is taken to be: as deep as it is wide on screen (a pole as "
+            "thin as it looks), up to shadow_thickness; or shadow_thickness everywhere.")
+        .only_when("shadows", "true");
 constexpr ParamSpec kShadowBias = ParamSpec::real("shadow_bias", 0.02)
                                       .range(0.0, 1e6)
                                       .units("m")
@@ -193,16 +202,21 @@ constexpr ParamSpec kParams[] = {kMode,
                                  kShadowSteps,
                                  kShadowDistance,
                                  kShadowThickness,
+                                 kShadowOccluders,
                                  kShadowBias,
                                  kClamp,
                                  kMaterialRoughness,
-                                 kMaterialMetallic, kMaskPass, kMaskChannel, kMaskInvert};
+                                 kMaterialMetallic,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image",
      "color,normal,albedo",
      false,
      "Frame with color and its G-buffer (material, else roughness and metallic); other passes "
-     "pass through."}, kMaskPort};
+     "pass through."},
+    kMaskPort};
 
 // Lights and toon ids, validated. `where` is "<file>:/nodes/<i>/params", `who` the node.
 Setup parse_setup(const NodeParams &params, const std::string &where, const std::string &who)
@@ -361,6 +375,11 @@ void execute(NodeContext &ctx)
         ss.world_to_ndc = w2ndc;
         ss.z_row = z_row;
     }
+    Image occluder;
+    if (shadows && ctx.get_choice(kShadowOccluders) == 0) {
+        occluder = shading::occluder_thickness(*depth, normal, w2c, cam_to_ndc, ss.thickness);
+        ss.occluder = &occluder;
+    }
     const int W = color.width(), H = color.height();
     const int nc = color.channels();
     Image out = Image::uninitialized(W, H, nc);
@@ -403,18 +422,24 @@ void execute(NodeContext &ctx)
 
 }  // namespace
 
-extern const NodeType kRelight{
-    {"relight", "Add or replace lights from the G-buffer (GGX BRDF).", kInputs, kParams, "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
-    &execute,
-    &plan,
-    &check,
-    nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kRelight, kDirectFields, problems);
-        audit(kRelight, kToonFields, problems);
-        audit(kRelight, kShadowFields, problems);
-        audit(kRelight, kLightFields_, problems);
-        audit(kRelight, kPlacedLightFields, problems);
-    }};
+extern const NodeType kRelight{{"relight",
+                                "Add or replace lights from the G-buffer (GGX BRDF).",
+                                kInputs,
+                                kParams,
+                                "color",
+                                /*sink=*/false,
+                                /*keeps_specular=*/false,
+                                /*maskable=*/true},
+                               &execute,
+                               &plan,
+                               &check,
+                               nullptr,
+                               [](std::vector<std::string> &problems) {
+                                   audit(kRelight, kDirectFields, problems);
+                                   audit(kRelight, kToonFields, problems);
+                                   audit(kRelight, kShadowFields, problems);
+                                   audit(kRelight, kLightFields_, problems);
+                                   audit(kRelight, kPlacedLightFields, problems);
+                               }};
 
 }  // namespace posthaste::nodes

@@ -25,7 +25,8 @@ namespace {
 // A small scene with every material kind the relight node distinguishes: rough and glossy
 // dielectrics, a metal, an anisotropic metal (sphere: smooth normals and tangents), a toon
 // material (id 5), on a floor, under a sun given as JSON text.
-std::string scene_json(const std::string &sun)
+// `extra`: more top-level keys, each followed by a comma.
+std::string scene_json(const std::string &sun, const std::string &extra = "")
 {
     return R"({"name": "relight_test", "frame_range": [1, 1],
   "world": {"size": [40, 24, 40], "terrain": "none"},
@@ -44,23 +45,27 @@ std::string scene_json(const std::string &sun)
   "balls": [
     {"center": [18, 5.5, 17], "radius": 1.5, "material": 3, "segments": 64},
     {"center": [22.5, 5.5, 17], "radius": 1.5, "material": 4, "segments": 64}],
-  "sun": )" +
-           sun + R"(,
+  )" + extra +
+           R"("sun": )" + sun + R"(,
   "camera": [{"frame": 1, "position": [20, 9, 8], "pitch_deg": -20, "focal_length_mm": 30}]})";
 }
 
-std::string write_scene(const std::string &dir, const std::string &name, const std::string &sun)
+std::string write_scene(const std::string &dir,
+                        const std::string &name,
+                        const std::string &sun,
+                        const std::string &extra = "")
 {
     const std::string path = dir + "/" + name + ".json";
-    std::ofstream(path) << scene_json(sun);
+    std::ofstream(path) << scene_json(sun, extra);
     return path;
 }
 
-std::string render_block(const std::string &id, const std::string &scene, int w, int h)
+std::string render_block(
+    const std::string &id, const std::string &scene, int w, int h, bool shadows = false)
 {
     return R"({"id": ")" + id + R"(", "type": "render", "params": {"scene": ")" + scene +
            R"(", "width": )" + std::to_string(w) + R"(, "height": )" + std::to_string(h) +
-           R"(, "shadows": false}})";
+           R"(, "shadows": )" + (shadows ? "true" : "false") + "}}";
 }
 
 // Graph: render -> relight (params) -> write (a sink; the capture is the relight node).
@@ -78,9 +83,9 @@ Frame relight(
     return g.evaluate(1);
 }
 
-Frame beauty(const std::string &scene, int w, int h, const std::string &dir)
+Frame beauty(const std::string &scene, int w, int h, const std::string &dir, bool shadows = false)
 {
-    const std::string graph = R"({"nodes": [)" + render_block("r", scene, w, h) + R"(,
+    const std::string graph = R"({"nodes": [)" + render_block("r", scene, w, h, shadows) + R"(,
         {"id": "o", "type": "write", "inputs": {"image": "r"},
          "params": {"path": ")" +
                               dir + R"(/b.exr", "passes": "color"}}]})";
@@ -157,6 +162,45 @@ TEST(RelightAccuracy, ReplaceWithNewSunMatchesRasterizerBeauty)
                 R"({"mode": "replace", "ambient": 0.7, "lights": [)" + std::string(kLightB) + "]}",
                 dir);
     EXPECT_GT(rmse_rgb(no_toon.image("color"), ref.image("color"), ref.image("depth")), 1e-3);
+}
+
+TEST(RelightAccuracy, ScreenSpaceShadowsAgainstShadowMaps)
+{
+    // The new sun's shadows marched through the depth pass against the rasterizer's shadow
+    // maps, on the scene above plus a row of thin poles (8 cm square, 3.5 m tall) in front of
+    // the red block, whose shadows fall on the floor and the block. With every occluder taken as
+    // 0.5 m deep, a ray passing behind a pole finds it in its way; as deep as it is wide on
+    // screen, only the rays that meet it do.
+    const std::string dir = test::scratch_dir("relight_shadows");
+    std::string pillars = R"("movers": [)";
+    for (int i = 0; i < 6; ++i) {
+        pillars += std::string(i ? ", " : "") + R"({"min": [)" + std::to_string(12.5 + 0.6 * i) +
+                   R"(, 4, 21.2], "size": [0.08, 3.5, 0.08], "material": 2})";
+    }
+    pillars += "],\n";
+    const std::string a = write_scene(dir, "a", kSunA, pillars),
+                      b = write_scene(dir, "b", kSunB, pillars);
+    const int w = 320, h = 180;
+    const Frame ref = beauty(b, w, h, dir, /*shadows=*/true);
+    const std::string lights = R"({"mode": "replace", "ambient": 0.7, "toon_ids": "5",
+                                   "lights": [)" +
+                               std::string(kLightB) + "]";
+    const auto err = [&](const std::string &more) {
+        const Frame lit = relight(a, w, h, lights + more + "}", dir);
+        EXPECT_TRUE(test::all_finite_rgb(lit.image("color"))) << more;
+        return rmse_rgb(lit.image("color"), ref.image("color"), ref.image("depth"));
+    };
+    const double none = err(""), constant = err(R"(, "shadows": true, "shadow_distance": 8,
+        "shadow_occluders": "constant")"),
+                 extent = err(R"(, "shadows": true, "shadow_distance": 8)");
+    std::printf(
+        "relight against shadow maps: no shadows %.4f, every occluder 0.5 m %.4f, "
+        "occluders as deep as wide %.4f\n",
+        none,
+        constant,
+        extent);
+    EXPECT_LT(extent, 0.8 * none);
+    EXPECT_LT(extent, constant);
 }
 
 TEST(RelightAccuracy, AddModeAddsExactlyTheReplaceLighting)

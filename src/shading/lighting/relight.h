@@ -47,6 +47,9 @@ struct ScreenShadows {
     glm::vec4 z_row{0.0f};  // camera-space z of a world point: dot(z_row, (p, 1))
     int steps = 16;
     float distance = 2.0f, thickness = 0.5f, bias = 0.02f;
+    /// Where non-null, each pixel's own thickness as an occluder (occluder_thickness.h), at most
+    /// `thickness`.
+    const Image *occluder = nullptr;
 
     // 1 lit, 0 occluded: marches from p (pushed off along n) toward the light, up to
     // min(distance, max_t) metres, with a per-pixel hashed start offset.
@@ -81,7 +84,8 @@ struct ScreenShadows {
             }
             const float zb = depth->at(int(px), int(py), 0);
             const float zr = z0 + dz * t;
-            if (std::isfinite(zb) && zb < zr - bias && zr - zb < thickness) {
+            const float deep = occluder ? occluder->at(int(px), int(py), 0) : thickness;
+            if (std::isfinite(zb) && zb < zr - bias && zr - zb < deep) {
                 return 0.0f;
             }
         }

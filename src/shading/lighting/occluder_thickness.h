@@ -1,0 +1,26 @@
+#pragma once
+// How deep each surface seen in a frame is taken to be where it occludes a screen-space
+// shadow march. The depth pass holds one layer, so a march cannot tell a thin pole from a wall:
+// a fixed thickness makes a pole cast a shadow as if it were that deep, wherever a ray passes
+// behind it. Here a surface is as deep as it is wide on screen: the shorter of its runs of
+// pixels along the row and the column, a run ending where depth jumps by more than the
+// surface's slope gives (a silhouette, not a crease), times the pixel's footprint at its depth.
+
+#include <glm/mat4x4.hpp>
+
+#include "core/image.h"
+
+namespace posthaste::shading {
+
+/// One channel, metres: for each pixel of `depth` (camera-space depth, > 0 on surfaces) the
+/// thickness its surface is taken to have, at most `max_thickness`; 0 where there is no surface.
+/// A run that reaches the image's edge counts as unbounded (its object may go on beyond). The
+/// normals (world space, any length) give each pixel's slope; without a usable normal a pixel is
+/// taken to face the camera. camera_to_ndc maps camera space to NDC in [0, 1] (x right, y down).
+Image occluder_thickness(const Image &depth,
+                         const Image &normal,
+                         const glm::mat4 &world_to_camera,
+                         const glm::mat4 &camera_to_ndc,
+                         float max_thickness);
+
+}  // namespace posthaste::shading
