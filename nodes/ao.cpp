@@ -14,8 +14,9 @@
 #include "graph/mask.h"
 #include "nodes/node.h"
 #include "shading/ao/ao_trace.h"
-#include "shading/camera_rays.h"
 #include "shading/ao/gtao.h"
+#include "shading/camera_rays.h"
+#include "shading/lighting/occluder_thickness.h"
 
 namespace posthaste::nodes {
 namespace {
@@ -24,26 +25,25 @@ constexpr ParamSpec kRadius = ParamSpec::real("radius", 1.0)
                                   .range(1e-4, 1e4)
                                   .units("scene units")
                                   .doc("Occluders farther than this from the point do not count.");
-constexpr ParamSpec kSlices =
-    ParamSpec::integer("slices", 2)
-        .range(1, 16)
-        .doc("gtao, bitmask: slice directions per pixel.")
-        .only_when("method", "gtao|bitmask");
-constexpr ParamSpec kSteps =
-    ParamSpec::integer("steps", 4)
-        .range(1, 64)
-        .doc("gtao, bitmask: depth samples on each side of a slice.")
-        .only_when("method", "gtao|bitmask");
+constexpr ParamSpec kSlices = ParamSpec::integer("slices", 2)
+                                  .range(1, 16)
+                                  .doc("gtao, bitmask: slice directions per pixel.")
+                                  .only_when("method", "gtao|bitmask");
+constexpr ParamSpec kSteps = ParamSpec::integer("steps", 4)
+                                 .range(1, 64)
+                                 .doc("gtao, bitmask: depth samples on each side of a slice.")
+                                 .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kDenoise = ParamSpec::boolean("denoise", true)
                                    .doc("Depth-aware 5x5 blur of the per-pixel rotation noise.");
 constexpr ParamSpec kIntensity = ParamSpec::real("intensity", 1.0)
                                      .range(0.0, 8.0)
                                      .doc("Exponent on the AO (0: no occlusion at all).");
-constexpr ParamSpec kMaxRadiusPx = ParamSpec::real("max_radius_px", 256.0)
-                                       .range(1.0, 4096.0)
-                                       .units("px")
-                                       .doc("gtao, bitmask: cap on the search's screen radius (close-ups).")
-                                       .only_when("method", "gtao|bitmask");
+constexpr ParamSpec kMaxRadiusPx =
+    ParamSpec::real("max_radius_px", 256.0)
+        .range(1.0, 4096.0)
+        .units("px")
+        .doc("gtao, bitmask: cap on the search's screen radius (close-ups).")
+        .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kApply = ParamSpec::choice("apply", "none|multiply", "none")
                                  .doc("none: only the ao pass; multiply: color RGB times ao too.");
 constexpr ParamSpec kResolution =
@@ -56,21 +56,26 @@ constexpr ParamSpec kMethod =
         .doc(
             "gtao: horizons in slices; bitmask: the same slices, a sample hiding only "
             "`thickness` behind it; trace: rays marched through the depth pass (slow reference).");
-constexpr ParamSpec kRays =
-    ParamSpec::integer("rays", 64)
-        .range(1, 1024)
-        .doc("trace: rays per pixel (a square grid).")
-        .only_when("method", "trace");
-constexpr ParamSpec kRaySteps =
-    ParamSpec::integer("ray_steps", 24)
-        .range(1, 256)
-        .doc("trace: depth samples along a ray.")
-        .only_when("method", "trace");
+constexpr ParamSpec kRays = ParamSpec::integer("rays", 64)
+                                .range(1, 1024)
+                                .doc("trace: rays per pixel (a square grid).")
+                                .only_when("method", "trace");
+constexpr ParamSpec kRaySteps = ParamSpec::integer("ray_steps", 24)
+                                    .range(1, 256)
+                                    .doc("trace: depth samples along a ray.")
+                                    .only_when("method", "trace");
 constexpr ParamSpec kThickness =
     ParamSpec::real("thickness", 1.0)
         .range(1e-4, 1e6)
         .units("scene units")
         .doc("bitmask, trace: how far a surface extends behind the depth pass (camera depth).")
+        .only_when("method", "bitmask|trace");
+constexpr ParamSpec kOccluders =
+    ParamSpec::choice("occluders", "extent|constant", "constant")
+        .doc(
+            "bitmask, trace: how far a surface extends behind the depth pass: as deep as it is "
+            "wide on screen (a pole as thin as it looks), up to thickness; or thickness "
+            "everywhere.")
         .only_when("method", "bitmask|trace");
 constexpr ParamSpec kParams[] = {kRadius,
                                  kSlices,
@@ -84,7 +89,11 @@ constexpr ParamSpec kParams[] = {kRadius,
                                  kMethod,
                                  kRays,
                                  kRaySteps,
-                                 kThickness, kMaskPass, kMaskChannel, kMaskInvert};
+                                 kThickness,
+                                 kOccluders,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {
     {"image", "depth,normal", false, "Depth, world normals and camera matrices."}, kMaskPort};
 
@@ -122,15 +131,24 @@ void execute(NodeContext &ctx)
         ao.fill(1.0f);
     } else {
         const int stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
+        Image occluder;
+        const bool extent =
+            ctx.get_string(kMethod) != "gtao" && ctx.get_string(kOccluders) == "extent";
+        if (extent) {
+            occluder = shading::occluder_thickness(
+                depth, normal, rays, fill(ctx.params(), kTraceFields).thickness);
+        }
         if (ctx.get_string(kMethod) == "trace") {
             shading::AoTraceParams p = fill(ctx.params(), kTraceFields);
             p.stride = stride;
+            p.occluder = extent ? &occluder : nullptr;
             ao = shading::ao_trace(depth, normal, rays, p);
         } else {
             shading::GtaoParams p = fill(ctx.params(), kGtaoFields);
             p.stride = stride;
             if (ctx.get_string(kMethod) == "bitmask") {
                 p.thickness = fill(ctx.params(), kTraceFields).thickness;  // 0 for horizons
+                p.thickness_map = extent ? &occluder : nullptr;
             }
             ao = shading::gtao(depth, normal, rays, p);
         }
@@ -179,7 +197,10 @@ extern const NodeType kAo{
      "Screen-space ambient occlusion (GTAO) from depth, normals and the camera; pass \"ao\".",
      kInputs,
      kParams,
-     "ao", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
+     "ao",
+     /*sink=*/false,
+     /*keeps_specular=*/false,
+     /*maskable=*/true},
     &execute,
     &plan,
     nullptr,

@@ -377,7 +377,8 @@ void execute(NodeContext &ctx)
     }
     Image occluder;
     if (shadows && ctx.get_choice(kShadowOccluders) == 0) {
-        occluder = shading::occluder_thickness(*depth, normal, w2c, cam_to_ndc, ss.thickness);
+        occluder = shading::occluder_thickness(
+            *depth, normal, shading::CameraRays(w2c, w2ndc), ss.thickness);
         ss.occluder = &occluder;
     }
     const int W = color.width(), H = color.height();

@@ -20,6 +20,8 @@
 #include "graph/graph.h"
 #include "nodes/registry.h"
 #include "raster/render.h"
+#include "shading/camera_rays.h"
+#include "shading/lighting/occluder_thickness.h"
 #include "test_util.h"
 
 namespace posthaste {
@@ -55,6 +57,20 @@ void run_node(benchmark::State &state, const std::string &options)
     }
     state.counters["cpu_ms"] = cpu / double(state.iterations());
     state.counters["threads"] = thread_count();
+}
+
+void BM_OccluderThickness(benchmark::State &state)
+{
+    // The occluders' thickness the shadow march reads (shading/lighting/occluder_thickness.h),
+    // alone: its share of the shadowed run.
+    const Frame &in = gbuffer();
+    const Camera &camera = in.camera;
+    const shading::CameraRays rays(*camera.world_to_camera, *camera.world_to_ndc);
+    for (auto _ : state) {
+        const Image t =
+            shading::occluder_thickness(in.image("depth"), in.image("normal"), rays, 0.5f);
+        benchmark::DoNotOptimize(t.data());
+    }
 }
 
 void BM_RelightBaselineCopy(benchmark::State &state)
@@ -162,6 +178,7 @@ BENCHMARK(BM_Relight4LightsPortable)->Unit(benchmark::kMillisecond)->UseRealTime
 BENCHMARK(BM_Relight4LightsOneLane)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsEnergyCompensation)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Relight4LightsScreenShadows)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_OccluderThickness)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 }  // namespace posthaste

@@ -14,7 +14,7 @@ constexpr int kSize = 16;
 constexpr float kFocal = 2.0f;  // NDC per unit of x / z: a pixel is 1 / (16 * 2) wide at depth 1
 
 /// A pinhole looking down +z, camera space = world space: NDC u = 0.5 + f x / z, v likewise.
-glm::mat4 camera_to_ndc()
+shading::CameraRays camera()
 {
     glm::mat4 m(0.0f);
     m[0][0] = kFocal;
@@ -23,7 +23,7 @@ glm::mat4 camera_to_ndc()
     m[2][1] = 0.5f;
     m[2][3] = 1.0f;
     m[3][2] = 1.0f;
-    return m;
+    return shading::CameraRays(glm::mat4(1.0f), m);
 }
 
 /// A wall at depth 10 facing the camera, with a pole two pixels wide (columns 6-7) at depth 8
@@ -48,8 +48,7 @@ TEST(OccluderThickness, APoleIsAsDeepAsItIsWide)
     Image depth, normal;
     scene(depth, normal);
     const float footprint = 1.0f / (kSize * kFocal);
-    const Image t =
-        shading::occluder_thickness(depth, normal, glm::mat4(1.0f), camera_to_ndc(), 0.5f);
+    const Image t = shading::occluder_thickness(depth, normal, camera(), 0.5f);
     // The pole: two columns, down to the image's bottom (its run along the column is open).
     EXPECT_NEAR(t.at(6, 8, 0), 2.0f * footprint * 8.0f, 1e-6f);
     EXPECT_NEAR(t.at(7, 15, 0), 2.0f * footprint * 8.0f, 1e-6f);
@@ -63,8 +62,7 @@ TEST(OccluderThickness, APoleIsAsDeepAsItIsWide)
     // The sky occludes nothing.
     EXPECT_EQ(t.at(3, 0, 0), 0.0f);
     // A larger cap: the wall's open runs take it, the pole's closed run does not change.
-    const Image big =
-        shading::occluder_thickness(depth, normal, glm::mat4(1.0f), camera_to_ndc(), 4.0f);
+    const Image big = shading::occluder_thickness(depth, normal, camera(), 4.0f);
     EXPECT_EQ(big.at(2, 8, 0), 4.0f);
     EXPECT_EQ(big.at(6, 8, 0), t.at(6, 8, 0));
     EXPECT_NEAR(big.at(6, 1, 0), 2.0f * footprint * 10.0f, 1e-6f);
@@ -75,7 +73,7 @@ TEST(OccluderThickness, AGrazingPlaneAndACreaseStayOneSurface)
     // A floor seen at a grazing angle: depth grows by a large step from row to row, as its
     // normal says it should; and a crease (two planes meeting at column 8) is continuous. Both
     // are one surface reaching the edges: as deep as the most.
-    const glm::mat4 m = camera_to_ndc();
+    const shading::CameraRays m = camera();
     Image depth(kSize, kSize, 1), normal(kSize, kSize, 3);
     const float footprint = 1.0f / (kSize * kFocal);
     const float slope = 3.0f;  // depth change per pixel at depth 1 on the floor: tan of 71.6 deg
@@ -90,7 +88,7 @@ TEST(OccluderThickness, AGrazingPlaneAndACreaseStayOneSurface)
             normal.at(x, y, 2) = -c;
         }
     }
-    const Image t = shading::occluder_thickness(depth, normal, glm::mat4(1.0f), m, 0.5f);
+    const Image t = shading::occluder_thickness(depth, normal, m, 0.5f);
     for (int y = 1; y < kSize; ++y) {
         for (int x = 0; x < kSize; ++x) {
             ASSERT_EQ(t.at(x, y, 0), 0.5f) << x << "," << y;
@@ -104,7 +102,7 @@ TEST(OccluderThickness, AGrazingPlaneAndACreaseStayOneSurface)
             flat.at(x, y, 2) = -1.0f;
         }
     }
-    const Image rows = shading::occluder_thickness(depth, flat, glm::mat4(1.0f), m, 0.5f);
+    const Image rows = shading::occluder_thickness(depth, flat, m, 0.5f);
     EXPECT_NEAR(rows.at(8, 8, 0), footprint * depth.at(8, 8, 0), 1e-5f);
 }
 
@@ -116,8 +114,7 @@ TEST(OccluderThickness, NonFiniteAndDegenerateInputGiveBoundedOutput)
     depth.at(5, 5, 0) = -1.0f;
     normal.at(9, 9, 0) = std::numeric_limits<float>::infinity();
     normal.at(10, 10, 2) = 0.0f;  // no normal
-    const Image t =
-        shading::occluder_thickness(depth, normal, glm::mat4(1.0f), camera_to_ndc(), 0.5f);
+    const Image t = shading::occluder_thickness(depth, normal, camera(), 0.5f);
     for (int y = 0; y < kSize; ++y) {
         for (int x = 0; x < kSize; ++x) {
             const float v = t.at(x, y, 0);
@@ -126,9 +123,8 @@ TEST(OccluderThickness, NonFiniteAndDegenerateInputGiveBoundedOutput)
     }
     EXPECT_EQ(t.at(4, 4, 0), 0.0f);
     EXPECT_EQ(t.at(5, 5, 0), 0.0f);
-    // A singular camera: no footprint, every surface as deep as the most.
-    const Image s =
-        shading::occluder_thickness(depth, normal, glm::mat4(1.0f), glm::mat4(0.0f), 0.5f);
+    // A degenerate camera: no footprint, every surface as deep as the most.
+    const Image s = shading::occluder_thickness(depth, normal, shading::CameraRays(), 0.5f);
     EXPECT_EQ(s.at(6, 8, 0), 0.5f);
 }
 

@@ -43,7 +43,7 @@ struct DepthField {
 
     /// Whether world vector q (from the camera) lies behind the depth pass's surface, by less
     /// than `thickness`; false where q leaves the screen (`left` set) or meets the sky.
-    bool inside(const glm::vec3 &q, float thickness, bool &left) const
+    bool inside(const glm::vec3 &q, float thickness, const Image *occluder, bool &left) const
     {
         // q = z (origin + u du + v dv): camera depth z and NDC (u, v).
         const glm::vec3 s = minv * q;
@@ -73,7 +73,8 @@ struct DepthField {
                 zs = zplane;
             }
         }
-        return z > zs * (1.0f + 1e-4f) && z < zs + thickness;
+        const float deep = occluder ? std::min(thickness, occluder->at(x, y, 0)) : thickness;
+        return z > zs * (1.0f + 1e-4f) && z < zs + deep;
     }
 };
 
@@ -120,7 +121,8 @@ Image ao_trace(const Image &depth,
                 for (int k = 0; k < steps && !hit && !left; ++k) {
                     // Quadratic spacing from t0 to the radius: dense where occluders are near.
                     const float f = (float(k) + jitter) / float(steps);
-                    hit = field.inside(pt + d * (t0 + (p.radius - t0) * f * f), p.thickness, left);
+                    hit = field.inside(
+                        pt + d * (t0 + (p.radius - t0) * f * f), p.thickness, p.occluder, left);
                 }
                 open += hit ? 0 : 1;
             }

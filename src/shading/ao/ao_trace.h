@@ -20,6 +20,9 @@ struct AoTraceParams {
     int steps = 24;       ///< Depth samples along each ray (denser near its start).
     /// Camera-depth units a visible surface is taken to extend behind itself.
     float thickness = 1.0f;
+    /// Where non-null, each pixel's own thickness (shading/lighting/occluder_thickness.h, the
+    /// depth pass's size), used where it is less than `thickness`.
+    const Image *occluder = nullptr;
     int stride = 1;  ///< As GtaoParams::stride: 2 traces every other pixel in x and y.
     std::uint32_t seed = 0;
 };

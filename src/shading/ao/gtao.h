@@ -28,6 +28,9 @@ struct GtaoParams {
     /// of 32 sectors per slice, each sample hiding only the sectors between itself and itself
     /// pushed this far in camera depth (scene units).
     float thickness = 0.0f;
+    /// With thickness > 0, where non-null: each pixel's own thickness (one channel, the depth
+    /// pass's size; shading/lighting/occluder_thickness.h), used instead of `thickness`.
+    const Image *thickness_map = nullptr;
 };
 
 /// AO (1 channel, 0 occluded .. 1 open, the estimate itself: a few slices can scatter a little

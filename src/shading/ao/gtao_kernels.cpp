@@ -188,8 +188,7 @@ void GtaoRowT(const GtaoKernelParams &p,
             // Sectors hidden by a surface point q (from the point) with front cosine cf: from q
             // to q pushed `thickness` of camera depth away along its ray r, where `ok`.
             const auto occlude =
-                [&](auto ok, V cf, V qx, V qy, V qz, V rx, V ry, V rz, bool side1) {
-                    const V th = hn::Set(d, p.thickness);
+                [&](auto ok, V cf, V qx, V qy, V qz, V rx, V ry, V rz, V th, bool side1) {
                     const V bx = hn::MulAdd(th, rx, qx), by = hn::MulAdd(th, ry, qy),
                             bz = hn::MulAdd(th, rz, qz);
                     const V cb =
@@ -232,7 +231,8 @@ void GtaoRowT(const GtaoKernelParams &p,
                     }
                     const auto sxi = hn::ConvertTo(di, hn::IfThenElseZero(alive, sxf));
                     const auto syi = hn::ConvertTo(di, hn::IfThenElseZero(alive, syf));
-                    const V sz = hn::GatherIndex(d, p.depth, hn::Add(hn::Mul(syi, width_i), sxi));
+                    const auto sidx = hn::Add(hn::Mul(syi, width_i), sxi);
+                    const V sz = hn::GatherIndex(d, p.depth, sidx);
                     const auto valid = hn::And(alive, hn::And(hn::Gt(sz, zero), hn::IsFinite(sz)));
                     const V szc = hn::IfThenElse(valid, sz, one);
                     const V su = hn::Mul(hn::Add(sxf, half), vinv_w);
@@ -248,8 +248,11 @@ void GtaoRowT(const GtaoKernelParams &p,
                         hn::And(valid, hn::And(hn::Le(len2, r2), hn::Ge(len2, hn::Set(d, 1e-12f))));
                     const V c = hn::Div(Dot(q_x, q_y, q_z, view_x, view_y, view_z),
                                         hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f))));
+                    // The sample's thickness: its pixel's own where a map gives one.
+                    const V th = p.thickness_map ? hn::GatherIndex(d, p.thickness_map, sidx)
+                                                 : hn::Set(d, p.thickness);
                     if constexpr (kBitmask) {
-                        occlude(in_range, c, q_x, q_y, q_z, sr_x, sr_y, sr_z, side_i == 1);
+                        occlude(in_range, c, q_x, q_y, q_z, sr_x, sr_y, sr_z, th, side_i == 1);
                     } else {
                         h = hn::IfThenElse(in_range, hn::Max(h, c), h);
                     }
@@ -286,6 +289,7 @@ void GtaoRowT(const GtaoKernelParams &p,
                                     sr_x,
                                     sr_y,
                                     sr_z,
+                                    th,
                                     side_i == 1);
                         } else {
                             h = hn::IfThenElse(ok, hn::Max(h, cq), h);

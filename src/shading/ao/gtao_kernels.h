@@ -22,6 +22,8 @@ struct GtaoKernelParams {
     /// 0: a sample hides everything below its horizon (GTAO); > 0: only the sectors between
     /// it and it pushed this far in camera depth (a visibility bitmask, Therrien et al. 2023).
     float thickness = 0.0f;
+    /// With thickness > 0, where non-null: each pixel's own thickness (w x h), used instead.
+    const float *thickness_map = nullptr;
     const float *dir_x = nullptr, *dir_y = nullptr;  ///< slice directions [16 * slices]
 };
 

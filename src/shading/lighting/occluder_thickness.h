@@ -6,9 +6,8 @@
 // pixels along the row and the column, a run ending where depth jumps by more than the
 // surface's slope gives (a silhouette, not a crease), times the pixel's footprint at its depth.
 
-#include <glm/mat4x4.hpp>
-
 #include "core/image.h"
+#include "shading/camera_rays.h"
 
 namespace posthaste::shading {
 
@@ -16,11 +15,11 @@ namespace posthaste::shading {
 /// thickness its surface is taken to have, at most `max_thickness`; 0 where there is no surface.
 /// A run that reaches the image's edge counts as unbounded (its object may go on beyond). The
 /// normals (world space, any length) give each pixel's slope; without a usable normal a pixel is
-/// taken to face the camera. camera_to_ndc maps camera space to NDC in [0, 1] (x right, y down).
+/// taken to face the camera. `rays` are the camera's, NDC [0, 1]^2 spanning the image; with no
+/// pixel footprint (a degenerate camera) every surface is `max_thickness` deep.
 Image occluder_thickness(const Image &depth,
                          const Image &normal,
-                         const glm::mat4 &world_to_camera,
-                         const glm::mat4 &camera_to_ndc,
+                         const CameraRays &rays,
                          float max_thickness);
 
 }  // namespace posthaste::shading
