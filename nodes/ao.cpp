@@ -77,6 +77,15 @@ constexpr ParamSpec kOccluders =
             "wide on screen (a pole as thin as it looks), up to thickness; or thickness "
             "everywhere.")
         .only_when("method", "bitmask|trace");
+constexpr ParamSpec kCrossings =
+    ParamSpec::choice("crossings", "all|reachable", "all")
+        .doc(
+            "gtao, bitmask: where a sample lies just beyond the radius, the straight surface "
+            "from the last sample inside is an occluder (all); reachable: only where the nearer "
+            "of the two reaches back to the farther's depth (each surface as deep as it is wide "
+            "on screen), so a jump to an object standing clear of the surface behind it is not "
+            "taken for a surface.")
+        .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kParams[] = {kRadius,
                                  kSlices,
                                  kSteps,
@@ -91,6 +100,7 @@ constexpr ParamSpec kParams[] = {kRadius,
                                  kRaySteps,
                                  kThickness,
                                  kOccluders,
+                                 kCrossings,
                                  kMaskPass,
                                  kMaskChannel,
                                  kMaskInvert};
@@ -131,25 +141,33 @@ void execute(NodeContext &ctx)
         ao.fill(1.0f);
     } else {
         const int stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
+        // How deep each surface is (shading/lighting/occluder_thickness.h): the bitmask's and
+        // the trace's occluders (at most `thickness`), and for reachable crossings how far back
+        // a surface reaches (at most twice the radius: the farthest a crossing's pair lies).
+        const std::string method = ctx.get_string(kMethod);
+        const bool extent = method != "gtao" && ctx.get_string(kOccluders) == "extent";
+        const bool reachable = method != "trace" && ctx.get_string(kCrossings) == "reachable";
+        const shading::AoTraceParams trace = fill(ctx.params(), kTraceFields);
         Image occluder;
-        const bool extent =
-            ctx.get_string(kMethod) != "gtao" && ctx.get_string(kOccluders) == "extent";
-        if (extent) {
-            occluder = shading::occluder_thickness(
-                depth, normal, rays, fill(ctx.params(), kTraceFields).thickness);
+        if (extent || reachable) {
+            const float cap = std::max(extent || method == "bitmask" ? trace.thickness : 0.0f,
+                                       reachable ? 2.0f * trace.radius : 0.0f);
+            occluder = shading::occluder_thickness(depth, normal, rays, cap);
         }
-        if (ctx.get_string(kMethod) == "trace") {
-            shading::AoTraceParams p = fill(ctx.params(), kTraceFields);
+        if (method == "trace") {
+            shading::AoTraceParams p = trace;
             p.stride = stride;
             p.occluder = extent ? &occluder : nullptr;
             ao = shading::ao_trace(depth, normal, rays, p);
         } else {
             shading::GtaoParams p = fill(ctx.params(), kGtaoFields);
             p.stride = stride;
-            if (ctx.get_string(kMethod) == "bitmask") {
-                p.thickness = fill(ctx.params(), kTraceFields).thickness;  // 0 for horizons
-                p.thickness_map = extent ? &occluder : nullptr;
+            if (method == "bitmask") {
+                p.thickness = trace.thickness;  // 0 for horizons
             }
+            p.thickness_map = extent || reachable ? &occluder : nullptr;
+            p.thickness_from_map = extent;
+            p.reachable_crossings = reachable;
             ao = shading::gtao(depth, normal, rays, p);
         }
         const Image ao_depth = shading::gtao_depth(depth, stride);

@@ -391,12 +391,15 @@ TEST(Ao, BitmaskReadsEachSamplesThicknessFromAMap)
     test::for_each_highway_target([&](const char *target) {
         const Image constant = shading::gtao(g.depth, g.normal, g.rays, p);
         p.thickness_map = &same;
+        p.thickness_from_map = true;
         EXPECT_TRUE(shading::gtao(g.depth, g.normal, g.rays, p).bit_equal(constant)) << target;
         p.thickness_map = nullptr;
+        p.thickness_from_map = false;
     });
     const Image occluder = shading::occluder_thickness(g.depth, g.normal, g.rays, 1.0f);
     const Image constant = shading::gtao(g.depth, g.normal, g.rays, p);
     p.thickness_map = &occluder;
+    p.thickness_from_map = true;
     const Image extent = shading::gtao(g.depth, g.normal, g.rays, p);
     // Floor pixels 0.6-1.4 m behind the pole and within 0.5 m of its plane.
     const double near_c = floor_band(g, constant, 0.5f, 100),
@@ -407,6 +410,45 @@ TEST(Ao, BitmaskReadsEachSamplesThicknessFromAMap)
         near_c,
         near_e);
     EXPECT_GT(near_e, near_c + 0.02);
+}
+
+// Reachable crossings. At the foot of the wall the wall reaches back as far as any crossing
+// needs: the closed form's bands as before. Below the hanging plate (0.8 m tall, more than the
+// radius above the floor) a sample on the floor and the next one on the plate are within twice
+// the radius, and the straight surface between them, which is not there, darkened the floor; the
+// plate is not deep enough to reach back to the floor's depth, so with reachable crossings the
+// floor reads open.
+TEST(Ao, ReachableCrossingsKeepTheCornerAndDropTheJumpToAPlateAbove)
+{
+    shading::GtaoParams p;
+    p.radius = 1.0f;
+    p.slices = 4;
+    p.steps = 16;
+    p.reachable_crossings = true;
+    const AnalyticGBuffer wall = floor_wall_gbuffer(320, 240, true);
+    const Image wall_map = shading::occluder_thickness(wall.depth, wall.normal, wall.rays, 2.0f);
+    p.thickness_map = &wall_map;
+    const Image corner = gtao_denoised(wall, p);
+    for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
+        expect_corner_band(wall, corner, d0, d0 + 0.25);
+    }
+    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, false, true);
+    const Image plate_map = shading::occluder_thickness(g.depth, g.normal, g.rays, 2.0f);
+    p.thickness_map = &plate_map;
+    const Image reachable = gtao_denoised(g, p);
+    p.reachable_crossings = false;
+    const Image all = gtao_denoised(g, p);
+    const double under_all = floor_band(g, all, 1e30f, 200),
+                 under_reachable = floor_band(g, reachable, 1e30f, 200);
+    std::printf("floor under a plate: AO %.4f with every crossing, %.4f with reachable ones\n",
+                under_all,
+                under_reachable);
+    EXPECT_GT(under_reachable, under_all + 0.01);
+    EXPECT_GT(under_reachable, 0.98);
+    // Without a map the gate refuses.
+    p.reachable_crossings = true;
+    p.thickness_map = nullptr;
+    EXPECT_THROW(shading::gtao(g.depth, g.normal, g.rays, p), Error);
 }
 
 TEST(Ao, TraceGivesTheSameBitsOnAnyThreadCount)

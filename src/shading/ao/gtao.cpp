@@ -55,14 +55,21 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
     kp.steps = std::max(1, p.steps);
     kp.stride = st;
     kp.thickness = p.thickness;
-    if (p.thickness > 0.0f && p.thickness_map) {
+    if (p.thickness_map) {
         if (p.thickness_map->width() != depth.width() ||
             p.thickness_map->height() != depth.height() || p.thickness_map->channels() != 1) {
             throw Error(ExitCode::Runtime,
                         "gtao: the thickness map is not one channel of the depth pass's size");
         }
-        kp.thickness_map = p.thickness_map->data();
+        kp.thickness_from_map = p.thickness > 0.0f && p.thickness_from_map;
+        if (kp.thickness_from_map || p.reachable_crossings) {
+            kp.thickness_map = p.thickness_map->data();
+        }
     }
+    if (p.reachable_crossings && !kp.thickness_map) {
+        throw Error(ExitCode::Runtime, "gtao: reachable crossings need a thickness map");
+    }
+    kp.reachable_crossings = p.reachable_crossings;
     // Slice directions for each of the pattern's 16 rotations.
     std::vector<float> dir_x(std::size_t(16 * kp.slices)), dir_y(dir_x.size());
     for (int r = 0; r < 16; ++r) {

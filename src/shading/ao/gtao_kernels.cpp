@@ -214,6 +214,8 @@ void GtaoRowT(const GtaoKernelParams &p,
                 auto alive = active;
                 auto have_prev = hn::Lt(one, zero);  // all false
                 V prev_x = zero, prev_y = zero, prev_z = zero;
+                V prev_depth = zero;  // the last sample's depth and pixel, for the gate
+                auto prev_idx = hn::Zero(di);
                 V h = hc[side_i];
                 for (int k = 0; k < p.steps; ++k) {
                     // Quadratic spacing, as gtao.h says.
@@ -248,9 +250,12 @@ void GtaoRowT(const GtaoKernelParams &p,
                         hn::And(valid, hn::And(hn::Le(len2, r2), hn::Ge(len2, hn::Set(d, 1e-12f))));
                     const V c = hn::Div(Dot(q_x, q_y, q_z, view_x, view_y, view_z),
                                         hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f))));
-                    // The sample's thickness: its pixel's own where a map gives one.
-                    const V th = p.thickness_map ? hn::GatherIndex(d, p.thickness_map, sidx)
-                                                 : hn::Set(d, p.thickness);
+                    // The sample's surface depth: its pixel's own where a map gives one
+                    // (at most `thickness` for the bitmask).
+                    const V th = p.thickness_from_map
+                                     ? hn::Min(hn::GatherIndex(d, p.thickness_map, sidx),
+                                               hn::Set(d, p.thickness))
+                                     : hn::Set(d, p.thickness);
                     if constexpr (kBitmask) {
                         occlude(in_range, c, q_x, q_y, q_z, sr_x, sr_y, sr_z, th, side_i == 1);
                     } else {
@@ -269,8 +274,18 @@ void GtaoRowT(const GtaoKernelParams &p,
                         const V cc =
                             hn::Sub(Dot(prev_x, prev_y, prev_z, prev_x, prev_y, prev_z), r2);
                         const V disc = hn::NegMulAdd(aa, cc, hn::Mul(b, b));
-                        const auto ok =
-                            hn::And(crossing, hn::And(hn::Gt(aa, zero), hn::Ge(disc, zero)));
+                        auto ok = hn::And(crossing, hn::And(hn::Gt(aa, zero), hn::Ge(disc, zero)));
+                        if (p.reachable_crossings) {
+                            // A surface between the two is there only if the nearer one reaches
+                            // back to the farther one's depth (its map depth): else the jump is a
+                            // silhouette with empty space behind it.
+                            const auto q_nearer = hn::Lt(szc, prev_depth);
+                            const V reach = hn::GatherIndex(
+                                d,
+                                p.thickness_map,
+                                hn::IfThenElse(hn::RebindMask(di, q_nearer), sidx, prev_idx));
+                            ok = hn::And(ok, hn::Le(hn::Abs(hn::Sub(szc, prev_depth)), reach));
+                        }
                         const V uu = hn::Div(hn::Sub(hn::Sqrt(hn::Max(disc, zero)), b),
                                              hn::IfThenElse(ok, aa, one));
                         const V cq = hn::Mul(Dot(hn::MulAdd(uu, a_x, prev_x),
@@ -300,6 +315,8 @@ void GtaoRowT(const GtaoKernelParams &p,
                     const auto forget = hn::Or(hn::AndNot(valid, alive), beyond);
                     have_prev = hn::Or(in_range, hn::AndNot(forget, have_prev));
                     prev_x = hn::IfThenElse(in_range, q_x, prev_x);
+                    prev_depth = hn::IfThenElse(in_range, szc, prev_depth);
+                    prev_idx = hn::IfThenElse(hn::RebindMask(di, in_range), sidx, prev_idx);
                     prev_y = hn::IfThenElse(in_range, q_y, prev_y);
                     prev_z = hn::IfThenElse(in_range, q_z, prev_z);
                 }

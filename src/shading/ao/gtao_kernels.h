@@ -22,8 +22,14 @@ struct GtaoKernelParams {
     /// 0: a sample hides everything below its horizon (GTAO); > 0: only the sectors between
     /// it and it pushed this far in camera depth (a visibility bitmask, Therrien et al. 2023).
     float thickness = 0.0f;
-    /// With thickness > 0, where non-null: each pixel's own thickness (w x h), used instead.
+    /// Where non-null: each pixel's own surface depth (w x h): with thickness_from_map a
+    /// sample hides the sectors of min(its own, thickness); with reachable_crossings it gates
+    /// the radius crossings.
     const float *thickness_map = nullptr;
+    bool thickness_from_map = false;
+    /// A crossing of the radius between two samples counts only where the nearer one's surface
+    /// reaches back to the farther one's depth (needs thickness_map).
+    bool reachable_crossings = false;
     const float *dir_x = nullptr, *dir_y = nullptr;  ///< slice directions [16 * slices]
 };
 
