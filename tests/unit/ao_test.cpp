@@ -451,6 +451,31 @@ TEST(Ao, ReachableCrossingsKeepTheCornerAndDropTheJumpToAPlateAbove)
     EXPECT_THROW(shading::gtao(g.depth, g.normal, g.rays, p), Error);
 }
 
+// The farm's CPUs (AVX2 and AVX-512 nodes) give the same bits: GTAO's horizons, the bitmask and
+// the gated crossings. (SSE4 and the one-lane target have no FMA: their MulAdd rounds twice.)
+TEST(Ao, GtaoGivesTheSameBitsOnAvx2AndAvx512)
+{
+    const AnalyticGBuffer g = floor_wall_gbuffer(160, 120, true, true, true);
+    const Image map = shading::occluder_thickness(g.depth, g.normal, g.rays, 2.0f);
+    for (const int mode : {0, 1, 2}) {
+        shading::GtaoParams p;
+        p.thickness = mode == 1 ? 1.0f : 0.0f;
+        p.thickness_map = mode == 0 ? nullptr : &map;
+        p.thickness_from_map = mode == 1;
+        p.reachable_crossings = mode == 2;
+        std::vector<std::pair<std::string, Image>> out;
+        test::for_each_highway_target([&](const char *target) {
+            const std::string t = target;
+            if (t == "AVX2" || t == "AVX-512") {
+                out.emplace_back(t, shading::gtao(g.depth, g.normal, g.rays, p));
+            }
+        });
+        if (out.size() == 2) {
+            EXPECT_TRUE(out[0].second.bit_equal(out[1].second)) << "mode " << mode;
+        }
+    }
+}
+
 TEST(Ao, TraceGivesTheSameBitsOnAnyThreadCount)
 {
     const AnalyticGBuffer g = floor_wall_gbuffer(97, 61, true, true);
