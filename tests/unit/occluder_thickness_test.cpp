@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <glm/geometric.hpp>
 #include <limits>
 
 namespace posthaste {
@@ -126,6 +129,136 @@ TEST(OccluderThickness, NonFiniteAndDegenerateInputGiveBoundedOutput)
     // A degenerate camera: no footprint, every surface as deep as the most.
     const Image s = shading::occluder_thickness(depth, normal, shading::CameraRays(), 0.5f);
     EXPECT_EQ(s.at(6, 8, 0), 0.5f);
+}
+
+}  // namespace
+}  // namespace posthaste
+
+namespace posthaste {
+namespace {
+
+/// The rule occluder_thickness.h states, pixel by pixel: walk each pixel's run along its row
+/// and its column while neighbours are joined (a depth step within 1 % of the nearer depth, or
+/// within twice the flatter slope's step over a pixel plus 1 %); a run reaching the edge is
+/// unbounded.
+float reference_thickness(const Image &depth,
+                          const Image &normal,
+                          const shading::CameraRays &rays,
+                          float max_thickness,
+                          int x,
+                          int y)
+{
+    const int w = depth.width(), h = depth.height();
+    const float footprint =
+        0.5f * (glm::length(rays.ray_du()) / float(w) + glm::length(rays.ray_dv()) / float(h));
+    const auto z_at = [&](int px, int py) {
+        const float z = depth.at(px, py, 0);
+        return z > 0.0f && std::isfinite(z) ? z : 0.0f;
+    };
+    const auto tangent = [&](int px, int py) {
+        const glm::vec3 n(normal.at(px, py, 0), normal.at(px, py, 1), normal.at(px, py, 2));
+        const glm::vec3 ray =
+            rays.depth_ray((float(px) + 0.5f) / float(w), (float(py) + 0.5f) / float(h));
+        const float nn = glm::length(n) * glm::length(ray);
+        if (!(nn > 0.0f) || !std::isfinite(nn)) {
+            return 0.0f;
+        }
+        const float c = std::fabs(glm::dot(n, ray)) / nn;
+        const float s = std::sqrt(std::max(0.0f, 1.0f - c * c));
+        return std::min(s / std::max(c, 0.05f), 20.0f);
+    };
+    const auto joined = [&](int xa, int ya, int xb, int yb) {
+        const float za = z_at(xa, ya), zb = z_at(xb, yb);
+        if (za == 0.0f || zb == 0.0f) {
+            return false;
+        }
+        const float z = std::min(za, zb), step = std::fabs(za - zb);
+        return step <= 0.01f * z ||
+               step <= z * (2.0f * footprint * std::min(tangent(xa, ya), tangent(xb, yb)) + 0.01f);
+    };
+    const float z = z_at(x, y);
+    if (z == 0.0f) {
+        return 0.0f;
+    }
+    const auto run = [&](int dx, int dy) {
+        int n = 1;
+        bool open = false;
+        for (int s = -1; s <= 1; s += 2) {
+            int px = x, py = y;
+            while (true) {
+                const int qx = px + s * dx, qy = py + s * dy;
+                if (qx < 0 || qy < 0 || qx >= w || qy >= h) {
+                    open = true;
+                    break;
+                }
+                if (!joined(px, py, qx, qy)) {
+                    break;
+                }
+                px = qx;
+                py = qy;
+                ++n;
+            }
+        }
+        return open ? 1e30f : float(n);
+    };
+    return std::min(max_thickness, std::min(run(1, 0), run(0, 1)) * footprint * z);
+}
+
+TEST(OccluderThickness, EqualsTheRuleWalkedPixelByPixelOnAClutteredFrame)
+{
+    // Boxes of every size at random depths over a tilted floor, normals tilted at random (some
+    // zero, some NaN), sky and bad depths scattered: steps of every kind, joined by depth alone
+    // and by slope. The map's row-parallel, branch-free passes must give the walk's bits.
+    constexpr int kW = 97, kH = 61;
+    Image depth(kW, kH, 1), normal(kW, kH, 3);
+    std::uint32_t state = 12345u;
+    const auto rnd = [&state] {
+        state = state * 1664525u + 1013904223u;
+        return float(state >> 8) / float(1u << 24);
+    };
+    for (int y = 0; y < kH; ++y) {
+        for (int x = 0; x < kW; ++x) {
+            depth.at(x, y, 0) = 4.0f + 40.0f / float(y + 2);  // a floor receding upwards
+            const float tilt = rnd();
+            normal.at(x, y, 0) = tilt - 0.5f;
+            normal.at(x, y, 1) = tilt < 0.1f ? 0.0f : -1.0f;
+            normal.at(x, y, 2) = tilt < 0.1f ? 0.0f : -tilt;
+            if (tilt > 0.97f) {
+                normal.at(x, y, 1) = std::numeric_limits<float>::quiet_NaN();
+            }
+        }
+    }
+    for (int b = 0; b < 40; ++b) {
+        const int x0 = int(rnd() * kW), y0 = int(rnd() * kH);
+        const int bw = 1 + int(rnd() * 12), bh = 1 + int(rnd() * 12);
+        const float z = 2.0f + rnd() * 20.0f, slope = (rnd() - 0.5f) * 0.2f;
+        for (int y = y0; y < std::min(kH, y0 + bh); ++y) {
+            for (int x = x0; x < std::min(kW, x0 + bw); ++x) {
+                depth.at(x, y, 0) = z + slope * float(x - x0);
+            }
+        }
+    }
+    const float bad[] = {0.0f,
+                         -1.0f,
+                         std::numeric_limits<float>::infinity(),
+                         std::numeric_limits<float>::quiet_NaN()};
+    for (int k = 0; k < 60; ++k) {
+        depth.at(int(rnd() * kW), int(rnd() * kH), 0) = bad[k % 4];
+    }
+    const shading::CameraRays rays = camera();
+    for (const float cap : {0.05f, 0.5f, 100.0f}) {
+        const Image t = shading::occluder_thickness(depth, normal, rays, cap);
+        int mismatches = 0, below_cap = 0;
+        for (int y = 0; y < kH; ++y) {
+            for (int x = 0; x < kW; ++x) {
+                const float want = reference_thickness(depth, normal, rays, cap, x, y);
+                mismatches += t.at(x, y, 0) == want ? 0 : 1;
+                below_cap += want > 0.0f && want < cap ? 1 : 0;
+            }
+        }
+        EXPECT_EQ(mismatches, 0) << "cap " << cap;
+        EXPECT_GT(below_cap, kW * kH / 40) << "cap " << cap << ": too few closed runs to test";
+    }
 }
 
 }  // namespace

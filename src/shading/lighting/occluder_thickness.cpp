@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdint>
 #include <glm/geometric.hpp>
+#include <limits>
 #include <vector>
 
 #include "core/parallel.h"
@@ -20,15 +21,23 @@ Image occluder_thickness(const Image &depth,
     // A pixel's width at depth 1 (a pinhole's footprint grows with depth alone).
     const float footprint =
         0.5f * (glm::length(rays.ray_du()) / float(w) + glm::length(rays.ray_dv()) / float(h));
-    const auto z_at = [&](int x, int y) {
-        const float z = depth.at(x, y, 0);
-        return z > 0.0f && std::isfinite(z) ? z : 0.0f;  // 0: no surface
+    // Each pixel's depth, 0 where there is no surface (not positive or not finite).
+    std::vector<float> zs(std::size_t(w) * std::size_t(h));
+    const auto index = [w](int x, int y) {
+        return std::size_t(y) * std::size_t(w) + std::size_t(x);
     };
+    parallel_for(0, h, [&](int y) {
+        float *z = zs.data() + index(0, y);
+        for (int x = 0; x < w; ++x) {
+            const float v = depth.at(x, y, 0);
+            z[x] = v > 0.0f && v < std::numeric_limits<float>::infinity() ? v : 0.0f;
+        }
+    });
     if (!(footprint > 0.0f) || !std::isfinite(footprint)) {
         // No footprint (a degenerate camera): every surface as deep as the most.
         parallel_for(0, h, [&](int y) {
             for (int x = 0; x < w; ++x) {
-                out.at(x, y, 0) = z_at(x, y) > 0.0f ? max_thickness : 0.0f;
+                out.at(x, y, 0) = zs[index(x, y)] > 0.0f ? max_thickness : 0.0f;
             }
         });
         return out;
@@ -49,27 +58,76 @@ Image occluder_thickness(const Image &depth,
         return std::min(s / std::max(c, 0.05f), 20.0f);
     };
     // Neighbours a and b lie on one surface when their depths differ by no more than twice what
-    // the flatter one's slope gives over a pixel, plus 1 % of the depth (noise, curvature); the
-    // slopes are asked for only beside a larger step.
-    const auto joined = [&](int xa, int ya, int xb, int yb) {
-        const float za = z_at(xa, ya), zb = z_at(xb, yb);
-        if (za == 0.0f || zb == 0.0f) {
-            return false;
+    // the flatter one's slope gives over a pixel, plus 1 % of the depth (noise, curvature). The
+    // joins of a row of pairs are found in two loops: the depths alone (branch-free, most pairs),
+    // then the slopes for the pairs beside a larger step.
+    // join[i] says whether pixel i of `zb` is joined to pixel i of `za` (rows `ya`, `yb`), or with
+    // `dx` 1 to pixel i + 1 of the same row.
+    const auto joins = [&](const float *za,
+                           const float *zb,
+                           int n,
+                           std::uint8_t *join,
+                           auto pixel_a,
+                           auto pixel_b) {
+        int steps = 0;
+        for (int i = 0; i < n; ++i) {
+            // Branch-free, so that it vectorises: zs holds no NaN, so both depths are surfaces
+            // where the smaller is.
+            const float a = za[i], b = zb[i], m = std::min(a, b);
+            const int both = m > 0.0f ? 1 : 0;
+            const int near = std::fabs(a - b) <= 0.01f * m ? 1 : 0;
+            join[i] = std::uint8_t(both & near);
+            steps |= both & (near ^ 1);
         }
-        const float z = std::min(za, zb), step = std::fabs(za - zb);
-        if (step <= 0.01f * z) {
-            return true;
+        if (!steps) {
+            return;
         }
-        return step <= z * (2.0f * footprint * std::min(tangent(xa, ya), tangent(xb, yb)) + 0.01f);
+        for (int i = 0; i < n; ++i) {
+            const float a = za[i], b = zb[i];
+            if (join[i] != 0 || !(a > 0.0f && b > 0.0f)) {
+                continue;
+            }
+            const glm::ivec2 pa = pixel_a(i), pb = pixel_b(i);
+            const float z = std::min(a, b), step = std::fabs(a - b);
+            join[i] =
+                step <= z * (2.0f * footprint * std::min(tangent(pa.x, pa.y), tangent(pb.x, pb.y)) +
+                             0.01f)
+                    ? 1
+                    : 0;
+        }
     };
+    // right[x, y]: pixel (x, y) joined to (x + 1, y); up[x, y]: joined to (x, y - 1).
+    std::vector<std::uint8_t> right(zs.size()), up(zs.size());
+    parallel_for(0, h, [&](int y) {
+        const float *z = zs.data() + index(0, y);
+        joins(
+            z,
+            z + 1,
+            w - 1,
+            right.data() + index(0, y),
+            [y](int i) { return glm::ivec2(i, y); },
+            [y](int i) { return glm::ivec2(i + 1, y); });
+        if (y > 0) {
+            joins(
+                z - w,
+                z,
+                w,
+                up.data() + index(0, y),
+                [y](int i) { return glm::ivec2(i, y - 1); },
+                [y](int i) { return glm::ivec2(i, y); });
+        } else {
+            std::fill_n(up.data(), w, std::uint8_t(0));
+        }
+    });
     // The runs of joined pixels along each row, into `out` (in pixels); a run that reaches the
     // image's edge may go on beyond it: unbounded.
     constexpr float kUnbounded = 1e30f;
     parallel_for(0, h, [&](int y) {
         float *row = out.pixel(0, y);
+        const std::uint8_t *r = right.data() + index(0, y);
         int start = 0;
         for (int i = 1; i <= w; ++i) {
-            if (i < w && joined(i - 1, y, i, y)) {
+            if (i < w && r[i - 1] != 0) {
                 continue;
             }
             std::fill(row + start, row + i, start == 0 || i == w ? kUnbounded : float(i - start));
@@ -80,31 +138,37 @@ Image occluder_thickness(const Image &depth,
     // pixels above it in its run, unbounded where the run starts at the top) and bottom up (the
     // count below, carried per column), so that memory is read row by row; then the shorter run
     // of the two axes, times the footprint at the pixel's depth.
-    // (The top-down sweep keeps whether each pixel is joined to the one above it, for the
-    // bottom-up one.)
-    constexpr int kBand = 64;
+    constexpr int kBand = 256;
     Image above = Image::uninitialized(w, h, 1);
-    std::vector<std::uint8_t> up(std::size_t(w) * std::size_t(h));
-    const auto index = [w](int x, int y) {
-        return std::size_t(y) * std::size_t(w) + std::size_t(x);
-    };
     parallel_for(0, (w + kBand - 1) / kBand, [&](int band) {
         const int x0 = band * kBand, x1 = std::min(w, x0 + kBand);
-        for (int y = 0; y < h; ++y) {
+        for (int x = x0; x < x1; ++x) {
+            above.at(x, 0, 0) = kUnbounded;
+        }
+        for (int y = 1; y < h; ++y) {
+            const std::uint8_t *u = up.data() + index(0, y);
+            const float *a0 = above.pixel(0, y - 1);
+            float *a1 = above.pixel(0, y);
             for (int x = x0; x < x1; ++x) {
-                const bool j = y > 0 && joined(x, y - 1, x, y);
-                up[index(x, y)] = j ? 1 : 0;
-                above.at(x, y, 0) = j ? above.at(x, y - 1, 0) + 1.0f : y == 0 ? kUnbounded : 0.0f;
+                a1[x] = (a0[x] + 1.0f) * float(u[x]);  // u is 0 or 1: branch-free
             }
         }
         float below[kBand];
+        std::fill_n(below, kBand, kUnbounded);
         for (int y = h - 1; y >= 0; --y) {
+            const float *z = zs.data() + index(0, y);
+            const float *a = above.pixel(0, y);
+            float *o = out.pixel(0, y);
+            if (y < h - 1) {
+                const std::uint8_t *u = up.data() + index(0, y + 1);
+                for (int x = x0; x < x1; ++x) {
+                    below[x - x0] = (below[x - x0] + 1.0f) * float(u[x]);
+                }
+            }
             for (int x = x0; x < x1; ++x) {
-                float &b = below[x - x0];
-                b = y == h - 1 ? kUnbounded : up[index(x, y + 1)] != 0 ? b + 1.0f : 0.0f;
-                const float z = z_at(x, y);
-                const float run = std::min(out.at(x, y, 0), above.at(x, y, 0) + b + 1.0f);
-                out.at(x, y, 0) = z == 0.0f ? 0.0f : std::min(max_thickness, run * footprint * z);
+                const float run = std::min(o[x], a[x] + below[x - x0] + 1.0f);
+                const float t = std::min(max_thickness, run * footprint * z[x]);
+                o[x] = z[x] == 0.0f ? 0.0f : t;
             }
         }
     });
