@@ -82,9 +82,9 @@ constexpr ParamSpec kCrossings =
         .doc(
             "gtao, bitmask: where a sample lies just beyond the radius, the straight surface "
             "from the last sample inside is an occluder (all); reachable: only where the nearer "
-            "of the two reaches back to the farther's depth (each surface as deep as it is wide "
-            "on screen), so a jump to an object standing clear of the surface behind it is not "
-            "taken for a surface.")
+            "of the two reaches back to the farther's depth (each surface reaching back as far "
+            "as its widest run of pixels on screen), so a jump to an object standing clear of "
+            "the surface behind it is not taken for a surface.")
         .only_when("method", "gtao|bitmask");
 constexpr ParamSpec kParams[] = {kRadius,
                                  kSlices,
@@ -141,18 +141,29 @@ void execute(NodeContext &ctx)
         ao.fill(1.0f);
     } else {
         const int stride = ctx.get_string(kResolution) == "half" ? 2 : 1;
-        // How deep each surface is (shading/lighting/occluder_thickness.h): the bitmask's and
-        // the trace's occluders (at most `thickness`), and for reachable crossings how far back
-        // a surface reaches (at most twice the radius: the farthest a crossing's pair lies).
         const std::string method = ctx.get_string(kMethod);
         const bool extent = method != "gtao" && ctx.get_string(kOccluders) == "extent";
         const bool reachable = method != "trace" && ctx.get_string(kCrossings) == "reachable";
         const shading::AoTraceParams trace = fill(ctx.params(), kTraceFields);
-        Image occluder;
-        if (extent || reachable) {
-            const float cap = std::max(extent || method == "bitmask" ? trace.thickness : 0.0f,
-                                       reachable ? 2.0f * trace.radius : 0.0f);
-            occluder = shading::occluder_thickness(depth, normal, rays, cap);
+        // How deep each surface is (shading/lighting/occluder_thickness.h; the narrowest of
+        // its runs on screen): the bitmask's and the trace's occluders, at most `thickness`. How
+        // far back it reaches (its widest run): the gate of GTAO's radius crossings, at most
+        // twice the radius (the farthest a crossing's pair lies). GTAO and the bitmask read both
+        // on their own grid (half resolution: a quarter of the work, and maps that stay in
+        // cache); the trace at every pixel.
+        const int map_stride = method == "trace" ? 1 : stride;
+        Image occluder, reach;
+        if (extent) {
+            occluder =
+                shading::occluder_thickness(depth, normal, rays, trace.thickness, map_stride);
+        }
+        if (reachable) {
+            reach = shading::occluder_thickness(depth,
+                                                normal,
+                                                rays,
+                                                2.0f * trace.radius,
+                                                map_stride,
+                                                shading::SurfaceExtent::widest);
         }
         if (method == "trace") {
             shading::AoTraceParams p = trace;
@@ -165,9 +176,9 @@ void execute(NodeContext &ctx)
             if (method == "bitmask") {
                 p.thickness = trace.thickness;  // 0 for horizons
             }
-            p.thickness_map = extent || reachable ? &occluder : nullptr;
-            p.thickness_from_map = extent;
-            p.reachable_crossings = reachable;
+            p.thickness_map = extent ? &occluder : nullptr;
+            p.reach_map = reachable ? &reach : nullptr;
+            p.map_stride = map_stride;
             ao = shading::gtao(depth, normal, rays, p);
         }
         const Image ao_depth = shading::gtao_depth(depth, stride);

@@ -100,13 +100,19 @@ TEST(Ao, TruthAtTheFootOfAWallMatchesTheClosedForm)
 
 /// A G-buffer of the floor y = 0 and the wall x = wall_x seen by a camera at (wall_x - 4, 3, 0)
 /// looking along +x and down: depth, world normals and the camera's rays. With `plate`, a thin
-/// plate x = 1, 1.8 <= y <= 2.6 (facing the camera) hangs between the camera and the floor.
+/// plate x = 1, 1.8 <= y <= 2.6, |z| <= plate_half_width (facing the camera) hangs between the
+/// camera and the floor.
 struct AnalyticGBuffer {
     Image depth, normal;
     shading::CameraRays rays;
 };
 
-AnalyticGBuffer floor_wall_gbuffer(int w, int h, bool wall, bool plate = false, bool pole = false)
+AnalyticGBuffer floor_wall_gbuffer(int w,
+                                   int h,
+                                   bool wall,
+                                   bool plate = false,
+                                   bool pole = false,
+                                   float plate_half_width = std::numeric_limits<float>::infinity())
 {
     const float wall_x = 4.0f;
     glm::mat4 to_world(1.0f);
@@ -140,8 +146,8 @@ AnalyticGBuffer floor_wall_gbuffer(int w, int h, bool wall, bool plate = false, 
                 }
             }
             if (plate && r.x > 0.0f) {
-                const float t = (1.0f - cam.x) / r.x, py = cam.y + t * r.y;
-                if (t < best && py >= 1.8f && py <= 2.6f) {
+                const float t = (1.0f - cam.x) / r.x, py = cam.y + t * r.y, pz = cam.z + t * r.z;
+                if (t < best && py >= 1.8f && py <= 2.6f && std::abs(pz) <= plate_half_width) {
                     best = t;
                     n = glm::vec3(-1, 0, 0);
                 }
@@ -391,15 +397,12 @@ TEST(Ao, BitmaskReadsEachSamplesThicknessFromAMap)
     test::for_each_highway_target([&](const char *target) {
         const Image constant = shading::gtao(g.depth, g.normal, g.rays, p);
         p.thickness_map = &same;
-        p.thickness_from_map = true;
         EXPECT_TRUE(shading::gtao(g.depth, g.normal, g.rays, p).bit_equal(constant)) << target;
         p.thickness_map = nullptr;
-        p.thickness_from_map = false;
     });
     const Image occluder = shading::occluder_thickness(g.depth, g.normal, g.rays, 1.0f);
     const Image constant = shading::gtao(g.depth, g.normal, g.rays, p);
     p.thickness_map = &occluder;
-    p.thickness_from_map = true;
     const Image extent = shading::gtao(g.depth, g.normal, g.rays, p);
     // Floor pixels 0.6-1.4 m behind the pole and within 0.5 m of its plane.
     const double near_c = floor_band(g, constant, 0.5f, 100),
@@ -413,41 +416,44 @@ TEST(Ao, BitmaskReadsEachSamplesThicknessFromAMap)
 }
 
 // Reachable crossings. At the foot of the wall the wall reaches back as far as any crossing
-// needs: the closed form's bands as before. Below the hanging plate (0.8 m tall, more than the
+// needs: the closed form's bands as before. Below the hanging plate (0.8 m square, more than the
 // radius above the floor) a sample on the floor and the next one on the plate are within twice
 // the radius, and the straight surface between them, which is not there, darkened the floor; the
-// plate is not deep enough to reach back to the floor's depth, so with reachable crossings the
-// floor reads open.
+// plate, reaching back no farther than it is wide, does not reach the floor's depth, so with
+// reachable crossings the floor under it reads open.
 TEST(Ao, ReachableCrossingsKeepTheCornerAndDropTheJumpToAPlateAbove)
 {
     shading::GtaoParams p;
     p.radius = 1.0f;
     p.slices = 4;
     p.steps = 16;
-    p.reachable_crossings = true;
+    const auto reach = [](const AnalyticGBuffer &g) {
+        return shading::occluder_thickness(
+            g.depth, g.normal, g.rays, 2.0f, 1, shading::SurfaceExtent::widest);
+    };
     const AnalyticGBuffer wall = floor_wall_gbuffer(320, 240, true);
-    const Image wall_map = shading::occluder_thickness(wall.depth, wall.normal, wall.rays, 2.0f);
-    p.thickness_map = &wall_map;
+    const Image wall_map = reach(wall);
+    p.reach_map = &wall_map;
     const Image corner = gtao_denoised(wall, p);
     for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
         expect_corner_band(wall, corner, d0, d0 + 0.25);
     }
-    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, false, true);
-    const Image plate_map = shading::occluder_thickness(g.depth, g.normal, g.rays, 2.0f);
-    p.thickness_map = &plate_map;
+    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, false, true, false, 0.4f);
+    const Image plate_map = reach(g);
+    p.reach_map = &plate_map;
     const Image reachable = gtao_denoised(g, p);
-    p.reachable_crossings = false;
+    p.reach_map = nullptr;
     const Image all = gtao_denoised(g, p);
-    const double under_all = floor_band(g, all, 1e30f, 200),
-                 under_reachable = floor_band(g, reachable, 1e30f, 200);
+    const double under_all = floor_band(g, all, 0.3f, 200),
+                 under_reachable = floor_band(g, reachable, 0.3f, 200);
     std::printf("floor under a plate: AO %.4f with every crossing, %.4f with reachable ones\n",
                 under_all,
                 under_reachable);
     EXPECT_GT(under_reachable, under_all + 0.01);
     EXPECT_GT(under_reachable, 0.98);
-    // Without a map the gate refuses.
-    p.reachable_crossings = true;
-    p.thickness_map = nullptr;
+    // A map of another grid than map_stride's is refused.
+    p.reach_map = &plate_map;
+    p.map_stride = 2;
     EXPECT_THROW(shading::gtao(g.depth, g.normal, g.rays, p), Error);
 }
 
@@ -455,14 +461,19 @@ TEST(Ao, ReachableCrossingsKeepTheCornerAndDropTheJumpToAPlateAbove)
 // the gated crossings. (SSE4 and the one-lane target have no FMA: their MulAdd rounds twice.)
 TEST(Ao, GtaoGivesTheSameBitsOnAvx2AndAvx512)
 {
-    const AnalyticGBuffer g = floor_wall_gbuffer(160, 120, true, true, true);
+    // An odd size, so that the half-resolution maps' last cells hold one pixel and samples at
+    // the last column and row round to them (mode 3, the node's default at half resolution).
+    const AnalyticGBuffer g = floor_wall_gbuffer(161, 121, true, true, true);
     const Image map = shading::occluder_thickness(g.depth, g.normal, g.rays, 2.0f);
-    for (const int mode : {0, 1, 2}) {
+    const Image half = shading::occluder_thickness(
+        g.depth, g.normal, g.rays, 2.0f, 2, shading::SurfaceExtent::widest);
+    for (const int mode : {0, 1, 2, 3}) {
         shading::GtaoParams p;
         p.thickness = mode == 1 ? 1.0f : 0.0f;
-        p.thickness_map = mode == 0 ? nullptr : &map;
-        p.thickness_from_map = mode == 1;
-        p.reachable_crossings = mode == 2;
+        p.thickness_map = mode == 1 ? &map : nullptr;
+        p.reach_map = mode == 2 ? &map : mode == 3 ? &half : nullptr;
+        p.stride = mode == 3 ? 2 : 1;
+        p.map_stride = mode == 3 ? 2 : 1;
         std::vector<std::pair<std::string, Image>> out;
         test::for_each_highway_target([&](const char *target) {
             const std::string t = target;

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <glm/geometric.hpp>
 #include <limits>
+#include <string>
 
 namespace posthaste {
 namespace {
@@ -141,24 +142,31 @@ namespace {
 /// and its column while neighbours are joined (a depth step within 1 % of the nearer depth, or
 /// within twice the flatter slope's step over a pixel plus 1 %); a run reaching the edge is
 /// unbounded.
+/// With `stride`, the same over every stride-th pixel (x, y on that grid), and with `widest`
+/// the longer of the two runs.
 float reference_thickness(const Image &depth,
                           const Image &normal,
                           const shading::CameraRays &rays,
                           float max_thickness,
                           int x,
-                          int y)
+                          int y,
+                          int stride = 1,
+                          bool widest = false)
 {
-    const int w = depth.width(), h = depth.height();
+    const int fw = depth.width(), fh = depth.height();
+    const int w = (fw + stride - 1) / stride, h = (fh + stride - 1) / stride;
     const float footprint =
-        0.5f * (glm::length(rays.ray_du()) / float(w) + glm::length(rays.ray_dv()) / float(h));
+        0.5f * (glm::length(rays.ray_du()) / float(fw) + glm::length(rays.ray_dv()) / float(fh)) *
+        float(stride);
     const auto z_at = [&](int px, int py) {
-        const float z = depth.at(px, py, 0);
+        const float z = depth.at(px * stride, py * stride, 0);
         return z > 0.0f && std::isfinite(z) ? z : 0.0f;
     };
-    const auto tangent = [&](int px, int py) {
+    const auto tangent = [&](int gx, int gy) {
+        const int px = gx * stride, py = gy * stride;
         const glm::vec3 n(normal.at(px, py, 0), normal.at(px, py, 1), normal.at(px, py, 2));
         const glm::vec3 ray =
-            rays.depth_ray((float(px) + 0.5f) / float(w), (float(py) + 0.5f) / float(h));
+            rays.depth_ray((float(px) + 0.5f) / float(fw), (float(py) + 0.5f) / float(fh));
         const float nn = glm::length(n) * glm::length(ray);
         if (!(nn > 0.0f) || !std::isfinite(nn)) {
             return 0.0f;
@@ -201,7 +209,8 @@ float reference_thickness(const Image &depth,
         }
         return open ? 1e30f : float(n);
     };
-    return std::min(max_thickness, std::min(run(1, 0), run(0, 1)) * footprint * z);
+    const float r = widest ? std::max(run(1, 0), run(0, 1)) : std::min(run(1, 0), run(0, 1));
+    return std::min(max_thickness, r * footprint * z);
 }
 
 TEST(OccluderThickness, EqualsTheRuleWalkedPixelByPixelOnAClutteredFrame)
@@ -245,19 +254,40 @@ TEST(OccluderThickness, EqualsTheRuleWalkedPixelByPixelOnAClutteredFrame)
     for (int k = 0; k < 60; ++k) {
         depth.at(int(rnd() * kW), int(rnd() * kH), 0) = bad[k % 4];
     }
+    // Also over every 2nd and 3rd pixel (an odd size: the last cells hold one pixel), and as
+    // deep as the widest run.
     const shading::CameraRays rays = camera();
     for (const float cap : {0.05f, 0.5f, 100.0f}) {
-        const Image t = shading::occluder_thickness(depth, normal, rays, cap);
-        int mismatches = 0, below_cap = 0;
-        for (int y = 0; y < kH; ++y) {
-            for (int x = 0; x < kW; ++x) {
-                const float want = reference_thickness(depth, normal, rays, cap, x, y);
-                mismatches += t.at(x, y, 0) == want ? 0 : 1;
-                below_cap += want > 0.0f && want < cap ? 1 : 0;
+        for (const int stride : {1, 2, 3}) {
+            for (const bool widest : {false, true}) {
+                const Image t = shading::occluder_thickness(
+                    depth,
+                    normal,
+                    rays,
+                    cap,
+                    stride,
+                    widest ? shading::SurfaceExtent::widest : shading::SurfaceExtent::narrowest);
+                const int w = (kW + stride - 1) / stride, h = (kH + stride - 1) / stride;
+                ASSERT_EQ(t.width(), w);
+                ASSERT_EQ(t.height(), h);
+                int mismatches = 0, below_cap = 0;
+                for (int y = 0; y < h; ++y) {
+                    for (int x = 0; x < w; ++x) {
+                        const float want =
+                            reference_thickness(depth, normal, rays, cap, x, y, stride, widest);
+                        mismatches += t.at(x, y, 0) == want ? 0 : 1;
+                        below_cap += want > 0.0f && want < cap ? 1 : 0;
+                    }
+                }
+                const std::string what = "cap " + std::to_string(cap) + ", stride " +
+                                         std::to_string(stride) + (widest ? ", widest" : "");
+                EXPECT_EQ(mismatches, 0) << what;
+                if (cap == 100.0f) {  // every closed run is below this cap
+                    EXPECT_GT(below_cap, w * h / (widest ? 100 : 40))
+                        << what << ": too few closed runs to test";
+                }
             }
         }
-        EXPECT_EQ(mismatches, 0) << "cap " << cap;
-        EXPECT_GT(below_cap, kW * kH / 40) << "cap " << cap << ": too few closed runs to test";
     }
 }
 

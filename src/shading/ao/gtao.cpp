@@ -55,21 +55,24 @@ Image gtao(const Image &depth, const Image &normal, const CameraRays &rays, cons
     kp.steps = std::max(1, p.steps);
     kp.stride = st;
     kp.thickness = p.thickness;
-    if (p.thickness_map) {
-        if (p.thickness_map->width() != depth.width() ||
-            p.thickness_map->height() != depth.height() || p.thickness_map->channels() != 1) {
-            throw Error(ExitCode::Runtime,
-                        "gtao: the thickness map is not one channel of the depth pass's size");
+    if (p.thickness_map || p.reach_map) {
+        const int ms = p.map_stride;
+        kp.map_shift = ms == 1 ? 0 : ms == 2 ? 1 : ms == 4 ? 2 : ms == 8 ? 3 : -1;
+        kp.map_w = (w + ms - 1) / std::max(ms, 1);
+        kp.map_h = (h + ms - 1) / std::max(ms, 1);
+        for (const Image *map : {p.thickness_map, p.reach_map}) {
+            if (map && (kp.map_shift < 0 || map->width() != kp.map_w || map->height() != kp.map_h ||
+                        map->channels() != 1)) {
+                throw Error(ExitCode::Runtime,
+                            "gtao: a thickness or reach map is not one channel over every 1st, "
+                            "2nd, 4th or 8th pixel of the depth pass");
+            }
         }
-        kp.thickness_from_map = p.thickness > 0.0f && p.thickness_from_map;
-        if (kp.thickness_from_map || p.reachable_crossings) {
+        if (p.thickness_map && p.thickness > 0.0f) {
             kp.thickness_map = p.thickness_map->data();
         }
+        kp.reach_map = p.reach_map ? p.reach_map->data() : nullptr;
     }
-    if (p.reachable_crossings && !kp.thickness_map) {
-        throw Error(ExitCode::Runtime, "gtao: reachable crossings need a thickness map");
-    }
-    kp.reachable_crossings = p.reachable_crossings;
     // Slice directions for each of the pattern's 16 rotations.
     std::vector<float> dir_x(std::size_t(16 * kp.slices)), dir_y(dir_x.size());
     for (int r = 0; r < 16; ++r) {

@@ -28,16 +28,19 @@ struct GtaoParams {
     /// of 32 sectors per slice, each sample hiding only the sectors between itself and itself
     /// pushed this far in camera depth (scene units).
     float thickness = 0.0f;
-    /// Where non-null: how deep each pixel's surface is (one channel, the depth pass's size;
-    /// shading/lighting/occluder_thickness.h). With thickness > 0 and thickness_from_map a
-    /// sample hides by min(its own, thickness).
+    /// Maps of one channel over every map_stride-th pixel of the depth pass in x and y
+    /// (ceil(size / map_stride); shading/lighting/occluder_thickness.h), where non-null; a
+    /// sample reads the map pixel nearest to it.
+    /// thickness_map: with thickness > 0, how deep each sample's surface is: it hides by
+    /// min(its own, thickness).
     const Image *thickness_map = nullptr;
-    bool thickness_from_map = false;
-    /// Where a sample lies just beyond the radius, the straight surface between it and the last
-    /// sample inside is a horizon candidate (see gtao.cpp); with this, only where the nearer of
-    /// the two reaches back to the farther one's depth by thickness_map (required): a jump in
-    /// depth with empty space behind the nearer surface is a silhouette, not a surface.
-    bool reachable_crossings = false;
+    /// reach_map: how far back each pixel's surface reaches. Where a sample lies just beyond
+    /// the radius, the straight surface between it and the last sample inside is a horizon
+    /// candidate (see gtao.cpp); with a reach map, only where the nearer of the two reaches back
+    /// to the farther one's depth: a jump in depth with empty space behind the nearer surface
+    /// is a silhouette, not a surface.
+    const Image *reach_map = nullptr;
+    int map_stride = 1;  ///< 1, 2, 4 or 8
 };
 
 /// AO (1 channel, 0 occluded .. 1 open, the estimate itself: a few slices can scatter a little

@@ -85,7 +85,9 @@ void GtaoRowT(const GtaoKernelParams &p,
     const V r2 = hn::Set(d, p.radius * p.radius), four_r2 = hn::Set(d, 4.0f * p.radius * p.radius);
     const V inv_radius = hn::Set(d, 1.0f / p.radius);
     const V width = hn::Set(d, float(p.w)), height = hn::Set(d, float(p.h));
-    const auto width_i = hn::Set(di, p.w);
+    const auto width_i = hn::Set(di, p.w), map_w = hn::Set(di, p.map_w);
+    const auto map_round = hn::Set(di, (1 << p.map_shift) >> 1),
+               map_last_x = hn::Set(di, p.map_w - 1), map_last_y = hn::Set(di, p.map_h - 1);
     // The row's rays at depth 1: origin + v dv + u du.
     const float v_row = (y + 0.5f) * inv_h;
     const V rb_x = hn::MulAdd(hn::Set(d, v_row), dv_x, o_x);
@@ -235,6 +237,14 @@ void GtaoRowT(const GtaoKernelParams &p,
                     const auto syi = hn::ConvertTo(di, hn::IfThenElseZero(alive, syf));
                     const auto sidx = hn::Add(hn::Mul(syi, width_i), sxi);
                     const V sz = hn::GatherIndex(d, p.depth, sidx);
+                    // The sample's pixel in the thickness map (a coarser grid at half
+                    // resolution).
+                    // The sample's cell in the maps (their pixel nearest to it).
+                    const auto mx = hn::Min(
+                        hn::ShiftRightSame(hn::Add(sxi, map_round), p.map_shift), map_last_x);
+                    const auto my = hn::Min(
+                        hn::ShiftRightSame(hn::Add(syi, map_round), p.map_shift), map_last_y);
+                    const auto midx = hn::Add(hn::Mul(my, map_w), mx);
                     const auto valid = hn::And(alive, hn::And(hn::Gt(sz, zero), hn::IsFinite(sz)));
                     const V szc = hn::IfThenElse(valid, sz, one);
                     const V su = hn::Mul(hn::Add(sxf, half), vinv_w);
@@ -252,8 +262,8 @@ void GtaoRowT(const GtaoKernelParams &p,
                                         hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f))));
                     // The sample's surface depth: its pixel's own where a map gives one
                     // (at most `thickness` for the bitmask).
-                    const V th = p.thickness_from_map
-                                     ? hn::Min(hn::GatherIndex(d, p.thickness_map, sidx),
+                    const V th = p.thickness_map
+                                     ? hn::Min(hn::GatherIndex(d, p.thickness_map, midx),
                                                hn::Set(d, p.thickness))
                                      : hn::Set(d, p.thickness);
                     if constexpr (kBitmask) {
@@ -275,15 +285,15 @@ void GtaoRowT(const GtaoKernelParams &p,
                             hn::Sub(Dot(prev_x, prev_y, prev_z, prev_x, prev_y, prev_z), r2);
                         const V disc = hn::NegMulAdd(aa, cc, hn::Mul(b, b));
                         auto ok = hn::And(crossing, hn::And(hn::Gt(aa, zero), hn::Ge(disc, zero)));
-                        if (p.reachable_crossings) {
+                        if (p.reach_map) {
                             // A surface between the two is there only if the nearer one reaches
                             // back to the farther one's depth (its map depth): else the jump is a
                             // silhouette with empty space behind it.
                             const auto q_nearer = hn::Lt(szc, prev_depth);
                             const V reach = hn::GatherIndex(
                                 d,
-                                p.thickness_map,
-                                hn::IfThenElse(hn::RebindMask(di, q_nearer), sidx, prev_idx));
+                                p.reach_map,
+                                hn::IfThenElse(hn::RebindMask(di, q_nearer), midx, prev_idx));
                             ok = hn::And(ok, hn::Le(hn::Abs(hn::Sub(szc, prev_depth)), reach));
                         }
                         const V uu = hn::Div(hn::Sub(hn::Sqrt(hn::Max(disc, zero)), b),
@@ -316,7 +326,7 @@ void GtaoRowT(const GtaoKernelParams &p,
                     have_prev = hn::Or(in_range, hn::AndNot(forget, have_prev));
                     prev_x = hn::IfThenElse(in_range, q_x, prev_x);
                     prev_depth = hn::IfThenElse(in_range, szc, prev_depth);
-                    prev_idx = hn::IfThenElse(hn::RebindMask(di, in_range), sidx, prev_idx);
+                    prev_idx = hn::IfThenElse(hn::RebindMask(di, in_range), midx, prev_idx);
                     prev_y = hn::IfThenElse(in_range, q_y, prev_y);
                     prev_z = hn::IfThenElse(in_range, q_z, prev_z);
                 }

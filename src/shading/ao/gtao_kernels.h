@@ -22,14 +22,13 @@ struct GtaoKernelParams {
     /// 0: a sample hides everything below its horizon (GTAO); > 0: only the sectors between
     /// it and it pushed this far in camera depth (a visibility bitmask, Therrien et al. 2023).
     float thickness = 0.0f;
-    /// Where non-null: each pixel's own surface depth (w x h): with thickness_from_map a
-    /// sample hides the sectors of min(its own, thickness); with reachable_crossings it gates
-    /// the radius crossings.
-    const float *thickness_map = nullptr;
-    bool thickness_from_map = false;
-    /// A crossing of the radius between two samples counts only where the nearer one's surface
-    /// reaches back to the farther one's depth (needs thickness_map).
-    bool reachable_crossings = false;
+    /// Maps over every (1 << map_shift)-th pixel in x and y (map_w x map_h), a sample reading
+    /// the cell its pixel rounds to. Where non-null: thickness_map, each pixel's own surface
+    /// depth (a sample hides the sectors of min(its own, thickness)); reach_map, how far back
+    /// each pixel's surface reaches (a crossing of the radius between two samples counts only
+    /// where the nearer one's reaches back to the farther one's depth).
+    const float *thickness_map = nullptr, *reach_map = nullptr;
+    int map_shift = 0, map_w = 0, map_h = 0;
     const float *dir_x = nullptr, *dir_y = nullptr;  ///< slice directions [16 * slices]
 };
 

@@ -14,13 +14,20 @@ namespace posthaste::shading {
 Image occluder_thickness(const Image &depth,
                          const Image &normal,
                          const CameraRays &rays,
-                         float max_thickness)
+                         float max_thickness,
+                         int stride,
+                         SurfaceExtent extent)
 {
-    const int w = depth.width(), h = depth.height();
+    // The map's grid: every st-th pixel of the passes (st = 1: every pixel).
+    const int st = std::max(1, stride);
+    const int full_w = depth.width(), full_h = depth.height();
+    const int w = (full_w + st - 1) / st, h = (full_h + st - 1) / st;
     Image out = Image::uninitialized(w, h, 1);
-    // A pixel's width at depth 1 (a pinhole's footprint grows with depth alone).
+    // A grid cell's width at depth 1 (a pinhole's footprint grows with depth alone).
     const float footprint =
-        0.5f * (glm::length(rays.ray_du()) / float(w) + glm::length(rays.ray_dv()) / float(h));
+        0.5f *
+        (glm::length(rays.ray_du()) / float(full_w) + glm::length(rays.ray_dv()) / float(full_h)) *
+        float(st);
     // Each pixel's depth, 0 where there is no surface (not positive or not finite).
     std::vector<float> zs(std::size_t(w) * std::size_t(h));
     const auto index = [w](int x, int y) {
@@ -29,7 +36,7 @@ Image occluder_thickness(const Image &depth,
     parallel_for(0, h, [&](int y) {
         float *z = zs.data() + index(0, y);
         for (int x = 0; x < w; ++x) {
-            const float v = depth.at(x, y, 0);
+            const float v = depth.at(x * st, y * st, 0);
             z[x] = v > 0.0f && v < std::numeric_limits<float>::infinity() ? v : 0.0f;
         }
     });
@@ -45,10 +52,11 @@ Image occluder_thickness(const Image &depth,
     // The tangent of the angle between a pixel's normal and its view ray: how far depth steps
     // from one pixel to the next on a continuous surface (0 without a usable normal: the surface
     // is taken as facing the camera).
-    const auto tangent = [&](int x, int y) {
+    const auto tangent = [&](int gx, int gy) {
+        const int x = gx * st, y = gy * st;
         const glm::vec3 n(normal.at(x, y, 0), normal.at(x, y, 1), normal.at(x, y, 2));
         const glm::vec3 ray =
-            rays.depth_ray((float(x) + 0.5f) / float(w), (float(y) + 0.5f) / float(h));
+            rays.depth_ray((float(x) + 0.5f) / float(full_w), (float(y) + 0.5f) / float(full_h));
         const float nn = glm::length(n) * glm::length(ray);
         if (!(nn > 0.0f) || !std::isfinite(nn)) {
             return 0.0f;
@@ -136,8 +144,9 @@ Image occluder_thickness(const Image &depth,
     });
     // Along the columns, in bands of columns swept top down (each pixel's count of joined
     // pixels above it in its run, unbounded where the run starts at the top) and bottom up (the
-    // count below, carried per column), so that memory is read row by row; then the shorter run
-    // of the two axes, times the footprint at the pixel's depth.
+    // count below, carried per column), so that memory is read row by row; then the shorter
+    // (narrowest) or the longer (widest) run of the two axes, times the footprint at the pixel's
+    // depth.
     constexpr int kBand = 256;
     Image above = Image::uninitialized(w, h, 1);
     parallel_for(0, (w + kBand - 1) / kBand, [&](int band) {
@@ -165,10 +174,17 @@ Image occluder_thickness(const Image &depth,
                     below[x - x0] = (below[x - x0] + 1.0f) * float(u[x]);
                 }
             }
-            for (int x = x0; x < x1; ++x) {
-                const float run = std::min(o[x], a[x] + below[x - x0] + 1.0f);
-                const float t = std::min(max_thickness, run * footprint * z[x]);
-                o[x] = z[x] == 0.0f ? 0.0f : t;
+            const auto finish = [&](auto pick) {
+                for (int x = x0; x < x1; ++x) {
+                    const float run = pick(o[x], a[x] + below[x - x0] + 1.0f);
+                    const float t = std::min(max_thickness, run * footprint * z[x]);
+                    o[x] = z[x] == 0.0f ? 0.0f : t;
+                }
+            };
+            if (extent == SurfaceExtent::widest) {
+                finish([](float r, float c) { return std::max(r, c); });
+            } else {
+                finish([](float r, float c) { return std::min(r, c); });
             }
         }
     });

@@ -17,9 +17,21 @@ namespace posthaste::shading {
 /// normals (world space, any length) give each pixel's slope; without a usable normal a pixel is
 /// taken to face the camera. `rays` are the camera's, NDC [0, 1]^2 spanning the image; with no
 /// pixel footprint (a degenerate camera) every surface is `max_thickness` deep.
+/// With `stride` > 1 the map covers every stride-th pixel in x and y (ceil(size / stride)),
+/// as if the passes were that much coarser: a reduced-resolution reader's map, a quarter of the
+/// work at 2.
+///
+/// `extent` says which run a surface is as deep as: the shorter of the two axes' (narrowest: a
+/// pole is as deep as it is wide, what an occluder in a march needs), or the longer (widest:
+/// how far back a surface can reach at most, as a ground whose column runs are cut by steps
+/// reaches back by its rows: the gate of GTAO's radius crossings, measured better there on the
+/// Cycles yard and on every rasterizer bench frame).
+enum class SurfaceExtent { narrowest, widest };
 Image occluder_thickness(const Image &depth,
                          const Image &normal,
                          const CameraRays &rays,
-                         float max_thickness);
+                         float max_thickness,
+                         int stride = 1,
+                         SurfaceExtent extent = SurfaceExtent::narrowest);
 
 }  // namespace posthaste::shading
