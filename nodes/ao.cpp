@@ -78,7 +78,7 @@ constexpr ParamSpec kOccluders =
             "everywhere.")
         .only_when("method", "bitmask|trace");
 constexpr ParamSpec kCrossings =
-    ParamSpec::choice("crossings", "all|reachable", "all")
+    ParamSpec::choice("crossings", "all|reachable", "reachable")
         .doc(
             "gtao, bitmask: where a sample lies just beyond the radius, the straight surface "
             "from the last sample inside is an occluder (all); reachable: only where the nearer "
