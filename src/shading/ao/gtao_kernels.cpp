@@ -237,9 +237,7 @@ void GtaoRowT(const GtaoKernelParams &p,
                     const auto syi = hn::ConvertTo(di, hn::IfThenElseZero(alive, syf));
                     const auto sidx = hn::Add(hn::Mul(syi, width_i), sxi);
                     const V sz = hn::GatherIndex(d, p.depth, sidx);
-                    // The sample's pixel in the thickness map (a coarser grid at half
-                    // resolution).
-                    // The sample's cell in the maps (their pixel nearest to it).
+                    // The sample's pixel in the maps (on their grid, the one nearest to it).
                     const auto mx = hn::Min(
                         hn::ShiftRightSame(hn::Add(sxi, map_round), p.map_shift), map_last_x);
                     const auto my = hn::Min(
@@ -287,8 +285,8 @@ void GtaoRowT(const GtaoKernelParams &p,
                         auto ok = hn::And(crossing, hn::And(hn::Gt(aa, zero), hn::Ge(disc, zero)));
                         if (p.reach_map) {
                             // A surface between the two is there only if the nearer one reaches
-                            // back to the farther one's depth (its map depth): else the jump is a
-                            // silhouette with empty space behind it.
+                            // back to the farther one's depth (by the reach map): else the jump
+                            // is a silhouette with empty space behind it.
                             const auto q_nearer = hn::Lt(szc, prev_depth);
                             const V reach = hn::GatherIndex(
                                 d,
