@@ -48,6 +48,11 @@ void BM_AoAllCrossings(benchmark::State &state)
     run_node(state, R"({"crossings": "all"})");
 }
 
+void BM_AoThreeSlices(benchmark::State &state)
+{
+    run_node(state, R"({"slices": 3})");
+}
+
 void BM_AoBitmaskExtent(benchmark::State &state)
 {
     run_node(state, R"({"method": "bitmask", "occluders": "extent"})");
@@ -83,6 +88,7 @@ void BM_GtaoKernelReachable(benchmark::State &state)
 
 BENCHMARK(BM_AoDefault)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_AoAllCrossings)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_AoThreeSlices)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_AoBitmaskExtent)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_GtaoKernel)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_GtaoKernelReachable)->Unit(benchmark::kMillisecond)->UseRealTime();
