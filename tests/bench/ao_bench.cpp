@@ -27,14 +27,10 @@ void run_node(benchmark::State &state, const std::string &params)
 {
     const test::NodeRunner ao("ao", params);
     const auto input = std::make_shared<const Frame>(gbuffer());
-    double cpu = 0.0;
-    for (auto _ : state) {
-        const double c0 = bench::process_cpu_ms();
+    bench::timed_loop(state, [&] {
         const Frame out = ao.run(input, 30);
         benchmark::DoNotOptimize(out.image("ao").data());
-        cpu += bench::process_cpu_ms() - c0;
-    }
-    state.counters["cpu_ms"] = cpu / double(state.iterations());
+    });
     state.counters["threads"] = thread_count();
 }
 

@@ -24,14 +24,26 @@ inline double process_cpu_ms()
     return double(ts.tv_sec) * 1e3 + double(ts.tv_nsec) * 1e-6;
 }
 
+/// Runs `body` once per benchmark iteration and reports the process's CPU time per iteration
+/// (every thread) as counter cpu_ms, beside the benchmark's wall time.
+template <typename Body>
+void timed_loop(benchmark::State &state, Body &&body)
+{
+    double cpu = 0.0;
+    for (auto _ : state) {
+        const double c0 = process_cpu_ms();
+        body();
+        cpu += process_cpu_ms() - c0;
+    }
+    state.counters["cpu_ms"] = cpu / double(state.iterations());
+}
+
 /// The baseline a node that outputs a new image pays at least: a copy of `image` into a fresh
 /// one, rows in parallel on 2 threads; counter cpu_ms as the node benchmarks report it.
 inline void copy_baseline(benchmark::State &state, const Image &image)
 {
     set_thread_count(2);
-    double cpu = 0.0;
-    for (auto _ : state) {
-        const double c0 = process_cpu_ms();
+    timed_loop(state, [&] {
         Image out = Image::uninitialized(image.width(), image.height(), image.channels());
         parallel_for(0, image.height(), [&](int y) {
             std::copy(image.pixel(0, y),
@@ -39,9 +51,7 @@ inline void copy_baseline(benchmark::State &state, const Image &image)
                       out.pixel(0, y));
         });
         benchmark::DoNotOptimize(out.data());
-        cpu += process_cpu_ms() - c0;
-    }
-    state.counters["cpu_ms"] = cpu / double(state.iterations());
+    });
     set_thread_count(0);
 }
 

@@ -48,14 +48,10 @@ void run_node(benchmark::State &state, const std::string &options)
     const test::NodeRunner relight(
         "relight", R"({"mode": "add", "toon_ids": "6", )" + std::string(kLights) + options + "}");
     const auto input = std::make_shared<const Frame>(in);
-    double cpu = 0.0;
-    for (auto _ : state) {
-        const double c0 = process_cpu_ms();
+    bench::timed_loop(state, [&] {
         const Frame out = relight.run(input, 30);
         benchmark::DoNotOptimize(out.image("color").data());
-        cpu += process_cpu_ms() - c0;
-    }
-    state.counters["cpu_ms"] = cpu / double(state.iterations());
+    });
     state.counters["threads"] = thread_count();
 }
 
@@ -76,9 +72,7 @@ void BM_OccluderThickness(benchmark::State &state)
 void BM_RelightBaselineCopy(benchmark::State &state)
 {
     const Image &c = gbuffer().image("color");
-    double cpu = 0.0;
-    for (auto _ : state) {
-        const double c0 = process_cpu_ms();
+    bench::timed_loop(state, [&] {
         Image out = Image::uninitialized(c.width(), c.height(), c.channels());
         parallel_for_tiles(out.bounds(), [&](const Rect &t) {
             for (int y = t.y0; y < t.y1; ++y) {
@@ -87,9 +81,7 @@ void BM_RelightBaselineCopy(benchmark::State &state)
             }
         });
         benchmark::DoNotOptimize(out.data());
-        cpu += process_cpu_ms() - c0;
-    }
-    state.counters["cpu_ms"] = cpu / double(state.iterations());
+    });
 }
 
 // Lambert only, the same 4 lights as points/suns (spot cone ignored): the floor of any

@@ -16,7 +16,6 @@
 #include <utility>
 #include <vector>
 
-
 #include "bench_util.h"
 #include "core/parallel.h"
 #include "raster/ray_cast.h"

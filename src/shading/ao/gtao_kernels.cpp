@@ -86,6 +86,7 @@ void GtaoRowT(const GtaoKernelParams &p,
     const V inv_radius = hn::Set(d, 1.0f / p.radius);
     const V width = hn::Set(d, float(p.w)), height = hn::Set(d, float(p.h));
     const auto width_i = hn::Set(di, p.w), map_w = hn::Set(di, p.map_w);
+    const bool maps = p.thickness_map || p.reach_map;
     const auto map_round = hn::Set(di, (1 << p.map_shift) >> 1),
                map_last_x = hn::Set(di, p.map_w - 1), map_last_y = hn::Set(di, p.map_h - 1);
     // The row's rays at depth 1: origin + v dv + u du.
@@ -237,12 +238,17 @@ void GtaoRowT(const GtaoKernelParams &p,
                     const auto syi = hn::ConvertTo(di, hn::IfThenElseZero(alive, syf));
                     const auto sidx = hn::Add(hn::Mul(syi, width_i), sxi);
                     const V sz = hn::GatherIndex(d, p.depth, sidx);
-                    // The sample's pixel in the maps (on their grid, the one nearest to it).
-                    const auto mx = hn::Min(
-                        hn::ShiftRightSame(hn::Add(sxi, map_round), p.map_shift), map_last_x);
-                    const auto my = hn::Min(
-                        hn::ShiftRightSame(hn::Add(syi, map_round), p.map_shift), map_last_y);
-                    const auto midx = hn::Add(hn::Mul(my, map_w), mx);
+                    // The sample's pixel in the maps (on their grid, the one nearest to it);
+                    // without a map nothing reads it.
+                    const auto midx =
+                        maps ? hn::Add(
+                                   hn::Mul(hn::Min(hn::ShiftRightSame(hn::Add(syi, map_round),
+                                                                      p.map_shift),
+                                                   map_last_y),
+                                           map_w),
+                                   hn::Min(hn::ShiftRightSame(hn::Add(sxi, map_round), p.map_shift),
+                                           map_last_x))
+                             : sidx;
                     const auto valid = hn::And(alive, hn::And(hn::Gt(sz, zero), hn::IsFinite(sz)));
                     const V szc = hn::IfThenElse(valid, sz, one);
                     const V su = hn::Mul(hn::Add(sxf, half), vinv_w);

@@ -69,8 +69,8 @@ Image occluder_thickness(const Image &depth,
     // the flatter one's slope gives over a pixel, plus 1 % of the depth (noise, curvature). The
     // joins of a row of pairs are found in two loops: the depths alone (branch-free, most pairs),
     // then the slopes for the pairs beside a larger step.
-    // join[i] says whether pixel i of `zb` is joined to pixel i of `za` (rows `ya`, `yb`), or with
-    // `dx` 1 to pixel i + 1 of the same row.
+    // join[i] says whether the pair (za[i], zb[i]) is joined; pixel_a(i) and pixel_b(i) are
+    // their pixels on the grid, for the slopes.
     const auto joins = [&](const float *za,
                            const float *zb,
                            int n,
