@@ -136,7 +136,7 @@ void resolve_camera(const ReadState &state,
         return;
     }
     if (cam.world_to_camera && cam.world_to_ndc) {
-        cam.origin = "header";
+        cam.origin = "the header of " + path;
         return;
     }
     if (state.solve && !wanted) {

@@ -35,16 +35,8 @@ glm::mat4 parse_matrix(const json &j, const ParamWhere &where, const char *key)
     }
     glm::mat4 m;
     std::memcpy(&m, v, sizeof m);
-    const float det = glm::determinant(m);
-    if (!std::isfinite(det) || std::abs(det) < 1e-12f) {
-        throw_usage(where.path,
-                    "/",
-                    key,
-                    ": ",
-                    where.who,
-                    ": the matrix is singular (determinant ",
-                    det,
-                    ")");
+    if (const std::string problem = camera_matrix_problem(m); !problem.empty()) {
+        throw_usage(where.path, "/", key, ": ", where.who, ": the matrix ", problem);
     }
     return m;
 }

@@ -1,5 +1,6 @@
 #include "core/camera.h"
 
+#include <cmath>
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/mat4x4.hpp>
 
@@ -15,6 +16,24 @@ const T &require(const std::optional<T> &v, const char *attribute, const std::st
         throw_runtime(who, ": camera attribute \"", attribute, "\" is missing from the header");
     }
     return *v;
+}
+
+/// The matrix, or an Error naming it when it cannot be used (a header may hold NaNs or zeros).
+const glm::mat4 &usable(const glm::mat4 &m,
+                        const char *attribute,
+                        const std::string &who,
+                        const std::string &origin)
+{
+    if (const std::string problem = camera_matrix_problem(m); !problem.empty()) {
+        throw_runtime(who,
+                      ": camera attribute \"",
+                      attribute,
+                      "\" ",
+                      problem,
+                      origin.empty() ? "" : " (" + origin + ")",
+                      "; give the camera as read's \"camera\" parameter instead");
+    }
+    return m;
 }
 
 /// A matrix has three sources; the message names them all.
@@ -33,10 +52,26 @@ const glm::mat4 &require_matrix(const std::optional<glm::mat4> &m,
                       "(worldToCamera, worldToNDC), as read's \"camera\" parameter, or with "
                       "position and depth passes to solve it from");
     }
-    return *m;
+    return usable(*m, attribute, who, origin);
 }
 
 }  // namespace
+
+std::string camera_matrix_problem(const glm::mat4 &m)
+{
+    for (int c = 0; c < 4; ++c) {
+        for (int r = 0; r < 4; ++r) {
+            if (!std::isfinite(m[c][r])) {
+                return "has an entry that is not finite";
+            }
+        }
+    }
+    const float det = glm::determinant(m);
+    if (!std::isfinite(det) || std::abs(det) < 1e-12f) {
+        return str_cat("is singular (determinant ", det, ")");
+    }
+    return "";
+}
 
 const glm::mat4 &Camera::require_world_to_camera(const std::string &who) const
 {
@@ -48,11 +83,15 @@ const glm::mat4 &Camera::require_world_to_ndc(const std::string &who) const
 }
 const glm::mat4 &Camera::require_prev_world_to_camera(const std::string &who) const
 {
-    return require(prev_world_to_camera, attr::kPrevWorldToCamera, who);
+    return usable(require(prev_world_to_camera, attr::kPrevWorldToCamera, who),
+                  attr::kPrevWorldToCamera,
+                  who,
+                  origin);
 }
 const glm::mat4 &Camera::require_prev_world_to_ndc(const std::string &who) const
 {
-    return require(prev_world_to_ndc, attr::kPrevWorldToNDC, who);
+    return usable(
+        require(prev_world_to_ndc, attr::kPrevWorldToNDC, who), attr::kPrevWorldToNDC, who, origin);
 }
 Camera Camera::for_window(const Rect &display, const Rect &data) const
 {

@@ -36,6 +36,10 @@ inline constexpr const char *kFarClip = "farClip";          // float, scene unit
 inline constexpr const char *kFrameNumber = "frameNumber";  // int
 }  // namespace attr
 
+/// Why a camera matrix cannot be used, or "" when it can: an entry that is not finite, or a
+/// singular matrix (|determinant| < 1e-12). One rule for the header's matrices and the graph's.
+std::string camera_matrix_problem(const glm::mat4 &m);
+
 struct Camera {
     std::optional<glm::mat4> world_to_camera;
     std::optional<glm::mat4> world_to_ndc;
@@ -64,7 +68,8 @@ struct Camera {
                shutter == o.shutter && near_clip == o.near_clip && far_clip == o.far_clip;
     }
 
-    /// The value, or an Error naming the missing header attribute and who needed it.
+    /// The value, or an Error naming the missing (or unusable: camera_matrix_problem) header
+    /// attribute and who needed it.
     const glm::mat4 &require_world_to_camera(const std::string &who) const;
     const glm::mat4 &require_world_to_ndc(const std::string &who) const;
     const glm::mat4 &require_prev_world_to_camera(const std::string &who) const;

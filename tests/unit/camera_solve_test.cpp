@@ -10,6 +10,7 @@
 #include <cstring>
 #include <fstream>
 #include <glm/gtc/matrix_transform.hpp>
+#include <limits>
 
 #include "core/error.h"
 #include "io/image_file.h"
@@ -369,6 +370,53 @@ TEST(CameraSolve, TheGraphsCameraReplacesTheHeaders)
         log.find("/params/camera/world_to_camera: node \"in\" (read): the matrix is singular"),
         std::string::npos)
         << log;
+}
+
+// A header's matrices can hold NaNs or zeros. Every node that projects through the camera
+// refuses them with one line naming the attribute (they once ran on them: ao gave 0 on every
+// surface, ssr and fog changed nothing), as read's camera parameter refuses the same matrices.
+TEST(CameraSolve, UnusableHeaderMatricesAreRefusedByTheNodesThatNeedThem)
+{
+    const Frame good = test::make_sample_frame(32, 18, 1);
+    glm::mat4 nan_m = *good.camera.world_to_ndc;
+    nan_m[1][2] = std::numeric_limits<float>::quiet_NaN();
+    const glm::mat4 zero(0.0f);
+    EXPECT_EQ(camera_matrix_problem(*good.camera.world_to_ndc), "");
+    EXPECT_EQ(camera_matrix_problem(nan_m), "has an entry that is not finite");
+    EXPECT_EQ(camera_matrix_problem(zero).rfind("is singular", 0), 0u);
+    const std::pair<const char *, const char *> nodes[] = {
+        {"ao", "{}"},
+        {"ssr", "{}"},
+        {"ssgi", "{}"},
+        {"relight", R"({"lights": [{"type": "point", "position": [0, 2, 0]}]})"},
+        {"fog", R"({"model": "height"})"},
+        {"motion_blur", R"({"source": "camera"})"}};
+    for (const auto &[type, params] : nodes) {
+        for (const bool use_nan : {true, false}) {
+            Frame f = good;
+            const glm::mat4 &bad = use_nan ? nan_m : zero;
+            // relight projects only through worldToCamera (without screen-space shadows).
+            const std::string t = type, attribute = t == "relight"       ? "worldToCamera\" "
+                                                    : t == "motion_blur" ? "prevWorldToNDC\" "
+                                                                         : "worldToNDC\" ";
+            if (t == "motion_blur") {
+                f.camera.prev_world_to_camera = f.camera.world_to_camera;
+                f.camera.prev_world_to_ndc = bad;
+            } else if (t == "relight") {
+                f.camera.world_to_camera = bad;
+            } else {
+                f.camera.world_to_ndc = bad;
+            }
+            try {
+                test::run_node(type, f, params);
+                ADD_FAILURE() << type << " ran on a broken camera";
+            } catch (const Error &e) {
+                const std::string m = e.what();
+                EXPECT_NE(m.find(attribute), std::string::npos) << m;
+                EXPECT_NE(m.find(use_nan ? "not finite" : "is singular"), std::string::npos) << m;
+            }
+        }
+    }
 }
 
 }  // namespace
