@@ -6,6 +6,7 @@
 // the camera still projects onto the same pixels.
 
 #include "filter/frame_ops.h"
+#include "io/source_file.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -72,6 +73,9 @@ void execute(NodeContext &ctx)
     }
     out.camera = filter::moved_camera(in.camera, shift, in.display_window, box.offset(dx, dy));
     out.display_window = box.offset(dx, dy);
+    if (in.source && (dx != 0 || dy != 0)) {
+        out.source = moved_source(*in.source, dx, dy);  // its parts' windows move too
+    }
     if (window == in.data_window) {
         out.data_window = window.offset(dx, dy);
         return;  // only the windows moved: the pixels are shared

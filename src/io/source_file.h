@@ -58,4 +58,25 @@ struct SourceFile {
     std::map<std::pair<int, int>, std::shared_ptr<const std::vector<unsigned char>>> raw;
 };
 
+/// The same file moved by (dx, dy) pixels (crop's `reformat`): every part's and level's windows
+/// shifted, the samples shared. A write of the moved frame then puts each channel back at its
+/// pixels' new place.
+inline std::shared_ptr<const SourceFile> moved_source(const SourceFile &src, int dx, int dy)
+{
+    auto out = std::make_shared<SourceFile>(src);
+    const auto move = [dx, dy](OIIO::ImageSpec &spec) {
+        spec.x += dx;
+        spec.y += dy;
+        spec.full_x += dx;
+        spec.full_y += dy;
+    };
+    for (SourcePart &part : out->parts) {
+        move(part.spec);
+        for (SourceLevel &level : part.levels) {
+            move(level.spec);
+        }
+    }
+    return out;
+}
+
 }  // namespace posthaste

@@ -200,6 +200,41 @@ TEST(Overscan, WriteKeepsOrCropsTheMarginAndACropReachesTheFile)
     EXPECT_TRUE(recut.image("color").bit_equal(crop.image("color")));
 }
 
+// crop's reformat on a read frame moves the file's parts with the pixels: a box reaching past
+// the data window keeps all of it, shifted (the write once cut it at the file's old window), and
+// a box inside it keeps the box's pixels at the origin.
+TEST(Overscan, ReformatMovesTheFilesPartsWithThePixels)
+{
+    const std::string dir = test::scratch_dir("overscan_reformat");
+    run_graph(R"({"nodes": [)" + render_node(R"(, "overscan": 8)") +
+              R"(, {"id": "w", "type": "write", "inputs": {"image": "r"},
+                   "params": {"path": ")" +
+              dir + R"(/in.####.exr", "passes": "color,depth"}}]})");
+    const Frame in = read_frame(dir + "/in.0008.exr", nullptr, 8);
+    ASSERT_EQ(in.data_window, (Rect{-8, -8, 208, 108}));
+    for (const auto &[box, name] :
+         {std::pair{"[-50, -30, 250, 120]", "past"}, std::pair{"[20, 10, 100, 70]", "inside"}}) {
+        run_graph(R"({"nodes": [{"id": "rd", "type": "read", "params": {"path": ")" + dir +
+                  R"(/in.####.exr"}},
+                 {"id": "c", "type": "crop", "inputs": {"image": "rd"},
+                   "params": {"box": )" +
+                  std::string(box) + R"(, "reformat": true}},
+                 {"id": "w", "type": "write", "inputs": {"image": "c"},
+                   "params": {"path": ")" +
+                  dir + "/" + name + R"(.####.exr"}}]})");
+        const Frame out = read_frame(dir + "/" + name + ".0008.exr", nullptr, 8);
+        const bool past = std::string(name) == "past";
+        // The box's corner goes to (0, 0): the data window moves by (50, 30) or (-20, -10).
+        const Rect want = past ? Rect{42, 22, 258, 138} : Rect{0, 0, 80, 60};
+        EXPECT_EQ(out.data_window, want) << name;
+        const Rect from = want.offset(past ? -50 : 20, past ? -30 : 10);
+        for (const char *pass : {"color", "depth"}) {
+            EXPECT_TRUE(out.image(pass).bit_equal(cut(in.image(pass), in.data_window, from)))
+                << name << " " << pass;
+        }
+    }
+}
+
 TEST(Overscan, AoUsesTheMarginAndComesCloserToTheTruth)
 {
     // The floor below the frame occludes what stands near the bottom edge: with a margin the
