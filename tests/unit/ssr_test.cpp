@@ -258,6 +258,26 @@ TEST(Ssr, NonFinitePassesAndExtremeParametersGiveFiniteOutput)
             const Image &o = out.image("color");
             for (std::size_t i = 0; i < o.value_count(); ++i) {
                 ASSERT_TRUE(std::isfinite(o.data()[i])) << pass << " " << bad << " at " << i;
+                ASSERT_GE(o.data()[i], 0.0f) << pass << " " << bad << " at " << i;
+            }
+        }
+    }
+    // The sky reflection ssr takes away is its model's: over a black colour pass, or with the
+    // sky scaled up, it exceeds what the colour holds, and the colour stays at 0 (it went to
+    // -0.19). Colours near the largest float stay finite (two of them once added to inf).
+    for (const float value : {0.0f, 3e38f}) {
+        Frame f = clean;
+        Image img = f.image("color");
+        for (std::size_t i = 0; i < img.value_count(); ++i) {
+            img.data()[i] = value;
+        }
+        f.set("color", std::move(img), f.pass("color").channels);
+        for (const char *params : {"{}", R"({"sky_scale": 10})", R"({"resolution": "full"})"}) {
+            const Frame out = test::run_node("ssr", f, params);
+            const Image &o = out.image("color");
+            for (std::size_t i = 0; i < o.value_count(); ++i) {
+                ASSERT_TRUE(std::isfinite(o.data()[i])) << value << " " << params;
+                ASSERT_GE(o.data()[i], 0.0f) << value << " " << params;
             }
         }
     }
@@ -444,7 +464,7 @@ TEST(SsrRenderer, AWorldTheColourReflectsAlreadyIsNotAddedTwice)
     EXPECT_GT(rms_rgb(added, f.image("color")), 0.01);
     // Another world W: out = in + w (E - W), w each pixel's weight. So out(W1) - out(W2) =
     // w (W2 - W1) whatever w: against grey 1 and grey 0.5, (2, 0.5, 0.25) moves each channel
-    // by (1, -0.5, -0.75) / -0.5 times what 0.5 does.
+    // by (1, -0.5, -0.75) / -0.5 times what 0.5 does (where out stays above 0, where ssr holds it).
     const auto with_world = [&](const glm::vec3 &c) {
         return runner
             .run_ports({{"image", f}, {"environment", world}, {"world", constant_world(c)}})
@@ -457,6 +477,9 @@ TEST(SsrRenderer, AWorldTheColourReflectsAlreadyIsNotAddedTwice)
     for (int y = 0; y < in.height(); ++y) {
         for (int x = 0; x < in.width(); ++x) {
             for (int c = 0; c < 3; ++c) {
+                if (one.at(x, y, c) <= 0.0f || half.at(x, y, c) <= 0.0f) {
+                    continue;  // held at 0: a world brighter than the colour takes away less
+                }
                 const float unit = one.at(x, y, c) - half.at(x, y, c);
                 const float moved = one.at(x, y, c) - kept.at(x, y, c);
                 if (std::abs(unit) > 1e-3f) {

@@ -2,8 +2,10 @@
 
 #include "shading/ssr/ssr_rows.h"
 
+#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
+#include <limits>
 
 #include "core/parallel.h"
 #include "shading/lighting/env_brdf.h"
@@ -117,6 +119,21 @@ SsrWeightRow weight_row_inputs(const SsrInputs &in,
     return r;
 }
 
+namespace {
+
+/// A pixel's colour plus the reflection's change, held between 0 (or the colour, where it was
+/// already below) and the largest float (or the colour, where it was already above): the sky
+/// reflection the change takes away is a model's and can exceed what the renderer left there,
+/// and two huge finite values must not add up to infinity.
+inline void add_change(float &v, float d)
+{
+    const float r = v + d;
+    const float lo = std::min(v, 0.0f), hi = std::max(v, std::numeric_limits<float>::max());
+    v = r < lo ? lo : (r > hi ? hi : r);
+}
+
+}  // namespace
+
 Image resolve(const SsrInputs &in,
               const SsrParams &p,
               const CameraRays &rays,
@@ -190,9 +207,9 @@ Image resolve(const SsrInputs &in,
             for (int x = 0; x < w; ++x) {
                 if (apply[x] != 0.0f) {
                     float *px = out.pixel(x, y);
-                    px[0] += dr[x];
-                    px[1] += dg[x];
-                    px[2] += db[x];
+                    add_change(px[0], dr[x]);
+                    add_change(px[1], dg[x]);
+                    add_change(px[2], db[x]);
                 }
             }
             return;
@@ -229,9 +246,9 @@ Image resolve(const SsrInputs &in,
             }
             const glm::vec3 d = weight * (sum / count) * p.intensity;
             float *px = out.pixel(x, y);
-            px[0] += d.x;
-            px[1] += d.y;
-            px[2] += d.z;
+            add_change(px[0], d.x);
+            add_change(px[1], d.y);
+            add_change(px[2], d.z);
         }
     });
     return out;
