@@ -61,6 +61,7 @@ constexpr ParamSpec kReshade =
             "(param or header posthaste:sunIrradiance), else off with a note; off: samples give "
             "the colour the camera saw.");
 constexpr ParamSpec kSunIrradiance = ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
+                                         .at_least(0.0)
                                          .doc("reshade: the sun's colour times illuminance.")
                                          .from_header("posthaste:sunIrradiance")
                                          .only_when("reshade", "auto|on");

@@ -86,6 +86,7 @@ constexpr ParamSpec kParallax =
             "sees the probe's surface where it crosses it; off: everything in it infinitely far.");
 constexpr ParamSpec kSunIrradiance =
     ParamSpec::vec3("sun_irradiance", 0.0, 0.0, 0.0)
+        .at_least(0.0)
         .doc(
             "The sun's colour times illuminance, to re-shade a hit's sun response and sky light "
             "as the reflected ray sees them (0: hits keep the colour the camera saw).")

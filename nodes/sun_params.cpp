@@ -2,6 +2,7 @@
 
 #include "nodes/sun_params.h"
 
+#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 
@@ -11,7 +12,12 @@ namespace posthaste::nodes {
 
 glm::vec3 sun_direction(NodeContext &ctx, const ParamSpec &spec, const Frame &in)
 {
-    const glm::vec3 d = param_value<glm::vec3>(ctx, spec, HeaderSource::of(in));
+    glm::vec3 d = param_value<glm::vec3>(ctx, spec, HeaderSource::of(in));
+    const float big = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+    if (big > 0.0f && std::isfinite(big) &&
+        !(std::isfinite(glm::length(d)) && glm::length(d) > 0.0f)) {
+        d /= big;  // finite and non-zero, but its length over- or underflows a float
+    }
     const float len = glm::length(d);
     if (!(len > 0.0f) || !std::isfinite(len)) {
         throw_runtime(ctx.where(),

@@ -10,8 +10,9 @@
 namespace posthaste::nodes {
 
 /// The direction towards the sun from `spec` (the parameter, else the header), not normalised:
-/// each node keeps its own normalisation's rounding. One line naming the parameter and the
-/// header when it is zero or not finite.
+/// each node keeps its own normalisation's rounding (a vector whose float length over- or
+/// underflows, such as [1e-30, 0, 0], comes divided by its largest component). One line naming
+/// the parameter and the header when it is zero or not finite.
 glm::vec3 sun_direction(NodeContext &ctx, const ParamSpec &spec, const Frame &in);
 
 /// One line naming the parameter and the header unless every component of the sun's

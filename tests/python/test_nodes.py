@@ -189,8 +189,10 @@ def test_a_zero_sun_is_refused_alike_by_every_node_that_reads_it(small, node_typ
     assert str(e.value).endswith(': param "sun_direction" (header posthaste:sunDirection) must be '
                                  "a non-zero finite vector")
     if node_type != "fog":
-        with pytest.raises(ph.RunError, match='param "sun_irradiance" \\(header posthaste:sunIrradiance\\) '
-                                              "must be finite and >= 0"):
+        # A negative irradiance in the graph is refused with the graph, before any frame runs
+        # (one from the header at the frame, naming the header attribute).
+        with pytest.raises(ph.ParameterError, match='param "sun_irradiance": expected array of 3 '
+                                                    "numbers in >= 0"):
             ph.node(node_type, ph.read(small[1]), sun_irradiance=[1, -1, 1], **extra)
 
 
