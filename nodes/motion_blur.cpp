@@ -1,9 +1,9 @@
 // nodes/motion_blur.cpp: blur color along screen motion with a tile-max reconstruction filter
-// (src/shading/motion_blur/motion_blur.h: McGuire et al. 2012, Guertin et al. 2014; departures noted there).
-// Reads color and depth, plus the motion pass (pixels from the previous frame, x right, y down)
-// or, with source "camera" or no motion pass in the input, motion reprojected from depth and
-// the previous frame's camera (prevWorldToNDC). The shutter is centred on the frame: each pixel
-// blurs over +-shutter/2 x motion. Jitter is hashed from (x, y): the output is thread-count
+// (src/shading/motion_blur/motion_blur.h: McGuire et al. 2012, Guertin et al. 2014; departures
+// noted there). Reads color and depth, plus the motion pass (pixels from the previous frame, x
+// right, y down) or, with source "camera" or no motion pass in the input, motion reprojected from
+// depth and the previous frame's camera (prevWorldToNDC). The shutter is centred on the frame: each
+// pixel blurs over +-shutter/2 x motion. Jitter is hashed from (x, y): the output is thread-count
 // independent, and zero motion returns the input bit for bit.
 
 #include "shading/motion_blur/motion_blur.h"
@@ -85,8 +85,8 @@ constexpr ParamSpec kSpecular =
         .doc(
             "auto: where the input has the specular and specular_motion passes (asked for where "
             "a source can give them), blur the specular share along specular_motion and the rest "
-            "of color along diffuse_motion where the input has it, else along motion (source "
-            "motion only); off: blur color as one.");
+            "of color along diffuse_motion where the input has it and motion_pass is not "
+            "given, else along the motion pass (source motion only); off: blur color as one.");
 constexpr ParamSpec kSeed =
     ParamSpec::integer("seed", 0).range(0, 2147483647).doc("Seed of the per-pixel jitter.");
 constexpr ParamSpec kParams[] = {kShutter,
@@ -102,9 +102,13 @@ constexpr ParamSpec kParams[] = {kShutter,
                                  kMethod,
                                  kSpecular,
                                  kSpecularKnee,
-                                 kSeed, kMaskPass, kMaskChannel, kMaskInvert};
+                                 kSeed,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {
-    {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."}, kMaskPort};
+    {"image", "color,depth", false, "Color and depth; the motion pass unless source is camera."},
+    kMaskPort};
 
 constexpr Binding<shading::MotionBlurOptions> kFields[] = {
     bind<&shading::MotionBlurOptions::method>(kMethod),
@@ -138,13 +142,14 @@ void check_size(const NodeContext &ctx, const Image &color, const Image &p, cons
 
 // The lighting split: color less its specular share blurred along the surface motion, plus the
 // specular share blurred along its own (a highlight on a rolling ball moves with the ball's
-// centre, not with its turning surface); shading/lighting/lighting_split.h. Written as color plus what
-// each blur changed, so a still frame keeps its bits.
+// centre, not with its turning surface); shading/lighting/lighting_split.h. Written as color plus
+// what each blur changed, so a still frame keeps its bits.
 Image blur_split(NodeContext &ctx,
                  const Image &color,
                  const Image &motion,
                  const Image &depth,
-                 const shading::MotionBlurOptions &o)
+                 const shading::MotionBlurOptions &o,
+                 bool rest_along_diffuse)
 {
     Image diffuse_motion_storage;
     const Image &spec = ctx.input_pass("image", pass::kSpecular);
@@ -154,7 +159,7 @@ Image blur_split(NodeContext &ctx,
     check_size(ctx, color, spec, pass::kSpecular);
     check_size(ctx, color, spec_motion, pass::kSpecularMotion);
     const Image *rest_motion = &motion;
-    if (ctx.input("image").has(pass::kDiffuseMotion)) {
+    if (rest_along_diffuse) {
         rest_motion = &finite_view(
             ctx.input_pass("image", pass::kDiffuseMotion), 0.0f, diffuse_motion_storage);
         check_size(ctx, color, *rest_motion, pass::kDiffuseMotion);
@@ -249,9 +254,12 @@ void execute(NodeContext &ctx)
     const bool split = ctx.get_choice(kSpecular) == 0 && ctx.get_choice(kSource) == 0 &&
                        in.has(motion_pass) && in.has(pass::kSpecular) &&
                        in.has(pass::kSpecularMotion);
+    // The split blurs the rest along diffuse_motion, unless the graph names the motion pass.
+    const bool rest_along_diffuse =
+        split && in.has(pass::kDiffuseMotion) && !ctx.params().given(kMotionPass);
     Image reprojected;
     const Image *motion = nullptr;
-    if (split && in.has(pass::kDiffuseMotion)) {
+    if (rest_along_diffuse) {
         // The split blurs the rest along diffuse_motion (checked there): motion is not read.
         motion = &ctx.input_pass("image", motion_pass);
     } else if (ctx.get_choice(kSource) == 0 && in.has(motion_pass)) {
@@ -265,7 +273,12 @@ void execute(NodeContext &ctx)
                           " channel(s), expected 2");
         }
     } else {
-        reprojected = shading::camera_motion(depth, in.pixel_camera(), ctx.where());
+        // Source camera, or no motion pass in the input: motion reprojected from depth.
+        const std::string who =
+            ctx.get_choice(kSource) == 0
+                ? ctx.where() + " (no pass \"" + motion_pass + "\": motion reprojected from depth)"
+                : ctx.where();
+        reprojected = shading::camera_motion(depth, in.pixel_camera(), who);
         motion = &reprojected;
     }
     if (color.channels() > 4) {
@@ -285,7 +298,7 @@ void execute(NodeContext &ctx)
         }
     }
     const shading::MotionBlurOptions o = fill(ctx, kFields, HeaderSource::of(in));
-    Image out = split ? blur_split(ctx, color, *motion, depth, o)
+    Image out = split ? blur_split(ctx, color, *motion, depth, o, rest_along_diffuse)
                       : shading::motion_blur(color, *motion, depth, o);
     const Pass &cp = in.pass(pass::kColor, ctx.where());
     ctx.output().set(
@@ -298,29 +311,34 @@ void plan(PlanContext &ctx)
         ctx.inputs[0].camera = true;  // camera-only motion reprojects depth through it
     }
     if (ctx.params.get_choice(kSource) == 0) {
-        ctx.inputs[0].add(ctx.params.get_string(kMotionPass));
+        // Without it, motion is reprojected from depth through the header's camera.
+        ctx.inputs[0].add_optional(ctx.params.get_string(kMotionPass));
         if (ctx.params.get_choice(kSpecular) == 0) {
             ctx.inputs[0].add_optional(pass::kSpecular);
             ctx.inputs[0].add_optional(pass::kSpecularMotion);
-            ctx.inputs[0].add_optional(pass::kDiffuseMotion);
+            if (!ctx.params.given(kMotionPass)) {
+                ctx.inputs[0].add_optional(pass::kDiffuseMotion);
+            }
         }
     }
 }
 
 }  // namespace
 
-extern const NodeType kMotionBlur{{"motion_blur",
-                                   "Blur color along screen motion (tile-max "
-                                   "reconstruction, or camera-only from depth).",
-                                   kInputs,
-                                   kParams,
-                                   "color", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
-                                  &execute,
-                                  &plan,
+extern const NodeType kMotionBlur{
+    {"motion_blur",
+     "Blur color along screen motion (tile-max "
+     "reconstruction, or camera-only from depth).",
+     kInputs,
+     kParams,
+     "color",
+     /*sink=*/false,
+     /*keeps_specular=*/false,
+     /*maskable=*/true},
+    &execute,
+    &plan,
     nullptr,
     nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kMotionBlur, kFields, problems);
-    }};
+    [](std::vector<std::string> &problems) { audit(kMotionBlur, kFields, problems); }};
 
 }  // namespace posthaste::nodes

@@ -430,9 +430,10 @@ TEST(LightingSplit, ASourceIsAskedForTheSharesOnlyWhereTheyStayValid)
                             "g.json",
                             nodes::catalog());
     };
+    // (motion too is optional: without it motion_blur reprojects depth through the camera.)
     EXPECT_EQ(plan("dof").nodes()[0].requested.to_string(),
-              "color,depth,motion,diffuse_motion?,specular?,specular_depth?,specular_motion?");
-    EXPECT_EQ(plan("grade").nodes()[0].requested.to_string(), "color,depth,motion");
+              "color,depth,diffuse_motion?,motion?,specular?,specular_depth?,specular_motion?");
+    EXPECT_EQ(plan("grade").nodes()[0].requested.to_string(), "color,depth,motion?");
 }
 
 TEST(LightingSplit, TheEngineDropsAShareItsColourNoLongerHas)

@@ -5,6 +5,7 @@
 
 #include <cstring>
 
+#include "core/error.h"
 #include "raster/render.h"
 #include "raster/scene.h"
 #include "test_util.h"
@@ -84,6 +85,54 @@ TEST(MissingPasses, AMissingApertureIsTheDefaultFstop)
     const Image c = test::run_node("dof", f, R"({"fstop": 2, )" + focus + "}", 40).image("color");
     EXPECT_EQ(0, std::memcmp(a.data(), b.data(), a.pixel_count() * 4 * sizeof(float)));
     EXPECT_NE(0, std::memcmp(a.data(), c.data(), a.pixel_count() * 4 * sizeof(float)));
+}
+
+// Without a motion pass, motion_blur reprojects depth through the header's camera, as its
+// `source: camera` does (the pass was once required, so the documented fallback never ran). A
+// motion pass the graph names is the one the rest of colour blurs along, also where the frame
+// has diffuse_motion for the lighting split (it was ignored there, unchecked).
+TEST(MissingPasses, AMissingMotionPassIsReprojectedAndANamedOneIsUsed)
+{
+    const raster::Scene scene = raster::load_scene(test::scene_path("minecrappy.json"));
+    const Frame f =
+        raster::render_frame(scene, 6, test::render_options(96, 54, {"color", "depth"}));
+    const Image fallback = test::run_node("motion_blur", f, "{}", 6).image("color");
+    const Image camera =
+        test::run_node("motion_blur", f, R"({"source": "camera"})", 6).image("color");
+    EXPECT_TRUE(fallback.bit_equal(camera));
+    EXPECT_FALSE(fallback.bit_equal(f.image("color")));  // the camera moves: a blur
+    Frame nocam = f;
+    nocam.camera.prev_world_to_ndc.reset();
+    try {
+        test::run_node("motion_blur", nocam, "{}", 6);
+        ADD_FAILURE() << "no motion and no previous camera: refused";
+    } catch (const Error &e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("(no pass \"motion\": motion reprojected from depth)"), std::string::npos)
+            << m;
+        EXPECT_NE(m.find("prevWorldToNDC"), std::string::npos) << m;
+    }
+
+    Frame split = raster::render_frame(
+        scene,
+        6,
+        test::render_options(
+            96, 54, {"color", "depth", "motion", "specular", "specular_motion", "diffuse_motion"}));
+    split.set("alt", split.pass("diffuse_motion").image);
+    const Image by_default = test::run_node("motion_blur", split, "{}", 6).image("color");
+    const Image named_alt =
+        test::run_node("motion_blur", split, R"({"motion_pass": "alt"})", 6).image("color");
+    Image doubled = split.image("diffuse_motion");
+    for (std::size_t i = 0; i < doubled.value_count(); ++i) {
+        doubled.data()[i] *= 2.0f;
+    }
+    split.set("doubled", std::move(doubled));
+    const Image named_motion =
+        test::run_node("motion_blur", split, R"({"motion_pass": "doubled"})", 6).image("color");
+    EXPECT_TRUE(named_alt.bit_equal(by_default));
+    EXPECT_FALSE(named_motion.bit_equal(by_default));
+    split.set("one", Image(96, 54, 1));
+    EXPECT_THROW(test::run_node("motion_blur", split, R"({"motion_pass": "one"})", 6), Error);
 }
 
 }  // namespace
