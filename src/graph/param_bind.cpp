@@ -90,10 +90,14 @@ void header_missing(NodeContext &ctx,
                     const std::string &shown_default)
 {
     const std::string header = quoted(std::string(spec.header));
-    const std::string what = found.empty()
-                                 ? str_cat("the frame's header has no ", header)
-                                 : str_cat("the frame's header ", header, " is ", found,
-                                           ", outside ", describe_range(spec));
+    const std::string what =
+        found.empty() ? str_cat("the frame's header has no ", header)
+                      : str_cat("the frame's header ",
+                                header,
+                                " is ",
+                                found,
+                                describe_range(spec).empty() ? std::string(", not finite")
+                                                             : ", outside " + describe_range(spec));
     if (spec.header_only || !found.empty()) {
         // The frame lacks what the node needs, or holds what it cannot take: an input error,
         // not the graph's.
@@ -104,8 +108,15 @@ void header_missing(NodeContext &ctx,
                       what,
                       found.empty() ? "" : str_cat(" (give ", spec.name, ")"));
     }
-    ctx.state().note_once(str_cat(ctx.node().describe(), ": ", what, ": param \"", spec.name,
-                                  "\" takes its default ", shown_default, " (give ", spec.name,
+    ctx.state().note_once(str_cat(ctx.node().describe(),
+                                  ": ",
+                                  what,
+                                  ": param \"",
+                                  spec.name,
+                                  "\" takes its default ",
+                                  shown_default,
+                                  " (give ",
+                                  spec.name,
                                   " to choose)"));
 }
 

@@ -10,9 +10,9 @@
 // integer parsed from its word, or a bool that is true for one word; a parameter whose only_when
 // does not hold leaves the field alone; a parameter declared from_header() and not given takes
 // the frame's header value (an absent one leaves the default, with a note, or is an error for
-// from_header_only(); an invalid one is an error). audit() tells where a settings struct's own default differs
-// from its parameter's, and a unit test runs it over the whole node catalog, so tests and
-// benchmarks that start from `Settings{}` run what a graph with defaults runs.
+// from_header_only(); an invalid one is an error). audit() tells where a settings struct's own
+// default differs from its parameter's, and a unit test runs it over the whole node catalog, so
+// tests and benchmarks that start from `Settings{}` run what a graph with defaults runs.
 
 #include <cmath>
 #include <glm/vec3.hpp>
@@ -104,7 +104,7 @@ bool in_range(const ParamSpec &spec, const F &v)
 {
     const auto ok = [&](double x) { return std::isfinite(x) && x >= spec.min && x <= spec.max; };
     if constexpr (std::is_same_v<F, glm::vec3>) {
-        return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+        return ok(double(v.x)) && ok(double(v.y)) && ok(double(v.z));
     } else if constexpr (std::is_arithmetic_v<F>) {
         return ok(double(v));
     } else {
@@ -416,7 +416,9 @@ NodeParams default_record(const ParamSpec &records);
 /// default (but for from_header_only() parameters, whose default never stands in, and fields
 /// bound without_default()).
 template <typename S, std::size_t N>
-void audit(const NodeType &node, const Binding<S> (&bindings)[N], std::vector<std::string> &problems)
+void audit(const NodeType &node,
+           const Binding<S> (&bindings)[N],
+           std::vector<std::string> &problems)
 {
     const NodeParams defaults = default_params(node);
     const S own{};

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <memory>
 #include <span>
@@ -43,6 +44,12 @@ std::string json_kind(const json &v)
 }
 
 namespace {
+
+/// Finite as the float a node computes with: JSON allows 1e300, which a float turns into inf.
+bool float_finite(double x)
+{
+    return std::isfinite(x) && std::abs(x) <= double(std::numeric_limits<float>::max());
+}
 
 ParamValue convert_value(const ParamSpec &spec,
                          const json &v,
@@ -205,8 +212,8 @@ ParamValue convert_value(const ParamSpec &spec,
                 fail(with_range("number"));
             }
             const double x = v.get<double>();
-            if (!std::isfinite(x)) {
-                fail("finite number");
+            if (!float_finite(x)) {
+                fail("finite number within a float's range");
             }
             check_range(x);
             out.number = x;
@@ -246,7 +253,7 @@ ParamValue convert_value(const ParamSpec &spec,
             if (v.is_number() && spec.vec_size > 0) {
                 // A single number broadcasts: "color": 0.5 is [0.5, 0.5, 0.5].
                 const double x = v.get<double>();
-                if (!std::isfinite(x)) {
+                if (!float_finite(x)) {
                     fail(expected);
                 }
                 check_range(x);
@@ -259,6 +266,9 @@ ParamValue convert_value(const ParamSpec &spec,
             for (const json &e : v) {
                 if (!e.is_number() || !std::isfinite(e.get<double>())) {
                     fail(expected);
+                }
+                if (!float_finite(e.get<double>())) {
+                    fail(expected + " within a float's range");
                 }
                 check_range(e.get<double>());
                 out.vec.push_back(e.get<double>());

@@ -372,5 +372,44 @@ TEST(FogNode, MissingCameraIsNamed)
     }
 }
 
+// A value a float cannot hold is refused with the graph (1e300 once became inf in every pixel),
+// a header vector is held to the parameter's range in every component (a negative sun
+// illuminance once reached the atmosphere's own check, whose message lost the node and the
+// value), and a header vector that is not finite says so.
+TEST(FogNode, ValuesOutOfAFloatsOrTheParametersRangeAreNamed)
+{
+    Frame in = fog_frame(4, 4, {0, 1, 0}, 0.0f, 5.0f);
+    const auto message = [&](const Frame &f, const std::string &params) {
+        try {
+            run_fog(f, params);
+        } catch (const Error &e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(message(in, R"({"model": "exp", "color": [1e300, 1, 1]})")
+                  .find("param \"color\": expected array of 3 numbers within a float's range"),
+              std::string::npos);
+    EXPECT_NE(message(in, R"({"model": "exp", "density": 1e300})").find("within a float's range"),
+              std::string::npos);
+    Frame neg = in;
+    const glm::vec3 minus(-1.0f, 1.0f, 1.0f);
+    neg.attributes.push_back(
+        OIIO::ParamValue("posthaste:sunIlluminance", OIIO::TypeVector, 1, &minus));
+    EXPECT_NE(
+        message(neg, R"({"model": "atmosphere"})")
+            .find("node \"n\" (fog), frame 1: param \"sun_illuminance\": not given, and "
+                  "the frame's header \"posthaste:sunIlluminance\" is [-1, 1, 1], outside >= 0"),
+        std::string::npos)
+        << message(neg, R"({"model": "atmosphere"})");
+    Frame nan_sun = in;
+    const glm::vec3 nan_dir(std::numeric_limits<float>::quiet_NaN(), 1.0f, 0.0f);
+    nan_sun.attributes.push_back(
+        OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &nan_dir));
+    EXPECT_NE(message(nan_sun, R"({"model": "atmosphere"})").find("is [nan, 1, 0], not finite"),
+              std::string::npos)
+        << message(nan_sun, R"({"model": "atmosphere"})");
+}
+
 }  // namespace
 }  // namespace posthaste
