@@ -13,6 +13,7 @@
 #include <string>
 
 #include "core/camera.h"
+#include "core/error.h"
 #include "core/hash.h"
 #include "core/parallel.h"
 #include "graph/graph.h"
@@ -214,6 +215,32 @@ TEST(RelightStability, ClampBoundsEveryLight)
             }
         }
     }
+}
+
+// A light's colour times its intensity beyond a float's range is refused naming the light (both
+// within their own ranges, 1e27 x 1e12 once lit thousands of pixels to inf), and a direction
+// whose float length underflows is the direction it names, not [0, 0, 0].
+TEST(RelightStability, ALightBeyondAFloatIsNamedAndATinyDirectionIsADirection)
+{
+    const Frame in = degenerate_frame(48, 16);
+    try {
+        run_relight(in, R"({"lights": [{"type": "point", "position": [0, 2, 0],
+            "color": [1e27, 1, 1], "intensity": 1e12}]})");
+        ADD_FAILURE() << "an overflowing light ran";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("/lights/0: node \"n\" (relight): color times "
+                                             "intensity is beyond a float's range"),
+                  std::string::npos)
+            << e.what();
+    }
+    const auto directional = [&](const char *d) {
+        return run_relight(
+                   in,
+                   std::string(R"({"lights": [{"type": "directional", "direction": )") + d + "}]}")
+            .image("color");
+    };
+    EXPECT_TRUE(directional("[1e-30, 1e-30, 0]").bit_equal(directional("[1, 1, 0]")));
+    EXPECT_THROW(directional("[0, 0, 0]"), Error);
 }
 
 TEST(RelightStability, SameBitsForAnyThreadCount)
