@@ -9,6 +9,7 @@
 #include <cmath>
 
 #include "filter/frame_ops.h"
+#include "io/source_file.h"
 #include "nodes/geometry_params.h"
 #include "nodes/node.h"
 
@@ -68,6 +69,10 @@ void execute(NodeContext &ctx)
     w.resize = true;
     fill_into(w, ctx.params(), std::span<const Binding<filter::FrameWarp>>(kWarpFields<kFilter>));
     filter::warp_frame(in, w, ctx.output());
+    if (in.source) {
+        // The file's parts follow the new grid (a write once cut it to their old windows).
+        ctx.output().source = regridded_source(*in.source, ctx.output().data_window);
+    }
 }
 
 void check(CheckContext &ctx)
@@ -93,8 +98,6 @@ extern const NodeType kReformat{
     nullptr,
     &check,
     nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kReformat, kWarpFields<kFilter>, problems);
-    }};
+    [](std::vector<std::string> &problems) { audit(kReformat, kWarpFields<kFilter>, problems); }};
 
 }  // namespace posthaste::nodes

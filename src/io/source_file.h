@@ -79,4 +79,21 @@ inline std::shared_ptr<const SourceFile> moved_source(const SourceFile &src, int
     return out;
 }
 
+/// The same file on a new pixel grid (transform, reformat): every part takes the frame's new
+/// data window, which every pass now covers; its samples as read (raw channels, lower mip levels)
+/// no longer lie on the grid and are dropped, so a write makes them from the passes.
+inline std::shared_ptr<const SourceFile> regridded_source(const SourceFile &src, const Rect &window)
+{
+    auto out = std::make_shared<SourceFile>(src);
+    for (SourcePart &part : out->parts) {
+        part.spec.x = window.x0;
+        part.spec.y = window.y0;
+        part.spec.width = window.width();
+        part.spec.height = window.height();
+        part.levels.clear();
+    }
+    out->raw.clear();
+    return out;
+}
+
 }  // namespace posthaste

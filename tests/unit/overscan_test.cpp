@@ -202,8 +202,8 @@ TEST(Overscan, WriteKeepsOrCropsTheMarginAndACropReachesTheFile)
 
 // crop's reformat on a read frame moves the file's parts with the pixels: a box reaching past
 // the data window keeps all of it, shifted (the write once cut it at the file's old window), and
-// a box inside it keeps the box's pixels at the origin.
-TEST(Overscan, ReformatMovesTheFilesPartsWithThePixels)
+// a box inside it keeps the box's pixels at the origin. Likewise transform and reformat.
+TEST(Overscan, GeometryNodesMoveTheFilesPartsWithThePixels)
 {
     const std::string dir = test::scratch_dir("overscan_reformat");
     run_graph(R"({"nodes": [)" + render_node(R"(, "overscan": 8)") +
@@ -231,6 +231,30 @@ TEST(Overscan, ReformatMovesTheFilesPartsWithThePixels)
         for (const char *pass : {"color", "depth"}) {
             EXPECT_TRUE(out.image(pass).bit_equal(cut(in.image(pass), in.data_window, from)))
                 << name << " " << pass;
+        }
+    }
+    // transform and reformat put the pixels on a new grid: the file's parts follow it (the
+    // write once cut a whole-pixel move and a doubling back to the file's old window).
+    for (const auto &[node, params] :
+         {std::pair{"transform", R"({"translate_x": 3, "translate_y": 2, "filter": "nearest"})"},
+          std::pair{"reformat", R"({"scale": 2})"}}) {
+        run_graph(R"({"nodes": [{"id": "rd", "type": "read", "params": {"path": ")" + dir +
+                  R"(/in.####.exr"}},
+                 {"id": "g", "type": ")" +
+                  std::string(node) + R"(", "inputs": {"image": "rd"}, "params": )" + params +
+                  R"(},
+                 {"id": "w", "type": "write", "inputs": {"image": "g"},
+                   "params": {"path": ")" +
+                  dir + "/" + node + R"(.####.exr"}}]})");
+        const Frame out = read_frame(dir + "/" + node + ".0008.exr", nullptr, 8);
+        if (std::string(node) == "transform") {
+            EXPECT_EQ(out.data_window, in.data_window.offset(3, 2));
+            for (const char *pass : {"color", "depth"}) {
+                EXPECT_TRUE(out.image(pass).bit_equal(in.image(pass))) << pass;
+            }
+        } else {
+            EXPECT_EQ(out.display_window, (Rect{0, 0, 400, 200}));
+            EXPECT_EQ(out.data_window, (Rect{-16, -16, 416, 216}));
         }
     }
 }
