@@ -163,7 +163,14 @@ void cut_data_window(const Frame &in, const Rect &window, Frame &out, int dx, in
                                     in.data_window,
                                     window,
                                     std::vector<float>(std::size_t(pass.image->channels()), fill));
-        out.set(name, std::make_shared<const Image>(std::move(cut)), pass.channels, pass.storage);
+        // The same values, fewer of them: an untouched pass stays untouched, so a write puts the
+        // file's own samples back (ids beyond 2^24, alias-decoded channels) cut to the window.
+        Pass kept = pass;
+        kept.image = std::make_shared<const Image>(std::move(cut));
+        if (pass.untouched()) {
+            kept.as_read = kept.image;
+        }
+        out.set_pass(name, std::move(kept));
     }
 }
 

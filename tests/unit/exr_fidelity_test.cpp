@@ -3,19 +3,19 @@
 // files, luminance/chroma and deep files) goes through read -> write and comes out unchanged,
 // checked with OpenEXR's own reader (exr_corpus.cpp), or equal to the conversion computed there.
 
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfTileDescription.h>
+#include <ImfTiledInputFile.h>
 #include <gtest/gtest.h>
+#include <half.h>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
-
-#include <ImfFrameBuffer.h>
-#include <ImfHeader.h>
-#include <ImfTileDescription.h>
-#include <ImfTiledInputFile.h>
-#include <half.h>
 
 #include "core/error.h"
 #include "core/memory.h"
@@ -129,6 +129,62 @@ TEST(ExrFidelity, GraphReadWriteIsAPassThrough)
             << log;
         EXPECT_EQ(corpus::compare_exr(entry(name).path, dir + "/" + name + ".exr"), "");
     }
+}
+
+/// A uint channel of a single-part scanline file over `box` (absolute pixels, inside its data
+/// window), as OpenEXR reads it.
+std::vector<std::uint32_t> read_uint_channel(const std::string &path,
+                                             const char *name,
+                                             const Rect &box)
+{
+    Imf::InputFile in(path.c_str());
+    const Imath::Box2i dw = in.header().dataWindow();
+    const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+    std::vector<std::uint32_t> all(std::size_t(w) * std::size_t(h));
+    const std::size_t xs = sizeof(std::uint32_t), ys = xs * std::size_t(w);
+    Imf::FrameBuffer fb;
+    fb.insert(name,
+              Imf::Slice(Imf::UINT,
+                         reinterpret_cast<char *>(all.data()) -
+                             (std::ptrdiff_t(dw.min.x) * std::ptrdiff_t(xs) +
+                              std::ptrdiff_t(dw.min.y) * std::ptrdiff_t(ys)),
+                         xs,
+                         ys));
+    in.setFrameBuffer(fb);
+    in.readPixels(dw.min.y, dw.max.y);
+    std::vector<std::uint32_t> v;
+    for (int y = box.y0; y < box.y1; ++y) {
+        for (int x = box.x0; x < box.x1; ++x) {
+            v.push_back(
+                all[std::size_t(y - dw.min.y) * std::size_t(w) + std::size_t(x - dw.min.x)]);
+        }
+    }
+    return v;
+}
+
+TEST(ExrFidelity, CropKeepsUintIdsBeyondTwoToThe24)
+{
+    // crop moves no pixel: a uint id (> 2^24, which a float pass rounds) comes out as the file
+    // had it, cut to the box, as a uint channel (it was written as a rounded float).
+    const std::string dir = scratch() + "/crop_uint";
+    std::filesystem::create_directories(dir);
+    const std::string graph = dir + "/g.json";
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")"
+                         << entry("types_mixed").path << R"("}},
+        {"id": "c", "type": "crop", "inputs": {"image": "in"}, "params": {"box": [5, 4, 30, 20]}},
+        {"id": "out", "type": "write", "inputs": {"image": "c"}, "params": {"path": ")"
+                         << dir << R"(/out.exr"}}]})";
+    std::string log;
+    ASSERT_EQ(test::run_command(
+                  std::string(POSTHASTE_BINARY) + " run " + graph + " --frames 1 --quiet", &log),
+              0)
+        << log;
+    const Rect box{5, 4, 30, 20};
+    const std::vector<std::uint32_t> want = read_uint_channel(entry("types_mixed").path, "id", box);
+    EXPECT_TRUE(
+        std::any_of(want.begin(), want.end(), [](std::uint32_t v) { return v > (1u << 24) + 1; }));
+    EXPECT_EQ(read_uint_channel(dir + "/out.exr", "id", box), want);
 }
 
 TEST(ExrFidelity, GraphErrorsAndInfo)
@@ -536,10 +592,11 @@ TEST(ExrFidelity, MergeWorksInBsWindow)
         {"id": "out", "type": "write", "inputs": {"image": "m"}, "params": {"path": "x.exr"}}]})",
                            "merge windows",
                            nodes::catalog());
-    const Frame out = g.run_node(g.find("m"),
-                                 {std::make_shared<const Frame>(b), std::make_shared<const Frame>(a)},
-                                 {"b", "a"},
-                                 1);
+    const Frame out =
+        g.run_node(g.find("m"),
+                   {std::make_shared<const Frame>(b), std::make_shared<const Frame>(a)},
+                   {"b", "a"},
+                   1);
     EXPECT_EQ(out.data_window, b.data_window);
     const Image &c = out.image("color");
     EXPECT_EQ(c.at(11, 3, 0), 1.0f);
