@@ -123,11 +123,14 @@ ParamWhere camera_where(const NodeIdentity &node)
 }
 
 /// Give the frame the graph's camera, or the one solved from its passes (where something
-/// downstream reads the camera: `wanted`), or mark the header's.
+/// downstream reads the camera, `required`, or takes every pass, `wanted`: a write of the whole
+/// file, which keeps it where the solve succeeds and goes on without one where it fails), or
+/// mark the header's.
 void resolve_camera(const ReadState &state,
                     const NodeContext &ctx,
                     const std::string &path,
                     bool wanted,
+                    bool required,
                     Frame &frame)
 {
     Camera &cam = frame.camera;
@@ -151,7 +154,18 @@ void resolve_camera(const ReadState &state,
                      (state.solve ? " and no position and depth passes" : state.no_solve_why);
         return;
     }
-    const CameraSolve solve = solve_frame_camera(frame, state.solve_options, path);
+    CameraSolve solve;
+    try {
+        solve = solve_frame_camera(frame, state.solve_options, path);
+    } catch (const Error &e) {
+        if (required) {
+            throw;
+        }
+        // No node reads the camera (an all-sky frame of a sequence has no surface to solve
+        // from): said where a node asks for the matrices.
+        cam.origin = "none: " + path + " has no camera matrices (not solved: " + e.what() + ")";
+        return;
+    }
     std::call_once(*state.said, [&] {
         std::fprintf(stderr,
                      "note: %s: %s: camera %s (later frames are solved likewise)\n",
@@ -213,7 +227,7 @@ void execute(NodeContext &ctx)
                                   options,
                                   &non_finite,
                                   &optional);
-        resolve_camera(state, ctx, path, solve, ctx.output());
+        resolve_camera(state, ctx, path, solve, solve && wanted.camera, ctx.output());
         for (const std::string &name : only_for_solve) {
             ctx.output().erase(name);
             non_finite.erase(name);

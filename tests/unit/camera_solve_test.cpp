@@ -291,6 +291,33 @@ TEST(CameraSolve, ReadSolvesAFileWithoutMatricesAndInfoSaysSo)
         << log;
 }
 
+// A read -> write of a whole file asks for every pass, the camera among them, and solves it where
+// it can; an all-sky frame (a sequence's first frames, say) has no surface to solve from, and
+// the write goes on without matrices instead of stopping the run. A node that reads the camera
+// still refuses the frame, naming why the solve failed.
+TEST(CameraSolve, AWholeFileWriteGoesOnWhereTheSolveFails)
+{
+    const std::string dir = test::scratch_dir("camera_solve_sky");
+    Frame f = test::make_sample_frame(32, 18, 1);
+    Image depth = f.image("depth");
+    depth.fill(std::numeric_limits<float>::infinity());
+    f.set("depth", std::move(depth));
+    write_without_camera(dir, f, true);
+    const std::string graph = dir + "/g.json";
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": "nocam.exr"}},
+        {"id": "out", "type": "write", "inputs": {"image": "in"}, "params": {"path": "o.exr"}}]})";
+    std::string log;
+    ASSERT_EQ(0, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
+    EXPECT_FALSE(read_file_info(dir + "/o.exr").camera.world_to_ndc.has_value());
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": "nocam.exr"}},
+        {"id": "ao", "type": "ao", "inputs": {"image": "in"}},
+        {"id": "out", "type": "write", "inputs": {"image": "ao"}, "params": {"path": "o.exr"}}]})";
+    EXPECT_NE(0, test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph, &log)) << log;
+    EXPECT_NE(log.find("surface pixels"), std::string::npos) << log;
+}
+
 TEST(CameraSolve, AoRunsOnAFileWithoutMatrices)
 {
     const std::string dir = test::scratch_dir("camera_solve_ao");
