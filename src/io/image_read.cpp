@@ -6,6 +6,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 
 #include "core/error.h"
@@ -26,6 +27,10 @@ namespace {
 
 bool has_exr_magic(const std::string &path)
 {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec)) {
+        return false;  // a FIFO would block the read
+    }
     std::ifstream f(path, std::ios::binary);
     unsigned char m[4] = {};
     f.read(reinterpret_cast<char *>(m), 4);
@@ -96,8 +101,8 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         part.level_mode = part.mip_levels > 1 ? "mipmap" : "";
         // OpenImageIO shows a ripmap as a chain of levels all of level 0's size.
         const int width0 = spec.width, height0 = spec.height;  // `spec` follows the seeks
-        if (part.mip_levels > 1 && o.in->seek_subimage(sub, 1) &&
-            o.in->spec().width == width0 && o.in->spec().height == height0) {
+        if (part.mip_levels > 1 && o.in->seek_subimage(sub, 1) && o.in->spec().width == width0 &&
+            o.in->spec().height == height0) {
             part.level_mode = "ripmap";
             const bool up = o.in->spec().get_int_attribute("openexr:roundingmode", 0) == 1;
             auto levels = [up](int n) {
@@ -327,7 +332,8 @@ Frame read_frame(const std::string &path,
                     also.insert(request);
                     continue;
                 }
-                for (const cryptomatte::Layer &l : cryptomatte::find_layers(info.attributes, path)) {
+                for (const cryptomatte::Layer &l :
+                     cryptomatte::find_layers(info.attributes, path)) {
                     if (type.empty() || l.is(type)) {
                         for (const std::string &rank : cryptomatte::rank_passes(l, names, path)) {
                             also.insert(rank);
@@ -491,7 +497,9 @@ Frame read_frame(const std::string &path,
     FrameRows rows(path, info, window, options, count_kept);
     std::vector<FrameRows::Out> &outs = rows.outs;
     for (const PassSource *ps : selected) {
-        const bool is_depth = ps->pass == pass::kDepth || ps->pass.starts_with("depth@");
+        // Depths (the surface's and the reflected one's): +inf is the sky, not a bad value.
+        const std::string base = ps->pass.substr(0, ps->pass.find('@'));
+        const bool is_depth = base == pass::kDepth || base == pass::kSpecularDepth;
         outs.push_back({ps,
                         Image::uninitialized(width, height, int(ps->sources.size())),
                         is_depth,

@@ -479,6 +479,10 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path,
     if (fs::is_directory(path, ec)) {
         throw_runtime(path, ": is a directory, not an image");
     }
+    if (!fs::is_regular_file(path, ec)) {
+        // A FIFO or a device would block the read, or never end.
+        throw_runtime(path, ": not a regular file (a pipe, socket or device), not an image");
+    }
     if (fs::file_size(path, ec) == 0) {
         throw_runtime(path, ": empty file");
     }

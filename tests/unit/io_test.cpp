@@ -768,6 +768,8 @@ TEST(IoBadInput, NanAndInfPixels)
     color.at(3, 4, 1) = std::numeric_limits<float>::quiet_NaN();
     color.at(5, 5, 0) = std::numeric_limits<float>::infinity();
     f.set("color", std::move(color));
+    // A reflection of the sky is as far as the sky: +inf in specular_depth is no bad value either.
+    f.set("specular_depth", f.pass("depth").image);
     WriteOptions o;
     o.storage["color"] = PixelStorage::Float;
     write_exr(f, dir + "/nan.exr", o);
@@ -777,7 +779,8 @@ TEST(IoBadInput, NanAndInfPixels)
     const Frame k = read_frame(dir + "/nan.exr", nullptr, 1, keep, &counts);
     EXPECT_TRUE(std::isnan(k.image("color").at(3, 4, 1)));
     EXPECT_TRUE(std::isinf(k.image("depth").at(0, 0, 0)));  // sky depth is legitimate
-    // The per-frame report: two values in color, none in depth (+inf is the sky).
+    EXPECT_TRUE(std::isinf(k.image("specular_depth").at(0, 0, 0)));
+    // The per-frame report: two values in color, none in the depths (+inf is the sky).
     EXPECT_EQ(counts, (std::map<std::string, std::size_t>{{"color", 2}}));
     // Through a graph: one warning line for the frame.
     std::ofstream(dir + "/g.json") << R"({"nodes": [
@@ -799,6 +802,7 @@ TEST(IoBadInput, NanAndInfPixels)
     EXPECT_EQ(z.image("color").at(3, 4, 1), 0.0f);
     EXPECT_EQ(z.image("color").at(5, 5, 0), 0.0f);
     EXPECT_TRUE(std::isinf(z.image("depth").at(0, 0, 0)));
+    EXPECT_TRUE(std::isinf(z.image("specular_depth").at(0, 0, 0)));
 
     ReadOptions error;
     error.bad_pixels = BadPixels::Error;
