@@ -38,6 +38,7 @@ using farm::json;
 using farm::load_job_graph;
 using farm::on_path;
 using farm::read_json;
+using farm::sbatch;
 using farm::status_command;
 namespace fs = std::filesystem;
 
@@ -271,20 +272,6 @@ std::string check_script(const json &job, const fs::path &dir, int submission)
     return o.str();
 }
 
-std::string sbatch(const std::string &args)
-{
-    std::string out;
-    if (!capture("sbatch --parsable " + args, out)) {
-        std::replace(out.begin(), out.end(), '\n', ' ');
-        throw_runtime("farm: sbatch failed: ", out);
-    }
-    const std::string id = out.substr(0, out.find_first_of(";\n"));
-    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
-        throw_runtime("farm: sbatch printed no job id: ", out);
-    }
-    return id;
-}
-
 /// Write the scripts of submission `s` (chunks in job["submissions"][s]) and submit them.
 void submit(json &job, const fs::path &dir, int s)
 {
@@ -395,11 +382,23 @@ int submit_command(const SubmitOptions &o)
     if (ec) {
         throw_runtime(dir.string(), ": cannot create the job directory: ", ec.message());
     }
-    write_text_file((dir / "graph.json").string(), graph_text);
-    // The written graph is the same graph.
-    Graph::load((dir / "graph.json").string(), nodes::catalog());
-    write_text_file((dir / "frames.txt").string(), join_frames(frames) + "\n");
-    submit(job, dir, 0);
+    try {
+        write_text_file((dir / "graph.json").string(), graph_text);
+        // The written graph is the same graph.
+        Graph::load((dir / "graph.json").string(), nodes::catalog());
+        write_text_file((dir / "frames.txt").string(), join_frames(frames) + "\n");
+        submit(job, dir, 0);
+    } catch (const Error &) {
+        if (job["submissions"][0].contains("array_job")) {
+            // The array is queued (the check job was refused): its directory stays, recorded.
+            write_text_file((dir / "job.json").string(), job.dump(2) + "\n");
+        } else {
+            // Nothing was queued: no half-made job directory is left to block the next submit.
+            std::error_code rm;
+            fs::remove_all(dir, rm);
+        }
+        throw;
+    }
     std::printf("%s %s\n",
                 job["submissions"][0]["array_job"].get<std::string>().c_str(),
                 dir.string().c_str());
@@ -581,7 +580,8 @@ void add_farm_command(CLI::App &app, int &exit_code)
     task->add_option("job_dir", *tdir, "Job directory")->required();
     task->add_option("--submission", *tsub, "Submission index");
     task->add_option("--chunk", *tchunk, "Chunk index (the array task id)")->required();
-    task->add_option("--threads", *tthreads, "Worker threads (0: all cores)");
+    task->add_option("--threads", *tthreads, "Worker threads (0: all cores)")
+        ->check(CLI::Range(0, 1024));
     task->callback([tdir, tsub, tchunk, tthreads, &exit_code] {
         exit_code = task_command(*tdir, *tsub, *tchunk, *tthreads);
     });

@@ -38,6 +38,20 @@ bool capture(const std::string &command, std::string &out)
     return ::pclose(pipe) == 0;
 }
 
+std::string sbatch(const std::string &args)
+{
+    std::string out;
+    if (!capture("sbatch --parsable " + args, out)) {
+        std::replace(out.begin(), out.end(), '\n', ' ');
+        throw_runtime("farm: sbatch failed: ", out);
+    }
+    const std::string id = out.substr(0, out.find_first_of(";\n"));
+    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
+        throw_runtime("farm: sbatch printed no job id: ", out);
+    }
+    return id;
+}
+
 bool on_path(const std::string &program)
 {
     const char *path = std::getenv("PATH");

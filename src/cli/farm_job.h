@@ -18,6 +18,8 @@ using json = nlohmann::json;
 
 /// Run a command; its stdout, and whether it exited 0.
 bool capture(const std::string &command, std::string &out);
+/// `sbatch --parsable ARGS`: the job id, or an Error with what sbatch said.
+std::string sbatch(const std::string &args);
 /// Whether `program` is an executable on PATH.
 bool on_path(const std::string &program);
 /// A job file (job.json, a chunk's state); a one-line error when unreadable or malformed.

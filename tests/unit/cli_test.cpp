@@ -374,6 +374,43 @@ namespace {
 // A disk that fills up mid-run: a 1 MiB tmpfs (root only; skipped elsewhere). The run stops
 // with one line naming the frame, the path and the cause, exits 1, leaves no file at the final
 // name of the frame that failed, no temporary, and the frames before it whole.
+// Inputs that would block or exhaust: a FIFO given as an image is refused, not read forever; a
+// farm task's thread count is held to the run's range (it took 17 GB for 2^31 threads); a
+// submit that sbatch refuses leaves no half-made job directory to block the next one.
+TEST(Cli, PipesThreadCountsAndRefusedSubmitsAreOneLineErrors)
+{
+    namespace fs = std::filesystem;
+    const std::string dir = test::scratch_dir("cli_odd_inputs");
+    const std::string fifo = dir + "/fifo.exr";
+    ASSERT_EQ(run_command("mkfifo " + fifo), 0);
+    std::string out;
+    // diff exits with idiff's 4 for a file it cannot read.
+    for (const auto &[cmd, rc] : {std::pair<std::string, int>{" info ", 1},
+                                  {" info --verify ", 1},
+                                  {" diff " + fifo + " ", 4}}) {
+        EXPECT_EQ(run_command("timeout 20 " + kBin + cmd + fifo, &out), rc) << cmd << out;
+        EXPECT_NE(out.find("fifo.exr: not a regular file"), std::string::npos) << cmd << out;
+        EXPECT_EQ(line_count(out), 1) << out;
+    }
+    EXPECT_EQ(run_command(kBin + " farm task " + dir + " --chunk 0 --threads 2147483647", &out), 2)
+        << out;
+    EXPECT_EQ(run_command(kBin + " farm task " + dir + " --chunk 0 --threads -1", &out), 2) << out;
+    // A stand-in sbatch that refuses every job.
+    const std::string bin = dir + "/bin";
+    fs::create_directories(bin);
+    std::ofstream(bin + "/sbatch") << "#!/bin/sh\necho 'sbatch: error: refused' >&2\nexit 1\n";
+    fs::permissions(bin + "/sbatch", fs::perms::owner_all);
+    write_inputs(dir, {1});
+    const std::string graph = write_graph(dir);
+    EXPECT_EQ(run_command("PATH=" + bin + ":$PATH " + kBin + " farm submit " + graph +
+                              " --frames 1 --job-dir " + dir + "/job",
+                          &out),
+              1)
+        << out;
+    EXPECT_NE(out.find("sbatch failed"), std::string::npos) << out;
+    EXPECT_FALSE(fs::exists(dir + "/job")) << "a half-made job directory was left";
+}
+
 TEST(Cli, FullDiskStopsTheRunCleanly)
 {
     namespace fs = std::filesystem;
@@ -410,9 +447,9 @@ TEST(Cli, FullDiskStopsTheRunCleanly)
     // The cause and the free space, once: OpenEXR's "No space left on device" or, from a writer
     // that does not say why, the writer's own words.
     const auto said = log.find("No space left on device. (");
-    const bool cause = (said != std::string::npos &&
-                        log.find(" KiB free)", said) != std::string::npos) ||
-                       log.find("(no space left on the device: ") != std::string::npos;
+    const bool cause =
+        (said != std::string::npos && log.find(" KiB free)", said) != std::string::npos) ||
+        log.find("(no space left on the device: ") != std::string::npos;
     EXPECT_TRUE(cause) << log;
     EXPECT_EQ(log.find(".tmp"), std::string::npos) << "names the temporary: " << log;
     const std::string failed = "frame " + std::to_string(names.size() + 1) + ": " + mnt + "/f." +
