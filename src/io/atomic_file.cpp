@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <csignal>
@@ -69,6 +70,75 @@ void remove_stale_temporaries(const fs::path &dir)
     }
 }
 
+/// The temporaries being written now, for a SIGINT or SIGTERM to remove before the process
+/// ends (a killed write left a partial ".NAME.tmpPID-N.exr" that only a later run, ten minutes
+/// on, tidied). Fixed slots and async-signal-safe calls only: the handler runs anywhere.
+constexpr int kSlots = 64;
+char g_temporary[kSlots][4096];
+std::atomic<bool> g_slot_used[kSlots];
+
+void remove_temporaries_and_die(int sig)
+{
+    for (int i = 0; i < kSlots; ++i) {
+        if (g_slot_used[i].load(std::memory_order_acquire)) {
+            ::unlink(g_temporary[i]);
+        }
+    }
+    ::signal(sig, SIG_DFL);
+    ::raise(sig);
+}
+
+/// Install the handler for SIGINT and SIGTERM, once, where nobody else handles them (the Python
+/// module's interpreter keeps its own).
+void install_signal_cleanup()
+{
+    static std::once_flag once;
+    std::call_once(once, [] {
+        for (const int sig : {SIGINT, SIGTERM}) {
+            struct sigaction old {};
+            if (::sigaction(sig, nullptr, &old) == 0 && old.sa_handler == SIG_DFL) {
+                struct sigaction sa {};
+                sa.sa_handler = &remove_temporaries_and_die;
+                sigemptyset(&sa.sa_mask);
+                ::sigaction(sig, &sa, nullptr);
+            }
+        }
+    });
+}
+
+/// A temporary registered for the handler while it exists (no slot free: not registered).
+class TemporaryGuard {
+   public:
+    explicit TemporaryGuard(const std::string &path)
+    {
+        if (path.size() >= sizeof(g_temporary[0])) {
+            return;
+        }
+        for (int i = 0; i < kSlots; ++i) {
+            bool expected = false;
+            if (g_slot_busy[i].compare_exchange_strong(expected, true)) {
+                std::memcpy(g_temporary[i], path.c_str(), path.size() + 1);
+                g_slot_used[i].store(true, std::memory_order_release);
+                slot_ = i;
+                return;
+            }
+        }
+    }
+    ~TemporaryGuard()
+    {
+        if (slot_ >= 0) {
+            g_slot_used[slot_].store(false, std::memory_order_release);
+            g_slot_busy[slot_].store(false, std::memory_order_release);
+        }
+    }
+    TemporaryGuard(const TemporaryGuard &) = delete;
+    TemporaryGuard &operator=(const TemporaryGuard &) = delete;
+
+   private:
+    static inline std::atomic<bool> g_slot_busy[kSlots];
+    int slot_ = -1;
+};
+
 }  // namespace
 
 void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write)
@@ -97,6 +167,8 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
     name += std::to_string(rng() % 100000);
     name += target.extension().string();
     const std::string tmp = (target.parent_path() / name).string();
+    install_signal_cleanup();
+    const TemporaryGuard guard(tmp);
     try {
         write(tmp);
     } catch (const Error &e) {
@@ -121,8 +193,9 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
     }
     fs::rename(tmp, target, ec);
     if (ec) {
+        const std::string why = ec.message();  // before the removal's own code replaces it
         fs::remove(tmp, ec);
-        throw_runtime(path, ": cannot rename temporary file into place: ", ec.message());
+        throw_runtime(path, ": cannot rename temporary file into place: ", why);
     }
 }
 

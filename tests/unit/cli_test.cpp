@@ -411,6 +411,32 @@ TEST(Cli, PipesThreadCountsAndRefusedSubmitsAreOneLineErrors)
     EXPECT_FALSE(fs::exists(dir + "/job")) << "a half-made job directory was left";
 }
 
+// A run stopped while it writes removes its temporary: a 1080p frame of float passes with zip
+// takes most of a second to write, and the signals land at several points of it.
+TEST(Cli, ASignalRemovesTheTemporaryBeingWritten)
+{
+    namespace fs = std::filesystem;
+    const std::string dir = test::scratch_dir("cli_signal");
+    int stopped = 0;
+    for (const char *delay : {"0.5", "0.8", "1.1", "1.4"}) {
+        const std::string out = dir + "/" + std::string(delay);
+        fs::create_directories(out);
+        const int rc = run_command(
+            "timeout -s TERM " + std::string(delay) + " " + kBin + " render " + POSTHASTE_TEST_DIR +
+            "/../samples/scenes/minecrappy.json -f 1-3 --size 1920x1080 --passes "
+            "all --compression zip -q -o " +
+            out + "/f.####.exr");
+        stopped += rc == 124;
+        for (const auto &e : fs::directory_iterator(out)) {
+            const std::string name = e.path().filename().string();
+            EXPECT_NE(name[0], '.')
+                << "a temporary was left: " << name << " (after " << delay << " s)";
+            EXPECT_TRUE(verify_image_file(e.path().string()).empty()) << name;
+        }
+    }
+    EXPECT_GT(stopped, 0);
+}
+
 TEST(Cli, FullDiskStopsTheRunCleanly)
 {
     namespace fs = std::filesystem;
