@@ -297,6 +297,9 @@ int submit_command(const SubmitOptions &o)
         chunk_size(o.chunk, o.slurm, 0, &automatic);  // a bad count fails before anything else
     }
     const fs::path dir = fs::absolute(o.job_dir);
+    if (dir.string().find_first_of("\n\r") != std::string::npos) {
+        throw_usage("farm submit: a line break in the job directory's name (#SBATCH lines)");
+    }
     std::error_code ec;
     if (fs::exists(dir, ec) && !o.force) {
         throw_usage("farm submit: job directory ",

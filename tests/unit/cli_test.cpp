@@ -409,6 +409,13 @@ TEST(Cli, PipesThreadCountsAndRefusedSubmitsAreOneLineErrors)
         << out;
     EXPECT_NE(out.find("sbatch failed"), std::string::npos) << out;
     EXPECT_FALSE(fs::exists(dir + "/job")) << "a half-made job directory was left";
+    // A line break in the job directory's name would end an #SBATCH line and start another.
+    EXPECT_EQ(run_command(kBin + " farm submit " + graph + " --frames 1 --job-dir '" + dir +
+                              "/a\n#SBATCH --wrap=x'",
+                          &out),
+              2)
+        << out;
+    EXPECT_NE(out.find("line break"), std::string::npos) << out;
 }
 
 // A run stopped while it writes removes its temporary: a 1080p frame of float passes with zip
