@@ -38,7 +38,9 @@ using farm::json;
 using farm::load_job_graph;
 using farm::on_path;
 using farm::read_json;
+using farm::require_slurm;
 using farm::sbatch;
+using farm::shell_quote;
 using farm::status_command;
 namespace fs = std::filesystem;
 
@@ -60,26 +62,6 @@ struct SubmitOptions {
     bool dry_run = false;
     bool force = false;
 };
-
-std::string shell_quote(const std::string &s)
-{
-    std::string q = "'";
-    for (char c : s) {
-        q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    }
-    return q + "'";
-}
-
-void require_slurm(const std::string &program)
-{
-    if (!on_path(program)) {
-        throw_runtime("farm: ",
-                      program,
-                      " is not on PATH: run on a Slurm submit host, or install Slurm's client "
-                      "(Debian: apt-get install --no-install-recommends slurm-client; a local "
-                      "cluster also needs slurmctld slurmd munge, see tests/slurm-local.sh)");
-    }
-}
 
 std::string self_binary()
 {
@@ -273,7 +255,7 @@ std::string check_script(const json &job, const fs::path &dir, int submission)
 }
 
 /// Write the scripts of submission `s` (chunks in job["submissions"][s]) and submit them.
-void submit(json &job, const fs::path &dir, int s)
+void submit(json &job, const fs::path &dir, int s, bool *array_refused = nullptr)
 {
     json &sub = job["submissions"][std::size_t(s)];
     const int chunks = int(sub["chunks"].size());
@@ -281,7 +263,7 @@ void submit(json &job, const fs::path &dir, int s)
     const fs::path check = dir / ("check-s" + std::to_string(s) + ".sbatch");
     write_text_file(run.string(), batch_script(job, dir, s, chunks));
     write_text_file(check.string(), check_script(job, dir, s));
-    sub["array_job"] = sbatch(shell_quote(run.string()));
+    sub["array_job"] = sbatch(shell_quote(run.string()), array_refused);
     sub["check_job"] = sbatch("--dependency=afterany:" + sub["array_job"].get<std::string>() +
                               " --kill-on-invalid-dep=yes " + shell_quote(check.string()));
     write_text_file((dir / "job.json").string(), job.dump(2) + "\n");
@@ -385,18 +367,29 @@ int submit_command(const SubmitOptions &o)
     if (ec) {
         throw_runtime(dir.string(), ": cannot create the job directory: ", ec.message());
     }
+    bool array_refused = false;
     try {
         write_text_file((dir / "graph.json").string(), graph_text);
         // The written graph is the same graph.
         Graph::load((dir / "graph.json").string(), nodes::catalog());
         write_text_file((dir / "frames.txt").string(), join_frames(frames) + "\n");
-        submit(job, dir, 0);
-    } catch (const Error &) {
-        if (job["submissions"][0].contains("array_job")) {
-            // The array is queued (the check job was refused): its directory stays, recorded.
+        submit(job, dir, 0, &array_refused);
+    } catch (const Error &e) {
+        const json &sub = job["submissions"][0];
+        if (sub.contains("array_job")) {
+            // The array is queued and only the check job was refused: the directory stays.
             write_text_file((dir / "job.json").string(), job.dump(2) + "\n");
-        } else {
-            // Nothing was queued: no half-made job directory is left to block the next submit.
+            throw Error(e.code(),
+                        str_cat(e.what(),
+                                " (array job ",
+                                sub["array_job"].get<std::string>(),
+                                " is queued; its job directory ",
+                                dir.string(),
+                                " stays)"));
+        }
+        if (array_refused || !fs::exists(dir / "run-s0.sbatch")) {
+            // Nothing was queued (sbatch refused the array, or it was never called): no half-made
+            // job directory is left to block the next submit.
             std::error_code rm;
             fs::remove_all(dir, rm);
         }

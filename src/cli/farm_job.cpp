@@ -38,18 +38,47 @@ bool capture(const std::string &command, std::string &out)
     return ::pclose(pipe) == 0;
 }
 
-std::string sbatch(const std::string &args)
+std::string shell_quote(const std::string &s)
+{
+    std::string q = "'";
+    for (char c : s) {
+        q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    }
+    return q + "'";
+}
+
+void require_slurm(const std::string &program)
+{
+    if (!on_path(program)) {
+        throw_runtime("farm: ",
+                      program,
+                      " is not on PATH: run on a Slurm submit host, or install Slurm's client "
+                      "(Debian: apt-get install --no-install-recommends slurm-client; a local "
+                      "cluster also needs slurmctld slurmd munge, see tests/slurm-local.sh)");
+    }
+}
+
+std::string sbatch(const std::string &args, bool *refused)
 {
     std::string out;
     if (!capture("sbatch --parsable " + args, out)) {
+        if (refused) {
+            *refused = true;
+        }
         std::replace(out.begin(), out.end(), '\n', ' ');
         throw_runtime("farm: sbatch failed: ", out);
     }
-    const std::string id = out.substr(0, out.find_first_of(";\n"));
-    if (id.empty() || id.find_first_not_of("0123456789") != std::string::npos) {
-        throw_runtime("farm: sbatch printed no job id: ", out);
+    // The id ("123" or "123;cluster") is the line of digits; warnings (stderr is captured too)
+    // or a site plugin's notes may come before it.
+    std::istringstream lines(out);
+    for (std::string line; std::getline(lines, line);) {
+        const std::string id = line.substr(0, line.find(';'));
+        if (!id.empty() && id.find_first_not_of("0123456789") == std::string::npos) {
+            return id;
+        }
     }
-    return id;
+    std::replace(out.begin(), out.end(), '\n', ' ');
+    throw_runtime("farm: sbatch printed no job id: ", out);
 }
 
 bool on_path(const std::string &program)

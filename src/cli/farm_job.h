@@ -18,8 +18,13 @@ using json = nlohmann::json;
 
 /// Run a command; its stdout, and whether it exited 0.
 bool capture(const std::string &command, std::string &out);
-/// `sbatch --parsable ARGS`: the job id, or an Error with what sbatch said.
-std::string sbatch(const std::string &args);
+/// `s` in single quotes for a shell (a quote inside closes, escapes and reopens).
+std::string shell_quote(const std::string &s);
+/// An Error naming how to get Slurm's `program` unless it is on PATH.
+void require_slurm(const std::string &program);
+/// `sbatch --parsable ARGS`: the job id, or an Error with what sbatch said; `refused` is set
+/// when sbatch exited non-zero (nothing was queued).
+std::string sbatch(const std::string &args, bool *refused = nullptr);
 /// Whether `program` is an executable on PATH.
 bool on_path(const std::string &program);
 /// A job file (job.json, a chunk's state); a one-line error when unreadable or malformed.

@@ -409,6 +409,21 @@ TEST(Cli, PipesThreadCountsAndRefusedSubmitsAreOneLineErrors)
         << out;
     EXPECT_NE(out.find("sbatch failed"), std::string::npos) << out;
     EXPECT_FALSE(fs::exists(dir + "/job")) << "a half-made job directory was left";
+    // An sbatch that warns before the array's id and then refuses the check job: the array is
+    // queued, so its directory stays, recorded, and the message names the array.
+    std::ofstream(bin + "/sbatch") << "#!/bin/sh\nif [ -e " << bin
+                                   << "/queued ]; then echo 'sbatch: error: no' >&2; exit 1; fi\n"
+                                      "touch "
+                                   << bin
+                                   << "/queued\necho 'sbatch: warning: site note' >&2\n"
+                                      "echo '4242;posthaste'\n";
+    EXPECT_EQ(run_command("PATH=" + bin + ":$PATH " + kBin + " farm submit " + graph +
+                              " --frames 1 --job-dir " + dir + "/job2",
+                          &out),
+              1)
+        << out;
+    EXPECT_NE(out.find("array job 4242 is queued"), std::string::npos) << out;
+    EXPECT_TRUE(fs::exists(dir + "/job2/job.json")) << out;
     // A line break in the job directory's name would end an #SBATCH line and start another.
     EXPECT_EQ(run_command(kBin + " farm submit " + graph + " --frames 1 --job-dir '" + dir +
                               "/a\n#SBATCH --wrap=x'",
