@@ -35,7 +35,9 @@ glm::mat4 parse_matrix(const json &j, const ParamWhere &where, const char *key)
     }
     glm::mat4 m;
     std::memcpy(&m, v, sizeof m);
-    if (const std::string problem = camera_matrix_problem(m); !problem.empty()) {
+    const std::string problem = std::string(key) == "world_to_ndc" ? projection_matrix_problem(m)
+                                                                   : camera_matrix_problem(m);
+    if (!problem.empty()) {
         throw_usage(where.path, "/", key, ": ", where.who, ": the matrix ", problem);
     }
     return m;

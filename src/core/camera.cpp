@@ -1,6 +1,7 @@
 #include "core/camera.h"
 
 #include <cmath>
+#include <glm/geometric.hpp>
 #include <glm/gtc/matrix_inverse.hpp>
 #include <glm/mat4x4.hpp>
 
@@ -18,20 +19,27 @@ const T &require(const std::optional<T> &v, const char *attribute, const std::st
     return *v;
 }
 
-/// The matrix, or an Error naming it when it cannot be used (a header may hold NaNs or zeros).
+/// The matrix, or an Error naming it when it cannot be used (a header may hold NaNs or zeros):
+/// worldToCamera by camera_matrix_problem, worldToNDC by projection_matrix_problem. `origin`
+/// empty: a previous frame's matrix, which only the header gives.
 const glm::mat4 &usable(const glm::mat4 &m,
                         const char *attribute,
+                        bool projection,
                         const std::string &who,
                         const std::string &origin)
 {
-    if (const std::string problem = camera_matrix_problem(m); !problem.empty()) {
+    const std::string problem =
+        projection ? projection_matrix_problem(m) : camera_matrix_problem(m);
+    if (!problem.empty()) {
         throw_runtime(who,
                       ": camera attribute \"",
                       attribute,
                       "\" ",
                       problem,
-                      origin.empty() ? "" : " (" + origin + ")",
-                      "; give the camera as read's \"camera\" parameter instead");
+                      origin.empty() ? " (the header's previous frame)"
+                                     : " (" + origin +
+                                           "); give the camera as read's \"camera\" "
+                                           "parameter instead");
     }
     return m;
 }
@@ -52,7 +60,7 @@ const glm::mat4 &require_matrix(const std::optional<glm::mat4> &m,
                       "(worldToCamera, worldToNDC), as read's \"camera\" parameter, or with "
                       "position and depth passes to solve it from");
     }
-    return usable(*m, attribute, who, origin);
+    return usable(*m, attribute, attribute == attr::kWorldToNDC, who, origin);
 }
 
 }  // namespace
@@ -73,6 +81,26 @@ std::string camera_matrix_problem(const glm::mat4 &m)
     return "";
 }
 
+std::string projection_matrix_problem(const glm::mat4 &m)
+{
+    for (int c = 0; c < 4; ++c) {
+        for (int r = 0; r < 4; ++r) {
+            if (!std::isfinite(m[c][r])) {
+                return "has an entry that is not finite";
+            }
+        }
+    }
+    // The directions' parts of the x, y and w outputs (row vectors: p * M): independent for any
+    // perspective or orthographic camera, whatever the units or the translation.
+    const glm::dvec3 x(m[0][0], m[1][0], m[2][0]), y(m[0][1], m[1][1], m[2][1]),
+        w(m[0][3], m[1][3], m[2][3]);
+    const double volume = std::abs(glm::dot(glm::cross(x, y), w));
+    if (!(volume > 1e-6 * glm::length(x) * glm::length(y) * glm::length(w))) {
+        return "projects onto less than a plane (its x, y and w rows are not independent)";
+    }
+    return "";
+}
+
 const glm::mat4 &Camera::require_world_to_camera(const std::string &who) const
 {
     return require_matrix(world_to_camera, attr::kWorldToCamera, who, origin);
@@ -85,13 +113,17 @@ const glm::mat4 &Camera::require_prev_world_to_camera(const std::string &who) co
 {
     return usable(require(prev_world_to_camera, attr::kPrevWorldToCamera, who),
                   attr::kPrevWorldToCamera,
+                  false,
                   who,
-                  origin);
+                  "");
 }
 const glm::mat4 &Camera::require_prev_world_to_ndc(const std::string &who) const
 {
-    return usable(
-        require(prev_world_to_ndc, attr::kPrevWorldToNDC, who), attr::kPrevWorldToNDC, who, origin);
+    return usable(require(prev_world_to_ndc, attr::kPrevWorldToNDC, who),
+                  attr::kPrevWorldToNDC,
+                  true,
+                  who,
+                  "");
 }
 Camera Camera::for_window(const Rect &display, const Rect &data) const
 {

@@ -36,9 +36,15 @@ inline constexpr const char *kFarClip = "farClip";          // float, scene unit
 inline constexpr const char *kFrameNumber = "frameNumber";  // int
 }  // namespace attr
 
-/// Why a camera matrix cannot be used, or "" when it can: an entry that is not finite, or a
-/// singular matrix (|determinant| < 1e-12). One rule for the header's matrices and the graph's.
+/// Why a worldToCamera cannot be used, or "" when it can: an entry that is not finite, or a
+/// singular matrix (|determinant| < 1e-12; a rigid one has +-1). One rule for the header's
+/// matrices and the graph's.
 std::string camera_matrix_problem(const glm::mat4 &m);
+/// Why a worldToNDC cannot be used, or "" when it can: an entry that is not finite, or x, y and
+/// w rows whose direction parts are not independent (a zero matrix; a projection onto a line).
+/// Scale- and translation-free, so scenes in millimetres or far from the origin pass; the depth
+/// row is not judged (camera-only motion never reads it).
+std::string projection_matrix_problem(const glm::mat4 &m);
 
 struct Camera {
     std::optional<glm::mat4> world_to_camera;

@@ -408,9 +408,19 @@ TEST(CameraSolve, UnusableHeaderMatricesAreRefusedByTheNodesThatNeedThem)
     glm::mat4 nan_m = *good.camera.world_to_ndc;
     nan_m[1][2] = std::numeric_limits<float>::quiet_NaN();
     const glm::mat4 zero(0.0f);
-    EXPECT_EQ(camera_matrix_problem(*good.camera.world_to_ndc), "");
-    EXPECT_EQ(camera_matrix_problem(nan_m), "has an entry that is not finite");
+    EXPECT_EQ(projection_matrix_problem(*good.camera.world_to_ndc), "");
+    EXPECT_EQ(camera_matrix_problem(*good.camera.world_to_camera), "");
+    EXPECT_EQ(projection_matrix_problem(nan_m), "has an entry that is not finite");
+    EXPECT_EQ(projection_matrix_problem(zero).rfind("projects onto less than a plane", 0), 0u);
     EXPECT_EQ(camera_matrix_problem(zero).rfind("is singular", 0), 0u);
+    // A camera in millimetres and 5000 km from the origin, whose float depth row collapses,
+    // still projects: only the x, y and w rows' directions are judged.
+    const glm::mat4 far_c2w = glm::translate(glm::mat4(1.0f), glm::vec3(5e6f, 0.0f, 0.0f));
+    const CameraMatrices far = make_camera_matrices(far_c2w, 35.0f, 36.0f, 16.0f / 9.0f, 0.01f);
+    EXPECT_EQ(projection_matrix_problem(far.world_to_ndc), "");
+    const CameraMatrices mm = make_camera_matrices(
+        glm::scale(glm::mat4(1.0f), glm::vec3(1000.0f)), 35.0f, 36.0f, 16.0f / 9.0f, 100.0f);
+    EXPECT_EQ(projection_matrix_problem(mm.world_to_ndc), "");
     const std::pair<const char *, const char *> nodes[] = {
         {"ao", "{}"},
         {"ssr", "{}"},
@@ -440,7 +450,11 @@ TEST(CameraSolve, UnusableHeaderMatricesAreRefusedByTheNodesThatNeedThem)
             } catch (const Error &e) {
                 const std::string m = e.what();
                 EXPECT_NE(m.find(attribute), std::string::npos) << m;
-                EXPECT_NE(m.find(use_nan ? "not finite" : "is singular"), std::string::npos) << m;
+                EXPECT_NE(m.find(use_nan          ? "not finite"
+                                 : t == "relight" ? "is singular"
+                                                  : "projects onto less than a plane"),
+                          std::string::npos)
+                    << m;
             }
         }
     }
