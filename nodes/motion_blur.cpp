@@ -254,9 +254,9 @@ void execute(NodeContext &ctx)
     const bool split = ctx.get_choice(kSpecular) == 0 && ctx.get_choice(kSource) == 0 &&
                        in.has(motion_pass) && in.has(pass::kSpecular) &&
                        in.has(pass::kSpecularMotion);
-    // The split blurs the rest along diffuse_motion, unless the graph names the motion pass.
+    // The split blurs the rest along diffuse_motion, unless the graph names another motion pass.
     const bool rest_along_diffuse =
-        split && in.has(pass::kDiffuseMotion) && !ctx.params().given(kMotionPass);
+        split && in.has(pass::kDiffuseMotion) && motion_pass == kMotionPass.default_text;
     Image reprojected;
     const Image *motion = nullptr;
     if (rest_along_diffuse) {
@@ -273,11 +273,19 @@ void execute(NodeContext &ctx)
                           " channel(s), expected 2");
         }
     } else {
-        // Source camera, or no motion pass in the input: motion reprojected from depth.
-        const std::string who =
-            ctx.get_choice(kSource) == 0
-                ? ctx.where() + " (no pass \"" + motion_pass + "\": motion reprojected from depth)"
-                : ctx.where();
+        // Source camera, or no motion pass in the input: motion reprojected from depth (said
+        // once: a misspelt motion_pass lands here too).
+        const bool fallback = ctx.get_choice(kSource) == 0;
+        const std::string who = fallback ? ctx.where() + " (no pass \"" + motion_pass +
+                                               "\": motion reprojected from depth)"
+                                         : ctx.where();
+        if (fallback) {
+            ctx.state().note_once(str_cat(ctx.node().describe(),
+                                          ": no pass \"",
+                                          motion_pass,
+                                          "\" in the input: motion reprojected from depth through "
+                                          "the previous frame's camera (a still world)"));
+        }
         reprojected = shading::camera_motion(depth, in.pixel_camera(), who);
         motion = &reprojected;
     }
@@ -316,7 +324,7 @@ void plan(PlanContext &ctx)
         if (ctx.params.get_choice(kSpecular) == 0) {
             ctx.inputs[0].add_optional(pass::kSpecular);
             ctx.inputs[0].add_optional(pass::kSpecularMotion);
-            if (!ctx.params.given(kMotionPass)) {
+            if (ctx.params.get_string(kMotionPass) == kMotionPass.default_text) {
                 ctx.inputs[0].add_optional(pass::kDiffuseMotion);
             }
         }

@@ -15,7 +15,7 @@ glm::vec3 sun_direction(NodeContext &ctx, const ParamSpec &spec, const Frame &in
     glm::vec3 d = param_value<glm::vec3>(ctx, spec, HeaderSource::of(in));
     const float big = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
     if (big > 0.0f && std::isfinite(big) &&
-        !(std::isfinite(glm::length(d)) && glm::length(d) > 0.0f)) {
+        !(std::isfinite(glm::length(d)) && glm::length(d) > 1e-12f)) {
         d /= big;  // finite and non-zero, but its length over- or underflows a float
     }
     const float len = glm::length(d);

@@ -75,12 +75,16 @@ void remove_stale_temporaries(const fs::path &dir)
 /// on, tidied). Fixed slots and async-signal-safe calls only: the handler runs anywhere.
 constexpr int kSlots = 64;
 char g_temporary[kSlots][4096];
+std::atomic<pid_t> g_owner[kSlots];  // the process that registered the slot
 std::atomic<bool> g_slot_used[kSlots];
 
 void remove_temporaries_and_die(int sig)
 {
+    // A child forked without exec inherits the slots: it leaves its parent's files alone.
+    const pid_t self = ::getpid();
     for (int i = 0; i < kSlots; ++i) {
-        if (g_slot_used[i].load(std::memory_order_acquire)) {
+        if (g_slot_used[i].load(std::memory_order_acquire) &&
+            g_owner[i].load(std::memory_order_relaxed) == self) {
             ::unlink(g_temporary[i]);
         }
     }
@@ -118,6 +122,7 @@ class TemporaryGuard {
             bool expected = false;
             if (g_slot_busy[i].compare_exchange_strong(expected, true)) {
                 std::memcpy(g_temporary[i], path.c_str(), path.size() + 1);
+                g_owner[i].store(::getpid(), std::memory_order_relaxed);
                 g_slot_used[i].store(true, std::memory_order_release);
                 slot_ = i;
                 return;
