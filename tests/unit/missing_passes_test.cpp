@@ -4,8 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <fstream>
 
 #include "core/error.h"
+#include "io/image_file.h"
 #include "raster/render.h"
 #include "raster/scene.h"
 #include "test_util.h"
@@ -101,6 +103,19 @@ TEST(MissingPasses, AMissingMotionPassIsReprojectedAndANamedOneIsUsed)
         test::run_node("motion_blur", f, R"({"source": "camera"})", 6).image("color");
     EXPECT_TRUE(fallback.bit_equal(camera));
     EXPECT_FALSE(fallback.bit_equal(f.image("color")));  // the camera moves: a blur
+    // Through a graph, from a file without motion: the read no longer refuses it (the plan
+    // asked for the pass as required, so the fallback above never ran on a file).
+    const std::string dir = test::scratch_dir("missing_motion");
+    write_exr(f, dir + "/in.exr", {});
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": "in.exr"}},
+        {"id": "mb", "type": "motion_blur", "inputs": {"image": "in"}},
+        {"id": "out", "type": "write", "inputs": {"image": "mb"},
+         "params": {"path": "out.exr", "passes": "color"}}]})";
+    std::string log;
+    EXPECT_EQ(0, test::run_command(std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json", &log))
+        << log;
+    EXPECT_NE(log.find("motion reprojected from depth"), std::string::npos) << log;
     Frame nocam = f;
     nocam.camera.prev_world_to_ndc.reset();
     try {
