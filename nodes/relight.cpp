@@ -239,15 +239,9 @@ Setup parse_setup(const NodeParams &params, const std::string &where, const std:
             throw_usage(li, ": ", who, ": color times intensity is beyond a float's range");
         }
         if (l.type != LightType::Point) {
-            glm::vec3 d = vec3(kLightDirection);
-            // A direction is only a direction: one whose float length underflows, such as
-            // [1e-30, 1e-30, 0], is scaled by its largest component first (the diagonal it names).
-            const float big = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
-            if (!(big > 0.0f)) {
+            const glm::vec3 d = rescaled_direction(vec3(kLightDirection));
+            if (!(glm::length(d) > 0.0f)) {
                 throw_usage(li, "/direction: ", who, ": expected a non-zero vector, got [0, 0, 0]");
-            }
-            if (!(glm::length(d) > 1e-12f) || !std::isfinite(glm::length(d))) {
-                d /= big;
             }
             l.direction = glm::normalize(d);
         }

@@ -2,22 +2,17 @@
 
 #include "nodes/sun_params.h"
 
-#include <algorithm>
 #include <cmath>
 #include <glm/geometric.hpp>
 
+#include "core/sanitize.h"
 #include "graph/param_bind.h"
 
 namespace posthaste::nodes {
 
 glm::vec3 sun_direction(NodeContext &ctx, const ParamSpec &spec, const Frame &in)
 {
-    glm::vec3 d = param_value<glm::vec3>(ctx, spec, HeaderSource::of(in));
-    const float big = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
-    if (big > 0.0f && std::isfinite(big) &&
-        !(std::isfinite(glm::length(d)) && glm::length(d) > 1e-12f)) {
-        d /= big;  // finite and non-zero, but its length over- or underflows a float
-    }
+    const glm::vec3 d = rescaled_direction(param_value<glm::vec3>(ctx, spec, HeaderSource::of(in)));
     const float len = glm::length(d);
     if (!(len > 0.0f) || !std::isfinite(len)) {
         throw_runtime(ctx.where(),

@@ -63,16 +63,24 @@ const glm::mat4 &require_matrix(const std::optional<glm::mat4> &m,
     return usable(*m, attribute, attribute == attr::kWorldToNDC, who, origin);
 }
 
-}  // namespace
-
-std::string camera_matrix_problem(const glm::mat4 &m)
+bool all_finite(const glm::mat4 &m)
 {
     for (int c = 0; c < 4; ++c) {
         for (int r = 0; r < 4; ++r) {
             if (!std::isfinite(m[c][r])) {
-                return "has an entry that is not finite";
+                return false;
             }
         }
+    }
+    return true;
+}
+
+}  // namespace
+
+std::string camera_matrix_problem(const glm::mat4 &m)
+{
+    if (!all_finite(m)) {
+        return "has an entry that is not finite";
     }
     const float det = glm::determinant(m);
     if (!std::isfinite(det) || std::abs(det) < 1e-12f) {
@@ -83,12 +91,8 @@ std::string camera_matrix_problem(const glm::mat4 &m)
 
 std::string projection_matrix_problem(const glm::mat4 &m)
 {
-    for (int c = 0; c < 4; ++c) {
-        for (int r = 0; r < 4; ++r) {
-            if (!std::isfinite(m[c][r])) {
-                return "has an entry that is not finite";
-            }
-        }
+    if (!all_finite(m)) {
+        return "has an entry that is not finite";
     }
     // The directions' parts of the x, y and w outputs (row vectors: p * M): independent for any
     // perspective or orthographic camera, whatever the units or the translation.

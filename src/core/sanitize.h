@@ -3,7 +3,10 @@
 // gathering node reads its inputs through finite_view: the image itself when every value is
 // finite (no copy, the common case), else a copy with those values replaced.
 
+#include <algorithm>
 #include <cmath>
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
 
 #include "core/image.h"
 
@@ -13,6 +16,19 @@ namespace posthaste {
 inline float finite_or_zero(float v)
 {
     return std::isfinite(v) ? v : 0.0f;
+}
+
+/// A direction given as a vector whose float length over- or underflows (finite components, not
+/// all zero, such as [1e-30, 1e-30, 0]) divided by its largest component, so that normalising it
+/// gives the direction it names; any other vector as it is (ordinary directions keep their bits).
+inline glm::vec3 rescaled_direction(glm::vec3 d)
+{
+    const float big = std::max({std::abs(d.x), std::abs(d.y), std::abs(d.z)});
+    const float len = glm::length(d);
+    if (big > 0.0f && std::isfinite(big) && !(std::isfinite(len) && len > 1e-12f)) {
+        d /= big;
+    }
+    return d;
 }
 
 /// `image` when all its values are finite (with `allow_positive_inf`, +inf counts as finite:
