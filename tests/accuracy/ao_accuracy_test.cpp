@@ -89,19 +89,21 @@ TEST(AoAccuracySlow, RemovesMostOfTheErrorWhereTheDepthBufferHoldsTheOccluders)
 // not. Both count every radius crossing, as when this was measured on 2026-11-28 (RMSE,
 // horizons against bitmask): frame 8 0.0505 and 0.0497, frame 40 0.0817 and 0.0773. (With the
 // reachable crossings, the default since 2026-11-30, the horizons' jump to the ball is no longer
-// a surface either: frame 40 0.0791 and 0.0780.)
+// a surface either: frame 40 0.0791 and 0.0780.) Since 2026-12-01 the horizons' samples keep
+// their elevation above the tangent plane wherever the pixel grid rounds them off the slice, and
+// on the wide view (frame 8, no foreground object) the horizons are the better of the two:
+// 0.0485 against 0.0497. The bitmask's case is the foreground object, frame 40.
 TEST(AoAccuracySlow, BitmaskBeatsHorizonsAtTheSameSamples)
 {
     const raster::Scene def = raster::load_scene(test::scene_path("minecrappy.json"));
-    for (const int frame : {8, 40}) {
-        const AoErrors e = ao_errors(def,
-                                     frame,
-                                     {R"({"steps": 8, "crossings": "all"})",
-                                      R"({"steps": 8, "method": "bitmask", "crossings": "all"})"});
-        const double horizons = e.more[0], bitmask = e.more[1];
-        EXPECT_LT(bitmask, (frame == 40 ? 0.97 : 1.0) * horizons)
-            << "frame " << frame << ": bitmask " << bitmask << ", horizons " << horizons;
-    }
+    const AoErrors e = ao_errors(def,
+                                 40,
+                                 {R"({"steps": 8, "crossings": "all"})",
+                                  R"({"steps": 8, "method": "bitmask", "crossings": "all"})"});
+    const double horizons = e.more[0], bitmask = e.more[1];
+    std::printf(
+        "frame 40, 8 steps, every crossing: horizons %.4f, bitmask %.4f\n", horizons, bitmask);
+    EXPECT_LT(bitmask, 0.97 * horizons) << "bitmask " << bitmask << ", horizons " << horizons;
 }
 
 }  // namespace

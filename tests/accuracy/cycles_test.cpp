@@ -527,13 +527,18 @@ TEST(CyclesAccuracySlow, AoAgainstCyclesAoPass)
             // each surface reaching back as far as its widest run (ground whose column runs
             // steps cut reaches back by its rows), read on the half-resolution grid, as the
             // default: 63.1 and 71.5 %, every crossing (the old default) 53 and 64 %; the
-            // close-up 4.8 and 5.3 % (every crossing 3 and 8 %).
+            // close-up 4.8 and 5.3 % (every crossing 3 and 8 %). On 2026-12-01, with each
+            // sample's elevation above the tangent plane kept where the pixel grid rounds it off
+            // the slice: the yard 63.5 and 71.5 %, 4.8 and 0.2 points below the traced bound
+            // with occluders as deep as wide (68.4 and 71.7 %); the close-up 4.1 and 4.8 %.
             EXPECT_LT(node, nothing) << shot << " radius " << dist;
             if (std::string(shot) == "yard") {
                 EXPECT_LT(extent, 0.8 * bound) << "radius " << dist;
                 // The goal: 60 % of the do-nothing error removed at both distances.
                 EXPECT_LT(node, 0.4 * nothing) << "radius " << dist;
                 EXPECT_LT(node, 0.9 * all) << "radius " << dist;
+                // The goal for the default: within 5 points of that bound.
+                EXPECT_LT(node - extent, 0.05 * nothing) << "radius " << dist;
             }
         }
     }

@@ -185,6 +185,10 @@ Image trace_denoised(const AnalyticGBuffer &g, const shading::AoTraceParams &p)
     return shading::gtao_upsample(ao, ao_depth, g.depth, p.stride);
 }
 
+/// GTAO's mean over the open floor of floor_wall_gbuffer (the slices' spread on the screen; see
+/// GtaoIsOneOnAnOpenPlaneAndFollowsTheCorner).
+constexpr double kOpenPlaneMean = 1.013;
+
 /// Mean AO of the lower half of the frame (the open floor, seen from above).
 double floor_mean(const Image &ao)
 {
@@ -234,12 +238,57 @@ TEST(Ao, GtaoIsOneOnAnOpenPlaneAndFollowsTheCorner)
     p.radius = 1.0f;
     p.slices = 4;
     p.steps = 16;
-    // No occluder: the estimate's mean is 1.
-    EXPECT_NEAR(floor_mean(gtao_denoised(floor_wall_gbuffer(320, 240, false), p)), 1.0, 0.01);
+    // No occluder: the estimate's mean is 1 but for the slices' spread. They are spread evenly
+    // on the screen, which away from the image's centre is not even about the view vector: on
+    // this wide lens (73 degrees) the open floor's mean is 1.013 before the node's clamp. Spread
+    // evenly about the view vector it is 1.000, but that measured worse on every bench scene
+    // (docs/ACCURACY.md); the per-pixel rule is GtaoNeighboursOnTheTangentPlaneHideNothing.
+    EXPECT_NEAR(
+        floor_mean(gtao_denoised(floor_wall_gbuffer(320, 240, false), p)), kOpenPlaneMean, 0.003);
     const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, true);
     const Image ao = gtao_denoised(g, p);
     for (const double d0 : {0.0, 0.25, 0.5, 0.75}) {
         expect_corner_band(g, ao, d0, d0 + 0.25);
+    }
+}
+
+// A neighbour on the same plane hides nothing, whichever way the pixel grid rounds it off the
+// slice: each pixel's AO on the open floor equals its AO with no neighbour at all (the horizons
+// then stay at the tangent plane). Pixels 32 apart with a search of at most 12 pixels see none
+// of each other. Before samples kept their elevation, a pixel here came out up to 0.047 below its
+// open value with one slice and 0.003 with two.
+TEST(Ao, GtaoNeighboursOnTheTangentPlaneHideNothing)
+{
+    const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, false);
+    AnalyticGBuffer alone = g;
+    alone.depth = Image(320, 240, 1);
+    for (int y = 0; y < 240; ++y) {
+        for (int x = 0; x < 320; ++x) {
+            alone.depth.at(x, y, 0) = x % 32 == 16 && y % 32 == 16
+                                          ? g.depth.at(x, y, 0)
+                                          : std::numeric_limits<float>::infinity();
+        }
+    }
+    for (const int slices : {1, 2}) {
+        shading::GtaoParams p;
+        p.slices = slices;
+        p.steps = 8;
+        p.max_radius_px = 12.0f;
+        const Image ao = shading::gtao(g.depth, g.normal, g.rays, p);
+        const Image open = shading::gtao(alone.depth, alone.normal, alone.rays, p);
+        int n = 0;
+        float worst = 0.0f;
+        for (int y = 16; y < 240; y += 32) {
+            for (int x = 16; x < 320; x += 32) {
+                if (std::isfinite(g.depth.at(x, y, 0))) {
+                    ASSERT_NE(open.at(x, y, 0), 1.0f) << "the pixel was not estimated";
+                    worst = std::max(worst, std::abs(ao.at(x, y, 0) - open.at(x, y, 0)));
+                    ++n;
+                }
+            }
+        }
+        ASSERT_GT(n, 30);
+        EXPECT_LT(worst, 1e-4f) << slices << " slice(s)";
     }
 }
 
@@ -289,7 +338,7 @@ TEST(Ao, HalfResolutionKeepsThePlaneAndTheCorner)
     EXPECT_EQ(low.height(), 120);
     const Image up = gtao_denoised(open, p);
     ASSERT_EQ(up.width(), 320);
-    EXPECT_NEAR(floor_mean(up), 1.0, 0.01);
+    EXPECT_NEAR(floor_mean(up), kOpenPlaneMean, 0.003);
     const AnalyticGBuffer g = floor_wall_gbuffer(320, 240, true);
     expect_corner_band(g, gtao_denoised(g, p), 0.25, 0.5);
 }

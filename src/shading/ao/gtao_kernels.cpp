@@ -169,6 +169,36 @@ void GtaoRowT(const GtaoKernelParams &p,
             const V ang_n = hn::IfThenElse(neg, hn::Neg(acn), acn);
             const V sin_abs = hn::Sqrt(hn::Max(hn::NegMulAdd(cos_n, cos_n, one), zero));
             const V sin_n = hn::IfThenElse(neg, hn::Neg(sin_abs), sin_abs);
+            const V inv_pn = hn::Div(one, hn::Max(pn_len, hn::Set(d, 1e-6f)));
+            // A sample's direction (q times inv_len: unit) as a horizon of the slice, a cosine
+            // from the view vector. The pixel grid puts most samples a little off the slice's
+            // plane, and their angle from the view vector is then not their angle within the
+            // slice: on a surface seen at a grazing angle, a neighbour on the same plane came out
+            // high above its tangent (a flat Cycles ground 0.38-0.55 open with one slice). So
+            // the sample keeps what decides its occlusion, its elevation above the tangent plane
+            // (its sine: n.q over the projected normal's length, exact within the slice), turned
+            // from the side's tangent direction toward the normal (beyond the normal where the
+            // sample lies beyond it), at most to the view vector.
+            const auto horizon_cos = [&](V qx, V qy, V qz, V inv_len, bool side1) {
+                const V qv = hn::Mul(Dot(qx, qy, qz, view_x, view_y, view_z), inv_len);
+                const V qo = hn::Mul(Dot(qx, qy, qz, or_x, or_y, or_z), inv_len);
+                const V se =
+                    hn::Min(hn::Max(hn::Mul(hn::Mul(Dot(qx, qy, qz, nx, ny, nz), inv_len), inv_pn),
+                                    hn::Set(d, -1.0f)),
+                            one);
+                const V ce_abs = hn::Sqrt(hn::Max(hn::NegMulAdd(se, se, one), zero));
+                // The tangential part: q along the side's tangent direction.
+                const V tt = side1 ? hn::Sub(hn::Mul(cos_n, qo), hn::Mul(sin_n, qv))
+                                   : hn::Sub(hn::Mul(sin_n, qv), hn::Mul(cos_n, qo));
+                const V ce = hn::IfThenElse(hn::Lt(tt, zero), hn::Neg(ce_abs), ce_abs);
+                // side 1: the angle hi - e from the view vector; side 0: lo + e.
+                const V ch = side1 ? hn::Sub(hn::Mul(cos_n, se), hn::Mul(sin_n, ce))
+                                   : hn::MulAdd(cos_n, se, hn::Mul(sin_n, ce));
+                const auto past_view =
+                    side1 ? hn::Lt(hn::MulAdd(sin_n, se, hn::Mul(cos_n, ce)), zero)
+                          : hn::Gt(hn::Sub(hn::Mul(sin_n, se), hn::Mul(cos_n, ce)), zero);
+                return hn::IfThenElse(past_view, one, ch);
+            };
             // The visibility bitmask: the hemisphere about the projected normal, lo .. hi from
             // the view vector, cut into 32 sectors of equal cosine-weighted measure (so that a
             // sector's share is its count); cum(lo) and the whole measure from gtao.h's arcs.
@@ -262,8 +292,18 @@ void GtaoRowT(const GtaoKernelParams &p,
                     const V len2 = Dot(q_x, q_y, q_z, q_x, q_y, q_z);
                     const auto in_range =
                         hn::And(valid, hn::And(hn::Le(len2, r2), hn::Ge(len2, hn::Set(d, 1e-12f))));
-                    const V c = hn::Div(Dot(q_x, q_y, q_z, view_x, view_y, view_z),
-                                        hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f))));
+                    // The bitmask's sectors take the direction's own angle from the view
+                    // vector (its elevation measured worse on the Cycles yard: 0.0945 against
+                    // 0.0753 at full resolution).
+                    const V c =
+                        kBitmask
+                            ? hn::Div(Dot(q_x, q_y, q_z, view_x, view_y, view_z),
+                                      hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f))))
+                            : horizon_cos(q_x,
+                                          q_y,
+                                          q_z,
+                                          hn::Div(one, hn::Sqrt(hn::Max(len2, hn::Set(d, 1e-24f)))),
+                                          side_i == 1);
                     // The sample's surface depth: its pixel's own where a map gives one
                     // (at most `thickness` for the bitmask).
                     const V th = p.thickness_map
@@ -302,25 +342,15 @@ void GtaoRowT(const GtaoKernelParams &p,
                         }
                         const V uu = hn::Div(hn::Sub(hn::Sqrt(hn::Max(disc, zero)), b),
                                              hn::IfThenElse(ok, aa, one));
-                        const V cq = hn::Mul(Dot(hn::MulAdd(uu, a_x, prev_x),
-                                                 hn::MulAdd(uu, a_y, prev_y),
-                                                 hn::MulAdd(uu, a_z, prev_z),
-                                                 view_x,
-                                                 view_y,
-                                                 view_z),
-                                             inv_radius);
+                        const V x_x = hn::MulAdd(uu, a_x, prev_x),
+                                x_y = hn::MulAdd(uu, a_y, prev_y),
+                                x_z = hn::MulAdd(uu, a_z, prev_z);
                         if constexpr (kBitmask) {
-                            occlude(ok,
-                                    cq,
-                                    hn::MulAdd(uu, a_x, prev_x),
-                                    hn::MulAdd(uu, a_y, prev_y),
-                                    hn::MulAdd(uu, a_z, prev_z),
-                                    sr_x,
-                                    sr_y,
-                                    sr_z,
-                                    th,
-                                    side_i == 1);
+                            const V cq =
+                                hn::Mul(Dot(x_x, x_y, x_z, view_x, view_y, view_z), inv_radius);
+                            occlude(ok, cq, x_x, x_y, x_z, sr_x, sr_y, sr_z, th, side_i == 1);
                         } else {
+                            const V cq = horizon_cos(x_x, x_y, x_z, inv_radius, side_i == 1);
                             h = hn::IfThenElse(ok, hn::Max(h, cq), h);
                         }
                     }
