@@ -167,11 +167,23 @@ void execute(NodeContext &ctx)
     }
     for (const auto &[from, to] : ops.renames) {
         const Pass p = out.pass(from, ctx.where());
+        if (from != to && out.has(to)) {
+            ctx.state().note_once(str_cat(ctx.node().describe(),
+                                          ": rename \"",
+                                          from,
+                                          "\" -> \"",
+                                          to,
+                                          "\" replaces the pass \"",
+                                          to,
+                                          "\" the frame had"));
+        }
         out.erase(from);
-        out.set(to,
-                p.image,
-                pass::find_canonical(to) ? std::vector<std::string>{} : p.channels,
-                p.storage);
+        // A canonical name brings its channel names where the channel count is the canonical
+        // pass's; otherwise the pass keeps its own (a 4-channel pass renamed "depth" stays
+        // R, G, B, A rather than turning into bare indices).
+        const pass::CanonicalPass *cp = pass::find_canonical(to);
+        const bool canonical_names = cp && cp->channels.size() == p.channels.size();
+        out.set(to, p.image, canonical_names ? std::vector<std::string>{} : p.channels, p.storage);
     }
     for (const std::string &r : ops.removes) {
         out.erase(r);
@@ -238,19 +250,18 @@ void check(CheckContext &ctx)
 
 }  // namespace
 
-extern const NodeType kChannels{{"channels",
-                                 "Select, rename and shuffle passes.",
-                                 kInputs,
-                                 kParams,
-                                 "",
-                                 /*sink=*/false,
-                                 /*keeps_specular=*/true},
-                                &execute,
-                                &plan,
-                                &check,
+extern const NodeType kChannels{
+    {"channels",
+     "Select, rename and shuffle passes.",
+     kInputs,
+     kParams,
+     "",
+     /*sink=*/false,
+     /*keeps_specular=*/true},
+    &execute,
+    &plan,
+    &check,
     nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kChannels, kOpsFields, problems);
-    }};
+    [](std::vector<std::string> &problems) { audit(kChannels, kOpsFields, problems); }};
 
 }  // namespace posthaste::nodes

@@ -469,6 +469,35 @@ TEST(GraphNodes, ChannelsCopyRenameRemoveKeep)
     EXPECT_EQ(f.pass("base").channels, (std::vector<std::string>{"R", "G", "B"}));
 }
 
+// A rename onto a pass the frame has replaces it and says so once; a pass renamed to a canonical
+// name of another channel count keeps its own channel names (a 3-channel normal renamed "ao",
+// whose canonical pass has one channel, would otherwise be written as bare channels 0, 1, 2).
+TEST(GraphNodes, ChannelsRenameOntoAPassSaysSoAndKeepsChannelNames)
+{
+    const std::string dir = prepare_inputs("channels_rename", 4, 4);
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                               dir + R"(/in.#.exr"}},
+        {"id": "sh", "type": "channels", "inputs": {"image": "src"},
+         "params": {"rename": {"albedo": "color", "normal": "ao"}}},
+        {"id": "o", "type": "write", "inputs": {"image": "sh"}, "params": {"path": ")" +
+                               dir + R"(/x.exr"}}]})",
+                           "g.json",
+                           nodes::catalog());
+    g.set_capture("sh");
+    testing::internal::CaptureStderr();
+    const Frame f = g.evaluate(2);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(err.find(R"(rename "albedo" -> "color" replaces the pass "color" the frame had)"),
+              std::string::npos)
+        << err;
+    EXPECT_EQ(err.find(R"(replaces the pass "ao")"), std::string::npos) << err;
+    EXPECT_FALSE(f.has("albedo"));
+    EXPECT_EQ(f.image("color").at(0, 0, 0), 0.5f);  // albedo's value
+    EXPECT_EQ(f.pass("color").channels, (std::vector<std::string>{"R", "G", "B"}));
+    EXPECT_EQ(f.pass("ao").channels, (std::vector<std::string>{"X", "Y", "Z"}));
+}
+
 TEST(GraphNodes, OcioCheckValue)
 {
     const ColorProcessor to_srgb = ColorProcessor::between("lin_rec709", "srgb", "test");
