@@ -4,11 +4,11 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include "filter/frame_ops.h"
 #include "io/color.h"
+#include "io/cryptomatte.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
-#include "io/cryptomatte.h"
-#include "filter/frame_ops.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -172,6 +172,10 @@ void execute(NodeContext &ctx)
             }
         }
         keep_cryptomattes_exact(ctx, frame, options);
+        // Once a run, not once a frame (the line names neither the file nor the count).
+        options.warn = [&](const std::string &line) {
+            ctx.state().note_once(str_cat(ctx.node().describe(), ": ", line));
+        };
         const Rect display = frame.data_window.intersect(frame.display_window);
         if (params.get_choice(kCrop) == 1 && display != frame.data_window && !display.empty()) {
             Frame cut = frame;
@@ -241,10 +245,10 @@ extern const NodeType kWrite{{"write",
                              &execute,
                              &plan,
                              &check,
-    nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kWrite, kPreviewFields, problems);
-        audit(kWrite, kExrFields, problems);
-    }};
+                             nullptr,
+                             [](std::vector<std::string> &problems) {
+                                 audit(kWrite, kPreviewFields, problems);
+                                 audit(kWrite, kExrFields, problems);
+                             }};
 
 }  // namespace posthaste::nodes

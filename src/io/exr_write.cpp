@@ -15,6 +15,7 @@
 #include <OpenEXR/ImfTiledOutputPart.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -31,12 +32,13 @@ namespace posthaste::io_detail {
 
 namespace {
 
-/// Convert `count` floats to `type` at dst + i * stride.
-void store_values(
+/// Convert `count` floats to `type` at dst + i * stride; returns how many finite values became
+/// infinite halves.
+std::size_t store_values(
     const float *v, int count, OIIO::TypeDesc type, unsigned char *dst, std::size_t stride)
 {
     if (type.basetype == OIIO::TypeDesc::HALF) {
-        floats_to_halves(v, 1, count, dst, stride);
+        return floats_to_halves(v, 1, count, dst, stride);
     } else if (type.basetype == OIIO::TypeDesc::UINT) {
         for (int i = 0; i < count; ++i, dst += stride) {
             const float f = v[i];
@@ -48,6 +50,7 @@ void store_values(
     } else {
         scatter_floats(v, 1, count, dst, stride);
     }
+    return 0;
 }
 
 /// The part's channels as floats over its data window (W x H x C), for making mip levels.
@@ -130,7 +133,10 @@ std::vector<float> halve(const std::vector<float> &src,
 class PartPacker {
    public:
     PartPacker(const OutPart &part, const Frame &frame)
-        : part_(part), frame_(frame), run_(part.channels.size(), 1)
+        : part_(part),
+          frame_(frame),
+          run_(part.channels.size(), 1),
+          overflow_(std::make_unique<std::atomic<std::uint64_t>[]>(part.channels.size()))
     {
         for (const OutChannel &c : part.channels) {
             offsets_.push_back(pixel_bytes_);
@@ -148,6 +154,22 @@ class PartPacker {
         }
         const Rect &dw = part.data_window, &fw = frame.data_window;
         inside_ = fw.x0 <= dw.x0 && dw.x1 <= fw.x1 && fw.y0 <= dw.y0 && dw.y1 <= fw.y1;
+    }
+
+    /// The finite values that became infinite halves so far, and their channels.
+    HalfOverflow overflow() const
+    {
+        HalfOverflow o;
+        for (std::size_t ci = 0; ci < part_.channels.size(); ++ci) {
+            const std::uint64_t n = overflow_[ci].load(std::memory_order_relaxed);
+            if (n > 0) {
+                o.values += n;
+                for (std::size_t k = ci; k < ci + run_[ci]; ++k) {
+                    o.channels.push_back(part_.channels[k].name);
+                }
+            }
+        }
+        return o;
     }
 
     std::size_t pixel_bytes() const { return pixel_bytes_; }
@@ -191,7 +213,9 @@ class PartPacker {
                 const int n = int(run_[ci]);
                 const float *src = img.pixel(dw.x0 - fw.x0, ay - fw.y0) + c.k;
                 if (c.type.basetype == OIIO::TypeDesc::HALF) {
-                    floats_to_halves(src, n, dw.width(), dst, pixel_bytes_, img.channels());
+                    count_overflow(
+                        ci,
+                        floats_to_halves(src, n, dw.width(), dst, pixel_bytes_, img.channels()));
                 } else {
                     scatter_floats(src, n, dw.width(), dst, pixel_bytes_, img.channels());
                 }
@@ -208,8 +232,15 @@ class PartPacker {
                 }
                 tmp[std::size_t(x)] = identity ? v : (v - c.offset) / c.scale;
             }
-            store_values(tmp.data(), dw.width(), c.type, dst, pixel_bytes_);
+            count_overflow(ci, store_values(tmp.data(), dw.width(), c.type, dst, pixel_bytes_));
             ++ci;
+        }
+    }
+
+    void count_overflow(std::size_t ci, std::size_t n) const
+    {
+        if (n > 0) {
+            overflow_[ci].fetch_add(n, std::memory_order_relaxed);
         }
     }
 
@@ -217,6 +248,7 @@ class PartPacker {
     const Frame &frame_;
     std::vector<std::size_t> offsets_;
     std::vector<std::size_t> run_;
+    std::unique_ptr<std::atomic<std::uint64_t>[]> overflow_;
     std::size_t pixel_bytes_ = 0;
     bool inside_ = false;
 };
@@ -250,10 +282,10 @@ void insert_interleaved(Imf::FrameBuffer &fb,
 
 /// One part's level 0: float passes and the file's own samples as slices over memory, the
 /// rest converted band by band.
-void write_level0(Imf::MultiPartOutputFile &file,
-                  int index,
-                  const OutPart &part,
-                  const Frame &frame)
+HalfOverflow write_level0(Imf::MultiPartOutputFile &file,
+                          int index,
+                          const OutPart &part,
+                          const Frame &frame)
 {
     const Rect &dw = part.data_window, &fw = frame.data_window;
     const bool inside = fw.x0 <= dw.x0 && dw.x1 <= fw.x1 && fw.y0 <= dw.y0 && dw.y1 <= fw.y1;
@@ -331,6 +363,7 @@ void write_level0(Imf::MultiPartOutputFile &file,
             lines->writePixels(y_end - y);
         }
     }
+    return packer.overflow();
 }
 
 /// A level's floats (W x H x C) stored at the part's types and written as level (lx, ly).
@@ -493,11 +526,12 @@ class CheckedFile : public Imf::OStream {
 
 }  // namespace
 
-void write_exr_parts(const std::vector<OutPart> &parts,
-                     const Frame &frame,
-                     const std::string &file,
-                     const std::string &path)
+HalfOverflow write_exr_parts(const std::vector<OutPart> &parts,
+                             const Frame &frame,
+                             const std::string &file,
+                             const std::string &path)
 {
+    HalfOverflow overflow;
     std::vector<Imf::Header> headers;
     for (std::size_t i = 0; i < parts.size(); ++i) {
         headers.push_back(exr_header(parts[i], int(i), int(parts.size()), path));
@@ -519,7 +553,10 @@ void write_exr_parts(const std::vector<OutPart> &parts,
             Imf::MultiPartOutputFile out(stream, headers.data(), int(headers.size()));
             for (std::size_t i = 0; i < parts.size(); ++i) {
                 const OutPart &part = parts[i];
-                write_level0(out, int(i), part, frame);
+                const HalfOverflow o = write_level0(out, int(i), part, frame);
+                overflow.values += o.values;
+                overflow.channels.insert(
+                    overflow.channels.end(), o.channels.begin(), o.channels.end());
                 if (part.make_levels || part.copy_levels) {
                     Imf::TiledOutputPart tiles(out, int(i));
                     if (part.make_levels) {
@@ -540,6 +577,7 @@ void write_exr_parts(const std::vector<OutPart> &parts,
         }
         throw_runtime(path, ": cannot write: ", m);
     }
+    return overflow;
 }
 
 }  // namespace posthaste::io_detail

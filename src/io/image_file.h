@@ -33,7 +33,7 @@ struct FilePart {
     bool tiled = false;
     int tile_width = 0, tile_height = 0;
     int mip_levels = 1;
-    std::string level_mode;  ///< "", "mipmap" or "ripmap".
+    std::string level_mode;                ///< "", "mipmap" or "ripmap".
     std::pair<int, int> rip_levels{1, 1};  ///< A ripmap's levels along x and y.
     std::string compression;
     std::string envmap;  ///< "latlong", "cube" or "".
@@ -134,6 +134,10 @@ struct WriteOptions {
     std::map<std::string, PixelStorage> storage;  ///< Per pass; default: the source's, else
                                                   ///< half for color/albedo, float otherwise.
     bool allow_lossy_data = false;                ///< Permit DWAA/DWAB/PXR24 on data passes.
+    /// Told when half storage turned finite values (beyond 65504) into infinity, with a line
+    /// that names the channels and the way out but neither the file nor the count, so that a
+    /// sequence can say it once; null: "warning: FILE: ..." on stderr.
+    std::function<void(const std::string &)> warn;
 };
 
 /// Validate an EXR compression name ("dwaa:45" allowed, "auto"); throws a usage Error naming

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 
@@ -135,7 +136,29 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
     }
     finish_specs(parts, frame, options, path);
 
-    atomic_write(path, [&](const std::string &tmp) { write_exr_parts(parts, frame, tmp, path); });
+    HalfOverflow overflow;
+    atomic_write(
+        path, [&](const std::string &tmp) { overflow = write_exr_parts(parts, frame, tmp, path); });
+    if (overflow.values > 0) {
+        std::string names;
+        for (const std::string &c : overflow.channels) {
+            names += (names.empty() ? "" : ", ") + c;
+        }
+        const std::string line = str_cat(
+            "values beyond half's range (65504) were written as "
+            "infinity in channel(s) ",
+            names,
+            "; storage: float keeps them");
+        if (options.warn) {
+            options.warn(line);
+        } else {
+            std::fprintf(stderr,
+                         "warning: %s: %s (%llu values)\n",
+                         path.c_str(),
+                         line.c_str(),
+                         static_cast<unsigned long long>(overflow.values));
+        }
+    }
 }
 
 void write_display_preview(const Image &color,
@@ -173,11 +196,11 @@ void write_display_preview(const Image &color,
         for (int x = 0; x < w; ++x) {
             const int k = kBayer[r][(x + display.x0) & 7];
             const float t = options.dither ? (float(k) + 0.5f) / 64.0f : 0.5f;
-            std::fill_n(spread.begin() + std::ptrdiff_t((std::size_t(r) * std::size_t(w) +
-                                                          std::size_t(x)) *
-                                                         std::size_t(nch)),
-                        nch,
-                        t);
+            std::fill_n(
+                spread.begin() + std::ptrdiff_t((std::size_t(r) * std::size_t(w) + std::size_t(x)) *
+                                                std::size_t(nch)),
+                nch,
+                t);
         }
     }
     parallel_for(0, h, [&](int y) {
@@ -264,8 +287,7 @@ void write_preview(const Image &display_rgba, const std::string &path, bool with
             }
         }
     }
-    write_8bit(
-        path, buf, display_rgba.width(), display_rgba.height(), nch, 6, PngFilter::adaptive);
+    write_8bit(path, buf, display_rgba.width(), display_rgba.height(), nch, 6, PngFilter::adaptive);
 }
 
 }  // namespace posthaste

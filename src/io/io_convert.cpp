@@ -4,8 +4,10 @@
 #include <Imath/half.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #if defined(__x86_64__)
 #include <immintrin.h>
 #endif
@@ -18,42 +20,66 @@ namespace posthaste::io_detail {
 
 namespace {
 
-/// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
-/// dst + i * dst_stride. Rounds to nearest even, like Imath::half.
-void floats_to_halves_portable(const float *src,
-                               int channels,
-                               int count,
-                               unsigned char *dst,
-                               std::size_t dst_stride,
-                               int src_stride)
+/// The smallest magnitude a half rounds to infinity (65504 and the half-way point to 65536).
+constexpr float kHalfOverflow = 65520.0f;
+
+/// Whether a finite float becomes an infinite half.
+bool overflows_half(float v)
 {
+    const float a = std::abs(v);
+    return a >= kHalfOverflow && a <= std::numeric_limits<float>::max();
+}
+
+/// Convert `count` pixels of `channels` floats to halves; pixel i's halves go to
+/// dst + i * dst_stride. Rounds to nearest even, like Imath::half. Returns how many finite
+/// values became infinite.
+std::size_t floats_to_halves_portable(const float *src,
+                                      int channels,
+                                      int count,
+                                      unsigned char *dst,
+                                      std::size_t dst_stride,
+                                      int src_stride)
+{
+    std::size_t over = 0;
     for (int x = 0; x < count; ++x, dst += dst_stride, src += src_stride) {
         for (int c = 0; c < channels; ++c) {
             const Imath::half h(src[c]);
             std::memcpy(dst + std::size_t(c) * 2, &h, 2);
+            over += overflows_half(src[c]) ? 1 : 0;
         }
     }
+    return over;
 }
 
 #if defined(__x86_64__) && defined(__GNUC__)
-__attribute__((target("f16c"))) void floats_to_halves_f16c(const float *src,
-                                                           int channels,
-                                                           int count,
-                                                           unsigned char *dst,
-                                                           std::size_t dst_stride,
-                                                           int src_stride)
+__attribute__((target("f16c"))) std::size_t floats_to_halves_f16c(const float *src,
+                                                                  int channels,
+                                                                  int count,
+                                                                  unsigned char *dst,
+                                                                  std::size_t dst_stride,
+                                                                  int src_stride)
 {
+    std::size_t over = 0;
+    const __m128 abs_mask = _mm_castsi128_ps(_mm_set1_epi32(0x7fffffff));
+    const __m128 lo = _mm_set1_ps(kHalfOverflow);
+    const __m128 hi = _mm_set1_ps(std::numeric_limits<float>::max());
     for (int x = 0; x < count; ++x, dst += dst_stride, src += src_stride) {
         if (channels == 4) {
-            const __m128i h = _mm_cvtps_ph(_mm_loadu_ps(src), _MM_FROUND_TO_NEAREST_INT);
+            const __m128 v = _mm_loadu_ps(src);
+            const __m128i h = _mm_cvtps_ph(v, _MM_FROUND_TO_NEAREST_INT);
             _mm_storel_epi64(reinterpret_cast<__m128i *>(dst), h);
+            const __m128 a = _mm_and_ps(v, abs_mask);
+            over += std::size_t(std::popcount(
+                unsigned(_mm_movemask_ps(_mm_and_ps(_mm_cmpge_ps(a, lo), _mm_cmple_ps(a, hi))))));
             continue;
         }
         for (int c = 0; c < channels; ++c) {
             const unsigned short h = _cvtss_sh(src[c], _MM_FROUND_TO_NEAREST_INT);
             std::memcpy(dst + std::size_t(c) * 2, &h, 2);
+            over += overflows_half(src[c]) ? 1 : 0;
         }
     }
+    return over;
 }
 #endif
 
@@ -61,12 +87,12 @@ __attribute__((target("f16c"))) void floats_to_halves_f16c(const float *src,
 
 /// floats_to_halves_portable, with the CPU's F16C instructions where it has them (the software
 /// conversion was a quarter of a 1080p all-pass write).
-void floats_to_halves(const float *src,
-                      int channels,
-                      int count,
-                      unsigned char *dst,
-                      std::size_t dst_stride,
-                      int src_stride)
+std::size_t floats_to_halves(const float *src,
+                             int channels,
+                             int count,
+                             unsigned char *dst,
+                             std::size_t dst_stride,
+                             int src_stride)
 {
     if (src_stride <= 0) {
         src_stride = channels;
@@ -74,11 +100,10 @@ void floats_to_halves(const float *src,
 #if defined(__x86_64__) && defined(__GNUC__)
     static const bool has_f16c = simd::cpu_has_f16c();
     if (has_f16c) {
-        floats_to_halves_f16c(src, channels, count, dst, dst_stride, src_stride);
-        return;
+        return floats_to_halves_f16c(src, channels, count, dst, dst_stride, src_stride);
     }
 #endif
-    floats_to_halves_portable(src, channels, count, dst, dst_stride, src_stride);
+    return floats_to_halves_portable(src, channels, count, dst, dst_stride, src_stride);
 }
 
 namespace {

@@ -42,7 +42,7 @@ struct ExrPartLayout {
     int compression = 0;         ///< OpenEXR's compression id
     int tile_width = 0;          ///< 0: scan lines
     int tile_height = 0;
-    int line_order = 0;          ///< OpenEXR's: 0 increasing y, 1 decreasing y, 2 random y
+    int line_order = 0;  ///< OpenEXR's: 0 increasing y, 1 decreasing y, 2 random y
 };
 std::string exr_header_problem(std::istream &in,
                                std::uint64_t file_size,
@@ -65,12 +65,13 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path,
                                              std::vector<ExrPartLayout> *layouts = nullptr);
 /// Convert `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels)
 /// to halves at dst + i * dst_stride. Rounds to nearest even (F16C where the CPU has it).
-void floats_to_halves(const float *src,
-                      int channels,
-                      int count,
-                      unsigned char *dst,
-                      std::size_t dst_stride,
-                      int src_stride = 0);
+/// Returns how many finite values became infinite (65520 and beyond in magnitude).
+std::size_t floats_to_halves(const float *src,
+                             int channels,
+                             int count,
+                             unsigned char *dst,
+                             std::size_t dst_stride,
+                             int src_stride = 0);
 /// Copy `count` pixels of `channels` floats (pixel i at src + i * src_stride; 0: channels) to
 /// dst + i * dst_stride.
 void scatter_floats(const float *src,

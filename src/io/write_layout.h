@@ -83,11 +83,19 @@ void finish_specs(std::vector<OutPart> &parts,
 /// compression, tiles and levels from the spec, and its attributes under OpenEXR's names.
 Imf::Header exr_header(const OutPart &part, int index, int parts, const std::string &path);
 
+/// Finite values a write turned into infinite halves (beyond half's 65504), and the channels
+/// (part channel names) they were in.
+struct HalfOverflow {
+    std::uint64_t values = 0;
+    std::vector<std::string> channels;
+};
+
 /// Write the parts into `file` through OpenEXR (exr_write.cpp): level 0 of each part, then its
-/// MIP levels copied or made again; errors are one line naming `path`.
-void write_exr_parts(const std::vector<OutPart> &parts,
-                     const Frame &frame,
-                     const std::string &file,
-                     const std::string &path);
+/// MIP levels copied or made again; errors are one line naming `path`. Returns what half storage
+/// could not hold.
+HalfOverflow write_exr_parts(const std::vector<OutPart> &parts,
+                             const Frame &frame,
+                             const std::string &file,
+                             const std::string &path);
 
 }  // namespace posthaste::io_detail

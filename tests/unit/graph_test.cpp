@@ -498,6 +498,33 @@ TEST(GraphNodes, ChannelsRenameOntoAPassSaysSoAndKeepsChannelNames)
     EXPECT_EQ(f.pass("ao").channels, (std::vector<std::string>{"X", "Y", "Z"}));
 }
 
+// A write whose half storage turns finite values into infinity says so once a run, naming
+// itself and the channels (20 stops on the inputs' colours of 0.25 and more is 262144 and more,
+// beyond half's 65504).
+TEST(GraphNodes, WriteSaysOnceWhenHalfStorageOverflows)
+{
+    const std::string dir = prepare_inputs("write_overflow", 4, 4);
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                               dir + R"(/in.#.exr"}},
+        {"id": "up", "type": "grade", "inputs": {"image": "src"}, "params": {"exposure": 20}},
+        {"id": "w", "type": "write", "inputs": {"image": "up"}, "params": {"path": ")" +
+                               dir + R"(/x.#.exr", "passes": "color", "storage": "half"}}]})",
+                           "g.json",
+                           nodes::catalog());
+    testing::internal::CaptureStderr();
+    g.evaluate(1);
+    g.evaluate(2);
+    const std::string err = testing::internal::GetCapturedStderr();
+    const std::string line =
+        R"(node "w" (write): values beyond half's range (65504) were written as infinity)";
+    const auto at = err.find(line);
+    EXPECT_NE(at, std::string::npos) << err;
+    EXPECT_EQ(err.find(line, at + 1), std::string::npos) << err;
+    const Frame out = read_frame(dir + "/x.2.exr", nullptr, 2);
+    EXPECT_EQ(out.image("color").at(0, 0, 0), std::numeric_limits<float>::infinity());
+}
+
 TEST(GraphNodes, OcioCheckValue)
 {
     const ColorProcessor to_srgb = ColorProcessor::between("lin_rec709", "srgb", "test");

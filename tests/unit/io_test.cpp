@@ -964,6 +964,56 @@ TEST(IoWrite, HalfConversionRoundsLikeImath)
     }
 }
 
+// Half storage turns finite values of 65520 and beyond into infinity; the write says so, naming
+// the channels, instead of doing it silently. Counted by hand: color (the four-channel vector
+// path) 65520, -70000, 1e38 and -65520, albedo (the per-channel path) 70000; 65519 rounds to
+// 65504, and infinities and NaN were not finite to begin with. Float storage keeps them all.
+TEST(IoWrite, HalfOverflowIsToldNamingTheChannels)
+{
+    const float inf = std::numeric_limits<float>::infinity();
+    Frame f;
+    Image color(2, 1, 4);
+    const float cv[8] = {65519.0f, 65520.0f, -70000.0f, inf, std::nanf(""), 1e38f, 1.0f, -65520.0f};
+    std::copy(cv, cv + 8, color.data());
+    f.set("color", color);
+    Image albedo(2, 1, 3);
+    const float av[6] = {70000.0f, 1.0f, 2.0f, inf, -inf, 65504.0f};
+    std::copy(av, av + 6, albedo.data());
+    f.set("albedo", albedo);
+    Image depth(2, 1, 1);
+    depth.fill(1e6f);
+    f.set("depth", depth);
+    const std::string dir = scratch_dir("half_overflow");
+    std::vector<std::string> lines;
+    WriteOptions o;
+    o.warn = [&](const std::string &line) { lines.push_back(line); };
+    write_exr(f, dir + "/h.exr", o);
+    ASSERT_EQ(lines.size(), 1u);
+    EXPECT_NE(lines[0].find("beyond half's range (65504)"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("R, G, B, A"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("albedo.R, albedo.G, albedo.B"), std::string::npos) << lines[0];
+    EXPECT_EQ(lines[0].find("depth"), std::string::npos) << lines[0];
+    EXPECT_NE(lines[0].find("storage: float keeps them"), std::string::npos) << lines[0];
+    const Frame g = read_frame(dir + "/h.exr", nullptr, 1);
+    EXPECT_EQ(g.image("color").at(0, 0, 0), 65504.0f);
+    EXPECT_EQ(g.image("color").at(0, 0, 1), inf);
+    EXPECT_EQ(g.image("depth").at(0, 0, 0), 1e6f);
+
+    // Without a listener: one line on stderr with the file and the count.
+    testing::internal::CaptureStderr();
+    write_exr(f, dir + "/h2.exr", {});
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(err.find("warning: " + dir + "/h2.exr: values beyond"), std::string::npos) << err;
+    EXPECT_NE(err.find("(5 values)"), std::string::npos) << err;
+
+    // Float storage: nothing to say, every value kept.
+    lines.clear();
+    o.storage = {{"color", PixelStorage::Float}, {"albedo", PixelStorage::Float}};
+    write_exr(f, dir + "/f.exr", o);
+    EXPECT_TRUE(lines.empty());
+    EXPECT_EQ(read_frame(dir + "/f.exr", nullptr, 1).image("color").at(1, 0, 1), 1e38f);
+}
+
 }  // namespace
 
 namespace {
