@@ -122,7 +122,9 @@ void FrameRows::convert_rows(std::size_t p, const PartPixels &pd, int y_begin, i
                         v = srgb_to_linear(v);
                     }
                     if (affine) {
-                        v = cs.scale * v + cs.offset;
+                        // Without an offset to add: -1 * +0 + 0 is +0, and the write's
+                        // (v - 0) / -1 would give back -0 where the file had +0.
+                        v = cs.offset != 0.0f ? cs.scale * v + cs.offset : cs.scale * v;
                     }
                     if (clip_inf && v >= out.ps->infinite_above) {
                         v = std::numeric_limits<float>::infinity();

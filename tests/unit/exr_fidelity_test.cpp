@@ -131,6 +131,30 @@ TEST(ExrFidelity, GraphReadWriteIsAPassThrough)
     }
 }
 
+// A Blender file through read -> write comes out bit for bit: its Vector pass is read as motion
+// with a scale of -1 on two channels, and -1 * +0 + 0 is +0, so the write's inverse turned the
+// sky's +0 into -0 (3,109 values of Vector.X and Vector.Z) until the read stopped adding an
+// offset of 0.
+TEST(ExrFidelity, BlenderVectorPassComesThroughBitForBit)
+{
+    const std::string dir = scratch() + "/blender";
+    std::filesystem::create_directories(dir);
+    const std::string in = std::string(POSTHASTE_SOURCE_DIR) + "/samples/cycles/yard.passes.exr";
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")"
+                                   << in << R"("}},
+        {"id": "out", "type": "write", "inputs": {"image": "in"},
+         "params": {"path": ")" << dir
+                                   << R"(/out.exr"}}]})";
+    std::string log;
+    ASSERT_EQ(
+        test::run_command(
+            std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --frames 1 --quiet", &log),
+        0)
+        << log;
+    EXPECT_EQ(corpus::compare_exr(in, dir + "/out.exr"), "");
+}
+
 /// A uint channel of a single-part scanline file over `box` (absolute pixels, inside its data
 /// window), as OpenEXR reads it.
 std::vector<std::uint32_t> read_uint_channel(const std::string &path,
