@@ -39,14 +39,10 @@ bool is_structural_attribute(const std::string &name)
                                                  "openexr:dwaCompressionLevel",
                                                  "Compression",
                                                  "PixelAspectRatio",
-                                                 "smpte:TimeCode",
                                                  "oiio:Movie",
                                                  "oiio:updirection",
                                                  "oiio:sampleborder",
-                                                 "png:compressionLevel",
-                                                 "ImageDescription",
-                                                 "Software",
-                                                 "DateTime"};
+                                                 "png:compressionLevel"};
     return kNames.count(name) != 0 || name.rfind("oiio:", 0) == 0 || name.rfind("tiff:", 0) == 0 ||
            name.rfind("png:", 0) == 0 || name.rfind("jpeg:", 0) == 0 || name.rfind("Exif:", 0) == 0;
 }

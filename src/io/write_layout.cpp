@@ -87,6 +87,18 @@ void add_channel(OutPart &part, OutChannel c, const std::string &path)
     part.channels.push_back(std::move(c));
 }
 
+/// True when every value of channel k equals `v` (a constant channel a node left alone).
+bool channel_is(const Image &img, int k, float v)
+{
+    const std::size_t n = img.pixel_count(), nch = std::size_t(img.channels());
+    for (std::size_t i = 0; i < n; ++i) {
+        if (img.data()[i * nch + std::size_t(k)] != v) {
+            return false;
+        }
+    }
+    return true;
+}
+
 /// Add the pass `name` to `part` under canonical channel names ("N.X"; with `view`, OpenEXR's
 /// single-part multi-view names "N.right.X").
 void add_canonical(OutPart &part,
@@ -101,7 +113,15 @@ void add_canonical(OutPart &part,
         s = default_storage(name);
     }
     const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+    const bool sourced = std::any_of(
+        p.origin.begin(), p.origin.end(), [](const ChannelOrigin &o) { return o.part >= 0; });
     for (std::size_t k = 0; k < exr.size(); ++k) {
+        // A constant the reader made up beside channels of the file (alpha of an RGB file)
+        // stays out here too, unless a node made it vary.
+        if (sourced && k < p.origin.size() && p.origin[k].part < 0 &&
+            (p.untouched() || channel_is(*p.image, int(k), p.origin[k].offset))) {
+            continue;
+        }
         OutChannel c;
         c.name = view.empty() ? exr[k] : with_view(exr[k], view);
         c.type = storage_type(s);
@@ -111,18 +131,6 @@ void add_canonical(OutPart &part,
         c.k = int(k);
         add_channel(part, std::move(c), path);
     }
-}
-
-/// True when every value of channel k equals `v` (a constant channel a node left alone).
-bool channel_is(const Image &img, int k, float v)
-{
-    const std::size_t n = img.pixel_count(), nch = std::size_t(img.channels());
-    for (std::size_t i = 0; i < n; ++i) {
-        if (img.data()[i * nch + std::size_t(k)] != v) {
-            return false;
-        }
-    }
-    return true;
 }
 
 }  // namespace
@@ -183,9 +191,9 @@ std::shared_ptr<const std::vector<unsigned char>> slice_samples(
                                                             std::size_t(cut.height()) * size);
     const std::size_t row = std::size_t(cut.width()) * size;
     for (int y = cut.y0; y < cut.y1; ++y) {
-        const std::size_t at = (std::size_t(y - from.y0) * std::size_t(from.width()) +
-                                std::size_t(cut.x0 - from.x0)) *
-                               size;
+        const std::size_t at =
+            (std::size_t(y - from.y0) * std::size_t(from.width()) + std::size_t(cut.x0 - from.x0)) *
+            size;
         std::memcpy(out->data() + std::size_t(y - cut.y0) * row, samples.data() + at, row);
     }
     return out;

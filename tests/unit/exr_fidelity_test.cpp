@@ -3,11 +3,14 @@
 // files, luminance/chroma and deep files) goes through read -> write and comes out unchanged,
 // checked with OpenEXR's own reader (exr_corpus.cpp), or equal to the conversion computed there.
 
+#include <ImfChannelList.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfStringAttribute.h>
 #include <ImfTileDescription.h>
 #include <ImfTiledInputFile.h>
+#include <ImfTimeCodeAttribute.h>
 #include <gtest/gtest.h>
 #include <half.h>
 
@@ -99,6 +102,49 @@ TEST(ExrFidelity, EveryHeaderAttributeComesThrough)
     write_exr(f, out_path("attributes_again"), {});
     EXPECT_EQ(test::read_bytes(out_path("attributes_attributes")),
               test::read_bytes(out_path("attributes_again")));
+}
+
+// A layout the write is asked to rebuild (single part, or a part per pass) keeps the header's
+// attributes too, the comments, capture date, software and time code among them (they were
+// dropped there as "structural"), and adds no alpha to an RGB file (it wrote the reader's
+// constant A).
+TEST(ExrFidelity, RebuiltLayoutsKeepAttributesAndAddNoAlpha)
+{
+    const corpus::Entry &e = entry("attributes");
+    for (const ExrLayout layout : {ExrLayout::Single, ExrLayout::Multipart}) {
+        SCOPED_TRACE(layout == ExrLayout::Single ? "single" : "multipart");
+        const std::string out =
+            out_path(layout == ExrLayout::Single ? "rebuilt_single" : "rebuilt_multipart");
+        WriteOptions o;
+        o.layout = layout;
+        write_exr(read_frame(e.path, nullptr, 1), out, o);
+        // A part per pass names its parts: the rest of the header is the source's.
+        std::vector<std::string> ignore = {"compression", "frameNumber", "name", "type"};
+        EXPECT_EQ(corpus::compare_attributes(e.path, out, ignore), "");
+        Imf::InputFile in(out.c_str());
+        EXPECT_TRUE(in.header().findTypedAttribute<Imf::TimeCodeAttribute>("timeCode"));
+        EXPECT_TRUE(in.header().findTypedAttribute<Imf::StringAttribute>("comments"));
+    }
+    const std::string rgb = scratch() + "/rgb.exr";
+    {
+        Frame f;
+        Image c(4, 2, 3);
+        c.fill(0.25f);
+        f.set("color", c, {"R", "G", "B"});
+        write_exr(f, rgb, {});
+    }
+    for (const ExrLayout layout : {ExrLayout::Single, ExrLayout::Multipart}) {
+        WriteOptions o;
+        o.layout = layout;
+        const std::string out = scratch() + "/rgb_rebuilt.exr";
+        write_exr(read_frame(rgb, nullptr, 1), out, o);
+        Imf::InputFile in(out.c_str());
+        std::vector<std::string> names;
+        for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it) {
+            names.push_back(it.name());
+        }
+        EXPECT_EQ(names, (std::vector<std::string>{"B", "G", "R"}));
+    }
 }
 
 TEST(ExrFidelity, GraphReadWriteIsAPassThrough)
