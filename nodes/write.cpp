@@ -4,6 +4,8 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
+
 #include "filter/frame_ops.h"
 #include "io/color.h"
 #include "io/cryptomatte.h"
@@ -223,6 +225,12 @@ void check(CheckContext &ctx)
         return;
     }
     check_compression(ctx.params.get_string(kCompression), where + ": param \"compression\"");
+    std::vector<std::string> listed = listed_passes(ctx.params);
+    std::sort(listed.begin(), listed.end());
+    if (const auto twice = std::adjacent_find(listed.begin(), listed.end());
+        twice != listed.end()) {
+        throw_param(ctx, kPasses, str_cat("lists \"", *twice, "\" twice"));
+    }
     if (ctx.frames.size() > 1 && !has_frame_placeholder(path)) {
         throw_param(ctx,
                     kPath,

@@ -52,6 +52,21 @@ int main(int argc, char **argv)
     for (int i = 0; i < argc; ++i) {
         command_line += (i ? " " : "") + std::string(argv[i]);
     }
+    // A first word that is no command: name it and the commands (CLI11 would say only that a
+    // command is required).
+    if (argc > 1 && argv[1][0] != '-') {
+        std::string names;
+        bool known = false;
+        for (const CLI::App *sub : app.get_subcommands({})) {
+            known = known || sub->get_name() == argv[1];
+            names += (names.empty() ? "" : ", ") + sub->get_name();
+        }
+        if (!known) {
+            std::fprintf(
+                stderr, "error: unknown command \"%s\" (commands: %s)\n", argv[1], names.c_str());
+            return int(ExitCode::Usage);
+        }
+    }
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError &e) {

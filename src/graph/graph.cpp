@@ -1,8 +1,5 @@
 #include "graph/graph.h"
 
-#include "graph/mask.h"
-#include "io/cryptomatte.h"
-
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -17,6 +14,8 @@
 #include "core/error.h"
 #include "core/json_error.h"
 #include "core/passes.h"
+#include "graph/mask.h"
+#include "io/cryptomatte.h"
 #include "io/sequence.h"
 
 namespace posthaste {
@@ -92,6 +91,9 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
         if (auto x = item.find('x'); x != std::string::npos) {
             range = item.substr(0, x);
             step_text = item.substr(x + 1);
+            if (step_text.empty()) {
+                bad("missing step after \"x\"");
+            }
         }
         // A '-' after the first character separates the range ends (allows "-5--1").
         const std::size_t dash = range.find('-', 1);
@@ -318,7 +320,8 @@ void Graph::execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *fir
     try {
         gn.type->execute(ctx);
         if (gn.type->spec.maskable && first_input && ctx.has_input(kMaskPort.name)) {
-            apply_mask(ctx.where(), gn.params, *first_input, ctx.input(kMaskPort.name), ctx.output());
+            apply_mask(
+                ctx.where(), gn.params, *first_input, ctx.input(kMaskPort.name), ctx.output());
         }
     } catch (const Error &) {
         throw;
@@ -335,8 +338,13 @@ Frame Graph::run_node(int index,
 {
     const GraphNode &gn = nodes_.at(std::size_t(index));
     const std::shared_ptr<const Frame> first_input = inputs.empty() ? nullptr : inputs[0];
-    NodeContext ctx(
-        gn.identity, gn.params, std::move(inputs), std::move(ports), gn.requested, frame, *gn.state);
+    NodeContext ctx(gn.identity,
+                    gn.params,
+                    std::move(inputs),
+                    std::move(ports),
+                    gn.requested,
+                    frame,
+                    *gn.state);
     execute_step(gn, ctx, first_input.get());
     return ctx.take_output();
 }
@@ -348,8 +356,8 @@ Frame Graph::evaluate(int frame, NodeTimes *times) const
     return captured;
 }
 
-std::vector<std::shared_ptr<const Frame>> Graph::evaluate_outputs(int frame,
-                                                                  const std::vector<int> &nodes) const
+std::vector<std::shared_ptr<const Frame>> Graph::evaluate_outputs(
+    int frame, const std::vector<int> &nodes) const
 {
     return run_nodes(frame, nullptr, nodes, nullptr);
 }
@@ -447,8 +455,8 @@ std::vector<std::shared_ptr<const Frame>> Graph::run_nodes(int frame,
             const bool sink_target = !targets.empty() && gn.type->spec.sink;
             if (!gn.requested.all && !sink_target) {
                 // A cryptomatte request keeps the rank layers the frame's header declares.
-                const std::set<std::string> ranks =
-                    cryptomatte::requested_ranks(gn.requested.optional, out.attributes, out.pass_names());
+                const std::set<std::string> ranks = cryptomatte::requested_ranks(
+                    gn.requested.optional, out.attributes, out.pass_names());
                 for (const std::string &name : out.pass_names()) {
                     const std::string base = name.substr(0, name.find('@'));
                     if (!gn.requested.wants(name) && !gn.requested.wants(base) &&

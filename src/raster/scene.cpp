@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <glm/gtc/matrix_transform.hpp>
 #include <limits>
@@ -46,7 +47,7 @@ class Obj {
 
     [[noreturn]] void fail(const std::string &key, const std::string &what) const
     {
-        throw_usage("error: ", origin_, ":", path_, key.empty() ? "" : "/" + key, ": ", what);
+        throw_usage(origin_, ":", path_, key.empty() ? "" : "/" + key, ": ", what);
     }
     std::string where(const std::string &key) const { return path_ + "/" + key; }
     const std::string &origin() const { return origin_; }
@@ -351,7 +352,7 @@ Scene parse_scene(const std::string &text, const std::string &origin)
     try {
         j = Json::parse(text);
     } catch (const Json::parse_error &e) {
-        throw_usage("error: ", origin, ": invalid JSON: ", e.what());
+        throw_usage(origin, ": invalid JSON: ", e.what());
     } catch (const Json::exception &e) {  // a number that overflows, say
         const std::string what = json_error_text(e.what());
         throw_usage(origin, ": ", json_overflow_where(text, what), ": invalid JSON: ", what);
@@ -486,9 +487,16 @@ Scene parse_scene(const std::string &text, const std::string &origin)
 
 Scene load_scene(const std::string &path)
 {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) {
+        throw_usage(path, ": is a folder, not a scene file (samples/scenes/*.json)");
+    }
+    if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
+        throw_usage(path, ": is not a regular file, not a scene file");
+    }
     std::ifstream in(path, std::ios::binary);
     if (!in) {
-        throw_usage("error: ", path, ": cannot open scene file");
+        throw_usage(path, ": cannot open scene file");
     }
     std::stringstream ss;
     ss << in.rdbuf();

@@ -41,8 +41,7 @@ int find_material(const Scene &s, const char *name)
             return m.id;
         }
     }
-    throw_usage("error: ",
-                s.path.empty() ? s.name : s.path,
+    throw_usage(s.path.empty() ? s.name : s.path,
                 ":/world: procedural terrain needs a material named ",
                 posthaste::quoted(name));
 }

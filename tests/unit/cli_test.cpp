@@ -196,6 +196,21 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_EQ(run_command(kBin + " run " + graph + " --frames 3-1", &out), 2) << out;
     EXPECT_EQ(run_command(kBin + " run " + graph + " --jobs -4", &out), 2) << out;
     EXPECT_EQ(run_command(kBin + " frobnicate", &out), 2) << out;
+    EXPECT_NE(out.find("unknown command \"frobnicate\" (commands: run, render"), std::string::npos)
+        << out;
+    EXPECT_EQ(line_count(out), 1) << out;
+    // A pass listed twice is the graph's mistake, found before anything runs.
+    EXPECT_EQ(run_command(kBin + " render " + test::scene_path("minecrappy.json") +
+                              " --passes color,depth,color --frames 1 --size 16x16 -o " + dir +
+                              "/r.####.exr",
+                          &out),
+              2)
+        << out;
+    EXPECT_NE(out.find("param \"passes\": lists \"color\" twice"), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " render " + dir + " --frames 1 -o " + dir + "/r.exr", &out), 2)
+        << out;
+    EXPECT_NE(out.find("is a folder, not a scene file"), std::string::npos) << out;
+    EXPECT_EQ(out.find("error: ", 1), std::string::npos) << out;  // said once
     EXPECT_EQ(run_command(kBin + " nodes mergee", &out), 2) << out;
     EXPECT_NE(out.find("did you mean \"merge\""), std::string::npos) << out;
     EXPECT_EQ(run_command(kBin + " --help", &out), 0);

@@ -297,6 +297,14 @@ TEST(GraphFrames, ListsAndRanges)
     EXPECT_THROW(parse_frame_list("1-10x0"), Error);
     EXPECT_THROW(parse_frame_list(""), Error);
     EXPECT_THROW(parse_frame_list("1-99999999"), Error);
+    // An "x" with no step after it is a mistake, not a step of 1.
+    try {
+        parse_frame_list("1-3x");
+        ADD_FAILURE() << "1-3x accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("missing step after \"x\""), std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(GraphPlan, PassNamingParametersAskTheInputForThosePasses)

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "test_util.h"
 
 namespace posthaste::raster {
 namespace {
@@ -81,6 +82,16 @@ TEST(Scene, ErrorsNameFileAndPath)
     EXPECT_NE(error_of(base + R"(, "world": {"terrain": "procedural"}})").find("grass"),
               std::string::npos);
     EXPECT_THROW(load_scene("/nonexistent/scene.json"), Error);
+    // The CLI says "error: " once; a folder is named for what it is, not as invalid JSON.
+    EXPECT_EQ(error_of("{nope").rfind("error: ", 0), std::string::npos) << error_of("{nope");
+    try {
+        load_scene(test::scratch_dir("scene_folder"));
+        ADD_FAILURE() << "a folder loaded as a scene";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("is a folder, not a scene file"), std::string::npos)
+            << e.what();
+        EXPECT_EQ(e.exit_code(), 2);
+    }
 }
 
 // Boxes may reach past the world; only the part inside is filled, at a cost bounded by the
