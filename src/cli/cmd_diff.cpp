@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -238,6 +239,21 @@ int run(const DiffCliOptions &o)
     return metrics::exit_code(worst);
 }
 
+/// A number above `low` (or at least it): "must be a number above 0, got 0", where CLI11's
+/// checks wrote out a range up to DBL_MAX.
+CLI::Validator bounded_below(double low, bool inclusive)
+{
+    const std::string bound = str_cat(inclusive ? "of at least " : "above ", low);
+    return CLI::Validator(
+        [low, inclusive, bound](std::string &text) -> std::string {
+            char *end = nullptr;
+            const double v = std::strtod(text.c_str(), &end);
+            const bool ok = end != text.c_str() && *end == '\0' && (inclusive ? v >= low : v > low);
+            return ok ? std::string() : "must be a number " + bound + ", got " + text;
+        },
+        str_cat(inclusive ? ">= " : "> ", low));
+}
+
 }  // namespace
 
 void add_diff_command(CLI::App &app, int &exit_code)
@@ -266,7 +282,7 @@ void add_diff_command(CLI::App &app, int &exit_code)
     cmd->add_option("--hardfail", t.hard_fail, "Fail if any error is above this");
     cmd->add_option(
            "--allowfailures", t.allow_failures, "Pass outright when at most this many pixels fail")
-        ->check(CLI::NonNegativeNumber);
+        ->check(bounded_below(0.0, true));
     cmd->add_option("--warn", t.warn, "Warning threshold on |a - b|")->capture_default_str();
     cmd->add_option("--warnrelative", t.warn_relative, "Relative warning threshold");
     cmd->add_option("--warnpercent", t.warn_percent, "Percent of pixels allowed over --warn")
@@ -279,13 +295,13 @@ void add_diff_command(CLI::App &app, int &exit_code)
         ->check(CLI::IsMember({"hdr", "ldr", "off"}))
         ->capture_default_str();
     cmd->add_option("--ppd", o->ppd, "FLIP pixels per degree")
-        ->check(CLI::PositiveNumber)
+        ->check(bounded_below(0.0, false))
         ->capture_default_str();
     cmd->add_option("--diff-image",
                     o->diff_image,
                     "Write |a - b| * --diff-scale per pass to this EXR (pattern)");
     cmd->add_option("--diff-scale", o->diff_scale, "Scale of the difference images")
-        ->check(CLI::NonNegativeNumber)
+        ->check(bounded_below(0.0, true))
         ->capture_default_str();
     cmd->add_option("--flip-map",
                     o->flip_map,

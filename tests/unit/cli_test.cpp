@@ -211,6 +211,12 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
         << out;
     EXPECT_NE(out.find("is a folder, not a scene file"), std::string::npos) << out;
     EXPECT_EQ(out.find("error: ", 1), std::string::npos) << out;  // said once
+    // A bound is said as a bound (CLI11's own check wrote out DBL_MAX).
+    EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --ppd 0", &out), 2) << out;
+    EXPECT_NE(out.find("--ppd: must be a number above 0, got 0"), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --diff-scale -1", &out), 2) << out;
+    EXPECT_NE(out.find("--diff-scale: must be a number of at least 0, got -1"), std::string::npos)
+        << out;
     EXPECT_EQ(run_command(kBin + " nodes mergee", &out), 2) << out;
     EXPECT_NE(out.find("did you mean \"merge\""), std::string::npos) << out;
     EXPECT_EQ(run_command(kBin + " --help", &out), 0);
