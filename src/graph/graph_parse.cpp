@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -488,6 +489,27 @@ struct GraphBuilder {
             throw_usage(origin,
                         ":/nodes: the graph has no sink (write) node, so it would produce "
                         "nothing");
+        }
+        // Two sinks with one path would write over each other's files, frame by frame.
+        std::map<std::string, const GraphNode *> paths;
+        for (const GraphNode &gn : g.nodes_) {
+            const auto it = gn.params.values().find("path");
+            if (!gn.type->spec.sink || it == gn.params.values().end() || it->second.text.empty()) {
+                continue;
+            }
+            const std::string key =
+                std::filesystem::path(it->second.text).lexically_normal().string();
+            const auto [first, fresh] = paths.emplace(key, &gn);
+            if (!fresh) {
+                throw_usage(gn.identity.json_path,
+                            "/params/path: ",
+                            gn.identity.describe(),
+                            ": writes the same files as ",
+                            first->second->identity.describe(),
+                            " (",
+                            quoted(it->second.text),
+                            ")");
+            }
         }
     }
 };

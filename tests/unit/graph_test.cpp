@@ -98,6 +98,13 @@ TEST(GraphValidation, LocatedMessages)
     EXPECT_CONTAINS(
         error_of(R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x"}}]})"),
         "the graph has no sink (write) node");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "o", "type": "write", "inputs": {"image": "a"}, "params": {"path": "out/o.exr"}},
+        {"id": "p", "type": "write", "inputs": {"image": "a"},
+         "params": {"path": "out/./o.exr", "compression": "zip"}}]})"),
+                    "g.json:/nodes/2/params/path: node \"p\" (write): writes the same files as "
+                    "node \"o\" (write)");
     EXPECT_CONTAINS(error_of(R"({"nodez": []})"),
                     "unknown key \"nodez\" (did you mean \"nodes\"?)");
     EXPECT_CONTAINS(error_of(R"({"frames": "5-1", "nodes": [{"id": "a", "type": "read"}]})"),
