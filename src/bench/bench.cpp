@@ -193,6 +193,9 @@ BenchSpec parse_spec(const std::string &text,
         const std::string what = json_error_text(e.what());
         throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
+    if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
+        throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
+    }
     if (!j.is_object()) {
         throw_usage(origin, ": expected a JSON object");
     }
@@ -463,10 +466,10 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         t.graph->check(result.frames);
         for (int f : result.frames) {
             const Frame fr = t.graph->evaluate(f);
-            truth.push_back(
-                select_channel(measured_pass(fr, truth_pass, "truth node " + quoted(spec.truth_node)),
-                               spec.truth_channel,
-                               spec.truth_graph));
+            truth.push_back(select_channel(
+                measured_pass(fr, truth_pass, "truth node " + quoted(spec.truth_node)),
+                spec.truth_channel,
+                spec.truth_graph));
         }
     }
 
@@ -530,8 +533,9 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                               ref.channels());
             }
             const metrics::CompareStats stats =
-                spec.exclude_sky ? metrics::compare_surface(ref, test, *measured_pass(out, "depth", who))
-                                 : metrics::compare(ref, test);
+                spec.exclude_sky
+                    ? metrics::compare_surface(ref, test, *measured_pass(out, "depth", who))
+                    : metrics::compare(ref, test);
             rmse += stats.all.rms_error;
             psnr += stats.all.psnr;
             if (spec.flip && ref.channels() >= 3) {

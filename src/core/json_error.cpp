@@ -1,6 +1,8 @@
 #include "core/json_error.h"
 
 #include <nlohmann/json.hpp>
+#include <set>
+#include <vector>
 
 namespace posthaste {
 
@@ -19,10 +21,10 @@ std::string json_overflow_where(const std::string &text, const std::string &mess
     }
     // Parse again with the literal replaced by a marker string, and find the marker's path.
     const std::string marker = "\\u0001posthaste-overflow";  // JSON escape of 0x01
-    const json doc = json::parse(text.substr(0, at) + "\"" + marker + "\"" +
-                                     text.substr(at + literal.size()),
-                                 nullptr,
-                                 false);
+    const json doc =
+        json::parse(text.substr(0, at) + "\"" + marker + "\"" + text.substr(at + literal.size()),
+                    nullptr,
+                    false);
     std::string pointer;
     if (!doc.is_discarded()) {
         const json flat = doc.flatten();
@@ -47,6 +49,47 @@ std::string json_error_text(const std::string &what)
     return what.rfind("[json.exception", 0) == 0 && close != std::string::npos
                ? what.substr(close + 2)
                : what;
+}
+
+std::string json_duplicate_key(const std::string &text)
+{
+    using json = nlohmann::json;
+    // Per open object: the keys seen and the key it stands under.
+    struct Open {
+        std::set<std::string> keys;
+        std::string under;
+    };
+    std::vector<Open> open;
+    std::string last_key, found;
+    const json::parser_callback_t note = [&](int, json::parse_event_t event, json &parsed) {
+        switch (event) {
+            case json::parse_event_t::object_start:
+                open.push_back({{}, open.empty() ? std::string() : last_key});
+                break;
+            case json::parse_event_t::object_end:
+                open.pop_back();
+                break;
+            case json::parse_event_t::key:
+                last_key = parsed.get<std::string>();
+                if (found.empty() && !open.back().keys.insert(last_key).second) {
+                    found = "\"" + last_key + "\" in " +
+                            (open.size() == 1 ? std::string("the top level")
+                                              : "\"" + open.back().under + "\"");
+                }
+                break;
+            default:
+                break;
+        }
+        return true;  // keep everything: a discarded object would not report its end
+    };
+    try {
+        if (json::parse(text, note).is_discarded()) {
+            return "";
+        }
+    } catch (const json::exception &) {
+        return "";  // the reader reports what is wrong with the text itself
+    }
+    return found;
 }
 
 }  // namespace posthaste

@@ -15,4 +15,9 @@ std::string json_overflow_where(const std::string &text, const std::string &mess
 /// prefix.
 std::string json_error_text(const std::string &what);
 
+/// The first key that an object of `text` (valid JSON) gives twice, as "\"radius\" in
+/// \"params\"" (its object's own key; "the top level" for the outermost), or "" when every key
+/// is given once. nlohmann keeps the last of duplicates silently; the readers refuse them.
+std::string json_duplicate_key(const std::string &text);
+
 }  // namespace posthaste

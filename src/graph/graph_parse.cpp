@@ -107,6 +107,9 @@ struct GraphBuilder {
             const std::string what = json_error_text(e.what());
             throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
         }
+        if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
+            throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
+        }
         return doc;
     }
 

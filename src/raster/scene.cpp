@@ -357,6 +357,9 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         const std::string what = json_error_text(e.what());
         throw_usage(origin, ": ", json_overflow_where(text, what), ": invalid JSON: ", what);
     }
+    if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
+        throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
+    }
     Scene s;
     s.path = origin;
     Obj root(j, origin, "");

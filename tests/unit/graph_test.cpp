@@ -105,6 +105,13 @@ TEST(GraphValidation, LocatedMessages)
          "params": {"path": "out/./o.exr", "compression": "zip"}}]})"),
                     "g.json:/nodes/2/params/path: node \"p\" (write): writes the same files as "
                     "node \"o\" (write)");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x", "path": "y"}},
+        {"id": "o", "type": "write", "inputs": {"image": "a"}, "params": {"path": "o.exr"}}]})"),
+                    "g.json: key \"path\" in \"params\" is given twice (JSON would keep only "
+                    "the last)");
+    EXPECT_CONTAINS(error_of(R"({"frames": "1", "frames": "2", "nodes": []})"),
+                    "key \"frames\" in the top level is given twice");
     EXPECT_CONTAINS(error_of(R"({"nodez": []})"),
                     "unknown key \"nodez\" (did you mean \"nodes\"?)");
     EXPECT_CONTAINS(error_of(R"({"frames": "5-1", "nodes": [{"id": "a", "type": "read"}]})"),

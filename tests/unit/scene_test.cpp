@@ -79,6 +79,10 @@ TEST(Scene, ErrorsNameFileAndPath)
     EXPECT_NE(error_of(base + R"(, "balls": [{"spin_deg": 200}]})").find("/balls/0/spin_deg"),
               std::string::npos);
     EXPECT_NE(error_of("{nope").find("invalid JSON"), std::string::npos);
+    EXPECT_NE(error_of(base + R"(, "fps": 24, "fps": 25})")
+                  .find("test.json: key \"fps\" in the top level is given twice"),
+              std::string::npos)
+        << error_of(base + R"(, "fps": 24, "fps": 25})");
     EXPECT_NE(error_of(base + R"(, "world": {"terrain": "procedural"}})").find("grass"),
               std::string::npos);
     EXPECT_THROW(load_scene("/nonexistent/scene.json"), Error);
