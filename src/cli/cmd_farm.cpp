@@ -40,6 +40,7 @@ using farm::on_path;
 using farm::read_json;
 using farm::require_slurm;
 using farm::sbatch;
+using farm::sbatch_quote;
 using farm::shell_quote;
 using farm::status_command;
 namespace fs = std::filesystem;
@@ -212,13 +213,14 @@ std::string batch_script(const json &job, const fs::path &dir, int submission, i
     const json &s = job["slurm"];
     std::ostringstream o;
     o << "#!/bin/bash\n"
-      << "#SBATCH --job-name=posthaste-" << dir.filename().string() << "\n"
+      << "#SBATCH --job-name=" << sbatch_quote("posthaste-" + dir.filename().string()) << "\n"
       << "#SBATCH --array=0-" << chunks - 1;
     if (s.value("max_running", 0) > 0) {
         o << "%" << s["max_running"].get<int>();
     }
-    o << "\n#SBATCH --output=" << (dir / "logs").string() << "/slurm-s" << submission
-      << "-%a.out\n";
+    o << "\n#SBATCH --output="
+      << sbatch_quote((dir / "logs").string() + "/slurm-s" + std::to_string(submission) + "-%a.out")
+      << "\n";
     if (!s.value("partition", "").empty()) {
         o << "#SBATCH --partition=" << s["partition"].get<std::string>() << "\n";
     }
@@ -243,8 +245,10 @@ std::string check_script(const json &job, const fs::path &dir, int submission)
 {
     std::ostringstream o;
     o << "#!/bin/bash\n"
-      << "#SBATCH --job-name=posthaste-check-" << dir.filename().string() << "\n"
-      << "#SBATCH --output=" << (dir / "logs").string() << "/check-s" << submission << ".out\n";
+      << "#SBATCH --job-name=" << sbatch_quote("posthaste-check-" + dir.filename().string())
+      << "\n#SBATCH --output="
+      << sbatch_quote((dir / "logs").string() + "/check-s" + std::to_string(submission) + ".out")
+      << "\n";
     if (!job["slurm"].value("partition", "").empty()) {
         o << "#SBATCH --partition=" << job["slurm"]["partition"].get<std::string>() << "\n";
     }

@@ -47,6 +47,15 @@ std::string shell_quote(const std::string &s)
     return q + "'";
 }
 
+std::string sbatch_quote(const std::string &s)
+{
+    std::string q = "\"";
+    for (char c : s) {
+        q += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
+    }
+    return q + "\"";
+}
+
 void require_slurm(const std::string &program)
 {
     if (!on_path(program)) {

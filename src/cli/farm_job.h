@@ -20,6 +20,9 @@ using json = nlohmann::json;
 bool capture(const std::string &command, std::string &out);
 /// `s` in single quotes for a shell (a quote inside closes, escapes and reopens).
 std::string shell_quote(const std::string &s);
+/// `s` as one value of an #SBATCH line: in double quotes, with " and \ escaped by a backslash
+/// (sbatch reads those lines itself: a space would end the value, a # start a comment).
+std::string sbatch_quote(const std::string &s);
 /// An Error naming how to get Slurm's `program` unless it is on PATH.
 void require_slurm(const std::string &program);
 /// `sbatch --parsable ARGS`: the job id, or an Error with what sbatch said; `refused` is set

@@ -452,6 +452,20 @@ TEST(Cli, PipesThreadCountsAndRefusedSubmitsAreOneLineErrors)
               2)
         << out;
     EXPECT_NE(out.find("line break"), std::string::npos) << out;
+    // A space or a # in its name: sbatch reads #SBATCH lines itself, where a space ends a value
+    // and a # starts a comment, so the values go in double quotes.
+    std::ofstream(bin + "/sbatch") << "#!/bin/sh\necho '77;posthaste'\n";
+    const std::string odd = dir + "/a b#c";
+    EXPECT_EQ(run_command("PATH=" + bin + ":$PATH " + kBin + " farm submit " + graph +
+                              " --frames 1 --job-dir '" + odd + "'",
+                          &out),
+              0)
+        << out;
+    const std::string script = test::read_bytes(odd + "/run-s0.sbatch");
+    EXPECT_NE(script.find("#SBATCH --output=\"" + odd + "/logs/slurm-s0-%a.out\"\n"),
+              std::string::npos)
+        << script;
+    EXPECT_NE(script.find("#SBATCH --job-name=\"posthaste-a b#c\"\n"), std::string::npos) << script;
 }
 
 // A run stopped while it writes removes its temporary: a 1080p frame of float passes with zip
