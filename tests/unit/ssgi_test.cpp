@@ -265,6 +265,38 @@ TEST(Ssgi, ABrightEmitterBesideADarkWallStaysBounded)
     }
 }
 
+// Radiance at the top of float's range (3e38 on the wall) summed over a gather's taps and the
+// denoise's 5x5 overflowed to infinity in a few pixels; a negative albedo (no physical surface
+// has one) gave negative light. The light stays finite and non-negative, and added to a colour
+// of 3e38 the sum stays finite too.
+TEST(Ssgi, ExtremeRadianceAndNegativeAlbedoStayFiniteAndNonNegative)
+{
+    Frame f = floor_wall_frame(96, 72);
+    Image color = f.image("color"), albedo = f.image("albedo");
+    for (int y = 0; y < 72; ++y) {
+        for (int x = 0; x < 96; ++x) {
+            for (int c = 0; c < 3; ++c) {
+                color.at(x, y, c) = 3e38f;
+                albedo.at(x, y, c) = (x + y) % 2 ? -0.5f : 1.0f;
+            }
+        }
+    }
+    f.set("color", std::move(color));
+    f.set("albedo", std::move(albedo));
+    for (const char *params : {"{}", R"({"resolution": "full", "slices": 4, "intensity": 16})"}) {
+        SCOPED_TRACE(params);
+        const Frame out = test::run_node("ssgi", f, params);
+        const Image &gi = out.image("gi"), &sum = out.image("color");
+        for (std::size_t i = 0; i < gi.value_count(); ++i) {
+            ASSERT_TRUE(std::isfinite(gi.data()[i])) << i;
+            ASSERT_GE(gi.data()[i], 0.0f) << i;
+        }
+        for (std::size_t i = 0; i < sum.value_count(); ++i) {
+            ASSERT_TRUE(std::isfinite(sum.data()[i])) << i;
+        }
+    }
+}
+
 TEST(Ssgi, OverscanPixelsLightTheFramesEdge)
 {
     // The floor by the wall in the display window's leftmost columns: without overscan, half of

@@ -29,6 +29,9 @@ using gi_detail::Shade;
 /// on the default scene at 960x540, 1, 2, 3 and 4 gave 0.0188, 0.0162, 0.0159 and 0.0158 RMSE.
 constexpr int kOpenSamples = 3;
 
+/// The largest radiance magnitude the gather reads (see block_radiance).
+constexpr float kMaxRadiance = 1e30f;
+
 /// A 4x4 interleaved pattern: 16 values in [0, 1) spread over every 4x4 block of computed
 /// pixels, so a 5x5 denoise averages every rotation.
 float pattern(int x, int y, int k)
@@ -90,7 +93,10 @@ Image block_radiance(const Image &radiance, int st)
             const float *s = &sum[std::size_t(bx) * 3];
             float *o = out.pixel(bx, by);
             for (int c = 0; c < 3; ++c) {
-                o[c] = (n == 1 ? s[0] : s[c]) / count;
+                // At most 1e30 in magnitude (a block of values near float's top sums past it;
+                // the gather and the denoise sum a few hundred weighted radiances at most).
+                const float v = (n == 1 ? s[0] : s[c]) / count;
+                o[c] = v > kMaxRadiance ? kMaxRadiance : v < -kMaxRadiance ? -kMaxRadiance : v;
             }
         }
     };

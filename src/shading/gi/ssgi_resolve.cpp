@@ -209,12 +209,18 @@ Image ssgi_resolve(const Image &light,
 
 void ssgi_add_row(const float *src, const float *light, int w, int nc, float *dst)
 {
+    constexpr float kTop = std::numeric_limits<float>::max();
+    constexpr float kInf = std::numeric_limits<float>::infinity();
     // Channel counts known at compile time where they usually are (the loop vectorises).
     const auto add = [&]<int kNc>() {
         const int n = kNc > 0 ? kNc : nc;
         for (int x = 0; x < w; ++x) {
             for (int c = 0; c < n; ++c) {
-                dst[x * n + c] = src[x * n + c] + (c < 3 ? light[x * 3 + c] : 0.0f);
+                // The light is finite and not negative: a finite colour's sum can overflow
+                // only upward, and stops at float's largest (NaN and infinities stay).
+                const float v = src[x * n + c];
+                const float sum = v + (c < 3 ? light[x * 3 + c] : 0.0f);
+                dst[x * n + c] = std::min(sum, v == kInf ? kInf : kTop);
             }
         }
     };

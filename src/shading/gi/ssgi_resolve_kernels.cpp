@@ -207,13 +207,15 @@ HWY_INLINE void Apply(const SsgiUpsampleRow &r, int x, V &o0, V &o1, V &o2)
         a1 = hn::GatherIndex(d, r.albedo + std::min(1, r.na - 1), ai);
         a2 = hn::GatherIndex(d, r.albedo + std::min(2, r.na - 1), ai);
     }
-    a0 = FiniteOrZero(a0);
-    a1 = FiniteOrZero(a1);
-    a2 = FiniteOrZero(a2);
-    // k a max(0, o), in that order.
-    o0 = hn::Mul(hn::Mul(k, a0), hn::IfThenElseZero(hn::Lt(zero, o0), o0));
-    o1 = hn::Mul(hn::Mul(k, a1), hn::IfThenElseZero(hn::Lt(zero, o1), o1));
-    o2 = hn::Mul(hn::Mul(k, a2), hn::IfThenElseZero(hn::Lt(zero, o2), o2));
+    // A negative albedo (no surface has one) reflects nothing.
+    a0 = hn::Max(FiniteOrZero(a0), zero);
+    a1 = hn::Max(FiniteOrZero(a1), zero);
+    a2 = hn::Max(FiniteOrZero(a2), zero);
+    // k a max(0, o), in that order, at most float's largest.
+    const V top = hn::Set(d, std::numeric_limits<float>::max());
+    o0 = hn::Min(hn::Mul(hn::Mul(k, a0), hn::IfThenElseZero(hn::Lt(zero, o0), o0)), top);
+    o1 = hn::Min(hn::Mul(hn::Mul(k, a1), hn::IfThenElseZero(hn::Lt(zero, o1), o1)), top);
+    o2 = hn::Min(hn::Mul(hn::Mul(k, a2), hn::IfThenElseZero(hn::Lt(zero, o2), o2)), top);
 }
 
 void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
@@ -295,7 +297,9 @@ void UpsampleRow(const SsgiUpsampleRow &r, int w, float *out)
         const float *a = r.albedo + i * std::size_t(r.na);
         for (int c = 0; c < 3; ++c) {
             float &v = o[3 * j + c];
-            v = k * finite_or_zero(a[std::min(c, r.na - 1)]) * std::max(0.0f, v);
+            v = std::min(
+                k * std::max(finite_or_zero(a[std::min(c, r.na - 1)]), 0.0f) * std::max(0.0f, v),
+                std::numeric_limits<float>::max());
         }
     }
     std::copy_n(o, 3 * m, out + 3 * x);
