@@ -456,7 +456,25 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         const std::set<std::string> wanted{truth_pass};
         for (int f : result.frames) {
             const std::string path = expand_frame_pattern(spec.truth_pattern, f);
-            const Frame fr = read_frame(path, &wanted, f);
+            Frame fr;
+            try {
+                fr = read_frame(path, &wanted, f);
+            } catch (const Error &) {
+                // A pass the file lacks is the spec's mistake (exit 2); a file that cannot be
+                // read at all stays the reader's error.
+                const Frame all = read_frame(path, nullptr, f);
+                if (all.has(truth_pass)) {
+                    throw;
+                }
+                throw_usage(spec.origin,
+                            ":/truth/pass: ",
+                            path,
+                            " has no pass ",
+                            quoted(truth_pass),
+                            " (have: ",
+                            join(all.pass_names(), ", "),
+                            ")");
+            }
             truth.push_back(select_channel(
                 display_part(fr, fr.pass(truth_pass).image), spec.truth_channel, path));
         }
@@ -473,6 +491,18 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         }
     }
 
+    // The measured pass, before any timing: a name the node does not give is the spec's mistake.
+    if (const Frame first = graphs.front().graph->evaluate(result.frames.front());
+        !first.has(spec.pass)) {
+        throw_usage(spec.origin,
+                    ":/pass: node ",
+                    quoted(spec.node),
+                    " gives no pass ",
+                    quoted(spec.pass),
+                    " (have: ",
+                    join(first.pass_names(), ", "),
+                    ")");
+    }
     const std::size_t count = spec.settings.size();
     std::vector<std::vector<double>> node_ms(count), graph_ms(count);
     const double frames = double(result.frames.size());

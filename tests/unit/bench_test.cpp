@@ -489,6 +489,25 @@ TEST_F(BenchEndToEnd, TruthPassChannelAndSkyExcluded)
     } catch (const Error &e) {
         EXPECT_NE(std::string(e.what()).find("/truth/channel"), std::string::npos) << e.what();
     }
+    // A pass the node or the truth file does not have is the spec's mistake: exit 2, naming the
+    // key, before any timing.
+    auto usage_error = [&](const std::string &pass, const std::string &truth_pass) {
+        std::ofstream(path("s.json")) << R"({"graph": "ao.json", "node": "r", "pass": ")" << pass
+                                      << R"(", "frames": "1", "truth": {"pattern": "t.####.exr",
+            "pass": ")" << truth_pass << R"(", "channel": 0}, "warmup": 0, "runs": 1})";
+        try {
+            run_bench(load_spec(path("s.json")));
+        } catch (const Error &e) {
+            EXPECT_EQ(e.exit_code(), 2) << e.what();
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(usage_error("aoo", "t").find("/pass: node \"r\" gives no pass \"aoo\" (have: ao, "),
+              std::string::npos);
+    EXPECT_NE(usage_error("ao", "tt")
+                  .find("/truth/pass: " + path("t.0001.exr") + " has no pass \"tt\" (have: t)"),
+              std::string::npos);
     std::ofstream(path("bad.json")) << R"({"graph": "ao.json", "node": "r",
         "truth": {"pattern": "t.####.exr"}, "exclude": "clouds"})";
     try {
