@@ -114,6 +114,12 @@ ImagePtr measured_pass(const Frame &frame, const std::string &pass, const std::s
     return display_part(frame, frame.pass(pass, who).image);
 }
 
+/// A frame's pass names, for messages.
+std::string listed(const Frame &frame)
+{
+    return join(frame.pass_names(), ", ");
+}
+
 /// Channel `channel` of `image` alone (-1: the image itself).
 ImagePtr select_channel(const ImagePtr &image, int channel, const std::string &where)
 {
@@ -460,20 +466,13 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
             try {
                 fr = read_frame(path, &wanted, f);
             } catch (const Error &) {
-                // A pass the file lacks is the spec's mistake (exit 2); a file that cannot be
-                // read at all stays the reader's error.
+                // A pass the file lacks is the spec's mistake (exit 2); a bad file, the reader's.
                 const Frame all = read_frame(path, nullptr, f);
                 if (all.has(truth_pass)) {
                     throw;
                 }
-                throw_usage(spec.origin,
-                            ":/truth/pass: ",
-                            path,
-                            " has no pass ",
-                            quoted(truth_pass),
-                            " (have: ",
-                            join(all.pass_names(), ", "),
-                            ")");
+                const std::string why = path + " has no pass " + quoted(truth_pass);
+                throw_usage(spec.origin, ":/truth/pass: ", why, " (have: ", listed(all), ")");
             }
             truth.push_back(select_channel(
                 display_part(fr, fr.pass(truth_pass).image), spec.truth_channel, path));
@@ -494,14 +493,8 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
     // The measured pass, before any timing: a name the node does not give is the spec's mistake.
     if (const Frame first = graphs.front().graph->evaluate(result.frames.front());
         !first.has(spec.pass)) {
-        throw_usage(spec.origin,
-                    ":/pass: node ",
-                    quoted(spec.node),
-                    " gives no pass ",
-                    quoted(spec.pass),
-                    " (have: ",
-                    join(first.pass_names(), ", "),
-                    ")");
+        const std::string why = "node " + quoted(spec.node) + " gives no pass " + quoted(spec.pass);
+        throw_usage(spec.origin, ":/pass: ", why, " (have: ", listed(first), ")");
     }
     const std::size_t count = spec.settings.size();
     std::vector<std::vector<double>> node_ms(count), graph_ms(count);
