@@ -113,7 +113,12 @@ class Obj {
         }
         return v.get<std::string>();
     }
-    glm::vec3 vec3(const std::string &key, glm::vec3 def)
+    /// Three numbers, each in [lo, hi] (by default float's finite range: 1e39 would read as
+    /// infinity).
+    glm::vec3 vec3(const std::string &key,
+                   glm::vec3 def,
+                   double lo = -std::numeric_limits<float>::max(),
+                   double hi = std::numeric_limits<float>::max())
     {
         if (!has(key)) {
             return def;
@@ -122,6 +127,12 @@ class Obj {
         if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() ||
             !v[2].is_number()) {
             fail(key, "expected an array of 3 numbers, got " + v.dump());
+        }
+        for (int i = 0; i < 3; ++i) {
+            const double x = v[std::size_t(i)].get<double>();
+            if (!(x >= lo && x <= hi)) {
+                fail(key, str_cat("expected numbers in ", lo, "..", hi, ", got ", v.dump()));
+            }
         }
         return {v[0].get<float>(), v[1].get<float>(), v[2].get<float>()};
     }
@@ -381,7 +392,7 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         Material m;
         m.id = o.integer("id", m.id, 1, 255);
         m.name = o.string("name", "");
-        m.albedo = o.vec3("albedo", m.albedo);
+        m.albedo = o.vec3("albedo", m.albedo, 0.0, 1.0);  // a surface reflects at most all
         m.roughness = float(o.number("roughness", m.roughness, 0.0, 1.0));
         m.metallic = float(o.number("metallic", m.metallic, 0.0, 1.0));
         m.anisotropy = float(o.number("anisotropy", m.anisotropy, -1.0, 1.0));
@@ -463,7 +474,7 @@ Scene parse_scene(const std::string &text, const std::string &origin)
             o.fail("direction", "expected a non-zero vector");
         }
         s.sun.direction = d;
-        s.sun.color = o.vec3("color", s.sun.color);
+        s.sun.color = o.vec3("color", s.sun.color, 0.0, 1e6);
         s.sun.illuminance = float(o.number("illuminance", s.sun.illuminance, 0.0, 1e9));
     });
     if (s.balls.size() + s.movers.size() > 10000) {

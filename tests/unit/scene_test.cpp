@@ -79,6 +79,16 @@ TEST(Scene, ErrorsNameFileAndPath)
     EXPECT_NE(error_of(base + R"(, "balls": [{"spin_deg": 200}]})").find("/balls/0/spin_deg"),
               std::string::npos);
     EXPECT_NE(error_of("{nope").find("invalid JSON"), std::string::npos);
+    // Vectors hold finite floats (1e39 read as infinity), an albedo reflects at most all.
+    EXPECT_NE(error_of(base + R"(, "sun": {"color": [1e39, 1, 1]}})")
+                  .find("test.json:/sun/color: expected numbers in 0..1e+06"),
+              std::string::npos);
+    EXPECT_NE(error_of(base + R"(, "balls": [{"center": [0, -1e39, 0]}]})")
+                  .find("/balls/0/center: expected numbers in"),
+              std::string::npos);
+    EXPECT_NE(error_of(R"({"materials": [{"id": 1, "albedo": [0.5, 1e5, 0.5]}], "camera": [{}]})")
+                  .find("/materials/0/albedo: expected numbers in 0..1"),
+              std::string::npos);
     EXPECT_NE(error_of(base + R"(, "fps": 24, "fps": 25})")
                   .find("test.json: key \"fps\" in the top level is given twice"),
               std::string::npos)
