@@ -87,7 +87,7 @@ constexpr ParamSpec kSunG = ParamSpec::real("sun_g", 0.7)
                                 .doc("Height: Henyey-Greenstein asymmetry of the sun lobe.")
                                 .only_when("model", "height");
 constexpr ParamSpec kIlluminance = ParamSpec::vec3("sun_illuminance", 1.0, 1.0, 1.0)
-                                       .at_least(0.0)
+                                       .range(0.0, 1e6)  // 1e38 made the sun's disc infinite
                                        .doc("Atmosphere: sun illuminance.")
                                        .from_header("posthaste:sunIlluminance")
                                        .only_when("model", "atmosphere|atmosphere_raymarch");

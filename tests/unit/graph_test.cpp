@@ -112,6 +112,12 @@ TEST(GraphValidation, LocatedMessages)
                     "the last)");
     EXPECT_CONTAINS(error_of(R"({"frames": "1", "frames": "2", "nodes": []})"),
                     "key \"frames\" in the top level is given twice");
+    EXPECT_CONTAINS(error_of(R"({"nodes": [
+        {"id": "a", "type": "read", "params": {"path": "x"}},
+        {"id": "f", "type": "fog", "inputs": {"image": "a"},
+         "params": {"model": "atmosphere", "sun_illuminance": [1e38, 1, 1]}},
+        {"id": "o", "type": "write", "inputs": {"image": "f"}, "params": {"path": "o.exr"}}]})"),
+                    "param \"sun_illuminance\": expected array of 3 numbers in 0..1e+06");
     EXPECT_CONTAINS(error_of(R"({"nodez": []})"),
                     "unknown key \"nodez\" (did you mean \"nodes\"?)");
     EXPECT_CONTAINS(error_of(R"({"frames": "5-1", "nodes": [{"id": "a", "type": "read"}]})"),
