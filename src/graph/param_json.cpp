@@ -34,8 +34,11 @@ std::string json_kind(const json &v)
         case json::value_t::number_unsigned:
         case json::value_t::number_float:
             return v.dump();
-        case json::value_t::array:
-            return "an array";
+        case json::value_t::array: {
+            // A short array as written ("[1e38, 1, 1]"): the values are what was wrong.
+            const std::string text = v.dump();
+            return text.size() <= 60 ? text : str_cat("an array of ", v.size(), " values");
+        }
         case json::value_t::object:
             return "an object";
         default:

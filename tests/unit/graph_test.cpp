@@ -117,7 +117,8 @@ TEST(GraphValidation, LocatedMessages)
         {"id": "f", "type": "fog", "inputs": {"image": "a"},
          "params": {"model": "atmosphere", "sun_illuminance": [1e38, 1, 1]}},
         {"id": "o", "type": "write", "inputs": {"image": "f"}, "params": {"path": "o.exr"}}]})"),
-                    "param \"sun_illuminance\": expected array of 3 numbers in 0..1e+06");
+                    "param \"sun_illuminance\": expected array of 3 numbers in 0..1e+06, got "
+                    "[1e+38,1,1]");
     EXPECT_CONTAINS(error_of(R"({"nodez": []})"),
                     "unknown key \"nodez\" (did you mean \"nodes\"?)");
     EXPECT_CONTAINS(error_of(R"({"frames": "5-1", "nodes": [{"id": "a", "type": "read"}]})"),
