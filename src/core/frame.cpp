@@ -44,6 +44,28 @@ void Frame::check_size(const std::string &name, const Image &image)
     }
 }
 
+std::vector<std::string> default_channel_names(const std::string &name, int count)
+{
+    std::vector<std::string> names;
+    const pass::CanonicalPass *canonical = pass::find_canonical(name);
+    const int known = canonical ? int(canonical->channels.size()) : 0;
+    if (canonical && name == pass::kColor && count <= 2) {
+        names = {"Y", "A"};  // luminance, and alpha
+    } else if (canonical && count <= known) {
+        names.assign(canonical->channels.begin(), canonical->channels.begin() + count);
+    } else if (!canonical && (count == 1 || count == 3 || count == 4)) {
+        names = count == 1 ? std::vector<std::string>{"Y"}
+                           : std::vector<std::string>{"R", "G", "B", "A"};
+    }
+    names.resize(std::size_t(count));
+    for (int c = 0; c < count; ++c) {
+        if (names[std::size_t(c)].empty()) {
+            names[std::size_t(c)] = std::to_string(c);
+        }
+    }
+    return names;
+}
+
 void Frame::set(const std::string &name,
                 ImagePtr image,
                 std::vector<std::string> channels,
@@ -54,16 +76,7 @@ void Frame::set(const std::string &name,
     }
     check_size(name, *image);
     if (channels.empty()) {
-        const pass::CanonicalPass *canonical = pass::find_canonical(name);
-        if (canonical && int(canonical->channels.size()) == image->channels()) {
-            for (std::string_view c : canonical->channels) {
-                channels.emplace_back(c);
-            }
-        } else {
-            for (int c = 0; c < image->channels(); ++c) {
-                channels.push_back(std::to_string(c));
-            }
-        }
+        channels = default_channel_names(name, image->channels());
     }
     if (int(channels.size()) != image->channels()) {
         throw_runtime("pass \"",

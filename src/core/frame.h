@@ -55,6 +55,11 @@ struct Pass {
     }
 };
 
+/// The channel names a pass of `count` channels gets when none are given: a canonical pass's
+/// own (their first `count`; a colour of one or two channels is "Y" and "A"), else "Y" for one
+/// channel and "R", "G", "B" ("A") for three and four, else "0", "1", ...
+std::vector<std::string> default_channel_names(const std::string &name, int count);
+
 class Frame {
    public:
     int number = 0;
@@ -86,11 +91,10 @@ class Frame {
     {
         return *pass(name, who).image;
     }
-    /// Add or replace a pass. Canonical passes get their canonical channel names when
-    /// `channels` is empty; others get "0", "1", ... Throws if the size differs from the data
-    /// window (the first pass of a frame without windows sets both windows to its size).
-    /// Replacing a pass with the same channel count keeps its file origin, so a write puts the
-    /// new pixels back where the old ones came from.
+    /// Add or replace a pass. Without `channels` a pass gets default_channel_names. Throws if the
+    /// size differs from the data window (the first pass of a frame without windows sets both
+    /// windows to its size). Replacing a pass with the same channel count keeps its file origin, so
+    /// a write puts the new pixels back where the old ones came from.
     void set(const std::string &name,
              ImagePtr image,
              std::vector<std::string> channels = {},

@@ -188,7 +188,10 @@ Opened open_file(const std::string &path, const ReadOptions &options)
     read_camera(o.specs[camera_part], info.camera);
     for (const OIIO::ParamValue &p : o.specs[camera_part].extra_attribs) {
         const std::string n = p.name().string();
-        if (!is_structural_attribute(n) && !is_camera_attribute(n) && n != "multiView") {
+        // Exif metadata of a PNG, TIFF or JPEG describes that image; an EXR's is its header's.
+        const bool foreign_exif = n.rfind("Exif:", 0) == 0 && info.format != "openexr";
+        if (!is_structural_attribute(n) && !is_camera_attribute(n) && !foreign_exif &&
+            n != "multiView") {
             info.attributes.push_back(p);
         }
     }

@@ -44,7 +44,7 @@ bool is_structural_attribute(const std::string &name)
                                                  "oiio:sampleborder",
                                                  "png:compressionLevel"};
     return kNames.count(name) != 0 || name.rfind("oiio:", 0) == 0 || name.rfind("tiff:", 0) == 0 ||
-           name.rfind("png:", 0) == 0 || name.rfind("jpeg:", 0) == 0 || name.rfind("Exif:", 0) == 0;
+           name.rfind("png:", 0) == 0 || name.rfind("jpeg:", 0) == 0;
 }
 
 bool is_camera_attribute(const std::string &name)

@@ -99,6 +99,33 @@ bool channel_is(const Image &img, int k, float v)
     return true;
 }
 
+/// True for a luminance file's colour (R, G and B read from one Y channel) that a node left gray,
+/// bit for bit: its Y channel takes it back alone. A node that made it coloured writes RGB.
+bool gray_from_one_channel(const Pass &p)
+{
+    const std::size_t nch = std::size_t(p.image->channels());
+    if (p.origin.size() < 3 || nch < 3 || p.origin[0].part < 0) {
+        return false;
+    }
+    const ChannelOrigin &o = p.origin[0];
+    for (std::size_t k = 1; k < 3; ++k) {
+        const ChannelOrigin &q = p.origin[k];
+        if (q.part != o.part || q.channel != o.channel || q.scale != o.scale ||
+            q.offset != o.offset) {
+            return false;
+        }
+    }
+    const float *d = p.image->data();
+    for (std::size_t i = 0, n = p.image->pixel_count(); i < n; ++i) {
+        const float *px = d + i * nch;
+        if (std::memcmp(px, px + 1, sizeof(float)) != 0 ||
+            std::memcmp(px, px + 2, sizeof(float)) != 0) {
+            return false;
+        }
+    }
+    return true;
+}
+
 /// Add the pass `name` to `part` under canonical channel names ("N.X"; with `view`, OpenEXR's
 /// single-part multi-view names "N.right.X").
 void add_canonical(OutPart &part,
@@ -112,10 +139,17 @@ void add_canonical(OutPart &part,
     if (s == PixelStorage::Auto) {
         s = default_storage(name);
     }
-    const std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+    std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
     const bool sourced = std::any_of(
         p.origin.begin(), p.origin.end(), [](const ChannelOrigin &o) { return o.part >= 0; });
+    const bool gray = gray_from_one_channel(p);  // a luminance file's: Y again
+    if (gray) {
+        exr[0] = pass::exr_channel_names(name, {"Y"})[0];
+    }
     for (std::size_t k = 0; k < exr.size(); ++k) {
+        if (gray && (k == 1 || k == 2)) {
+            continue;
+        }
         // A constant the reader made up beside channels of the file (alpha of an RGB file)
         // stays out here too, unless a node made it vary.
         if (sourced && k < p.origin.size() && p.origin[k].part < 0 &&
@@ -223,12 +257,13 @@ std::vector<OutPart> source_layout(const Frame &frame,
     for (const std::string &name : names) {
         const Pass &p = frame.pass(name, path);
         const bool untouched = p.untouched();
+        const bool gray = !untouched && gray_from_one_channel(p);  // G and B stay in Y
         bool mappable = !p.origin.empty();
         std::set<std::pair<int, int>> own;
         int first_sourced = -1;
         for (std::size_t k = 0; k < p.origin.size() && mappable; ++k) {
             const ChannelOrigin &o = p.origin[k];
-            if (o.part < 0) {
+            if (o.part < 0 || (gray && (k == 1 || k == 2))) {
                 continue;
             }
             if (o.part >= int(parts.size()) || !own.insert({o.part, o.channel}).second ||
@@ -277,8 +312,8 @@ std::vector<OutPart> source_layout(const Frame &frame,
                 add_channel(part, std::move(c), path);
                 continue;
             }
-            if (!written.insert({o.part, o.channel}).second) {
-                continue;  // another pass already put this channel back
+            if ((gray && (k == 1 || k == 2)) || !written.insert({o.part, o.channel}).second) {
+                continue;  // another pass (or this one's R) already put this channel back
             }
             OutPart &part = parts[std::size_t(o.part)];
             const OIIO::TypeDesc file_type = part.spec.channelformat(o.channel);

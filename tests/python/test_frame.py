@@ -116,6 +116,18 @@ def test_passes_mapping(rgba):
     np.testing.assert_array_equal(f.passes["color"], rgba * 2)
 
 
+def test_passes_given_without_channel_names_get_a_readers_names(tmp_path, rgba):
+    # A three-channel colour is R, G, B in the file (it was "0", "1", "2"), one channel is Y.
+    f = ph.Frame(passes={"color": rgba[:, :, :3], "mask": rgba[:, :, 0], "beauty": rgba[:, :, :3]})
+    assert f.channels("color") == ["R", "G", "B"]
+    assert f.channels("mask") == ["Y"] and f.channels("beauty") == ["R", "G", "B"]
+    path = tmp_path / "rgb.exr"
+    ph.write(f, path, storage="float")
+    g = ph.read(path)
+    np.testing.assert_array_equal(g.passes["color"][:, :, :3], rgba[:, :, :3])
+    assert g.channels("beauty") == ["R", "G", "B"] and g.channels("mask") == ["Y"]
+
+
 def test_arrays_outlive_their_frame(small):
     color = ph.read(small[1]).passes["color"]
     reference = ph.read(small[1]).passes["color"].copy()

@@ -519,6 +519,77 @@ TEST(ExrFidelity, LuminanceChromaReadsAsRgb)
     EXPECT_EQ(y.image("color").at(3, 2, 0), y.image("color").at(3, 2, 2));
 }
 
+namespace {
+std::vector<std::string> channel_list(const std::string &path)
+{
+    Imf::InputFile in(path.c_str());
+    std::vector<std::string> names;
+    for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it) {
+        names.push_back(it.name());
+    }
+    return names;
+}
+}  // namespace
+
+// A luminance-only file read as gray RGB goes back to its Y channel when a node left it gray
+// (an exposure, a blur), in every layout; it went out as R, G, B once a node touched it. A node
+// that makes it coloured writes R, G and B.
+TEST(ExrFidelity, LuminanceStaysLuminanceThroughANode)
+{
+    const Frame in = read_frame(entry("y_only").path, nullptr, 1);
+    Frame doubled = in, tinted = in;
+    Image twice = in.image("color"), tint = in.image("color");
+    for (int y = 0; y < twice.height(); ++y) {
+        for (int x = 0; x < twice.width(); ++x) {
+            for (int k = 0; k < 3; ++k) {
+                twice.at(x, y, k) *= 2.0f;
+                tint.at(x, y, k) *= k == 0 ? 1.0f : 0.5f;
+            }
+        }
+    }
+    doubled.set("color", twice);
+    tinted.set("color", tint);
+    for (const ExrLayout layout : {ExrLayout::Auto, ExrLayout::Single, ExrLayout::Multipart}) {
+        SCOPED_TRACE(int(layout));
+        WriteOptions o;
+        o.layout = layout;
+        const std::string out = scratch() + "/y_doubled.exr";
+        write_exr(doubled, out, o);
+        EXPECT_EQ(channel_list(out), (std::vector<std::string>{"Y"}));
+        const Image back = read_frame(out, nullptr, 1).image("color");
+        EXPECT_EQ(back.at(3, 2, 1), 2.0f * in.image("color").at(3, 2, 1));
+        EXPECT_TRUE(back.bit_equal(twice));
+        write_exr(tinted, out, o);
+        EXPECT_EQ(channel_list(out), (std::vector<std::string>{"B", "G", "R"}));
+    }
+}
+
+// Exif metadata in an EXR header (oiiotool keeps its command history as Exif:ImageHistory) is
+// the file's own: it comes through a rebuilt layout and shows in the frame's attributes.
+TEST(ExrFidelity, AnExrsExifAttributesComeThrough)
+{
+    const std::string src = scratch() + "/exif.exr";
+    {
+        Frame f;
+        Image c(4, 2, 4);
+        c.fill(0.5f);
+        f.set("color", c);
+        f.attributes.push_back(OIIO::ParamValue("Exif:ImageHistory", "graded twice"));
+        write_exr(f, src, {});
+    }
+    const Frame f = read_frame(src, nullptr, 1);
+    const OIIO::ParamValue *p = f.attributes.find_pv("Exif:ImageHistory");
+    ASSERT_NE(p, nullptr);
+    EXPECT_EQ(p->get_string(), "graded twice");
+    WriteOptions o;
+    o.layout = ExrLayout::Multipart;
+    write_exr(f, out_path("exif_rebuilt"), o);
+    Imf::InputFile in(out_path("exif_rebuilt").c_str());
+    const auto *a = in.header().findTypedAttribute<Imf::StringAttribute>("Exif:ImageHistory");
+    ASSERT_NE(a, nullptr);
+    EXPECT_EQ(a->value(), "graded twice");
+}
+
 TEST(ExrFidelity, DeepFilesFlattenFrontToBack)
 {
     for (const char *name : {"deep_scanline", "deep_tiled"}) {

@@ -88,6 +88,26 @@ TEST(Frame, CanonicalChannelsAndSizeCheck)
     }
 }
 
+// Passes given no channel names get names a reader of the EXR understands: a colour of three
+// channels is R, G, B (it was "0", "1", "2"), of one Y; a canonical pass with fewer channels
+// than its own takes the first ones; an unknown RGB(A) pass R, G, B (A).
+TEST(Frame, DefaultChannelNames)
+{
+    using V = std::vector<std::string>;
+    EXPECT_EQ(default_channel_names("color", 3), (V{"R", "G", "B"}));
+    EXPECT_EQ(default_channel_names("color", 1), (V{"Y"}));
+    EXPECT_EQ(default_channel_names("color", 2), (V{"Y", "A"}));
+    EXPECT_EQ(default_channel_names("color", 5), (V{"0", "1", "2", "3", "4"}));
+    EXPECT_EQ(default_channel_names("normal", 2), (V{"X", "Y"}));
+    EXPECT_EQ(default_channel_names("beauty", 3), (V{"R", "G", "B"}));
+    EXPECT_EQ(default_channel_names("beauty", 4), (V{"R", "G", "B", "A"}));
+    EXPECT_EQ(default_channel_names("mask", 1), (V{"Y"}));
+    EXPECT_EQ(default_channel_names("uv", 2), (V{"0", "1"}));
+    Frame f;
+    f.set("color", Image(2, 2, 3));
+    EXPECT_EQ(f.pass("color").channels, (V{"R", "G", "B"}));
+}
+
 TEST(Parallel, TilesCoverEveryPixelOnce)
 {
     Image img(130, 67, 1);
