@@ -2,14 +2,15 @@
 // canonical pass comes from (or that it is absent).
 
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/strutil.h>
 
 #include <cstdio>
 
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/passes.h"
-#include "io/image_file.h"
 #include "io/cryptomatte.h"
+#include "io/image_file.h"
 #include "nodes/read_camera.h"
 
 namespace posthaste::cli {
@@ -190,8 +191,11 @@ int info(const std::vector<std::string> &files, const std::string &convention)
         }
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {
-            std::printf(
-                "  %-18s %s = %s\n", p.name().c_str(), p.type().c_str(), p.get_string(8).c_str());
+            // One line each: a value's newlines and tabs as \n and \t (oiiotool's history).
+            std::printf("  %-18s %s = %s\n",
+                        p.name().c_str(),
+                        p.type().c_str(),
+                        OIIO::Strutil::escape_chars(p.get_string(8)).c_str());
         }
         // The renderers whose pass names were recognised (mapped or refused).
         std::vector<std::string> conventions;

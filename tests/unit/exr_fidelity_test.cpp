@@ -565,7 +565,8 @@ TEST(ExrFidelity, LuminanceStaysLuminanceThroughANode)
 }
 
 // Exif metadata in an EXR header (oiiotool keeps its command history as Exif:ImageHistory) is
-// the file's own: it comes through a rebuilt layout and shows in the frame's attributes.
+// the file's own: it comes through a rebuilt layout and shows in the frame's attributes, and
+// `info` prints it on one line.
 TEST(ExrFidelity, AnExrsExifAttributesComeThrough)
 {
     const std::string src = scratch() + "/exif.exr";
@@ -574,20 +575,25 @@ TEST(ExrFidelity, AnExrsExifAttributesComeThrough)
         Image c(4, 2, 4);
         c.fill(0.5f);
         f.set("color", c);
-        f.attributes.push_back(OIIO::ParamValue("Exif:ImageHistory", "graded twice"));
+        f.attributes.push_back(OIIO::ParamValue("Exif:ImageHistory", "graded\ttwice\nby hand"));
         write_exr(f, src, {});
     }
     const Frame f = read_frame(src, nullptr, 1);
     const OIIO::ParamValue *p = f.attributes.find_pv("Exif:ImageHistory");
     ASSERT_NE(p, nullptr);
-    EXPECT_EQ(p->get_string(), "graded twice");
+    EXPECT_EQ(p->get_string(), "graded\ttwice\nby hand");
     WriteOptions o;
     o.layout = ExrLayout::Multipart;
     write_exr(f, out_path("exif_rebuilt"), o);
     Imf::InputFile in(out_path("exif_rebuilt").c_str());
     const auto *a = in.header().findTypedAttribute<Imf::StringAttribute>("Exif:ImageHistory");
     ASSERT_NE(a, nullptr);
-    EXPECT_EQ(a->value(), "graded twice");
+    EXPECT_EQ(a->value(), "graded\ttwice\nby hand");
+    std::string log;
+    ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " + src, &log), 0) << log;
+    EXPECT_NE(log.find("  Exif:ImageHistory  string = graded\\ttwice\\nby hand\n"),
+              std::string::npos)
+        << log;
 }
 
 TEST(ExrFidelity, DeepFilesFlattenFrontToBack)
