@@ -12,8 +12,11 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-/// Running state of one comparison, updated value by value in scan order exactly as
-/// ImageBufAlgo::compare does it (including its handling of non-finite values).
+/// Running state of one comparison, updated value by value as ImageBufAlgo::compare does it,
+/// except for non-finite values: two NaNs, or two equal infinities, are equal; a NaN or an
+/// infinity against anything else is an error of +inf that fails and warns and makes the mean
+/// and RMS +inf (idiff lets all but the first such value through uncounted: a frame of NaNs
+/// passed).
 struct Accumulator {
     double sum = 0.0;
     double sum2 = 0.0;
@@ -25,14 +28,25 @@ struct Accumulator {
     void add(float a, float b, int x, int y, int c, const Thresholds &t, bool &warned, bool &failed)
     {
         if (!std::isfinite(a) || !std::isfinite(b)) {
-            if (std::isnan(a) == std::isnan(b) && std::isinf(a) == std::isinf(b)) {
+            if ((std::isnan(a) && std::isnan(b)) || a == b) {
                 return;
             }
-            if (std::isfinite(max_error)) {
-                // The first finiteness mismatch: max error becomes +inf and nothing else counts.
+            // Mean and RMS become +inf too: a result with NaNs never looks better than one with
+            // a large finite error. The first in scan order is the max.
+            sum += kInf;
+            sum2 += kInf;
+            if (!(max_error >= kInf)) {
                 set_max(kInf, x, y, c);
-                return;
             }
+            if (!warned) {
+                ++warn_count;
+                warned = true;
+            }
+            if (!failed) {
+                ++fail_count;
+                failed = true;
+            }
+            return;
         }
         const float aabs = std::abs(a), babs = std::abs(b);
         // OIIO's lerp(aabs, babs, 0.5) evaluates in double and returns float.
@@ -64,8 +78,8 @@ struct Accumulator {
         max_c = c;
     }
 
-    /// Fold in the accumulator of a later tile. Only valid when both saw finite values only:
-    /// then the max is the largest error, the earliest in scan order on ties.
+    /// Fold in the accumulator of a later tile: the max is the largest error, the earliest in
+    /// scan order on ties.
     void merge(const Accumulator &o)
     {
         sum += o.sum;
@@ -101,7 +115,6 @@ struct Accumulator {
 /// Accumulators for all channels together (index 0) and for each channel (1 + c).
 struct RegionResult {
     std::vector<Accumulator> acc;
-    bool nonfinite = false;
 };
 
 RegionResult compare_region(const Image &a, const Image &b, const Rect &r, const Thresholds &t)
@@ -116,9 +129,6 @@ RegionResult compare_region(const Image &a, const Image &b, const Rect &r, const
             const float *pb = b.pixel(x, y);
             bool warned = false, failed = false;
             for (int c = 0; c < nc; ++c) {
-                if (!std::isfinite(pa[c]) || !std::isfinite(pb[c])) {
-                    res.nonfinite = true;
-                }
                 res.acc[0].add(pa[c], pb[c], x, y, c, t, warned, failed);
                 channel_warned[c] = channel_failed[c] = false;
                 res.acc[std::size_t(c) + 1].add(
@@ -183,14 +193,8 @@ CompareStats compare(const Image &a, const Image &b, const Thresholds &threshold
         tile);
 
     RegionResult total;
-    const bool nonfinite =
-        std::any_of(tiles.begin(), tiles.end(), [](const RegionResult &t) { return t.nonfinite; });
-    if (nonfinite || tiles.empty()) {
-        // Non-finite values make the running max order dependent: replay idiff's single scan.
-        total = compare_region(a, b, bounds, thresholds);
-        if (tiles.empty()) {
-            total.acc.resize(std::size_t(a.channels()) + 1);
-        }
+    if (tiles.empty()) {
+        total.acc.resize(std::size_t(a.channels()) + 1);
     } else {
         total = std::move(tiles[0]);
         for (std::size_t i = 1; i < tiles.size(); ++i) {
@@ -209,11 +213,8 @@ CompareStats compare(const Image &a, const Image &b, const Thresholds &threshold
     return stats;
 }
 
-CompareStats compare_surface(const Image &a,
-                             const Image &b,
-                             const Image &depth,
-                             int channels,
-                             const Thresholds &thresholds)
+CompareStats compare_surface(
+    const Image &a, const Image &b, const Image &depth, int channels, const Thresholds &thresholds)
 {
     if (a.width() != depth.width() || a.height() != depth.height() || b.width() != a.width() ||
         b.height() != a.height()) {
@@ -232,8 +233,12 @@ CompareStats compare_surface(const Image &a,
     }
     const int nc = channels > 0 ? channels : a.channels();
     if (nc > a.channels() || nc > b.channels()) {
-        throw_runtime("compare_surface: ", nc, " channels asked of images with ", a.channels(),
-                      " and ", b.channels());
+        throw_runtime("compare_surface: ",
+                      nc,
+                      " channels asked of images with ",
+                      a.channels(),
+                      " and ",
+                      b.channels());
     }
     std::vector<std::size_t> keep;
     for (std::size_t i = 0; i < depth.pixel_count(); ++i) {

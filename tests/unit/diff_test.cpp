@@ -112,8 +112,8 @@ TEST(Diff, JsonReport)
     o.flip = FlipMode::Ldr;
     const auto j = nlohmann::json::parse(to_json(diff_frames(a, b, o)));
     EXPECT_EQ(j["frame"], 7);
-    EXPECT_EQ(j["verdict"], "PASS");  // one infinite mismatch counts nowhere (as idiff)
-    EXPECT_EQ(j["exit_code"], 0);
+    EXPECT_EQ(j["verdict"], "FAILURE");  // an infinity against a number fails (idiff: PASS)
+    EXPECT_EQ(j["exit_code"], 2);
     ASSERT_EQ(j["passes"].size(), 2u);
     EXPECT_EQ(j["passes"][1]["name"], "depth");
     EXPECT_EQ(j["passes"][1]["stats"]["max_error"], "inf");

@@ -114,25 +114,43 @@ TEST(Metrics, IdenticalImagesAndPeak)
     EXPECT_NEAR(s.all.psnr, 20.0 * std::log10(5.0 / std::sqrt(0.5)), 1e-9);
 }
 
-TEST(Metrics, NonFiniteValuesFollowIdiff)
+TEST(Metrics, NonFiniteMismatchesFail)
 {
-    // NaN vs NaN and +Inf vs -Inf match; the first finiteness mismatch (1, 0) sets max = inf
-    // and counts nowhere; 0.25 at (0, 1) is the only counted error.
-    const Image a = make_image(2, 2, 1, {kNaN, 1.0f, kInf, 0.0f});
-    const Image b = make_image(2, 2, 1, {kNaN, kNaN, -kInf, 0.0f});
-    Image b2 = b;
-    b2.at(1, 1, 0) = 0.25f;
-    const CompareStats s = compare(a, b2);
+    // NaN vs NaN and +inf vs +inf match; NaN vs a number, and +inf vs -inf, are errors of +inf
+    // that fail (idiff counted none of them but the first's max: a frame of NaNs passed). The
+    // mean and RMS become +inf; the max is the first mismatch in scan order.
+    const Image a = make_image(3, 2, 1, {kNaN, 1.0f, kInf, kInf, 0.0f, 2.0f});
+    const Image b = make_image(3, 2, 1, {kNaN, kNaN, kInf, -kInf, 0.25f, 2.0f});
+    const CompareStats s = compare(a, b);
     EXPECT_TRUE(std::isinf(s.all.max_error));
     EXPECT_EQ(s.all.max_x, 1);
     EXPECT_EQ(s.all.max_y, 0);
-    EXPECT_NEAR(s.all.mean_error, 0.25 / 4.0, 1e-12);
-    EXPECT_EQ(s.all.fail_count, 1u);
-    // With no other error, nothing fails, so idiff passes despite the infinite max error.
-    const CompareStats s2 = compare(a, b);
-    EXPECT_TRUE(std::isinf(s2.all.max_error));
-    EXPECT_EQ(s2.all.fail_count, 0u);
-    EXPECT_EQ(verdict(s2, {}), Verdict::Pass);
+    EXPECT_EQ(s.all.fail_count, 3u);  // (1, 0), (0, 1), (1, 1)
+    EXPECT_EQ(s.all.warn_count, 3u);
+    EXPECT_TRUE(std::isinf(s.all.mean_error) && std::isinf(s.all.rms_error));
+    EXPECT_EQ(verdict(s, {}), Verdict::Failure);
+    // One NaN pixel in a large frame fails the golden tests' thresholds too (its error is over
+    // any hard limit), and its place does not depend on the tiles' order.
+    Image big(300, 200, 4), other(300, 200, 4);
+    big.fill(0.5f);
+    other.fill(0.5f);
+    other.at(250, 150, 2) = kNaN;
+    other.at(290, 190, 0) = kNaN;
+    Thresholds golden;
+    golden.fail = 0.004f;
+    golden.fail_percent = 0.02f;
+    golden.hard_fail = 0.012f;
+    const CompareStats g = compare(big, other, golden);
+    EXPECT_EQ(g.all.fail_count, 2u);
+    EXPECT_EQ(g.all.max_x, 250);
+    EXPECT_EQ(g.all.max_y, 150);
+    EXPECT_EQ(g.all.max_channel, 2);
+    EXPECT_EQ(verdict(g, golden), Verdict::Failure);
+    // Matching NaNs and infinities alone pass.
+    Image same = big;
+    same.at(3, 3, 0) = kNaN;
+    same.at(4, 4, 1) = -kInf;
+    EXPECT_EQ(verdict(compare(same, same), {}), Verdict::Pass);
 }
 
 TEST(Metrics, VerdictRulesMatchIdiffOptions)
@@ -440,18 +458,16 @@ TEST_F(DiffIdiffAgreement, ManyTilesWithTiedMaxima)
     check_pair("tiles", a2, b, t, "-fail 0.008 -warn 0.004 -failpercent 10");
 }
 
-TEST_F(DiffIdiffAgreement, NonFiniteValues)
+// Non-finite values are where diff departs from idiff (Metrics.NonFiniteMismatchesFail): a
+// matching NaN still agrees with idiff bit for bit.
+TEST_F(DiffIdiffAgreement, MatchingNaNs)
 {
     Image a = noise_image(5, 4, 3, 21, 0.0f, 2.0f);
     Image b = a;
-    a.at(0, 0, 0) = b.at(0, 0, 0) = kNaN;  // match
-    a.at(1, 0, 1) = kInf;                  // first mismatch: max = inf, not counted
-    b.at(1, 0, 1) = -kInf;
-    b.at(1, 0, 1) = 1.0f;
+    a.at(0, 0, 0) = b.at(0, 0, 0) = kNaN;
+    a.at(1, 0, 1) = b.at(1, 0, 1) = kInf;
     b.at(3, 2, 2) += 0.5f;
-    check_pair("nonfinite_one", a, b, {}, "");
-    b.at(4, 3, 0) = kNaN;  // a second mismatch enters the sums: mean and rms become NaN
-    check_pair("nonfinite_two", a, b, {}, "");
+    check_pair("nonfinite_matching", a, b, {}, "");
 }
 
 }  // namespace
