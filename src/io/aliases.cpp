@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <set>
 
 #include "core/error.h"
@@ -467,7 +468,28 @@ std::vector<PassSource> map_channels(const std::vector<PartChannels> &parts,
         }
     }
     for (const std::string &layer : order) {
-        out.push_back(std::move(others[layer]));
+        PassSource &ps = others[layer];
+        // EXR keeps a part's channels sorted by name: a pass of "0" to "11" comes back as 0, 1,
+        // 10, 11, 2, ... Numbered channels go back in their numbers' order.
+        const bool numbered = std::all_of(
+            ps.channel_suffixes.begin(), ps.channel_suffixes.end(), [](const std::string &c) {
+                return !c.empty() && c.size() < 9 &&
+                       std::all_of(c.begin(), c.end(), [](char d) { return d >= '0' && d <= '9'; });
+            });
+        if (numbered && ps.sources.size() == ps.channel_suffixes.size()) {
+            std::vector<std::size_t> idx(ps.sources.size());
+            std::iota(idx.begin(), idx.end(), std::size_t(0));
+            std::stable_sort(idx.begin(), idx.end(), [&](std::size_t i, std::size_t j) {
+                return std::stoi(ps.channel_suffixes[i]) < std::stoi(ps.channel_suffixes[j]);
+            });
+            PassSource sorted = ps;
+            for (std::size_t k = 0; k < idx.size(); ++k) {
+                sorted.sources[k] = ps.sources[idx[k]];
+                sorted.channel_suffixes[k] = ps.channel_suffixes[idx[k]];
+            }
+            ps = std::move(sorted);
+        }
+        out.push_back(std::move(ps));
     }
     return out;
 }

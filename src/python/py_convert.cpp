@@ -185,6 +185,19 @@ py::dict attributes_to_dict(const OIIO::ParamValueList &attributes)
     return out;
 }
 
+namespace {
+/// An int attribute's value: EXR's int attributes are 32 bits; a larger one would wrap.
+int int_attribute(py::handle value, const std::string &name)
+{
+    const long long v = value.cast<long long>();
+    if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
+        throw py::value_error("attribute \"" + name + "\": " + std::to_string(v) +
+                              " does not fit an EXR int attribute (32 bits); give a float");
+    }
+    return int(v);
+}
+}  // namespace
+
 void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out)
 {
     if (dict.is_none()) {
@@ -196,7 +209,7 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out)
     for (auto [key, value] : dict.cast<py::dict>()) {
         const std::string name = py::str(key).cast<std::string>();
         if (py::isinstance<py::bool_>(value) || py::isinstance<py::int_>(value)) {
-            out.push_back(OIIO::ParamValue(name, int(value.cast<long long>())));
+            out.push_back(OIIO::ParamValue(name, int_attribute(value, name)));
         } else if (py::isinstance<py::float_>(value)) {
             out.push_back(OIIO::ParamValue(name, value.cast<float>()));
         } else if (py::isinstance<py::str>(value)) {
@@ -218,7 +231,7 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out)
             if (n > 0 && ints) {
                 std::vector<int> v;
                 for (py::handle item : seq) {
-                    v.push_back(int(item.cast<long long>()));
+                    v.push_back(int_attribute(item, name));
                 }
                 out.push_back(
                     OIIO::ParamValue(name, OIIO::TypeDesc(OIIO::TypeDesc::INT, n), 1, v.data()));

@@ -117,6 +117,14 @@ py::dict run(const PyGraph &pg,
              bool skip_bad_frames,
              const std::string &max_memory)
 {
+    if (threads < 0 || threads > 1024) {
+        throw py::value_error("threads: expected 0 (every core) to 1024, got " +
+                              std::to_string(threads));
+    }
+    if (jobs < -1 || jobs > 256) {
+        throw py::value_error("jobs: expected 0 (the default), 1 to 256 or -1 (auto), got " +
+                              std::to_string(jobs));
+    }
     const std::shared_ptr<Graph> graph = pg.with(overrides_of(set));
     RunSettings rs;
     rs.frames = frames_of(frames);

@@ -34,9 +34,17 @@ PYBIND11_MODULE(posthaste, m)
     python::bind_frame(m);
     python::bind_nodes(m);
     python::bind_graph(m);
-    m.def("set_threads",
-          &set_thread_count,
-          py::arg("threads"),
-          "Worker threads for the nodes' parallel loops (0: every core), for the whole process.");
+    m.def(
+        "set_threads",
+        [](int threads) {
+            if (threads < 0 || threads > 1024) {
+                // As the CLI's --threads: a pool of 100000 failed every later EXR read.
+                throw py::value_error("threads: expected 0 (every core) to 1024, got " +
+                                      std::to_string(threads));
+            }
+            set_thread_count(threads);
+        },
+        py::arg("threads"),
+        "Worker threads for the nodes' parallel loops (0: every core), for the whole process.");
     m.def("_stub_text", &python::stub_text, "The text of posthaste.pyi.");
 }

@@ -27,3 +27,33 @@ def test_invalid_graph(path):
 
 def test_the_invalid_set_is_there():
     assert len(GRAPHS) >= 25
+
+
+def test_thread_and_job_counts_are_bounded_as_the_cli_bounds_them(tmp_path):
+    # A pool of 100000 threads failed every later EXR read of the process.
+    for n in (-1, 1025, 100000):
+        with pytest.raises(ValueError, match=f"threads: expected 0 \\(every core\\) to 1024, got {n}"):
+            ph.set_threads(n)
+    graph = ph.Graph.from_dict({"nodes": [
+        {"id": "src", "type": "render", "params": {"scene": ph_scene(), "width": 8, "height": 8}},
+        {"id": "out", "type": "write", "inputs": {"image": "src"},
+         "params": {"path": str(tmp_path / "f.####.exr")}}]})
+    with pytest.raises(ValueError, match="threads: expected"):
+        graph.run(frames="1", threads=-3)
+    with pytest.raises(ValueError, match="jobs: expected"):
+        graph.run(frames="1", jobs=-3)
+
+
+def test_an_int_attribute_must_fit_32_bits():
+    import numpy as np
+    with pytest.raises(ValueError, match='attribute "big": 1099511627776 does not fit'):
+        ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)}, attributes={"big": 2**40})
+    with pytest.raises(ValueError, match='attribute "list": 8589934592 does not fit'):
+        ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)}, attributes={"list": [1, 2**33]})
+    f = ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)}, attributes={"edge": -2**31})
+    assert f.attributes["edge"] == -2**31
+
+
+def ph_scene():
+    from conftest import SCENE
+    return SCENE

@@ -132,3 +132,12 @@ def test_arrays_outlive_their_frame(small):
     color = ph.read(small[1]).passes["color"]
     reference = ph.read(small[1]).passes["color"].copy()
     np.testing.assert_array_equal(color, reference)
+
+
+def test_numbered_channels_come_back_in_their_order(tmp_path):
+    # EXR sorts a part's channels by name: 0, 1, 10, 11, 2, ... came back in that order.
+    a = np.random.default_rng(3).random((8, 8, 12), dtype=np.float32)
+    ph.write(ph.Frame(passes={"aov": a}), tmp_path / "o.exr", storage="float")
+    r = ph.read(tmp_path / "o.exr")
+    assert r.channels("aov") == [str(k) for k in range(12)]
+    np.testing.assert_array_equal(r.passes["aov"], a)
