@@ -175,16 +175,27 @@ void PyFrame::remove_pass(const std::string &name)
 
 std::shared_ptr<const Frame> PyFrame::share()
 {
+    // A writable array still alive may change its pass later, and so may any view of it
+    // (a[..., 0], a.reshape(-1): numpy keeps their own writeable flags, so clearing the array's
+    // did not stop them). Such a pass is handed on as a copy of its pixels now; the rest are
+    // shared.
+    auto shared = std::make_shared<Frame>(frame_);
     for (auto &[name, h] : holders_) {
+        py::list alive;
         for (py::handle ref : h.writable) {
-            py::object a = ref();
-            if (!a.is_none()) {
-                a.attr("flags").attr("writeable") = false;
+            if (!ref().is_none()) {
+                alive.append(ref);
             }
         }
-        h.writable = py::list();
+        h.writable = alive;
+        if (alive.empty() || !frame_.has(name) || frame_.pass(name).image.get() != h.image) {
+            continue;
+        }
+        Pass p = frame_.pass(name);
+        p.image = std::make_shared<const Image>(*p.image);
+        shared->set_pass(name, std::move(p));
     }
-    return std::make_shared<const Frame>(frame_);
+    return shared;
 }
 
 void bind_frame(py::module_ &m)

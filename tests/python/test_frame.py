@@ -31,13 +31,13 @@ def test_a_write_through_the_array_shows_in_the_frame_and_the_nodes(small):
 
 def test_shared_passes_are_read_only_and_writable_copies(small):
     frame = ph.read(small[1])
-    before = frame.passes["depth"]
-    assert before.flags.writeable
+    assert frame.owns("depth")
+    # No array of depth alive: the node's output shares the frame's image, no copy.
     out = ph.node("grade", frame, gain=[2, 2, 2])
-    # depth is shared with the node's output now: the earlier array became read-only.
-    assert not before.flags.writeable
     assert not frame.owns("depth") and not out.owns("depth")
     assert out._data_address("depth") == frame._data_address("depth")
+    shared = frame.passes["depth"]
+    assert not shared.flags.writeable
     with pytest.raises(ValueError):
         frame.passes["depth"][0, 0, 0] = 1.0
     # writable() gives the frame its own copy; the node's output keeps the old pixels.
@@ -48,6 +48,31 @@ def test_shared_passes_are_read_only_and_writable_copies(small):
     assert out.passes["depth"][0, 0, 0] != -5.0
     # The color the node replaced is the node's own.
     assert out.owns("color")
+
+
+def test_writable_arrays_and_their_views_never_reach_a_shared_frame(small):
+    # A pass with a writable array alive is handed to a node as a copy: the array, and every
+    # view of it (numpy keeps a view's own writeable flag), stay writable and change this frame
+    # only. Clearing the array's flag had left d = a[..., 0] writing into the node's output.
+    f = ph.read(small[1])
+    a = f.passes["depth"]
+    d = a[..., 0]
+    flat = a.reshape(-1)
+    g = ph.node("exposure", f, exposure=1)
+    before = float(g.passes["depth"][0, 0, 0])
+    d[0, 0] = 9.0
+    flat[1] = 7.0
+    assert a.flags.writeable and f.owns("depth")
+    assert f.passes["depth"][0, 0, 0] == 9.0 and f.passes["depth"][0, 1, 0] == 7.0
+    assert g.passes["depth"][0, 0, 0] == before
+    # Written before the share, a value reaches the node.
+    a[2, 2, 0] = 3.5
+    assert ph.node("exposure", f, exposure=1).passes["depth"][2, 2, 0] == 3.5
+    assert f.copy().passes["depth"][2, 2, 0] == 3.5
+    # Once the arrays are gone the frame shares its image again.
+    del a, d, flat
+    h = ph.node("exposure", f, exposure=1)
+    assert h._data_address("depth") == f._data_address("depth")
 
 
 @pytest.mark.parametrize("dtype", [np.float16, np.float32, np.float64])
