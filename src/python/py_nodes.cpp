@@ -4,6 +4,7 @@
 
 #include <pybind11/stl.h>
 
+#include <filesystem>
 #include <list>
 #include <mutex>
 
@@ -28,6 +29,29 @@ struct NodeCall {
     std::vector<std::string> ports;
 };
 
+/// Each file a parameter names (a scene, a LUT), as its absolute path, size and modification
+/// time: the cache key then changes when a file is edited between calls, or when a relative path
+/// names another file from another working folder (the node's state, loaded from the file once,
+/// was kept: an edited scene rendered as before).
+void add_files_to_key(const nlohmann::json &value, std::string &key)
+{
+    if (value.is_string()) {
+        std::error_code ec;
+        const std::filesystem::path path(value.get<std::string>());
+        if (path.empty() || !std::filesystem::is_regular_file(path, ec)) {
+            return;
+        }
+        const auto size = std::filesystem::file_size(path, ec);
+        const auto time = std::filesystem::last_write_time(path, ec);
+        key += "\n" + std::filesystem::absolute(path, ec).string() + "@" + std::to_string(size) +
+               ":" + std::to_string(time.time_since_epoch().count());
+    } else if (value.is_structured()) {
+        for (const auto &item : value) {
+            add_files_to_key(item, key);
+        }
+    }
+}
+
 std::shared_ptr<const NodeCall> node_call(const std::string &type,
                                           const std::vector<std::string> &ports,
                                           const nlohmann::json &params)
@@ -38,6 +62,7 @@ std::shared_ptr<const NodeCall> node_call(const std::string &type,
     for (const std::string &p : ports) {
         key += "\n" + p;
     }
+    add_files_to_key(params, key);
     {
         std::lock_guard lock(mutex);
         if (const auto it = cache.find(key); it != cache.end()) {

@@ -207,3 +207,19 @@ def test_a_cycles_frame_reads_with_its_solved_camera_and_gives_the_clis_pixels(t
     assert code == 0, line
     mine = ph.node("ao", frame, radius=2.0)
     np.testing.assert_array_equal(mine.passes["color"], ph.read(out).passes["color"])
+
+
+def test_an_edited_file_is_loaded_again(tmp_path, scene):
+    # ph.node keeps a node's state between calls (a scene, a LUT); an edit of the file between
+    # calls is seen (the scene rendered as before, bit for bit).
+    import shutil
+    copy = tmp_path / "scene.json"
+    shutil.copy(scene, copy)
+    first = ph.node("render", scene=str(copy), width=16, height=12, frame=1).passes["color"].copy()
+    again = ph.node("render", scene=str(copy), width=16, height=12, frame=1).passes["color"]
+    np.testing.assert_array_equal(first, again)
+    data = json.loads(copy.read_text())
+    data["sky_ambient"] = data.get("sky_ambient", 1.0) * 3.0 + 1.0
+    copy.write_text(json.dumps(data))
+    edited = ph.node("render", scene=str(copy), width=16, height=12, frame=1).passes["color"]
+    assert not np.array_equal(first, edited)
