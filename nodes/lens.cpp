@@ -18,6 +18,7 @@
 
 #include "core/passes.h"
 #include "core/sanitize.h"
+#include "io/source_file.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -197,9 +198,14 @@ void execute(NodeContext &ctx)
     const Rect &disp = frame.display_window;
     const double half_diag = 0.5 * std::hypot(disp.width(), disp.height());
 
+    // Every pass is replaced below, in place: each keeps its file origin, so a write puts it
+    // back in its own part, view and pixel type (clearing the passes first sent them all out
+    // under new names: a stereo file's right eye as "color@right.R", float colour as half).
     Frame &out = ctx.output();
-    out.clear_passes();
     out.data_window = out_window;
+    if (frame.source && out_window != frame.data_window) {
+        out.source = regridded_source(*frame.source, out_window);  // the parts follow the window
+    }
     for (const auto &[name, in_pass] : frame.passes()) {
         const bool is_filtered =
             std::find(filtered.begin(), filtered.end(), name) != filtered.end();
@@ -212,6 +218,10 @@ void execute(NodeContext &ctx)
         const bool is_color = name == pass::kColor;
         const float outside = name == pass::kDepth ? std::numeric_limits<float>::infinity() : 0.0f;
         const int nc = src.channels();
+        std::vector<char> alpha(std::size_t(nc), 0);  // the vignettes leave alpha alone
+        for (int c = 0; c < nc && c < int(in_pass.channels.size()); ++c) {
+            alpha[std::size_t(c)] = in_pass.channels[std::size_t(c)] == "A";
+        }
         Image dst = Image::uninitialized(w, h, nc);
         parallel_for(0, h, [&](int y) {
             const float *rsx = map->sx.data() + std::size_t(y) * std::size_t(w);
@@ -267,7 +277,9 @@ void execute(NodeContext &ctx)
                                        smoothstep(radius, radius + softness, float(r / half_diag));
                     }
                     for (int c = 0; c < nc; ++c) {
-                        d[x * nc + c] *= gain;
+                        if (!alpha[std::size_t(c)]) {
+                            d[x * nc + c] *= gain;  // light falls off; coverage does not
+                        }
                     }
                 }
             }

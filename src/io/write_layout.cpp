@@ -99,6 +99,23 @@ bool channel_is(const Image &img, int k, float v)
     return true;
 }
 
+/// True when channel k, mapped back through its origin, holds only whole numbers a uint channel
+/// stores exactly (a node that moved ids by the nearest pixel, as lens and transform do).
+bool holds_uints(const Image &img, int k, const ChannelOrigin &o)
+{
+    if (o.scale != 1.0f || o.offset != 0.0f) {
+        return false;
+    }
+    const std::size_t n = img.pixel_count(), nch = std::size_t(img.channels());
+    for (std::size_t i = 0; i < n; ++i) {
+        const float v = img.data()[i * nch + std::size_t(k)];
+        if (!(v >= 0.0f && v <= 4294967295.0f) || v != std::floor(v)) {
+            return false;
+        }
+    }
+    return true;
+}
+
 /// True for a luminance file's colour (R, G and B read from one Y channel) that a node left gray,
 /// bit for bit: its Y channel takes it back alone. A node that made it coloured writes RGB.
 bool gray_from_one_channel(const Pass &p)
@@ -322,10 +339,11 @@ std::vector<OutPart> source_layout(const Frame &frame,
                 c.type = storage_type(asked);
             } else if (file_type.basetype == OIIO::TypeDesc::HALF ||
                        file_type.basetype == OIIO::TypeDesc::FLOAT ||
-                       (file_type.basetype == OIIO::TypeDesc::UINT && untouched)) {
+                       (file_type.basetype == OIIO::TypeDesc::UINT &&
+                        (untouched || holds_uints(*p.image, int(k), o)))) {
                 c.type = file_type;
             } else {
-                c.type = OIIO::TypeDesc::FLOAT;  // a node's values in a uint id channel
+                c.type = OIIO::TypeDesc::FLOAT;  // a node's fractions in a uint id channel
             }
             c.scale = o.scale;
             c.offset = o.offset;

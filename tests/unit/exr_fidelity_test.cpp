@@ -7,6 +7,7 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfMultiPartInputFile.h>
 #include <ImfStringAttribute.h>
 #include <ImfTileDescription.h>
 #include <ImfTiledInputFile.h>
@@ -676,6 +677,57 @@ TEST(ExrFidelity, BadViewAndAbsurdWindowsAreOneLineErrors)
 // Every node on a frame whose data window is offset from the display window and larger than it
 // gives the pixels it gives on the same data placed at the origin (with the camera seen from the
 // data window), and keeps both windows.
+namespace {
+/// Every part's view and channels with their pixel types, in file order.
+std::vector<std::string> part_layout(const std::string &path)
+{
+    Imf::MultiPartInputFile in(path.c_str());
+    std::vector<std::string> out;
+    for (int p = 0; p < in.parts(); ++p) {
+        const Imf::Header &h = in.header(p);
+        std::string line = h.hasView() ? h.view() + ":" : ":";
+        for (auto it = h.channels().begin(); it != h.channels().end(); ++it) {
+            line += std::string(" ") + it.name() + "/" + std::to_string(int(it.channel().type));
+        }
+        out.push_back(line);
+    }
+    return out;
+}
+}  // namespace
+
+// lens resamples every pass; a write then puts each back where it came from (its part, view,
+// name and pixel type), as transform does. It cleared the frame's passes first, so they all
+// went out under canonical names: a stereo file's right eye as "color@right.R", float colour
+// as half, a second part's Z as "subimage01.Z". A uint id channel moved by the nearest pixel
+// stays uint (it went out as float), and the vignette leaves alpha alone (it darkened it).
+TEST(ExrFidelity, LensKeepsTheFilesLayout)
+{
+    constexpr auto npos = std::string::npos;
+    for (const char *name : {"stereo_singlepart", "stereo_multipart", "types_mixed"}) {
+        for (const char *params : {R"({"vignette": 0.5})", R"({"k1": 0.1})"}) {
+            SCOPED_TRACE(std::string(name) + " " + params);
+            const Frame in = read_frame(entry(name).path, nullptr, 1);
+            const Frame out = test::run_node("lens", in, params);
+            EXPECT_FALSE(out.image("color").bit_equal(in.image("color")));
+            if (std::string(params).find("vignette") != npos) {
+                const Image &a = in.image("color"), &b = out.image("color");
+                for (std::size_t i = 0; i < a.pixel_count(); ++i) {
+                    ASSERT_EQ(a.data()[i * 4 + 3], b.data()[i * 4 + 3]) << i;
+                }
+            }
+            const std::string path = out_path(std::string("lens_") + name);
+            write_exr(out, path, {});
+            std::vector<std::string> expected = part_layout(entry(name).path);
+            if (std::string(name) == "types_mixed" && std::string(params).find("k1") != npos) {
+                // The window grew: the pixels outside the source have no coverage, so the RGB
+                // file's alpha (1 where the reader made it up) is written, as half as colour.
+                expected = {": A/1 B/1 G/1 R/1 depth.Z/2 id/0"};
+            }
+            EXPECT_EQ(part_layout(path), expected);
+        }
+    }
+}
+
 TEST(ExrFidelity, NodesWorkInTheDataWindow)
 {
     const int w = 61, h = 37;
