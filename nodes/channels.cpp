@@ -8,6 +8,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 
+#include "io/source_file.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -103,6 +104,32 @@ Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
     return ops;
 }
 
+/// The storage of a pass a rename or a whole-pass copy writes under a new name: as the file held
+/// it (half when every channel it came from was half, else float), not the new name's default
+/// (float diffuse renamed albedo went out as half, half colour renamed beauty as float).
+PixelStorage storage_as_read(const Frame &frame, const Pass &p)
+{
+    if (p.storage != PixelStorage::Auto || !frame.source) {
+        return p.storage;
+    }
+    bool any = false, all_half = true;
+    for (const ChannelOrigin &o : p.origin) {
+        if (o.part < 0) {
+            continue;  // a constant the reader made up
+        }
+        if (o.part >= int(frame.source->parts.size())) {
+            return p.storage;
+        }
+        const OIIO::ImageSpec &spec = frame.source->parts[std::size_t(o.part)].spec;
+        if (o.channel < 0 || o.channel >= spec.nchannels) {
+            return p.storage;
+        }
+        any = true;
+        all_half = all_half && spec.channelformat(o.channel).basetype == OIIO::TypeDesc::HALF;
+    }
+    return !any ? p.storage : all_half ? PixelStorage::Half : PixelStorage::Float;
+}
+
 void execute(NodeContext &ctx)
 {
     const Ops ops = parse_ops(ctx.params(), ctx.node());
@@ -111,7 +138,7 @@ void execute(NodeContext &ctx)
     for (const Copy &c : ops.copies) {
         if (!c.whole_pass.empty()) {
             const Pass &p = in.pass(c.whole_pass, ctx.where());
-            out.set(c.target, p.image, p.channels, p.storage);
+            out.set(c.target, p.image, p.channels, storage_as_read(in, p));
             continue;
         }
         Image img = Image::uninitialized(in.width(), in.height(), int(c.channels.size()));
@@ -167,6 +194,21 @@ void execute(NodeContext &ctx)
     }
     for (const auto &[from, to] : ops.renames) {
         const Pass p = out.pass(from, ctx.where());
+        if (to == pass::kDepth && p.channels.size() != 1) {
+            // depth's channel is the file's bare Z: four channels under it read back as colour.
+            throw_runtime(ctx.where(),
+                          ": rename \"",
+                          from,
+                          "\" -> \"depth\": depth has one channel (Z), \"",
+                          from,
+                          "\" has ",
+                          p.channels.size(),
+                          "; copy one channel instead ({\"depth\": [\"",
+                          from,
+                          ".",
+                          p.channels.front(),
+                          "\"]})");
+        }
         if (from != to && out.has(to)) {
             ctx.state().note_once(str_cat(ctx.node().describe(),
                                           ": rename \"",
@@ -179,11 +221,24 @@ void execute(NodeContext &ctx)
         }
         out.erase(from);
         // A canonical name brings its channel names where the channel count is the canonical
-        // pass's; otherwise the pass keeps its own (a 4-channel pass renamed "depth" stays
-        // R, G, B, A rather than turning into bare indices).
+        // pass's; otherwise the pass keeps its own (a 3-channel normal renamed "ao" stays
+        // X, Y, Z rather than turning into bare indices).
         const pass::CanonicalPass *cp = pass::find_canonical(to);
         const bool canonical_names = cp && cp->channels.size() == p.channels.size();
-        out.set(to, p.image, canonical_names ? std::vector<std::string>{} : p.channels, p.storage);
+        Pass renamed;
+        renamed.image = p.image;
+        renamed.channels =
+            canonical_names ? default_channel_names(to, int(p.channels.size())) : p.channels;
+        renamed.storage = storage_as_read(out, p);
+        // The file's channels are written fresh under the new name; the constants the reader
+        // made up (an RGB file's alpha) stay out of the file unless a node makes them vary.
+        renamed.origin = p.origin;
+        for (ChannelOrigin &o : renamed.origin) {
+            if (o.part >= 0) {
+                o = ChannelOrigin{kRenamedPart, -1, 1.0f, 0.0f};
+            }
+        }
+        out.set_pass(to, std::move(renamed));
     }
     for (const std::string &r : ops.removes) {
         out.erase(r);

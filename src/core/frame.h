@@ -24,7 +24,9 @@ namespace posthaste {
 enum class PixelStorage { Auto, Half, Float };
 
 /// Where one channel of a pass came from in its source file: value = scale * file + offset.
-/// part < 0: a constant (offset), such as the alpha of a file without one.
+/// part -1: a constant (offset), such as the alpha of a file without one; kRenamedPart: from the
+/// file, but its pass was renamed, so a write puts it out fresh under the new name.
+constexpr int kRenamedPart = -2;
 struct ChannelOrigin {
     int part = -1;
     int channel = -1;

@@ -157,8 +157,9 @@ void add_canonical(OutPart &part,
         s = default_storage(name);
     }
     std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
-    const bool sourced = std::any_of(
-        p.origin.begin(), p.origin.end(), [](const ChannelOrigin &o) { return o.part >= 0; });
+    const bool sourced = std::any_of(p.origin.begin(), p.origin.end(), [](const ChannelOrigin &o) {
+        return o.part >= 0 || o.part == kRenamedPart;
+    });
     const bool gray = gray_from_one_channel(p);  // a luminance file's: Y again
     if (gray) {
         exr[0] = pass::exr_channel_names(name, {"Y"})[0];
@@ -169,7 +170,7 @@ void add_canonical(OutPart &part,
         }
         // A constant the reader made up beside channels of the file (alpha of an RGB file)
         // stays out here too, unless a node made it vary.
-        if (sourced && k < p.origin.size() && p.origin[k].part < 0 &&
+        if (sourced && k < p.origin.size() && p.origin[k].part == -1 &&
             (p.untouched() || channel_is(*p.image, int(k), p.origin[k].offset))) {
             continue;
         }

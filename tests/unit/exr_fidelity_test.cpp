@@ -728,6 +728,33 @@ TEST(ExrFidelity, LensKeepsTheFilesLayout)
     }
 }
 
+// A renamed or copied pass is written as the file held it: half colour renamed "beauty" stays
+// half (it went out as float, the default of a new name), float depth renamed "albedo" stays
+// float (albedo's default is half). Four channels renamed "depth" are refused: depth is the
+// bare Z, and R, G, B, A under it read back as colour.
+TEST(ExrFidelity, ARenamedPassKeepsItsPixelType)
+{
+    const Frame in = read_frame(entry("types_mixed").path, nullptr, 1);
+    const Frame out = test::run_node(
+        "channels",
+        in,
+        R"({"rename": {"color": "beauty", "depth": "albedo"}, "copy": {"z2": "depth"}})");
+    const std::string path = out_path("renamed_types");
+    write_exr(out, path, {});
+    EXPECT_EQ(
+        part_layout(path),
+        (std::vector<std::string>{": albedo.Z/2 beauty.B/1 beauty.G/1 beauty.R/1 id/0 z2.Z/2"}));
+    try {
+        test::run_node("channels", in, R"({"rename": {"color": "depth"}})");
+        ADD_FAILURE() << "four channels renamed depth";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find(
+                      R"(rename "color" -> "depth": depth has one channel (Z), "color" has 4)"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(ExrFidelity, NodesWorkInTheDataWindow)
 {
     const int w = 61, h = 37;
