@@ -65,11 +65,22 @@ nlohmann::json to_json(py::handle v, const std::string &where)
     }
     if (py::isinstance<py::int_>(v) ||
         py::isinstance(v, py::module_::import("numpy").attr("integer"))) {
-        return v.cast<long long>();
+        try {
+            return v.cast<long long>();
+        } catch (const py::cast_error &) {
+            throw py::value_error(where + ": " + py::repr(v).cast<std::string>() +
+                                  " does not fit 64 bits");
+        }
     }
     if (py::isinstance<py::float_>(v) ||
         py::isinstance(v, py::module_::import("numpy").attr("floating"))) {
-        return v.cast<double>();
+        const double d = v.cast<double>();
+        if (!std::isfinite(d)) {
+            // JSON has no NaN or infinity: it became null, and the error said "got null".
+            throw py::value_error(where + ": expected a finite number, got " +
+                                  py::repr(v).cast<std::string>());
+        }
+        return d;
     }
     if (py::isinstance<py::str>(v)) {
         return v.cast<std::string>();

@@ -60,12 +60,16 @@ Image image_from_array(const std::string &name, py::handle object)
         throw py::value_error(who + ": size " + std::to_string(w) + "x" + std::to_string(h) +
                               " (each side 1 to 65536, at most 2^28 pixels)");
     }
-    const auto f32 = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(a);
-    if (!f32) {
-        throw py::error_already_set();
-    }
+    // The image first, against the memory budget (a posthaste.Error naming the size); numpy
+    // then converts straight into it, whatever the dtype, byte order and strides. A float32
+    // temporary made first (array_t::ensure) could fail for lack of memory, and pybind11 then
+    // said only "error_already_set called while Python error indicator not set".
     Image image = Image::uninitialized(int(w), int(h), int(c));
-    std::memcpy(image.data(), f32.data(), image.value_count() * sizeof(float));
+    const py::capsule no_owner(image.data(), [](void *) {});
+    py::array dst = a.ndim() == 3
+                        ? py::array(py::dtype::of<float>(), {h, w, c}, image.data(), no_owner)
+                        : py::array(py::dtype::of<float>(), {h, w}, image.data(), no_owner);
+    py::module_::import("numpy").attr("copyto")(dst, a, py::arg("casting") = "unsafe");
     return image;
 }
 

@@ -216,7 +216,19 @@ py::dict evaluate(const PyGraph &pg, int frame, py::handle outputs)
             }
         }
     } else {
-        for (const std::string &id : outputs.cast<std::vector<std::string>>()) {
+        // A single id is one output; a string is a sequence too, of one-letter ids.
+        const std::vector<std::string> ids =
+            py::isinstance<py::str>(outputs)
+                ? std::vector<std::string>{outputs.cast<std::string>()}
+                : [&] {
+                      try {
+                          return outputs.cast<std::vector<std::string>>();
+                      } catch (const py::cast_error &) {
+                          throw py::type_error("Graph.evaluate: outputs: expected node ids, got " +
+                                               py::repr(outputs).cast<std::string>());
+                      }
+                  }();
+        for (const std::string &id : ids) {
             const int i = g.find(id);
             if (i < 0) {
                 throw_usage(g.origin(), ": no node \"", id, "\"");
@@ -246,8 +258,12 @@ void bind_graph(py::module_ &m)
         .def_static(
             "load",
             [](py::handle path, py::handle set) {
-                return PyGraph::load(to_json(path, "Graph.load").get<std::string>(),
-                                     overrides_of(set));
+                const nlohmann::json p = to_json(path, "Graph.load");
+                if (!p.is_string()) {
+                    throw py::type_error("Graph.load: path: expected a str or os.PathLike, got " +
+                                         py::repr(path).cast<std::string>());
+                }
+                return PyGraph::load(p.get<std::string>(), overrides_of(set));
             },
             py::arg("path"),
             py::arg("set") = py::none(),

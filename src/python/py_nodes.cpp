@@ -134,6 +134,32 @@ std::shared_ptr<PyFrame> run_node(
     return std::make_shared<PyFrame>(std::move(out));
 }
 
+std::string type_name(py::handle v)
+{
+    return py::str(v.get_type().attr("__name__")).cast<std::string>();
+}
+
+/// v as a T, or a TypeError naming the argument and what it takes (pybind11 said only "Unable
+/// to cast Python instance to C++ type").
+template <typename T>
+T cast_arg(py::handle v, const std::string &who, const char *expected)
+{
+    try {
+        return v.cast<T>();
+    } catch (const py::cast_error &) {
+        throw py::type_error(who + ": expected " + expected + ", got " + type_name(v) + " " +
+                             py::repr(v).cast<std::string>());
+    }
+}
+
+std::shared_ptr<PyFrame> frame_arg(py::handle v, const std::string &who)
+{
+    if (!py::isinstance<PyFrame>(v)) {
+        throw py::type_error(who + ": expected a posthaste.Frame, got " + type_name(v));
+    }
+    return v.cast<std::shared_ptr<PyFrame>>();
+}
+
 py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
 {
     const NodeType &t = require_node_type(type);
@@ -151,7 +177,9 @@ py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
     std::size_t p = 0;
     for (py::handle f : frames) {
         if (!f.is_none()) {
-            inputs.emplace_back(std::string(ports[p].name), f.cast<std::shared_ptr<PyFrame>>());
+            const std::string port(ports[p].name);
+            inputs.emplace_back(
+                port, frame_arg(f, "posthaste.node(\"" + type + "\"): input \"" + port + "\""));
         }
         ++p;
     }
@@ -161,7 +189,8 @@ py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
         const std::string k = key.cast<std::string>();
         if (k == "frame") {
             if (!value.is_none()) {
-                number = value.cast<int>();
+                number = cast_arg<int>(
+                    value, "posthaste.node(\"" + type + "\"): frame", "an int (32 bits)");
             }
             continue;
         }
@@ -172,6 +201,11 @@ py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
             }
             if (!port) {
                 throw_usage("posthaste.node(\"", type, "\"): no input port \"", k, "\"");
+            }
+            for (const auto &given : inputs) {
+                if (given.first == k) {
+                    throw_usage("posthaste.node(\"", type, "\"): input \"", k, "\" given twice");
+                }
             }
             inputs.emplace_back(k, value.cast<std::shared_ptr<PyFrame>>());
             continue;
@@ -201,14 +235,21 @@ py::object diff(py::handle a, py::handle b, py::kwargs kwargs)
                                                    {"pixels_per_degree", &o.pixels_per_degree}};
     for (auto [key, value] : kwargs) {
         const std::string k = key.cast<std::string>();
+        const std::string who = "posthaste.diff: " + k;
         if (const auto it = floats.find(k); it != floats.end()) {
-            *it->second = value.cast<float>();
+            *it->second = cast_arg<float>(value, who, "a number");
         } else if (k == "allow_failures") {
-            t.allow_failures = value.cast<int>();
+            t.allow_failures = cast_arg<int>(value, who, "an int");
+            if (t.allow_failures < 0) {
+                throw_usage(who, ": must be 0 or more, got ", t.allow_failures);
+            }
         } else if (k == "passes") {
-            o.passes = value.cast<std::vector<std::string>>();
+            if (py::isinstance<py::str>(value)) {
+                throw py::type_error(who + ": expected a list of pass names, got a str");
+            }
+            o.passes = cast_arg<std::vector<std::string>>(value, who, "a list of pass names");
         } else if (k == "flip") {
-            const std::string m = value.cast<std::string>();
+            const std::string m = cast_arg<std::string>(value, who, "hdr, ldr or off");
             if (m != "hdr" && m != "ldr" && m != "off") {
                 throw_usage("posthaste.diff: flip: expected hdr, ldr or off, got \"", m, "\"");
             }
@@ -223,7 +264,12 @@ py::object diff(py::handle a, py::handle b, py::kwargs kwargs)
         if (py::isinstance<PyFrame>(x)) {
             return x.cast<std::shared_ptr<PyFrame>>()->share();
         }
-        const std::string path = to_json(x, "posthaste.diff").get<std::string>();
+        const nlohmann::json j = to_json(x, "posthaste.diff");
+        if (!j.is_string()) {
+            throw py::type_error("posthaste.diff: expected a posthaste.Frame or a path, got " +
+                                 type_name(x));
+        }
+        const std::string path = j.get<std::string>();
         py::gil_scoped_release release;
         return std::make_shared<const Frame>(
             metrics::read_for_comparison(path, {}, 0, ReadOptions{}));

@@ -57,3 +57,40 @@ def test_an_int_attribute_must_fit_32_bits():
 def ph_scene():
     from conftest import SCENE
     return SCENE
+
+
+def test_bad_arguments_name_what_they_are():
+    # pybind11's own message named nothing: "Unable to cast Python instance to C++ type".
+    import numpy as np
+    f = ph.Frame(passes={"color": np.zeros((4, 4, 4), np.float32)})
+    with pytest.raises(TypeError, match='posthaste.node\\("grade"\\): input "image": expected a posthaste.Frame, got ndarray'):
+        ph.node("grade", np.ones((4, 4)))
+    with pytest.raises(TypeError, match='posthaste.node\\("grade"\\): frame: expected an int \\(32 bits\\), got str'):
+        ph.node("grade", f, frame="3")
+    with pytest.raises(TypeError, match="frame: expected an int"):
+        ph.node("grade", f, frame=2**40)
+    with pytest.raises(ph.Error, match='input "image" given twice'):
+        ph.node("grade", f, image=f)
+    with pytest.raises(ValueError, match='param "seed": 1180591620717411303424 does not fit 64 bits'):
+        ph.node("grain", f, seed=2**70)
+    # NaN became JSON null, and the error said "got null".
+    with pytest.raises(ValueError, match='param "exposure": expected a finite number, got nan'):
+        ph.node("exposure", f, exposure=float("nan"))
+    with pytest.raises(TypeError, match="posthaste.diff: expected a posthaste.Frame or a path, got NoneType"):
+        ph.diff(f, None)
+    with pytest.raises(TypeError, match="posthaste.diff: passes: expected a list of pass names, got a str"):
+        ph.diff(f, f, passes="color")
+    with pytest.raises(TypeError, match="posthaste.diff: fail: expected a number, got str"):
+        ph.diff(f, f, fail="0.1")
+    with pytest.raises(ph.Error, match="posthaste.diff: allow_failures: must be 0 or more, got -5"):
+        ph.diff(f, f, allow_failures=-5)
+    with pytest.raises(TypeError, match="Graph.load: path: expected a str or os.PathLike, got 5"):
+        ph.Graph.load(5)
+
+
+def test_an_array_too_large_for_the_budget_is_a_posthaste_error():
+    # numpy's float32 temporary failed first, and pybind11 reported its own internal error.
+    import numpy as np
+    huge = np.broadcast_to(np.float32(1), (16384, 16384, 64))
+    with pytest.raises(ph.Error, match="too large|memory"):
+        ph.Frame(passes={"x": huge})
