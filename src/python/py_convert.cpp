@@ -219,6 +219,18 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out)
     }
     for (auto [key, value] : dict.cast<py::dict>()) {
         const std::string name = py::str(key).cast<std::string>();
+        bool camera_key = false;
+        for (const MatrixMember &m : kMatrices) {
+            camera_key = camera_key || name == m.name;
+        }
+        for (const CameraScalarAttribute &a : kCameraScalarAttributes) {
+            camera_key = camera_key || name == a.name;
+        }
+        if (camera_key) {
+            // Written as an attribute it would replace the camera's value in the file.
+            throw py::value_error("attribute \"" + name +
+                                  "\" is a camera value: give it in camera=");
+        }
         if (py::isinstance<py::bool_>(value) || py::isinstance<py::int_>(value)) {
             out.push_back(OIIO::ParamValue(name, int_attribute(value, name)));
         } else if (py::isinstance<py::float_>(value)) {
@@ -311,6 +323,11 @@ Camera dict_to_camera(py::handle dict)
         }
         for (const CameraScalarAttribute &a : kCameraScalarAttributes) {
             if (k == a.name) {
+                if (!py::isinstance<py::float_>(value) && !py::isinstance<py::int_>(value) &&
+                    !py::isinstance(value, py::module_::import("numpy").attr("number"))) {
+                    throw py::type_error("camera \"" + k + "\": expected a number, got " +
+                                         py::repr(value).cast<std::string>());
+                }
                 const double x = value.cast<double>();
                 if (!std::isfinite(x)) {
                     throw py::value_error("camera \"" + k + "\": not finite");

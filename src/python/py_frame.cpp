@@ -4,6 +4,7 @@
 
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cstring>
 
 #include "python/py_convert.h"
@@ -156,7 +157,21 @@ void PyFrame::set_pass(const std::string &name, py::handle array, py::handle cha
     }
     std::vector<std::string> names;
     if (!channels.is_none()) {
+        if (py::isinstance<py::str>(channels)) {
+            throw py::type_error("pass \"" + name +
+                                 "\": channels: expected a list of names, got a str");
+        }
         names = channels.cast<std::vector<std::string>>();
+        for (std::size_t k = 0; k < names.size(); ++k) {
+            // A dot separates a layer from its channel in the file: "a.b" would come back as a
+            // pass of its own; an empty name or a repeated one cannot be told apart.
+            if (names[k].empty() || names[k].find('.') != std::string::npos ||
+                std::find(names.begin(), names.begin() + std::ptrdiff_t(k), names[k]) !=
+                    names.begin() + std::ptrdiff_t(k)) {
+                throw py::value_error("pass \"" + name + "\": channel name \"" + names[k] +
+                                      "\" (names are unique, not empty, without a dot)");
+            }
+        }
         if (int(names.size()) != image.channels()) {
             throw py::value_error("pass \"" + name + "\": " + std::to_string(names.size()) +
                                   " channel names for " + std::to_string(image.channels()) +
@@ -275,10 +290,21 @@ void bind_frame(py::module_ &m)
                  } else if (!data_window.is_none()) {
                      fr.display_window = fr.data_window;
                  }
+                 if (!channels.is_none() && !py::isinstance<py::dict>(channels)) {
+                     throw py::type_error("channels: expected a dict {pass: [names]}");
+                 }
                  if (!passes.is_none()) {
                      const py::dict chans =
                          channels.is_none() ? py::dict() : channels.cast<py::dict>();
-                     for (auto [key, value] : passes.cast<py::dict>()) {
+                     const py::dict given = passes.cast<py::dict>();
+                     for (auto [key, value] : chans) {
+                         if (!given.contains(key)) {
+                             throw py::value_error("channels: no pass \"" +
+                                                   py::str(key).cast<std::string>() +
+                                                   "\" in passes");
+                         }
+                     }
+                     for (auto [key, value] : given) {
                          const std::string n = py::str(key).cast<std::string>();
                          f->set_pass(
                              n, value, chans.contains(key) ? py::object(chans[key]) : py::none());

@@ -94,3 +94,24 @@ def test_an_array_too_large_for_the_budget_is_a_posthaste_error():
     huge = np.broadcast_to(np.float32(1), (16384, 16384, 64))
     with pytest.raises(ph.Error, match="too large|memory"):
         ph.Frame(passes={"x": huge})
+
+
+def test_channel_names_and_camera_keys_are_checked():
+    import numpy as np
+    rgb = np.zeros((2, 2, 2), np.float32)
+    # "a.b" came back from the file as a pass of its own; a misspelt key was ignored.
+    with pytest.raises(ValueError, match='pass "spec": channel name "a.b" \\(names are unique, not empty, without a dot\\)'):
+        ph.Frame(passes={"spec": rgb}, channels={"spec": ["a.b", "c"]})
+    with pytest.raises(ValueError, match='channel name ""'):
+        ph.Frame(passes={"spec": rgb}, channels={"spec": ["", "c"]})
+    with pytest.raises(ValueError, match='channel name "c"'):
+        ph.Frame(passes={"spec": rgb}, channels={"spec": ["c", "c"]})
+    with pytest.raises(ValueError, match='channels: no pass "sepc" in passes'):
+        ph.Frame(passes={"spec": rgb}, channels={"sepc": ["u", "v"]})
+    with pytest.raises(TypeError, match='pass "spec": channels: expected a list of names, got a str'):
+        ph.Frame(passes={"spec": rgb}, channels={"spec": "uv"})
+    # The attribute replaced the camera's value in the file.
+    with pytest.raises(ValueError, match='attribute "focalLength" is a camera value: give it in camera='):
+        ph.Frame(passes={"spec": rgb}, camera={"focalLength": 50.0}, attributes={"focalLength": 35.0})
+    with pytest.raises(TypeError, match='camera "focalLength": expected a number, got \'35\''):
+        ph.Frame(passes={"spec": rgb}, camera={"focalLength": "35"})

@@ -75,6 +75,10 @@ def test_evaluate_returns_frames_without_writing(tmp_path, scene):
     assert not np.array_equal(both["scene"].passes["color"], frame.passes["color"])
     with pytest.raises(ph.GraphError, match='no node "nope"'):
         g.evaluate(2, outputs=["nope"])
+    # One id as a str is that node (it was taken letter by letter: no node "d").
+    assert list(g.evaluate(2, outputs="dof")) == ["dof"]
+    with pytest.raises(TypeError, match="Graph.evaluate: outputs: expected node ids, got 5"):
+        g.evaluate(2, outputs=5)
 
 
 def test_ctrl_c_stops_between_frames(tmp_path, scene):
