@@ -183,9 +183,16 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
         const fs::space_info space =
             fs::space(target.has_parent_path() ? target.parent_path() : fs::path("."), space_ec);
         fs::remove(tmp, ec);
-        if (!space_ec && space.available < std::max<std::uintmax_t>(written, 1) + (64u << 10)) {
+        const std::string what = e.what();
+        // Another cause the library named, or a file system with no capacity at all (/proc,
+        // /sys: 0 KiB free, but not full), is not a full disk.
+        const bool other_cause = space.capacity == 0 ||
+                                 what.find(std::strerror(ENOENT)) != std::string::npos ||
+                                 what.find(std::strerror(EACCES)) != std::string::npos ||
+                                 what.find(std::strerror(EROFS)) != std::string::npos;
+        if (!space_ec && !other_cause &&
+            space.available < std::max<std::uintmax_t>(written, 1) + (64u << 10)) {
             // Where the library already gave the cause (strerror's words), only the free space.
-            const std::string what = e.what();
             const bool said = what.find(std::strerror(ENOSPC)) != std::string::npos;
             throw Error(e.code(),
                         what + (said ? " (" : " (no space left on the device: ") +
