@@ -494,6 +494,26 @@ TEST(Cli, ASignalRemovesTheTemporaryBeingWritten)
     EXPECT_GT(stopped, 0);
 }
 
+// A file system with no capacity (/proc) reports 0 KiB free: the write's failure is its own
+// cause, not a full disk (it said "no space left on the device: 0 KiB free").
+TEST(Cli, AnUnwritablePlaceIsNotAFullDisk)
+{
+    const std::string dir = test::scratch_dir("proc_write");
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "scene", "type": "render", "params": {"scene": ")"
+                                   << POSTHASTE_TEST_DIR << R"(/../samples/scenes/minecrappy.json",
+         "width": 8, "height": 8}},
+        {"id": "out", "type": "write", "inputs": {"image": "scene"},
+         "params": {"path": "/proc/posthaste_test.####.exr"}}]})";
+    std::string log;
+    const int rc = test::run_command(
+        std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --frames 1 --quiet", &log);
+    EXPECT_NE(rc, 0) << log;
+    EXPECT_NE(log.find("/proc/posthaste_test.0001.exr"), std::string::npos) << log;
+    EXPECT_EQ(log.find("KiB free"), std::string::npos) << log;
+    EXPECT_EQ(log.find("no space left"), std::string::npos) << log;
+}
+
 TEST(Cli, FullDiskStopsTheRunCleanly)
 {
     namespace fs = std::filesystem;
