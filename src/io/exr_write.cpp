@@ -26,6 +26,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "io/io_detail.h"
+#include "io/mip_levels.h"
 #include "io/write_layout.h"
 
 namespace posthaste::io_detail {
@@ -84,49 +85,6 @@ std::vector<float> part_floats(const OutPart &part, const Frame &frame)
         }
     });
     return out;
-}
-
-/// The next level along x, y or both: each pixel the mean of the block of up to 2x2 pixels
-/// above it. Rounding down (OpenEXR's default) drops an odd last row or column of the level
-/// above, as maketx's box filter does; rounding up gives it a pixel of its own, the mean of what
-/// its block holds.
-std::vector<float> halve(const std::vector<float> &src,
-                         int w,
-                         int h,
-                         int nch,
-                         bool along_x,
-                         bool along_y,
-                         bool round_up,
-                         int &nw,
-                         int &nh)
-{
-    auto next = [&](int n, bool along) {
-        return !along ? n : std::max(1, round_up ? (n + 1) / 2 : n / 2);
-    };
-    nw = next(w, along_x);
-    nh = next(h, along_y);
-    std::vector<float> dst(std::size_t(nw) * std::size_t(nh) * std::size_t(nch));
-    const int fx = along_x && w > 1 ? 2 : 1, fy = along_y && h > 1 ? 2 : 1;
-    for (int y = 0; y < nh; ++y) {
-        for (int x = 0; x < nw; ++x) {
-            for (int c = 0; c < nch; ++c) {
-                // An odd edge's block reads its one pixel twice: the same mean.
-                float sum = 0.0f;
-                for (int j = 0; j < fy; ++j) {
-                    for (int i = 0; i < fx; ++i) {
-                        const int sx = std::min(x * fx + i, w - 1);
-                        const int sy = std::min(y * fy + j, h - 1);
-                        sum += src[(std::size_t(sy) * std::size_t(w) + std::size_t(sx)) *
-                                       std::size_t(nch) +
-                                   std::size_t(c)];
-                    }
-                }
-                dst[(std::size_t(y) * std::size_t(nw) + std::size_t(x)) * std::size_t(nch) +
-                    std::size_t(c)] = sum / float(fx * fy);
-            }
-        }
-    }
-    return dst;
 }
 
 /// Channels at native types, interleaved, packed a band of rows at a time.

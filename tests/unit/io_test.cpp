@@ -22,6 +22,7 @@
 #include "core/parallel.h"
 #include "io/color.h"
 #include "io/image_file.h"
+#include "io/mip_levels.h"
 #include "io/sequence.h"
 #include "test_util.h"
 
@@ -1322,6 +1323,56 @@ TEST(IoWrite, StaleTemporariesOfKilledWritesAreRemoved)
     EXPECT_TRUE(fs::exists(dead_new));
     EXPECT_TRUE(fs::exists(user));
     EXPECT_TRUE(fs::exists(dir + "/shot.0004.exr"));
+}
+
+}  // namespace
+}  // namespace posthaste
+
+namespace posthaste {
+namespace {
+
+// A touched mip map's levels: blocks of 2x2 where the sizes are even (the same bits as the sum of
+// four over four); an odd size rounded down weighs the old pixels by their overlap with the new
+// ones, so a level keeps the image's mean and place (a plain box dropped the last row and
+// column: every level moved up and left, a gradient's level 4 mean read 0.44 for 0.5).
+TEST(MipLevels, OddSizesRoundedDownKeepTheMeanAndPlace)
+{
+    int nw = 0, nh = 0;
+    const std::vector<float> quad = {0.1f, 0.7f, 0.3f, 0.9f};
+    const std::vector<float> even = io_detail::halve(quad, 2, 2, 1, true, true, false, nw, nh);
+    ASSERT_EQ(nw, 1);
+    ASSERT_EQ(nh, 1);
+    EXPECT_EQ(even[0], (((0.1f + 0.7f) + 0.3f) + 0.9f) / 4.0f);
+    // A ramp of 5 pixels (0..4) to 2: overlaps 2, 2, 1 and 1, 2, 2 in fifths.
+    const std::vector<float> ramp = {0.0f, 1.0f, 2.0f, 3.0f, 4.0f};
+    const std::vector<float> down = io_detail::halve(ramp, 5, 1, 1, true, false, false, nw, nh);
+    ASSERT_EQ(nw, 2);
+    EXPECT_FLOAT_EQ(down[0], 0.8f);
+    EXPECT_FLOAT_EQ(down[1], 3.2f);
+    EXPECT_FLOAT_EQ(0.5f * (down[0] + down[1]), 2.0f);  // the ramp's mean
+    // Rounding up: blocks of two, the odd last pixel alone.
+    const std::vector<float> up = io_detail::halve(ramp, 5, 1, 1, true, false, true, nw, nh);
+    ASSERT_EQ(nw, 3);
+    EXPECT_EQ(up, (std::vector<float>{0.5f, 2.5f, 4.0f}));
+    // A 45x27 gradient down to 1x1: every level's mean stays the image's within float rounding.
+    std::vector<float> img(45 * 27);
+    double mean = 0.0;
+    for (int y = 0; y < 27; ++y) {
+        for (int x = 0; x < 45; ++x) {
+            img[std::size_t(y * 45 + x)] = float(x + 3 * y) / 100.0f;
+            mean += img[std::size_t(y * 45 + x)];
+        }
+    }
+    mean /= 45.0 * 27.0;
+    int w = 45, h = 27;
+    while (w > 1 || h > 1) {
+        img = io_detail::halve(img, w, h, 1, true, true, false, w, h);
+        double m = 0.0;
+        for (float v : img) {
+            m += v;
+        }
+        EXPECT_NEAR(m / double(img.size()), mean, 1e-5) << w << "x" << h;
+    }
 }
 
 }  // namespace
