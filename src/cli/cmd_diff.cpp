@@ -5,9 +5,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
 
@@ -128,6 +130,14 @@ int run(const DiffCliOptions &o)
 
     const std::vector<int> frames = frames_to_compare(o);
     check_output_pattern(o.diff_image, "--diff-image", frames.size());
+    if (const std::string ext = std::filesystem::path(o.diff_image).extension().string();
+        !o.diff_image.empty() && ext != ".exr" && ext != ".EXR") {
+        // It wrote an EXR under any name ("d.png" held OpenEXR data).
+        throw_usage(
+            "--diff-image: the difference is written as EXR (float, NaN kept): give a "
+            "name ending in .exr, got ",
+            o.diff_image);
+    }
     check_output_pattern(o.flip_map, "--flip-map", frames.size());
     const std::set<std::string> wanted(options.passes.begin(), options.passes.end());
     ReadOptions read_options;
@@ -239,16 +249,22 @@ int run(const DiffCliOptions &o)
     return metrics::exit_code(worst);
 }
 
-/// A number above `low` (or at least it): "must be a number above 0, got 0", where CLI11's
-/// checks wrote out a range up to DBL_MAX.
-CLI::Validator bounded_below(double low, bool inclusive)
+/// A number above `low` (or at least it), and at most `high`: "must be a number above 0, got
+/// 0", where CLI11's checks wrote out a range up to DBL_MAX. NaN is refused (a NaN threshold
+/// turned a FAILURE into a WARNING); "inf" passes where high is infinite (a hard limit off).
+CLI::Validator bounded_below(double low,
+                             bool inclusive,
+                             double high = std::numeric_limits<double>::infinity())
 {
-    const std::string bound = str_cat(inclusive ? "of at least " : "above ", low);
+    const std::string bound = str_cat(inclusive ? "of at least " : "above ",
+                                      low,
+                                      std::isinf(high) ? "" : str_cat(" and at most ", high));
     return CLI::Validator(
-        [low, inclusive, bound](std::string &text) -> std::string {
+        [low, inclusive, high, bound](std::string &text) -> std::string {
             char *end = nullptr;
             const double v = std::strtod(text.c_str(), &end);
-            const bool ok = end != text.c_str() && *end == '\0' && (inclusive ? v >= low : v > low);
+            const bool ok = end != text.c_str() && *end == '\0' &&
+                            (inclusive ? v >= low : v > low) && v <= high;
             return ok ? std::string() : "must be a number " + bound + ", got " + text;
         },
         str_cat(inclusive ? ">= " : "> ", low));
@@ -274,20 +290,30 @@ void add_diff_command(CLI::App &app, int &exit_code)
                     "Passes to compare, comma-separated (default: every pass in both)")
         ->allow_extra_args(false);
     metrics::Thresholds &t = o->thresholds;
-    cmd->add_option("--fail", t.fail, "Failure threshold on |a - b|")->capture_default_str();
-    cmd->add_option(
-        "--failrelative", t.fail_relative, "Relative failure threshold (of mean |a|, |b|)");
-    cmd->add_option("--failpercent", t.fail_percent, "Percent of pixels allowed over --fail")
+    cmd->add_option("--fail", t.fail, "Failure threshold on |a - b|")
+        ->check(bounded_below(0.0, true))
         ->capture_default_str();
-    cmd->add_option("--hardfail", t.hard_fail, "Fail if any error is above this");
+    cmd->add_option(
+           "--failrelative", t.fail_relative, "Relative failure threshold (of mean |a|, |b|)")
+        ->check(bounded_below(0.0, true));
+    cmd->add_option("--failpercent", t.fail_percent, "Percent of pixels allowed over --fail")
+        ->check(bounded_below(0.0, true, 100.0))
+        ->capture_default_str();
+    cmd->add_option("--hardfail", t.hard_fail, "Fail if any error is above this")
+        ->check(bounded_below(0.0, true));
     cmd->add_option(
            "--allowfailures", t.allow_failures, "Pass outright when at most this many pixels fail")
         ->check(bounded_below(0.0, true));
-    cmd->add_option("--warn", t.warn, "Warning threshold on |a - b|")->capture_default_str();
-    cmd->add_option("--warnrelative", t.warn_relative, "Relative warning threshold");
-    cmd->add_option("--warnpercent", t.warn_percent, "Percent of pixels allowed over --warn")
+    cmd->add_option("--warn", t.warn, "Warning threshold on |a - b|")
+        ->check(bounded_below(0.0, true))
         ->capture_default_str();
-    cmd->add_option("--hardwarn", t.hard_warn, "Warn if any error is above this");
+    cmd->add_option("--warnrelative", t.warn_relative, "Relative warning threshold")
+        ->check(bounded_below(0.0, true));
+    cmd->add_option("--warnpercent", t.warn_percent, "Percent of pixels allowed over --warn")
+        ->check(bounded_below(0.0, true, 100.0))
+        ->capture_default_str();
+    cmd->add_option("--hardwarn", t.hard_warn, "Warn if any error is above this")
+        ->check(bounded_below(0.0, true));
     cmd->add_option("--flip",
                     o->flip,
                     "FLIP on the color pass: hdr (scene-linear), ldr "
@@ -295,7 +321,7 @@ void add_diff_command(CLI::App &app, int &exit_code)
         ->check(CLI::IsMember({"hdr", "ldr", "off"}))
         ->capture_default_str();
     cmd->add_option("--ppd", o->ppd, "FLIP pixels per degree")
-        ->check(bounded_below(0.0, false))
+        ->check(bounded_below(0.0, false, metrics::kMaxPixelsPerDegree))
         ->capture_default_str();
     cmd->add_option("--diff-image",
                     o->diff_image,

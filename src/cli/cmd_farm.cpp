@@ -286,6 +286,9 @@ int submit_command(const SubmitOptions &o)
     if (dir.string().find_first_of("\n\r") != std::string::npos) {
         throw_usage("farm submit: a line break in the job directory's name (#SBATCH lines)");
     }
+    farm::require_sbatch_value("--partition", o.slurm.partition);
+    farm::require_sbatch_value("--mem", o.slurm.mem);
+    farm::require_sbatch_value("--time", o.slurm.time);
     std::error_code ec;
     if (fs::exists(dir, ec) && !o.force) {
         throw_usage("farm submit: job directory ",

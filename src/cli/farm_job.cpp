@@ -7,11 +7,13 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
+#include <string_view>
 #include <utility>
 
 #include "core/error.h"
@@ -54,6 +56,23 @@ std::string sbatch_quote(const std::string &s)
         q += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
     }
     return q + "\"";
+}
+
+void require_sbatch_value(const std::string &option, const std::string &value)
+{
+    for (const char c : value) {
+        if (!std::isalnum(static_cast<unsigned char>(c)) &&
+            std::string_view("_-.:,+").find(c) == std::string_view::npos) {
+            throw_usage("farm submit: ",
+                        option,
+                        ": ",
+                        c == '\n' || c == '\r' ? std::string("a line break")
+                                               : "\"" + std::string(1, c) + "\"",
+                        " in \"",
+                        value.substr(0, value.find_first_of("\r\n")),
+                        "\" is not Slurm syntax (a partition name, 8G, 1:00:00)");
+        }
+    }
 }
 
 void require_slurm(const std::string &program)

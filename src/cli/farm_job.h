@@ -22,6 +22,10 @@ bool capture(const std::string &command, std::string &out);
 std::string shell_quote(const std::string &s);
 /// `s` as one value of an #SBATCH line: in double quotes, with " and \ escaped by a backslash
 /// (sbatch reads those lines itself: a space would end the value, a # start a comment).
+/// Refuses a Slurm option's value with characters outside Slurm's syntax for partitions, memory
+/// and times (letters, digits, "_-.:,+"): a line break would start a shell line in the batch
+/// script (and end its #SBATCH directives there); one line naming the option.
+void require_sbatch_value(const std::string &option, const std::string &value);
 std::string sbatch_quote(const std::string &s);
 /// An Error naming how to get Slurm's `program` unless it is on PATH.
 void require_slurm(const std::string &program);

@@ -125,8 +125,11 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
     if (!(options.difference_scale >= 0.0f)) {
         throw_usage("diff: difference scale must be >= 0, got ", options.difference_scale);
     }
-    if (!(options.pixels_per_degree > 0.0f)) {
-        throw_usage("diff: pixels per degree must be > 0, got ", options.pixels_per_degree);
+    if (!(options.pixels_per_degree > 0.0f && options.pixels_per_degree <= kMaxPixelsPerDegree)) {
+        throw_usage("diff: pixels per degree must lie in (0, ",
+                    kMaxPixelsPerDegree,
+                    "], got ",
+                    options.pixels_per_degree);
     }
     DiffReport r;
     r.frame = a.number;

@@ -264,13 +264,23 @@ struct Prepared {
     Plane edge, point;
 };
 
+void check_ppd(float ppd)
+{
+    if (!(ppd > 0.0f && ppd <= kMaxPixelsPerDegree)) {
+        throw_usage(
+            "flip: pixels per degree must lie in (0, ", kMaxPixelsPerDegree, "], got ", ppd);
+    }
+}
+
 struct Kernels {
     flip::CsfKernel csf[3];
     flip::FeatureKernels feature;
     float cmax = 0.0f;
 
     explicit Kernels(float ppd)
-        : csf{flip::csf_kernel(0, ppd), flip::csf_kernel(1, ppd), flip::csf_kernel(2, ppd)},
+        : csf{(check_ppd(ppd), flip::csf_kernel(0, ppd)),
+              flip::csf_kernel(1, ppd),
+              flip::csf_kernel(2, ppd)},
           feature(flip::feature_kernels(ppd)),
           cmax(flip::max_color_distance())
     {

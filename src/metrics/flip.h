@@ -21,6 +21,9 @@ namespace posthaste::metrics {
 /// The papers' default viewing condition: a 0.7 m wide 3840-pixel monitor seen from 0.7 m,
 /// 0.7 * 3840 / 0.7 * pi / 180 = 67.02 pixels per degree.
 inline constexpr float kDefaultPixelsPerDegree = 67.0206f;
+/// The most pixels per degree FLIP takes: its filters' radii grow with it (a 4K display at arm's
+/// length is about 100; 1e9 ran a filter of a billion taps, 1e30 overflowed its radius).
+inline constexpr float kMaxPixelsPerDegree = 1000.0f;
 
 struct FlipOptions {
     float pixels_per_degree = kDefaultPixelsPerDegree;

@@ -143,23 +143,41 @@ Frame read_for_comparison(const std::string &path,
         if (!frame.has(ps.pass)) {
             continue;
         }
-        std::size_t stored = ps.sources.size();
-        while (stored > 1 && ps.sources[stored - 1].part < 0) {
-            --stored;
+        // The channels the file stores: not the constants the reader made up after them (an
+        // RGB file's alpha), and each file channel once (a luminance file's Y made R, G and B:
+        // compared as three, a Y file passed against an RGB file of the same gray).
+        std::size_t last = ps.sources.size();
+        while (last > 1 && ps.sources[last - 1].part < 0) {
+            --last;
+        }
+        std::vector<std::size_t> keep;
+        for (std::size_t k = 0; k < last; ++k) {
+            const auto &src = ps.sources[k];
+            const bool repeated =
+                src.part >= 0 && std::any_of(keep.begin(), keep.end(), [&](std::size_t j) {
+                    return ps.sources[j].part == src.part && ps.sources[j].channel == src.channel;
+                });
+            if (!repeated) {
+                keep.push_back(k);
+            }
         }
         const Pass &pass = frame.pass(ps.pass);
-        if (stored == ps.sources.size() || int(stored) >= pass.image->channels()) {
+        if (keep.size() == ps.sources.size() || int(keep.size()) >= pass.image->channels()) {
             continue;
         }
         const Image &full = *pass.image;
-        Image trimmed(full.width(), full.height(), int(stored));
+        Image trimmed(full.width(), full.height(), int(keep.size()));
         for (int y = 0; y < full.height(); ++y) {
             for (int x = 0; x < full.width(); ++x) {
-                std::copy_n(full.pixel(x, y), stored, trimmed.pixel(x, y));
+                for (std::size_t k = 0; k < keep.size(); ++k) {
+                    trimmed.pixel(x, y)[k] = full.pixel(x, y)[keep[k]];
+                }
             }
         }
-        std::vector<std::string> names(pass.channels.begin(),
-                                       pass.channels.begin() + std::ptrdiff_t(stored));
+        std::vector<std::string> names;
+        for (std::size_t k : keep) {
+            names.push_back(ps.origin == "luminance" && k == 0 ? "Y" : pass.channels[k]);
+        }
         frame.set(ps.pass,
                   std::make_shared<const Image>(std::move(trimmed)),
                   std::move(names),

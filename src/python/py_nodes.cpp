@@ -238,6 +238,9 @@ py::object diff(py::handle a, py::handle b, py::kwargs kwargs)
         const std::string who = "posthaste.diff: " + k;
         if (const auto it = floats.find(k); it != floats.end()) {
             *it->second = cast_arg<float>(value, who, "a number");
+            if (!(*it->second >= 0.0f)) {  // NaN too: it turned a FAILURE into a WARNING
+                throw_usage(who, ": must be a number of at least 0, got ", *it->second);
+            }
         } else if (k == "allow_failures") {
             t.allow_failures = cast_arg<int>(value, who, "an int");
             if (t.allow_failures < 0) {

@@ -213,7 +213,7 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_EQ(out.find("error: ", 1), std::string::npos) << out;  // said once
     // A bound is said as a bound (CLI11's own check wrote out DBL_MAX).
     EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --ppd 0", &out), 2) << out;
-    EXPECT_NE(out.find("--ppd: must be a number above 0, got 0"), std::string::npos) << out;
+    EXPECT_NE(out.find("--ppd: must be a number above 0 and at most 1000, got 0"), std::string::npos) << out;
     EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --diff-scale -1", &out), 2) << out;
     EXPECT_NE(out.find("--diff-scale: must be a number of at least 0, got -1"), std::string::npos)
         << out;
@@ -466,6 +466,26 @@ TEST(Cli, PipesThreadCountsAndRefusedSubmitsAreOneLineErrors)
               std::string::npos)
         << script;
     EXPECT_NE(script.find("#SBATCH --job-name=\"posthaste-a b#c\"\n"), std::string::npos) << script;
+    // --mem, --time and --partition go into #SBATCH lines as they are: a line break started a
+    // shell line in the batch script (and ended its directives there). Slurm's syntax only.
+    for (const std::string opt :
+         {"--mem '8G\necho INJECTED'", "--time '1:00;x'", "--partition 'a b'"}) {
+        EXPECT_EQ(run_command("PATH=" + bin + ":$PATH " + kBin + " farm submit " + graph +
+                                  " --frames 1 --job-dir " + dir + "/job3 " + opt,
+                              &out),
+                  2)
+            << opt << out;
+        EXPECT_NE(out.find("is not Slurm syntax"), std::string::npos) << out;
+        EXPECT_EQ(line_count(out), 1) << out;
+        EXPECT_FALSE(fs::exists(dir + "/job3")) << opt;
+    }
+    EXPECT_EQ(run_command("PATH=" + bin + ":$PATH " + kBin + " farm submit " + graph +
+                              " --frames 1 --job-dir " + dir +
+                              "/job4 --mem 8G --time 1:00:00 "
+                              "--partition gpu_a-1",
+                          &out),
+              0)
+        << out;
 }
 
 // A run stopped while it writes removes its temporary: a 1080p frame of float passes with zip

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "core/error.h"
 #include "core/hash.h"
 #include "metrics/metrics.h"
 
@@ -256,6 +257,57 @@ TEST_F(DiffCli, SizeMismatchIsThree)
                 << "idiff's behaviour changed; revisit the departure in docs/DIFF.md";
         }
     }
+}
+
+// A luminance file's one Y channel is what it stores: against an RGB file of the same gray the
+// channel counts differ (the reader's R = G = B = Y had passed, exit 0; idiff fails it).
+TEST_F(DiffCli, LuminanceAgainstRgbIsASizeMismatch)
+{
+    Image gray(6, 4, 3);
+    gray.fill(0.5f);
+    write_float_exr(path("gray_rgb.exr"), gray);
+    {
+        auto out = OIIO::ImageOutput::create(path("gray_y.exr"));
+        OIIO::ImageSpec spec(6, 4, 1, OIIO::TypeDesc::FLOAT);
+        spec.channelnames = {"Y"};
+        ASSERT_TRUE(out->open(path("gray_y.exr"), spec));
+        std::vector<float> y(24, 0.5f);
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, y.data()));
+        ASSERT_TRUE(out->close());
+    }
+    const Process p = diff(path("gray_rgb.exr") + " " + path("gray_y.exr"));
+    EXPECT_EQ(p.exit_code, 3) << p.output;
+    EXPECT_NE(p.output.find("3 channels (R, G, B) vs 1 channels (Y)"), std::string::npos)
+        << p.output;
+    EXPECT_EQ(diff(path("gray_y.exr") + " " + path("gray_y.exr")).exit_code, 0);
+}
+
+// Thresholds are numbers of at least 0 (percentages at most 100), never NaN (a NaN
+// --failpercent turned a FAILURE into a WARNING); --ppd at most 1000 (1e9 hung in FLIP's
+// filter, 1e30 and inf crashed it); --diff-image writes EXR, so it needs an .exr name.
+TEST_F(DiffCli, ThresholdsAndPpdAreBounded)
+{
+    write_float_exr(path("a.exr"), noise(7, 5, 3, 1));
+    write_float_exr(path("b.exr"), noise(7, 5, 3, 2));
+    const std::string ab = str_cat(" ", path("a.exr"), " ", path("b.exr"));
+    for (const std::string bad : {"--failpercent nan",
+                                  "--fail -1",
+                                  "--hardfail -3",
+                                  "--failrelative -1",
+                                  "--warn nan",
+                                  "--warnpercent 101",
+                                  "--ppd 1e9",
+                                  "--ppd inf",
+                                  "--ppd 1e30"}) {
+        const Process p = diff(bad + ab);
+        EXPECT_EQ(p.exit_code, 2) << bad << ": " << p.output;
+        EXPECT_NE(p.output.find("must be a number"), std::string::npos) << bad << ": " << p.output;
+    }
+    EXPECT_EQ(diff("--hardfail inf --ppd 1000" + ab).exit_code, 2);  // a FAILURE, computed
+    const Process png = diff("--diff-image " + path("d.png") + ab);
+    EXPECT_EQ(png.exit_code, 2) << png.output;
+    EXPECT_NE(png.output.find("give a name ending in .exr"), std::string::npos) << png.output;
+    EXPECT_FALSE(std::filesystem::exists(path("d.png")));
 }
 
 // --- File errors ---------------------------------------------------------------------------
