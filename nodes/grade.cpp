@@ -39,12 +39,16 @@ constexpr ParamSpec kTargetTint =
 constexpr ParamSpec kSlope = ParamSpec::vec3("slope", 1, 1, 1).doc("ASC CDL slope per channel.");
 constexpr ParamSpec kOffset = ParamSpec::vec3("offset", 0, 0, 0).doc("ASC CDL offset.");
 constexpr ParamSpec kPower =
-    ParamSpec::vec3("power", 1, 1, 1).doc("ASC CDL power (negatives pass through).");
+    ParamSpec::vec3("power", 1, 1, 1)
+        .range(0.01, 10.0)  // 1e6 took 1.07 to NaN (float overflow, then the saturation)
+        .doc("ASC CDL power (negatives pass through).");
 constexpr ParamSpec kSaturation =
     ParamSpec::real("saturation", 1.0).range(0.0, 10.0).doc("ASC CDL saturation (Rec.709 luma).");
 constexpr ParamSpec kLift = ParamSpec::vec3("lift", 0, 0, 0).doc("Lift: the new black.");
 constexpr ParamSpec kGamma =
-    ParamSpec::vec3("gamma", 1, 1, 1).doc("Gamma: x^(1/gamma) after lift and gain (> 0).");
+    ParamSpec::vec3("gamma", 1, 1, 1)
+        .range(0.1, 10.0)  // 1e6 failed inside OpenColorIO, naming its reciprocal
+        .doc("Gamma: x^(1/gamma) after lift and gain.");
 constexpr ParamSpec kGain = ParamSpec::vec3("gain", 1, 1, 1).doc("Gain: the new white.");
 constexpr ParamSpec kLut = ParamSpec::string("lut", "").file_path().doc(
     "A LUT or look file OpenColorIO reads (.cube, .spi1d, .spi3d, .csp, .cc, ...), last.");
@@ -71,7 +75,10 @@ constexpr ParamSpec kParams[] = {kExposure,
                                  kLut,
                                  kInterpolation,
                                  kUnpremultiply,
-                                 kPass, kMaskPass, kMaskChannel, kMaskInvert};
+                                 kPass,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to grade."}, kMaskPort};
 
 constexpr Binding<ColorProcessor::Grade> kGradeFields[] = {
@@ -102,12 +109,17 @@ ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node
     for (int c = 0; c < 3; ++c) {
         if (!(g.gamma[c] > 0.0) || !(g.power[c] > 0.0)) {
             const ParamSpec &bad = !(g.gamma[c] > 0.0) ? kGamma : kPower;
-            throw_param_expected(node.json_path + "/params/" + std::string(bad.name) + ": " +
-                                     node.describe(),
-                                 bad.name,
-                                 "> 0 in every channel",
-                                 str_cat("[", params.get_vec(bad)[0], ", ", params.get_vec(bad)[1],
-                                         ", ", params.get_vec(bad)[2], "]"));
+            throw_param_expected(
+                node.json_path + "/params/" + std::string(bad.name) + ": " + node.describe(),
+                bad.name,
+                "> 0 in every channel",
+                str_cat("[",
+                        params.get_vec(bad)[0],
+                        ", ",
+                        params.get_vec(bad)[1],
+                        ", ",
+                        params.get_vec(bad)[2],
+                        "]"));
         }
     }
     if (!g.lut.empty() && !std::filesystem::exists(g.lut)) {
@@ -135,13 +147,14 @@ extern const NodeType kGrade{
      "Color grade: white balance, exposure, ASC CDL, lift/gamma/gain, LUT (OpenColorIO).",
      kInputs,
      kParams,
-     "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
+     "",
+     /*sink=*/false,
+     /*keeps_specular=*/false,
+     /*maskable=*/true},
     &execute,
     nullptr,
     &check,
     nullptr,
-    [](std::vector<std::string> &problems) {
-        audit(kGrade, kGradeFields, problems);
-    }};
+    [](std::vector<std::string> &problems) { audit(kGrade, kGradeFields, problems); }};
 
 }  // namespace posthaste::nodes

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 
+#include "graph/mask.h"
 #include "nodes/node.h"
 
 namespace posthaste::nodes {
@@ -104,15 +105,19 @@ void execute(NodeContext &ctx)
                 float m = mix;
                 if (mask) {
                     const float *pm = mask->pixel(x, y);
-                    m *= mask_channel < 4 ? pm[mask_channel]
-                                          : 0.2126f * pm[0] + 0.7152f * pm[1] + 0.0722f * pm[2];
+                    const float mv = mask_channel < 4
+                                         ? pm[mask_channel]
+                                         : 0.2126f * pm[0] + 0.7152f * pm[1] + 0.0722f * pm[2];
+                    // As every masked node: NaN is 0, the rest within [0, 1] (a NaN mask made
+                    // its pixel's colour NaN).
+                    m *= std::isnan(mv) ? 0.0f : std::clamp(mv, 0.0f, 1.0f);
                 }
                 const float a_alpha = na >= 4 ? pa[3] : 1.0f;
                 const float b_alpha = nb >= 4 ? pb[3] : 1.0f;
                 for (int c = 0; c < nb; ++c) {
                     const float av = c < na ? pa[c] : (c == 3 ? 1.0f : 0.0f);
                     const float r = combine(op, av, pb[c], a_alpha, b_alpha);
-                    po[c] = m == 1.0f ? r : pb[c] + (r - pb[c]) * m;
+                    po[c] = mask_mix(pb[c], r, m);
                 }
             }
         }

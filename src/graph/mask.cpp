@@ -21,11 +21,20 @@ int mask_channel(const std::string &who, const MaskSettings &m, const Frame &mas
     // r, g, b, a, luminance; a one-channel pass (a matte) is its own mask whichever is named.
     const int channel = src.channels() == 1 ? 0 : int(m.channel);
     if (channel < 4 && channel >= src.channels()) {
-        throw_runtime(who, ": mask pass \"", name, "\" has ", src.channels(),
-                      " channels, no ", "rgba"[channel], " (mask_channel)");
+        throw_runtime(who,
+                      ": mask pass \"",
+                      name,
+                      "\" has ",
+                      src.channels(),
+                      " channels, no ",
+                      "rgba"[channel],
+                      " (mask_channel)");
     }
     if (channel == 4 && src.channels() < 3) {
-        throw_runtime(who, ": mask luminance needs 3 channels in pass \"", name, "\", it has ",
+        throw_runtime(who,
+                      ": mask luminance needs 3 channels in pass \"",
+                      name,
+                      "\", it has ",
                       src.channels());
     }
     return channel;
@@ -72,7 +81,8 @@ void apply_mask(const std::string &who,
         const Pass &before = in.pass(name);
         if (before.image == pass.image || before.image->width() != pass.image->width() ||
             before.image->height() != pass.image->height() ||
-            before.image->channels() != pass.image->channels() || in.data_window != out.data_window) {
+            before.image->channels() != pass.image->channels() ||
+            in.data_window != out.data_window) {
             continue;
         }
         changed.push_back(name);
@@ -94,7 +104,7 @@ void apply_mask(const std::string &who,
                 const float t = pm[x];
                 for (int c = 0; c < nc; ++c, ++pa, ++pb, ++d) {
                     // Exactly the input at 0 and the node's value at 1.
-                    *d = t == 0.0f ? *pa : t == 1.0f ? *pb : *pa + (*pb - *pa) * t;
+                    *d = mask_mix(*pa, *pb, t);
                 }
             }
         });

@@ -7,6 +7,7 @@
 // mask_invert. Nothing is blended when the port is not connected. The same convention as
 // merge's mask (mask_pass, mask_channel).
 
+#include <cmath>
 #include <string>
 
 #include "core/frame.h"
@@ -44,6 +45,23 @@ inline constexpr Binding<MaskSettings> kMaskFields[] = {
     bind<&MaskSettings::channel>(kMaskChannel),
     bind<&MaskSettings::invert>(kMaskInvert),
 };
+
+/// a + (b - a) * t, exactly a at t = 0 and b at t = 1. Where a or b is infinite the weighted
+/// sum instead, so +inf (the sky's depth) stays +inf under a fractional mask (inf - inf made
+/// NaN); finite values keep the lerp's bits.
+inline float mask_mix(float a, float b, float t)
+{
+    if (t == 0.0f) {
+        return a;
+    }
+    if (t == 1.0f) {
+        return b;
+    }
+    if (std::isfinite(a) && std::isfinite(b)) {
+        return a + (b - a) * t;
+    }
+    return a == b ? a : (1.0f - t) * a + t * b;
+}
 
 /// Blend every pass `out` replaced with `in`'s by the mask of frame `mask` (the node's
 /// parameters name its pass and channel). Passes the node added, or whose size changed, are

@@ -215,6 +215,10 @@ TEST(Grade, BadParametersAreOneLineErrors)
     const Frame in = rgb_frame(kValues);
     for (const char *params : {R"({"lut": "/nonexistent/look.cube"})",
                                R"({"gamma": [1, 0, 1]})",
+                               // 1e6 failed inside OpenColorIO naming 1e-06; a power of 1e6
+                               // took 1.07 to NaN (float overflow, then the saturation).
+                               R"({"gamma": [1e6, 1, 1]})",
+                               R"({"power": [1, 1e6, 1]})",
                                R"({"temperature": 100})",
                                R"({"lut_interpolation": "cubic"})"}) {
         SCOPED_TRACE(params);

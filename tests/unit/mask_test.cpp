@@ -32,8 +32,8 @@ Frame input_frame()
     return f;
 }
 
-const float kMatte[8] = {0.0f, 0.25f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN(),
-                         -1.0f, 2.0f, 0.75f};
+const float kMatte[8] = {
+    0.0f, 0.25f, 0.5f, 1.0f, std::numeric_limits<float>::quiet_NaN(), -1.0f, 2.0f, 0.75f};
 
 Frame mask_frame()
 {
@@ -54,7 +54,8 @@ Frame run(const std::string &type, const std::string &params, bool connect_mask 
 {
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
-        {"id": "n", "type": ")" + type + R"(", "inputs": {"image": "src")" +
+        {"id": "n", "type": ")" +
+                               type + R"(", "inputs": {"image": "src")" +
                                (connect_mask ? R"(, "mask": "src")" : "") + R"(}, "params": )" +
                                params + R"(},
         {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
@@ -74,8 +75,8 @@ Frame run(const std::string &type, const std::string &params, bool connect_mask 
 TEST(Mask, BlendsTheNodesResultWithItsInput)
 {
     const Image out = run("grade", R"({"exposure": 1, "mask_pass": "matte"})").image("color");
-    const Image inv =
-        run("grade", R"({"exposure": 1, "mask_pass": "matte", "mask_invert": true})").image("color");
+    const Image inv = run("grade", R"({"exposure": 1, "mask_pass": "matte", "mask_invert": true})")
+                          .image("color");
     const float in[3] = {0.5f, 0.25f, 0.125f};
     for (int i = 0; i < 8; ++i) {
         const float m = std::isnan(kMatte[i]) ? 0.0f : std::clamp(kMatte[i], 0.0f, 1.0f);
@@ -92,6 +93,37 @@ TEST(Mask, BlendsTheNodesResultWithItsInput)
 }
 
 // Unconnected, the mask changes nothing: the node's own bits.
+// A fractional mask keeps infinities: the sky's +inf depth blurred under a half mask stayed
+// +inf on both sides and came out NaN (inf - inf in the lerp); finite values keep the lerp's bits.
+TEST(Mask, AFractionalMaskKeepsInfinities)
+{
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    EXPECT_EQ(mask_mix(kInf, kInf, 0.5f), kInf);
+    EXPECT_EQ(mask_mix(kInf, 2.0f, 0.25f), kInf);
+    EXPECT_EQ(mask_mix(3.0f, -kInf, 0.25f), -kInf);
+    EXPECT_EQ(mask_mix(0.1f, 0.7f, 0.3f), 0.1f + (0.7f - 0.1f) * 0.3f);
+    EXPECT_EQ(mask_mix(kInf, 2.0f, 1.0f), 2.0f);
+    EXPECT_EQ(mask_mix(kInf, 2.0f, 0.0f), kInf);
+    // merge's mask takes the same convention: NaN is 0, the rest within [0, 1] (a NaN mask made
+    // its pixel NaN). Pixel 4's matte is NaN: B's colour; pixel 6's is 2: A over B, once.
+    Graph g = Graph::parse(R"({"nodes": [
+        {"id": "b", "type": "read", "params": {"path": "b.exr"}},
+        {"id": "a", "type": "read", "params": {"path": "a.exr"}},
+        {"id": "m", "type": "read", "params": {"path": "m.exr"}},
+        {"id": "n", "type": "merge", "inputs": {"b": "b", "a": "a", "mask": "m"},
+         "params": {"operation": "add", "mask_pass": "matte", "mask_channel": "r"}},
+        {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
+                           "merge mask",
+                           nodes::catalog());
+    const auto in = std::make_shared<const Frame>(input_frame());
+    const Frame out = g.run_node(
+        g.find("n"), {in, in, std::make_shared<const Frame>(mask_frame())}, {"b", "a", "mask"}, 1);
+    const Image &c = out.image("color");
+    EXPECT_EQ(c.at(0, 1, 0), 0.5f);  // NaN mask: B
+    EXPECT_EQ(c.at(2, 1, 0), 1.0f);  // mask 2: B + A once
+    EXPECT_EQ(c.at(1, 1, 0), 0.5f);  // mask -1: B
+}
+
 TEST(Mask, WithoutAMaskTheNodeIsUnchanged)
 {
     const Image masked = run("grade", R"({"exposure": 1})", false).image("color");
@@ -153,8 +185,20 @@ TEST(Mask, EveryColourNodeTakesIt)
         }
     }
     EXPECT_GE(maskable, 15);
-    for (const char *type : {"grade", "exposure", "tonemap", "blur", "sharpen", "bloom", "grain",
-                             "fog", "relight", "dof", "motion_blur", "ocio", "ssr", "hatching"}) {
+    for (const char *type : {"grade",
+                             "exposure",
+                             "tonemap",
+                             "blur",
+                             "sharpen",
+                             "bloom",
+                             "grain",
+                             "fog",
+                             "relight",
+                             "dof",
+                             "motion_blur",
+                             "ocio",
+                             "ssr",
+                             "hatching"}) {
         EXPECT_TRUE(nodes::catalog().find(type)->spec.maskable) << type;
     }
 }
@@ -191,14 +235,18 @@ TEST(ShippedGraphs, ShotKeysAndMasks)
     const std::string dir = test::scratch_dir("shot_graph");
     Graph g = Graph::load(std::string(POSTHASTE_SOURCE_DIR) + "/graphs/shot.json",
                           nodes::catalog(),
-                          {"scene.width=160", "scene.height=90", "exr.path=" + dir + "/s.####.exr",
+                          {"scene.width=160",
+                           "scene.height=90",
+                           "exr.path=" + dir + "/s.####.exr",
                            "png.path=" + dir + "/s.####.png"});
     g.set_capture("grade_balls");
     const Frame f = g.evaluate(12);
     Graph plain = Graph::load(std::string(POSTHASTE_SOURCE_DIR) + "/graphs/shot.json",
                               nodes::catalog(),
-                              {"scene.width=160", "scene.height=90",
-                               "exr.path=" + dir + "/p.####.exr", "png.path=" + dir + "/p.####.png"});
+                              {"scene.width=160",
+                               "scene.height=90",
+                               "exr.path=" + dir + "/p.####.exr",
+                               "png.path=" + dir + "/p.####.png"});
     plain.set_capture("terrain");
     const Frame before = plain.evaluate(12);
     const Image &balls = f.image("balls"), &after = f.image("color"), &in = before.image("color");
