@@ -22,7 +22,9 @@ constexpr ParamSpec kMaskPass =
     ParamSpec::string("mask_pass", "color").doc("Pass of the mask input that holds the mask.");
 constexpr ParamSpec kMaskChannel =
     ParamSpec::choice("mask_channel", "r|g|b|a|luminance", "a")
-        .doc("Channel of mask_pass used as the mask (luminance: Rec.709 weights).");
+        .doc(
+            "Channel of mask_pass used as the mask (luminance: Rec.709 weights); a one-channel "
+            "pass is the mask whichever is named.");
 constexpr ParamSpec kParams[] = {kOperation, kMix, kMaskPass, kMaskChannel};
 constexpr PortSpec kInputs[] = {
     {"b", "color", false, "Background; its other passes pass through."},
@@ -78,7 +80,9 @@ void execute(NodeContext &ctx)
     }
     const Op op = Op(ctx.get_choice(kOperation));
     const float mix = ctx.get_float(kMix);
-    const int mask_channel = ctx.get_choice(kMaskChannel);
+    // A one-channel pass (a cryptomatte matte) is the mask whichever channel is named, as on
+    // every masked node (mask_channel's default, a, refused it here).
+    const int mask_channel = mask && mask->channels() == 1 ? 0 : ctx.get_choice(kMaskChannel);
     if (mask && mask_channel < 4 && mask_channel >= mask->channels()) {
         throw_runtime(ctx.where(),
                       ": mask pass \"",

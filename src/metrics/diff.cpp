@@ -139,9 +139,8 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
     if (a.data_window != b.data_window) {
         const Rect &wa = a.data_window, &wb = b.data_window;
         r.verdict = Verdict::SizeMismatch;
-        r.messages.push_back(str_cat("frame ",
-                                     a.number,
-                                     ": data window ",
+        // The summary line names the frame already ("frame 0: SIZE MISMATCH; frame 0: ...").
+        r.messages.push_back(str_cat("data window ",
                                      wa.width(),
                                      "x",
                                      wa.height(),

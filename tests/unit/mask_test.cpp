@@ -105,13 +105,14 @@ TEST(Mask, AFractionalMaskKeepsInfinities)
     EXPECT_EQ(mask_mix(kInf, 2.0f, 1.0f), 2.0f);
     EXPECT_EQ(mask_mix(kInf, 2.0f, 0.0f), kInf);
     // merge's mask takes the same convention: NaN is 0, the rest within [0, 1] (a NaN mask made
-    // its pixel NaN). Pixel 4's matte is NaN: B's colour; pixel 6's is 2: A over B, once.
+    // its pixel NaN), and a one-channel matte is the mask under any mask_channel (the default,
+    // a, was refused). Pixel 4's matte is NaN: B's colour; pixel 6's is 2: A added once.
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "b", "type": "read", "params": {"path": "b.exr"}},
         {"id": "a", "type": "read", "params": {"path": "a.exr"}},
         {"id": "m", "type": "read", "params": {"path": "m.exr"}},
         {"id": "n", "type": "merge", "inputs": {"b": "b", "a": "a", "mask": "m"},
-         "params": {"operation": "add", "mask_pass": "matte", "mask_channel": "r"}},
+         "params": {"operation": "add", "mask_pass": "matte"}},
         {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
                            "merge mask",
                            nodes::catalog());
