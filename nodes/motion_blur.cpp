@@ -274,8 +274,13 @@ void execute(NodeContext &ctx)
         }
     } else {
         // Source camera, or no motion pass in the input: motion reprojected from depth (said
-        // once: a misspelt motion_pass lands here too).
+        // once).
         const bool fallback = ctx.get_choice(kSource) == 0;
+        if (fallback && ctx.params().given(kMotionPass)) {
+            // A pass named in the graph that the frame lacks is a typo, not a camera-only frame
+            // (it fell back with a note, and the result changed silently).
+            (void)ctx.input_pass("image", motion_pass);  // the one-line "no pass" error
+        }
         const std::string who = fallback ? ctx.where() + " (no pass \"" + motion_pass +
                                                "\": motion reprojected from depth)"
                                          : ctx.where();

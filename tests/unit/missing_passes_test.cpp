@@ -116,6 +116,14 @@ TEST(MissingPasses, AMissingMotionPassIsReprojectedAndANamedOneIsUsed)
     EXPECT_EQ(0, test::run_command(std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json", &log))
         << log;
     EXPECT_NE(log.find("motion reprojected from depth"), std::string::npos) << log;
+    // A motion_pass the graph names and the frame lacks is a typo: an error naming it (it fell
+    // back to the camera with a note, and the result changed silently).
+    try {
+        test::run_node("motion_blur", f, R"({"motion_pass": "motoin"})", 6);
+        ADD_FAILURE() << "a misspelt motion_pass was taken";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("no pass \"motoin\""), std::string::npos) << e.what();
+    }
     Frame nocam = f;
     nocam.camera.prev_world_to_ndc.reset();
     try {
