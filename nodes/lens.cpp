@@ -18,6 +18,7 @@
 
 #include "core/passes.h"
 #include "core/sanitize.h"
+#include "filter/depth_resample.h"
 #include "io/source_file.h"
 #include "nodes/node.h"
 
@@ -217,6 +218,13 @@ void execute(NodeContext &ctx)
             *in_pass.image, depth ? std::numeric_limits<float>::infinity() : 0.0f, storage, depth);
         const bool is_color = name == pass::kColor;
         const float outside = name == pass::kDepth ? std::numeric_limits<float>::infinity() : 0.0f;
+        // A filtered depth reads its sky as NaN and is guarded after (filter/depth_resample.h).
+        const bool guard = depth && is_filtered && filter != filter::Resample::Nearest;
+        Image marked, range;
+        if (guard) {
+            marked = filter::sky_as_nan(src);
+            range = filter::depth_range(src, filter == filter::Resample::Bicubic ? 2 : 1);
+        }
         const int nc = src.channels();
         std::vector<char> alpha(std::size_t(nc), 0);  // the vignettes leave alpha alone
         for (int c = 0; c < nc && c < int(in_pass.channels.size()); ++c) {
@@ -241,6 +249,12 @@ void execute(NodeContext &ctx)
             auto resample = [&](const float *xs, const float *ys, float *row) {
                 filter::resample_row(src, xs, ys, w, filter, outside, row);
             };
+            if (guard) {
+                filter::resample_row(
+                    marked, rsx, rsy, w, filter, std::numeric_limits<float>::quiet_NaN(), d);
+                filter::guard_depth_row(src, range, rsx, rsy, w, d);
+                return;
+            }
             resample(rsx, rsy, d);
             if (is_color && ca != 0.0) {
                 // Red and blue read at their own magnification about the centre.

@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "core/passes.h"
 #include "core/sanitize.h"
+#include "filter/depth_resample.h"
 #include "filter/lens.h"
 
 namespace posthaste::filter {
@@ -36,17 +37,15 @@ bool is_vector_pass(const std::string &base)
     return base == pass::kMotion || base == pass::kMotionNext;
 }
 
-/// `src` (covering `src_window`) resampled at to_input(output pixel centre) over `dst_window`
-/// with the lens node's bilinear or Catmull-Rom resampling (filter::resample_row).
-Image warp_resampled(const Image &src,
-                     const Rect &src_window,
-                     const Affine &to_input,
-                     const Rect &dst_window,
-                     Resample filter,
-                     float outside)
+/// Where each pixel of `dst_window` reads the input (in `src_window`'s pixel coordinates) under
+/// `to_input`, one row at a time: `fn(y, xs, ys)`.
+template <class Fn>
+void for_each_source_row(const Affine &to_input,
+                         const Rect &src_window,
+                         const Rect &dst_window,
+                         const Fn &fn)
 {
     const int w = dst_window.width();
-    Image dst = Image::uninitialized(w, dst_window.height(), src.channels());
     parallel_for(0, dst_window.height(), [&](int y) {
         const std::size_t n = static_cast<std::size_t>(w);
         std::vector<float> xs(n), ys(n);
@@ -56,8 +55,41 @@ Image warp_resampled(const Image &src,
             xs[std::size_t(x)] = float(p.x - src_window.x0);
             ys[std::size_t(x)] = float(p.y - src_window.y0);
         }
-        resample_row(src, xs.data(), ys.data(), w, filter, outside, dst.pixel(0, y));
+        fn(y, xs.data(), ys.data());
     });
+}
+
+/// How far from a pixel a filter's support reaches, in input pixels, for a map whose linear part
+/// is `m`: half the filter's width, widened by the map's strongest minification, plus the pixel.
+int support_radius(const std::string &filter, const glm::dmat2 &m)
+{
+    // The point samplers read the 2x2 or 4x4 pixels around the point, unwidened.
+    if (filter == "bilinear" || filter == "bicubic") {
+        return filter == "bilinear" ? 1 : 2;
+    }
+    // The smaller singular value of m: its strongest minification.
+    const double t = m[0][0] * m[0][0] + m[0][1] * m[0][1] + m[1][0] * m[1][0] + m[1][1] * m[1][1];
+    const double det = std::abs(m[0][0] * m[1][1] - m[0][1] * m[1][0]);
+    const double smin =
+        std::sqrt(std::max(0.5 * (t - std::sqrt(std::max(t * t - 4.0 * det * det, 0.0))), 0.0));
+    const double widen = std::max(1.0, 1.0 / smin);
+    return int(std::min(std::ceil(0.5 * filter_width(filter) * widen) + 1.0, 1e6));
+}
+
+/// `src` (covering `src_window`) resampled at to_input(output pixel centre) over `dst_window`
+/// with the lens node's bilinear or Catmull-Rom resampling (filter::resample_row).
+Image warp_resampled(const Image &src,
+                     const Rect &src_window,
+                     const Affine &to_input,
+                     const Rect &dst_window,
+                     Resample filter,
+                     float outside)
+{
+    Image dst = Image::uninitialized(dst_window.width(), dst_window.height(), src.channels());
+    for_each_source_row(
+        to_input, src_window, dst_window, [&](int y, const float *xs, const float *ys) {
+            resample_row(src, xs, ys, dst_window.width(), filter, outside, dst.pixel(0, y));
+        });
     return dst;
 }
 
@@ -122,21 +154,35 @@ void warp_frame(const Frame &in, const FrameWarp &w, Frame &out)
         const bool filtered =
             w.filter != "nearest" &&
             std::find(w.filtered.begin(), w.filtered.end(), base) != w.filtered.end();
+        // A filtered depth reads its sky as NaN and is guarded after (depth_resample.h).
+        const bool guard = depth && filtered;
+        Image marked;
+        if (guard) {
+            marked = sky_as_nan(src);
+        }
+        const Image &fsrc = guard ? marked : src;
         Image dst;
         if (!filtered) {
             dst = sample_nearest(src, in.data_window, to_input, w.window, outside);
         } else if (w.filter == "bicubic" || w.filter == "bilinear") {
-            dst = warp_resampled(src,
+            dst = warp_resampled(fsrc,
                                  in.data_window,
                                  to_input,
                                  w.window,
                                  w.filter == "bicubic" ? Resample::Bicubic : Resample::Bilinear,
-                                 outside);
+                                 guard ? std::numeric_limits<float>::quiet_NaN() : outside);
         } else if (w.resize) {
             dst = resize_filtered(
-                src, in.data_window, in.display_window, w.window, w.display, w.filter);
+                fsrc, in.data_window, in.display_window, w.window, w.display, w.filter);
         } else {
-            dst = warp_filtered(src, in.data_window, w.to_output, w.window, w.filter);
+            dst = warp_filtered(fsrc, in.data_window, w.to_output, w.window, w.filter, guard);
+        }
+        if (guard) {
+            const Image range = depth_range(src, support_radius(w.filter, linear));
+            for_each_source_row(
+                to_input, in.data_window, w.window, [&](int y, const float *xs, const float *ys) {
+                    guard_depth_row(src, range, xs, ys, w.window.width(), dst.pixel(0, y));
+                });
         }
         if (is_vector_pass(base) && dst.channels() >= 2) {
             const int nc = dst.channels();

@@ -113,6 +113,16 @@ bool is_filter_name(const std::string &name)
     return false;
 }
 
+double filter_width(const std::string &name)
+{
+    for (int i = 0, n = OIIO::Filter2D::num_filters(); i < n; ++i) {
+        if (name == OIIO::Filter2D::get_filterdesc(i).name) {
+            return OIIO::Filter2D::get_filterdesc(i).width;
+        }
+    }
+    return 0.0;
+}
+
 Image resize_filtered(const Image &src,
                       const Rect &src_window,
                       const Rect &src_display,
@@ -132,7 +142,8 @@ Image warp_filtered(const Image &src,
                     const Rect &src_window,
                     const Affine &to_output,
                     const Rect &dst_window,
-                    const std::string &filter)
+                    const std::string &filter,
+                    bool extend_edges)
 {
     const OIIO::ImageBuf in = wrap(src, src_window, src_window);
     // OpenImageIO's matrices act on row vectors (p' = p M): the transpose of glm's column form.
@@ -142,7 +153,15 @@ Image warp_filtered(const Image &src,
     Image dst = Image::uninitialized(dst_window.width(), dst_window.height(), src.channels());
     run_bands(dst, dst_window, dst_window, "warp", [&](OIIO::ImageBuf &out, OIIO::ROI roi) {
         return OIIO::ImageBufAlgo::warp(
-            out, in, m, filter, 0.0f, false, OIIO::ImageBuf::WrapBlack, roi, 1);
+            out,
+            in,
+            m,
+            filter,
+            0.0f,
+            false,
+            extend_edges ? OIIO::ImageBuf::WrapClamp : OIIO::ImageBuf::WrapBlack,
+            roi,
+            1);
     });
     return dst;
 }

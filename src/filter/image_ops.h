@@ -30,6 +30,9 @@ Rect transformed_bounds(const Affine &m, const Rect &r);
 /// True when `name` is a reconstruction filter OpenImageIO knows (lanczos3, catmull-rom, ...).
 bool is_filter_name(const std::string &name);
 
+/// The default width (in pixels) of OpenImageIO's filter `name`; 0 for a name it does not know.
+double filter_width(const std::string &name);
+
 /// `src` (covering `src_window`, displayed in `src_display`) resized so that `src_display` maps
 /// onto `dst_display`, over the output window `dst_window`: ImageBufAlgo::resize with the named
 /// filter (its support widened for minification). Outside the source the edge pixels extend.
@@ -41,12 +44,14 @@ Image resize_filtered(const Image &src,
                       const std::string &filter);
 
 /// `src` (covering `src_window`) warped by `to_output` (input -> output coordinates) over
-/// `dst_window`: ImageBufAlgo::warp with the named filter. Outside the source reads 0.
+/// `dst_window`: ImageBufAlgo::warp with the named filter. Outside the source reads 0, or with
+/// `extend_edges` the nearest edge pixel (a depth pass: 0 would pull its edges towards the camera).
 Image warp_filtered(const Image &src,
                     const Rect &src_window,
                     const Affine &to_output,
                     const Rect &dst_window,
-                    const std::string &filter);
+                    const std::string &filter,
+                    bool extend_edges = false);
 
 /// Nearest-neighbour resampling through `to_input` (output -> input coordinates): each output
 /// pixel centre maps to a point, and the input pixel holding it is copied, values unchanged (ids,
