@@ -1,6 +1,6 @@
 // nodes/dof.cpp: depth of field from color + depth: thin-lens circle of confusion (signed, px),
-// tile max CoC with dilation, then a near/far separated gather (src/shading/dof/dof_gather.h; Jimenez
-// 2014, Abadie 2018). Lens values come from the frame header (aperture, focus, focalLength,
+// tile max CoC with dilation, then a near/far separated gather (src/shading/dof/dof_gather.h;
+// Jimenez 2014, Abadie 2018). Lens values come from the frame header (aperture, focus, focalLength,
 // sensorWidth) unless a parameter overrides them. Jitter is hashed from (x / 8, y): the output does
 // not depend on the thread count. A CoC under 3/4 px behind the focus plane (1/2 px in front)
 // blurs by a 4-neighbour stencil of the disc's variance; when no pixel's CoC reaches 1/16 px the
@@ -91,9 +91,13 @@ constexpr ParamSpec kParams[] = {kFstop,
                                  kMethod,
                                  kResolution,
                                  kSpecular,
-                                 kSpecularKnee, kMaskPass, kMaskChannel, kMaskInvert};
+                                 kSpecularKnee,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {
-    {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."}, kMaskPort};
+    {"image", "color,depth", false, "Color (premultiplied RGBA) and depth (Z, metres)."},
+    kMaskPort};
 
 constexpr Binding<shading::DofLens> kLensFields[] = {
     bind<&shading::DofLens::fstop>(kFstop),
@@ -117,8 +121,8 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
     const Camera cam = in.pixel_camera();
     shading::DofLens l = fill(ctx, kLensFields, HeaderSource{&cam, &in.attributes});
     if (ctx.params().given(kSensor) && !in.display_window.empty()) {
-        l.sensor_mm = float(double(l.sensor_mm) * double(in.width()) /
-                            double(in.display_window.width()));
+        l.sensor_mm =
+            float(double(l.sensor_mm) * double(in.width()) / double(in.display_window.width()));
     }
     const std::string who = ctx.where();
     if (!(l.fstop > 0.0f) || !(l.focus_m > 0.0f) || !(l.focal_mm > 0.0f) || !(l.sensor_mm > 0.0f) ||
@@ -140,9 +144,9 @@ shading::DofLens lens_of(NodeContext &ctx, const Frame &in)
 // The lighting split: a highlight's image lies behind the surface that shows it (a ball's
 // convex mirror puts the sun's image R/2 behind its surface), so a thin lens focuses it at
 // specular_depth, not at the surface. Color less the specular share is blurred by the CoC of
-// depth, the share by that of specular_depth (shading/lighting/lighting_split.h). Only the pixels whose
-// two depths differ keep their share apart; the share's blur runs over their box plus what can
-// reach it, and only on the tiles its gather can carry something into. False when no pixel's
+// depth, the share by that of specular_depth (shading/lighting/lighting_split.h). Only the pixels
+// whose two depths differ keep their share apart; the share's blur runs over their box plus what
+// can reach it, and only on the tiles its gather can carry something into. False when no pixel's
 // depths differ (the caller blurs color as one).
 bool blur_split(NodeContext &ctx,
                 const Image &color,
@@ -154,8 +158,13 @@ bool blur_split(NodeContext &ctx,
     if (!(s.max_coc_px >= 0.5f)) {
         return false;  // nothing is blurred
     }
-    const Image &spec = ctx.input_pass("image", pass::kSpecular);
-    const Image &spec_depth = ctx.input_pass("image", pass::kSpecularDepth);
+    // Read as color and depth are (finite_view): a specular of 3e38 overflowed the share's blur.
+    Image spec_storage, spec_depth_storage;
+    const Image &spec = finite_view(ctx.input_pass("image", pass::kSpecular), 0.0f, spec_storage);
+    const Image &spec_depth = finite_view(ctx.input_pass("image", pass::kSpecularDepth),
+                                          std::numeric_limits<float>::infinity(),
+                                          spec_depth_storage,
+                                          /*allow_positive_inf=*/true);
     const int w = color.width(), h = color.height();
     if (spec.width() != w || spec.height() != h || spec_depth.width() != w ||
         spec_depth.height() != h || spec.channels() < 3 || color.channels() < 3) {
@@ -301,7 +310,8 @@ void check(CheckContext &ctx)
     // leaving it out means.
     for (const ParamSpec *s : {&kFstop, &kFocus, &kFocal, &kSensor}) {
         if (ctx.params.given(*s) && !(ctx.params.get_real(*s) > 0.0)) {
-            throw_param(ctx, *s, str_cat("must be > 0 (leave it out for the header's ", s->header, ")"));
+            throw_param(
+                ctx, *s, str_cat("must be > 0 (leave it out for the header's ", s->header, ")"));
         }
     }
     const int blades = ctx.params.get_int(kBlades);
@@ -318,7 +328,8 @@ extern const NodeType kDof{{"dof",
                             kParams,
                             "color",
                             /*sink=*/false,
-                            /*keeps_specular=*/true, /*maskable=*/true},
+                            /*keeps_specular=*/true,
+                            /*maskable=*/true},
                            &execute,
                            &plan,
                            &check,

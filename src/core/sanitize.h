@@ -12,6 +12,11 @@
 
 namespace posthaste {
 
+/// The largest magnitude finite_view passes: a gather's sum of a few million such values with
+/// weights up to ten stays within float (values near float's largest, 3.4e38, summed to infinity
+/// in bloom's FFT, sharpen, lens and transform, and to NaN where two infinities met).
+inline constexpr float kMaxGatherValue = 1e30f;
+
 /// One value as finite_view reads it with replacement 0: NaN and +-Inf as 0.
 inline float finite_or_zero(float v)
 {
@@ -31,9 +36,10 @@ inline glm::vec3 rescaled_direction(glm::vec3 d)
     return d;
 }
 
-/// `image` when all its values are finite (with `allow_positive_inf`, +inf counts as finite:
-/// a depth pass's sky), otherwise `storage` filled with a copy in which every other value is
-/// `replacement`. Parallel; the result does not depend on the thread count.
+/// `image` when all its values are finite and at most kMaxGatherValue in magnitude (with
+/// `allow_positive_inf`, +inf counts as fine: a depth pass's sky), otherwise `storage` filled
+/// with a copy in which every other non-finite value is `replacement` and every larger finite
+/// value is +-kMaxGatherValue. Parallel; the result does not depend on the thread count.
 const Image &finite_view(const Image &image,
                          float replacement,
                          Image &storage,
