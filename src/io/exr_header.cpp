@@ -15,8 +15,10 @@
 #include <OpenEXR/ImfIntAttribute.h>
 #include <OpenEXR/ImfKeyCodeAttribute.h>
 #include <OpenEXR/ImfMatrixAttribute.h>
+#include <OpenEXR/ImfOpaqueAttribute.h>
 #include <OpenEXR/ImfPartType.h>
 #include <OpenEXR/ImfRationalAttribute.h>
+#include <OpenEXR/ImfStdIO.h>
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfStringVectorAttribute.h>
 #include <OpenEXR/ImfTimeCodeAttribute.h>
@@ -25,6 +27,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 
 #include "core/error.h"
 #include "io/io_detail.h"
@@ -281,6 +284,93 @@ bool put_attribute(const std::string &name, TypeDesc type, const void *data, Imf
     return false;
 }
 
+/// Attributes the writer sets from the layout it writes (or OpenEXR from the file): never
+/// carried from the source's header as they were.
+bool is_layout_attribute(const std::string &name)
+{
+    static const char *const kNames[] = {"channels",
+                                         "compression",
+                                         "dataWindow",
+                                         "displayWindow",
+                                         "lineOrder",
+                                         "tiles",
+                                         "type",
+                                         "name",
+                                         "view",
+                                         "multiView",
+                                         "chunkCount",
+                                         "version",
+                                         "maxSamplesPerPixel",
+                                         "dwaCompressionLevel",
+                                         "envmap"};
+    for (const char *n : kNames) {
+        if (name == n) {
+            return true;
+        }
+    }
+    return false;
+}
+
+/// An attribute's type name and value as OpenEXR writes them.
+std::string serialized(const Imf::Attribute &a)
+{
+    Imf::StdOSStream os;
+    a.writeValueTo(os, 2);
+    return std::string(a.typeName()) + '\0' + os.str();
+}
+
+/// The attribute `raw` holds, as OpenEXR would read it from the file (an opaque attribute for a
+/// type it does not know); null when its bytes do not parse.
+std::unique_ptr<Imf::Attribute> parse_attribute(const HeaderAttribute &raw)
+{
+    try {
+        std::unique_ptr<Imf::Attribute> a(Imf::Attribute::knownType(raw.type.c_str())
+                                              ? Imf::Attribute::newAttribute(raw.type.c_str())
+                                              : new Imf::OpaqueAttribute(raw.type.c_str()));
+        Imf::StdISStream is;
+        is.str(std::string(raw.value.begin(), raw.value.end()));
+        a->readValueFrom(is, int(raw.value.size()), 2);
+        return a;
+    } catch (const std::exception &) {
+        return nullptr;
+    }
+}
+
+/// `h` with the source part's attributes put back as the file had them (HeaderAttribute): one
+/// whose value `h` holds as the source's spec would give it (the graph left it alone) takes the
+/// file's type and bytes again; one OpenImageIO never surfaced (neither `h` nor the source's
+/// spec has it) comes back as it was. One the graph changed, added or removed stays as `h` has it.
+void restore_source_attributes(const SourcePart &source, Imf::Header &h)
+{
+    Imf::Header as_read;  // what the source's spec, unchanged, gives
+    for (const OIIO::ParamValue &p : source.spec.extra_attribs) {
+        try {
+            put_attribute(p.name().string(), p.type(), p.data(), as_read);
+        } catch (const std::exception &) {
+        }
+    }
+    for (const HeaderAttribute &raw : source.attributes) {
+        if (is_layout_attribute(raw.name)) {
+            continue;
+        }
+        const auto now = h.find(raw.name);
+        const auto was = as_read.find(raw.name);
+        const bool in_now = now != h.end(), in_was = was != as_read.end();
+        if (in_now != in_was ||
+            (in_now && serialized(now.attribute()) != serialized(was.attribute()))) {
+            continue;
+        }
+        std::unique_ptr<Imf::Attribute> original = parse_attribute(raw);
+        if (!original) {
+            continue;
+        }
+        if (in_now) {
+            h.erase(raw.name);
+        }
+        h.insert(raw.name, *original);
+    }
+}
+
 }  // namespace
 
 Imf::PixelType exr_pixel_type(OIIO::TypeDesc t)
@@ -375,12 +465,15 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
     if (aspect == 0.0f && xdensity != 0.0f && ydensity != 0.0f) {
         h.pixelAspectRatio() = xdensity / ydensity;
     }
+    if (part.header_source) {
+        restore_source_attributes(*part.header_source, h);
+    }
     if (parts > 1 && !h.hasName()) {
         char name[32];
         std::snprintf(name, sizeof(name), "subimage%02d", index);
         h.setName(name);
     }
-    h.setType(spec.tile_width > 0 ? Imf::TILEDIMAGE : Imf::SCANLINEIMAGE);
+    h.setType(spec.tile_width > 0 ? Imf::TILEDIMAGE : Imf::SCANLINEIMAGE);  // MultiPartOutputFile's
     return h;
 }
 

@@ -431,6 +431,9 @@ Frame read_frame(const std::string &path,
             } else if (p < layouts.size() && layouts[p].line_order == 2) {
                 sp.spec.attribute("openexr:lineOrder", "randomY");
             }
+            if (p < layouts.size()) {
+                sp.attributes = layouts[p].attributes;
+            }
             sp.name = part.name;
             sp.view = part.view;
             sp.mip_levels = part.mip_levels;

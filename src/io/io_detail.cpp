@@ -288,8 +288,13 @@ std::string exr_header_problem(std::istream &in,
                     return "preview attribute \"" + name + "\" claims " + std::to_string(w) + "x" +
                            std::to_string(h) + " pixels, more than the file holds";
                 }
-                in.seekg(std::streamoff(w * h * 4), std::ios::cur);
+                std::vector<char> value(std::size_t(8 + w * h * 4));
+                std::copy(wh, wh + 8, value.begin());
+                if (!in.read(value.data() + 8, std::streamsize(w * h * 4))) {
+                    return "attribute \"" + name + "\" is truncated";
+                }
                 pos += w * h * 4;
+                part.attributes.push_back({name, type, std::move(value)});
             } else if (fixed >= 0) {
                 unsigned char v[128] = {};
                 if (std::uint64_t(fixed) > file_size - pos ||
@@ -310,9 +315,14 @@ std::string exr_header_problem(std::istream &in,
                 } else if (name == "lineOrder" && type == "lineOrder") {
                     part.line_order = v[0];
                 }
+                part.attributes.push_back({name, type, std::vector<char>(v, v + fixed)});
             } else {
-                in.seekg(std::streamoff(size), std::ios::cur);
+                std::vector<char> value(static_cast<std::size_t>(size));
+                if (!in.read(value.data(), size)) {
+                    return "attribute \"" + name + "\" is truncated";
+                }
                 pos += std::uint64_t(size);
+                part.attributes.push_back({name, type, std::move(value)});
             }
         }
         if (attributes > 0) {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "io/source_file.h"
 
 namespace posthaste::io_detail {
 
@@ -43,6 +44,7 @@ struct ExrPartLayout {
     int tile_width = 0;          ///< 0: scan lines
     int tile_height = 0;
     int line_order = 0;  ///< OpenEXR's: 0 increasing y, 1 decreasing y, 2 random y
+    std::vector<HeaderAttribute> attributes;  ///< every attribute but the channel list
 };
 std::string exr_header_problem(std::istream &in,
                                std::uint64_t file_size,

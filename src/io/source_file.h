@@ -24,6 +24,17 @@ struct SourceLevel {
     int lx = 0, ly = 0;  ///< OpenEXR's level indices (lx == ly in a MIP map)
 };
 
+/// One attribute of a part's OpenEXR header as the file holds it: its name, its OpenEXR type
+/// name and its value's bytes. OpenImageIO reads some types into others (a chromaticities under
+/// another name and a floatvector of 2, 3 or 16 floats come back as plain float arrays) and
+/// some not at all (opaque types, previews, compression- or envmap-typed attributes under other
+/// names); the writer puts these back as they were (exr_header.cpp).
+struct HeaderAttribute {
+    std::string name;
+    std::string type;
+    std::vector<char> value;
+};
+
 struct SourcePart {
     /// The part's header as OpenImageIO read it (windows, channels, formats, tiles, attributes).
     OIIO::ImageSpec spec;
@@ -38,6 +49,8 @@ struct SourcePart {
     /// The levels other than level 0, as read (only for tiled mip- or rip-mapped parts that
     /// were read whole): a MIP map's 1.., a ripmap's every (lx, ly) but (0, 0), ly major.
     std::vector<SourceLevel> levels;
+    /// The part's OpenEXR attributes as the file holds them (all but the channel list).
+    std::vector<HeaderAttribute> attributes;
     Rect data_window() const { return {spec.x, spec.y, spec.x + spec.width, spec.y + spec.height}; }
 };
 

@@ -405,10 +405,12 @@ void finish_specs(std::vector<OutPart> &parts,
     // Attributes a node added or changed (compared with the source's chosen-view part).
     OIIO::ParamValueList changed;
     const OIIO::ImageSpec *first = nullptr;
+    const SourcePart *first_part = nullptr;
     if (src) {
         for (const SourcePart &sp : src->parts) {
             if (sp.view == src->view) {
                 first = &sp.spec;
+                first_part = &sp;
                 break;
             }
         }
@@ -421,6 +423,7 @@ void finish_specs(std::vector<OutPart> &parts,
         }
     }
     for (OutPart &part : parts) {
+        part.header_source = part.source ? part.source : first_part;
         OIIO::ImageSpec &spec = part.spec;
         spec.nchannels = int(part.channels.size());
         spec.channelnames.clear();

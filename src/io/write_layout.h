@@ -38,6 +38,9 @@ struct OutPart {
     Rect data_window;
     std::vector<OutChannel> channels;
     const SourcePart *source = nullptr;
+    /// The part whose OpenEXR attributes this one's header puts back as the file had them:
+    /// `source`, or for a rebuilt layout the part the frame's passes came from.
+    const SourcePart *header_source = nullptr;
     /// The source part's window was cut to the frame's data window (a crop): its levels are
     /// made again, not copied.
     bool cut = false;

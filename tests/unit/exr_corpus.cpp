@@ -9,27 +9,33 @@
 #include <ImathMatrix.h>
 #include <ImfChannelList.h>
 #include <ImfCompression.h>
+#include <ImfCompressionAttribute.h>
 #include <ImfDeepFrameBuffer.h>
-#include <ImfDoubleAttribute.h>
-#include <ImfFloatVectorAttribute.h>
-#include <ImfIntAttribute.h>
+#include <ImfDeepImageStateAttribute.h>
 #include <ImfDeepScanLineInputPart.h>
 #include <ImfDeepScanLineOutputFile.h>
 #include <ImfDeepTiledInputPart.h>
 #include <ImfDeepTiledOutputFile.h>
+#include <ImfDoubleAttribute.h>
 #include <ImfEnvmap.h>
 #include <ImfEnvmapAttribute.h>
+#include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfIO.h>
 #include <ImfInputPart.h>
+#include <ImfIntAttribute.h>
+#include <ImfLineOrderAttribute.h>
 #include <ImfMultiPartInputFile.h>
 #include <ImfMultiPartOutputFile.h>
+#include <ImfOpaqueAttribute.h>
 #include <ImfOutputFile.h>
 #include <ImfOutputPart.h>
 #include <ImfPartType.h>
+#include <ImfPreviewImageAttribute.h>
 #include <ImfRgbaFile.h>
 #include <ImfStandardAttributes.h>
+#include <ImfStdIO.h>
 #include <ImfStringVectorAttribute.h>
 #include <ImfTileDescription.h>
 #include <ImfTiledInputPart.h>
@@ -768,8 +774,9 @@ void write_channel_sets(Writer &w)
         h.insert("studio:m44f", Imf::M44fAttribute(m44f));
         h.insert("studio:m44d", Imf::M44dAttribute(m44d));
         h.insert("studio:box2i", Imf::Box2iAttribute(box(-3, 4, 50, 60)));
-        h.insert("studio:box2f",
-                 Imf::Box2fAttribute(Imath::Box2f(Imath::V2f(-0.5f, 0.0f), Imath::V2f(1.0f, 2.5f))));
+        h.insert(
+            "studio:box2f",
+            Imf::Box2fAttribute(Imath::Box2f(Imath::V2f(-0.5f, 0.0f), Imath::V2f(1.0f, 2.5f))));
         h.insert("studio:strings",
                  Imf::StringVectorAttribute(Imf::StringVector{"alpha", "", "gamma delta"}));
         h.insert("studio:floats",
@@ -778,10 +785,11 @@ void write_channel_sets(Writer &w)
         Imf::addFramesPerSecond(h, Imf::Rational(24000, 1001));
         Imf::addTimeCode(h, Imf::TimeCode(1, 2, 3, 4, true, false, true, true, 5));
         Imf::addKeyCode(h, Imf::KeyCode(12, 34, 567890, 1234, 56, 4, 64));
-        Imf::addChromaticities(h, Imf::Chromaticities(Imath::V2f(0.7f, 0.3f),
-                                                      Imath::V2f(0.2f, 0.7f),
-                                                      Imath::V2f(0.15f, 0.06f),
-                                                      Imath::V2f(0.3127f, 0.329f)));
+        Imf::addChromaticities(h,
+                               Imf::Chromaticities(Imath::V2f(0.7f, 0.3f),
+                                                   Imath::V2f(0.2f, 0.7f),
+                                                   Imath::V2f(0.15f, 0.06f),
+                                                   Imath::V2f(0.3127f, 0.329f)));
         Imf::addCapDate(h, "2026:11:30 01:02:03");
         Imf::addComments(h, "a comment");
         Imf::addOwner(h, "a studio");
@@ -789,6 +797,39 @@ void write_channel_sets(Writer &w)
         Imf::addAperture(h, 2.8f);
         Imf::addXDensity(h, 72.0f);
         Imf::addUtcOffset(h, -3600.0f);
+        // Types OpenImageIO reads as others or not at all: chromaticities under another name,
+        // float vectors of 1, 2, 3, 8 and 16 (read as float arrays, written back as v2f, v3f,
+        // m44f), compression, envmap, line order and deep state typed attributes of a
+        // studio's own, a preview, and a type OpenEXR does not know (opaque).
+        h.insert("studio:chromaticities",
+                 Imf::ChromaticitiesAttribute(Imf::Chromaticities(Imath::V2f(0.64f, 0.33f),
+                                                                  Imath::V2f(0.3f, 0.6f),
+                                                                  Imath::V2f(0.15f, 0.06f),
+                                                                  Imath::V2f(0.3127f, 0.329f))));
+        for (int n : {1, 2, 3, 8, 16}) {
+            Imf::FloatVector v;
+            for (int i = 0; i < n; ++i) {
+                v.push_back(0.5f * float(i) - 1.0f);
+            }
+            h.insert("studio:floats" + std::to_string(n), Imf::FloatVectorAttribute(v));
+        }
+        h.insert("studio:compression", Imf::CompressionAttribute(Imf::DWAB_COMPRESSION));
+        h.insert("studio:envmap", Imf::EnvmapAttribute(Imf::ENVMAP_CUBE));
+        h.insert("studio:lineOrder", Imf::LineOrderAttribute(Imf::DECREASING_Y));
+        h.insert("studio:deepState", Imf::DeepImageStateAttribute(Imf::DIS_TIDY));
+        Imf::PreviewImage preview(3, 2);
+        for (unsigned i = 0; i < 6; ++i) {
+            preview.pixels()[i] =
+                Imf::PreviewRgba((unsigned char)(40 * i), (unsigned char)(255 - 40 * i), 7, 255);
+        }
+        h.setPreviewImage(preview);
+        {
+            Imf::OpaqueAttribute blob("studioBlob");
+            Imf::StdISStream bytes;
+            bytes.str(std::string("\x01\x00\xffopaque\x7f", 10));
+            blob.readValueFrom(bytes, 10, 2);
+            h.insert("studio:blob", blob);
+        }
         write_scanline_file(path, h, Values{43, 0, false, false});
     }
     write_scanline_file(
@@ -1356,9 +1397,8 @@ std::string compare_attributes(const std::string &a,
                 if (ignored(it.name())) {
                     continue;
                 }
-                const Imf::Attribute *other = hb.find(it.name()) != hb.end()
-                                                  ? &hb[it.name()]
-                                                  : nullptr;
+                const Imf::Attribute *other =
+                    hb.find(it.name()) != hb.end() ? &hb[it.name()] : nullptr;
                 if (!other) {
                     return "part " + std::to_string(p) + ": \"" + it.name() + "\" missing";
                 }

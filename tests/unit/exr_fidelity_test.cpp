@@ -4,6 +4,8 @@
 // checked with OpenEXR's own reader (exr_corpus.cpp), or equal to the conversion computed there.
 
 #include <ImfChannelList.h>
+#include <ImfChromaticitiesAttribute.h>
+#include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
@@ -12,6 +14,7 @@
 #include <ImfTileDescription.h>
 #include <ImfTiledInputFile.h>
 #include <ImfTimeCodeAttribute.h>
+#include <ImfVecAttribute.h>
 #include <gtest/gtest.h>
 #include <half.h>
 
@@ -103,6 +106,29 @@ TEST(ExrFidelity, EveryHeaderAttributeComesThrough)
     write_exr(f, out_path("attributes_again"), {});
     EXPECT_EQ(test::read_bytes(out_path("attributes_attributes")),
               test::read_bytes(out_path("attributes_again")));
+}
+
+// An attribute the graph changed is written as changed; the rest keep their OpenEXR types (the restore of the file's own attributes takes only those whose
+// values the graph left alone).
+TEST(ExrFidelity, ChangedAttributesWinOverTheFilesOwn)
+{
+    Frame f = read_frame(entry("attributes").path, nullptr, 1);
+    const float moved[3] = {9.0f, 8.0f, 7.0f};
+    f.attributes.remove("studio:floats3");
+    f.attributes.push_back(
+        OIIO::ParamValue("studio:floats3", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), 1, moved));
+    const std::string out = out_path("attributes_changed");
+    write_exr(f, out, {});
+    Imf::InputFile in(out.c_str());
+    const Imf::Header &h = in.header();
+    const auto *a = h.findTypedAttribute<Imf::V3fAttribute>("studio:floats3");
+    ASSERT_NE(a, nullptr);  // a float[3] as OpenImageIO holds it: written as a v3f
+    EXPECT_EQ(a->value(), Imath::V3f(9.0f, 8.0f, 7.0f));
+    EXPECT_NE(h.findTypedAttribute<Imf::FloatVectorAttribute>("studio:floats2"), nullptr);
+    EXPECT_NE(h.findTypedAttribute<Imf::ChromaticitiesAttribute>("studio:chromaticities"), nullptr);
+    EXPECT_TRUE(h.hasPreviewImage());
+    ASSERT_NE(h.find("studio:blob"), h.end());
+    EXPECT_STREQ(h["studio:blob"].typeName(), "studioBlob");
 }
 
 // A layout the write is asked to rebuild (single part, or a part per pass) keeps the header's
