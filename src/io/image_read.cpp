@@ -190,8 +190,7 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         const std::string n = p.name().string();
         // Exif metadata of a PNG, TIFF or JPEG describes that image; an EXR's is its header's.
         const bool foreign_exif = n.rfind("Exif:", 0) == 0 && info.format != "openexr";
-        if (!is_structural_attribute(n) && !is_camera_attribute(n) && !foreign_exif &&
-            n != "multiView") {
+        if (is_frame_attribute(n) && !foreign_exif) {
             info.attributes.push_back(p);
         }
     }

@@ -22,6 +22,11 @@ namespace posthaste::io_detail {
 bool is_structural_attribute(const std::string &name);
 /// The camera's header attributes (read into Camera, written from it).
 bool is_camera_attribute(const std::string &name);
+/// An attribute a read puts into Frame::attributes (neither structural nor the camera's).
+inline bool is_frame_attribute(const std::string &name)
+{
+    return !is_structural_attribute(name) && !is_camera_attribute(name) && name != "multiView";
+}
 /// "half", "float", "uint", or OIIO's name for other types.
 std::string type_name(OIIO::TypeDesc t);
 /// 8/16-bit integer types (normalised on read).

@@ -415,6 +415,16 @@ void finish_specs(std::vector<OutPart> &parts,
             }
         }
     }
+    // And those it removed: the source's that the read put into the frame and the frame lacks.
+    std::vector<OIIO::ustring> removed;
+    if (first) {
+        for (const OIIO::ParamValue &p : first->extra_attribs) {
+            if (is_frame_attribute(p.name().string()) &&
+                !frame.attributes.find_pv(p.name().string(), OIIO::TypeUnknown, true)) {
+                removed.push_back(p.name());
+            }
+        }
+    }
     for (const OIIO::ParamValue &p : frame.attributes) {
         const OIIO::ParamValue *old = first ? first->find_attribute(p.name().string()) : nullptr;
         if (!old || old->type() != p.type() || old->nvalues() != p.nvalues() ||
@@ -494,6 +504,9 @@ void finish_specs(std::vector<OutPart> &parts,
         for (const OIIO::ParamValue &p : changed) {
             spec.extra_attribs.remove(p.name());
             spec.extra_attribs.push_back(p);
+        }
+        for (const OIIO::ustring &name : removed) {
+            spec.extra_attribs.remove(name);
         }
         spec.erase_attribute("oiio:subimages");
         spec.erase_attribute("openexr:chunkCount");
