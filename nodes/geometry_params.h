@@ -44,6 +44,23 @@ inline void check_filter_name(const CheckContext &ctx)
     }
 }
 
+/// A usage error naming the node and parameter when `filter` is one of OpenImageIO's
+/// non-separable (radial) filters: ImageBufAlgo::resize fails an assertion on them at some sizes
+/// (disk and radial-lanczos3 to 1x1 or 100x100 from 320x180 aborted the process), so reformat,
+/// which resizes through it, takes only separable ones.
+inline void check_separable_filter(const CheckContext &ctx)
+{
+    const std::string &f = ctx.params.values().at("filter").text;
+    if (filter::is_filter_name(f) && !filter::is_separable_filter(f)) {
+        throw_param(ctx.node.json_path + "/params/filter: " + ctx.node.describe(),
+                    "filter",
+                    "filter " + quoted(f) +
+                        " is radial (not separable), which resizing does not take: use a "
+                        "separable one (blackman-harris, lanczos3, catmull-rom, mitchell, "
+                        "gaussian, triangle, box, ...), or transform, which warps with any");
+    }
+}
+
 /// A runtime error naming the node when an output window would be absurdly large.
 inline void check_window_size(const std::string &where, const Rect &window, const char *param)
 {

@@ -208,21 +208,24 @@ void execute(NodeContext &ctx)
         out.source = regridded_source(*frame.source, out_window);  // the parts follow the window
     }
     for (const auto &[name, in_pass] : frame.passes()) {
+        // A view's pass ("depth@right") is its pass's for `filtered` and the depth rules.
+        const std::string base = name.substr(0, name.find('@'));
         const bool is_filtered =
-            std::find(filtered.begin(), filtered.end(), name) != filtered.end();
+            std::find(filtered.begin(), filtered.end(), base) != filtered.end();
         // The project's non-finite policy for nodes that move pixels: NaN and infinities read
         // as 0, in depth NaN and -inf as the sky (+inf).
         Image storage;
-        const bool depth = name == pass::kDepth;
+        const bool depth = pass::is_depth_pass(base);
         const Image &src = finite_view(
             *in_pass.image, depth ? std::numeric_limits<float>::infinity() : 0.0f, storage, depth);
-        const bool is_color = name == pass::kColor;
-        const float outside = name == pass::kDepth ? std::numeric_limits<float>::infinity() : 0.0f;
-        // A filtered depth reads its sky as NaN and is guarded after (filter/depth_resample.h).
+        const bool is_color = base == pass::kColor;
+        const float outside = depth ? std::numeric_limits<float>::infinity() : 0.0f;
+        // A filtered depth is filtered split from its sky and guarded after
+        // (filter/depth_resample.h).
         const bool guard = depth && is_filtered && filter != filter::Resample::Nearest;
-        Image marked, range;
+        Image split, range;
         if (guard) {
-            marked = filter::sky_as_nan(src);
+            split = filter::sky_split(src);
             range = filter::depth_range(src, filter == filter::Resample::Bicubic ? 2 : 1);
         }
         const int nc = src.channels();
@@ -250,9 +253,20 @@ void execute(NodeContext &ctx)
                 filter::resample_row(src, xs, ys, w, filter, outside, row);
             };
             if (guard) {
-                filter::resample_row(
-                    marked, rsx, rsy, w, filter, std::numeric_limits<float>::quiet_NaN(), d);
-                filter::guard_depth_row(src, range, rsx, rsy, w, d);
+                std::vector<float> sums(std::size_t(w) * std::size_t(split.channels()));
+                filter::resample_row(split,
+                                     rsx,
+                                     rsy,
+                                     w,
+                                     filter,
+                                     std::numeric_limits<float>::quiet_NaN(),
+                                     sums.data());
+                filter::guard_depth_row(src,
+                                        range,
+                                        map->nearest.data() + std::size_t(y) * std::size_t(w),
+                                        w,
+                                        sums.data(),
+                                        d);
                 return;
             }
             resample(rsx, rsy, d);

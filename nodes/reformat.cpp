@@ -78,6 +78,7 @@ void execute(NodeContext &ctx)
 void check(CheckContext &ctx)
 {
     check_filter_name(ctx);
+    check_separable_filter(ctx);
     const NodeParams &p = ctx.params;
     if (p.given(kScale) && (p.get_int(kWidth) != 0 || p.get_int(kHeight) != 0)) {
         throw_param(ctx, kScale, "applies only when width and height are 0");

@@ -111,6 +111,17 @@ void execute(NodeContext &ctx)
 void check(CheckContext &ctx)
 {
     check_filter_name(ctx);
+    // Each axis's own scale within the range one scale has: scale 0.001 times scale_x 0.001
+    // asked OpenImageIO's warp for a footprint of millions of pixels a side (it ran for hours).
+    const NodeParams &p = ctx.params;
+    for (const ParamSpec *axis : {&kScaleX, &kScaleY}) {
+        const double total = p.get_real(kScale) * p.get_real(*axis);
+        if (!(total >= 1e-3 && total <= 1e3)) {
+            throw_param(ctx,
+                        *axis,
+                        str_cat("scale x ", axis->name, " is ", total, ", outside 0.001..1000"));
+        }
+    }
 }
 
 }  // namespace

@@ -34,6 +34,13 @@ inline constexpr const char *kShadow = "shadow";
 // Made by nodes, not read by alias: ambient occlusion (ao.Y, 0 occluded .. 1 open).
 inline constexpr const char *kAo = "ao";
 
+/// A pass of camera depths whose +inf is the sky (depth, specular_depth), by its name without
+/// any "@view".
+inline bool is_depth_pass(std::string_view base)
+{
+    return base == kDepth || base == kSpecularDepth;
+}
+
 struct CanonicalPass {
     std::string_view name;
     std::string_view layer;                  ///< EXR layer prefix ("" for R G B A and Z).

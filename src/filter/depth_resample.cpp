@@ -57,16 +57,16 @@ void sliding_extreme(const float *in,
     }
 }
 
-/// The sliding extreme of channel 0's finite values over (2r + 1)^2 boxes, one channel.
+/// The sliding extreme of channel c's finite values over (2r + 1)^2 boxes, one channel.
 template <bool Min>
-Image box_extreme(const Image &depth, int r)
+Image box_extreme(const Image &depth, int c, int r)
 {
     const int w = depth.width(), h = depth.height(), nc = depth.channels();
     const float neutral = Min ? kInf : -kInf;
     Image rows = Image::uninitialized(w, h, 1);
     parallel_for(0, h, [&](int y) {
         std::vector<float> line(static_cast<std::size_t>(w));
-        const float *s = depth.pixel(0, y);
+        const float *s = depth.pixel(0, y) + c;
         for (int x = 0; x < w; ++x) {
             const float v = s[std::size_t(x) * std::size_t(nc)];
             line[std::size_t(x)] = std::isfinite(v) ? v : neutral;
@@ -84,15 +84,19 @@ Image box_extreme(const Image &depth, int r)
 
 }  // namespace
 
-Image sky_as_nan(const Image &depth)
+Image sky_split(const Image &depth)
 {
-    Image out = Image::uninitialized(depth.width(), depth.height(), depth.channels());
-    const std::size_t row = std::size_t(depth.width()) * std::size_t(depth.channels());
+    const int nc = depth.channels();
+    Image out = Image::uninitialized(depth.width(), depth.height(), 2 * nc);
     parallel_for(0, depth.height(), [&](int y) {
         const float *s = depth.pixel(0, y);
         float *d = out.pixel(0, y);
-        for (std::size_t i = 0; i < row; ++i) {
-            d[i] = s[i] == kInf ? std::numeric_limits<float>::quiet_NaN() : s[i];
+        for (int x = 0; x < depth.width(); ++x, s += nc, d += 2 * nc) {
+            for (int c = 0; c < nc; ++c) {
+                const bool sky = s[c] == kInf;
+                d[c] = sky ? 0.0f : s[c];
+                d[nc + c] = sky ? 1.0f : 0.0f;
+            }
         }
     });
     return out;
@@ -100,42 +104,46 @@ Image sky_as_nan(const Image &depth)
 
 Image depth_range(const Image &depth, int radius)
 {
-    const int r = std::max(radius, 0);
-    const Image lo = box_extreme<true>(depth, r), hi = box_extreme<false>(depth, r);
-    Image range = Image::uninitialized(depth.width(), depth.height(), 2);
-    parallel_for(0, depth.height(), [&](int y) {
-        const float *a = lo.pixel(0, y), *b = hi.pixel(0, y);
-        float *d = range.pixel(0, y);
-        for (int x = 0; x < depth.width(); ++x) {
-            d[2 * x] = a[x];
-            d[2 * x + 1] = b[x];
-        }
-    });
+    const int r = std::max(radius, 0), nc = depth.channels();
+    Image range = Image::uninitialized(depth.width(), depth.height(), 2 * nc);
+    for (int c = 0; c < nc; ++c) {
+        const Image lo = box_extreme<true>(depth, c, r), hi = box_extreme<false>(depth, c, r);
+        parallel_for(0, depth.height(), [&](int y) {
+            const float *a = lo.pixel(0, y), *b = hi.pixel(0, y);
+            float *d = range.pixel(0, y);
+            for (int x = 0; x < depth.width(); ++x) {
+                d[std::size_t(x) * std::size_t(2 * nc) + std::size_t(2 * c)] = a[x];
+                d[std::size_t(x) * std::size_t(2 * nc) + std::size_t(2 * c + 1)] = b[x];
+            }
+        });
+    }
     return range;
 }
 
-void guard_depth_row(
-    const Image &depth, const Image &range, const float *xs, const float *ys, int n, float *row)
+void guard_depth_row(const Image &depth,
+                     const Image &range,
+                     const std::int32_t *nearest,
+                     int n,
+                     const float *filtered,
+                     float *row)
 {
     const int nc = depth.channels();
     for (int i = 0; i < n; ++i) {
+        const float *f = filtered + std::size_t(i) * std::size_t(2 * nc);
         float *d = row + std::size_t(i) * std::size_t(nc);
-        const float x = xs[i], y = ys[i];
-        // The nearest input pixel; a point outside the input (or not a number) reads the sky.
-        if (!(x >= 0.0f && y >= 0.0f && x < float(depth.width()) && y < float(depth.height()))) {
-            std::fill(d, d + nc, kInf);
+        if (nearest[i] < 0) {
+            std::fill(d, d + nc, kInf);  // outside the input: the sky, as nearest sampling
             continue;
         }
-        const int px = std::min(int(x), depth.width() - 1),
-                  py = std::min(int(y), depth.height() - 1);
-        const float *nearest = depth.pixel(px, py);
-        const float lo = range.at(px, py, 0), hi = range.at(px, py, 1);
+        const float *near = depth.data() + std::size_t(nearest[i]) * std::size_t(nc);
+        const float *lohi = range.data() + std::size_t(nearest[i]) * std::size_t(2 * nc);
         for (int c = 0; c < nc; ++c) {
-            if (std::isnan(d[c]) || !std::isfinite(nearest[c]) || !(lo <= hi)) {
-                d[c] = nearest[c];
-            } else if (c == 0) {
-                d[c] = std::clamp(d[c], lo, hi);
-            }
+            const float lo = lohi[2 * c], hi = lohi[2 * c + 1];
+            // The indicator's sum is 0 unless a tap of non-zero weight lay on the sky (NaN:
+            // outside the input).
+            const bool touched = !(f[nc + c] == 0.0f);
+            d[c] = touched || !std::isfinite(near[c]) || !(lo <= hi) ? near[c]
+                                                                     : std::clamp(f[c], lo, hi);
         }
     }
 }

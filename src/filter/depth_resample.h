@@ -1,33 +1,40 @@
 #pragma once
-// A depth pass through a reconstruction filter (transform, reformat or lens with "depth" among
-// their `filtered` passes). Two things a filter does to colour are wrong for depth: a tap on the
-// sky (+inf) makes the sum infinite or NaN (inf * 0, inf - inf under a negative lobe), and the
-// negative lobes of Catmull-Rom or Lanczos overshoot a depth edge, down to depths nearer than
-// anything in the scene or below zero. So a depth is filtered with its sky marked as NaN (every
-// sum that touched the sky, or the outside, comes out NaN), then guarded pixel by pixel: where the
-// sum is NaN or the nearest input pixel is sky, the nearest input pixel (the sky is the sky
-// exactly where the nearest sample is, and its edge stays sharp); elsewhere the sum clamped to the
-// range of the finite depths around the nearest input pixel.
+// A depth pass through a reconstruction filter (transform, reformat or lens with "depth" or
+// "specular_depth" among their `filtered` passes). Two things a filter does to colour are wrong
+// for depth: a tap on the sky (+inf) makes the sum infinite or NaN (inf * 0, inf - inf under a
+// negative lobe), and the negative lobes of Catmull-Rom or Lanczos overshoot a depth edge, down
+// to depths nearer than anything in the scene or below zero. So a depth is filtered split in two
+// (sky_split): its values with the sky as 0, and a sky indicator, 1 on the sky. Then each output
+// pixel is guarded: where the indicator's sum is not 0 (a tap of non-zero weight on the sky, or
+// outside the input) or the nearest input pixel is sky, it takes the nearest input pixel (the sky
+// is the sky exactly where nearest sampling puts it, and its edge stays sharp); elsewhere the
+// filtered depth clamped to the range of the finite depths around the nearest input pixel.
+
+#include <cstdint>
 
 #include "core/image.h"
 
 namespace posthaste::filter {
 
-/// `depth` (one or more channels) with +inf as NaN: the input a filter reads.
-Image sky_as_nan(const Image &depth);
+/// The image a filter reads for `depth` (nc channels): 2 nc channels, depth with +inf as 0, then
+/// per channel 1 where it is +inf and 0 elsewhere.
+Image sky_split(const Image &depth);
 
-/// The smallest and largest finite value of channel 0 of `depth` within the (2 radius + 1)^2
-/// pixels around each pixel, as a two-channel image (lo, hi); (+inf, -inf) where none is finite.
-/// Parallel; exact (min and max only).
+/// Per channel c, the smallest and largest finite value of `depth` within the (2 radius + 1)^2
+/// pixels around each pixel: 2 nc channels (lo_0, hi_0, lo_1, hi_1, ...); (+inf, -inf) where
+/// none is finite. Exact (min and max only), in time independent of the radius.
 Image depth_range(const Image &depth, int radius);
 
-/// One row of a filtered depth made safe (see the file's comment): `row` (n pixels, `nc`
-/// channels each) holds the filter's result from sky_as_nan(depth); (xs[i], ys[i]) is where output
-/// pixel i reads the input, in `depth`'s pixel coordinates (centres at +0.5). A point outside the
-/// input gives +inf, as the nearest sample does; `range` is depth_range(depth, r) for an r that
-/// covers the filter's support (channel 0 is clamped to it; any further channel only takes the
-/// nearest pixel where its sum is NaN).
-void guard_depth_row(
-    const Image &depth, const Image &range, const float *xs, const float *ys, int n, float *row);
+/// One row of n output pixels of a filtered depth, made safe (see above): `filtered` holds the
+/// filter's result on sky_split(depth), 2 nc floats a pixel; nearest[i] is the index of output
+/// pixel i's nearest input pixel in `depth` (y * width + x; -1 outside the input: the sky), as
+/// the node's nearest sampling picks it; `range` is depth_range(depth, r) for an r that covers
+/// the filter's support. Writes nc floats a pixel into `row`.
+void guard_depth_row(const Image &depth,
+                     const Image &range,
+                     const std::int32_t *nearest,
+                     int n,
+                     const float *filtered,
+                     float *row);
 
 }  // namespace posthaste::filter

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "core/parallel.h"
@@ -147,20 +148,20 @@ void warp_frame(const Frame &in, const FrameWarp &w, Frame &out)
     out.display_window = w.display;
     for (const auto &[name, pass] : in.passes()) {
         const std::string base = base_name(name);
-        const bool depth = base == pass::kDepth;
+        const bool depth = pass::is_depth_pass(base);
         const float outside = depth ? std::numeric_limits<float>::infinity() : 0.0f;
         Image storage;
         const Image &src = finite_view(*pass.image, outside, storage, depth);
         const bool filtered =
             w.filter != "nearest" &&
             std::find(w.filtered.begin(), w.filtered.end(), base) != w.filtered.end();
-        // A filtered depth reads its sky as NaN and is guarded after (depth_resample.h).
+        // A filtered depth is filtered split from its sky and guarded after (depth_resample.h).
         const bool guard = depth && filtered;
-        Image marked;
+        Image split;
         if (guard) {
-            marked = sky_as_nan(src);
+            split = sky_split(src);
         }
-        const Image &fsrc = guard ? marked : src;
+        const Image &fsrc = guard ? split : src;
         Image dst;
         if (!filtered) {
             dst = sample_nearest(src, in.data_window, to_input, w.window, outside);
@@ -179,10 +180,19 @@ void warp_frame(const Frame &in, const FrameWarp &w, Frame &out)
         }
         if (guard) {
             const Image range = depth_range(src, support_radius(w.filter, linear));
-            for_each_source_row(
-                to_input, in.data_window, w.window, [&](int y, const float *xs, const float *ys) {
-                    guard_depth_row(src, range, xs, ys, w.window.width(), dst.pixel(0, y));
-                });
+            Image guarded =
+                Image::uninitialized(w.window.width(), w.window.height(), src.channels());
+            parallel_for(0, w.window.height(), [&](int y) {
+                std::vector<std::int32_t> near(static_cast<std::size_t>(w.window.width()));
+                nearest_sources(to_input, in.data_window, w.window, y, near.data());
+                guard_depth_row(src,
+                                range,
+                                near.data(),
+                                w.window.width(),
+                                dst.pixel(0, y),
+                                guarded.pixel(0, y));
+            });
+            dst = std::move(guarded);
         }
         if (is_vector_pass(base) && dst.channels() >= 2) {
             const int nc = dst.channels();
@@ -203,7 +213,7 @@ void cut_data_window(const Frame &in, const Rect &window, Frame &out, int dx, in
 {
     out.data_window = window.offset(dx, dy);
     for (const auto &[name, pass] : in.passes()) {
-        const bool depth = name.substr(0, name.find('@')) == pass::kDepth;
+        const bool depth = pass::is_depth_pass(base_name(name));
         const float fill = depth ? std::numeric_limits<float>::infinity() : 0.0f;
         Image cut = place_in_window(*pass.image,
                                     in.data_window,

@@ -6,7 +6,9 @@
 #include <OpenImageIO/imagebufalgo.h>
 
 #include <cmath>
+#include <cstdint>
 #include <glm/mat3x3.hpp>
+#include <vector>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -113,6 +115,16 @@ bool is_filter_name(const std::string &name)
     return false;
 }
 
+bool is_separable_filter(const std::string &name)
+{
+    for (int i = 0, n = OIIO::Filter2D::num_filters(); i < n; ++i) {
+        if (name == OIIO::Filter2D::get_filterdesc(i).name) {
+            return OIIO::Filter2D::get_filterdesc(i).separable != 0;
+        }
+    }
+    return false;
+}
+
 double filter_width(const std::string &name)
 {
     for (int i = 0, n = OIIO::Filter2D::num_filters(); i < n; ++i) {
@@ -166,6 +178,24 @@ Image warp_filtered(const Image &src,
     return dst;
 }
 
+void nearest_sources(const Affine &to_input,
+                     const Rect &src_window,
+                     const Rect &dst_window,
+                     int y,
+                     std::int32_t *out)
+{
+    for (int x = 0; x < dst_window.width(); ++x) {
+        const glm::dvec3 p =
+            to_input * glm::dvec3(dst_window.x0 + x + 0.5, dst_window.y0 + y + 0.5, 1.0);
+        const double fx = std::floor(p.x), fy = std::floor(p.y);
+        out[x] =
+            fx >= src_window.x0 && fx < src_window.x1 && fy >= src_window.y0 && fy < src_window.y1
+                ? std::int32_t((int(fy) - src_window.y0) * src_window.width() +
+                               (int(fx) - src_window.x0))
+                : -1;
+    }
+}
+
 Image sample_nearest(const Image &src,
                      const Rect &src_window,
                      const Affine &to_input,
@@ -175,14 +205,12 @@ Image sample_nearest(const Image &src,
     const int w = dst_window.width(), nc = src.channels();
     Image dst = Image::uninitialized(w, dst_window.height(), nc);
     parallel_for(0, dst_window.height(), [&](int y) {
+        std::vector<std::int32_t> near(static_cast<std::size_t>(w));
+        nearest_sources(to_input, src_window, dst_window, y, near.data());
         float *d = dst.pixel(0, y);
         for (int x = 0; x < w; ++x, d += nc) {
-            const glm::dvec3 p =
-                to_input * glm::dvec3(dst_window.x0 + x + 0.5, dst_window.y0 + y + 0.5, 1.0);
-            const double fx = std::floor(p.x), fy = std::floor(p.y);
-            if (fx >= src_window.x0 && fx < src_window.x1 && fy >= src_window.y0 &&
-                fy < src_window.y1) {
-                const float *s = src.pixel(int(fx) - src_window.x0, int(fy) - src_window.y0);
+            if (near[std::size_t(x)] >= 0) {
+                const float *s = src.data() + std::size_t(near[std::size_t(x)]) * std::size_t(nc);
                 std::copy(s, s + nc, d);
             } else {
                 std::fill(d, d + nc, outside);

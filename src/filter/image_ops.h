@@ -9,6 +9,7 @@
 // Coordinates are absolute file coordinates (pixel edges at integers, centres at +0.5), as the
 // windows of a Frame.
 
+#include <cstdint>
 #include <glm/mat3x3.hpp>
 #include <string>
 
@@ -29,6 +30,9 @@ Rect transformed_bounds(const Affine &m, const Rect &r);
 
 /// True when `name` is a reconstruction filter OpenImageIO knows (lanczos3, catmull-rom, ...).
 bool is_filter_name(const std::string &name);
+
+/// True when OpenImageIO's filter `name` is separable (false for radial ones and unknown names).
+bool is_separable_filter(const std::string &name);
 
 /// The default width (in pixels) of OpenImageIO's filter `name`; 0 for a name it does not know.
 double filter_width(const std::string &name);
@@ -52,6 +56,15 @@ Image warp_filtered(const Image &src,
                     const Rect &dst_window,
                     const std::string &filter,
                     bool extend_edges = false);
+
+/// For row y of `dst_window`: the input pixel holding each output pixel's centre mapped by
+/// `to_input` (output -> input coordinates), as an index into an image covering `src_window`
+/// (y * width + x), or -1 outside it. sample_nearest copies these pixels.
+void nearest_sources(const Affine &to_input,
+                     const Rect &src_window,
+                     const Rect &dst_window,
+                     int y,
+                     std::int32_t *out);
 
 /// Nearest-neighbour resampling through `to_input` (output -> input coordinates): each output
 /// pixel centre maps to a point, and the input pixel holding it is copied, values unchanged (ids,

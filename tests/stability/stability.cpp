@@ -347,8 +347,9 @@ StabilityResult run_case(const NodeType &type,
         // without resampling (crop) is held to where its values came from.
         const Rect &in_w = input.data_window, &out_w = out.data_window;
         // +inf depth is the sky (no surface), a valid value: what a node that moves pixels
-        // (lens) reads outside its input, as the reader pads a smaller part.
-        const bool depth = name == pass::kDepth;
+        // (lens) reads outside its input, as the reader pads a smaller part. specular_depth is
+        // a depth too.
+        const bool depth = pass::is_depth_pass(name.substr(0, name.find('@')));
         for (int y = 0; y < img.height(); ++y) {
             for (int x = 0; x < img.width(); ++x) {
                 for (int c = 0; c < img.channels(); ++c) {
