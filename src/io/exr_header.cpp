@@ -25,8 +25,10 @@
 #include <OpenEXR/ImfVecAttribute.h>
 #include <OpenImageIO/strutil.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <memory>
 
 #include "core/error.h"
@@ -229,6 +231,13 @@ bool put_attribute(const std::string &name, TypeDesc type, const void *data, Imf
             h.insert(n, Imf::V3iAttribute(Imath::V3i(i[0], i[1], i[2])));
             return true;
         }
+        // A plain array of floats is OpenEXR's floatvector (what OpenImageIO reads one as),
+        // whatever its length: 2, 3 or 16 of them went out as v2f, v3f or m44f.
+        if (base == TypeDesc::FLOAT && type.aggregate == TypeDesc::SCALAR &&
+            !(values == 8 && iequals(xname, "chromaticities"))) {
+            h.insert(n, Imf::FloatVectorAttribute(Imf::FloatVector(f, f + values)));
+            return true;
+        }
         if (base == TypeDesc::FLOAT || base == TypeDesc::DOUBLE) {
             const bool dbl = base == TypeDesc::DOUBLE;
             if (values == 2 && type.aggregate == TypeDesc::SCALAR) {
@@ -311,6 +320,10 @@ bool is_layout_attribute(const std::string &name)
     return false;
 }
 
+/// Attributes that summarise a part's pixels (OpenImageIO's; its texture system trusts
+/// ConstantColor): left out once a node changed the pixels, as previews are.
+const std::string kPixelSummaries[] = {"oiio:ConstantColor", "oiio:AverageColor", "oiio:SHA-1"};
+
 /// An attribute's type name and value as OpenEXR writes them.
 std::string serialized(const Imf::Attribute &a)
 {
@@ -336,11 +349,44 @@ std::unique_ptr<Imf::Attribute> parse_attribute(const HeaderAttribute &raw)
     }
 }
 
-/// `h` with the source part's attributes put back as the file had them (HeaderAttribute): one
-/// whose value `h` holds as the source's spec would give it (the graph left it alone) takes the
-/// file's type and bytes again; one OpenImageIO never surfaced (neither `h` nor the source's
-/// spec has it) comes back as it was. One the graph changed, added or removed stays as `h` has it.
-void restore_source_attributes(const SourcePart &source, Imf::Header &h)
+/// The OpenEXR attributes put_attribute makes of one OpenImageIO attribute (its own name, or
+/// the standard name it stands for: FNumber -> aperture).
+std::vector<std::string> exr_names_of(const OIIO::ParamValue &p)
+{
+    Imf::Header scratch;
+    const std::vector<std::string> defaults = [] {
+        std::vector<std::string> names;
+        const Imf::Header empty;
+        for (auto it = empty.begin(); it != empty.end(); ++it) {
+            names.emplace_back(it.name());
+        }
+        return names;
+    }();
+    try {
+        put_attribute(p.name().string(), p.type(), p.data(), scratch);
+    } catch (const std::exception &) {
+    }
+    std::vector<std::string> names;
+    for (auto it = scratch.begin(); it != scratch.end(); ++it) {
+        if (std::find(defaults.begin(), defaults.end(), it.name()) == defaults.end() ||
+            p.name().string() == it.name()) {
+            names.emplace_back(it.name());
+        }
+    }
+    return names;
+}
+
+/// `h` with the source part's attributes put back as the file had them (HeaderAttribute).
+/// One OpenImageIO showed under its own name comes back when the part's spec still holds that
+/// value (the graph left it alone), in place of what put_attribute made of it (an alias such as
+/// aperture for a studio's own FNumber is not added beside it); one it showed under another
+/// name comes back where `h` holds the value the source's spec gives; one it never showed comes
+/// back as it was, except a preview once the part's pixels changed (`stale`). What the graph
+/// changed, added or removed stays as `h` has it.
+void restore_source_attributes(const SourcePart &source,
+                               const OIIO::ImageSpec &spec,
+                               bool stale,
+                               Imf::Header &h)
 {
     Imf::Header as_read;  // what the source's spec, unchanged, gives
     for (const OIIO::ParamValue &p : source.spec.extra_attribs) {
@@ -349,8 +395,38 @@ void restore_source_attributes(const SourcePart &source, Imf::Header &h)
         } catch (const std::exception &) {
         }
     }
+    auto raw_named = [&](const std::string &name) {
+        return std::any_of(source.attributes.begin(),
+                           source.attributes.end(),
+                           [&](const HeaderAttribute &a) { return a.name == name; });
+    };
     for (const HeaderAttribute &raw : source.attributes) {
-        if (is_layout_attribute(raw.name)) {
+        if (is_layout_attribute(raw.name) ||
+            (stale &&
+             (raw.type == "preview" ||
+              std::find(std::begin(kPixelSummaries), std::end(kPixelSummaries), raw.name) !=
+                  std::end(kPixelSummaries)))) {
+            continue;
+        }
+        if (const OIIO::ParamValue *was = source.spec.find_attribute(raw.name)) {
+            const OIIO::ParamValue *now = spec.find_attribute(raw.name);
+            if (!now || now->type() != was->type() || now->nvalues() != was->nvalues() ||
+                std::memcmp(now->data(), was->data(), was->datasize()) != 0) {
+                continue;  // changed or removed by the graph
+            }
+            std::unique_ptr<Imf::Attribute> original = parse_attribute(raw);
+            if (!original) {
+                continue;
+            }
+            for (const std::string &alias : exr_names_of(*was)) {
+                if (alias != raw.name && !raw_named(alias) && h.find(alias) != h.end()) {
+                    h.erase(alias);
+                }
+            }
+            if (h.find(raw.name) != h.end()) {
+                h.erase(raw.name);
+            }
+            h.insert(raw.name, *original);
             continue;
         }
         const auto now = h.find(raw.name);
@@ -465,8 +541,19 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
     if (aspect == 0.0f && xdensity != 0.0f && ydensity != 0.0f) {
         h.pixelAspectRatio() = xdensity / ydensity;
     }
+    // Attributes that summarise the pixels are stale once a node changed them.
+    const bool stale = part.cut || std::any_of(part.channels.begin(),
+                                               part.channels.end(),
+                                               [](const OutChannel &c) { return !c.untouched; });
+    if (stale) {
+        for (const std::string &name : kPixelSummaries) {
+            if (h.find(name) != h.end()) {
+                h.erase(name);
+            }
+        }
+    }
     if (part.header_source) {
-        restore_source_attributes(*part.header_source, h);
+        restore_source_attributes(*part.header_source, spec, stale, h);
     }
     if (parts > 1 && !h.hasName()) {
         char name[32];

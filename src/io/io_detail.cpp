@@ -145,6 +145,9 @@ void write_camera(const Camera &cam, OIIO::ImageSpec &spec, const Camera *before
             }
         } else if (before && before->*a.member) {
             spec.erase_attribute(a.name);
+            if (a.member == &Camera::fstop) {
+                spec.erase_attribute("FNumber");  // OpenImageIO's name for EXR's aperture
+            }
         }
     }
 }

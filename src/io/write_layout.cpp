@@ -179,6 +179,7 @@ void add_canonical(OutPart &part,
         c.type = storage_type(s);
         c.pass = name;
         c.data_pass = is_data_pass(name);
+        c.untouched = p.untouched();  // (what a stale preview is judged by; values as the pass)
         c.image = p.image.get();
         c.k = int(k);
         add_channel(part, std::move(c), path);
@@ -414,6 +415,11 @@ void finish_specs(std::vector<OutPart> &parts,
                 break;
             }
         }
+        // A single-part multi-view file's one part has no view of its own: it is the part.
+        if (!first_part && !src->parts.empty()) {
+            first = &src->parts[0].spec;
+            first_part = &src->parts[0];
+        }
     }
     // And those it removed: the source's that the read put into the frame and the frame lacks.
     std::vector<OIIO::ustring> removed;
@@ -435,6 +441,13 @@ void finish_specs(std::vector<OutPart> &parts,
     for (OutPart &part : parts) {
         part.header_source = part.source ? part.source : first_part;
         OIIO::ImageSpec &spec = part.spec;
+        // A part the write builds anew keeps the picture's pixel aspect (a structural attribute
+        // the frame does not carry: a rebuilt layout wrote 0.5 for 2, from the densities).
+        if (!part.source && first && !spec.find_attribute("PixelAspectRatio")) {
+            if (const OIIO::ParamValue *par = first->find_attribute("PixelAspectRatio")) {
+                spec.extra_attribs.push_back(*par);
+            }
+        }
         spec.nchannels = int(part.channels.size());
         spec.channelnames.clear();
         spec.channelformats.clear();

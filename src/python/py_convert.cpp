@@ -6,8 +6,11 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <glm/gtc/type_ptr.hpp>
+#include <limits>
+#include <vector>
 
 namespace posthaste::python {
 namespace {
@@ -209,7 +212,84 @@ int int_attribute(py::handle value, const std::string &name)
 }
 }  // namespace
 
-void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out)
+namespace {
+
+/// `value` (a number, a string, or a list of them) in the type of `old`, when it has as many
+/// values of a kind that type holds exactly: false otherwise.
+bool in_type_of(const OIIO::ParamValue &old,
+                const std::string &name,
+                py::handle value,
+                OIIO::ParamValueList &out)
+{
+    const OIIO::TypeDesc t = old.type();
+    const auto base = OIIO::TypeDesc::BASETYPE(t.basetype);
+    const std::size_t count = t.basevalues() * std::size_t(std::max(old.nvalues(), 1));
+    std::vector<py::handle> items;
+    if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+        for (py::handle item : value.cast<py::sequence>()) {
+            items.push_back(item);
+        }
+    } else if (py::isinstance<py::str>(value) || py::isinstance<py::int_>(value) ||
+               py::isinstance<py::float_>(value)) {
+        items.push_back(value);
+    } else {
+        return false;
+    }
+    if (items.size() != count || count == 0) {
+        return false;
+    }
+    const int n = std::max(old.nvalues(), 1);
+    if (base == OIIO::TypeDesc::STRING) {
+        std::vector<OIIO::ustring> v;
+        for (py::handle item : items) {
+            if (!py::isinstance<py::str>(item)) {
+                return false;
+            }
+            v.emplace_back(item.cast<std::string>());
+        }
+        out.push_back(OIIO::ParamValue(name, t, n, v.data()));
+        return true;
+    }
+    const bool whole = base == OIIO::TypeDesc::INT || base == OIIO::TypeDesc::UINT;
+    if (!whole && base != OIIO::TypeDesc::FLOAT && base != OIIO::TypeDesc::DOUBLE) {
+        return false;
+    }
+    std::vector<unsigned char> bytes(t.size() * std::size_t(n));
+    for (std::size_t i = 0; i < items.size(); ++i) {
+        py::handle item = items[i];
+        if (py::isinstance<py::bool_>(item) ||
+            !(py::isinstance<py::int_>(item) || py::isinstance<py::float_>(item))) {
+            return false;
+        }
+        if (whole) {
+            if (!py::isinstance<py::int_>(item)) {
+                return false;
+            }
+            const long long v = item.cast<long long>();
+            const bool fits =
+                base == OIIO::TypeDesc::INT
+                    ? v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max()
+                    : v >= 0 && v <= std::numeric_limits<unsigned>::max();
+            if (!fits) {
+                return false;
+            }
+            const std::int32_t i32 = std::int32_t(std::uint32_t(v));
+            std::memcpy(bytes.data() + i * 4, &i32, 4);
+        } else if (base == OIIO::TypeDesc::DOUBLE) {
+            const double d = item.cast<double>();
+            std::memcpy(bytes.data() + i * 8, &d, 8);
+        } else {
+            const float f = item.cast<float>();
+            std::memcpy(bytes.data() + i * 4, &f, 4);
+        }
+    }
+    out.push_back(OIIO::ParamValue(name, t, n, bytes.data()));
+    return true;
+}
+
+}  // namespace
+
+void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::ParamValueList *was)
 {
     if (dict.is_none()) {
         return;
@@ -230,6 +310,11 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out)
             // Written as an attribute it would replace the camera's value in the file.
             throw py::value_error("attribute \"" + name +
                                   "\" is a camera value: give it in camera=");
+        }
+        if (const OIIO::ParamValue *old =
+                was ? was->find_pv(name, OIIO::TypeUnknown, true) : nullptr;
+            old && in_type_of(*old, name, value, out)) {
+            continue;
         }
         if (py::isinstance<py::bool_>(value) || py::isinstance<py::int_>(value)) {
             out.push_back(OIIO::ParamValue(name, int_attribute(value, name)));

@@ -27,7 +27,13 @@ py::object from_json(const nlohmann::json &value);
 py::dict attributes_to_dict(const OIIO::ParamValueList &attributes);
 /// A dict of attributes (the forms attributes_to_dict makes) into `out`; TypeError naming the
 /// attribute for a value with no EXR type.
-void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out);
+/// `dict` as header attributes into `out`. With `was` (the frame's attributes before), a value
+/// given for an attribute `was` holds takes that attribute's type where it fits (the same
+/// count of numbers or strings): Python has one float and one int, and a double, a time code,
+/// a box or a one-string vector came back as a float, ints or a string.
+void dict_to_attributes(py::handle dict,
+                        OIIO::ParamValueList &out,
+                        const OIIO::ParamValueList *was = nullptr);
 
 /// The camera as a dict keyed by the EXR header's attribute names ("worldToCamera",
 /// "aperture", ...) plus "origin"; matrices are 4x4 float32 arrays in OpenEXR's row-vector

@@ -397,7 +397,7 @@ void bind_frame(py::module_ &m)
             [](PyFrame &f) { return attributes_to_dict(f.frame().attributes); },
             [](PyFrame &f, py::handle d) {
                 OIIO::ParamValueList list;
-                dict_to_attributes(d, list);
+                dict_to_attributes(d, list, &f.frame().attributes);
                 f.frame().attributes = std::move(list);
             },
             "Header attributes other than the camera's.")

@@ -166,3 +166,39 @@ def test_numbered_channels_come_back_in_their_order(tmp_path):
     r = ph.read(tmp_path / "o.exr")
     assert r.channels("aov") == [str(k) for k in range(12)]
     np.testing.assert_array_equal(r.passes["aov"], a)
+
+
+def test_reassigned_attributes_keep_their_file_types(tmp_path):
+    """A dict of attributes given back (unchanged, or one value edited) keeps each attribute's
+    type where the value fits it: a time code came back as two ints and was dropped, a float
+    vector of three as a v3f, and deleting one attribute meant giving the whole dict back."""
+    import shutil
+    import subprocess
+
+    from conftest import cli_binary
+
+    if not shutil.which("oiiotool"):
+        pytest.skip("oiiotool is not installed")
+    src = tmp_path / "typed.exr"
+    subprocess.run(["oiiotool", "--create", "4x4", "3",
+                    "--attrib:type=timecode", "smpte:TimeCode", "01:02:03:04",
+                    "--attrib", "studio:note", "kept", "-o", str(src)], check=True)
+
+    def info(path):
+        return subprocess.run([cli_binary(), "info", str(path)], capture_output=True,
+                              text=True, check=True).stdout
+
+    frame = ph.read(src)
+    frame.attributes = dict(frame.attributes)
+    ph.write(frame, tmp_path / "same.exr")
+    assert "smpte:TimeCode     timecode = 01:02:03:04" in info(tmp_path / "same.exr")
+
+    attributes = dict(frame.attributes)
+    del attributes["studio:note"]
+    attributes["studio:floats"] = [1.0, 2.0, 3.0]
+    frame.attributes = attributes
+    ph.write(frame, tmp_path / "edited.exr")
+    text = info(tmp_path / "edited.exr")
+    assert "smpte:TimeCode     timecode = 01:02:03:04" in text
+    assert not any(line.split()[:1] == ["studio:note"] for line in text.splitlines())
+    assert "studio:floats      float[3] = 1, 2, 3" in text  # a floatvector, as given

@@ -5,11 +5,13 @@
 
 #include <ImfChannelList.h>
 #include <ImfChromaticitiesAttribute.h>
+#include <ImfFloatAttribute.h>
 #include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfMultiPartInputFile.h>
+#include <ImfOutputFile.h>
 #include <ImfStringAttribute.h>
 #include <ImfTileDescription.h>
 #include <ImfTiledInputFile.h>
@@ -124,9 +126,9 @@ TEST(ExrFidelity, ChangedAttributesWinOverTheFilesOwn)
     write_exr(f, out, {});
     Imf::InputFile in(out.c_str());
     const Imf::Header &h = in.header();
-    const auto *a = h.findTypedAttribute<Imf::V3fAttribute>("studio:floats3");
-    ASSERT_NE(a, nullptr);  // a float[3] as OpenImageIO holds it: written as a v3f
-    EXPECT_EQ(a->value(), Imath::V3f(9.0f, 8.0f, 7.0f));
+    const auto *a = h.findTypedAttribute<Imf::FloatVectorAttribute>("studio:floats3");
+    ASSERT_NE(a, nullptr);  // a float[3] as OpenImageIO holds it: a floatvector again
+    EXPECT_EQ(a->value(), (Imf::FloatVector{9.0f, 8.0f, 7.0f}));
     EXPECT_EQ(h.find("studio:v3f"), h.end());
     EXPECT_EQ(h.find("comments"), h.end());
     EXPECT_NE(h.find("owner"), h.end());
@@ -135,6 +137,41 @@ TEST(ExrFidelity, ChangedAttributesWinOverTheFilesOwn)
     EXPECT_TRUE(h.hasPreviewImage());
     ASSERT_NE(h.find("studio:blob"), h.end());
     EXPECT_STREQ(h["studio:blob"].typeName(), "studioBlob");
+
+    // New pixels: the preview, a thumbnail of the old ones, stays out; the rest is kept.
+    Image color = f.image("color");
+    color.at(0, 0, 0) += 1.0f;
+    f.set("color", std::move(color));
+    write_exr(f, out_path("attributes_regraded"), {});
+    Imf::InputFile regraded(out_path("attributes_regraded").c_str());
+    EXPECT_FALSE(regraded.header().hasPreviewImage());
+    EXPECT_NE(regraded.header().find("studio:blob"), regraded.header().end());
+}
+
+// An attribute of a studio's own under a name OpenImageIO takes for a standard one (FNumber,
+// description) comes back alone: its standard twin (aperture, comments) is not added beside it.
+TEST(ExrFidelity, AStudiosOwnStandardLookingNamesAddNoTwins)
+{
+    const std::string src = scratch() + "/twins.exr";
+    {
+        Imf::Header h(4, 2);
+        h.channels().insert("R", Imf::Channel(Imf::HALF));
+        h.insert("FNumber", Imf::FloatAttribute(4.0f));
+        h.insert("description", Imf::StringAttribute("a studio's own"));
+        std::vector<half> px(8, half(0.5f));
+        Imf::FrameBuffer fb;
+        fb.insert("R", Imf::Slice(Imf::HALF, reinterpret_cast<char *>(px.data()), 2, 8));
+        Imf::OutputFile out(src.c_str(), h);
+        out.setFrameBuffer(fb);
+        out.writePixels(2);
+    }
+    write_exr(read_frame(src, nullptr, 1), out_path("twins"), {});
+    Imf::InputFile in(out_path("twins").c_str());
+    const Imf::Header &h = in.header();
+    EXPECT_NE(h.findTypedAttribute<Imf::FloatAttribute>("FNumber"), nullptr);
+    EXPECT_NE(h.findTypedAttribute<Imf::StringAttribute>("description"), nullptr);
+    EXPECT_EQ(h.find("aperture"), h.end());
+    EXPECT_EQ(h.find("comments"), h.end());
 }
 
 // A layout the write is asked to rebuild (single part, or a part per pass) keeps the header's
