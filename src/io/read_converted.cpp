@@ -3,12 +3,24 @@
 // (io/read_detail.h).
 
 #include <IexBaseExc.h>
+#include <ImfBoxAttribute.h>
+#include <ImfChromaticitiesAttribute.h>
+#include <ImfDoubleAttribute.h>
+#include <ImfFloatAttribute.h>
+#include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfIntAttribute.h>
+#include <ImfKeyCodeAttribute.h>
 #include <ImfMatrixAttribute.h>
 #include <ImfMultiPartInputFile.h>
+#include <ImfRationalAttribute.h>
 #include <ImfRgbaFile.h>
+#include <ImfStringAttribute.h>
+#include <ImfStringVectorAttribute.h>
 #include <ImfTiledInputPart.h>
+#include <ImfTimeCodeAttribute.h>
+#include <ImfVecAttribute.h>
 #include <OpenImageIO/deepdata.h>
 
 #include <algorithm>
@@ -62,6 +74,96 @@ void check_window(const std::string &path, int part, const char *which, const Re
     }
 }
 
+namespace {
+
+/// An OpenEXR attribute as OpenImageIO's EXR reader would hand it over (its type; the name as
+/// the file has it, which the writer maps back): false for types with no such form (previews,
+/// opaque types, the header's own enums).
+bool to_param(const std::string &name, const Imf::Attribute &a, OIIO::ParamValueList &out)
+{
+    using OIIO::TypeDesc;
+    auto add = [&](TypeDesc t, const void *data) {
+        out.push_back(OIIO::ParamValue(name, t, 1, data));
+    };
+    if (const auto *v = dynamic_cast<const Imf::IntAttribute *>(&a)) {
+        add(OIIO::TypeInt, &v->value());
+    } else if (const auto *v = dynamic_cast<const Imf::FloatAttribute *>(&a)) {
+        add(OIIO::TypeFloat, &v->value());
+    } else if (const auto *v = dynamic_cast<const Imf::DoubleAttribute *>(&a)) {
+        add(TypeDesc::DOUBLE, &v->value());
+    } else if (const auto *v = dynamic_cast<const Imf::StringAttribute *>(&a)) {
+        out.push_back(OIIO::ParamValue(name, v->value()));
+    } else if (const auto *v = dynamic_cast<const Imf::V2iAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::INT, TypeDesc::VEC2), &v->value().x);
+    } else if (const auto *v = dynamic_cast<const Imf::V2fAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::FLOAT, TypeDesc::VEC2), &v->value().x);
+    } else if (const auto *v = dynamic_cast<const Imf::V2dAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::DOUBLE, TypeDesc::VEC2), &v->value().x);
+    } else if (const auto *v = dynamic_cast<const Imf::V3iAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::INT, TypeDesc::VEC3), &v->value().x);
+    } else if (const auto *v = dynamic_cast<const Imf::V3fAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::FLOAT, TypeDesc::VEC3), &v->value().x);
+    } else if (const auto *v = dynamic_cast<const Imf::V3dAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::DOUBLE, TypeDesc::VEC3), &v->value().x);
+    } else if (const auto *v = dynamic_cast<const Imf::M33fAttribute *>(&a)) {
+        add(OIIO::TypeMatrix33, &v->value()[0][0]);
+    } else if (const auto *v = dynamic_cast<const Imf::M33dAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::DOUBLE, TypeDesc::MATRIX33), &v->value()[0][0]);
+    } else if (const auto *v = dynamic_cast<const Imf::M44fAttribute *>(&a)) {
+        add(OIIO::TypeMatrix44, &v->value()[0][0]);
+    } else if (const auto *v = dynamic_cast<const Imf::M44dAttribute *>(&a)) {
+        add(TypeDesc(TypeDesc::DOUBLE, TypeDesc::MATRIX44), &v->value()[0][0]);
+    } else if (const auto *v = dynamic_cast<const Imf::Box2iAttribute *>(&a)) {
+        const int b[4] = {v->value().min.x, v->value().min.y, v->value().max.x, v->value().max.y};
+        add(TypeDesc(TypeDesc::INT, TypeDesc::VEC2, 2), b);
+    } else if (const auto *v = dynamic_cast<const Imf::Box2fAttribute *>(&a)) {
+        const float b[4] = {v->value().min.x, v->value().min.y, v->value().max.x, v->value().max.y};
+        add(TypeDesc(TypeDesc::FLOAT, TypeDesc::VEC2, 2), b);
+    } else if (const auto *v = dynamic_cast<const Imf::FloatVectorAttribute *>(&a)) {
+        if (v->value().empty()) {
+            return false;
+        }
+        out.push_back(OIIO::ParamValue(
+            name, TypeDesc(TypeDesc::FLOAT, int(v->value().size())), 1, v->value().data()));
+    } else if (const auto *v = dynamic_cast<const Imf::StringVectorAttribute *>(&a)) {
+        std::vector<OIIO::ustring> strings;
+        for (const std::string &x : v->value()) {
+            strings.emplace_back(x);
+        }
+        if (strings.empty()) {
+            return false;
+        }
+        out.push_back(OIIO::ParamValue(
+            name, TypeDesc(TypeDesc::STRING, int(strings.size())), 1, strings.data()));
+    } else if (const auto *v = dynamic_cast<const Imf::RationalAttribute *>(&a)) {
+        const int r[2] = {v->value().n, int(v->value().d)};
+        add(OIIO::TypeRational, r);
+    } else if (const auto *v = dynamic_cast<const Imf::TimeCodeAttribute *>(&a)) {
+        const unsigned t[2] = {v->value().timeAndFlags(), v->value().userData()};
+        add(OIIO::TypeTimeCode, t);
+    } else if (const auto *v = dynamic_cast<const Imf::KeyCodeAttribute *>(&a)) {
+        const Imf::KeyCode &k = v->value();
+        const int c[7] = {k.filmMfcCode(),
+                          k.filmType(),
+                          k.prefix(),
+                          k.count(),
+                          k.perfOffset(),
+                          k.perfsPerFrame(),
+                          k.perfsPerCount()};
+        add(OIIO::TypeKeyCode, c);
+    } else if (const auto *v = dynamic_cast<const Imf::ChromaticitiesAttribute *>(&a)) {
+        const Imf::Chromaticities &c = v->value();
+        const float f[8] = {
+            c.red.x, c.red.y, c.green.x, c.green.y, c.blue.x, c.blue.y, c.white.x, c.white.y};
+        add(TypeDesc(TypeDesc::FLOAT, 8), f);
+    } else {
+        return false;
+    }
+    return true;
+}
+
+}  // namespace
+
 FileInfo luminance_chroma_info(const std::string &path)
 {
     FileInfo info;
@@ -81,20 +183,25 @@ FileInfo luminance_chroma_info(const std::string &path)
         if (f.channels() & Imf::WRITE_A) {
             part.channels.push_back({"A", "half", "", 1, 1});
         }
+        // The header's attributes as the other reads take them (OpenImageIO refuses these
+        // files): the camera's into the camera, the rest into the frame's attributes (every one
+        // was dropped here, the camera's scalars too).
         const Imf::Header &h = f.header();
-        auto matrix = [&](const char *name, std::optional<glm::mat4> &out) {
-            if (const auto *a = h.findTypedAttribute<Imf::M44fAttribute>(name)) {
-                glm::mat4 m;
-                for (int r = 0; r < 4; ++r) {
-                    for (int c = 0; c < 4; ++c) {
-                        m[r][c] = a->value()[r][c];  // same layout: row r of Imath, column r of glm
-                    }
-                }
-                out = m;
+        OIIO::ImageSpec spec;
+        for (auto it = h.begin(); it != h.end(); ++it) {
+            const std::string name = it.name();
+            if (name == "dataWindow" || name == "displayWindow" || name == "channels") {
+                continue;
             }
-        };
-        matrix(attr::kWorldToCamera, info.camera.world_to_camera);
-        matrix(attr::kWorldToNDC, info.camera.world_to_ndc);
+            to_param(name, it.attribute(), spec.extra_attribs);
+        }
+        read_camera(spec, info.camera);
+        for (const OIIO::ParamValue &p : spec.extra_attribs) {
+            if (is_frame_attribute(p.name().string()) && p.name() != "pixelAspectRatio" &&
+                p.name() != "screenWindowCenter" && p.name() != "screenWindowWidth") {
+                info.attributes.push_back(p);
+            }
+        }
         info.parts.push_back(std::move(part));
     } catch (const std::exception &e) {
         std::string err = e.what();

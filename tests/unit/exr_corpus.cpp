@@ -844,6 +844,11 @@ void write_channel_sets(Writer &w)
         const Box2i data = box(2, 4, 41, 27);
         Imf::Header header(box(0, 0, 47, 31), data);
         header.compression() = Imf::PIZ_COMPRESSION;
+        // Attributes the luminance/chroma read must carry (it dropped every one).
+        Imf::addComments(header, "luma comments");
+        Imf::addAperture(header, 2.8f);
+        Imf::addTimeCode(header, Imf::TimeCode(1, 2, 3, 4));
+        header.insert("studio:double", Imf::DoubleAttribute(1.0 / 3.0));
         const int width = data.max.x - data.min.x + 1, height = data.max.y - data.min.y + 1;
         std::vector<Imf::Rgba> pixels(static_cast<std::size_t>(width) * height);
         for (int y = 0; y < height; ++y) {

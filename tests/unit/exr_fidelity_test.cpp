@@ -5,6 +5,7 @@
 
 #include <ImfChannelList.h>
 #include <ImfChromaticitiesAttribute.h>
+#include <ImfDoubleAttribute.h>
 #include <ImfFloatAttribute.h>
 #include <ImfFloatVectorAttribute.h>
 #include <ImfFrameBuffer.h>
@@ -581,9 +582,21 @@ TEST(ExrFidelity, LuminanceChromaReadsAsRgb)
             }
         }
     }
+    // Its header's attributes and the camera's aperture come with it, and go out again.
+    EXPECT_EQ(f.camera.fstop, 2.8f);
+    ASSERT_NE(f.attributes.find_pv("comments"), nullptr);
+    EXPECT_EQ(f.attributes.find_pv("comments")->get_string(), "luma comments");
     // Written back as RGBA half: the same values.
     write_exr(f, out_path("luma_chroma_rgb"), {});
     EXPECT_TRUE(read_frame(out_path("luma_chroma_rgb"), nullptr, 1).image("color").bit_equal(c));
+    {
+        Imf::InputFile in(out_path("luma_chroma_rgb").c_str());
+        const Imf::Header &h = in.header();
+        EXPECT_NE(h.findTypedAttribute<Imf::StringAttribute>("comments"), nullptr);
+        EXPECT_NE(h.findTypedAttribute<Imf::TimeCodeAttribute>("timeCode"), nullptr);
+        EXPECT_NE(h.findTypedAttribute<Imf::FloatAttribute>("aperture"), nullptr);
+        EXPECT_NE(h.findTypedAttribute<Imf::DoubleAttribute>("studio:double"), nullptr);
+    }
     // Luminance only: one channel Y, gray for the nodes, Y again when written.
     const Frame y = read_frame(entry("y_only").path, nullptr, 1);
     EXPECT_EQ(y.image("color").at(3, 2, 0), y.image("color").at(3, 2, 2));
