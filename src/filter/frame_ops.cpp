@@ -38,28 +38,6 @@ bool is_vector_pass(const std::string &base)
     return base == pass::kMotion || base == pass::kMotionNext;
 }
 
-/// Where each pixel of `dst_window` reads the input (in `src_window`'s pixel coordinates) under
-/// `to_input`, one row at a time: `fn(y, xs, ys)`.
-template <class Fn>
-void for_each_source_row(const Affine &to_input,
-                         const Rect &src_window,
-                         const Rect &dst_window,
-                         const Fn &fn)
-{
-    const int w = dst_window.width();
-    parallel_for(0, dst_window.height(), [&](int y) {
-        const std::size_t n = static_cast<std::size_t>(w);
-        std::vector<float> xs(n), ys(n);
-        for (int x = 0; x < w; ++x) {
-            const glm::dvec3 p =
-                to_input * glm::dvec3(dst_window.x0 + x + 0.5, dst_window.y0 + y + 0.5, 1.0);
-            xs[std::size_t(x)] = float(p.x - src_window.x0);
-            ys[std::size_t(x)] = float(p.y - src_window.y0);
-        }
-        fn(y, xs.data(), ys.data());
-    });
-}
-
 /// How far from a pixel a filter's support reaches, in input pixels, for a map whose linear part
 /// is `m`: half the filter's width, widened by the map's strongest minification, plus the pixel.
 int support_radius(const std::string &filter, const glm::dmat2 &m)
@@ -86,11 +64,19 @@ Image warp_resampled(const Image &src,
                      Resample filter,
                      float outside)
 {
-    Image dst = Image::uninitialized(dst_window.width(), dst_window.height(), src.channels());
-    for_each_source_row(
-        to_input, src_window, dst_window, [&](int y, const float *xs, const float *ys) {
-            resample_row(src, xs, ys, dst_window.width(), filter, outside, dst.pixel(0, y));
-        });
+    const int w = dst_window.width();
+    Image dst = Image::uninitialized(w, dst_window.height(), src.channels());
+    parallel_for(0, dst_window.height(), [&](int y) {
+        const std::size_t n = static_cast<std::size_t>(w);
+        std::vector<float> xs(n), ys(n);
+        for (int x = 0; x < w; ++x) {
+            const glm::dvec3 p =
+                to_input * glm::dvec3(dst_window.x0 + x + 0.5, dst_window.y0 + y + 0.5, 1.0);
+            xs[std::size_t(x)] = float(p.x - src_window.x0);
+            ys[std::size_t(x)] = float(p.y - src_window.y0);
+        }
+        resample_row(src, xs.data(), ys.data(), w, filter, outside, dst.pixel(0, y));
+    });
     return dst;
 }
 

@@ -354,7 +354,7 @@ std::unique_ptr<Imf::Attribute> parse_attribute(const HeaderAttribute &raw)
 std::vector<std::string> exr_names_of(const OIIO::ParamValue &p)
 {
     Imf::Header scratch;
-    const std::vector<std::string> defaults = [] {
+    static const std::vector<std::string> defaults = [] {
         std::vector<std::string> names;
         const Imf::Header empty;
         for (auto it = empty.begin(); it != empty.end(); ++it) {
