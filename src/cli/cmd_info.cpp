@@ -51,6 +51,20 @@ std::string window_text(const Rect &r)
            std::to_string(r.width()) + "x" + std::to_string(r.height());
 }
 
+/// Where a pass's channels come from: "forward.u, -forward.v", a constant as its value.
+std::string sources_text(const PassSource &ps)
+{
+    std::string from;
+    for (const ChannelSource &c : ps.sources) {
+        std::string one = c.name.empty() ? std::to_string(c.offset) : c.name;
+        if (c.scale != 1.0f && !c.name.empty()) {
+            one = (c.scale == -1.0f ? "-" : std::to_string(c.scale) + "*") + one;
+        }
+        from += (from.empty() ? "" : ", ") + one;
+    }
+    return from;
+}
+
 /// The file's camera as a read node would give it: the header's matrices, else the camera
 /// solved from its position and depth passes, else none (with why).
 Camera info_camera(const FileInfo &fi, const ReadOptions &options)
@@ -232,26 +246,19 @@ int info(const std::vector<std::string> &files, const std::string &convention)
                             hint.empty() ? "" : (" (" + hint.substr(2) + ")").c_str());
                 continue;
             }
-            std::string from;
-            for (const ChannelSource &c : ps->sources) {
-                std::string one = c.name.empty() ? std::to_string(c.offset) : c.name;
-                if (c.scale != 1.0f && !c.name.empty()) {
-                    one = (c.scale == -1.0f ? "-" : std::to_string(c.scale) + "*") + one;
-                }
-                from += (from.empty() ? "" : ", ") + one;
-            }
             std::printf("  %-12s <- %s (%s)\n",
                         std::string(cp.name).c_str(),
-                        from.c_str(),
+                        sources_text(*ps).c_str(),
                         ps->origin.c_str());
         }
+        // Other views' passes ("depth@right"), mapped by the same rules, and other layers.
         for (const PassSource &s : fi.passes) {
             if (!pass::find_canonical(s.pass)) {
-                std::string from;
-                for (const ChannelSource &c : s.sources) {
-                    from += (from.empty() ? "" : ", ") + c.name;
-                }
-                std::printf("  %-12s <- %s (other layer)\n", s.pass.c_str(), from.c_str());
+                const bool layer = s.origin.empty() || s.origin == "layer";
+                std::printf("  %-12s <- %s (%s)\n",
+                            s.pass.c_str(),
+                            sources_text(s).c_str(),
+                            layer ? "other layer" : s.origin.c_str());
             }
         }
     }

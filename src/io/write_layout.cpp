@@ -144,25 +144,27 @@ bool gray_from_one_channel(const Pass &p)
 }
 
 /// Add the pass `name` to `part` under canonical channel names ("N.X"; with `view`, OpenEXR's
-/// single-part multi-view names "N.right.X").
+/// single-part multi-view names "N.right.X"). `layer` names the channels: the pass's name, or
+/// for another view's pass ("N@right") its base name.
 void add_canonical(OutPart &part,
                    const std::string &name,
                    const Pass &p,
                    const WriteOptions &options,
                    const std::string &view,
-                   const std::string &path)
+                   const std::string &path,
+                   const std::string &layer)
 {
     PixelStorage s = asked_storage(name, p, options);
     if (s == PixelStorage::Auto) {
         s = default_storage(name);
     }
-    std::vector<std::string> exr = pass::exr_channel_names(name, p.channels);
+    std::vector<std::string> exr = pass::exr_channel_names(layer, p.channels);
     const bool sourced = std::any_of(p.origin.begin(), p.origin.end(), [](const ChannelOrigin &o) {
         return o.part >= 0 || o.part == kRenamedPart;
     });
     const bool gray = gray_from_one_channel(p);  // a luminance file's: Y again
     if (gray) {
-        exr[0] = pass::exr_channel_names(name, {"Y"})[0];
+        exr[0] = pass::exr_channel_names(layer, {"Y"})[0];
     }
     for (std::size_t k = 0; k < exr.size(); ++k) {
         if (gray && (k == 1 || k == 2)) {
@@ -217,19 +219,66 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
                                     const WriteOptions &options,
                                     const std::string &path)
 {
+    // A file with views keeps them: the frame's passes are its chosen view's, "N@right" the
+    // right view's. One part names the views' channels OpenEXR's single-part way (the first
+    // view's bare, "N.right.X" for the others) under a multiView list; a part per pass gives
+    // each part its view, and a view's part the header of that view's first part.
+    const SourceFile *src = frame.source.get();
+    const std::vector<std::string> no_views;
+    const std::vector<std::string> &views = src ? src->views : no_views;
+    const auto view_of = [&](const std::string &name) {
+        const auto at = name.find('@');
+        if (at != std::string::npos &&
+            std::find(views.begin(), views.end(), name.substr(at + 1)) != views.end()) {
+            return name.substr(at + 1);
+        }
+        return views.empty() ? std::string() : src->view;
+    };
+    std::vector<const char *> view_ptrs;
+    for (const std::string &v : views) {
+        view_ptrs.push_back(v.c_str());
+    }
     std::vector<OutPart> parts;
     for (const std::string &name : names) {
         const Pass &p = frame.pass(name, path);
+        const std::string view = view_of(name);
+        const std::string layer =
+            view.empty() || view == src->view ? name : name.substr(0, name.find('@'));
         if (multipart || parts.empty()) {
             OutPart part;
             part.spec = fresh_spec(frame);
             part.data_window = frame.data_window;
+            part.view = view;
+            if (multipart && !view.empty() && view != src->view) {
+                for (const SourcePart &sp : src->parts) {
+                    if (sp.view == view) {  // that view's header, not the chosen view's camera
+                        part.spec = OIIO::ImageSpec(1, 1, 1, OIIO::TypeDesc::FLOAT);
+                        for (const OIIO::ParamValue &a : sp.spec.extra_attribs) {
+                            if (!is_structural_attribute(a.name().string())) {
+                                part.spec.extra_attribs.push_back(a);
+                            }
+                        }
+                        part.header_source = &sp;
+                        break;
+                    }
+                }
+            }
             if (multipart) {
-                part.spec.attribute("name", name == pass::kColor ? std::string("rgba") : name);
+                const std::string base = layer == pass::kColor ? std::string("rgba") : layer;
+                part.spec.attribute("name", view.empty() ? base : base + "." + view);
+            }
+            if (multipart && !view.empty()) {
+                part.spec.attribute("view", view);
+            }
+            if (!views.empty()) {
+                part.spec.attribute("multiView",
+                                    OIIO::TypeDesc(OIIO::TypeDesc::STRING, int(views.size())),
+                                    view_ptrs.data());
             }
             parts.push_back(std::move(part));
         }
-        add_canonical(parts.back(), name, p, options, "", path);
+        const bool view_in_name = !multipart && !views.empty() && view != views[0];
+        add_canonical(parts.back(), name, p, options, view_in_name ? view : "", path, layer);
     }
     return parts;
 }
@@ -387,7 +436,7 @@ std::vector<OutPart> source_layout(const Frame &frame,
             part = &parts.back();
         }
         const bool view_in_name = src.single_part_views && !default_view && part->source;
-        add_canonical(*part, name, p, options, view_in_name ? src.view : "", path);
+        add_canonical(*part, name, p, options, view_in_name ? src.view : "", path, name);
     }
     // Parts nothing is written to are left out.
     parts.erase(
@@ -439,7 +488,9 @@ void finish_specs(std::vector<OutPart> &parts,
         }
     }
     for (OutPart &part : parts) {
-        part.header_source = part.source ? part.source : first_part;
+        if (!part.header_source) {
+            part.header_source = part.source ? part.source : first_part;
+        }
         OIIO::ImageSpec &spec = part.spec;
         // A part the write builds anew keeps the picture's pixel aspect (a structural attribute
         // the frame does not carry: a rebuilt layout wrote 0.5 for 2, from the densities).
@@ -507,7 +558,8 @@ void finish_specs(std::vector<OutPart> &parts,
             spec.attribute("openexr:levelmode", 0);  // one level (OIIO would make textures MIP)
         }
         const bool chosen_view =
-            !src || !part.source || part.source->view == src->view || part.source->view.empty();
+            !src || (part.source ? part.source->view == src->view || part.source->view.empty()
+                                 : part.view.empty() || part.view == src->view);
         if (chosen_view) {
             write_camera(frame.camera, spec, src && part.source ? &src->camera : nullptr);
             if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {

@@ -38,6 +38,8 @@ struct OutPart {
     Rect data_window;
     std::vector<OutChannel> channels;
     const SourcePart *source = nullptr;
+    /// A rebuilt part's view ("" without views): another view's part keeps its own camera.
+    std::string view;
     /// The part whose OpenEXR attributes this one's header puts back as the file had them:
     /// `source`, or for a rebuilt layout the part the frame's passes came from.
     const SourcePart *header_source = nullptr;

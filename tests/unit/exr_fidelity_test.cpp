@@ -11,8 +11,12 @@
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
+#include <ImfInputPart.h>
 #include <ImfMultiPartInputFile.h>
+#include <ImfMultiPartOutputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfOutputPart.h>
+#include <ImfStandardAttributes.h>
 #include <ImfStringAttribute.h>
 #include <ImfTileDescription.h>
 #include <ImfTiledInputFile.h>
@@ -364,7 +368,9 @@ TEST(ExrFidelity, GraphErrorsAndInfo)
                              "data window        (0,0)-(31,191) 32x192",
                              "tiled 16x16, mipmap 8 levels, cube environment",
                              "deep samples:",
-                             "color@right"}) {
+                             "color@right",
+                             // another view's pass is mapped (and shown) as the chosen view's
+                             "motion_next@right <- forward.u, -forward.v (Nuke)"}) {
         EXPECT_NE(log.find(want), std::string::npos) << want << "\n" << log;
     }
 }
@@ -560,6 +566,95 @@ TEST(ExrFidelity, ViewsComeFromOneEye)
     const Frame sl = read_frame(sp, nullptr, 1);
     EXPECT_TRUE(sl.image("color@right").bit_equal(sr.image("color")));
     EXPECT_FALSE(sl.image("color").bit_equal(sr.image("color")));
+}
+
+/// Channel names of every part of `path`, through OpenEXR.
+std::vector<std::string> all_channel_names(const std::string &path)
+{
+    std::vector<std::string> names;
+    Imf::MultiPartInputFile in(path.c_str());
+    for (int p = 0; p < in.parts(); ++p) {
+        const Imf::ChannelList &cl = in.header(p).channels();
+        for (auto it = cl.begin(); it != cl.end(); ++it) {
+            names.push_back(it.name());
+        }
+    }
+    return names;
+}
+
+TEST(ExrFidelity, RebuiltLayoutsKeepTheViews)
+{
+    // A stereo file with a camera per view: the right view's parts look from 0.5 further right.
+    const std::string path = scratch() + "/stereo_cameras.exr";
+    const auto right_camera = [](glm::mat4 m) {
+        m[3][0] -= 0.5f;
+        return m;
+    };
+    {
+        Imf::MultiPartInputFile in(entry("stereo_multipart").path.c_str());
+        std::vector<Imf::Header> headers;
+        for (int p = 0; p < in.parts(); ++p) {
+            headers.push_back(in.header(p));
+            Imath::M44f m;  // the identity
+            m[3][2] = 4.0f;
+            if (headers.back().view() == "right") {
+                m[3][0] = -0.5f;
+            }
+            Imf::addWorldToCamera(headers.back(), m);
+        }
+        Imf::MultiPartOutputFile out(path.c_str(), headers.data(), int(headers.size()));
+        for (int p = 0; p < in.parts(); ++p) {
+            Imf::InputPart from(in, p);
+            Imf::OutputPart(out, p).copyPixels(from);
+        }
+    }
+    for (const char *source : {"stereo_cameras", "stereo_singlepart"}) {
+        const std::string in_path =
+            source == std::string("stereo_cameras") ? path : entry("stereo_singlepart").path;
+        for (const char *chosen : {"left", "right"}) {
+            ReadOptions pick;
+            pick.view = chosen;
+            const Frame f = read_frame(in_path, nullptr, 1, pick);
+            for (const ExrLayout layout : {ExrLayout::Single, ExrLayout::Multipart}) {
+                const bool single = layout == ExrLayout::Single;
+                SCOPED_TRACE(std::string(source) + ", read as " + chosen + ", " +
+                             (single ? "single" : "multipart"));
+                WriteOptions o;
+                o.layout = layout;
+                const std::string out = out_path(std::string("views_") + source + "_" + chosen +
+                                                 (single ? "_single" : "_multipart"));
+                write_exr(f, out, o);
+                // The views come back in the file's order, under OpenEXR's names (no "@").
+                const FileInfo info = read_file_info(out);
+                EXPECT_EQ(info.views, (std::vector<std::string>{"left", "right"}));
+                for (const std::string &n : all_channel_names(out)) {
+                    EXPECT_EQ(n.find('@'), std::string::npos) << n;
+                }
+                for (const char *view : {"left", "right"}) {
+                    ReadOptions v;
+                    v.view = view;
+                    const Frame a = read_frame(in_path, nullptr, 1, v);
+                    const Frame b = read_frame(out, nullptr, 1, v);
+                    for (const std::string pass : {"color", "depth"}) {
+                        ASSERT_TRUE(b.has(pass)) << view << " " << pass;
+                        EXPECT_TRUE(a.image(pass).bit_equal(b.image(pass))) << view << " " << pass;
+                    }
+                    // Each view's part keeps its view's camera where the layout has a part per
+                    // view; one part has one header, the chosen view's.
+                    if (in_path == path) {
+                        const std::string camera_view = single ? chosen : view;
+                        glm::mat4 want(1.0f);
+                        want[3][2] = 4.0f;
+                        if (camera_view == std::string("right")) {
+                            want = right_camera(want);
+                        }
+                        ASSERT_TRUE(b.camera.world_to_camera) << view;
+                        EXPECT_EQ(*b.camera.world_to_camera, want) << view;
+                    }
+                }
+            }
+        }
+    }
 }
 
 TEST(ExrFidelity, LuminanceChromaReadsAsRgb)
