@@ -72,6 +72,10 @@ void execute(NodeContext &ctx)
         return;
     }
     out.camera = filter::moved_camera(in.camera, shift, in.display_window, box.offset(dx, dy));
+    for (const auto &[view, camera] : in.view_cameras) {
+        out.view_cameras[view] =
+            filter::moved_camera(camera, shift, in.display_window, box.offset(dx, dy));
+    }
     out.display_window = box.offset(dx, dy);
     if (in.source && (dx != 0 || dy != 0)) {
         out.source = moved_source(*in.source, dx, dy);  // its parts' windows move too

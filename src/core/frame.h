@@ -71,6 +71,10 @@ class Frame {
     Rect data_window;
     /// The camera of the display window (NDC [0,1]^2 spans it, as stored in the file).
     Camera camera;
+    /// The other views' cameras, by view (a multi-part stereo file's: each view's first part's
+    /// header). Nodes that move pixels move them as `camera`; a write gives each view's parts
+    /// its own.
+    std::map<std::string, Camera> view_cameras;
     /// Header attributes other than the camera ones, carried through to outputs.
     OIIO::ParamValueList attributes;
     /// The file the passes came from, or null (rendered or computed frames).

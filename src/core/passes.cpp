@@ -79,7 +79,9 @@ std::vector<std::string> exr_channel_names(std::string_view pass,
     const CanonicalPass *canonical = find_canonical(pass);
     std::string layer = canonical ? std::string(canonical->layer) : std::string(pass);
     for (const std::string &s : suffixes) {
-        names.push_back(layer.empty() ? s : layer + "." + s);
+        // A one-channel pass named after its channel (a bare "Y" or "mask") keeps the bare name.
+        const bool bare = layer.empty() || (!canonical && suffixes.size() == 1 && s == layer);
+        names.push_back(bare ? s : layer + "." + s);
     }
     return names;
 }

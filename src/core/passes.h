@@ -58,7 +58,7 @@ std::span<const CanonicalPass> canonical_passes();
 /// The canonical pass called `name`, or nullptr.
 const CanonicalPass *find_canonical(std::string_view name);
 /// Full EXR channel names of a pass: canonical ones from the table ("N.X"), otherwise
-/// "<pass>.<suffix>" for each given suffix.
+/// "<pass>.<suffix>" for each given suffix (a one-channel pass named after its channel: bare).
 std::vector<std::string> exr_channel_names(std::string_view pass,
                                            const std::vector<std::string> &suffixes);
 

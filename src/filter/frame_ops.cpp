@@ -130,6 +130,9 @@ void warp_frame(const Frame &in, const FrameWarp &w, Frame &out)
     const glm::dmat2 linear(
         w.to_output[0][0], w.to_output[0][1], w.to_output[1][0], w.to_output[1][1]);
     out.camera = moved_camera(in.camera, w.to_output, in.display_window, w.display);
+    for (const auto &[view, camera] : in.view_cameras) {
+        out.view_cameras[view] = moved_camera(camera, w.to_output, in.display_window, w.display);
+    }
     out.data_window = w.window;
     out.display_window = w.display;
     for (const auto &[name, pass] : in.passes()) {

@@ -393,6 +393,18 @@ Frame read_frame(const std::string &path,
     frame.display_window = info.display_window;
     frame.data_window = window;
     frame.camera = info.camera;
+    for (const std::string &view : info.views) {
+        for (std::size_t p = 0; p < info.parts.size() && view != info.view; ++p) {
+            if (info.parts[p].view == view) {
+                Camera c;
+                read_camera(o.specs[p], c);
+                if (!(c == Camera{})) {
+                    frame.view_cameras[view] = c;
+                }
+                break;
+            }
+        }
+    }
     frame.attributes = info.attributes;
     const bool keep_layout = o.in && info.format == "openexr" && info.conversion.empty();
     std::shared_ptr<SourceFile> source;

@@ -11,7 +11,6 @@
 
 #include "core/error.h"
 #include "core/passes.h"
-#include "io/color.h"
 #include "io/io_detail.h"
 
 namespace posthaste::io_detail {
@@ -143,6 +142,50 @@ bool gray_from_one_channel(const Pass &p)
     return true;
 }
 
+/// The rows and columns of `cut` from samples of `size` bytes over `from` (row-major).
+std::shared_ptr<const std::vector<unsigned char>> slice_samples(
+    const std::vector<unsigned char> &samples, std::size_t size, const Rect &from, const Rect &cut)
+{
+    auto out = std::make_shared<std::vector<unsigned char>>(std::size_t(cut.width()) *
+                                                            std::size_t(cut.height()) * size);
+    const std::size_t row = std::size_t(cut.width()) * size;
+    for (int y = cut.y0; y < cut.y1; ++y) {
+        const std::size_t at =
+            (std::size_t(y - from.y0) * std::size_t(from.width()) + std::size_t(cut.x0 - from.x0)) *
+            size;
+        std::memcpy(out->data() + std::size_t(y - cut.y0) * row, samples.data() + at, row);
+    }
+    return out;
+}
+
+/// A channel written under a canonical name with storage "auto" keeps the pixel type of the
+/// file's channel it came from: half and float as they were, a uint id while it holds whole
+/// numbers (from the file's own samples where a float cannot hold them, over `window`).
+void set_source_type(OutChannel &c, const Pass &p, int k, const SourceFile &src, const Rect &window)
+{
+    const ChannelOrigin &o = p.origin[std::size_t(k)];
+    if (o.part < 0 || o.part >= int(src.parts.size())) {
+        return;
+    }
+    const SourcePart &sp = src.parts[std::size_t(o.part)];
+    const OIIO::TypeDesc file_type = sp.spec.channelformat(o.channel);
+    if (file_type.basetype == OIIO::TypeDesc::HALF || file_type.basetype == OIIO::TypeDesc::FLOAT) {
+        c.type = file_type;
+        return;
+    }
+    if (file_type.basetype != OIIO::TypeDesc::UINT || !holds_uints(*p.image, k, o)) {
+        return;
+    }
+    const auto raw = src.raw.find({o.part, o.channel});
+    if (raw == src.raw.end()) {
+        c.type = file_type;  // the floats hold the ids exactly
+    } else if (p.untouched() && window.intersect(sp.data_window()) == window) {
+        c.type = file_type;  // ids beyond 2^24: the file's own
+        c.raw_slice = slice_samples(*raw->second, file_type.size(), sp.data_window(), window);
+        c.raw = c.raw_slice.get();
+    }
+}
+
 /// Add the pass `name` to `part` under canonical channel names ("N.X"; with `view`, OpenEXR's
 /// single-part multi-view names "N.right.X"). `layer` names the channels: the pass's name, or
 /// for another view's pass ("N@right") its base name.
@@ -152,10 +195,12 @@ void add_canonical(OutPart &part,
                    const WriteOptions &options,
                    const std::string &view,
                    const std::string &path,
-                   const std::string &layer)
+                   const std::string &layer,
+                   const SourceFile *src)
 {
     PixelStorage s = asked_storage(name, p, options);
-    if (s == PixelStorage::Auto) {
+    const bool auto_storage = s == PixelStorage::Auto;
+    if (auto_storage) {
         s = default_storage(name);
     }
     std::vector<std::string> exr = pass::exr_channel_names(layer, p.channels);
@@ -179,6 +224,9 @@ void add_canonical(OutPart &part,
         OutChannel c;
         c.name = view.empty() ? exr[k] : with_view(exr[k], view);
         c.type = storage_type(s);
+        if (auto_storage && src && k < p.origin.size()) {
+            set_source_type(c, p, int(k), *src, part.data_window);
+        }
         c.pass = name;
         c.data_pass = is_data_pass(name);
         c.untouched = p.untouched();  // (what a stale preview is judged by; values as the pass)
@@ -226,13 +274,23 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
     const SourceFile *src = frame.source.get();
     const std::vector<std::string> no_views;
     const std::vector<std::string> &views = src ? src->views : no_views;
-    const auto view_of = [&](const std::string &name) {
+    // A pass's view: "N@right"'s, else the view of the part it came from (a multi-part file's
+    // part without a view stays without), else the chosen view.
+    const auto view_of = [&](const std::string &name, const Pass &p) {
         const auto at = name.find('@');
         if (at != std::string::npos &&
             std::find(views.begin(), views.end(), name.substr(at + 1)) != views.end()) {
             return name.substr(at + 1);
         }
-        return views.empty() ? std::string() : src->view;
+        if (views.empty()) {
+            return std::string();
+        }
+        for (const ChannelOrigin &o : p.origin) {
+            if (o.part >= 0 && o.part < int(src->parts.size()) && !src->single_part_views) {
+                return src->parts[std::size_t(o.part)].view;
+            }
+        }
+        return src->view;
     };
     std::vector<const char *> view_ptrs;
     for (const std::string &v : views) {
@@ -241,17 +299,22 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
     std::vector<OutPart> parts;
     for (const std::string &name : names) {
         const Pass &p = frame.pass(name, path);
-        const std::string view = view_of(name);
+        const std::string view = view_of(name, p);
         const std::string layer =
             view.empty() || view == src->view ? name : name.substr(0, name.find('@'));
         if (multipart || parts.empty()) {
             OutPart part;
             part.spec = fresh_spec(frame);
             part.data_window = frame.data_window;
-            part.view = view;
-            if (multipart && !view.empty() && view != src->view) {
+            // The view the part's header describes: its own, or one part's default view (the
+            // one whose channels are bare). Another view than the chosen one takes the header
+            // of that view's first part, and its camera (finish_specs).
+            part.view = multipart || views.empty() ? view : views[0];
+            if (!part.view.empty() && part.view != src->view) {
+                const std::string wanted = part.view;
+                part.view = src->view;  // a single-part source: its one header
                 for (const SourcePart &sp : src->parts) {
-                    if (sp.view == view) {  // that view's header, not the chosen view's camera
+                    if (sp.view == wanted) {
                         part.spec = OIIO::ImageSpec(1, 1, 1, OIIO::TypeDesc::FLOAT);
                         for (const OIIO::ParamValue &a : sp.spec.extra_attribs) {
                             if (!is_structural_attribute(a.name().string())) {
@@ -259,8 +322,15 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
                             }
                         }
                         part.header_source = &sp;
+                        part.view = wanted;
                         break;
                     }
+                }
+            }
+            for (const ChannelOrigin &o : p.origin) {
+                if (o.part >= 0 && o.part < int(src ? src->parts.size() : 0)) {
+                    part.compression_source = &src->parts[std::size_t(o.part)];
+                    break;
                 }
             }
             if (multipart) {
@@ -277,31 +347,11 @@ std::vector<OutPart> rebuilt_layout(const Frame &frame,
             }
             parts.push_back(std::move(part));
         }
-        const bool view_in_name = !multipart && !views.empty() && view != views[0];
-        add_canonical(parts.back(), name, p, options, view_in_name ? view : "", path, layer);
+        const bool view_in_name = !multipart && !view.empty() && view != views[0];
+        add_canonical(parts.back(), name, p, options, view_in_name ? view : "", path, layer, src);
     }
     return parts;
 }
-
-namespace {
-
-/// The rows and columns of `cut` from samples of `size` bytes over `from` (row-major).
-std::shared_ptr<const std::vector<unsigned char>> slice_samples(
-    const std::vector<unsigned char> &samples, std::size_t size, const Rect &from, const Rect &cut)
-{
-    auto out = std::make_shared<std::vector<unsigned char>>(std::size_t(cut.width()) *
-                                                            std::size_t(cut.height()) * size);
-    const std::size_t row = std::size_t(cut.width()) * size;
-    for (int y = cut.y0; y < cut.y1; ++y) {
-        const std::size_t at =
-            (std::size_t(y - from.y0) * std::size_t(from.width()) + std::size_t(cut.x0 - from.x0)) *
-            size;
-        std::memcpy(out->data() + std::size_t(y - cut.y0) * row, samples.data() + at, row);
-    }
-    return out;
-}
-
-}  // namespace
 
 std::vector<OutPart> source_layout(const Frame &frame,
                                    const std::vector<std::string> &names,
@@ -436,7 +486,7 @@ std::vector<OutPart> source_layout(const Frame &frame,
             part = &parts.back();
         }
         const bool view_in_name = src.single_part_views && !default_view && part->source;
-        add_canonical(*part, name, p, options, view_in_name ? src.view : "", path, name);
+        add_canonical(*part, name, p, options, view_in_name ? src.view : "", path, name, &src);
     }
     // Parts nothing is written to are left out.
     parts.erase(
@@ -444,138 +494,6 @@ std::vector<OutPart> source_layout(const Frame &frame,
             parts.begin(), parts.end(), [](const OutPart &p) { return p.channels.empty(); }),
         parts.end());
     return parts;
-}
-
-void finish_specs(std::vector<OutPart> &parts,
-                  const Frame &frame,
-                  const WriteOptions &options,
-                  const std::string &path)
-{
-    const SourceFile *src = frame.source.get();
-    // Attributes a node added or changed (compared with the source's chosen-view part).
-    OIIO::ParamValueList changed;
-    const OIIO::ImageSpec *first = nullptr;
-    const SourcePart *first_part = nullptr;
-    if (src) {
-        for (const SourcePart &sp : src->parts) {
-            if (sp.view == src->view) {
-                first = &sp.spec;
-                first_part = &sp;
-                break;
-            }
-        }
-        // A single-part multi-view file's one part has no view of its own: it is the part.
-        if (!first_part && !src->parts.empty()) {
-            first = &src->parts[0].spec;
-            first_part = &src->parts[0];
-        }
-    }
-    // And those it removed: the source's that the read put into the frame and the frame lacks.
-    std::vector<OIIO::ustring> removed;
-    if (first) {
-        for (const OIIO::ParamValue &p : first->extra_attribs) {
-            if (is_frame_attribute(p.name().string()) &&
-                !frame.attributes.find_pv(p.name().string(), OIIO::TypeUnknown, true)) {
-                removed.push_back(p.name());
-            }
-        }
-    }
-    for (const OIIO::ParamValue &p : frame.attributes) {
-        const OIIO::ParamValue *old = first ? first->find_attribute(p.name().string()) : nullptr;
-        if (!old || old->type() != p.type() || old->nvalues() != p.nvalues() ||
-            std::memcmp(old->data(), p.data(), p.type().size() * std::size_t(p.nvalues())) != 0) {
-            changed.push_back(p);
-        }
-    }
-    for (OutPart &part : parts) {
-        if (!part.header_source) {
-            part.header_source = part.source ? part.source : first_part;
-        }
-        OIIO::ImageSpec &spec = part.spec;
-        // A part the write builds anew keeps the picture's pixel aspect (a structural attribute
-        // the frame does not carry: a rebuilt layout wrote 0.5 for 2, from the densities).
-        if (!part.source && first && !spec.find_attribute("PixelAspectRatio")) {
-            if (const OIIO::ParamValue *par = first->find_attribute("PixelAspectRatio")) {
-                spec.extra_attribs.push_back(*par);
-            }
-        }
-        spec.nchannels = int(part.channels.size());
-        spec.channelnames.clear();
-        spec.channelformats.clear();
-        spec.alpha_channel = spec.z_channel = -1;
-        for (const OutChannel &c : part.channels) {
-            spec.channelnames.push_back(c.name);
-            spec.channelformats.push_back(c.type);
-        }
-        spec.format = part.channels[0].type;
-        spec.x = part.data_window.x0;
-        spec.y = part.data_window.y0;
-        spec.width = part.data_window.width();
-        spec.height = part.data_window.height();
-        spec.full_x = frame.display_window.x0;
-        spec.full_y = frame.display_window.y0;
-        spec.full_width = frame.display_window.width();
-        spec.full_height = frame.display_window.height();
-        spec.z = spec.full_z = 0;
-        spec.depth = spec.full_depth = 1;
-        if (spec.tile_width > 0) {
-            spec.tile_depth = 1;
-        }
-        std::string compression = options.compression;
-        if (compression == "auto") {
-            const std::string was =
-                part.source ? part.source->spec.get_string_attribute("compression") : "";
-            compression = was.empty() ? "piz" : is_lossy_compression(was) ? "zip" : was;
-        }
-        const std::string base = compression.substr(0, compression.find(':'));
-        if ((base == "dwaa" || base == "dwab" || base == "pxr24") && !options.allow_lossy_data) {
-            for (const OutChannel &c : part.channels) {
-                if (c.data_pass) {
-                    throw_usage(path,
-                                ": compression \"",
-                                compression,
-                                "\" is lossy on data pass \"",
-                                c.pass,
-                                "\"; choose a lossless compression or allow lossy data passes");
-                }
-            }
-        }
-        spec.attribute("compression", compression);
-        // Mip levels travel only with a part written whole and untouched.
-        part.copy_levels = false;
-        if (part.source && !part.cut && !part.source->levels.empty() &&
-            int(part.channels.size()) == part.source->spec.nchannels) {
-            part.copy_levels = true;
-            for (const OutChannel &c : part.channels) {
-                const int i = part.source->spec.channelindex(c.name);
-                part.copy_levels = part.copy_levels && i >= 0 && c.untouched &&
-                                   c.type == part.source->spec.channelformat(i);
-            }
-        }
-        part.make_levels =
-            !part.copy_levels && part.source && part.source->mip_levels > 1 && spec.tile_width > 0;
-        if (!part.copy_levels && !part.make_levels) {
-            spec.attribute("openexr:levelmode", 0);  // one level (OIIO would make textures MIP)
-        }
-        const bool chosen_view =
-            !src || (part.source ? part.source->view == src->view || part.source->view.empty()
-                                 : part.view.empty() || part.view == src->view);
-        if (chosen_view) {
-            write_camera(frame.camera, spec, src && part.source ? &src->camera : nullptr);
-            if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {
-                spec.attribute(attr::kFrameNumber, frame.number);
-            }
-        }
-        for (const OIIO::ParamValue &p : changed) {
-            spec.extra_attribs.remove(p.name());
-            spec.extra_attribs.push_back(p);
-        }
-        for (const OIIO::ustring &name : removed) {
-            spec.extra_attribs.remove(name);
-        }
-        spec.erase_attribute("oiio:subimages");
-        spec.erase_attribute("openexr:chunkCount");
-    }
 }
 
 }  // namespace posthaste::io_detail

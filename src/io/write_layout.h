@@ -40,6 +40,8 @@ struct OutPart {
     const SourcePart *source = nullptr;
     /// A rebuilt part's view ("" without views): another view's part keeps its own camera.
     std::string view;
+    /// A rebuilt part's first pass's source part: its compression is what "auto" keeps.
+    const SourcePart *compression_source = nullptr;
     /// The part whose OpenEXR attributes this one's header puts back as the file had them:
     /// `source`, or for a rebuilt layout the part the frame's passes came from.
     const SourcePart *header_source = nullptr;

@@ -16,6 +16,7 @@
 #include <ImfMultiPartOutputFile.h>
 #include <ImfOutputFile.h>
 #include <ImfOutputPart.h>
+#include <ImfPartType.h>
 #include <ImfStandardAttributes.h>
 #include <ImfStringAttribute.h>
 #include <ImfTileDescription.h>
@@ -582,32 +583,56 @@ std::vector<std::string> all_channel_names(const std::string &path)
     return names;
 }
 
-TEST(ExrFidelity, RebuiltLayoutsKeepTheViews)
+/// The world-to-camera matrix of a view of stereo_cameras(): the right eye 0.5 right of the left.
+glm::mat4 stereo_world_to_camera(const std::string &view)
 {
-    // A stereo file with a camera per view: the right view's parts look from 0.5 further right.
-    const std::string path = scratch() + "/stereo_cameras.exr";
-    const auto right_camera = [](glm::mat4 m) {
-        m[3][0] -= 0.5f;
-        return m;
-    };
-    {
+    glm::mat4 m(1.0f);
+    m[3][2] = 4.0f;
+    m[3][0] = view == "right" ? -0.5f : 0.0f;
+    return m;
+}
+
+/// The corpus's multi-part stereo file with a camera per view (stereo_world_to_camera and a
+/// worldToNDC of each), written once.
+const std::string &stereo_cameras()
+{
+    static const std::string kPath = [] {
+        const std::string path = scratch() + "/stereo_cameras.exr";
         Imf::MultiPartInputFile in(entry("stereo_multipart").path.c_str());
         std::vector<Imf::Header> headers;
         for (int p = 0; p < in.parts(); ++p) {
             headers.push_back(in.header(p));
-            Imath::M44f m;  // the identity
-            m[3][2] = 4.0f;
-            if (headers.back().view() == "right") {
-                m[3][0] = -0.5f;
+            const glm::mat4 w2c = stereo_world_to_camera(headers.back().view());
+            glm::mat4 proj(0.0f);  // a perspective frustum onto NDC [0,1]^2
+            proj[0][0] = 0.8f;
+            proj[1][1] = -1.0f;
+            proj[2][0] = proj[2][1] = 0.5f;
+            proj[2][3] = 1.0f;
+            proj[3][2] = -0.1f;
+            const glm::mat4 w2ndc = proj * w2c;
+            Imath::M44f a, b;  // Imath's [i][j] is GLM's [i][j]: the same memory
+            for (int i = 0; i < 4; ++i) {
+                for (int j = 0; j < 4; ++j) {
+                    a[i][j] = w2c[i][j];
+                    b[i][j] = w2ndc[i][j];
+                }
             }
-            Imf::addWorldToCamera(headers.back(), m);
+            Imf::addWorldToCamera(headers.back(), a);
+            Imf::addWorldToNDC(headers.back(), b);
         }
         Imf::MultiPartOutputFile out(path.c_str(), headers.data(), int(headers.size()));
         for (int p = 0; p < in.parts(); ++p) {
             Imf::InputPart from(in, p);
             Imf::OutputPart(out, p).copyPixels(from);
         }
-    }
+        return path;
+    }();
+    return kPath;
+}
+
+TEST(ExrFidelity, RebuiltLayoutsKeepTheViews)
+{
+    const std::string path = stereo_cameras();
     for (const char *source : {"stereo_cameras", "stereo_singlepart"}) {
         const std::string in_path =
             source == std::string("stereo_cameras") ? path : entry("stereo_singlepart").path;
@@ -640,20 +665,47 @@ TEST(ExrFidelity, RebuiltLayoutsKeepTheViews)
                         EXPECT_TRUE(a.image(pass).bit_equal(b.image(pass))) << view << " " << pass;
                     }
                     // Each view's part keeps its view's camera where the layout has a part per
-                    // view; one part has one header, the chosen view's.
+                    // view; one part has one header, its default view's (the bare channels').
                     if (in_path == path) {
-                        const std::string camera_view = single ? chosen : view;
-                        glm::mat4 want(1.0f);
-                        want[3][2] = 4.0f;
-                        if (camera_view == std::string("right")) {
-                            want = right_camera(want);
-                        }
+                        const std::string camera_view = single ? "left" : view;
                         ASSERT_TRUE(b.camera.world_to_camera) << view;
-                        EXPECT_EQ(*b.camera.world_to_camera, want) << view;
+                        EXPECT_EQ(*b.camera.world_to_camera, stereo_world_to_camera(camera_view))
+                            << view;
                     }
                 }
             }
         }
+    }
+}
+
+// A node that moves pixels moves every view's camera: the left frame's right camera after the
+// node is the camera the node gives the right frame, and a write puts it into the right parts.
+TEST(ExrFidelity, GeometryNodesMoveEveryViewsCamera)
+{
+    const std::string &path = stereo_cameras();
+    ReadOptions right;
+    right.view = "right";
+    const Frame l = read_frame(path, nullptr, 1);
+    const Frame r = read_frame(path, nullptr, 1, right);
+    ASSERT_EQ(l.view_cameras.count("right"), 1u);
+    EXPECT_EQ(l.view_cameras.at("right"), r.camera);
+    const std::pair<const char *, const char *> cases[] = {
+        {"transform", R"({"scale": 2, "translate_x": 3})"},
+        {"transform", R"({"rotate": 30, "filter": "nearest"})"},
+        {"crop", R"({"box": [4, 2, 20, 16], "reformat": true})"},
+        {"crop", R"({"box": [-8, 0, 40, 24], "crop_data": false})"}};
+    for (const auto &[node, params] : cases) {
+        SCOPED_TRACE(std::string(node) + " " + params);
+        const Frame lo = test::run_node(node, l, params);
+        const Frame ro = test::run_node(node, r, params);
+        ASSERT_TRUE(lo.camera.world_to_ndc && l.camera.world_to_ndc);
+        EXPECT_NE(*lo.camera.world_to_ndc, *l.camera.world_to_ndc);  // the node moved it
+        ASSERT_EQ(lo.view_cameras.count("right"), 1u);
+        EXPECT_EQ(lo.view_cameras.at("right"), ro.camera);
+        const std::string out = out_path(std::string("views_moved_") + node);
+        write_exr(lo, out, {});
+        EXPECT_EQ(read_frame(out, nullptr, 1, right).camera, ro.camera);
+        EXPECT_EQ(read_frame(out, nullptr, 1).camera, lo.camera);
     }
 }
 
@@ -902,6 +954,85 @@ TEST(ExrFidelity, LensKeepsTheFilesLayout)
             }
             EXPECT_EQ(part_layout(path), expected);
         }
+    }
+}
+
+// A rebuilt layout names channels anew, but storage "auto" keeps each channel's pixel type
+// (half masks and colour, a uint id) and compression "auto" the source part's (they went out
+// as float, and as piz); a part without a view stays without one whichever view is read.
+TEST(ExrFidelity, RebuiltLayoutsKeepTypesCompressionAndViewlessParts)
+{
+    const auto compressions = [](const std::string &path) {
+        std::set<int> out;
+        Imf::MultiPartInputFile in(path.c_str());
+        for (int p = 0; p < in.parts(); ++p) {
+            out.insert(int(in.header(p).compression()));
+        }
+        return out;
+    };
+    for (const ExrLayout layout : {ExrLayout::Single, ExrLayout::Multipart}) {
+        const bool single = layout == ExrLayout::Single;
+        WriteOptions o;
+        o.layout = layout;
+        const std::string mixed = out_path(single ? "types_single" : "types_multipart");
+        write_exr(read_frame(entry("types_mixed").path, nullptr, 1), mixed, o);
+        const std::vector<std::string> want =
+            single ? std::vector<std::string>{": B/1 G/1 R/1 Z/2 id/0"}
+                   : std::vector<std::string>{": B/1 G/1 R/1", ": Z/2", ": id/0"};
+        EXPECT_EQ(part_layout(mixed), want);
+        EXPECT_EQ(compressions(mixed), compressions(entry("types_mixed").path));
+    }
+    // The stereo file with a part "matte" that has no view.
+    const std::string path = scratch() + "/stereo_matte.exr";
+    {
+        Imf::MultiPartInputFile in(entry("stereo_multipart").path.c_str());
+        std::vector<Imf::Header> headers;
+        for (int p = 0; p < in.parts(); ++p) {
+            headers.push_back(in.header(p));
+        }
+        Imf::Header matte(headers[0].displayWindow(), headers[0].dataWindow());
+        matte.channels().insert("Y", Imf::Channel(Imf::HALF));
+        matte.setName("matte");
+        matte.setType(Imf::SCANLINEIMAGE);
+        headers.push_back(matte);
+        Imf::MultiPartOutputFile out(path.c_str(), headers.data(), int(headers.size()));
+        for (int p = 0; p < in.parts(); ++p) {
+            Imf::InputPart from(in, p);
+            Imf::OutputPart(out, p).copyPixels(from);
+        }
+        const Imath::Box2i dw = matte.dataWindow();
+        const int w = dw.max.x - dw.min.x + 1, h = dw.max.y - dw.min.y + 1;
+        std::vector<half> y(std::size_t(w) * std::size_t(h), half(0.75f));
+        Imf::FrameBuffer fb;
+        fb.insert("Y",
+                  Imf::Slice(Imf::HALF,
+                             reinterpret_cast<char *>(y.data() - dw.min.x - dw.min.y * w),
+                             sizeof(half),
+                             sizeof(half) * std::size_t(w)));
+        Imf::OutputPart part(out, int(headers.size()) - 1);
+        part.setFrameBuffer(fb);
+        part.writePixels(h);
+    }
+    for (const char *chosen : {"left", "right"}) {
+        ReadOptions pick;
+        pick.view = chosen;
+        WriteOptions o;
+        o.layout = ExrLayout::Multipart;
+        const std::string out = out_path(std::string("matte_") + chosen);
+        write_exr(read_frame(path, nullptr, 1, pick), out, o);
+        std::vector<std::string> layout = part_layout(out);
+        std::sort(layout.begin(), layout.end());
+        EXPECT_EQ(layout,
+                  (std::vector<std::string>{": Y/1",
+                                            "left: A/1 B/1 G/1 R/1",
+                                            "left: Z/2",
+                                            "left: motion_next.X/2 motion_next.Y/2",
+                                            "left: whitebarmask.mask/1",
+                                            "right: A/1 B/1 G/1 R/1",
+                                            "right: Z/2",
+                                            "right: motion_next.X/2 motion_next.Y/2",
+                                            "right: whitebarmask.mask/1"}))
+            << chosen;
     }
 }
 
