@@ -1,7 +1,8 @@
 // nodes/channels.cpp: select, rename and shuffle passes. Applied in this order:
 //   copy:   {"new_pass": ["color.R", "depth.Z", "1"]}  builds a pass from channels of existing
 //           passes (or constants), or {"new_pass": "old_pass"} copies a whole pass;
-//   rename: {"old": "new"};   remove: "a,b";   keep: "a,b" or "*".
+//   rename: {"old": "new"} (all at once: {"a": "b", "b": "a"} swaps);   remove: "a,b";
+//   keep: "a,b" or "*".
 // Asks its input only for the passes that the result needs.
 
 #include <algorithm>
@@ -19,7 +20,9 @@ constexpr ParamSpec kCopy =
         .doc(
             "New passes from channels: {\"name\": [\"pass.channel\" or a number, ...]} or "
             "{\"name\": \"pass\"}.");
-constexpr ParamSpec kRename = ParamSpec::json("rename", "{}").doc("Renames: {\"old\": \"new\"}.");
+constexpr ParamSpec kRename =
+    ParamSpec::json("rename", "{}")
+        .doc("Renames: {\"old\": \"new\"}, all at once ({\"a\": \"b\", \"b\": \"a\"} swaps).");
 constexpr ParamSpec kRemove = ParamSpec::string("remove", "").doc("Passes to drop (comma list).");
 constexpr ParamSpec kKeep =
     ParamSpec::string("keep", "*").doc("Passes to keep (comma list), * for all.");
@@ -93,7 +96,22 @@ Ops parse_ops(const NodeParams &params, const NodeIdentity &node)
             throw_usage(
                 where, "/rename/", it.key(), ": ", node.describe(), ": expected a new pass name");
         }
-        ops.renames.emplace_back(it.key(), it.value().get<std::string>());
+        const std::string to = it.value().get<std::string>();
+        for (const auto &[other, target] : ops.renames) {
+            if (target == to) {
+                throw_usage(where,
+                            "/rename/",
+                            it.key(),
+                            ": ",
+                            node.describe(),
+                            ": \"",
+                            other,
+                            "\" is renamed \"",
+                            to,
+                            "\" too");
+            }
+        }
+        ops.renames.emplace_back(it.key(), to);
     }
     fill_into(ops, params, std::span<const Binding<Ops>>(kOpsFields));
     const std::string keep = params.get_string(kKeep);
@@ -192,8 +210,19 @@ void execute(NodeContext &ctx)
         }
         out.set(c.target, std::make_shared<const Image>(std::move(img)), names);
     }
+    // Renames happen at once, as one shuffle: {"color": "color@right", "color@right": "color"}
+    // swaps the two (one after the other, the second found the first's result and an eye was
+    // lost).
+    std::vector<Pass> renaming;
     for (const auto &[from, to] : ops.renames) {
-        const Pass p = out.pass(from, ctx.where());
+        renaming.push_back(out.pass(from, ctx.where()));
+    }
+    for (const auto &[from, to] : ops.renames) {
+        out.erase(from);
+    }
+    for (std::size_t r = 0; r < ops.renames.size(); ++r) {
+        const auto &[from, to] = ops.renames[r];
+        const Pass &p = renaming[r];
         if (to == pass::kDepth && p.channels.size() != 1) {
             // depth's channel is the file's bare Z: four channels under it read back as colour.
             throw_runtime(ctx.where(),
@@ -219,7 +248,6 @@ void execute(NodeContext &ctx)
                                           to,
                                           "\" the frame had"));
         }
-        out.erase(from);
         // A canonical name brings its channel names where the channel count is the canonical
         // pass's; otherwise the pass keeps its own (a 3-channel normal renamed "ao" stays
         // X, Y, Z rather than turning into bare indices).
@@ -268,15 +296,19 @@ void plan(PlanContext &ctx)
     for (const std::string &r : ops.removes) {
         need.remove(r);
     }
-    for (auto it = ops.renames.rbegin(); it != ops.renames.rend(); ++it) {
-        if (need.all) {
-            break;
+    if (!need.all) {  // the renames at once: a wanted new name asks for its old one
+        std::vector<std::string> wanted;
+        for (const auto &[from, to] : ops.renames) {
+            if (need.names.count(to)) {
+                wanted.push_back(from);
+            }
         }
-        const bool wanted = need.names.count(it->second) != 0;
-        need.remove(it->second);
-        need.remove(it->first);
-        if (wanted) {
-            need.add(it->first);
+        for (const auto &[from, to] : ops.renames) {
+            need.remove(to);
+            need.remove(from);
+        }
+        for (const std::string &from : wanted) {
+            need.add(from);
         }
     }
     for (auto it = ops.copies.rbegin(); it != ops.copies.rend(); ++it) {

@@ -527,6 +527,51 @@ TEST(GraphNodes, ChannelsRenameOntoAPassSaysSoAndKeepsChannelNames)
     EXPECT_EQ(f.pass("ao").channels, (std::vector<std::string>{"X", "Y", "Z"}));
 }
 
+// Renames happen at once: {"albedo": "color", "color": "albedo"} swaps the two passes (one
+// after the other, the second rename found the first's result and colour was lost), asks its
+// input for both when only one is wanted downstream, and says nothing of replacing a pass.
+// Two passes renamed to one name is a usage error naming both.
+TEST(GraphNodes, ChannelsRenamesSwapAtOnce)
+{
+    const std::string dir = prepare_inputs("channels_swap", 4, 4);
+    const Frame in = read_frame(dir + "/in.2.exr", nullptr, 2);
+    const auto graph = [&](const std::string &rename, const std::string &passes) {
+        return R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" +
+               dir + R"(/in.#.exr"}},
+        {"id": "sh", "type": "channels", "inputs": {"image": "src"},
+         "params": {"rename": )" +
+               rename + R"(}},
+        {"id": "o", "type": "write", "inputs": {"image": "sh"}, "params": {"path": ")" +
+               dir + R"(/x.#.exr", "passes": ")" + passes + R"("}}]})";
+    };
+    Graph g = Graph::parse(
+        graph(R"({"albedo": "color", "color": "albedo"})", "color"), "g.json", nodes::catalog());
+    g.set_capture("sh");
+    testing::internal::CaptureStderr();
+    const Frame f = g.evaluate(2);
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(err.find("replaces the pass"), std::string::npos) << err;
+    ASSERT_FALSE(in.image("albedo").bit_equal(in.image("color")));
+    EXPECT_TRUE(f.image("color").bit_equal(in.image("albedo")));
+    EXPECT_TRUE(f.image("albedo").bit_equal(in.image("color")));
+    // The write asked for colour alone: the read still gave albedo for it.
+    const Frame out = read_frame(dir + "/x.2.exr", nullptr, 2);
+    for (int c = 0; c < 3; ++c) {  // (the reader gives colour an alpha of 1)
+        EXPECT_EQ(out.image("color").at(1, 2, c), in.image("albedo").at(1, 2, c)) << c;
+    }
+    EXPECT_NE(out.image("color").at(1, 2, 0), in.image("color").at(1, 2, 0));
+    try {
+        Graph::parse(graph(R"({"albedo": "x", "normal": "x"})", "x"), "g.json", nodes::catalog());
+        ADD_FAILURE() << "two renames to one name were accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find(R"(rename/normal: node "sh" (channels): "albedo" is)"
+                                             R"( renamed "x" too)"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 // A write whose half storage turns finite values into infinity says so once a run, naming
 // itself and the channels (20 stops on the inputs' colours of 0.25 and more is 262144 and more,
 // beyond half's 65504).
