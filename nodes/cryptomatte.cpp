@@ -5,15 +5,16 @@
 // and passes: the node asks its source for them by a "cryptomatte:<layer>" request, which a
 // read resolves against the file's header.
 
+#include "io/cryptomatte.h"
+
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
-#include <cctype>
 #include <cstring>
 #include <deque>
 #include <nlohmann/json.hpp>
 
-#include "io/cryptomatte.h"
 #include "io/source_file.h"
 #include "nodes/node.h"
 
@@ -26,10 +27,13 @@ constexpr ParamSpec kLayer =
             "The cryptomatte, by type name (CryptoObject, CryptoMaterial, CryptoAsset or any "
             "other; Blender's ViewLayer.CryptoObject answers to CryptoObject); empty: the frame's "
             "only one.");
-constexpr ParamSpec kMatte = ParamSpec::json("matte", "[]").doc(
-    "The names keyed: a list of strings, each a name, a pattern with * (any run) and ? (one "
-    "character; \\ makes the next character literal), or an ID: <8 hex digits> (the manifest's "
-    "value, 0x optional) or <float>.");
+constexpr ParamSpec kMatte = ParamSpec::json("matte", "[]")
+                                 .doc(
+                                     "The names keyed: a list of strings, each a name, a pattern "
+                                     "with * (any run) and ? (one "
+                                     "character; \\ makes the next character literal), or an ID: "
+                                     "<8 hex digits> (the manifest's "
+                                     "value, 0x optional) or <float>.");
 constexpr ParamSpec kOutput =
     ParamSpec::choice("output", "matte|alpha|keyed", "matte")
         .doc(
@@ -62,7 +66,10 @@ constexpr Binding<KeySettings> kFields[] = {
 using Output = KeySettings::Output;
 
 constexpr PortSpec kInputs[] = {
-    {"image", "", false, "A frame with a cryptomatte: its header and rank layers (<name>00, ...)."}};
+    {"image",
+     "",
+     false,
+     "A frame with a cryptomatte: its header and rank layers (<name>00, ...)."}};
 
 /// The matte list as given (checked in check()).
 std::vector<std::string> entries_of(const NodeParams &p)
@@ -83,16 +90,18 @@ bool id_entry(const std::string &e, float &id)
     const std::string inner = e.substr(1, e.size() - 2);
     char *end = nullptr;
     // The manifest's form: 8 hex digits (with or without 0x) are the ID's bits.
-    const bool prefixed = inner.size() == 10 && inner[0] == '0' && (inner[1] == 'x' || inner[1] == 'X');
-    if (prefixed || (inner.size() == 8 &&
-                     inner.find_first_not_of("0123456789abcdefABCDEF") == std::string::npos)) {
-        const unsigned long bits = std::strtoul(inner.c_str() + (prefixed ? 2 : 0), &end, 16);
-        if (*end != '\0') {
-            return false;
-        }
-        const std::uint32_t b = std::uint32_t(bits);
+    const bool prefixed =
+        inner.size() == 10 && inner[0] == '0' && (inner[1] == 'x' || inner[1] == 'X');
+    const std::string digits = prefixed ? inner.substr(2) : inner;
+    if (digits.size() == 8 &&
+        digits.find_first_not_of("0123456789abcdefABCDEF") == std::string::npos) {
+        const std::uint32_t b = std::uint32_t(std::strtoul(digits.c_str(), &end, 16));
         std::memcpy(&id, &b, sizeof(id));
         return true;
+    }
+    // Else a decimal float ("1.5e-12", "-3"): no spaces, no hexadecimal floats.
+    if (inner.find_first_not_of("0123456789.eE+-") != std::string::npos) {
+        return false;
     }
     id = std::strtof(inner.c_str(), &end);
     return end != inner.c_str() && *end == '\0' && std::isfinite(id);
@@ -124,19 +133,37 @@ const cryptomatte::Layer &choose_layer(const std::vector<cryptomatte::Layer> &la
         have += (have.empty() ? "" : ", ") + l.name;
     }
     if (layers.empty()) {
-        throw_runtime(where, ": the frame's header declares no cryptomatte (cryptomatte/<key>/name)");
+        throw_runtime(where,
+                      ": the frame's header declares no cryptomatte (cryptomatte/<key>/name)");
     }
     if (type.empty()) {
         if (layers.size() > 1) {
-            throw_runtime(where, ": the frame has ", layers.size(), " cryptomattes (", have,
-                          "): give layer");
+            throw_runtime(
+                where, ": the frame has ", layers.size(), " cryptomattes (", have, "): give layer");
         }
         return layers.front();
     }
+    // The cryptomatte of exactly that name, else the one whose name ends in it after a view
+    // layer's prefix; two such are ambiguous.
+    std::vector<const cryptomatte::Layer *> by_suffix;
+    std::string matching;
     for (const cryptomatte::Layer &l : layers) {
-        if (l.is(type)) {
+        if (l.name.empty()) {
+            continue;  // (a declaration without a name: its problem is said where it is used)
+        }
+        if (l.name == type) {
             return l;
         }
+        if (l.is(type)) {
+            by_suffix.push_back(&l);
+            matching += (matching.empty() ? "" : ", ") + l.name;
+        }
+    }
+    if (by_suffix.size() > 1) {
+        throw_runtime(where, ": layer \"", type, "\" names ", matching, ": give the whole name");
+    }
+    if (!by_suffix.empty()) {
+        return *by_suffix.front();
     }
     throw_runtime(where, ": no cryptomatte \"", type, "\" in the frame (have: ", have, ")");
 }
@@ -173,7 +200,21 @@ std::vector<std::uint32_t> keyed_ids(NodeContext &ctx,
                                       "\"");
             }
         } else {
-            ids.push_back(cryptomatte::bits_of(cryptomatte::id_of(cryptomatte::unescape(e))));
+            const std::string name = cryptomatte::unescape(e);
+            ids.push_back(cryptomatte::bits_of(cryptomatte::id_of(name)));
+            const auto in_manifest =
+                std::lower_bound(layer.manifest.begin(),
+                                 layer.manifest.end(),
+                                 name,
+                                 [](const std::pair<std::string, float> &a, const std::string &n) {
+                                     return a.first < n;
+                                 });
+            if (layer.has_manifest &&
+                (in_manifest == layer.manifest.end() || in_manifest->first != name)) {
+                ctx.state().note_once(ctx.node().describe() + ": matte entry \"" + e +
+                                      "\" is no name in the manifest of \"" + layer.name +
+                                      "\" (keyed by its hash all the same)");
+            }
         }
     }
     std::sort(ids.begin(), ids.end());
@@ -283,6 +324,9 @@ void execute(NodeContext &ctx)
     }
     const KeySettings ks = fill(ctx.params(), kFields);
     const cryptomatte::Layer &layer = choose_layer(layers, ks.layer, where);
+    if (!layer.problem.empty()) {
+        throw_runtime(where, ": ", layer.problem);
+    }
     const std::vector<std::string> rank_names =
         cryptomatte::rank_passes(layer, in.pass_names(), where);
     if (rank_names.empty()) {
@@ -298,11 +342,17 @@ void execute(NodeContext &ctx)
     for (const std::string &name : rank_names) {
         const Pass &p = in.pass(name, where);
         if (p.image->channels() != 4) {
-            throw_runtime(where, ": rank layer \"", name, "\" has ", p.image->channels(),
+            throw_runtime(where,
+                          ": rank layer \"",
+                          name,
+                          "\" has ",
+                          p.image->channels(),
                           " channels, expected 4 (id, coverage, id, coverage)");
         }
         if (p.storage == PixelStorage::Half || stored_as_half(in, p)) {
-            throw_runtime(where, ": rank layer \"", name,
+            throw_runtime(where,
+                          ": rank layer \"",
+                          name,
                           "\" holds its IDs as half floats, which cannot hold a 32-bit hash "
                           "(write cryptomatte layers as float)");
         }
@@ -310,9 +360,11 @@ void execute(NodeContext &ctx)
         int order[4] = {0, 1, 2, 3};
         bool named = p.channels.size() == 4, identity = true;
         for (int c = 0; named && c < 4; ++c) {
-            const auto it = std::find_if(p.channels.begin(), p.channels.end(), [&](const std::string &n) {
-                return n.size() == 1 && std::toupper(static_cast<unsigned char>(n[0])) == "RGBA"[c];
-            });
+            const auto it =
+                std::find_if(p.channels.begin(), p.channels.end(), [&](const std::string &n) {
+                    return n.size() == 1 &&
+                           std::toupper(static_cast<unsigned char>(n[0])) == "RGBA"[c];
+                });
             named = it != p.channels.end();
             order[c] = named ? int(it - p.channels.begin()) : c;
             identity = identity && order[c] == c;
@@ -335,8 +387,8 @@ void execute(NodeContext &ctx)
     Image matte = matte_of(ranks, ids, in.width(), in.height());
     const Output output = ks.output;
     if (ks.preview) {
-        ctx.output().set("cryptomatte_preview", preview_of(ranks, in.width(), in.height()),
-                         {"R", "G", "B"});
+        ctx.output().set(
+            "cryptomatte_preview", preview_of(ranks, in.width(), in.height()), {"R", "G", "B"});
     }
     if (output == Output::Matte) {
         ctx.output().set(ks.pass, std::move(matte), {"A"});
@@ -344,7 +396,10 @@ void execute(NodeContext &ctx)
     }
     const Pass &cp = in.pass(pass::kColor, where);
     const Image &color = *cp.image;
-    const int nc = output == Output::Alpha ? std::max(color.channels(), 4) : color.channels();
+    // Alpha is a colour's fourth channel, or the second of a gray one (Y, A).
+    const int alpha = color.channels() <= 2 ? 1 : 3;
+    const int nc =
+        output == Output::Alpha ? std::max(color.channels(), alpha + 1) : color.channels();
     Image out = Image::uninitialized(color.width(), color.height(), nc);
     parallel_for(0, out.height(), [&](int y) {
         for (int x = 0; x < out.width(); ++x) {
@@ -353,7 +408,7 @@ void execute(NodeContext &ctx)
             float *d = out.pixel(x, y);
             for (int c = 0; c < nc; ++c) {
                 const float v = c < color.channels() ? s[c] : 1.0f;
-                d[c] = output == Output::Keyed ? v * m : (c == 3 ? m : v);
+                d[c] = output == Output::Keyed ? v * m : (c == alpha ? m : v);
             }
         }
     });
@@ -361,8 +416,8 @@ void execute(NodeContext &ctx)
     if (int(channels.size()) < nc) {
         channels.push_back("A");
     }
-    ctx.output().set(pass::kColor, std::make_shared<const Image>(std::move(out)), channels,
-                     cp.storage);
+    ctx.output().set(
+        pass::kColor, std::make_shared<const Image>(std::move(out)), channels, cp.storage);
 }
 
 void plan(PlanContext &ctx)
@@ -386,8 +441,7 @@ void check(CheckContext &ctx)
         throw_param_expected(ctx, kMatte, "a list of names", ctx.params.get_json(kMatte));
     }
     if (!j.is_array() || j.empty()) {
-        throw_param_expected(ctx, kMatte, "a non-empty list of names, patterns or <ID>s",
-                             j.dump());
+        throw_param_expected(ctx, kMatte, "a non-empty list of names, patterns or <ID>s", j.dump());
     }
     for (const auto &e : j) {
         float id = 0.0f;

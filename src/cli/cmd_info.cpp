@@ -186,6 +186,10 @@ int info(const std::vector<std::string> &files, const std::string &convention)
                 pass_names.push_back(ps.pass);
             }
             for (const cryptomatte::Layer &l : cryptomatte::find_layers(fi.attributes, fi.path)) {
+                if (!l.problem.empty()) {
+                    std::printf("cryptomatte        invalid: %s\n", l.problem.c_str());
+                    continue;
+                }
                 const std::vector<std::string> ranks =
                     cryptomatte::rank_passes(l, pass_names, fi.path);
                 std::string manifest = "no manifest";

@@ -35,8 +35,8 @@ bool Layer::is(std::string_view type) const
     if (name == type) {
         return true;
     }
-    return name.size() > type.size() && name.compare(name.size() - type.size(), type.size(),
-                                                      type) == 0 &&
+    return name.size() > type.size() &&
+           name.compare(name.size() - type.size(), type.size(), type) == 0 &&
            name[name.size() - type.size() - 1] == '.';
 }
 
@@ -58,7 +58,8 @@ std::vector<std::pair<std::string, float>> parse_manifest(const std::string &tex
     std::vector<std::pair<std::string, float>> out;
     for (auto it = j.begin(); it != j.end(); ++it) {
         const std::string hex = it.value().is_string() ? it.value().get<std::string>() : "";
-        if (hex.size() != 8 || hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos) {
+        if (hex.size() != 8 ||
+            hex.find_first_not_of("0123456789abcdefABCDEF") != std::string::npos) {
             throw_runtime(what,
                           ": manifest entry \"",
                           it.key(),
@@ -74,9 +75,53 @@ std::vector<std::pair<std::string, float>> parse_manifest(const std::string &tex
     return out;
 }
 
+/// Throws what breaks the specification in the declaration of `l` (fields by name); fills its
+/// manifest.
+void check_declaration(Layer &l,
+                       const std::map<std::string, std::string> &fields,
+                       const std::string &what,
+                       const std::string &image_path)
+{
+    const auto field = [&](const char *f) {
+        const auto it = fields.find(f);
+        return it == fields.end() ? std::string() : it->second;
+    };
+    const std::string &key = l.key;
+    if (l.name.empty()) {
+        throw_runtime(what, ": the header has no cryptomatte/", key, "/name");
+    }
+    if (field("hash") != "MurmurHash3_32") {
+        throw_runtime(what, ": hash \"", field("hash"), "\" (only MurmurHash3_32 is specified)");
+    }
+    if (field("conversion") != "uint32_to_float32") {
+        throw_runtime(what,
+                      ": conversion \"",
+                      field("conversion"),
+                      "\" (only uint32_to_float32 is specified)");
+    }
+    if (fields.count("manifest")) {
+        l.manifest = parse_manifest(field("manifest"), what);
+        l.has_manifest = true;
+        l.manifest_from = "header";
+    } else if (fields.count("manif_file")) {
+        const std::filesystem::path sidecar =
+            std::filesystem::path(image_path).parent_path() / field("manif_file");
+        std::ifstream in(sidecar);
+        if (!in) {
+            throw_runtime(what, ": cannot read its manifest file ", sidecar.string());
+        }
+        std::stringstream text;
+        text << in.rdbuf();
+        l.manifest = parse_manifest(text.str(), what + " (" + sidecar.string() + ")");
+        l.has_manifest = true;
+        l.manifest_from = sidecar.string();
+    }
+}
+
 }  // namespace
 
-std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes, const std::string &image_path)
+std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes,
+                               const std::string &image_path)
 {
     // cryptomatte/<key>/<field>, grouped by key.
     std::map<std::string, std::map<std::string, std::string>> by_key;
@@ -96,46 +141,19 @@ std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes, const std
     for (const auto &entry : by_key) {
         const std::string &key = entry.first;
         const std::map<std::string, std::string> &fields = entry.second;
-        const auto field = [&](const char *f) {
-            const auto it = fields.find(f);
-            return it == fields.end() ? std::string() : it->second;
-        };
         Layer l;
         l.key = key;
-        l.name = field("name");
+        l.name = fields.count("name") ? fields.at("name") : std::string();
         const std::string what =
             image_path + ": cryptomatte \"" + (l.name.empty() ? key : l.name) + "\"";
-        if (l.name.empty()) {
-            throw_runtime(what, ": the header has no cryptomatte/", key, "/name");
-        }
-        if (field("hash") != "MurmurHash3_32") {
-            throw_runtime(what,
-                          ": hash \"",
-                          field("hash"),
-                          "\" (only MurmurHash3_32 is specified)");
-        }
-        if (field("conversion") != "uint32_to_float32") {
-            throw_runtime(what,
-                          ": conversion \"",
-                          field("conversion"),
-                          "\" (only uint32_to_float32 is specified)");
-        }
-        if (fields.count("manifest")) {
-            l.manifest = parse_manifest(field("manifest"), what);
-            l.has_manifest = true;
-            l.manifest_from = "header";
-        } else if (fields.count("manif_file")) {
-            const std::filesystem::path sidecar =
-                std::filesystem::path(image_path).parent_path() / field("manif_file");
-            std::ifstream in(sidecar);
-            if (!in) {
-                throw_runtime(what, ": cannot read its manifest file ", sidecar.string());
-            }
-            std::stringstream text;
-            text << in.rdbuf();
-            l.manifest = parse_manifest(text.str(), what + " (" + sidecar.string() + ")");
-            l.has_manifest = true;
-            l.manifest_from = sidecar.string();
+        try {
+            check_declaration(l, fields, what, image_path);
+        } catch (const Error &e) {
+            // Kept with its problem: it is an error where this cryptomatte is used, and no
+            // hindrance to the file's others.
+            l.problem = e.what();
+            l.manifest.clear();
+            l.has_manifest = false;
         }
         layers.push_back(std::move(l));
     }
@@ -179,9 +197,30 @@ std::vector<std::string> rank_passes(const Layer &layer,
     return out;
 }
 
+namespace {
+
+/// The bytes of the UTF-8 character at name[n] (1 for a byte that starts none).
+std::size_t char_bytes(std::string_view name, std::size_t n)
+{
+    const unsigned char c = static_cast<unsigned char>(name[n]);
+    std::size_t len = c >= 0xf0 && c < 0xf8 ? 4 : c >= 0xe0 ? 3 : c >= 0xc0 ? 2 : 1;
+    if (c >= 0xf8) {
+        len = 1;
+    }
+    for (std::size_t k = 1; k < len; ++k) {
+        if (n + k >= name.size() || (static_cast<unsigned char>(name[n + k]) & 0xc0) != 0x80) {
+            return 1;  // not well formed: a byte is a character
+        }
+    }
+    return len;
+}
+
+}  // namespace
+
 bool name_matches(std::string_view pattern, std::string_view name)
 {
-    // Iterative glob with one backtrack point (the last `*`).
+    // Iterative glob with one backtrack point (the last `*`), by UTF-8 characters: `?` matches
+    // "ü" (two bytes), and a `*` never ends inside a character.
     std::size_t p = 0, n = 0, star_p = std::string_view::npos, star_n = 0;
     while (n < name.size()) {
         if (p < pattern.size() && pattern[p] == '*') {
@@ -192,7 +231,12 @@ bool name_matches(std::string_view pattern, std::string_view name)
         if (p < pattern.size()) {
             const bool escaped = pattern[p] == '\\' && p + 1 < pattern.size();
             const char c = escaped ? pattern[p + 1] : pattern[p];
-            if ((!escaped && c == '?') || c == name[n]) {
+            if (!escaped && c == '?') {
+                ++p;
+                n += char_bytes(name, n);
+                continue;
+            }
+            if (c == name[n]) {
                 p += escaped ? 2 : 1;
                 ++n;
                 continue;
@@ -202,7 +246,8 @@ bool name_matches(std::string_view pattern, std::string_view name)
             return false;
         }
         p = star_p;
-        n = ++star_n;
+        star_n += char_bytes(name, star_n);
+        n = star_n;
     }
     while (p < pattern.size() && pattern[p] == '*') {
         ++p;
@@ -234,7 +279,10 @@ std::string unescape(std::string_view pattern)
     return out;
 }
 
-std::string request_for(std::string_view type) { return std::string(kRequest) + std::string(type); }
+std::string request_for(std::string_view type)
+{
+    return std::string(kRequest) + std::string(type);
+}
 
 bool parse_request(std::string_view request, std::string &type)
 {

@@ -13,8 +13,6 @@
 
 #include <OpenImageIO/paramlist.h>
 
-#include "core/cryptomatte_id.h"
-
 #include <cstdint>
 #include <cstring>
 #include <set>
@@ -22,6 +20,8 @@
 #include <string_view>
 #include <utility>
 #include <vector>
+
+#include "core/cryptomatte_id.h"
 
 namespace posthaste::cryptomatte {
 
@@ -33,6 +33,9 @@ struct Layer {
     std::vector<std::pair<std::string, float>> manifest;
     bool has_manifest = false;
     std::string manifest_from;  ///< "header", the sidecar's path, or "" (none).
+    /// What breaks the specification in its declaration (one line naming the image and the
+    /// cryptomatte), or "": an error where this cryptomatte is used.
+    std::string problem;
 
     /// Whether `type` names this cryptomatte: its name, or its name after a view layer's
     /// prefix ("CryptoObject" names "ViewLayer.CryptoObject").
@@ -42,8 +45,8 @@ struct Layer {
 /// Every cryptomatte in `attributes` (a frame's header), sorted by name. `image_path` locates a
 /// sidecar manifest. A declaration that breaks the specification (no name, a hash other than
 /// MurmurHash3_32, a conversion other than uint32_to_float32, a manifest that is not a JSON
-/// object of 8-hex-digit IDs, a sidecar that cannot be read) is an Error naming `image_path`,
-/// the cryptomatte and what is wrong.
+/// object of 8-hex-digit IDs, a sidecar that cannot be read) comes with its `problem`, naming
+/// `image_path`, the cryptomatte and what is wrong.
 std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes,
                                const std::string &image_path);
 

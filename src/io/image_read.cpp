@@ -336,7 +336,7 @@ Frame read_frame(const std::string &path,
                 }
                 for (const cryptomatte::Layer &l :
                      cryptomatte::find_layers(info.attributes, path)) {
-                    if (type.empty() || l.is(type)) {
+                    if (l.problem.empty() && (type.empty() || l.is(type))) {
                         for (const std::string &rank : cryptomatte::rank_passes(l, names, path)) {
                             also.insert(rank);
                         }

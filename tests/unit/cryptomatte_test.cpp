@@ -40,8 +40,7 @@ TEST(Cryptomatte, MurmurHashMatchesPublishedValues)
     EXPECT_EQ(murmur3_32("aa", 0x9747b28cu), 0x5D211726u);
     EXPECT_EQ(murmur3_32("a", 0x9747b28cu), 0x7FA09EA6u);
     EXPECT_EQ(murmur3_32("Hello, world!", 0x9747b28cu), 0x24884CBAu);
-    EXPECT_EQ(murmur3_32("The quick brown fox jumps over the lazy dog", 0x9747b28cu),
-              0x2FA826CDu);
+    EXPECT_EQ(murmur3_32("The quick brown fox jumps over the lazy dog", 0x9747b28cu), 0x2FA826CDu);
 }
 
 // The specification's example manifest: names and the hex of their float IDs.
@@ -82,6 +81,12 @@ TEST(Cryptomatte, NamePatterns)
     EXPECT_FALSE(name_matches("what\\?", "whatz"));
     EXPECT_TRUE(name_matches("floor[1]", "floor[1]"));  // brackets are literal
     EXPECT_FALSE(name_matches("floor[1]", "floor1"));
+    // `?` is one UTF-8 character, and a `*` ends between characters.
+    EXPECT_TRUE(name_matches("?n\u00ef", "\u00fcn\u00ef"));
+    EXPECT_FALSE(name_matches("??n\u00ef", "\u00fcn\u00ef"));
+    EXPECT_TRUE(name_matches("*?", "\u00fc"));
+    EXPECT_TRUE(name_matches("*\u00ef", "\u00fcn\u00ef"));
+    EXPECT_TRUE(name_matches("a?c", "a\U0001F600c"));
     EXPECT_TRUE(cryptomatte::has_wildcard("a*"));
     EXPECT_FALSE(cryptomatte::has_wildcard("a\\*"));
     EXPECT_EQ(cryptomatte::unescape("star\\*\\\\"), "star*\\");
@@ -185,7 +190,8 @@ std::vector<Ranks> sample_pixels()
 }
 
 /// The matte by hand: the coverages of the keyed names, summed in rank order.
-std::vector<float> expected_matte(const std::vector<Ranks> &pixels, const std::set<std::string> &keyed)
+std::vector<float> expected_matte(const std::vector<Ranks> &pixels,
+                                  const std::set<std::string> &keyed)
 {
     std::vector<float> out;
     for (const Ranks &r : pixels) {
@@ -204,16 +210,19 @@ std::vector<float> expected_matte(const std::vector<Ranks> &pixels, const std::s
 /// planner: the read gets the ranks from the node's request alone).
 Frame key(const std::string &path, const std::string &params)
 {
-    Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" + path + R"("}},
-        {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"}, "params": )" + params +
-                               R"(},
+    Graph g = Graph::parse(
+        R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": ")" +
+            path + R"("}},
+        {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"}, "params": )" +
+            params +
+            R"(},
         {"id": "out", "type": "write", "inputs": {"image": "key"},
-         "params": {"path": ")" + test::scratch_dir("cryptomatte_key_out") + R"(/out.exr", "passes": ")" +
-                               (params.find("output") == std::string::npos ? "matte" : "color") +
-                               R"("}}]})",
-                           "cryptomatte test",
-                           nodes::catalog());
+         "params": {"path": ")" +
+            test::scratch_dir("cryptomatte_key_out") + R"(/out.exr", "passes": ")" +
+            (params.find("output") == std::string::npos ? "matte" : "color") + R"("}}]})",
+        "cryptomatte test",
+        nodes::catalog());
     g.set_capture("key");
     return g.evaluate(1);
 }
@@ -237,12 +246,21 @@ TEST(Cryptomatte, MatteIsTheSummedCoverageOfTheNamesKeyed)
               expected_matte(pixels, {"what?", "default"}));
     EXPECT_EQ(values(key(path, R"({"matte": ["*"]})").image("matte")),
               expected_matte(pixels, {"bunny", "floor[1]", "star*", "default", "what?"}));
-    EXPECT_EQ(values(key(path, R"({"matte": ["<0x)" + hex_of(id_of("default")) + R"(>"]})")
-                         .image("matte")),
-              expected_matte(pixels, {"default"}));
-    // A pattern that matches no name keys nothing; so does a name no pixel has.
+    EXPECT_EQ(
+        values(
+            key(path, R"({"matte": ["<0x)" + hex_of(id_of("default")) + R"(>"]})").image("matte")),
+        expected_matte(pixels, {"default"}));
+    // A pattern that matches no name keys nothing; so does a name no pixel has, and either
+    // says so once, as a name the manifest lacks does.
+    testing::internal::CaptureStderr();
     EXPECT_EQ(values(key(path, R"({"matte": ["zebra*", "lion"]})").image("matte")),
               std::vector<float>(8, 0.0f));
+    const std::string err = testing::internal::GetCapturedStderr();
+    EXPECT_NE(err.find(R"(matte entry "zebra*" matches no name in the manifest)"),
+              std::string::npos)
+        << err;
+    EXPECT_NE(err.find(R"(matte entry "lion" is no name in the manifest)"), std::string::npos)
+        << err;
 }
 
 TEST(Cryptomatte, KeyedAndAlphaOutputs)
@@ -268,11 +286,13 @@ TEST(Cryptomatte, PreviewIsKeyable)
     const std::vector<Ranks> pixels = sample_pixels();
     const std::string path = write_crypto_file(dir + "/a.exr", CryptoFile{}, pixels, kNames);
     Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" + path + R"("}},
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                               path + R"("}},
         {"id": "key", "type": "cryptomatte", "inputs": {"image": "src"},
          "params": {"matte": ["bunny"], "preview": true}},
         {"id": "out", "type": "write", "inputs": {"image": "key"},
-         "params": {"path": ")" + path + R"(.p.exr", "passes": "cryptomatte_preview"}}]})",
+         "params": {"path": ")" +
+                               path + R"(.p.exr", "passes": "cryptomatte_preview"}}]})",
                            "preview",
                            nodes::catalog());
     g.set_capture("key");
@@ -404,10 +424,12 @@ TEST(Cryptomatte, InfoListsEachCryptomatte)
 TEST(Cryptomatte, RankLayersPassThroughBitForBit)
 {
     const std::string dir = test::scratch_dir("cryptomatte_through");
-    const std::string in = write_crypto_file(dir + "/in.exr", CryptoFile{}, sample_pixels(), kNames);
+    const std::string in =
+        write_crypto_file(dir + "/in.exr", CryptoFile{}, sample_pixels(), kNames);
     const std::string out = dir + "/out.exr";
     Graph g = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" + in + R"("}},
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                               in + R"("}},
         {"id": "grade", "type": "grade", "inputs": {"image": "src"}, "params": {"exposure": 1}},
         {"id": "out", "type": "write", "inputs": {"image": "grade"}, "params": {"path": ")" +
                                out + R"("}}]})",
@@ -418,7 +440,8 @@ TEST(Cryptomatte, RankLayersPassThroughBitForBit)
     ASSERT_TRUE(a && b);
     const OIIO::ImageSpec &sa = a->spec(), &sb = b->spec();
     for (const char *attr : {"name", "hash", "conversion", "manifest"}) {
-        const std::string key = "cryptomatte/" + hex_of(id_of("CryptoObject")).substr(0, 7) + "/" + attr;
+        const std::string key =
+            "cryptomatte/" + hex_of(id_of("CryptoObject")).substr(0, 7) + "/" + attr;
         EXPECT_EQ(sa.get_string_attribute(key), sb.get_string_attribute(key)) << key;
     }
     std::vector<float> pa(std::size_t(sa.image_pixels()) * std::size_t(sa.nchannels)),
@@ -508,10 +531,80 @@ TEST(Cryptomatte, GraphErrorsNameTheParameter)
     };
     EXPECT_NE(error_of(R"({"matte": []})").find("param \"matte\": expected a non-empty list"),
               std::string::npos);
-    EXPECT_NE(error_of(R"({"matte": ["<nope>"]})").find("expected an ID as <8 hex digits> or <float>"),
-              std::string::npos);
+    EXPECT_NE(
+        error_of(R"({"matte": ["<nope>"]})").find("expected an ID as <8 hex digits> or <float>"),
+        std::string::npos);
     EXPECT_NE(error_of(R"({"matte": [3]})").find("names as non-empty strings"), std::string::npos);
-    EXPECT_EQ(error_of(R"({"matte": ["bunny", "<0x13851a76>", "<1.5e-3>"]})"), "accepted");
+    EXPECT_EQ(error_of(R"({"matte": ["bunny", "<0x13851a76>", "<1.5e-3>", "<-2>"]})"), "accepted");
+    // Spaces, signs inside the hex digits, and a hexadecimal float (a 7-digit typo) are refused.
+    for (const char *bad : {"<0x 1234567>", "<0x-0000001>", "< 1.5>", "<0xa8fce86>", "<+-1>"}) {
+        EXPECT_NE(error_of(std::string(R"({"matte": [")") + bad + R"("]})")
+                      .find("expected an ID as <8 hex digits> or <float>"),
+                  std::string::npos)
+            << bad;
+    }
+}
+
+// Two cryptomattes whose names end alike: a layer named exactly is that one (the other, which
+// sorts first, was keyed); a short name that both end in is refused, naming both. An alpha
+// output on a gray colour (Y) gives Y, A. A broken declaration fails only where it is used (it
+// failed every cryptomatte of the file).
+TEST(Cryptomatte, LayerNamesPickExactlyOrRefuse)
+{
+    Frame f;
+    f.set_size(2, 1);
+    Image gray(2, 1, 1);
+    gray.fill(0.5f);
+    f.set("color", gray, {"Y"});
+    const float b = id_of("b");
+    const auto declare = [&](const std::string &key, const std::string &name, float coverage) {
+        f.attributes.attribute("cryptomatte/" + key + "/name", name);
+        f.attributes.attribute("cryptomatte/" + key + "/hash", "MurmurHash3_32");
+        f.attributes.attribute("cryptomatte/" + key + "/conversion", "uint32_to_float32");
+        Image rank(2, 1, 4);
+        rank.at(0, 0, 0) = b;
+        rank.at(0, 0, 1) = coverage;
+        f.set(name + "00", rank, {"R", "G", "B", "A"});
+    };
+    declare("1111111", "CryptoObject", 0.25f);
+    declare("2222222", "A.CryptoObject", 1.0f);
+    const Frame exact =
+        test::run_node("cryptomatte", f, R"({"layer": "CryptoObject", "matte": ["b"]})");
+    EXPECT_EQ(exact.image("matte").at(0, 0, 0), 0.25f);
+    const Frame whole =
+        test::run_node("cryptomatte", f, R"({"layer": "A.CryptoObject", "matte": ["b"]})");
+    EXPECT_EQ(whole.image("matte").at(0, 0, 0), 1.0f);
+    const Frame alpha = test::run_node(
+        "cryptomatte", f, R"({"layer": "CryptoObject", "matte": ["b"], "output": "alpha"})");
+    EXPECT_EQ(alpha.pass("color").channels, (std::vector<std::string>{"Y", "A"}));
+    EXPECT_EQ(alpha.image("color").at(0, 0, 0), 0.5f);
+    EXPECT_EQ(alpha.image("color").at(0, 0, 1), 0.25f);
+    // A broken declaration is an error where it is used, and no hindrance to the others.
+    declare("5555555", "Broken", 1.0f);
+    f.attributes.attribute("cryptomatte/5555555/hash", "md5");
+    EXPECT_EQ(test::run_node("cryptomatte", f, R"({"layer": "CryptoObject", "matte": ["b"]})")
+                  .image("matte")
+                  .at(0, 0, 0),
+              0.25f);
+    try {
+        test::run_node("cryptomatte", f, R"({"layer": "Broken", "matte": ["b"]})");
+        ADD_FAILURE() << "a broken cryptomatte was keyed";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find(R"(cryptomatte "Broken": hash "md5")"),
+                  std::string::npos)
+            << e.what();
+    }
+    declare("3333333", "B.Other", 1.0f);
+    declare("4444444", "C.Other", 1.0f);
+    try {
+        test::run_node("cryptomatte", f, R"({"layer": "Other", "matte": ["b"]})");
+        ADD_FAILURE() << "an ambiguous layer was accepted";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find(
+                      R"(layer "Other" names B.Other, C.Other: give the whole name)"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 }  // namespace
