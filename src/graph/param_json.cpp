@@ -233,6 +233,10 @@ ParamValue convert_value(const ParamSpec &spec,
                 fail("string");
             }
             out.text = v.get<std::string>();
+            if (out.text.find('\0') != std::string::npos) {
+                // A path with one would name another file ("a\0.exr" is "a" to the system).
+                throw_usage(where, ": a null character in a string (\\u0000)");
+            }
             break;
         case ParamType::Choice: {
             const std::vector<std::string> words = split_choices(spec.choices);

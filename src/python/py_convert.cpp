@@ -12,6 +12,8 @@
 #include <limits>
 #include <vector>
 
+#include "io/io_detail.h"
+
 namespace posthaste::python {
 namespace {
 
@@ -85,11 +87,15 @@ nlohmann::json to_json(py::handle v, const std::string &where)
         }
         return d;
     }
-    if (py::isinstance<py::str>(v)) {
-        return v.cast<std::string>();
-    }
-    if (py::hasattr(v, "__fspath__")) {
-        return py::str(v.attr("__fspath__")()).cast<std::string>();
+    if (py::isinstance<py::str>(v) || py::hasattr(v, "__fspath__")) {
+        const std::string s = py::isinstance<py::str>(v)
+                                  ? v.cast<std::string>()
+                                  : py::str(v.attr("__fspath__")()).cast<std::string>();
+        if (s.find('\0') != std::string::npos) {
+            // As open() does: the system would see the path up to the null, another file.
+            throw py::value_error(where + ": embedded null character");
+        }
+        return s;
     }
     if (py::isinstance<py::dict>(v)) {
         nlohmann::json out = nlohmann::json::object();
@@ -210,6 +216,28 @@ int int_attribute(py::handle value, const std::string &name)
     }
     return int(v);
 }
+
+/// A float attribute's value: a finite double that float cannot hold is an error (1e40 became
+/// infinity).
+float float_attribute(py::handle value, const std::string &name)
+{
+    const double d = value.cast<double>();
+    if (std::isfinite(d) && !std::isfinite(float(d))) {
+        throw py::value_error("attribute \"" + name + "\": " + py::repr(value).cast<std::string>() +
+                              " does not fit an EXR float attribute (32 bits)");
+    }
+    return float(d);
+}
+
+/// A string attribute's value: a null character would cut it short in the file.
+std::string string_attribute(py::handle value, const std::string &name)
+{
+    std::string s = value.cast<std::string>();
+    if (s.find('\0') != std::string::npos) {
+        throw py::value_error("attribute \"" + name + "\": embedded null character");
+    }
+    return s;
+}
 }  // namespace
 
 namespace {
@@ -297,8 +325,18 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::
     if (!py::isinstance<py::dict>(dict)) {
         throw py::type_error("attributes: expected a dict");
     }
-    for (auto [key, value] : dict.cast<py::dict>()) {
+    const py::object np = py::module_::import("numpy");
+    for (auto [key, v] : dict.cast<py::dict>()) {
         const std::string name = py::str(key).cast<std::string>();
+        // numpy's scalars as Python's (np.float32(2) is a float).
+        py::object value = py::reinterpret_borrow<py::object>(v);
+        if (py::isinstance(value, np.attr("bool_"))) {
+            value = py::bool_(value.cast<bool>());
+        } else if (py::isinstance(value, np.attr("integer"))) {
+            value = py::int_(value.cast<long long>());
+        } else if (py::isinstance(value, np.attr("floating"))) {
+            value = py::float_(value.cast<double>());
+        }
         bool camera_key = false;
         for (const MatrixMember &m : kMatrices) {
             camera_key = camera_key || name == m.name;
@@ -311,6 +349,14 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::
             throw py::value_error("attribute \"" + name +
                                   "\" is a camera value: give it in camera=");
         }
+        if (name.empty() || !io_detail::is_frame_attribute(name) ||
+            name.find('\0') != std::string::npos) {
+            // The writer sets these from the layout and write's parameters: kept here, they
+            // were dropped on write without a word.
+            throw py::value_error("attribute \"" + name +
+                                  "\" is not the picture's: the write sets it from the file's "
+                                  "layout and its parameters");
+        }
         if (const OIIO::ParamValue *old =
                 was ? was->find_pv(name, OIIO::TypeUnknown, true) : nullptr;
             old && in_type_of(*old, name, value, out)) {
@@ -319,9 +365,9 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::
         if (py::isinstance<py::bool_>(value) || py::isinstance<py::int_>(value)) {
             out.push_back(OIIO::ParamValue(name, int_attribute(value, name)));
         } else if (py::isinstance<py::float_>(value)) {
-            out.push_back(OIIO::ParamValue(name, value.cast<float>()));
+            out.push_back(OIIO::ParamValue(name, float_attribute(value, name)));
         } else if (py::isinstance<py::str>(value)) {
-            out.push_back(OIIO::ParamValue(name, value.cast<std::string>()));
+            out.push_back(OIIO::ParamValue(name, string_attribute(value, name)));
         } else if (py::isinstance<py::array>(value) &&
                    py::array(value.cast<py::array>()).ndim() == 2) {
             const glm::mat4 m = array_to_matrix(value, name);
@@ -336,6 +382,14 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::
                 strings = strings && py::isinstance<py::str>(item);
             }
             const int n = int(py::len(seq));
+            if (ints && n > 0 && n != 2 && n != 3) {
+                // OpenEXR's int types: one, or a vector of 2 or 3 (the write dropped the rest).
+                throw py::value_error("attribute \"" + name +
+                                      "\": OpenEXR holds 2 or 3 ints (a "
+                                      "vector), not " +
+                                      std::to_string(n) +
+                                      "; give floats (a floatvector) or one int");
+            }
             if (n > 0 && ints) {
                 std::vector<int> v;
                 for (py::handle item : seq) {
@@ -346,14 +400,14 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::
             } else if (n > 0 && floats) {
                 std::vector<float> v;
                 for (py::handle item : seq) {
-                    v.push_back(item.cast<float>());
+                    v.push_back(float_attribute(item, name));
                 }
                 out.push_back(
                     OIIO::ParamValue(name, OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, n), 1, v.data()));
             } else if (n > 0 && strings) {
                 std::vector<OIIO::ustring> v;
                 for (py::handle item : seq) {
-                    v.emplace_back(item.cast<std::string>());
+                    v.emplace_back(string_attribute(item, name));
                 }
                 out.push_back(
                     OIIO::ParamValue(name, OIIO::TypeDesc(OIIO::TypeDesc::STRING, n), 1, v.data()));
@@ -464,6 +518,10 @@ Rect tuple_to_rect(py::handle value, const char *what)
         if (x < -limit || x > limit) {
             throw py::value_error(std::string(what) + ": coordinate out of range");
         }
+    }
+    if (v[2] - v[0] > limit || v[3] - v[1] > limit) {
+        // (a width of 2^31 overflowed, and reformat's resize crashed)
+        throw py::value_error(std::string(what) + ": wider or taller than 2^30");
     }
     const Rect r{int(v[0]), int(v[1]), int(v[2]), int(v[3])};
     if (r.empty()) {

@@ -108,6 +108,18 @@ py::array PyFrame::make_array(const std::string &name, bool writable)
                          img.data(),
                          h.capsule);
     if (writable) {
+        // Dead references go when the list reaches a power of two (16, 32, ...): a loop that
+        // reads passes[name][y, x] made a reference per call and kept it (84 MB a million).
+        const std::size_t n = py::len(h.writable);
+        if (n >= 16 && (n & (n - 1)) == 0) {
+            py::list alive;
+            for (py::handle ref : h.writable) {
+                if (!ref().is_none()) {
+                    alive.append(ref);
+                }
+            }
+            h.writable = alive;
+        }
         h.writable.append(py::module_::import("weakref").attr("ref")(a));
         // A writable array may change the pixels: the writer must not treat the pass as read.
         Pass p = frame_.pass(name);
@@ -230,7 +242,10 @@ void bind_frame(py::module_ &m)
              })
         .def("__delitem__", [](PassMap &p, const std::string &n) { p.owner->remove_pass(n); })
         .def("__contains__",
-             [](PassMap &p, const std::string &n) { return p.owner->frame().has(n); })
+             [](PassMap &p, py::handle n) {
+                 // A mapping: anything that is not a name is not in it (0 in f.passes).
+                 return py::isinstance<py::str>(n) && p.owner->frame().has(n.cast<std::string>());
+             })
         .def("__len__", [](PassMap &p) { return p.owner->frame().passes().size(); })
         .def("__iter__",
              [](PassMap &p) { return py::iter(py::cast(p.owner->frame().pass_names())); })

@@ -194,11 +194,20 @@ py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
             }
             continue;
         }
+        bool port = false;
+        for (const PortSpec &ps : ports) {
+            port = port || ps.name == k;
+        }
+        if (port && value.is_none()) {
+            continue;  // an input left out (mask=None), as a positional None is
+        }
+        if (port && !py::isinstance<PyFrame>(value)) {
+            // (it went on as a parameter: "unknown param", or "input not connected")
+            throw py::type_error("posthaste.node(\"" + type + "\"): input \"" + k +
+                                 "\": expected a Frame, got " +
+                                 std::string(py::str(value.get_type().attr("__name__"))));
+        }
         if (py::isinstance<PyFrame>(value)) {
-            bool port = false;
-            for (const PortSpec &ps : ports) {
-                port = port || ps.name == k;
-            }
             if (!port) {
                 throw_usage("posthaste.node(\"", type, "\"): no input port \"", k, "\"");
             }
