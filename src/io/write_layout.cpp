@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <set>
 
@@ -156,6 +157,31 @@ std::shared_ptr<const std::vector<unsigned char>> slice_samples(
         std::memcpy(out->data() + std::size_t(y - cut.y0) * row, samples.data() + at, row);
     }
     return out;
+}
+
+/// True when channel k of `img` (over `frame`) holds other than `outside` somewhere outside
+/// `inner` (bit for bit: a NaN differs).
+bool differs_outside(const Image &img, int k, const Rect &frame, const Rect &inner, float outside)
+{
+    const std::size_t nch = std::size_t(img.channels());
+    std::uint32_t want;
+    std::memcpy(&want, &outside, sizeof(want));
+    for (int y = frame.y0; y < frame.y1; ++y) {
+        const bool row_inside = y >= inner.y0 && y < inner.y1;
+        const float *row = img.pixel(0, y - frame.y0);
+        for (int x = frame.x0; x < frame.x1; ++x) {
+            if (row_inside && x >= inner.x0 && x < inner.x1) {
+                x = inner.x1 - 1;  // skip the inside
+                continue;
+            }
+            std::uint32_t bits;
+            std::memcpy(&bits, row + std::size_t(x - frame.x0) * nch + std::size_t(k), 4);
+            if (bits != want) {
+                return true;
+            }
+        }
+    }
+    return false;
 }
 
 /// A channel written under a canonical name with storage "auto" keeps the pixel type of the
@@ -369,6 +395,30 @@ std::vector<OutPart> source_layout(const Frame &frame,
         const Rect cut = own.intersect(frame.data_window);
         parts[i].data_window = cut.empty() ? frame.data_window : cut;
         parts[i].cut = parts[i].data_window != own;
+    }
+    // A node may have made a pass reach beyond its part's window (a blur's spread, pixels set
+    // from Python): that part takes the frame's data window then, so nothing it holds is cut
+    // away (it was: the values outside went unwritten).
+    for (const std::string &name : names) {
+        const Pass &p = frame.pass(name, path);
+        if (p.untouched()) {
+            continue;
+        }
+        const std::string base = name.substr(0, name.find('@'));
+        for (std::size_t k = 0; k < p.origin.size(); ++k) {
+            const int at = p.origin[k].part;
+            if (at < 0 || at >= int(parts.size()) ||
+                parts[std::size_t(at)].data_window == frame.data_window) {
+                continue;
+            }
+            OutPart &part = parts[std::size_t(at)];
+            const float outside =
+                pass::is_depth_pass(base) ? std::numeric_limits<float>::infinity() : 0.0f;
+            if (differs_outside(*p.image, int(k), frame.data_window, part.data_window, outside)) {
+                part.data_window = frame.data_window;
+                part.cut = true;
+            }
+        }
     }
     std::set<std::pair<int, int>> written;  // source slots already filled
     std::vector<std::string> fresh;         // passes written under canonical names

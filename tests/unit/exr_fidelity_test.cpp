@@ -1036,6 +1036,29 @@ TEST(ExrFidelity, RebuiltLayoutsKeepTypesCompressionAndViewlessParts)
     }
 }
 
+// A node that spreads a pass beyond its part's window (a blur of colour into the overscan the
+// motion part covers) widens that part to the frame's data window: the values there were cut
+// away. A part whose pass stays inside keeps its window.
+TEST(ExrFidelity, APassSpreadBeyondItsPartWidensThePart)
+{
+    const corpus::Entry &e = entry("multipart_layers");
+    const Frame in = read_frame(e.path, nullptr, 1);
+    const FileInfo before = read_file_info(e.path);
+    ASSERT_NE(before.parts[0].data_window, in.data_window);
+    const Frame blurred = test::run_node("blur", in, R"({"sigma": 3, "passes": "color"})");
+    const std::string out = out_path("spread");
+    write_exr(blurred, out, {});
+    const FileInfo after = read_file_info(out);
+    EXPECT_EQ(after.parts[0].data_window, in.data_window);
+    EXPECT_EQ(after.parts[1].data_window, before.parts[1].data_window);  // depth: untouched
+    const Frame back = read_frame(out, nullptr, 1);
+    const Rect &rgba = before.parts[0].data_window;
+    const int x = rgba.x0 - 1 - in.data_window.x0, y = rgba.y0 + 5 - in.data_window.y0;
+    const float want = blurred.image("color").at(x, y, 0);
+    ASSERT_GT(want, 0.0f);
+    EXPECT_NEAR(back.image("color").at(x, y, 0), want, want * 1e-3f);  // stored as half
+}
+
 // A renamed or copied pass is written as the file held it: half colour renamed "beauty" stays
 // half (it went out as float, the default of a new name), float depth renamed "albedo" stays
 // float (albedo's default is half). Four channels renamed "depth" are refused: depth is the
