@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 
 #include "core/error.h"
 #include "core/parallel.h"
@@ -90,8 +91,19 @@ void apply_mask(const std::string &who,
     if (changed.empty()) {
         return;
     }
-    const Image mi = mask_image(who, m, mask, out.data_window);
+    // Another view's pass ("color@right") takes that view's mask ("matte@right") where the mask
+    // frame has it (it took the chosen view's), else the mask as named.
+    std::map<std::string, Image> masks;
     for (const std::string &name : changed) {
+        const auto at = name.find('@');
+        MaskSettings mv = m;
+        if (at != std::string::npos && mask.has(m.pass + name.substr(at))) {
+            mv.pass = m.pass + name.substr(at);
+        }
+        if (!masks.count(mv.pass)) {
+            masks.emplace(mv.pass, mask_image(who, mv, mask, out.data_window));
+        }
+        const Image &mi = masks.at(mv.pass);
         const Pass &p = out.pass(name);
         const Image &a = *in.pass(name).image, &b = *p.image;
         Image blended = Image::uninitialized(b.width(), b.height(), b.channels());

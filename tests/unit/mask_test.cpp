@@ -92,6 +92,58 @@ TEST(Mask, BlendsTheNodesResultWithItsInput)
     }
 }
 
+// Another view's pass is masked by that view's mask pass where the mask frame has one
+// (color@right by matte@right; it took matte), and by the mask as named where it has none.
+TEST(Mask, AnotherViewsPassTakesThatViewsMask)
+{
+    Frame in = input_frame();
+    Image ramp(4, 2, 4);
+    for (int i = 0; i < 32; ++i) {
+        ramp.data()[i] = float(i) / 8.0f;
+    }
+    in.set("color@right", ramp);
+    in.set("color@left", ramp);
+    Frame mask = mask_frame();
+    Image right(4, 2, 1);
+    for (int i = 0; i < 8; ++i) {
+        right.data()[i] = 1.0f - float(i) / 7.0f;
+    }
+    mask.set("matte@right", right, {"A"});
+    const auto blur = [&](bool masked) {
+        Graph g = Graph::parse(R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
+            {"id": "n", "type": "blur", "inputs": {"image": "src", "mask": "src"},
+             "params": {"sigma": 1, "passes": "color@right,color@left", "mask_pass": "matte"}},
+            {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
+                               "mask test",
+                               nodes::catalog());
+        std::vector<std::shared_ptr<const Frame>> inputs = {std::make_shared<const Frame>(in)};
+        std::vector<std::string> ports = {"image"};
+        if (masked) {
+            inputs.push_back(std::make_shared<const Frame>(mask));
+            ports.emplace_back("mask");
+        }
+        return g.run_node(g.find("n"), inputs, ports, 1);
+    };
+    const Frame plain = blur(false), masked = blur(true);
+    for (const char *view : {"right", "left"}) {
+        const std::string name = std::string("color@") + view;
+        const Image &a = in.image(name), &b = plain.image(name), &out = masked.image(name);
+        ASSERT_FALSE(a.bit_equal(b));
+        for (int i = 0; i < 8; ++i) {
+            const float m =
+                view == std::string("right")
+                    ? right.data()[i]
+                    : (std::isnan(kMatte[i]) ? 0.0f : std::clamp(kMatte[i], 0.0f, 1.0f));
+            for (int c = 0; c < 4; ++c) {
+                EXPECT_EQ(out.data()[4 * i + c],
+                          mask_mix(a.data()[4 * i + c], b.data()[4 * i + c], m))
+                    << view << " " << i << " " << c;
+            }
+        }
+    }
+}
+
 // Unconnected, the mask changes nothing: the node's own bits.
 // A fractional mask keeps infinities: the sky's +inf depth blurred under a half mask stayed
 // +inf on both sides and came out NaN (inf - inf in the lerp); finite values keep the lerp's bits.
