@@ -56,6 +56,10 @@ const ParamSpec *find_param(const NodeType &type, const std::string &name)
 
 std::string read_text_file(const std::string &path)
 {
+    std::error_code ec;
+    if (std::filesystem::is_directory(path, ec)) {
+        throw_usage(path, ": is a directory, not a graph file");  // (it read as empty JSON)
+    }
     std::ifstream in(path, std::ios::binary);
     if (!in) {
         throw_usage(path, ": cannot open graph file");

@@ -476,6 +476,10 @@ Camera dict_to_camera(py::handle dict)
             }
         }
         if (k == "origin") {
+            if (!py::isinstance<py::str>(value)) {
+                throw py::type_error("camera \"origin\": expected a string, got " +
+                                     py::repr(value).cast<std::string>());
+            }
             camera.origin = value.cast<std::string>();
             known = true;
         }

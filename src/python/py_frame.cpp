@@ -173,7 +173,12 @@ void PyFrame::set_pass(const std::string &name, py::handle array, py::handle cha
             throw py::type_error("pass \"" + name +
                                  "\": channels: expected a list of names, got a str");
         }
-        names = channels.cast<std::vector<std::string>>();
+        try {
+            names = channels.cast<std::vector<std::string>>();
+        } catch (const py::cast_error &) {
+            throw py::type_error("pass \"" + name + "\": channels: expected a list of names, got " +
+                                 py::repr(channels).cast<std::string>());
+        }
         for (std::size_t k = 0; k < names.size(); ++k) {
             // A dot separates a layer from its channel in the file: "a.b" would come back as a
             // pass of its own; an empty name or a repeated one cannot be told apart.

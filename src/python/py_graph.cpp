@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <limits>
 #include <thread>
 
 #include "graph/graph.h"
@@ -85,12 +86,31 @@ std::string frames_of(py::handle frames)
     if (py::isinstance<py::str>(frames)) {
         return frames.cast<std::string>();
     }
+    const auto frame_number = [](py::handle f) {
+        // (a float, a string in a list or a number beyond 32 bits: pybind11's "Unable to cast")
+        if (!py::isinstance<py::int_>(f) || py::isinstance<py::bool_>(f)) {
+            throw py::type_error("Graph.run: frames: expected frame numbers (ints), got " +
+                                 py::repr(f).cast<std::string>());
+        }
+        const long long n = f.cast<long long>();
+        if (n < std::numeric_limits<int>::min() || n > std::numeric_limits<int>::max()) {
+            throw py::value_error("Graph.run: frames: " + std::to_string(n) +
+                                  " does not fit 32 bits");
+        }
+        return int(n);
+    };
     if (py::isinstance<py::int_>(frames)) {
-        return std::to_string(frames.cast<int>());
+        return std::to_string(frame_number(frames));
+    }
+    if (!py::isinstance<py::sequence>(frames)) {
+        frame_number(frames);  // the type error
     }
     std::string out;
-    for (int f : frames.cast<std::vector<int>>()) {
-        out += (out.empty() ? "" : ",") + std::to_string(f);
+    for (py::handle f : frames.cast<py::sequence>()) {
+        if (!out.empty()) {
+            out += ',';  // (appended: "..." + string is GCC 12's -Wrestrict false positive)
+        }
+        out += std::to_string(frame_number(f));
     }
     if (out.empty()) {
         throw_usage("Graph.run: frames: an empty list");

@@ -179,3 +179,21 @@ def test_reading_a_pass_over_and_over_keeps_its_memory():
     for _ in range(300000):
         f.passes["color"][0, 0, 0]
     assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before < 8 * 1024  # KiB
+
+
+def test_wrong_types_name_the_argument(tmp_path):
+    """pybind11's "Unable to cast Python instance to C++ type" named nothing."""
+    color = {"color": np.zeros((2, 2, 4), np.float32)}
+    with pytest.raises(TypeError, match='camera "origin": expected a string, got 5'):
+        ph.Frame(passes=color, camera={"origin": 5})
+    with pytest.raises(TypeError, match=r'pass "c": channels: expected a list of names, got \[1, 2\]'):
+        ph.Frame(passes={"c": np.zeros((2, 2, 2), np.float32)}, channels={"c": [1, 2]})
+    with pytest.raises(ph.GraphError, match="is a directory, not a graph file"):
+        ph.Graph.load(tmp_path)
+    g = ph.Graph.load(ph_scene().replace("samples/scenes/minecrappy.json", "graphs/minecrappy.json"))
+    with pytest.raises(TypeError, match="Graph.run: frames: expected frame numbers \\(ints\\), got '1'"):
+        g.run(frames=["1"])
+    with pytest.raises(TypeError, match="got 1.0"):
+        g.run(frames=1.0)
+    with pytest.raises(ValueError, match="1099511627776 does not fit 32 bits"):
+        g.run(frames=[2**40])

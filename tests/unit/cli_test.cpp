@@ -193,6 +193,8 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
 
     EXPECT_EQ(run_command(kBin + " run " + dir + "/nope.json", &out), 2) << out;
     EXPECT_NE(out.find("nope.json: cannot open graph file"), std::string::npos) << out;
+    EXPECT_EQ(run_command(kBin + " run " + dir, &out), 2) << out;  // (it read as empty JSON)
+    EXPECT_NE(out.find(": is a directory, not a graph file"), std::string::npos) << out;
     EXPECT_EQ(run_command(kBin + " run " + graph + " --frames 3-1", &out), 2) << out;
     EXPECT_EQ(run_command(kBin + " run " + graph + " --jobs -4", &out), 2) << out;
     EXPECT_EQ(run_command(kBin + " frobnicate", &out), 2) << out;
@@ -213,7 +215,9 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_EQ(out.find("error: ", 1), std::string::npos) << out;  // said once
     // A bound is said as a bound (CLI11's own check wrote out DBL_MAX).
     EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --ppd 0", &out), 2) << out;
-    EXPECT_NE(out.find("--ppd: must be a number above 0 and at most 1000, got 0"), std::string::npos) << out;
+    EXPECT_NE(out.find("--ppd: must be a number above 0 and at most 1000, got 0"),
+              std::string::npos)
+        << out;
     EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --diff-scale -1", &out), 2) << out;
     EXPECT_NE(out.find("--diff-scale: must be a number of at least 0, got -1"), std::string::npos)
         << out;
