@@ -143,18 +143,27 @@ bool gray_from_one_channel(const Pass &p)
     return true;
 }
 
-/// The rows and columns of `cut` from samples of `size` bytes over `from` (row-major).
+/// Samples of `size` bytes over `cut` from samples over `from` (row-major): where `cut`
+/// reaches beyond `from` (a part a node widened) the samples are zero, as the reader fills a
+/// window's outside.
 std::shared_ptr<const std::vector<unsigned char>> slice_samples(
     const std::vector<unsigned char> &samples, std::size_t size, const Rect &from, const Rect &cut)
 {
     auto out = std::make_shared<std::vector<unsigned char>>(std::size_t(cut.width()) *
                                                             std::size_t(cut.height()) * size);
-    const std::size_t row = std::size_t(cut.width()) * size;
-    for (int y = cut.y0; y < cut.y1; ++y) {
-        const std::size_t at =
-            (std::size_t(y - from.y0) * std::size_t(from.width()) + std::size_t(cut.x0 - from.x0)) *
+    const Rect both = cut.intersect(from);
+    if (both.empty()) {
+        return out;
+    }
+    const std::size_t row = std::size_t(both.width()) * size;
+    for (int y = both.y0; y < both.y1; ++y) {
+        const std::size_t at = (std::size_t(y - from.y0) * std::size_t(from.width()) +
+                                std::size_t(both.x0 - from.x0)) *
+                               size;
+        const std::size_t to =
+            (std::size_t(y - cut.y0) * std::size_t(cut.width()) + std::size_t(both.x0 - cut.x0)) *
             size;
-        std::memcpy(out->data() + std::size_t(y - cut.y0) * row, samples.data() + at, row);
+        std::memcpy(out->data() + to, samples.data() + at, row);
     }
     return out;
 }
@@ -205,7 +214,7 @@ void set_source_type(OutChannel &c, const Pass &p, int k, const SourceFile &src,
     const auto raw = src.raw.find({o.part, o.channel});
     if (raw == src.raw.end()) {
         c.type = file_type;  // the floats hold the ids exactly
-    } else if (p.untouched() && window.intersect(sp.data_window()) == window) {
+    } else if (p.untouched()) {
         c.type = file_type;  // ids beyond 2^24: the file's own
         c.raw_slice = slice_samples(*raw->second, file_type.size(), sp.data_window(), window);
         c.raw = c.raw_slice.get();
@@ -503,8 +512,7 @@ std::vector<OutPart> source_layout(const Frame &frame,
                     const OutPart &part = parts[std::size_t(o.part)];
                     if (!part.cut) {
                         c.raw = it->second.get();
-                    } else if (part.data_window.intersect(part.source->data_window()) ==
-                               part.data_window) {
+                    } else {
                         c.raw_slice = slice_samples(*it->second,
                                                     file_type.size(),
                                                     part.source->data_window(),

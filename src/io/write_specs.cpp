@@ -135,9 +135,10 @@ void finish_specs(std::vector<OutPart> &parts,
         }
         if (chosen_view) {
             write_camera(frame.camera, spec, src && part.source ? &src->camera : nullptr);
-            if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {
-                spec.attribute(attr::kFrameNumber, frame.number);
-            }
+        }
+        // The frame's number is every view's (it was set on the chosen view's parts only).
+        if (spec.get_int_attribute(attr::kFrameNumber, frame.number - 1) != frame.number) {
+            spec.attribute(attr::kFrameNumber, frame.number);
         }
         for (const OIIO::ParamValue &p : changed) {
             spec.extra_attribs.remove(p.name());

@@ -12,6 +12,7 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfInputPart.h>
+#include <ImfIntAttribute.h>
 #include <ImfMultiPartInputFile.h>
 #include <ImfMultiPartOutputFile.h>
 #include <ImfOutputFile.h>
@@ -709,6 +710,22 @@ TEST(ExrFidelity, GeometryNodesMoveEveryViewsCamera)
     }
 }
 
+// A renumbered frame's number goes to every view's parts (only the chosen view's had it).
+TEST(ExrFidelity, EveryViewsPartsTakeTheFramesNumber)
+{
+    Frame f = read_frame(entry("stereo_multipart").path, nullptr, 1);
+    f.number = 12;
+    const std::string out = out_path("views_numbered");
+    write_exr(f, out, {});
+    Imf::MultiPartInputFile in(out.c_str());
+    ASSERT_GT(in.parts(), 2);
+    for (int p = 0; p < in.parts(); ++p) {
+        const auto *n = in.header(p).findTypedAttribute<Imf::IntAttribute>("frameNumber");
+        ASSERT_NE(n, nullptr) << "part " << p;
+        EXPECT_EQ(n->value(), 12) << "part " << p;
+    }
+}
+
 TEST(ExrFidelity, LuminanceChromaReadsAsRgb)
 {
     const corpus::Entry &e = entry("luma_chroma");
@@ -1057,6 +1074,74 @@ TEST(ExrFidelity, APassSpreadBeyondItsPartWidensThePart)
     const float want = blurred.image("color").at(x, y, 0);
     ASSERT_GT(want, 0.0f);
     EXPECT_NEAR(back.image("color").at(x, y, 0), want, want * 1e-3f);  // stored as half
+}
+
+// A widened part keeps an untouched uint id beyond 2^24 as the file had it (inside its old
+// window; zero beyond it, as read): it was written from the float pass, which rounds such ids.
+TEST(ExrFidelity, AWidenedPartKeepsItsUintIds)
+{
+    const std::string path = scratch() + "/widened_uint.exr";
+    const Imath::Box2i display({0, 0}, {31, 23});
+    const Imath::Box2i inner({8, 6}, {23, 17});
+    const int w = inner.max.x - inner.min.x + 1, h = inner.max.y - inner.min.y + 1;
+    std::vector<std::uint32_t> ids(std::size_t(w) * std::size_t(h));
+    for (std::size_t i = 0; i < ids.size(); ++i) {
+        ids[i] = (1u << 24) + 1u + 2u * std::uint32_t(i);  // odd: no float holds them
+    }
+    {
+        Imf::Header rgb(display, inner);
+        rgb.setName("rgb");
+        rgb.setType(Imf::SCANLINEIMAGE);
+        for (const char *c : {"R", "G", "B", "id"}) {
+            rgb.channels().insert(c, Imf::Channel(c[0] == 'i' ? Imf::UINT : Imf::FLOAT));
+        }
+        Imf::Header depth(display, display);
+        depth.setName("depth");
+        depth.setType(Imf::SCANLINEIMAGE);
+        depth.channels().insert("Z", Imf::Channel(Imf::FLOAT));
+        std::vector<Imf::Header> headers{rgb, depth};
+        Imf::MultiPartOutputFile out(path.c_str(), headers.data(), int(headers.size()));
+        std::vector<float> color(std::size_t(w) * std::size_t(h), 0.5f);
+        color[std::size_t(h / 2) * std::size_t(w)] = 40.0f;  // a bright pixel at the left edge
+        const std::ptrdiff_t origin = std::ptrdiff_t(inner.min.x) + std::ptrdiff_t(inner.min.y) * w;
+        Imf::FrameBuffer fb;
+        for (const char *c : {"R", "G", "B"}) {
+            fb.insert(c,
+                      Imf::Slice(Imf::FLOAT,
+                                 reinterpret_cast<char *>(color.data() - origin),
+                                 sizeof(float),
+                                 sizeof(float) * std::size_t(w)));
+        }
+        fb.insert("id",
+                  Imf::Slice(Imf::UINT,
+                             reinterpret_cast<char *>(ids.data() - origin),
+                             sizeof(std::uint32_t),
+                             sizeof(std::uint32_t) * std::size_t(w)));
+        Imf::OutputPart part0(out, 0);
+        part0.setFrameBuffer(fb);
+        part0.writePixels(h);
+        const int dw = display.max.x + 1, dh = display.max.y + 1;
+        std::vector<float> z(std::size_t(dw) * std::size_t(dh), 3.0f);
+        Imf::FrameBuffer zb;
+        zb.insert("Z",
+                  Imf::Slice(Imf::FLOAT,
+                             reinterpret_cast<char *>(z.data()),
+                             sizeof(float),
+                             sizeof(float) * std::size_t(dw)));
+        Imf::OutputPart part1(out, 1);
+        part1.setFrameBuffer(zb);
+        part1.writePixels(dh);
+    }
+    const Frame blurred =
+        test::run_node("blur", read_frame(path, nullptr, 1), R"({"sigma": 2, "passes": "color"})");
+    const std::string out = out_path("widened_uint");
+    write_exr(blurred, out, {});
+    const FileInfo after = read_file_info(out);
+    ASSERT_EQ(after.parts[0].data_window, (Rect{0, 0, 32, 24}));  // widened
+    const Rect old{inner.min.x, inner.min.y, inner.max.x + 1, inner.max.y + 1};
+    EXPECT_EQ(read_uint_channel(out, "id", old), ids);
+    const std::vector<std::uint32_t> beyond = read_uint_channel(out, "id", Rect{0, 0, 32, 6});
+    EXPECT_TRUE(std::all_of(beyond.begin(), beyond.end(), [](std::uint32_t v) { return v == 0; }));
 }
 
 // A renamed or copied pass is written as the file held it: half colour renamed "beauty" stays
