@@ -318,7 +318,7 @@ void execute(NodeContext &ctx)
     const std::string path = in.source ? in.source->path : std::string("the frame");
     std::vector<cryptomatte::Layer> layers;
     try {
-        layers = cryptomatte::find_layers(in.attributes, path);
+        layers = cryptomatte::find_layers(cryptomatte::declarations(in), path);
     } catch (const Error &e) {
         throw Error(e.code(), where + ": " + e.what());
     }

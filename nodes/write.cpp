@@ -122,7 +122,7 @@ constexpr Binding<WriteOptions> kExrFields[] = {
 void keep_cryptomattes_exact(NodeContext &ctx, const Frame &frame, WriteOptions &options)
 {
     const std::set<std::string> ranks = cryptomatte::requested_ranks(
-        {cryptomatte::request_for("")}, frame.attributes, frame.pass_names());
+        {cryptomatte::request_for("")}, cryptomatte::declarations(frame), frame.pass_names());
     bool forced = false;
     for (const std::string &name : ranks) {
         auto it = options.storage.find(name);

@@ -185,7 +185,7 @@ int info(const std::vector<std::string> &files, const std::string &convention)
             for (const PassSource &ps : fi.passes) {
                 pass_names.push_back(ps.pass);
             }
-            for (const cryptomatte::Layer &l : cryptomatte::find_layers(fi.attributes, fi.path)) {
+            for (const cryptomatte::Layer &l : cryptomatte::find_layers(fi.cryptomattes, fi.path)) {
                 if (!l.problem.empty()) {
                     std::printf("cryptomatte        invalid: %s\n", l.problem.c_str());
                     continue;

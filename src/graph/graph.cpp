@@ -455,8 +455,12 @@ std::vector<std::shared_ptr<const Frame>> Graph::run_nodes(int frame,
             const bool sink_target = !targets.empty() && gn.type->spec.sink;
             if (!gn.requested.all && !sink_target) {
                 // A cryptomatte request keeps the rank layers the frame's header declares.
-                const std::set<std::string> ranks = cryptomatte::requested_ranks(
-                    gn.requested.optional, out.attributes, out.pass_names());
+                const std::set<std::string> ranks =
+                    gn.requested.optional.empty()
+                        ? std::set<std::string>()
+                        : cryptomatte::requested_ranks(gn.requested.optional,
+                                                       cryptomatte::declarations(out),
+                                                       out.pass_names());
                 for (const std::string &name : out.pass_names()) {
                     const std::string base = name.substr(0, name.find('@'));
                     if (!gn.requested.wants(name) && !gn.requested.wants(base) &&

@@ -12,6 +12,8 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/frame.h"
+#include "io/source_file.h"
 
 namespace posthaste::cryptomatte {
 
@@ -161,6 +163,55 @@ std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes,
         return a.name < b.name;
     });
     return layers;
+}
+
+namespace {
+
+/// The key of a "cryptomatte/<key>/<field>" attribute, or "" for any other.
+std::string key_of(const std::string &name)
+{
+    if (name.compare(0, kPrefix.size(), kPrefix) != 0) {
+        return {};
+    }
+    const std::size_t slash = name.find('/', kPrefix.size());
+    return slash == std::string::npos ? std::string()
+                                      : name.substr(kPrefix.size(), slash - kPrefix.size());
+}
+
+}  // namespace
+
+OIIO::ParamValueList with_declarations_of(const OIIO::ParamValueList &own,
+                                          const std::vector<const OIIO::ParamValueList *> &others)
+{
+    OIIO::ParamValueList out = own;
+    std::set<std::string> taken;
+    for (const OIIO::ParamValue &p : own) {
+        taken.insert(key_of(p.name().string()));
+    }
+    for (const OIIO::ParamValueList *list : others) {
+        std::set<std::string> here;
+        for (const OIIO::ParamValue &p : *list) {
+            const std::string key = key_of(p.name().string());
+            if (!key.empty() && taken.count(key) == 0) {
+                out.push_back(p);
+                here.insert(key);
+            }
+        }
+        taken.insert(here.begin(), here.end());
+    }
+    return out;
+}
+
+OIIO::ParamValueList declarations(const Frame &frame)
+{
+    if (!frame.source) {
+        return frame.attributes;
+    }
+    std::vector<const OIIO::ParamValueList *> others;
+    for (const SourcePart &part : frame.source->parts) {
+        others.push_back(&part.spec.extra_attribs);
+    }
+    return with_declarations_of(frame.attributes, others);
 }
 
 std::vector<std::string> rank_passes(const Layer &layer,

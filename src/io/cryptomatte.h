@@ -23,6 +23,10 @@
 
 #include "core/cryptomatte_id.h"
 
+namespace posthaste {
+class Frame;
+}
+
 namespace posthaste::cryptomatte {
 
 /// One cryptomatte a header declares.
@@ -49,6 +53,17 @@ struct Layer {
 /// `image_path`, the cryptomatte and what is wrong.
 std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes,
                                const std::string &image_path);
+
+/// `own` (the header of a frame's part) with the cryptomatte declarations of `others` (the
+/// file's other parts' headers) that it lacks: a multi-part file may declare a cryptomatte only
+/// in the header of the part that holds its rank layers. Each key comes whole from the first
+/// header that declares it, `own` first.
+OIIO::ParamValueList with_declarations_of(const OIIO::ParamValueList &own,
+                                          const std::vector<const OIIO::ParamValueList *> &others);
+
+/// The cryptomatte declarations a frame can use: its attributes' and its source file's other
+/// parts'.
+OIIO::ParamValueList declarations(const Frame &frame);
 
 /// The rank passes of `layer` among `pass_names`: <name>00, <name>01, ... in order. A gap (a rank
 /// layer missing below one that exists) is an Error naming `where` and the missing layer.

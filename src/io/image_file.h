@@ -55,6 +55,8 @@ struct FileInfo {
     std::string view;                ///< The view the canonical passes come from.
     Camera camera;
     OIIO::ParamValueList attributes;  ///< That view's first part's attributes, camera removed.
+    /// Those attributes with the cryptomatte declarations only the other parts' headers hold.
+    OIIO::ParamValueList cryptomattes;
     /// How the file's channels map onto passes: the chosen view's passes under their own names,
     /// other views' as "pass@view".
     std::vector<PassSource> passes;

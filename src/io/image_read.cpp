@@ -194,6 +194,11 @@ Opened open_file(const std::string &path, const ReadOptions &options)
             info.attributes.push_back(p);
         }
     }
+    std::vector<const OIIO::ParamValueList *> other_parts;
+    for (const OIIO::ImageSpec &spec : o.specs) {
+        other_parts.push_back(&spec.extra_attribs);
+    }
+    info.cryptomattes = cryptomatte::with_declarations_of(info.attributes, other_parts);
     if (deep) {
         // Flattened deep channels: Z is the nearest sample's, ZBack is dropped.
         for (MappedChannel &m : channels) {
@@ -335,7 +340,7 @@ Frame read_frame(const std::string &path,
                     continue;
                 }
                 for (const cryptomatte::Layer &l :
-                     cryptomatte::find_layers(info.attributes, path)) {
+                     cryptomatte::find_layers(info.cryptomattes, path)) {
                     if (l.problem.empty() && (type.empty() || l.is(type))) {
                         for (const std::string &rank : cryptomatte::rank_passes(l, names, path)) {
                             also.insert(rank);

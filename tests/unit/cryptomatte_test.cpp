@@ -419,6 +419,69 @@ TEST(Cryptomatte, InfoListsEachCryptomatte)
         << out;
 }
 
+// A multi-part file that declares its cryptomatte only in the header of the part holding the
+// rank layers (as a compositor splitting layers into parts writes it): keyed, listed by info,
+// and written back with the declaration in that part alone. It was invisible: only the first
+// part's header was searched.
+TEST(Cryptomatte, DeclaredOnlyInTheRankLayersPart)
+{
+    const std::string dir = test::scratch_dir("cryptomatte_part");
+    const std::vector<Ranks> pixels = sample_pixels();
+    const std::string single = write_crypto_file(dir + "/one.exr", CryptoFile{}, pixels, kNames);
+    const std::string path = dir + "/parts.exr";
+    {
+        auto in = OIIO::ImageInput::open(single);
+        ASSERT_TRUE(in);
+        const OIIO::ImageSpec &all = in->spec();
+        std::vector<float> data(std::size_t(all.image_pixels()) * std::size_t(all.nchannels));
+        ASSERT_TRUE(in->read_image(0, 0, 0, all.nchannels, OIIO::TypeDesc::FLOAT, data.data()));
+        OIIO::ImageSpec rgba(all.width, all.height, 4, OIIO::TypeDesc::FLOAT);
+        rgba.attribute("name", "rgba");
+        OIIO::ImageSpec ranks(all.width, all.height, all.nchannels - 4, OIIO::TypeDesc::FLOAT);
+        ranks.channelnames.assign(all.channelnames.begin() + 4, all.channelnames.end());
+        ranks.attribute("name", "CryptoObject");
+        for (const OIIO::ParamValue &p : all.extra_attribs) {
+            if (p.name().string().rfind("cryptomatte/", 0) == 0) {
+                ranks.extra_attribs.push_back(p);
+            }
+        }
+        const OIIO::ImageSpec specs[2] = {rgba, ranks};
+        auto out = OIIO::ImageOutput::create(path);
+        ASSERT_TRUE(out && out->open(path, 2, specs));
+        const std::size_t stride = std::size_t(all.nchannels) * sizeof(float);
+        ASSERT_TRUE(out->write_image(
+            OIIO::TypeDesc::FLOAT, data.data(), OIIO::stride_t(stride), OIIO::AutoStride));
+        ASSERT_TRUE(out->open(path, ranks, OIIO::ImageOutput::AppendSubimage));
+        ASSERT_TRUE(out->write_image(
+            OIIO::TypeDesc::FLOAT, data.data() + 4, OIIO::stride_t(stride), OIIO::AutoStride));
+        out->close();
+    }
+    EXPECT_EQ(values(key(path, R"({"matte": ["bunny", "d*"]})").image("matte")),
+              expected_matte(pixels, {"bunny", "default"}));
+    std::string log;
+    ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " + path, &log), 0) << log;
+    EXPECT_NE(log.find("cryptomatte        CryptoObject (key "), std::string::npos) << log;
+    EXPECT_NE(log.find("manifest of 5 names (header)"), std::string::npos) << log;
+    // Passed through (colour graded), the declaration stays in the rank layers' part alone.
+    const std::string graph = dir + "/g.json";
+    std::ofstream(graph) << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")"
+                         << path << R"("}},
+        {"id": "g", "type": "grade", "inputs": {"image": "in"}, "params": {"gain": [2, 2, 2]}},
+        {"id": "out", "type": "write", "inputs": {"image": "g"}, "params": {"path": ")"
+                         << dir << R"(/back.exr"}}]})";
+    ASSERT_EQ(
+        test::run_command(std::string(POSTHASTE_BINARY) + " run " + graph + " --frames 1 -q", &log),
+        0)
+        << log;
+    auto back = OIIO::ImageInput::open(dir + "/back.exr");
+    ASSERT_TRUE(back);
+    const std::string name = "cryptomatte/" + hex_of(id_of("CryptoObject")).substr(0, 7) + "/name";
+    EXPECT_EQ(back->spec().find_attribute(name), nullptr);
+    ASSERT_TRUE(back->seek_subimage(1, 0));
+    EXPECT_EQ(back->spec().get_string_attribute(name), "CryptoObject");
+}
+
 // Read and written back (a grade on colour in between), the rank layers and the declaration
 // come out bit for bit.
 TEST(Cryptomatte, RankLayersPassThroughBitForBit)
