@@ -16,6 +16,35 @@ namespace posthaste::python {
 
 namespace py = pybind11;
 
+/// The name of v's type ("int", "str").
+inline std::string type_name(py::handle v)
+{
+    return py::str(v.get_type().attr("__name__")).cast<std::string>();
+}
+
+/// v as a T, or a TypeError naming the argument and what it takes, on one line (pybind11 said
+/// "Unable to cast Python instance to C++ type", or listed the signatures over several lines).
+template <typename T>
+T cast_arg(py::handle v, const std::string &who, const char *expected)
+{
+    try {
+        return v.cast<T>();
+    } catch (const py::cast_error &) {
+        throw py::type_error(who + ": expected " + expected + ", got " + type_name(v) + " " +
+                             py::repr(v).cast<std::string>());
+    }
+}
+
+/// A pass name: a str, else a TypeError naming `who`.
+inline std::string pass_name_arg(py::handle v, const std::string &who)
+{
+    if (!py::isinstance<py::str>(v)) {
+        throw py::type_error(who + ": pass names are str, got " + type_name(v) + " " +
+                             py::repr(v).cast<std::string>());
+    }
+    return v.cast<std::string>();
+}
+
 /// A Python value (None, bool, int, float, str, list/tuple, dict with str keys, numpy scalars
 /// and arrays) as JSON; `where` leads the TypeError for anything else.
 nlohmann::json to_json(py::handle value, const std::string &where);

@@ -240,12 +240,18 @@ void bind_frame(py::module_ &m)
                         "Passes",
                         "The passes of a Frame by name: numpy arrays of shape "
                         "(height, width, channels) over the frame's memory.")
-        .def("__getitem__", [](PassMap &p, const std::string &n) { return p.owner->view(n); })
-        .def("__setitem__",
-             [](PassMap &p, const std::string &n, py::handle a) {
-                 p.owner->set_pass(n, a, py::none());
+        .def("__getitem__",
+             [](PassMap &p, py::handle n) {
+                 return p.owner->view(pass_name_arg(n, "posthaste.Passes"));
              })
-        .def("__delitem__", [](PassMap &p, const std::string &n) { p.owner->remove_pass(n); })
+        .def("__setitem__",
+             [](PassMap &p, py::handle n, py::handle a) {
+                 p.owner->set_pass(pass_name_arg(n, "posthaste.Passes"), a, py::none());
+             })
+        .def("__delitem__",
+             [](PassMap &p, py::handle n) {
+                 p.owner->remove_pass(pass_name_arg(n, "posthaste.Passes"));
+             })
         .def("__contains__",
              [](PassMap &p, py::handle n) {
                  // A mapping: anything that is not a name is not in it (0 in f.passes).
@@ -273,7 +279,8 @@ void bind_frame(py::module_ &m)
              })
         .def(
             "get",
-            [](PassMap &p, const std::string &n, py::object fallback) -> py::object {
+            [](PassMap &p, py::handle name, py::object fallback) -> py::object {
+                const std::string n = pass_name_arg(name, "posthaste.Passes.get");
                 return p.owner->frame().has(n) ? py::object(p.owner->view(n)) : fallback;
             },
             py::arg("name"),
@@ -294,11 +301,11 @@ void bind_frame(py::module_ &m)
                          py::object attributes,
                          py::object display_window,
                          py::object data_window,
-                         int number,
+                         py::handle number,
                          py::object channels) {
                  auto f = std::make_shared<PyFrame>();
                  Frame &fr = f->frame();
-                 fr.number = number;
+                 fr.number = cast_arg<int>(number, "number", "an int (32 bits)");
                  if (!data_window.is_none()) {
                      fr.data_window = tuple_to_rect(data_window, "data_window");
                  }
@@ -316,6 +323,10 @@ void bind_frame(py::module_ &m)
                  if (!passes.is_none()) {
                      const py::dict chans =
                          channels.is_none() ? py::dict() : channels.cast<py::dict>();
+                     if (!py::isinstance<py::dict>(passes)) {
+                         throw py::type_error("passes: expected a dict {name: array}, got " +
+                                              type_name(passes));
+                     }
                      const py::dict given = passes.cast<py::dict>();
                      for (auto [key, value] : chans) {
                          if (!given.contains(key)) {
@@ -325,7 +336,7 @@ void bind_frame(py::module_ &m)
                          }
                      }
                      for (auto [key, value] : given) {
-                         const std::string n = py::str(key).cast<std::string>();
+                         const std::string n = pass_name_arg(key, "passes");
                          f->set_pass(
                              n, value, chans.contains(key) ? py::object(chans[key]) : py::none());
                      }
@@ -383,7 +394,9 @@ void bind_frame(py::module_ &m)
         .def_property(
             "number",
             [](PyFrame &f) { return f.frame().number; },
-            [](PyFrame &f, int n) { f.frame().number = n; })
+            [](PyFrame &f, py::handle n) {
+                f.frame().number = cast_arg<int>(n, "posthaste.Frame.number", "an int (32 bits)");
+            })
         .def_property_readonly("width", [](PyFrame &f) { return f.frame().width(); })
         .def_property_readonly("height", [](PyFrame &f) { return f.frame().height(); })
         .def_property(

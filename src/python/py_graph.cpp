@@ -290,9 +290,11 @@ void bind_graph(py::module_ &m)
             "Load a graph file; set={\"node.param\": value} overrides parameters as --set does.")
         .def_static(
             "from_dict",
-            [](py::handle d, const std::string &base_dir, py::handle set) {
+            [](py::handle d, py::handle base_dir, py::handle set) {
                 return PyGraph::from_text(
-                    to_json(d, "Graph.from_dict").dump(), base_dir, overrides_of(set));
+                    to_json(d, "Graph.from_dict").dump(),
+                    cast_arg<std::string>(base_dir, "Graph.from_dict: base_dir", "a str"),
+                    overrides_of(set));
             },
             py::arg("graph"),
             py::arg("base_dir") = "",
@@ -332,7 +334,10 @@ void bind_graph(py::module_ &m)
                                })
         .def(
             "outputs",
-            [](const PyGraph &g, int frame) { return g.graph().outputs(frame); },
+            [](const PyGraph &g, py::handle frame) {
+                return g.graph().outputs(
+                    cast_arg<int>(frame, "Graph.outputs: frame", "an int (32 bits)"));
+            },
             py::arg("frame"),
             "The files the graph writes for a frame.");
 }

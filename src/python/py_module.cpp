@@ -36,7 +36,8 @@ PYBIND11_MODULE(posthaste, m)
     python::bind_graph(m);
     m.def(
         "set_threads",
-        [](int threads) {
+        [](py::handle given) {
+            const int threads = python::cast_arg<int>(given, "set_threads(): threads", "an int");
             if (threads < 0 || threads > 1024) {
                 // As the CLI's --threads: a pool of 100000 failed every later EXR read.
                 throw py::value_error("threads: expected 0 (every core) to 1024, got " +

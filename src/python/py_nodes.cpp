@@ -134,24 +134,6 @@ std::shared_ptr<PyFrame> run_node(
     return std::make_shared<PyFrame>(std::move(out));
 }
 
-std::string type_name(py::handle v)
-{
-    return py::str(v.get_type().attr("__name__")).cast<std::string>();
-}
-
-/// v as a T, or a TypeError naming the argument and what it takes (pybind11 said only "Unable
-/// to cast Python instance to C++ type").
-template <typename T>
-T cast_arg(py::handle v, const std::string &who, const char *expected)
-{
-    try {
-        return v.cast<T>();
-    } catch (const py::cast_error &) {
-        throw py::type_error(who + ": expected " + expected + ", got " + type_name(v) + " " +
-                             py::repr(v).cast<std::string>());
-    }
-}
-
 std::shared_ptr<PyFrame> frame_arg(py::handle v, const std::string &who)
 {
     if (!py::isinstance<PyFrame>(v)) {
@@ -388,9 +370,9 @@ void bind_nodes(py::module_ &m)
           "(None for write).");
     m.def(
         "read",
-        [](py::handle path, std::optional<int> frame, py::kwargs kwargs) {
+        [](py::handle path, py::object frame, py::kwargs kwargs) {
             kwargs["path"] = path;
-            kwargs["frame"] = frame ? py::object(py::int_(*frame)) : py::none();
+            kwargs["frame"] = frame;
             return node("read", py::args(), kwargs);
         },
         py::arg("path"),
@@ -399,7 +381,7 @@ void bind_nodes(py::module_ &m)
         "disk) with read's parameters.");
     m.def(
         "write",
-        [](std::shared_ptr<PyFrame> frame, py::handle path, py::kwargs kwargs) {
+        [](py::handle frame, py::handle path, py::kwargs kwargs) {
             kwargs["path"] = path;
             py::tuple args = py::make_tuple(frame);
             node("write", py::args(args), kwargs);

@@ -197,3 +197,31 @@ def test_wrong_types_name_the_argument(tmp_path):
         g.run(frames=1.0)
     with pytest.raises(ValueError, match="1099511627776 does not fit 32 bits"):
         g.run(frames=[2**40])
+
+
+def test_arguments_of_the_wrong_type_are_named_on_one_line():
+    """pybind11 listed the supported signatures over several lines and named no argument."""
+    color = np.zeros((2, 2, 3), np.float32)
+    f = ph.Frame(passes={"color": color})
+    cases = [
+        (lambda: ph.set_threads("2"), "set_threads(): threads: expected an int, got str '2'"),
+        (lambda: setattr(f, "number", "x"), "posthaste.Frame.number: expected an int"),
+        (lambda: ph.Frame(number="x"), "number: expected an int"),
+        (lambda: ph.Frame(passes=[1]), "passes: expected a dict {name: array}, got list"),
+        (lambda: ph.Frame(passes={1: color}), "passes: pass names are str, got int 1"),
+        (lambda: f.passes[0], "posthaste.Passes: pass names are str, got int 0"),
+        (lambda: f.passes.__setitem__(0, color), "posthaste.Passes: pass names are str"),
+        (lambda: f.passes.__delitem__(0), "posthaste.Passes: pass names are str"),
+        (lambda: f.passes.get(0), "posthaste.Passes.get: pass names are str"),
+        (lambda: ph.read("x.exr", frame="1"), "frame: expected an int"),
+        (lambda: ph.write(1, "x.exr"), "expected a posthaste.Frame, got int"),
+        (lambda: ph.Graph.from_dict({"nodes": []}, base_dir=3), "base_dir: expected a str, got int 3"),
+    ]
+    for call, message in cases:
+        with pytest.raises(TypeError) as e:
+            call()
+        assert message in str(e.value), str(e.value)
+        assert "\n" not in str(e.value), str(e.value)
+    f.number = 7  # the right types still work
+    assert f.number == 7
+    assert ph.Frame(passes={"color": color}, number=3).number == 3
