@@ -41,10 +41,11 @@ constexpr ParamSpec kStorage =
         .doc(
             "EXR pixel type: auto keeps each source channel's type, and is half for color and "
             "albedo, float for other passes no file gave.");
-constexpr ParamSpec kAllowLossyData = ParamSpec::boolean("allow_lossy_data", false)
-                                          .doc(
-                                              "Permit lossy compression (dwaa, dwab, pxr24) on "
-                                              "data passes (depth, motion, normals...).");
+constexpr ParamSpec kAllowLossyData =
+    ParamSpec::boolean("allow_lossy_data", false)
+        .doc(
+            "Permit lossy compression (dwaa, dwab, pxr24, b44, b44a) on "
+            "data passes (depth, motion, normals...).");
 constexpr ParamSpec kColorSpace = ParamSpec::string("input_colorspace", "lin_rec709")
                                       .doc("Preview: color space of the color pass.");
 constexpr ParamSpec kDisplay = ParamSpec::string("display", "sRGB").doc("Preview: OCIO display.");

@@ -18,6 +18,7 @@
 #include "graph/graph_order.h"
 #include "graph/node_catalog.h"
 #include "graph/param_json.h"
+#include "io/sequence.h"
 
 namespace posthaste {
 
@@ -497,15 +498,18 @@ struct GraphBuilder {
                         ":/nodes: the graph has no sink (write) node, so it would produce "
                         "nothing");
         }
-        // Two sinks with one path would write over each other's files, frame by frame.
+        // Two sinks with one path would write over each other's files, frame by frame: the same
+        // file for a frame, however spelled (a.####.exr and a.%04d.exr, relative and absolute).
         std::map<std::string, const GraphNode *> paths;
         for (const GraphNode &gn : g.nodes_) {
             const auto it = gn.params.values().find("path");
             if (!gn.type->spec.sink || it == gn.params.values().end() || it->second.text.empty()) {
                 continue;
             }
-            const std::string key =
-                std::filesystem::path(it->second.text).lexically_normal().string();
+            std::error_code ec;
+            const std::filesystem::path file(expand_frame_pattern(it->second.text, 1));
+            const std::filesystem::path absolute = std::filesystem::absolute(file, ec);
+            const std::string key = (ec ? file : absolute).lexically_normal().string();
             const auto [first, fresh] = paths.emplace(key, &gn);
             if (!fresh) {
                 throw_usage(gn.identity.json_path,

@@ -2,6 +2,7 @@
 // renamed into place, so that a failed or killed write never leaves a half-written file at the
 // final name; temporaries a killed process left behind are tidied.
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -148,8 +149,17 @@ class TemporaryGuard {
 
 void atomic_write(const std::string &path, const std::function<void(const std::string &)> &write)
 {
-    const fs::path target(path);
     std::error_code ec;
+    // A link is written through (the rename replaced the link with a file and left its
+    // target as it was).
+    fs::path target(path);
+    for (int hops = 0; hops < 40 && fs::is_symlink(target, ec); ++hops) {
+        const fs::path to = fs::read_symlink(target, ec);
+        if (ec) {
+            break;
+        }
+        target = (to.is_absolute() ? to : target.parent_path() / to).lexically_normal();
+    }
     if (target.has_parent_path()) {
         fs::create_directories(target.parent_path(), ec);
         if (ec) {
@@ -164,13 +174,19 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
     // Keep the extension last: OIIO picks the writer from it.
     thread_local std::mt19937 rng(std::random_device{}());
     // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on "." + std::string here.
+    std::string suffix = ".tmp";
+    suffix += std::to_string(::getpid());
+    suffix += '-';
+    suffix += std::to_string(rng() % 100000);
+    suffix += target.extension().string();
+    // The stem is cut where the temporary's name would pass the file system's 255 bytes (a
+    // valid long name failed for its temporary's).
+    std::string stem = target.stem().string();
+    stem.resize(
+        std::min(stem.size(), std::size_t(255) - std::min<std::size_t>(255, 1 + suffix.size())));
     std::string name = ".";
-    name += target.stem().string();
-    name += ".tmp";
-    name += std::to_string(::getpid());
-    name += '-';
-    name += std::to_string(rng() % 100000);
-    name += target.extension().string();
+    name += stem;
+    name += suffix;
     const std::string tmp = (target.parent_path() / name).string();
     install_signal_cleanup();
     const TemporaryGuard guard(tmp);
@@ -203,6 +219,14 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
         fs::remove(tmp, ec);
         throw;
     }
+    // A file written again keeps its permissions, and its owner where this process may give it.
+    struct stat was {};
+    if (::stat(target.c_str(), &was) == 0 && S_ISREG(was.st_mode)) {
+        ::chmod(tmp.c_str(), was.st_mode & 07777);
+        if (was.st_uid != ::geteuid() || was.st_gid != ::getegid()) {
+            [[maybe_unused]] const int ignored = ::chown(tmp.c_str(), was.st_uid, was.st_gid);
+        }
+    }
     fs::rename(tmp, target, ec);
     if (ec) {
         const std::string why = ec.message();  // before the removal's own code replaces it
@@ -214,10 +238,16 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
 void write_file_bytes(const std::string &path, const void *data, std::size_t size)
 {
     atomic_write(path, [&](const std::string &tmp) {
+        errno = 0;
         std::FILE *f = std::fopen(tmp.c_str(), "wb");
-        const bool ok = f && std::fwrite(data, 1, size, f) == size;
-        if (!f || std::fclose(f) != 0 || !ok) {
-            throw_runtime(path, ": cannot write");
+        if (!f) {
+            throw_runtime(path, ": cannot write: ", std::strerror(errno));
+        }
+        const bool ok = std::fwrite(data, 1, size, f) == size;
+        const int write_errno = errno;
+        if (std::fclose(f) != 0 || !ok) {
+            const int e = ok ? errno : write_errno;
+            throw_runtime(path, ": cannot write: ", e != 0 ? std::strerror(e) : "short write");
         }
     });
 }

@@ -482,7 +482,8 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
     const std::string compression = spec.get_string_attribute("compression", "zip");
     const auto colon = compression.find(':');
     std::string codec = compression.substr(0, colon);
-    const int level = colon == std::string::npos ? -1 : std::atoi(compression.c_str() + colon + 1);
+    const double level =
+        colon == std::string::npos ? -1.0 : std::strtod(compression.c_str() + colon + 1, nullptr);
     if (spec.tile_width > 0 && part.channels.size() == 1 && istarts_with(codec, "dwa") &&
         ((spec.tile_width < 16 && spec.tile_height < 16) ||
          (spec.tile_width & (spec.tile_width - 1)) ||
@@ -492,7 +493,7 @@ Imf::Header exr_header(const OutPart &part, int index, int parts, const std::str
     const int id = exr_compression_id(codec);  // validated by check_compression; zip else
     h.compression() = id >= 0 ? Imf::Compression(id) : Imf::ZIP_COMPRESSION;
     if (istarts_with(codec, "zip")) {
-        h.zipCompressionLevel() = level >= 1 && level <= 9 ? level : 4;
+        h.zipCompressionLevel() = level >= 1 && level <= 9 ? int(level) : 4;
     }
     if (istarts_with(codec, "dwa") && level > 0) {
         h.dwaCompressionLevel() = float(level);

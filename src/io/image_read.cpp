@@ -215,15 +215,6 @@ Opened open_file(const std::string &path, const ReadOptions &options)
     return o;
 }
 
-/// Whether a float pass can give back the file's bits for this channel and mapping.
-bool float_reproduces(OIIO::TypeDesc type, const ChannelSource &cs, const PassSource &ps, bool lin)
-{
-    const bool exact_type =
-        type.basetype == OIIO::TypeDesc::HALF || type.basetype == OIIO::TypeDesc::FLOAT;
-    const bool exact_map = (cs.scale == 1.0f || cs.scale == -1.0f) && cs.offset == 0.0f;
-    return exact_type && exact_map && !(ps.infinite_above > 0.0f) && !lin;
-}
-
 }  // namespace
 
 std::string verify_image_file(const std::string &path)
@@ -233,6 +224,9 @@ std::string verify_image_file(const std::string &path)
         if (!o.in) {
             read_luminance_chroma(path, o.info.parts[0]);
             return "";
+        }
+        if (o.info.format == "jpeg") {
+            check_jpeg_ends(path);
         }
         for (std::size_t p = 0; p < o.info.parts.size(); ++p) {
             const FilePart &part = o.info.parts[p];

@@ -3,6 +3,7 @@
 // levels), or rebuilt with canonical channel names; 8-bit previews (atomic writes:
 // atomic_file.cpp).
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -44,7 +45,9 @@ bool is_png_path(const std::string &path)
 }
 
 /// Write 8-bit interleaved pixels atomically: a PNG through the parallel encoder (png_write.h),
-/// any other format through OpenImageIO.
+/// any other format through OpenImageIO, encoded in memory where its writer can (then written
+/// as bytes, as the PNG is: libtiff left a truncated file on a full disk and said nothing, and
+/// libjpeg ended the process), else into the temporary and read back whole before the rename.
 void write_8bit(const std::string &path,
                 const std::vector<std::uint8_t> &buf,
                 int w,
@@ -59,16 +62,33 @@ void write_8bit(const std::string &path,
         write_file_bytes(path, png.data(), png.size());
         return;
     }
-    atomic_write(path, [&](const std::string &tmp) {
-        auto out = OIIO::ImageOutput::create(path);
-        if (!out) {
-            throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
+    OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
+    spec.attribute("oiio:ColorSpace", "sRGB");
+    auto out = OIIO::ImageOutput::create(path);
+    if (!out) {
+        throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
+    }
+    if (out->supports("ioproxy")) {
+        OIIO::Filesystem::IOVecOutput bytes;
+        if (!out->set_ioproxy(&bytes) || !out->open(path, spec) ||
+            !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) || !out->close()) {
+            throw_runtime(path, ": cannot encode preview: ", out->geterror());
         }
-        OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
-        spec.attribute("oiio:ColorSpace", "sRGB");
+        write_file_bytes(path, bytes.buffer().data(), bytes.buffer().size());
+        return;
+    }
+    atomic_write(path, [&](const std::string &tmp) {
         if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
             !out->close()) {
             throw_runtime(path, ": cannot write preview: ", out->geterror());
+        }
+        std::vector<std::uint8_t> back(buf.size());
+        auto in = OIIO::ImageInput::open(tmp);
+        if (!in || !in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, back.data())) {
+            throw_runtime(path,
+                          ": cannot write preview: the file written does not read back whole (",
+                          in ? in->geterror() : OIIO::geterror(),
+                          ")");
         }
     });
 }
@@ -103,10 +123,20 @@ void check_compression(const std::string &compression, const std::string &where)
         if (base.rfind("dwa", 0) != 0 && base != "zip" && base != "zips") {
             throw_usage(where, ": compression \"", base, "\" takes no level");
         }
-        char *end = nullptr;
-        const double v = std::strtod(level.c_str(), &end);
-        if (level.empty() || *end != '\0' || !(v > 0.0) || v > 1000.0) {
-            throw_usage(where, ": invalid compression level \"", level, "\"");
+        // Plain decimals only (strtod took "1e3", " 5" and hex, which the writer read
+        // otherwise): zip's levels are zlib's 1-9, DWA's a positive number up to 1000.
+        const bool zip = base != "dwaa" && base != "dwab";
+        const bool plain =
+            !level.empty() &&
+            level.find_first_not_of(zip ? "0123456789" : "0123456789.") == std::string::npos &&
+            std::count(level.begin(), level.end(), '.') <= 1 && level != ".";
+        const double v = plain ? std::strtod(level.c_str(), nullptr) : 0.0;
+        if (!plain || !(v > 0.0) || v > (zip ? 9.0 : 1000.0)) {
+            throw_usage(
+                where,
+                ": invalid compression level \"",
+                level,
+                zip ? "\" (zip's levels are 1 to 9)" : "\" (DWA's levels are above 0, up to 1000)");
         }
     }
 }

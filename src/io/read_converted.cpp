@@ -25,6 +25,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <numeric>
 
@@ -394,6 +395,27 @@ std::vector<SourceLevel> read_ripmap_levels(const std::string &path,
         throw_runtime(path, ": part ", part, ": cannot read its ripmap levels: ", m);
     }
     return levels;
+}
+
+bool float_reproduces(OIIO::TypeDesc type, const ChannelSource &cs, const PassSource &ps, bool lin)
+{
+    const bool exact_type =
+        type.basetype == OIIO::TypeDesc::HALF || type.basetype == OIIO::TypeDesc::FLOAT;
+    const bool exact_map = (cs.scale == 1.0f || cs.scale == -1.0f) && cs.offset == 0.0f;
+    return exact_type && exact_map && !(ps.infinite_above > 0.0f) && !lin;
+}
+
+void check_jpeg_ends(const std::string &path)
+{
+    std::ifstream f(path, std::ios::binary | std::ios::ate);
+    unsigned char end[2] = {0, 0};
+    if (f && f.tellg() >= 2) {
+        f.seekg(-2, std::ios::end);
+        f.read(reinterpret_cast<char *>(end), 2);
+    }
+    if (!f || end[0] != 0xFF || end[1] != 0xD9) {
+        throw_runtime(path, ": the JPEG is cut short (no end-of-image marker)");
+    }
 }
 
 }  // namespace posthaste::io_detail

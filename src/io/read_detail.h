@@ -123,8 +123,15 @@ PartPixels read_luminance_chroma(const std::string &path, const FilePart &part);
 /// A ripmap part's levels other than (0, 0), read through OpenEXR (OpenImageIO 2.4 cannot
 /// address them), at native types interleaved in the part's channel order, ly major.
 std::vector<posthaste::SourceLevel> read_ripmap_levels(const std::string &path,
-                                            int part,
-                                            const OIIO::ImageSpec &spec);
+                                                       int part,
+                                                       const OIIO::ImageSpec &spec);
+
+/// Whether a float pass can give back the file's bits for this channel and mapping.
+bool float_reproduces(OIIO::TypeDesc type, const ChannelSource &cs, const PassSource &ps, bool lin);
+
+/// An Error unless the JPEG at `path` ends with its end-of-image marker (libjpeg decodes a cut
+/// JPEG with a warning, grey below the cut).
+void check_jpeg_ends(const std::string &path);
 
 /// A deep part flattened: per pixel the samples sorted by Z (stable), composited front to back
 /// with `over` on premultiplied values (c += (1 - a_acc) * c_s; alpha likewise), Z the nearest

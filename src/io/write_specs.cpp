@@ -93,7 +93,7 @@ void finish_specs(std::vector<OutPart> &parts,
             compression = was.empty() ? "piz" : is_lossy_compression(was) ? "zip" : was;
         }
         const std::string base = compression.substr(0, compression.find(':'));
-        if ((base == "dwaa" || base == "dwab" || base == "pxr24") && !options.allow_lossy_data) {
+        if (is_lossy_compression(base) && !options.allow_lossy_data) {
             for (const OutChannel &c : part.channels) {
                 if (c.data_pass) {
                     throw_usage(path,

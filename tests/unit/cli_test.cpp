@@ -588,5 +588,102 @@ TEST(Cli, FullDiskStopsTheRunCleanly)
     EXPECT_EQ(whole, int(names.size()));  // every frame before the failure reads back whole
 }
 
+// A preview that does not fit the space left: the run fails with one line naming the file and
+// the cause, and leaves neither the file nor a temporary. libtiff wrote a cut TIFF (45056 bytes
+// free) and said nothing, so it was renamed into place and the run exited 0; libjpeg ended the
+// process on its own words and left the temporary (8192 bytes free).
+TEST(Cli, FullDiskPreviewsFailCleanly)
+{
+    namespace fs = std::filesystem;
+    const std::string mnt = test::scratch_dir("full_disk_previews");
+    if (test::run_command("mount -t tmpfs -o size=1m tmpfs " + mnt) != 0) {
+        GTEST_SKIP() << "cannot mount a tmpfs here (not root)";
+    }
+    const std::string dir = test::scratch_dir("full_disk_previews_graph");
+    for (const auto &[ext, free_bytes] :
+         {std::pair<std::string, long>{"tif", 45056}, {"jpg", 8192}, {"jpg", 0}}) {
+        SCOPED_TRACE(ext + " with " + std::to_string(free_bytes) + " bytes free");
+        const fs::space_info space = fs::space(mnt);
+        ASSERT_EQ(
+            test::run_command("fallocate -l " + std::to_string(long(space.available) - free_bytes) +
+                              " " + mnt + "/filler"),
+            0);
+        std::ofstream(dir + "/g.json")
+            << R"({"nodes": [
+            {"id": "in", "type": "read", "params": {"path": ")"
+            << POSTHASTE_TEST_DIR << R"(/../samples/cycles/closeup.passes.exr",
+             "solve_camera": "never"}},
+            {"id": "out", "type": "write", "inputs": {"image": "in"},
+             "params": {"path": ")"
+            << mnt << "/x." << ext << R"("}}]})";
+        std::string log;
+        const int rc = test::run_command(
+            std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --frames 1 --quiet", &log);
+        std::vector<std::string> left;
+        for (const auto &e : fs::directory_iterator(mnt)) {
+            if (e.path().filename() != "filler") {
+                left.push_back(e.path().filename().string());
+            }
+        }
+        fs::remove(mnt + "/filler");
+        EXPECT_EQ(rc, 1) << log;
+        EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
+        EXPECT_NE(log.find(mnt + "/x." + ext + ": cannot write: No space left on device"),
+                  std::string::npos)
+            << log;
+        EXPECT_TRUE(left.empty()) << left[0];
+    }
+    test::run_command("umount " + mnt);
+}
+
+// What a write replaces: a link is written through to its target (the rename replaced the link
+// with a file), a file written again keeps its permissions, a name of 255 bytes is written (its
+// temporary's name was longer, "File name too long"), and a JPEG cut short is not whole for
+// --skip-existing (libjpeg decodes it with grey below the cut).
+TEST(Cli, WritesKeepLinksModesAndLongNames)
+{
+    namespace fs = std::filesystem;
+    const std::string dir = test::scratch_dir("write_replaces");
+    const std::string long_name = std::string(251, 'n') + ".png";
+    ASSERT_EQ(long_name.size(), 255u);
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "scene", "type": "render", "params": {"scene": ")"
+                                   << POSTHASTE_TEST_DIR << R"(/../samples/scenes/minecrappy.json",
+         "width": 64, "height": 36}},
+        {"id": "exr", "type": "write", "inputs": {"image": "scene"},
+         "params": {"path": "link.exr", "passes": "color"}},
+        {"id": "jpg", "type": "write", "inputs": {"image": "scene"}, "params": {"path": "p.jpg"}},
+        {"id": "long", "type": "write", "inputs": {"image": "scene"},
+         "params": {"path": ")" << long_name
+                                   << R"("}}]})";
+    fs::create_directories(dir + "/real");
+    fs::create_symlink("real/target.exr", dir + "/link.exr");
+    std::ofstream(dir + "/p.jpg") << "old";
+    fs::permissions(dir + "/p.jpg",
+                    fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+    std::string log;
+    ASSERT_EQ(
+        test::run_command(
+            std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --frames 1 --quiet", &log),
+        0)
+        << log;
+    EXPECT_TRUE(fs::is_symlink(dir + "/link.exr"));
+    EXPECT_EQ(verify_image_file(dir + "/real/target.exr"), "");
+    EXPECT_EQ(fs::status(dir + "/p.jpg").permissions() & fs::perms::all,
+              fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+    EXPECT_EQ(verify_image_file(dir + "/" + long_name), "");
+    // Cut the JPEG short: not whole, so --skip-existing writes it again.
+    ASSERT_EQ(verify_image_file(dir + "/p.jpg"), "");
+    const auto size = fs::file_size(dir + "/p.jpg");
+    fs::resize_file(dir + "/p.jpg", size / 2);
+    EXPECT_NE(verify_image_file(dir + "/p.jpg").find("the JPEG is cut short"), std::string::npos);
+    ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " run " + dir +
+                                    "/g.json --frames 1 --quiet --skip-existing",
+                                &log),
+              0)
+        << log;
+    EXPECT_EQ(fs::file_size(dir + "/p.jpg"), size);
+}
+
 }  // namespace
 }  // namespace posthaste
