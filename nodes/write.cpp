@@ -5,6 +5,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
+#include <set>
 
 #include "filter/frame_ops.h"
 #include "io/color.h"
@@ -180,7 +181,19 @@ void execute(NodeContext &ctx)
             ctx.state().note_once(str_cat(ctx.node().describe(), ": ", line));
         };
         const Rect display = frame.data_window.intersect(frame.display_window);
-        if (params.get_choice(kCrop) == 1 && display != frame.data_window && !display.empty()) {
+        if (params.get_choice(kCrop) == 1 && display.empty()) {
+            // (It was written uncut.) An EXR holds at least one pixel.
+            const auto text = [](const Rect &r) {
+                return str_cat("(", r.x0, ",", r.y0, ")-(", r.x1 - 1, ",", r.y1 - 1, ")");
+            };
+            throw_runtime(path,
+                          ": crop display: the data window ",
+                          text(frame.data_window),
+                          " lies outside the display window ",
+                          text(frame.display_window),
+                          ", so no pixel is left to write");
+        }
+        if (params.get_choice(kCrop) == 1 && display != frame.data_window) {
             Frame cut = frame;
             filter::cut_data_window(frame, display, cut);
             write_exr(cut, path, options);
@@ -217,7 +230,33 @@ void check(CheckContext &ctx)
 {
     const std::string where = ctx.node.json_path + "/params: " + ctx.node.describe();
     const std::string path = ctx.params.get_string(kPath);
-    if (is_preview(ctx.params)) {
+    // A parameter of the other kind of output is refused where given: it was ignored, also
+    // when invalid (a preview asked for passes: albedo showed colour).
+    const bool preview = is_preview(ctx.params);
+    const std::set<const ParamSpec *> exr = {
+        &kPasses, &kCompression, &kLayout, &kStorage, &kAllowLossyData, &kCrop};
+    for (const ParamSpec *p : {&kPasses,
+                               &kCompression,
+                               &kLayout,
+                               &kStorage,
+                               &kAllowLossyData,
+                               &kCrop,
+                               &kColorSpace,
+                               &kDisplay,
+                               &kView,
+                               &kAlpha,
+                               &kPngLevel,
+                               &kPngFilter,
+                               &kDither}) {
+        const bool exr_only = exr.count(p) != 0;
+        if (exr_only == preview && ctx.params.given(*p)) {
+            throw_param(ctx,
+                        *p,
+                        exr_only ? "applies only to EXR outputs, not to a preview (" + path + ")"
+                                 : "applies only to previews, not to an EXR (" + path + ")");
+        }
+    }
+    if (preview) {
         make_display(ctx.params, ctx.node);
         auto out = OIIO::ImageOutput::create(path);
         if (!out) {
@@ -226,6 +265,9 @@ void check(CheckContext &ctx)
         return;
     }
     check_compression(ctx.params.get_string(kCompression), where + ": param \"compression\"");
+    if (listed_passes(ctx.params).empty() && ctx.params.get_string(kPasses) != "*") {
+        throw_param(ctx, kPasses, "lists no pass (* writes every pass the frame has)");
+    }
     std::vector<std::string> listed = listed_passes(ctx.params);
     std::sort(listed.begin(), listed.end());
     if (const auto twice = std::adjacent_find(listed.begin(), listed.end());

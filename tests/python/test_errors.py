@@ -225,3 +225,16 @@ def test_arguments_of_the_wrong_type_are_named_on_one_line():
     f.number = 7  # the right types still work
     assert f.number == 7
     assert ph.Frame(passes={"color": color}, number=3).number == 3
+
+
+def test_a_crop_to_the_display_window_with_no_pixel_inside_is_refused(tmp_path):
+    """The data window lay wholly outside the display window and was written uncut."""
+    f = ph.Frame(passes={"color": np.ones((4, 4, 3), np.float32)},
+                 display_window=(0, 0, 8, 8), data_window=(20, 20, 24, 24))
+    out = tmp_path / "x.exr"
+    with pytest.raises(ph.Error, match=r"crop display: the data window \(20,20\)-\(23,23\) lies "
+                       r"outside the display window \(0,0\)-\(7,7\)"):
+        ph.write(f, str(out), crop="display")
+    assert not out.exists()
+    ph.write(f, str(out))  # uncut: the overscan as it is
+    assert ph.read(str(out)).data_window == (20, 20, 24, 24)
