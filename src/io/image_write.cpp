@@ -93,6 +93,58 @@ void write_8bit(const std::string &path,
     });
 }
 
+/// Say once when an asked storage rounds a file's uint ids: float holds whole numbers to 2^24,
+/// half to 2048 (storage "auto" keeps the uint channel).
+void warn_of_rounded_ids(const std::vector<OutPart> &parts,
+                         const Frame &frame,
+                         const WriteOptions &options,
+                         const std::string &path)
+{
+    if (!frame.source) {
+        return;
+    }
+    std::string names;
+    for (const OutPart &part : parts) {
+        for (const OutChannel &c : part.channels) {
+            if (c.type.basetype == OIIO::TypeDesc::UINT || c.raw || !c.image || c.pass.empty() ||
+                !frame.has(c.pass)) {
+                continue;
+            }
+            const Pass &p = frame.pass(c.pass, path);
+            if (std::size_t(c.k) >= p.origin.size() || p.origin[std::size_t(c.k)].part < 0 ||
+                p.origin[std::size_t(c.k)].part >= int(frame.source->parts.size())) {
+                continue;
+            }
+            const ChannelOrigin &o = p.origin[std::size_t(c.k)];
+            const SourcePart &sp = frame.source->parts[std::size_t(o.part)];
+            if (sp.spec.channelformat(o.channel).basetype != OIIO::TypeDesc::UINT) {
+                continue;
+            }
+            const bool half = c.type.basetype == OIIO::TypeDesc::HALF;
+            bool rounded = !half && frame.source->raw.count({o.part, o.channel}) != 0;
+            const std::size_t nch = std::size_t(c.image->channels());
+            for (std::size_t i = 0, n = c.image->pixel_count(); half && !rounded && i < n; ++i) {
+                rounded = c.image->data()[i * nch + std::size_t(c.k)] > 2048.0f;
+            }
+            if (rounded) {
+                names += (names.empty() ? "" : ", ") + c.name;
+            }
+        }
+    }
+    if (!names.empty()) {
+        const std::string line = str_cat("uint id channel(s) ",
+                                         names,
+                                         " written as floats lose the low bits of their larger ids "
+                                         "(float holds whole numbers to 2^24, half to 2048); "
+                                         "storage: auto keeps them as uint");
+        if (options.warn) {
+            options.warn(line);
+        } else {
+            std::fprintf(stderr, "warning: %s: %s\n", path.c_str(), line.c_str());
+        }
+    }
+}
+
 }  // namespace
 
 bool is_exr_path(const std::string &path)
@@ -165,6 +217,7 @@ void write_exr(const Frame &frame, const std::string &path, const WriteOptions &
         }
     }
     finish_specs(parts, frame, options, path);
+    warn_of_rounded_ids(parts, frame, options, path);
 
     HalfOverflow overflow;
     atomic_write(

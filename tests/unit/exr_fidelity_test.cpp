@@ -334,6 +334,30 @@ TEST(ExrFidelity, CropKeepsUintIdsBeyondTwoToThe24)
     EXPECT_EQ(read_uint_channel(dir + "/out.exr", "id", box), want);
 }
 
+// Storage asked as float rounds uint ids beyond 2^24: the write says so once, naming the
+// channel (it was silent); storage auto keeps them (CropKeepsUintIdsBeyondTwoToThe24).
+TEST(ExrFidelity, AskedStorageSaysWhenItRoundsUintIds)
+{
+    const std::string dir = scratch() + "/storage_uint";
+    std::filesystem::create_directories(dir);
+    for (const char *storage : {"float", "auto"}) {
+        std::ofstream(dir + "/g.json")
+            << R"({"nodes": [
+            {"id": "in", "type": "read", "params": {"path": ")"
+            << entry("types_mixed").path << R"("}},
+            {"id": "out", "type": "write", "inputs": {"image": "in"}, "params": {"path": ")"
+            << dir << "/" << storage << R"(.exr", "storage": ")" << storage << R"("}}]})";
+        std::string log;
+        ASSERT_EQ(test::run_command(
+                      std::string(POSTHASTE_BINARY) + " run " + dir + "/g.json --frames 1", &log),
+                  0)
+            << log;
+        const bool said = log.find("uint id channel(s) id written as floats lose the low bits") !=
+                          std::string::npos;
+        EXPECT_EQ(said, std::string(storage) == "float") << storage << ": " << log;
+    }
+}
+
 TEST(ExrFidelity, GraphErrorsAndInfo)
 {
     const std::string dir = scratch() + "/cli_errors";
