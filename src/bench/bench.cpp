@@ -190,18 +190,7 @@ BenchSpec parse_spec(const std::string &text,
                      const std::string &origin,
                      const std::string &base_dir)
 {
-    json j;
-    try {
-        j = json::parse(text);
-    } catch (const json::parse_error &e) {
-        throw_usage(origin, ": invalid JSON: ", e.what());
-    } catch (const json::exception &e) {
-        const std::string what = json_error_text(e.what());
-        throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
-    }
-    if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
-        throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
-    }
+    const json j = parse_json_document(text, origin);
     if (!j.is_object()) {
         throw_usage(origin, ": expected a JSON object");
     }

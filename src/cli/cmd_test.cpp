@@ -64,6 +64,9 @@ TestSpec read_test_spec(const fs::path &path)
     std::stringstream text;
     text << in.rdbuf();
     const std::string where = path.string();
+    if (json_depth(text.str()) > kMaxJsonDepth) {
+        throw_usage(where, ": arrays and objects nest more than ", kMaxJsonDepth, " levels deep");
+    }
     json doc;
     try {
         doc = json::parse(text.str());

@@ -38,6 +38,13 @@ class Error : public std::runtime_error {
     ExitCode code_;
 };
 
+/// An error of a sink writing its output (a full disk, a path that is a directory): never a
+/// bad input frame that --skip-bad-frames may pass over.
+class OutputError : public Error {
+   public:
+    using Error::Error;
+};
+
 /// A usage or graph error (exit code 2).
 template <typename... Args>
 [[noreturn]] void throw_usage(Args &&...args)

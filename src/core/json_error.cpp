@@ -1,8 +1,11 @@
 #include "core/json_error.h"
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <vector>
+
+#include "core/error.h"
 
 namespace posthaste {
 
@@ -90,6 +93,49 @@ std::string json_duplicate_key(const std::string &text)
         return "";  // the reader reports what is wrong with the text itself
     }
     return found;
+}
+
+nlohmann::json parse_json_document(const std::string &text, const std::string &origin)
+{
+    if (json_depth(text) > kMaxJsonDepth) {
+        throw_usage(origin, ": arrays and objects nest more than ", kMaxJsonDepth, " levels deep");
+    }
+    json j;
+    try {
+        j = json::parse(text);
+    } catch (const json::parse_error &e) {
+        throw_usage(origin, ": invalid JSON: ", e.what());
+    } catch (const json::exception &e) {
+        const std::string what = json_error_text(e.what());
+        throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
+    }
+    if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
+        throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
+    }
+    return j;
+}
+
+int json_depth(const std::string &text)
+{
+    int depth = 0, deepest = 0;
+    bool in_string = false;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        const char c = text[i];
+        if (in_string) {
+            if (c == '\\') {
+                ++i;  // the escaped character
+            } else if (c == '"') {
+                in_string = false;
+            }
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '[' || c == '{') {
+            deepest = std::max(deepest, ++depth);
+        } else if (c == ']' || c == '}') {
+            --depth;
+        }
+    }
+    return deepest;
 }
 
 }  // namespace posthaste

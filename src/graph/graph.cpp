@@ -323,9 +323,15 @@ void Graph::execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *fir
             apply_mask(
                 ctx.where(), gn.params, *first_input, ctx.input(kMaskPort.name), ctx.output());
         }
-    } catch (const Error &) {
+    } catch (const Error &e) {
+        if (gn.type->spec.sink) {
+            throw OutputError(e.code(), e.what());
+        }
         throw;
     } catch (const std::exception &e) {
+        if (gn.type->spec.sink) {
+            throw OutputError(ExitCode::Runtime, str_cat(ctx.where(), ": ", e.what()));
+        }
         throw_runtime(ctx.where(), ": ", e.what());
     }
     drop_stale_specular(gn.type->spec, first_input, ctx.output());

@@ -92,6 +92,12 @@ struct GraphBuilder {
     /// The document, or a usage error with the line and column of the first syntax error.
     static json document(const std::string &text, const std::string &origin)
     {
+        if (json_depth(text) > kMaxJsonDepth) {
+            throw_usage(origin,
+                        ": invalid graph: arrays and objects nest more than ",
+                        kMaxJsonDepth,
+                        " levels deep");
+        }
         json doc;
         try {
             doc = json::parse(text);
@@ -410,7 +416,24 @@ struct GraphBuilder {
             }
             json v;
             if (ps->type == ParamType::String || ps->type == ParamType::Choice) {
+                // Plain text, or a JSON string ("height" in quotes: the quotes were kept).
                 v = text_value;
+                if (text_value.size() >= 2 && text_value.front() == '"' &&
+                    text_value.back() == '"') {
+                    const json s = json::parse(text_value, nullptr, /*allow_exceptions=*/false);
+                    if (s.is_string()) {
+                        v = s;
+                    }
+                }
+            } else if (json_depth(text_value) > kMaxJsonDepth) {
+                throw_usage(where,
+                            ": ",
+                            gn.identity.describe(),
+                            ": param \"",
+                            name,
+                            "\": the value nests more than ",
+                            kMaxJsonDepth,
+                            " levels deep");
             } else {
                 v = json::parse(text_value, nullptr, /*allow_exceptions=*/false);
                 if (v.is_discarded()) {

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <set>
 
 #include "core/error.h"
 #include "core/memory.h"
@@ -100,6 +101,7 @@ int run_graph(Graph &graph, const RunSettings &o)
     std::mutex mutex;
     std::map<int, std::string> failures;  // frame -> message
     std::map<int, int> failure_codes;
+    std::set<int> output_failures;  // frames whose outputs failed (never skipped)
     std::atomic<bool> stop{false};
     std::atomic<int> done{0};
     std::size_t next = 0;
@@ -126,8 +128,13 @@ int run_graph(Graph &graph, const RunSettings &o)
                     const auto t0 = std::chrono::steady_clock::now();
                     std::string error;
                     int code = 0;
+                    bool output = false;  // a sink failed: no bad input to pass over
                     try {
                         graph.evaluate(frame, &times);
+                    } catch (const OutputError &e) {
+                        error = e.what();
+                        code = e.exit_code();
+                        output = true;
                     } catch (const Error &e) {
                         error = e.what();
                         code = e.exit_code();
@@ -154,7 +161,10 @@ int run_graph(Graph &graph, const RunSettings &o)
                     if (!error.empty()) {
                         failures[frame] = error;
                         failure_codes[frame] = code;
-                        if (!o.skip_bad_frames && !o.keep_going) {
+                        if (output) {
+                            output_failures.insert(frame);
+                        }
+                        if ((!o.skip_bad_frames || output) && !o.keep_going) {
                             stop = true;
                         } else {
                             std::fprintf(stderr,
@@ -240,8 +250,10 @@ int run_graph(Graph &graph, const RunSettings &o)
                 double(*times.nanoseconds[std::size_t(i)]) * 1e-9;
         }
     }
-    if (!failures.empty() && !o.skip_bad_frames) {
-        const auto &[frame, message] = *failures.begin();
+    // --skip-bad-frames passes over bad inputs, not outputs that could not be written.
+    if (!failures.empty() && (!o.skip_bad_frames || !output_failures.empty())) {
+        const int frame = o.skip_bad_frames ? *output_failures.begin() : failures.begin()->first;
+        const std::string &message = failures[frame];
         if (o.keep_going && failures.size() > 1) {
             throw Error(ExitCode(failure_codes[frame]),
                         message + " (and " + std::to_string(failures.size() - 1) +

@@ -66,7 +66,9 @@ std::vector<std::pair<std::string, float>> parse_manifest(const std::string &tex
                           ": manifest entry \"",
                           it.key(),
                           "\": expected 8 hex digits, got ",
-                          it.value().dump());
+                          // (a nested value's dump recursed without bound)
+                          it.value().is_primitive() ? it.value().dump()
+                                                    : std::string(it.value().type_name()));
         }
         const std::uint32_t bits = std::uint32_t(std::stoul(hex, nullptr, 16));
         float id;

@@ -12,6 +12,7 @@
 #include <limits>
 #include <vector>
 
+#include "core/json_error.h"
 #include "io/io_detail.h"
 
 namespace posthaste::python {
@@ -61,6 +62,15 @@ constexpr MatrixMember kMatrices[] = {
 
 nlohmann::json to_json(py::handle v, const std::string &where)
 {
+    // A bound as the graph file's (a list nested 100000 deep overflowed the stack).
+    thread_local int depth = 0;
+    const struct Level {
+        Level() { ++depth; }
+        ~Level() { --depth; }
+    } level;
+    if (depth > kMaxJsonDepth) {
+        throw py::value_error(str_cat(where, ": nests more than ", kMaxJsonDepth, " levels deep"));
+    }
     if (v.is_none()) {
         return nullptr;
     }

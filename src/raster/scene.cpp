@@ -359,6 +359,9 @@ void Scene::invalidate_cache()
 
 Scene parse_scene(const std::string &text, const std::string &origin)
 {
+    if (json_depth(text) > kMaxJsonDepth) {
+        throw_usage(origin, ": arrays and objects nest more than ", kMaxJsonDepth, " levels deep");
+    }
     Json j;
     try {
         j = Json::parse(text);

@@ -178,6 +178,23 @@ TEST(Cli, MissingFrameIsReportedByNumber)
     EXPECT_NE(out.find("warning: frame 3 skipped"), std::string::npos) << out;
     EXPECT_NE(out.find("1 skipped"), std::string::npos) << out;
     EXPECT_TRUE(fs::exists(dir + "/out/o.0004.exr"));
+
+    // An output that cannot be written is no bad input: --skip-bad-frames (with --keep-going
+    // or not) still fails the run, naming it (it exited 0).
+    fs::remove(dir + "/out/o.0002.exr");
+    fs::create_directories(dir + "/out/o.0002.exr");
+    for (const char *more : {"", " --keep-going"}) {
+        EXPECT_EQ(
+            run_command(kBin + " run " + graph + " --frames 1-4 --skip-bad-frames -q" + more, &out),
+            1)
+            << more << out;
+        EXPECT_NE(out.find("error: node \"out\" (write), frame 2: " + dir + "/out/o.0002.exr"),
+                  std::string::npos)
+            << more << out;
+    }
+    // A string parameter given as a JSON string: the quotes are JSON's, not the value's.
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --dry-run --set 'cc.to=\"srgb\"'", &out), 0)
+        << out;
 }
 
 TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
