@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <set>
+#include <span>
 
 #include "filter/frame_ops.h"
 #include "io/color.h"
@@ -85,6 +86,11 @@ constexpr ParamSpec kParams[] = {kPath,
                                  kDisplay,
                                  kView,
                                  kAlpha};
+// Every parameter but the path is of one kind of output; one of the other kind is refused.
+constexpr const ParamSpec *kExrOnly[] = {
+    &kPasses, &kCompression, &kLayout, &kStorage, &kAllowLossyData, &kCrop};
+constexpr const ParamSpec *kPreviewOnly[] = {
+    &kColorSpace, &kDisplay, &kView, &kAlpha, &kPngLevel, &kPngFilter, &kDither};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to write."}};
 
 bool is_preview(const NodeParams &params)
@@ -233,27 +239,13 @@ void check(CheckContext &ctx)
     // A parameter of the other kind of output is refused where given: it was ignored, also
     // when invalid (a preview asked for passes: albedo showed colour).
     const bool preview = is_preview(ctx.params);
-    const std::set<const ParamSpec *> exr = {
-        &kPasses, &kCompression, &kLayout, &kStorage, &kAllowLossyData, &kCrop};
-    for (const ParamSpec *p : {&kPasses,
-                               &kCompression,
-                               &kLayout,
-                               &kStorage,
-                               &kAllowLossyData,
-                               &kCrop,
-                               &kColorSpace,
-                               &kDisplay,
-                               &kView,
-                               &kAlpha,
-                               &kPngLevel,
-                               &kPngFilter,
-                               &kDither}) {
-        const bool exr_only = exr.count(p) != 0;
-        if (exr_only == preview && ctx.params.given(*p)) {
+    using Kind = std::span<const ParamSpec *const>;
+    for (const ParamSpec *p : preview ? Kind(kExrOnly) : Kind(kPreviewOnly)) {
+        if (ctx.params.given(*p)) {
             throw_param(ctx,
                         *p,
-                        exr_only ? "applies only to EXR outputs, not to a preview (" + path + ")"
-                                 : "applies only to previews, not to an EXR (" + path + ")");
+                        preview ? "applies only to EXR outputs, not to a preview (" + path + ")"
+                                : "applies only to previews, not to an EXR (" + path + ")");
         }
     }
     if (preview) {
@@ -286,20 +278,32 @@ void check(CheckContext &ctx)
 
 }  // namespace
 
-extern const NodeType kWrite{{"write",
-                              "Write frames to EXR, or previews through an OCIO display.",
-                              kInputs,
-                              kParams,
-                              "",
-                              /*sink=*/true,
-                              /*keeps_specular=*/true},
-                             &execute,
-                             &plan,
-                             &check,
-                             nullptr,
-                             [](std::vector<std::string> &problems) {
-                                 audit(kWrite, kPreviewFields, problems);
-                                 audit(kWrite, kExrFields, problems);
-                             }};
+extern const NodeType kWrite{
+    {"write",
+     "Write frames to EXR, or previews through an OCIO display.",
+     kInputs,
+     kParams,
+     "",
+     /*sink=*/true,
+     /*keeps_specular=*/true},
+    &execute,
+    &plan,
+    &check,
+    nullptr,
+    [](std::vector<std::string> &problems) {
+        audit(kWrite, kPreviewFields, problems);
+        audit(kWrite, kExrFields, problems);
+        for (const ParamSpec &p : kParams) {
+            const auto of = [&](std::span<const ParamSpec *const> kind) {
+                return std::count_if(kind.begin(), kind.end(), [&](const ParamSpec *k) {
+                    return k->name == p.name;
+                });
+            };
+            if (p.name != kPath.name && of(kExrOnly) + of(kPreviewOnly) != 1) {
+                problems.push_back(
+                    str_cat("write: param \"", p.name, "\" is not of exactly one kind of output"));
+            }
+        }
+    }};
 
 }  // namespace posthaste::nodes
