@@ -225,9 +225,7 @@ std::string verify_image_file(const std::string &path)
             read_luminance_chroma(path, o.info.parts[0]);
             return "";
         }
-        if (o.info.format == "jpeg") {
-            check_jpeg_ends(path);
-        }
+        check_image_ends(path, o.info.format);
         for (std::size_t p = 0; p < o.info.parts.size(); ++p) {
             const FilePart &part = o.info.parts[p];
             if (part.deep) {

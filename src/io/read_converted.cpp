@@ -405,16 +405,26 @@ bool float_reproduces(OIIO::TypeDesc type, const ChannelSource &cs, const PassSo
     return exact_type && exact_map && !(ps.infinite_above > 0.0f) && !lin;
 }
 
-void check_jpeg_ends(const std::string &path)
+void check_image_ends(const std::string &path, const std::string &format)
 {
-    std::ifstream f(path, std::ios::binary | std::ios::ate);
-    unsigned char end[2] = {0, 0};
-    if (f && f.tellg() >= 2) {
-        f.seekg(-2, std::ios::end);
-        f.read(reinterpret_cast<char *>(end), 2);
+    // JPEG's end-of-image marker; PNG's IEND chunk (no data, its CRC).
+    static const std::string jpeg_end = "\xFF\xD9";
+    static const std::string png_end("\0\0\0\0IEND\xAE\x42\x60\x82", 12);
+    const bool jpeg = format == "jpeg";
+    if (!jpeg && format != "png") {
+        return;
     }
-    if (!f || end[0] != 0xFF || end[1] != 0xD9) {
-        throw_runtime(path, ": the JPEG is cut short (no end-of-image marker)");
+    const std::string &want = jpeg ? jpeg_end : png_end;
+    std::ifstream f(path, std::ios::binary | std::ios::ate);
+    std::string end(want.size(), '\0');
+    if (f && f.tellg() >= std::streamoff(want.size())) {
+        f.seekg(-std::streamoff(want.size()), std::ios::end);
+        f.read(end.data(), std::streamsize(end.size()));
+    }
+    if (!f || end != want) {
+        throw_runtime(path,
+                      jpeg ? ": the JPEG is cut short (no end-of-image marker)"
+                           : ": the PNG is cut short (no IEND chunk at its end)");
     }
 }
 

@@ -129,9 +129,10 @@ std::vector<posthaste::SourceLevel> read_ripmap_levels(const std::string &path,
 /// Whether a float pass can give back the file's bits for this channel and mapping.
 bool float_reproduces(OIIO::TypeDesc type, const ChannelSource &cs, const PassSource &ps, bool lin);
 
-/// An Error unless the JPEG at `path` ends with its end-of-image marker (libjpeg decodes a cut
-/// JPEG with a warning, grey below the cut).
-void check_jpeg_ends(const std::string &path);
+/// An Error unless a JPEG or PNG at `path` (`format` as OpenImageIO names it) ends with its
+/// end marker: libjpeg decodes a cut JPEG with a warning, grey below the cut; libpng prints its
+/// own "libpng error" line on stderr for a cut PNG. Other formats pass.
+void check_image_ends(const std::string &path, const std::string &format);
 
 /// A deep part flattened: per pixel the samples sorted by Z (stable), composited front to back
 /// with `over` on premultiplied values (c += (1 - a_acc) * c_s; alpha likewise), Z the nearest
