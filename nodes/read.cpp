@@ -257,17 +257,27 @@ void check(CheckContext &ctx)
     const std::string pattern = ctx.params.get_string(kPath);
     const int offset = ctx.params.get_int(kFrameOffset);
     // The first frame whose file exists must have every requested pass; frames that are missing
-    // are reported by number when the run reaches them.
+    // are reported by number when the run reaches them, or all at once for a dry run.
     std::string first_missing;
+    std::vector<int> missing;
+    bool checked = false;
     for (int frame : ctx.frames) {
+        if (checked && !ctx.every_frame) {
+            break;
+        }
         const std::string path = expand_frame_pattern(pattern, frame + offset);
         std::error_code ec;
         if (!std::filesystem::exists(path, ec)) {
             if (first_missing.empty()) {
                 first_missing = path;
             }
+            missing.push_back(frame);
             continue;
         }
+        if (checked) {
+            continue;
+        }
+        checked = true;
         try {
             const FileInfo info = read_file_info(path, options);
             if (!ctx.downstream.all) {
@@ -301,7 +311,17 @@ void check(CheckContext &ctx)
             }
             throw Error(e.code(), ctx.node.describe() + ": " + e.what());
         }
+    }
+    if (checked && (missing.empty() || !ctx.every_frame)) {
         return;
+    }
+    if (checked) {
+        throw_runtime(ctx.node.describe(),
+                      ": no input file for ",
+                      missing.size(),
+                      missing.size() == 1 ? " requested frame: " : " requested frames (first: ",
+                      first_missing,
+                      missing.size() == 1 ? "" : ")");
     }
     throw_runtime(ctx.node.describe(),
                   ": no input file for any requested frame (first: ",

@@ -22,15 +22,7 @@ struct Case {
 
 std::vector<Case> parse_cases(const std::string &text, const std::string &origin)
 {
-    nlohmann::json j;
-    try {
-        j = nlohmann::json::parse(text);
-    } catch (const nlohmann::json::parse_error &e) {
-        throw_usage(origin, ": invalid JSON: ", e.what());
-    } catch (const nlohmann::json::exception &e) {  // a number that overflows, say
-        const std::string what = json_error_text(e.what());
-        throw_usage(origin, ": ", json_overflow_where(text, what), ": invalid JSON: ", what);
-    }
+    const nlohmann::json j = parse_json_document(text, origin);
     if (!j.is_object() || !j.contains("cases") || !j["cases"].is_array()) {
         throw_usage(origin, ": expected a stability record {\"cases\": [...]}");
     }

@@ -117,13 +117,13 @@ void add_bench_command(CLI::App &app, int &exit_code)
     cmd->add_option("--out,-o", o->out, "Output folder (default: bench_out/<spec name>)");
     cmd->add_option("--frames,-f", o->frames, "Frames to run (default: the spec's), e.g. 8 or 1-2");
     cmd->add_option("--runs,-n", o->runs, "Timed runs per setting (default: the spec's)")
-        ->check(CLI::Range(1, 100000));
+        ->check(in_range(1, 100000));
     cmd->add_option("--warmup", o->warmup, "Warm-up runs per setting (default: the spec's)")
-        ->check(CLI::Range(0, 1000));
+        ->check(in_range(0, 1000));
     cmd->add_option("--threads,-t",
                     o->threads,
                     "Worker threads, fixed for every run (default: the spec's; 0: all cores)")
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_option("--stability",
                     o->stability,
                     "Also chart a stability record (build/stability.json from the tests)");

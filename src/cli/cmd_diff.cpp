@@ -341,7 +341,7 @@ void add_diff_command(CLI::App &app, int &exit_code)
                     o->junit,
                     "Write JUnit XML: a test case per frame and pass, failures with their metrics");
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "Print nothing but errors");
     cmd->callback([o, &exit_code] { exit_code = run(*o); });
 }

@@ -117,7 +117,8 @@ std::string join_frames(const std::vector<int> &frames)
 {
     std::string s;
     for (int f : frames) {
-        s += (s.empty() ? "" : ",") + std::to_string(f);
+        s += s.empty() ? "" : ",";
+        s += std::to_string(f);
     }
     return s;
 }
@@ -547,10 +548,10 @@ void add_farm_command(CLI::App &app, int &exit_code)
                     "--max-running), so each task starts once");
     sub->add_option("--job-dir", so->job_dir, "Job directory (must not exist)")->required();
     sub->add_option("--max-running", so->slurm.max_running, "Array tasks running at once")
-        ->check(CLI::Range(0, 100000));
+        ->check(in_range(0, 100000));
     sub->add_option("--partition", so->slurm.partition, "Slurm partition");
     sub->add_option("--cpus-per-task", so->slurm.cpus_per_task, "CPUs per task (the threads)")
-        ->check(CLI::Range(0, 4096));
+        ->check(in_range(0, 4096));
     sub->add_option("--mem", so->slurm.mem, "Memory per task (Slurm syntax: 8G)");
     sub->add_option("--time", so->slurm.time, "Time limit per task (Slurm syntax: 1:00:00)");
     sub->add_option("--set,-s", so->sets, "Override a parameter: node.param=value")
@@ -584,7 +585,7 @@ void add_farm_command(CLI::App &app, int &exit_code)
     task->add_option("--submission", *tsub, "Submission index");
     task->add_option("--chunk", *tchunk, "Chunk index (the array task id)")->required();
     task->add_option("--threads", *tthreads, "Worker threads (0: all cores)")
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     task->callback([tdir, tsub, tchunk, tthreads, &exit_code] {
         exit_code = task_command(*tdir, *tsub, *tchunk, *tthreads);
     });

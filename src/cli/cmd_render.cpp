@@ -44,9 +44,10 @@ int render(const RenderCommand &o)
         const bool dof = o.truth.find("dof") != std::string::npos;
         for (const std::string &w : split_list(o.truth)) {
             if (w != "motion" && w != "dof") {
-                throw_usage("--truth: expected motion, dof, motion,dof, ao, reflections or gi, got \"",
-                            o.truth,
-                            "\"");
+                throw_usage(
+                    "--truth: expected motion, dof, motion,dof, ao, reflections or gi, got \"",
+                    o.truth,
+                    "\"");
             }
         }
         truth = motion && dof ? "motion_dof" : motion ? "motion" : "dof";
@@ -120,19 +121,19 @@ void add_render_command(CLI::App &app, int &exit_code)
                     o->overscan,
                     "Render beyond the frame: below 1 a fraction each dimension grows by, from 1 "
                     "whole pixels a side (the data window grows, the display window stays)")
-        ->check(CLI::Range(0.0, 4096.0));
+        ->check(in_range(0.0, 4096.0));
     cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")
-        ->check(CLI::Range(1e-3, 100.0));
+        ->check(in_range(1e-3, 100.0));
     cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")
-        ->check(CLI::Range(1, 65536));
-    cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")->check(CLI::Range(0, 1 << 30));
+        ->check(in_range(1, 65536));
+    cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")->check(in_range(0, 1 << 30));
     cmd->add_option("--compression", o->compression, "EXR compression (default piz)");
-    cmd->add_option("--jobs,-j", o->jobs, "Frames rendered at once")->check(CLI::Range(0, 256));
+    cmd->add_option("--jobs,-j", o->jobs, "Frames rendered at once")->check(in_range(0, 256));
     cmd->add_option("--max-memory",
                     o->max_memory,
                     "Budget for pass images (8G, 512M; 0: none; default 80 % of available)");
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "No progress and no summary");
     cmd->callback([o, &exit_code] { exit_code = render(*o); });
 }

@@ -64,7 +64,7 @@ void add_run_command(CLI::App &app, int &exit_code)
            "first frame's pass images")
         ->check(not_empty);
     cmd->add_option("--threads,-t", opts->threads, "Worker threads (default: all cores)")
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", opts->quiet, "No progress and no summary");
     cmd->add_flag("--skip-bad-frames",
                   opts->skip_bad_frames,

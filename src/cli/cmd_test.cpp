@@ -64,16 +64,7 @@ TestSpec read_test_spec(const fs::path &path)
     std::stringstream text;
     text << in.rdbuf();
     const std::string where = path.string();
-    if (json_depth(text.str()) > kMaxJsonDepth) {
-        throw_usage(where, ": arrays and objects nest more than ", kMaxJsonDepth, " levels deep");
-    }
-    json doc;
-    try {
-        doc = json::parse(text.str());
-    } catch (const json::exception &e) {
-        const std::string what = json_error_text(e.what());
-        throw_usage(where, ":", json_overflow_where(text.str(), what), ": invalid JSON: ", what);
-    }
+    const json doc = parse_json_document(text.str(), where);
     if (!doc.is_object()) {
         throw_usage(where, ": expected an object {\"frames\", \"set\", \"thresholds\", \"flip\"}");
     }
@@ -349,7 +340,7 @@ void add_test_command(CLI::App &app, int &exit_code)
                   o->update,
                   "Write the outputs as the new references (after reviewing a change)");
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
-        ->check(CLI::Range(0, 1024));
+        ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "Print nothing but errors");
     o->out = "out/test";
     cmd->callback([o, &exit_code] { exit_code = run(*o); });

@@ -6,11 +6,39 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "graph/run.h"
 
 namespace posthaste::cli {
+
+/// CLI11's Range, refusing a value that is not a number as such: Range called "abc" a value out
+/// of range. "expected a whole number in 0..1024, got "abc"".
+template <typename T>
+CLI::Validator in_range(T lo, T hi)
+{
+    const std::string kind = std::is_integral_v<T> ? "a whole number" : "a number";
+    const std::string range = CLI::detail::to_string(lo) + ".." + CLI::detail::to_string(hi);
+    return CLI::Validator(
+        [=](std::string &text) {
+            T value{};
+            if (!CLI::detail::lexical_cast(text, value) || value < lo || value > hi) {
+                std::string why = "expected ";  // appended: GCC 12's -Wrestrict false positive
+                why += kind;
+                why += " in ";
+                why += range;
+                why += ", got \"";
+                why += text;
+                why += '"';
+                return why;
+            }
+            return std::string();
+        },
+        std::string(CLI::detail::type_name<T>()) + " in [" + CLI::detail::to_string(lo) + " - " +
+            CLI::detail::to_string(hi) + "]",
+        "in_range");
+}
 
 void add_render_command(CLI::App &app, int &exit_code);
 

@@ -11,6 +11,11 @@ namespace posthaste {
 
 using json = nlohmann::json;
 
+namespace {
+
+/// "line L, column C: /json/pointer" of the literal quoted in `message` (nlohmann's text after
+/// its "[json.exception...]" prefix), or "" when it cannot be found: nlohmann's
+/// "number overflow parsing '1e999'" carries neither a position nor a path.
 std::string json_overflow_where(const std::string &text, const std::string &message)
 {
     const auto q0 = message.find('\''), q1 = message.rfind('\'');
@@ -46,6 +51,8 @@ std::string json_overflow_where(const std::string &text, const std::string &mess
            (pointer.empty() ? "" : ": " + pointer);
 }
 
+/// The one-line reason of a nlohmann exception: its text without the "[json.exception.x.n] "
+/// prefix.
 std::string json_error_text(const std::string &what)
 {
     const auto close = what.find("] ");
@@ -54,6 +61,9 @@ std::string json_error_text(const std::string &what)
                : what;
 }
 
+/// The first key that an object of `text` (valid JSON) gives twice, as "\"radius\" in
+/// \"params\"" (its object's own key; "the top level" for the outermost), or "" when every key
+/// is given once. nlohmann keeps the last of duplicates silently; the readers refuse them.
 std::string json_duplicate_key(const std::string &text)
 {
     using json = nlohmann::json;
@@ -95,6 +105,19 @@ std::string json_duplicate_key(const std::string &text)
     return found;
 }
 
+/// Line and column (1-based) of a byte offset.
+std::string line_column(const std::string &text, std::size_t offset)
+{
+    int line = 1, col = 1;
+    for (std::size_t i = 0; i < std::min(offset, text.size()); ++i) {
+        col = text[i] == '\n' ? 1 : col + 1;
+        line += text[i] == '\n';
+    }
+    return "line " + std::to_string(line) + ", column " + std::to_string(col);
+}
+
+}  // namespace
+
 nlohmann::json parse_json_document(const std::string &text, const std::string &origin)
 {
     if (json_depth(text) > kMaxJsonDepth) {
@@ -104,10 +127,25 @@ nlohmann::json parse_json_document(const std::string &text, const std::string &o
     try {
         j = json::parse(text);
     } catch (const json::parse_error &e) {
-        throw_usage(origin, ": invalid JSON: ", e.what());
-    } catch (const json::exception &e) {
+        // nlohmann's text repeats the position in its own words: keep what went wrong.
+        std::string what = e.what();
+        if (const auto p = what.find(": syntax error"); p != std::string::npos) {
+            what = what.substr(p + 2);
+        } else {
+            what = json_error_text(what);
+        }
+        throw_usage(origin,
+                    ": ",
+                    line_column(text, e.byte == 0 ? 0 : e.byte - 1),
+                    ": invalid JSON: ",
+                    what);
+    } catch (const json::exception &e) {  // a number that overflows, say
         const std::string what = json_error_text(e.what());
-        throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
+        std::string where = json_overflow_where(text, what);
+        if (!where.empty()) {
+            where.insert(0, ": ");
+        }
+        throw_usage(origin, where, ": invalid JSON: ", what);
     }
     if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
         throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");

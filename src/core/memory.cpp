@@ -198,6 +198,9 @@ void reserve_image_memory(std::size_t bytes, int width, int height, int channels
 
 std::string format_bytes(std::size_t bytes)
 {
+    if (bytes < 1024) {  // --max-memory 1 said "0 KiB"
+        return std::to_string(bytes) + (bytes == 1 ? " byte" : " bytes");
+    }
     return bytes < (std::size_t(1) << 20) ? std::to_string(bytes >> 10) + " KiB"
                                           : std::to_string(bytes >> 20) + " MiB";
 }

@@ -32,7 +32,8 @@ void reset_image_memory_peak();
 void reserve_image_memory(std::size_t bytes, int width, int height, int channels);
 /// Give back what reserve_image_memory counted.
 void release_image_memory(std::size_t bytes);
-/// "64 KiB", "512 MiB", "39936 MiB": whole units, KiB below 1 MiB.
+/// "1 byte", "100 bytes", "64 KiB", "512 MiB", "39936 MiB": whole units, bytes below 1 KiB,
+/// KiB below 1 MiB.
 std::string format_bytes(std::size_t bytes);
 /// MemAvailable from /proc/meminfo, in bytes (0 when unknown).
 std::size_t available_memory_bytes();

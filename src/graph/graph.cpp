@@ -4,12 +4,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
+#include <unordered_set>
 
 #include "core/error.h"
 #include "core/json_error.h"
@@ -106,15 +109,26 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
         if (b < a) {
             bad("range end " + std::to_string(b) + " is before its start " + std::to_string(a));
         }
-        if ((b - a) / step + frames.size() > 1000000) {
-            bad("more than 1000000 frames");
+        if ((b - a) / step + frames.size() > 10000000) {
+            bad("more than 10000000 frames listed");
         }
         for (long long f = a; f <= b; f += step) {
             frames.push_back(int(f));
         }
     }
+    // A frame listed twice ("1-10,5") runs once, where it is first listed: run twice, two jobs
+    // wrote its files at once.
+    if (std::adjacent_find(frames.begin(), frames.end(), std::greater_equal<int>()) !=
+        frames.end()) {
+        std::unordered_set<int> seen;
+        seen.reserve(frames.size());
+        std::erase_if(frames, [&](int f) { return !seen.insert(f).second; });
+    }
     if (frames.empty()) {
         bad("no frames");
+    }
+    if (frames.size() > 1000000) {
+        bad("more than 1000000 frames");
     }
     return frames;
 }
@@ -277,16 +291,23 @@ std::vector<int> Graph::default_frames() const
     return {1};
 }
 
-void Graph::check(const std::vector<int> &frames) const
+void Graph::check(const std::vector<int> &frames, bool every_frame) const
 {
+    if (!frames.empty()) {
+        const auto [lo, hi] = std::minmax_element(frames.begin(), frames.end());
+        const int widest = std::abs(std::int64_t(*lo)) > std::abs(std::int64_t(*hi)) ? *lo : *hi;
+        if (widest != 1) {
+            check_sink_paths(widest);
+        }
+    }
     for (int i : order_) {
         if (live_[std::size_t(i)]) {
-            check_node(i, frames);
+            check_node(i, frames, every_frame);
         }
     }
 }
 
-void Graph::check_node(int index, const std::vector<int> &frames) const
+void Graph::check_node(int index, const std::vector<int> &frames, bool every_frame) const
 {
     const GraphNode &gn = nodes_.at(std::size_t(index));
     if (!gn.type->check) {
@@ -296,7 +317,7 @@ void Graph::check_node(int index, const std::vector<int> &frames) const
     for (int src : gn.inputs) {
         connected.push_back(src >= 0);
     }
-    CheckContext ctx{gn.params, gn.identity, gn.requested, frames, connected};
+    CheckContext ctx{gn.params, gn.identity, gn.requested, frames, connected, every_frame};
     gn.type->check(ctx);
 }
 

@@ -73,10 +73,11 @@ class Graph {
     std::vector<std::string> outputs(int frame) const;
     /// Whether a live node evaluates earlier frames of the sequence (NodeType::looks_back).
     bool looks_back() const;
-    /// Run every live node's check hook for these frames (files exist, passes exist, ...).
-    void check(const std::vector<int> &frames) const;
+    /// Run every live node's check hook for these frames (files exist, passes exist, ...);
+    /// `every_frame`: each frame's inputs must exist now (--dry-run), not when it is run.
+    void check(const std::vector<int> &frames, bool every_frame = false) const;
     /// Run node `index`'s check hook alone (for a node run on frames held in memory).
-    void check_node(int index, const std::vector<int> &frames) const;
+    void check_node(int index, const std::vector<int> &frames, bool every_frame = false) const;
     /// Evaluate one frame through the whole graph. Sinks write their files. Thread-safe for
     /// different frames. Adds each node's time to `times` when given. Returns the output frame
     /// of the capture node (see set_capture), or an empty Frame.
@@ -107,6 +108,8 @@ class Graph {
     static void execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *first_input);
     Graph() = default;
     void plan();
+    /// Refuse two sinks that write one file for `frame`, however spelled (graph_parse.cpp).
+    void check_sink_paths(int frame) const;
     /// Evaluate frame `frame`: every live node (no targets), or only the targets and what they
     /// read, sinks passing their input on (a history request, evaluate_outputs). Returns the
     /// targets' outputs.

@@ -70,60 +70,10 @@ std::string read_text_file(const std::string &path)
     return os.str();
 }
 
-/// Line and column (1-based) of a byte offset, for JSON syntax errors.
-std::string line_column(const std::string &text, std::size_t offset)
-{
-    int line = 1, col = 1;
-    for (std::size_t i = 0; i < std::min(offset, text.size()); ++i) {
-        if (text[i] == '\n') {
-            ++line;
-            col = 1;
-        } else {
-            ++col;
-        }
-    }
-    return "line " + std::to_string(line) + ", column " + std::to_string(col);
-}
-
 }  // namespace
 
 /// The steps of Graph::parse (a friend of Graph).
 struct GraphBuilder {
-    /// The document, or a usage error with the line and column of the first syntax error.
-    static json document(const std::string &text, const std::string &origin)
-    {
-        if (json_depth(text) > kMaxJsonDepth) {
-            throw_usage(origin,
-                        ": invalid graph: arrays and objects nest more than ",
-                        kMaxJsonDepth,
-                        " levels deep");
-        }
-        json doc;
-        try {
-            doc = json::parse(text);
-        } catch (const json::parse_error &e) {
-            // nlohmann's text repeats the position: keep only what went wrong.
-            std::string what = e.what();
-            if (auto p = what.find(": syntax error"); p != std::string::npos) {
-                what = what.substr(p + 2);
-            } else if (auto q = what.rfind("]"); q != std::string::npos) {
-                what = what.substr(q + 2);
-            }
-            throw_usage(origin,
-                        ": ",
-                        line_column(text, e.byte == 0 ? 0 : e.byte - 1),
-                        ": invalid JSON: ",
-                        what);
-        } catch (const json::exception &e) {
-            const std::string what = json_error_text(e.what());
-            throw_usage(origin, ":", json_overflow_where(text, what), ": invalid JSON: ", what);
-        }
-        if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
-            throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
-        }
-        return doc;
-    }
-
     /// The top-level keys: "frames", "base_dir" (moves g.base_dir_) and the graph-wide
     /// "aliases" (returned).
     static json top_level(Graph &g, const json &doc, const std::string &origin)
@@ -521,38 +471,50 @@ struct GraphBuilder {
                         ":/nodes: the graph has no sink (write) node, so it would produce "
                         "nothing");
         }
-        // Two sinks with one path would write over each other's files, frame by frame: the same
-        // file for a frame, however spelled (a.####.exr and a.%04d.exr, relative and absolute).
-        std::map<std::string, const GraphNode *> paths;
-        for (const GraphNode &gn : g.nodes_) {
-            const auto it = gn.params.values().find("path");
-            if (!gn.type->spec.sink || it == gn.params.values().end() || it->second.text.empty()) {
-                continue;
-            }
-            std::error_code ec;
-            const std::filesystem::path file(expand_frame_pattern(it->second.text, 1));
-            const std::filesystem::path absolute = std::filesystem::absolute(file, ec);
-            const std::string key = (ec ? file : absolute).lexically_normal().string();
-            const auto [first, fresh] = paths.emplace(key, &gn);
-            if (!fresh) {
-                throw_usage(gn.identity.json_path,
-                            "/params/path: ",
-                            gn.identity.describe(),
-                            ": writes the same files as ",
-                            first->second->identity.describe(),
-                            " (",
-                            quoted(it->second.text),
-                            ")");
-            }
-        }
+        g.check_sink_paths(1);
     }
 };
+
+// Two sinks with one path would write over each other's files, frame by frame: the same file
+// for a frame, however spelled (a.####.exr and a.%04d.exr, relative and absolute; f.###.exr and
+// f.####.exr from frame 1000 on, so a run checks its frames' largest number too).
+void Graph::check_sink_paths(int frame) const
+{
+    std::map<std::string, const GraphNode *> paths;
+    for (const GraphNode &gn : nodes_) {
+        const auto it = gn.params.values().find("path");
+        if (!gn.type->spec.sink || it == gn.params.values().end() || it->second.text.empty()) {
+            continue;
+        }
+        std::error_code ec;
+        const std::filesystem::path file(expand_frame_pattern(it->second.text, frame));
+        const std::filesystem::path absolute = std::filesystem::absolute(file, ec);
+        const std::string key = (ec ? file : absolute).lexically_normal().string();
+        const auto [first, fresh] = paths.emplace(key, &gn);
+        if (!fresh) {
+            throw_usage(gn.identity.json_path,
+                        "/params/path: ",
+                        gn.identity.describe(),
+                        ": writes the same files as ",
+                        first->second->identity.describe(),
+                        " (",
+                        quoted(it->second.text),
+                        frame == 1 ? "" : str_cat(" at frame ", frame),
+                        ")");
+        }
+    }
+}
 
 Graph Graph::load(const std::string &path,
                   const NodeCatalog &types,
                   const std::vector<std::string> &overrides)
 {
-    const std::string folder = std::filesystem::path(path).parent_path().string();
+    // A graph from a pipe (/dev/stdin, <(...)) resolves its relative paths against the current
+    // folder, as a command line's do: against /dev or /dev/fd they named nothing.
+    std::error_code ec;
+    const std::string folder = std::filesystem::is_regular_file(path, ec)
+                                   ? std::filesystem::path(path).parent_path().string()
+                                   : "";
     return parse(read_text_file(path), path, types, overrides, folder.empty() ? "." : folder);
 }
 
@@ -565,7 +527,7 @@ Graph Graph::parse(const std::string &text,
     Graph g;
     g.origin_ = origin;
     g.base_dir_ = base_dir;
-    const json doc = GraphBuilder::document(text, origin);
+    const json doc = parse_json_document(text, origin);
     const json aliases = GraphBuilder::top_level(g, doc, origin);
     const json &nodes = doc["nodes"];
     const std::vector<std::string> ids = GraphBuilder::identities(g, nodes, origin, types);

@@ -209,6 +209,8 @@ class CheckContext {
     const PassSet &downstream;  ///< For sources: the passes to produce.
     std::vector<int> frames;    ///< The frames the run will evaluate.
     std::vector<bool> connected;
+    /// A frame whose input is missing is an error now (--dry-run), not when the run reaches it.
+    bool every_frame = false;
 };
 
 /// What the engine offers a node that looks at earlier frames (auto exposure's adaptation).

@@ -183,8 +183,12 @@ ParamValue convert_value(const ParamSpec &spec,
     };
     auto check_range = [&](double x) {
         if (x < spec.min || x > spec.max) {
+            // "integer in 1..256", "number >= 0" (it said "in >= 0").
             const std::string range = describe_range(spec);
-            fail(describe_type(spec) + " in " + (range.empty() ? "range" : range));
+            std::string text = describe_type(spec);
+            text += range.find("..") != std::string::npos ? " in " : " ";
+            text += range.empty() ? "range" : range;
+            fail(text);
         }
     };
     // "integer in [0, 10]" (appended, not "..." + string: GCC 12's -Wrestrict false positive).

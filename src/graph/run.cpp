@@ -74,7 +74,7 @@ int run_graph(Graph &graph, const RunSettings &o)
     apply_memory_budget(o.max_memory);
     std::vector<int> frames =
         o.frames.empty() ? graph.default_frames() : parse_frame_list(o.frames, "--frames");
-    graph.check(frames);
+    graph.check(frames, o.dry_run && !o.skip_bad_frames);
     if (o.skip_existing) {
         const std::vector<int> done = frames_done(graph, frames);
         std::erase_if(frames,

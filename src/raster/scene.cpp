@@ -359,21 +359,7 @@ void Scene::invalidate_cache()
 
 Scene parse_scene(const std::string &text, const std::string &origin)
 {
-    if (json_depth(text) > kMaxJsonDepth) {
-        throw_usage(origin, ": arrays and objects nest more than ", kMaxJsonDepth, " levels deep");
-    }
-    Json j;
-    try {
-        j = Json::parse(text);
-    } catch (const Json::parse_error &e) {
-        throw_usage(origin, ": invalid JSON: ", e.what());
-    } catch (const Json::exception &e) {  // a number that overflows, say
-        const std::string what = json_error_text(e.what());
-        throw_usage(origin, ": ", json_overflow_where(text, what), ": invalid JSON: ", what);
-    }
-    if (const std::string twice = json_duplicate_key(text); !twice.empty()) {
-        throw_usage(origin, ": key ", twice, " is given twice (JSON would keep only the last)");
-    }
+    const Json j = parse_json_document(text, origin);
     Scene s;
     s.path = origin;
     Obj root(j, origin, "");

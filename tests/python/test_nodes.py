@@ -192,7 +192,7 @@ def test_a_zero_sun_is_refused_alike_by_every_node_that_reads_it(small, node_typ
         # A negative irradiance in the graph is refused with the graph, before any frame runs
         # (one from the header at the frame, naming the header attribute).
         with pytest.raises(ph.ParameterError, match='param "sun_irradiance": expected array of 3 '
-                                                    "numbers in >= 0"):
+                                                    "numbers >= 0"):
             ph.node(node_type, ph.read(small[1]), sun_irradiance=[1, -1, 1], **extra)
 
 

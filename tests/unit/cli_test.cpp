@@ -68,6 +68,19 @@ TEST(Cli, RunsFramesFoundOnDisk)
 
     ASSERT_EQ(run_command(kBin + " run " + graph + " --dry-run", &out), 0) << out;
     EXPECT_NE(out.find("valid; 3 frame(s)"), std::string::npos) << out;
+    // A dry run checks every requested frame's input (a run reports a missing one by number
+    // when it reaches it, or passes over it with --skip-bad-frames); a frame listed twice runs
+    // once.
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --dry-run --frames 1-5", &out), 1) << out;
+    EXPECT_NE(out.find("node \"src\" (read): no input file for 2 requested frames (first: " + dir +
+                       "/in.0004.exr)"),
+              std::string::npos)
+        << out;
+    ASSERT_EQ(
+        run_command(kBin + " run " + graph + " --dry-run --frames 1-5 --skip-bad-frames", &out), 0)
+        << out;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --dry-run --frames 3,1-3,2", &out), 0) << out;
+    EXPECT_NE(out.find("valid; 3 frame(s)"), std::string::npos) << out;
 }
 
 TEST(Cli, GraphPathsResolveAgainstTheGraphsFolder)
@@ -104,6 +117,12 @@ TEST(Cli, GraphPathsResolveAgainstTheGraphsFolder)
                           &out),
               0);
     EXPECT_NE(out.find("shot/plates/in.0002.exr"), std::string::npos) << out;
+    // A graph from a pipe resolves against the current folder (against /dev it named nothing).
+    EXPECT_EQ(run_command("cd " + dir + "/shot/comp && cat g.json | " + kBin +
+                              " run /dev/stdin --frames 1 --dry-run",
+                          &out),
+              0)
+        << out;
     // "base_dir" in the graph moves the anchor (the farm's copy of a graph uses it).
     std::ofstream(dir + "/moved.json") << R"({"base_dir": "shot/comp", "nodes": [
         {"id": "src", "type": "read", "params": {"path": "../plates/in.####.exr"}},
@@ -207,6 +226,11 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_NE(out.find("unknown color space \"srgbb\""), std::string::npos) << out;
     EXPECT_NE(out.find("[command line: "), std::string::npos) << out;
     EXPECT_EQ(line_count(out), 1) << out;
+    // A count that is not a number says so (it was "Value abc not in range 0 to 1024").
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --threads abc", &out), 2) << out;
+    EXPECT_NE(out.find("--threads: expected a whole number in 0..1024, got \"abc\""),
+              std::string::npos)
+        << out;
 
     EXPECT_EQ(run_command(kBin + " run " + dir + "/nope.json", &out), 2) << out;
     EXPECT_NE(out.find("nope.json: cannot open graph file"), std::string::npos) << out;
@@ -284,6 +308,9 @@ TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
         << out;
     EXPECT_NE(out.find("memory budget: a 64x64x"), std::string::npos) << out;
     EXPECT_NE(out.find("over --max-memory 64 KiB"), std::string::npos) << out;
+    EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 1", &out), 1)
+        << out;
+    EXPECT_NE(out.find("over --max-memory 1 byte ("), std::string::npos) << out;  // not "0 KiB"
     EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory lots", &out), 2)
         << out;
     EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 1G", &out), 0)
@@ -555,13 +582,34 @@ TEST(Cli, AnUnwritablePlaceIsNotAFullDisk)
     EXPECT_EQ(log.find("no space left"), std::string::npos) << log;
 }
 
+/// A 1 MiB tmpfs mounted on a scratch folder while the object lives (root only: elsewhere
+/// `mounted` is false and the test skips), unmounted however the test ends.
+struct SmallDisk {
+    explicit SmallDisk(const std::string &name)
+        : path(test::scratch_dir(name)),
+          mounted(test::run_command("mount -t tmpfs -o size=1m tmpfs " + path) == 0)
+    {
+    }
+    ~SmallDisk()
+    {
+        if (mounted) {
+            test::run_command("umount " + path);
+        }
+    }
+    SmallDisk(const SmallDisk &) = delete;
+    SmallDisk &operator=(const SmallDisk &) = delete;
+    const std::string path;
+    const bool mounted;
+};
+
 TEST(Cli, FullDiskStopsTheRunCleanly)
 {
     namespace fs = std::filesystem;
-    const std::string mnt = test::scratch_dir("full_disk");
-    if (test::run_command("mount -t tmpfs -o size=1m tmpfs " + mnt) != 0) {
+    const SmallDisk disk("full_disk");
+    if (!disk.mounted) {
         GTEST_SKIP() << "cannot mount a tmpfs here (not root)";
     }
+    const std::string &mnt = disk.path;
     const std::string dir = test::scratch_dir("full_disk_graph");
     std::ofstream(dir + "/g.json") << R"({"nodes": [
         {"id": "scene", "type": "render", "params": {"scene": ")"
@@ -585,7 +633,6 @@ TEST(Cli, FullDiskStopsTheRunCleanly)
         EXPECT_EQ(n[0] == '.', false) << "a temporary was left: " << n;
         whole += verify_image_file(mnt + "/" + n).empty();
     }
-    test::run_command("umount " + mnt);
     EXPECT_EQ(rc, 1) << log;
     EXPECT_EQ(std::count(log.begin(), log.end(), '\n'), 1) << log;
     // The cause and the free space, once: OpenEXR's "No space left on device" or, from a writer
@@ -612,10 +659,11 @@ TEST(Cli, FullDiskStopsTheRunCleanly)
 TEST(Cli, FullDiskPreviewsFailCleanly)
 {
     namespace fs = std::filesystem;
-    const std::string mnt = test::scratch_dir("full_disk_previews");
-    if (test::run_command("mount -t tmpfs -o size=1m tmpfs " + mnt) != 0) {
+    const SmallDisk disk("full_disk_previews");
+    if (!disk.mounted) {
         GTEST_SKIP() << "cannot mount a tmpfs here (not root)";
     }
+    const std::string &mnt = disk.path;
     const std::string dir = test::scratch_dir("full_disk_previews_graph");
     for (const auto &[ext, free_bytes] :
          {std::pair<std::string, long>{"tif", 45056}, {"jpg", 8192}, {"jpg", 0}}) {
@@ -650,13 +698,12 @@ TEST(Cli, FullDiskPreviewsFailCleanly)
             << log;
         EXPECT_TRUE(left.empty()) << left[0];
     }
-    test::run_command("umount " + mnt);
 }
 
 // What a write replaces: a link is written through to its target (the rename replaced the link
 // with a file), a file written again keeps its permissions, a name of 255 bytes is written (its
-// temporary's name was longer, "File name too long"), and a JPEG cut short is not whole for
-// --skip-existing (libjpeg decodes it with grey below the cut).
+// temporary's name was longer, "File name too long"), and a JPEG or PNG cut short is not whole
+// for --skip-existing (libjpeg decodes it with grey below the cut).
 TEST(Cli, WritesKeepLinksModesAndLongNames)
 {
     namespace fs = std::filesystem;
@@ -694,12 +741,19 @@ TEST(Cli, WritesKeepLinksModesAndLongNames)
     const auto size = fs::file_size(dir + "/p.jpg");
     fs::resize_file(dir + "/p.jpg", size / 2);
     EXPECT_NE(verify_image_file(dir + "/p.jpg").find("the JPEG is cut short"), std::string::npos);
+    // And the PNG: found cut before libpng reads it (libpng printed its own line on stderr).
+    const auto png_size = fs::file_size(dir + "/" + long_name);
+    fs::resize_file(dir + "/" + long_name, png_size - 20);
+    EXPECT_NE(verify_image_file(dir + "/" + long_name).find("the PNG is cut short"),
+              std::string::npos);
     ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " run " + dir +
                                     "/g.json --frames 1 --quiet --skip-existing",
                                 &log),
               0)
         << log;
+    EXPECT_EQ(log, "");
     EXPECT_EQ(fs::file_size(dir + "/p.jpg"), size);
+    EXPECT_EQ(fs::file_size(dir + "/" + long_name), png_size);
 }
 
 }  // namespace

@@ -105,6 +105,29 @@ TEST(GraphValidation, LocatedMessages)
          "params": {"path": "out/./o.exr", "compression": "zip"}}]})"),
                     "g.json:/nodes/2/params/path: node \"p\" (write): writes the same files as "
                     "node \"o\" (write)");
+    {
+        // f.###.exr and f.####.exr are different files until frame 1000: a run that reaches it
+        // is refused before any frame is written.
+        const Graph g = Graph::parse(std::string(R"({"nodes": [
+            {"id": "a", "type": "render", "params": {"width": 8, "height": 8, "scene": ")") +
+                                         POSTHASTE_TEST_DIR +
+                                         R"(/../samples/scenes/minecrappy.json"}},
+            {"id": "o", "type": "write", "inputs": {"image": "a"}, "params": {"path": "f.###.exr"}},
+            {"id": "p", "type": "write", "inputs": {"image": "a"},
+             "params": {"path": "f.####.exr"}}]})",
+                                     "g.json",
+                                     nodes::catalog());
+        EXPECT_NO_THROW(g.check({1, 999}));
+        try {
+            g.check({998, 1000});
+            ADD_FAILURE() << "frame 1000 written twice";
+        } catch (const Error &e) {
+            EXPECT_NE(std::string(e.what()).find("writes the same files as node \"o\" (write) "
+                                                 "(\"f.####.exr\" at frame 1000)"),
+                      std::string::npos)
+                << e.what();
+        }
+    }
     EXPECT_CONTAINS(error_of(R"({"nodes": [
         {"id": "a", "type": "read", "params": {"path": "x", "path": "y"}},
         {"id": "o", "type": "write", "inputs": {"image": "a"}, "params": {"path": "o.exr"}}]})"),
@@ -318,6 +341,11 @@ TEST(GraphFrames, ListsAndRanges)
     EXPECT_THROW(parse_frame_list("1-10x0"), Error);
     EXPECT_THROW(parse_frame_list(""), Error);
     EXPECT_THROW(parse_frame_list("1-99999999"), Error);
+    // A frame listed twice is run once, in the order it is first listed; the bound counts
+    // frames, not how they were listed.
+    EXPECT_EQ(parse_frame_list("5,1-6,2,5"), (std::vector<int>{5, 1, 2, 3, 4, 6}));
+    EXPECT_EQ(parse_frame_list("1-1000000,1-1000000").size(), 1000000u);
+    EXPECT_THROW(parse_frame_list("1-1000001"), Error);
     // An "x" with no step after it is a mistake, not a step of 1.
     try {
         parse_frame_list("1-3x");
