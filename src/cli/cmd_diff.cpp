@@ -17,6 +17,7 @@
 #include "core/error.h"
 #include "core/parallel.h"
 #include "core/passes.h"
+#include "core/text.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
@@ -167,7 +168,7 @@ int run(const DiffCliOptions &o)
             if (sequence) {
                 std::fprintf(stderr, "frame %d: FILE ERROR: %s\n", frame, file_error.c_str());
             } else {
-                std::fprintf(stderr, "error: %s\n", file_error.c_str());
+                std::fprintf(stderr, "error: %s\n", printable_line(file_error).c_str());
             }
             frames_json.push_back({{"frame", frame},
                                    {"a", path_a},

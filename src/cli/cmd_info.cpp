@@ -9,6 +9,7 @@
 #include "cli/commands.h"
 #include "core/error.h"
 #include "core/passes.h"
+#include "core/text.h"
 #include "io/cryptomatte.h"
 #include "io/image_file.h"
 #include "nodes/read_camera.h"
@@ -278,7 +279,7 @@ int verify(const std::vector<std::string> &files, bool quiet)
     for (const std::string &path : files) {
         const std::string problem = verify_image_file(path);
         if (!problem.empty()) {
-            std::fprintf(stderr, "error: %s\n", problem.c_str());
+            std::fprintf(stderr, "error: %s\n", printable_line(problem).c_str());
             ++damaged;
         } else if (!quiet) {
             std::printf("%s: ok\n", path.c_str());

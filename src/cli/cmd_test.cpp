@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/json_error.h"
 #include "core/parallel.h"
+#include "core/text.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
@@ -160,7 +161,8 @@ int run_entry(const TestOptions &o,
     auto fail_entry =
         [&](int frame, const std::string &a, const std::string &b, const std::string &message) {
             entries.push_back(metrics::file_error_entry(name, frame, a, b, message));
-            std::fprintf(stderr, "%s: FILE ERROR: %s\n", name.c_str(), message.c_str());
+            std::fprintf(
+                stderr, "%s: FILE ERROR: %s\n", name.c_str(), printable_line(message).c_str());
         };
     TestSpec spec;
     std::vector<Output> outputs;

@@ -10,6 +10,7 @@
 #include "core/disk_cache.h"
 #include "core/error.h"
 #include "core/simd.h"
+#include "core/text.h"
 
 int main(int argc, char **argv)
 {
@@ -20,7 +21,7 @@ int main(int argc, char **argv)
     mallopt(M_MMAP_THRESHOLD, 1 << 30);
     mallopt(M_TRIM_THRESHOLD, 1 << 30);
     if (const std::string bad = simd::environment_error(); !bad.empty()) {
-        std::fprintf(stderr, "error: %s\n", bad.c_str());
+        std::fprintf(stderr, "error: %s\n", printable_line(bad).c_str());
         return int(ExitCode::Usage);
     }
     CLI::App app{"posthaste: a node-graph compositor for multi-layer OpenEXR frame sequences"};
@@ -62,8 +63,10 @@ int main(int argc, char **argv)
             names += (names.empty() ? "" : ", ") + sub->get_name();
         }
         if (!known) {
-            std::fprintf(
-                stderr, "error: unknown command \"%s\" (commands: %s)\n", argv[1], names.c_str());
+            std::fprintf(stderr,
+                         "error: unknown command \"%s\" (commands: %s)\n",
+                         printable_line(argv[1]).c_str(),
+                         names.c_str());
             return int(ExitCode::Usage);
         }
     }
@@ -73,20 +76,17 @@ int main(int argc, char **argv)
         if (e.get_exit_code() == 0) {
             return app.exit(e);  // --help, --version
         }
-        std::fprintf(stderr, "error: %s (see --help)\n", e.what());
+        std::fprintf(stderr, "error: %s (see --help)\n", printable_line(e.what()).c_str());
         return int(ExitCode::Usage);
     } catch (const Error &e) {
-        std::string msg = e.what();
-        for (char &c : msg) {
-            c = c == '\n' ? ' ' : c;
-        }
+        std::string msg = printable_line(e.what());
         if (command_line.find("--set") != std::string::npos) {
-            msg += " [command line: " + command_line + "]";
+            msg += " [command line: " + printable_line(command_line) + "]";
         }
         std::fprintf(stderr, "error: %s\n", msg.c_str());
         return e.exit_code();
     } catch (const std::exception &e) {
-        std::fprintf(stderr, "error: %s\n", e.what());
+        std::fprintf(stderr, "error: %s\n", printable_line(e.what()).c_str());
         return int(ExitCode::Runtime);
     }
     return exit_code;

@@ -17,6 +17,12 @@ std::string join(const std::vector<std::string> &items, std::string_view sep = "
 /// dropped.
 std::string xml_escape(const std::string &text);
 
+/// `text` as one printable line for an error: newlines, carriage returns and tabs become spaces;
+/// other control characters and bytes that are not well-formed UTF-8 are written as "\xff" (a
+/// raw byte from a file name or a JSON error's "last read" reached the terminal as it was, and
+/// Python refused the message as undecodable).
+std::string printable_line(std::string_view text);
+
 /// `text` as a whole decimal integer (an optional minus, digits, nothing else), or nothing.
 std::optional<int> parse_int(std::string_view text);
 

@@ -18,6 +18,7 @@
 #include "core/error.h"
 #include "core/memory.h"
 #include "core/parallel.h"
+#include "core/text.h"
 #include "graph/graph.h"
 #include "io/image_file.h"
 
@@ -171,7 +172,7 @@ int run_graph(Graph &graph, const RunSettings &o)
                                          "%swarning: frame %d skipped: %s\n",
                                          terminal ? "\r\033[K" : "",
                                          frame,
-                                         error.c_str());
+                                         printable_line(error).c_str());
                         }
                     }
                     if (o.quiet) {

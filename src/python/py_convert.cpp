@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "core/json_error.h"
+#include "core/text.h"
 #include "io/io_detail.h"
 
 namespace posthaste::python {
@@ -579,10 +580,7 @@ void register_errors(py::module_ &m)
                 std::rethrow_exception(p);
             }
         } catch (const Error &e) {
-            std::string msg = e.what();
-            for (char &c : msg) {
-                c = c == '\n' ? ' ' : c;  // one line, as the command line prints it
-            }
+            const std::string msg = printable_line(e.what());  // as the command line prints it
             py::handle type = run_error;
             if (e.code() == ExitCode::Usage) {
                 type = msg.find("param \"") != std::string::npos ? param_error : graph_error;

@@ -238,3 +238,12 @@ def test_a_crop_to_the_display_window_with_no_pixel_inside_is_refused(tmp_path):
     assert not out.exists()
     ph.write(f, str(out))  # uncut: the overscan as it is
     assert ph.read(str(out)).data_window == (20, 20, 24, 24)
+
+
+def test_a_byte_that_is_not_utf8_comes_back_escaped(tmp_path):
+    # nlohmann's error quotes the bytes it last read; a raw 0xff made the message undecodable.
+    graph = tmp_path / "bad_byte.json"
+    graph.write_bytes(b'{"nodes": [{"id": "a\xff"}]}')
+    with pytest.raises(ph.GraphError) as e:
+        ph.Graph.load(str(graph))
+    assert "last read: '\"a\\xff'" in str(e.value)

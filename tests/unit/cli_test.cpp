@@ -226,6 +226,12 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     EXPECT_NE(out.find("unknown color space \"srgbb\""), std::string::npos) << out;
     EXPECT_NE(out.find("[command line: "), std::string::npos) << out;
     EXPECT_EQ(line_count(out), 1) << out;
+    // A byte that is not UTF-8 (in a file name, or in what nlohmann last read) is printed in
+    // hex: the terminal and a log got the raw byte.
+    std::ofstream(dir + "/bad_byte.json") << "{\"nodes\": [{\"id\": \"a\xff\"}]}";
+    EXPECT_EQ(run_command(kBin + " run " + dir + "/bad_byte.json", &out), 2) << out;
+    EXPECT_NE(out.find("last read: '\"a\\xff'"), std::string::npos) << out;
+    EXPECT_EQ(out.find('\xff'), std::string::npos) << out;
     // A count that is not a number says so (it was "Value abc not in range 0 to 1024").
     EXPECT_EQ(run_command(kBin + " run " + graph + " --threads abc", &out), 2) << out;
     EXPECT_NE(out.find("--threads: expected a whole number in 0..1024, got \"abc\""),
