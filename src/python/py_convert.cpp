@@ -99,9 +99,13 @@ nlohmann::json to_json(py::handle v, const std::string &where)
         return d;
     }
     if (py::isinstance<py::str>(v) || py::hasattr(v, "__fspath__")) {
-        const std::string s = py::isinstance<py::str>(v)
-                                  ? v.cast<std::string>()
-                                  : py::str(v.attr("__fspath__")()).cast<std::string>();
+        const py::str text = py::isinstance<py::str>(v) ? py::reinterpret_borrow<py::str>(v)
+                                                        : py::str(v.attr("__fspath__")());
+        if (PyUnicode_AsUTF8AndSize(text.ptr(), nullptr) == nullptr) {
+            PyErr_Clear();  // a lone surrogate: os.fsdecode of a name that is not UTF-8
+            throw py::value_error(where + ": not valid UTF-8 text (a file name's bytes?)");
+        }
+        const std::string s = text.cast<std::string>();
         if (s.find('\0') != std::string::npos) {
             // As open() does: the system would see the path up to the null, another file.
             throw py::value_error(where + ": embedded null character");

@@ -247,3 +247,10 @@ def test_a_byte_that_is_not_utf8_comes_back_escaped(tmp_path):
     with pytest.raises(ph.GraphError) as e:
         ph.Graph.load(str(graph))
     assert "last read: '\"a\\xff'" in str(e.value)
+
+
+def test_a_name_that_is_not_utf8_is_a_value_error_naming_the_parameter():
+    # os.fsdecode gives a file name's non-UTF-8 bytes as lone surrogates; pybind11 said only
+    # "Unable to cast Python instance to C++ type".
+    with pytest.raises(ValueError, match='param "path": not valid UTF-8 text'):
+        ph.read("/tmp/x\udcff.exr")
