@@ -42,11 +42,16 @@ struct DiffCliOptions {
     std::string junit;
     int threads = 0;
     bool quiet = false;
+    bool frames_given = false;  ///< --frames was on the command line ("" is refused).
 };
 
 std::vector<int> frames_to_compare(const DiffCliOptions &o)
 {
-    if (!o.frames.empty()) {
+    if (o.frames_given) {
+        // Two single files compared N times reported "N frames".
+        if (!has_frame_placeholder(o.a) && !has_frame_placeholder(o.b)) {
+            throw_usage("--frames: neither ", o.a, " nor ", o.b, " has a frame placeholder (####)");
+        }
         return parse_frame_list(o.frames, "--frames");
     }
     if (!has_frame_placeholder(o.a)) {
@@ -140,6 +145,9 @@ int run(const DiffCliOptions &o)
             o.diff_image);
     }
     check_output_pattern(o.flip_map, "--flip-map", frames.size());
+    if (!o.flip_map.empty() && options.flip == metrics::FlipMode::Off) {
+        throw_usage("--flip-map: FLIP is off (--flip off), so there is no map to write");
+    }
     const std::set<std::string> wanted(options.passes.begin(), options.passes.end());
     ReadOptions read_options;
     read_options.linearize = false;  // compare stored values, as idiff does
@@ -282,10 +290,11 @@ void add_diff_command(CLI::App &app, int &exit_code)
         "1 warning, 2 failure, 3 size mismatch, 4 file error)");
     cmd->add_option("a", o->a, "Reference: file or frame pattern (#### or %04d)")->required();
     cmd->add_option("b", o->b, "Test: file or frame pattern")->required();
-    cmd->add_option("--frames,-f",
-                    o->frames,
-                    "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the "
-                    "frames of A found on disk)");
+    CLI::Option *frames = cmd->add_option("--frames,-f",
+                                          o->frames,
+                                          "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the "
+                                          "frames of A found on disk)")
+                              ->check(not_empty());
     cmd->add_option("--pass,-p",
                     o->passes,
                     "Passes to compare, comma-separated (default: every pass in both)")
@@ -344,7 +353,19 @@ void add_diff_command(CLI::App &app, int &exit_code)
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
         ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "Print nothing but errors");
-    cmd->callback([o, &exit_code] { exit_code = run(*o); });
+    cmd->callback([o, frames, &exit_code] {
+        o->frames_given = frames->count() > 0;
+        // What is not a usage error (an output that cannot be written, memory) is idiff's file
+        // error, 4: exit 1 read as a WARNING and hid a FAILURE from a pipeline.
+        const ExitCode file_error = ExitCode(metrics::exit_code(metrics::Verdict::FileError));
+        try {
+            exit_code = run(*o);
+        } catch (const Error &e) {
+            throw e.code() == ExitCode::Usage ? e : Error(file_error, e.what());
+        } catch (const std::exception &e) {
+            throw Error(file_error, std::string("out of memory or another failure: ") + e.what());
+        }
+    });
 }
 
 }  // namespace posthaste::cli

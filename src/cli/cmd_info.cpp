@@ -81,9 +81,14 @@ Camera info_camera(const FileInfo &fi, const ReadOptions &options)
         depth = depth || ps.pass == "depth";
     }
     if (!position || !depth) {
-        camera.origin =
-            "none: no matrices in the header and no position + depth passes to solve "
-            "them from";
+        // Both matrices or none: one alone says which (it said "no matrices" beside the one
+        // printed below).
+        camera.origin = camera.world_to_camera ? "none: the header has worldToCamera but no "
+                                                 "worldToNDC,"
+                        : camera.world_to_ndc  ? "none: the header has worldToNDC but no "
+                                                 "worldToCamera,"
+                                               : "none: no matrices in the header";
+        camera.origin += " and no position + depth passes to solve them from";
         return camera;
     }
     try {
@@ -102,9 +107,19 @@ int info(const std::vector<std::string> &files, const std::string &convention)
     ReadOptions options;
     options.count_deep_samples = true;
     options.convention = convention;
+    int failed = 0;  // the first bad file's exit code
     for (const std::string &path : files) {
-        const FileInfo fi = read_file_info(path, options);
-        std::printf("%s\n", path.c_str());
+        FileInfo fi;
+        try {
+            fi = read_file_info(path, options);
+        } catch (const Error &e) {
+            // The files after a bad one are still described (it stopped at the first).
+            std::fflush(stdout);
+            std::fprintf(stderr, "error: %s\n", printable_line(e.what()).c_str());
+            failed = failed ? failed : e.exit_code();
+            continue;
+        }
+        std::printf("%s\n", printable_line(path).c_str());
         std::printf("  format             %s, %zu part(s)%s%s\n",
                     fi.format.c_str(),
                     fi.parts.size(),
@@ -211,10 +226,12 @@ int info(const std::vector<std::string> &files, const std::string &convention)
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {
             // One line each: a value's newlines and tabs as \n and \t (oiiotool's history).
+            // Other control characters and bytes that are not UTF-8 as \x1b (a file's escape
+            // sequences reached the terminal).
             std::printf("  %-18s %s = %s\n",
-                        p.name().c_str(),
+                        printable_line(p.name().string()).c_str(),
                         p.type().c_str(),
-                        OIIO::Strutil::escape_chars(p.get_string(8)).c_str());
+                        printable_line(OIIO::Strutil::escape_chars(p.get_string(8))).c_str());
         }
         // The renderers whose pass names were recognised (mapped or refused).
         std::vector<std::string> conventions;
@@ -267,7 +284,7 @@ int info(const std::vector<std::string> &files, const std::string &convention)
             }
         }
     }
-    return 0;
+    return failed;
 }
 
 }  // namespace

@@ -40,20 +40,12 @@ int parse_jobs(const std::string &text)
 void add_run_command(CLI::App &app, int &exit_code)
 {
     auto opts = std::make_shared<RunOptions>();
-    // An option given an empty value was taken as not given (--frames "" ran every frame).
-    const CLI::Validator not_empty(
-        [](std::string &s) {
-            return s.find_first_not_of(" \t") == std::string::npos ? std::string("an empty value")
-                                                                   : std::string();
-        },
-        "",
-        "not empty");
     CLI::App *cmd = app.add_subcommand("run", "Evaluate a graph over a range of frames");
     cmd->add_option("graph", opts->graph, "Graph file (JSON)")->required();
     cmd->add_option("--frames,-f",
                     opts->frames,
                     "Frames: 1-48, 1-48x2, 1,5,10-20 (default: the graph's, else those on disk)")
-        ->check(not_empty);
+        ->check(not_empty());
     cmd->add_option("--set,-s", opts->sets, "Override a parameter: node.param=value")
         ->allow_extra_args(false);
     cmd->add_option(
@@ -62,7 +54,7 @@ void add_run_command(CLI::App &app, int &exit_code)
            "Frames evaluated at once (default: threads / 2, 1 to 4); auto: the first frame "
            "alone, then one per thread, at most what 3/4 of --max-memory holds of the "
            "first frame's pass images")
-        ->check(not_empty);
+        ->check(not_empty());
     cmd->add_option("--threads,-t", opts->threads, "Worker threads (default: all cores)")
         ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", opts->quiet, "No progress and no summary");
@@ -75,7 +67,7 @@ void add_run_command(CLI::App &app, int &exit_code)
                     opts->max_memory,
                     "Budget for pass images, all frames in flight (8G, 512M; 0: none; default 80 "
                     "% of available memory)")
-        ->check(not_empty);
+        ->check(not_empty());
     cmd->add_flag("--skip-existing",
                   opts->skip_existing,
                   "Skip frames whose outputs all exist and read back whole (resume a run)");

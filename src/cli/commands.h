@@ -13,6 +13,18 @@
 
 namespace posthaste::cli {
 
+/// Refuses a value that is empty or blank: CLI11 took --frames "" as not given (every frame).
+inline CLI::Validator not_empty()
+{
+    return CLI::Validator(
+        [](std::string &s) {
+            return s.find_first_not_of(" \t") == std::string::npos ? std::string("an empty value")
+                                                                   : std::string();
+        },
+        "",
+        "not empty");
+}
+
 /// CLI11's Range, refusing a value that is not a number as such: Range called "abc" a value out
 /// of range. "expected a whole number in 0..1024, got "abc"".
 template <typename T>

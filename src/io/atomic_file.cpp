@@ -160,6 +160,14 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
         }
         target = (to.is_absolute() ? to : target.parent_path() / to).lexically_normal();
     }
+    // A device, FIFO or socket would be replaced by the rename: refused (write_file_bytes
+    // writes text and bytes into a pipe or terminal in place).
+    if (const fs::file_status st = fs::status(target, ec);
+        !ec && fs::exists(st) && !fs::is_regular_file(st) && !fs::is_directory(st)) {
+        throw_runtime(path,
+                      ": not a regular file (a device, pipe or socket): an image is written to a "
+                      "temporary file and renamed onto its path");
+    }
     if (target.has_parent_path()) {
         fs::create_directories(target.parent_path(), ec);
         if (ec) {
@@ -237,9 +245,14 @@ void atomic_write(const std::string &path, const std::function<void(const std::s
 
 void write_file_bytes(const std::string &path, const void *data, std::size_t size)
 {
-    atomic_write(path, [&](const std::string &tmp) {
+    // A terminal, a pipe or /dev/stdout is written in place: a rename would replace it with a
+    // file (--json /dev/full became a regular file, and a FIFO was replaced unread).
+    std::error_code ec;
+    const fs::file_status st = fs::status(path, ec);
+    const bool stream = !ec && (fs::is_character_file(st) || fs::is_fifo(st));
+    const auto write = [&](const std::string &file) {
         errno = 0;
-        std::FILE *f = std::fopen(tmp.c_str(), "wb");
+        std::FILE *f = std::fopen(file.c_str(), "wb");
         if (!f) {
             throw_runtime(path, ": cannot write: ", std::strerror(errno));
         }
@@ -249,7 +262,12 @@ void write_file_bytes(const std::string &path, const void *data, std::size_t siz
             const int e = ok ? errno : write_errno;
             throw_runtime(path, ": cannot write: ", e != 0 ? std::strerror(e) : "short write");
         }
-    });
+    };
+    if (stream) {
+        write(path);
+    } else {
+        atomic_write(path, write);
+    }
 }
 
 void write_text_file(const std::string &path, const std::string &text)

@@ -34,7 +34,18 @@ Placeholder find_placeholder(const std::string &p)
             }
             if (b > 0 && p[b - 1] == '%') {
                 const std::string digits = p.substr(b, i - b);
-                return {b - 1, i + 1, digits.empty() ? 0 : std::stoi(digits)};
+                // No file name holds more than 255 bytes: %2147483647d took 8 GB to say so,
+                // and a width past int's range threw from stoi.
+                const auto width = digits.find_first_not_of('0') == std::string::npos
+                                       ? 0
+                                       : std::stoll(digits.substr(0, 12));
+                if (digits.size() > 12 || width > 255) {
+                    throw_usage(p,
+                                ": the frame number is padded to ",
+                                digits.size() > 12 ? digits : std::to_string(width),
+                                " digits, more than a file name holds (255 bytes)");
+                }
+                return {b - 1, i + 1, int(width)};
             }
         }
     }

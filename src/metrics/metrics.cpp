@@ -300,7 +300,13 @@ Image difference_image(const Image &a, const Image &b, float scale)
             const float *pb = b.pixel(r.x0, y);
             float *po = out.pixel(r.x0, y);
             for (int i = 0, n = r.width() * a.channels(); i < n; ++i) {
-                po[i] = std::abs(pa[i] - pb[i]) * scale;
+                // As compare counts it: equal values (NaN and NaN, inf and inf) differ by 0,
+                // any other non-finite pair by infinity (the image said NaN where the verdict
+                // passed, and scale inf made 0 x inf a NaN).
+                const float va = pa[i], vb = pb[i];
+                const bool same = va == vb || (std::isnan(va) && std::isnan(vb));
+                const float d = std::isfinite(va) && std::isfinite(vb) ? std::abs(va - vb) : kInf;
+                po[i] = same || scale == 0.0f ? 0.0f : d * scale;
             }
         }
     });

@@ -106,7 +106,8 @@ inline Verdict worse(Verdict a, Verdict b)
     return static_cast<int>(a) >= static_cast<int>(b) ? a : b;
 }
 
-/// |a - b| * scale per value (NaN where either is NaN), same shape as the inputs.
+/// |a - b| * scale per value, same shape as the inputs, with compare's rules for non-finite
+/// values: equal ones (NaN and NaN, inf and inf) 0, any other pair with one infinity.
 Image difference_image(const Image &a, const Image &b, float scale = 1.0f);
 
 }  // namespace posthaste::metrics

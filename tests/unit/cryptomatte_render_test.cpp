@@ -22,8 +22,8 @@ const std::string kScene = std::string(POSTHASTE_SOURCE_DIR) + "/samples/scenes/
 Frame render(int supersample, const std::string &extra = "")
 {
     Graph g = Graph::parse(R"({"nodes": [
-        {"id": "r", "type": "render", "params": {"scene": ")" + kScene +
-                               R"(", "width": 96, "height": 54, "supersample": )" +
+        {"id": "r", "type": "render", "params": {"scene": ")" +
+                               kScene + R"(", "width": 96, "height": 54, "supersample": )" +
                                std::to_string(supersample) + extra + R"(}},
         {"id": "k", "type": "cryptomatte", "inputs": {"image": "r"},
          "params": {"layer": "CryptoObject", "matte": ["grass"]}},
@@ -97,22 +97,28 @@ TEST(CryptomatteRender, CoverageSumsToOneAndRanksAreOrdered)
 TEST(CryptomatteRender, RoundTripThroughAFile)
 {
     const std::string dir = test::scratch_dir("cryptomatte_render");
-    Graph w = Graph::parse(R"({"nodes": [
-        {"id": "r", "type": "render", "params": {"scene": ")" + kScene +
-                               R"(", "width": 96, "height": 54, "supersample": 2}},
+    Graph w = Graph::parse(
+        R"({"nodes": [
+        {"id": "r", "type": "render", "params": {"scene": ")" +
+            kScene +
+            R"(", "width": 96, "height": 54, "supersample": 2}},
         {"id": "o", "type": "write", "inputs": {"image": "r"},
-         "params": {"path": ")" + dir + R"(/f.####.exr", "passes": "color,depth,CryptoObject00,CryptoObject01,CryptoObject02,CryptoMaterial00,CryptoMaterial01,CryptoMaterial02", "storage": "half"}}]})",
-                           "write",
-                           nodes::catalog());
+         "params": {"path": ")" +
+            dir +
+            R"(/f.####.exr", "passes": "color,depth,CryptoObject00,CryptoObject01,CryptoObject02,CryptoMaterial00,CryptoMaterial01,CryptoMaterial02", "storage": "half"}}]})",
+        "write",
+        nodes::catalog());
     w.evaluate(12);
     Graph r = Graph::parse(R"({"nodes": [
-        {"id": "src", "type": "read", "params": {"path": ")" + dir + R"(/f.####.exr"}},
+        {"id": "src", "type": "read", "params": {"path": ")" +
+                               dir + R"(/f.####.exr"}},
         {"id": "k", "type": "cryptomatte", "inputs": {"image": "src"},
          "params": {"layer": "CryptoObject", "matte": ["grass"]}},
         {"id": "k2", "type": "cryptomatte", "inputs": {"image": "k"},
          "params": {"layer": "CryptoMaterial", "matte": ["stone"], "pass": "stone"}},
         {"id": "o", "type": "write", "inputs": {"image": "k2"},
-         "params": {"path": ")" + dir + R"(/m.exr", "passes": "matte,stone"}}]})",
+         "params": {"path": ")" +
+                               dir + R"(/m.exr", "passes": "matte,stone"}}]})",
                            "read",
                            nodes::catalog());
     r.set_capture("k2");
@@ -131,8 +137,8 @@ TEST(CryptomatteRender, RoundTripThroughAFile)
     const auto layers = cryptomatte::find_layers(from_file.attributes, dir);
     ASSERT_EQ(layers.size(), 2u);
     const auto named = [](const cryptomatte::Layer &l, const std::string &n) {
-        return std::any_of(l.manifest.begin(), l.manifest.end(),
-                           [&](const auto &e) { return e.first == n; });
+        return std::any_of(
+            l.manifest.begin(), l.manifest.end(), [&](const auto &e) { return e.first == n; });
     };
     EXPECT_TRUE(named(layers[1], "ball_0") && named(layers[1], "grass")) << layers[1].name;
     EXPECT_TRUE(named(layers[0], "stone") && !named(layers[0], "ball_0")) << layers[0].name;

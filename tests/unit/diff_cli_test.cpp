@@ -346,6 +346,69 @@ TEST_F(DiffCli, MissingPassIsFileError)
     EXPECT_NE(p.output.find("depth"), std::string::npos) << p.output;
 }
 
+// Outputs that cannot be written are idiff's file error (4), never 1 (a WARNING) over images
+// that fail; a device is written in place, not replaced by a file; absurd patterns and options
+// that cannot apply are usage errors at once.
+TEST_F(DiffCli, OutputsPatternsAndOptionsThatCannotApply)
+{
+    write_float_exr(path("a.exr"), noise(8, 8, 4, 1));
+    write_float_exr(path("b.exr"), noise(8, 8, 4, 2));
+    const std::string ab = path("a.exr") + " " + path("b.exr");
+    std::ofstream(path("afile")) << "x";
+    Process p = diff(ab + " --report " + path("afile"));
+    EXPECT_EQ(p.exit_code, 4) << p.output;
+    EXPECT_NE(p.output.find("Not a directory"), std::string::npos) << p.output;
+    if (fs::is_character_file("/dev/full")) {
+        p = diff(ab + " --json /dev/full");
+        EXPECT_EQ(p.exit_code, 4) << p.output;
+        EXPECT_NE(p.output.find("/dev/full: cannot write: No space left on device"),
+                  std::string::npos)
+            << p.output;
+        EXPECT_TRUE(fs::is_character_file("/dev/full"));  // not renamed over
+    }
+    p = diff(path("s.%2147483647d.exr") + " " + path("b.####.exr") + " --frames 1");
+    EXPECT_EQ(p.exit_code, 2) << p.output.substr(0, 300);
+    EXPECT_NE(p.output.find("padded to 2147483647 digits"), std::string::npos)
+        << p.output.substr(0, 300);
+    EXPECT_LT(p.output.size(), 400u);
+    p = diff(ab + " --frames 1-3");
+    EXPECT_EQ(p.exit_code, 2) << p.output;
+    EXPECT_NE(p.output.find("has a frame placeholder"), std::string::npos) << p.output;
+    p = diff(ab + " --flip-map " + path("f.png"));  // the fixture's --flip off
+    EXPECT_EQ(p.exit_code, 2) << p.output;
+    EXPECT_FALSE(fs::exists(path("f.png")));
+}
+
+// info: a header's escape sequence is printed escaped; one camera matrix alone is named as
+// such; the files after a bad one are still described, and the exit code is the bad one's.
+TEST_F(DiffCli, InfoEscapesSaysWhichMatrixAndGoesOnPastABadFile)
+{
+    const std::string odd = path("odd.exr");
+    {
+        auto out = OIIO::ImageOutput::create(odd);
+        ASSERT_TRUE(out);
+        OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::FLOAT);
+        spec.attribute("weird", "red\x1b[31mtext");
+        const float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
+        spec.attribute("worldToCamera", OIIO::TypeMatrix44, m);
+        ASSERT_TRUE(out->open(odd, spec));
+        const std::vector<float> pixels(4 * 4 * 3, 0.5f);
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+        ASSERT_TRUE(out->close());
+    }
+    std::ofstream(path("text.exr")) << "not an image";
+    const Process p = run_process(std::string(POSTHASTE_BINARY) + " info " + path("text.exr") +
+                                  " " + odd);
+    EXPECT_EQ(p.exit_code, 1) << p.output;
+    EXPECT_NE(p.output.find("text.exr"), std::string::npos) << p.output;
+    EXPECT_NE(p.output.find("weird              string = red\\x1b[31mtext"), std::string::npos)
+        << p.output;
+    EXPECT_EQ(p.output.find('\x1b'), std::string::npos) << p.output;
+    EXPECT_NE(p.output.find("none: the header has worldToCamera but no worldToNDC"),
+              std::string::npos)
+        << p.output;
+}
+
 // --- Sequences -----------------------------------------------------------------------------
 
 TEST_F(DiffCli, SequenceWithMissingFrameReportsItAndExitsWorst)

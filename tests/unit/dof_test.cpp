@@ -442,10 +442,11 @@ TEST(Dof, LensValuesComeFromTheHeaderUnlessGiven)
         FAIL() << "expected an error";
     } catch (const Error &e) {
         EXPECT_EQ(e.code(), ExitCode::Usage);
-        EXPECT_NE(std::string(e.what()).find(
-                      "g.json:/nodes/1/params/fstop: node \"d\" (dof): param \"fstop\": must be > 0 "
-                      "(leave it out for the header's aperture)"),
-                  std::string::npos)
+        EXPECT_NE(
+            std::string(e.what()).find(
+                "g.json:/nodes/1/params/fstop: node \"d\" (dof): param \"fstop\": must be > 0 "
+                "(leave it out for the header's aperture)"),
+            std::string::npos)
             << e.what();
     }
 }

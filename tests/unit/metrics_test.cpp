@@ -238,6 +238,24 @@ TEST(Metrics, DifferenceImageScales)
     EXPECT_FLOAT_EQ(d.at(2, 0, 1), 8.0f);
     EXPECT_FLOAT_EQ(d.at(0, 0, 0), 1.6f);
     EXPECT_EQ(d.at(1, 0, 0), 0.0f);
+    // Non-finite values as compare counts them: NaN against NaN and inf against inf are 0,
+    // anything else against a NaN or an infinity is infinite; a zero difference stays 0 under
+    // an infinite scale.
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    const float inf = std::numeric_limits<float>::infinity();
+    Image a(5, 1, 1), b(5, 1, 1);
+    const float va[] = {nan, inf, nan, inf, 2.0f}, vb[] = {nan, inf, 1.0f, -inf, 2.0f};
+    for (int x = 0; x < 5; ++x) {
+        a.at(x, 0, 0) = va[x];
+        b.at(x, 0, 0) = vb[x];
+    }
+    const Image e = difference_image(a, b, 1.0f);
+    const float want[] = {0.0f, 0.0f, inf, inf, 0.0f};
+    for (int x = 0; x < 5; ++x) {
+        EXPECT_EQ(e.at(x, 0, 0), want[x]) << x;
+    }
+    EXPECT_EQ(difference_image(a, b, inf).at(4, 0, 0), 0.0f);
+    EXPECT_EQ(difference_image(a, b, 0.0f).at(2, 0, 0), 0.0f);
 }
 
 // --- Agreement with OpenImageIO's idiff and ImageBufAlgo::compare ---------------------------

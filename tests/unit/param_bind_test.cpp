@@ -68,19 +68,38 @@ constexpr ParamSpec kSize = ParamSpec::choice("size", "64|128|256", "256");
 constexpr ParamSpec kTint = ParamSpec::vec3("tint", 1.0, 1.0, 1.0);
 constexpr ParamSpec kName = ParamSpec::string("name", "a");
 constexpr ParamSpec kList = ParamSpec::string("list", "");
-constexpr ParamSpec kFstop = ParamSpec::real("fstop", 8.0).range(0.5, 128.0).from_header("aperture");
-constexpr ParamSpec kShutter = ParamSpec::real("shutter", 0.5).range(0.0, 1.0).from_header("shutter");
+constexpr ParamSpec kFstop =
+    ParamSpec::real("fstop", 8.0).range(0.5, 128.0).from_header("aperture");
+constexpr ParamSpec kShutter =
+    ParamSpec::real("shutter", 0.5).range(0.0, 1.0).from_header("shutter");
 constexpr ParamSpec kFocus = ParamSpec::real("focus", 0.0).at_least(0.0).from_header_only("focus");
-constexpr ParamSpec kParams[] = {kRadius, kSamples, kSeed, kFast, kResolution, kShape, kSize,
-                                 kTint, kName, kList, kFstop, kShutter, kFocus};
+constexpr ParamSpec kParams[] = {kRadius,
+                                 kSamples,
+                                 kSeed,
+                                 kFast,
+                                 kResolution,
+                                 kShape,
+                                 kSize,
+                                 kTint,
+                                 kName,
+                                 kList,
+                                 kFstop,
+                                 kShutter,
+                                 kFocus};
 
 constexpr Binding<Settings> kFields[] = {
-    bind<&Settings::radius>(kRadius),       bind<&Settings::samples>(kSamples),
-    bind<&Settings::seed>(kSeed),           bind<&Settings::fast>(kFast),
-    bind<&Settings::half>(kResolution, "half"), bind<&Settings::shape>(kShape),
-    bind<&Settings::size>(kSize),           bind<&Settings::tint>(kTint),
-    bind<&Settings::name>(kName),           bind<&Settings::list>(kList),
-    bind<&Settings::fstop>(kFstop),         bind<&Settings::shutter>(kShutter),
+    bind<&Settings::radius>(kRadius),
+    bind<&Settings::samples>(kSamples),
+    bind<&Settings::seed>(kSeed),
+    bind<&Settings::fast>(kFast),
+    bind<&Settings::half>(kResolution, "half"),
+    bind<&Settings::shape>(kShape),
+    bind<&Settings::size>(kSize),
+    bind<&Settings::tint>(kTint),
+    bind<&Settings::name>(kName),
+    bind<&Settings::list>(kList),
+    bind<&Settings::fstop>(kFstop),
+    bind<&Settings::shutter>(kShutter),
     bind<&Settings::focus>(kFocus),
 };
 
@@ -92,8 +111,8 @@ NodeParams params(std::map<std::string, nlohmann::json> given)
     std::map<std::string, ParamValue> values;
     for (const ParamSpec &s : kParams) {
         const auto it = given.find(std::string(s.name));
-        values[std::string(s.name)] = it == given.end() ? default_param(s)
-                                                        : convert_param(s, it->second, "t", "toy");
+        values[std::string(s.name)] =
+            it == given.end() ? default_param(s) : convert_param(s, it->second, "t", "toy");
     }
     return NodeParams(&kToy, std::move(values));
 }
@@ -251,8 +270,9 @@ TEST(ParamBind, AParameterTheMethodIgnoresIsRefused)
     const auto error_of = [](const std::string &node, const std::string &params) {
         const std::string g =
             R"({"nodes": [{"id": "r", "type": "render", "params": {"scene": "s.json"}},)"
-            R"( {"id": "n", )" + std::string(node == "render" ? "" : R"("inputs": {"image": "r"}, )") +
-            R"("type": ")" + node + R"(", "params": )" + params + "}]}";
+            R"( {"id": "n", )" +
+            std::string(node == "render" ? "" : R"("inputs": {"image": "r"}, )") + R"("type": ")" +
+            node + R"(", "params": )" + params + "}]}";
         try {
             Graph::parse(g, "g.json", nodes::catalog());
         } catch (const Error &e) {

@@ -1,7 +1,7 @@
-// The relight node's vector rows (shading/lighting/relight_kernels.cpp, one Highway source) against its
-// reference (shading/lighting/relight.cpp: prepare_pixel and shading::direct_response, one pixel at a
-// time) on a real frame: the Minecrappy scene's G-buffer at frame 30 with every material kind
-// (rough and glossy dielectrics, metals, the anisotropic ones, toon leaves) under a sun, two
+// The relight node's vector rows (shading/lighting/relight_kernels.cpp, one Highway source) against
+// its reference (shading/lighting/relight.cpp: prepare_pixel and shading::direct_response, one
+// pixel at a time) on a real frame: the Minecrappy scene's G-buffer at frame 30 with every material
+// kind (rough and glossy dielectrics, metals, the anisotropic ones, toon leaves) under a sun, two
 // point lights and a spot, in both modes and with positions from the position pass or from
 // depth. The rows do the reference's operations in its order with exact division and square
 // root, so every value must be the same bits, on every target this CPU has: the best, AVX2,

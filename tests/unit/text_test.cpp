@@ -1,11 +1,11 @@
 // Text for messages: printable_line keeps well-formed UTF-8 and writes every other byte so that
 // a terminal, a log and Python can take the line.
 
+#include "core/text.h"
+
 #include <gtest/gtest.h>
 
 #include <string>
-
-#include "core/text.h"
 
 namespace posthaste {
 namespace {
