@@ -25,6 +25,29 @@ std::string channel_name(const std::vector<std::string> &names, int c)
     return c >= 0 && c < int(names.size()) ? names[std::size_t(c)] : std::to_string(c);
 }
 
+/// "data window 8x8 at (0, 0) vs 16x16 at (0, 0)".
+std::string windows_differ(const char *which, const Rect &wa, const Rect &wb)
+{
+    return str_cat(which,
+                   " window ",
+                   wa.width(),
+                   "x",
+                   wa.height(),
+                   " at (",
+                   wa.x0,
+                   ", ",
+                   wa.y0,
+                   ") vs ",
+                   wb.width(),
+                   "x",
+                   wb.height(),
+                   " at (",
+                   wb.x0,
+                   ", ",
+                   wb.y0,
+                   ")");
+}
+
 PassDiff diff_pass(const std::string &name, const Pass &pa, const Pass &pb, const DiffOptions &o)
 {
     PassDiff d;
@@ -140,24 +163,15 @@ DiffReport diff_frames(const Frame &a, const Frame &b, const DiffOptions &option
         const Rect &wa = a.data_window, &wb = b.data_window;
         r.verdict = Verdict::SizeMismatch;
         // The summary line names the frame already ("frame 0: SIZE MISMATCH; frame 0: ...").
-        r.messages.push_back(str_cat("data window ",
-                                     wa.width(),
-                                     "x",
-                                     wa.height(),
-                                     " at (",
-                                     wa.x0,
-                                     ", ",
-                                     wa.y0,
-                                     ") vs ",
-                                     wb.width(),
-                                     "x",
-                                     wb.height(),
-                                     " at (",
-                                     wb.x0,
-                                     ", ",
-                                     wb.y0,
-                                     ")"));
+        r.messages.push_back(windows_differ("data", wa, wb));
         return r;
+    }
+    // The same pixels placed in another frame (a crop or overscan lost, a format changed): the
+    // pixels compare, the file does not match (it passed without a word).
+    if (a.display_window != b.display_window) {
+        const Rect &wa = a.display_window, &wb = b.display_window;
+        r.verdict = Verdict::Warning;
+        r.messages.push_back(windows_differ("display", wa, wb));
     }
 
     std::vector<std::string> names;

@@ -379,6 +379,24 @@ TEST_F(DiffCli, OutputsPatternsAndOptionsThatCannotApply)
     EXPECT_FALSE(fs::exists(path("f.png")));
 }
 
+// The same pixels in another display window (a crop or an overscan lost) warn: they passed.
+TEST_F(DiffCli, ADisplayWindowThatDiffersWarns)
+{
+    const Image img = noise(8, 8, 3, 1);
+    write_float_exr(path("a.exr"), img);
+    auto out = OIIO::ImageOutput::create(path("b.exr"));
+    ASSERT_TRUE(out);
+    OIIO::ImageSpec spec(8, 8, 3, OIIO::TypeDesc::FLOAT);
+    spec.full_width = spec.full_height = 16;
+    ASSERT_TRUE(out->open(path("b.exr"), spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, img.data()));
+    ASSERT_TRUE(out->close());
+    const Process p = diff(path("a.exr") + " " + path("b.exr"));
+    EXPECT_EQ(p.exit_code, 1) << p.output;
+    EXPECT_NE(p.output.find("display window 8x8 at (0, 0) vs 16x16 at (0, 0)"), std::string::npos)
+        << p.output;
+}
+
 // info: a header's escape sequence is printed escaped; one camera matrix alone is named as
 // such; the files after a bad one are still described, and the exit code is the bad one's.
 TEST_F(DiffCli, InfoEscapesSaysWhichMatrixAndGoesOnPastABadFile)
@@ -397,8 +415,8 @@ TEST_F(DiffCli, InfoEscapesSaysWhichMatrixAndGoesOnPastABadFile)
         ASSERT_TRUE(out->close());
     }
     std::ofstream(path("text.exr")) << "not an image";
-    const Process p = run_process(std::string(POSTHASTE_BINARY) + " info " + path("text.exr") +
-                                  " " + odd);
+    const Process p =
+        run_process(std::string(POSTHASTE_BINARY) + " info " + path("text.exr") + " " + odd);
     EXPECT_EQ(p.exit_code, 1) << p.output;
     EXPECT_NE(p.output.find("text.exr"), std::string::npos) << p.output;
     EXPECT_NE(p.output.find("weird              string = red\\x1b[31mtext"), std::string::npos)
