@@ -66,6 +66,18 @@ std::string sources_text(const PassSource &ps)
     return from;
 }
 
+/// One attribute on one line: a value's newlines and tabs as \n and \t (oiiotool's history),
+/// other control characters and bytes that are not UTF-8 as \x1b (a file's escape sequences
+/// reached the terminal).
+void print_attribute(const char *indent, const OIIO::ParamValue &p)
+{
+    std::printf("%s%-18s %s = %s\n",
+                indent,
+                printable_line(p.name().string()).c_str(),
+                p.type().c_str(),
+                printable_line(OIIO::Strutil::escape_chars(p.get_string(8))).c_str());
+}
+
 /// The file's camera as a read node would give it: the header's matrices, else the camera
 /// solved from its position and depth passes, else none (with why).
 Camera info_camera(const FileInfo &fi, const ReadOptions &options)
@@ -180,6 +192,10 @@ int info(const std::vector<std::string> &files, const std::string &convention)
                 line += (line.empty() ? "" : ", ") + c.name + " (" + c.type + ")";
             }
             std::printf("    channels: %s\n", line.c_str());
+            // What this part's header says beyond the attributes listed below (another part's).
+            for (const OIIO::ParamValue &a : part.own_attributes) {
+                print_attribute("    attribute ", a);
+            }
         }
         const Camera camera = info_camera(fi, options);
         std::printf("camera             %s\n", camera.origin.c_str());
@@ -225,13 +241,7 @@ int info(const std::vector<std::string> &files, const std::string &convention)
         }
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {
-            // One line each: a value's newlines and tabs as \n and \t (oiiotool's history).
-            // Other control characters and bytes that are not UTF-8 as \x1b (a file's escape
-            // sequences reached the terminal).
-            std::printf("  %-18s %s = %s\n",
-                        printable_line(p.name().string()).c_str(),
-                        p.type().c_str(),
-                        printable_line(OIIO::Strutil::escape_chars(p.get_string(8))).c_str());
+            print_attribute("  ", p);
         }
         // The renderers whose pass names were recognised (mapped or refused).
         std::vector<std::string> conventions;

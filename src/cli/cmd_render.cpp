@@ -3,9 +3,13 @@
 // validation, parallel frames, progress and summary.
 
 #include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
 
 #include "cli/commands.h"
 #include "core/error.h"
+#include "core/text.h"
 #include "graph/graph.h"
 #include "nodes/registry.h"
 
@@ -26,15 +30,28 @@ struct RenderCommand : RunSettings {
     double ao_radius = 1.0;
     double overscan = 0.0;
     std::string compression = "piz";
+    std::vector<std::string> given;  ///< Truth options on the command line (--samples, ...).
 };
 
 int render(const RenderCommand &o)
 {
-    int width = 0, height = 0;
-    char extra = 0;
-    if (std::sscanf(o.size.c_str(), "%dx%d%c", &width, &height, &extra) != 2 || width <= 0 ||
-        height <= 0) {
+    // Whole numbers in int's range (sscanf's %d wrapped 4294967360x36 to a 64x36 frame).
+    const std::size_t x = o.size.find('x');
+    const std::optional<int> w = parse_int(o.size.substr(0, x));
+    const std::optional<int> h =
+        x == std::string::npos ? std::nullopt : parse_int(o.size.substr(x + 1));
+    if (!w || !h || *w <= 0 || *h <= 0) {
         throw_usage("--size: expected WIDTHxHEIGHT, got \"", o.size, "\"");
+    }
+    const int width = *w, height = *h;
+    // A truth option without the truth it sets was ignored without a word.
+    for (const std::string &opt : o.given) {
+        const bool applies = opt == "--ao-radius" ? o.truth == "ao" : !o.truth.empty() || o.probe;
+        if (!applies) {
+            throw_usage(opt,
+                        opt == "--ao-radius" ? " applies only to --truth ao"
+                                             : " applies only to --truth or --probe");
+        }
     }
     std::string truth = "none";
     if (o.truth == "ao" || o.truth == "reflections" || o.truth == "gi") {
@@ -122,11 +139,13 @@ void add_render_command(CLI::App &app, int &exit_code)
                     "Render beyond the frame: below 1 a fraction each dimension grows by, from 1 "
                     "whole pixels a side (the data window grows, the display window stays)")
         ->check(in_range(0.0, 4096.0));
-    cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")
-        ->check(in_range(1e-3, 100.0));
-    cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")
-        ->check(in_range(1, 65536));
-    cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")->check(in_range(0, 1 << 30));
+    const std::vector<CLI::Option *> truth_options = {
+        cmd->add_option("--ao-radius", o->ao_radius, "Ambient occlusion truth: radius in metres")
+            ->check(in_range(1e-3, 100.0)),
+        cmd->add_option("--samples", o->samples, "Renders accumulated for the ground truth")
+            ->check(in_range(1, 65536)),
+        cmd->add_option("--seed", o->seed, "Ground-truth jitter seed")
+            ->check(in_range(0, 1 << 30))};
     cmd->add_option("--compression", o->compression, "EXR compression (default piz)");
     cmd->add_option("--jobs,-j", o->jobs, "Frames rendered at once")->check(in_range(0, 256));
     cmd->add_option("--max-memory",
@@ -135,7 +154,14 @@ void add_render_command(CLI::App &app, int &exit_code)
     cmd->add_option("--threads,-t", o->threads, "Worker threads (default: all cores)")
         ->check(in_range(0, 1024));
     cmd->add_flag("--quiet,-q", o->quiet, "No progress and no summary");
-    cmd->callback([o, &exit_code] { exit_code = render(*o); });
+    cmd->callback([o, truth_options, &exit_code] {
+        for (const CLI::Option *opt : truth_options) {
+            if (opt->count() > 0) {
+                o->given.push_back(opt->get_name());
+            }
+        }
+        exit_code = render(*o);
+    });
 }
 
 }  // namespace posthaste::cli

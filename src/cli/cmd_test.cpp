@@ -273,9 +273,19 @@ int run(const TestOptions &o)
         }
     }
     std::sort(graphs.begin(), graphs.end());
+    // A name --only gives that no graph has is named (it was passed over, and the run passed).
+    for (const std::string &name : o.only) {
+        if (std::none_of(graphs.begin(), graphs.end(), [&](const fs::path &g) {
+                return g.stem().string() == name;
+            })) {
+            throw_usage(o.suite, ": --only names \"", name, "\", which is no graph of the suite");
+        }
+    }
     if (graphs.empty()) {
-        throw_usage(
-            o.suite, ": no graphs (*.json) in the suite", o.only.empty() ? "" : " named by --only");
+        throw_usage(o.suite, ": no graphs (*.json) in the suite");
+    }
+    if (o.update && (!o.report_dir.empty() || !o.junit.empty())) {
+        throw_usage("--update writes references, not a report: --report and --junit compare");
     }
     std::vector<metrics::ReportEntry> entries;
     int written = 0;
@@ -335,8 +345,9 @@ void add_test_command(CLI::App &app, int &exit_code)
         ->required();
     cmd->add_option("--out,-o", o->out, "Where the graphs write their outputs")
         ->capture_default_str();
-    cmd->add_option("--report", o->report_dir, "Write an HTML report to DIR/index.html");
-    cmd->add_option("--junit", o->junit, "Write JUnit XML here");
+    cmd->add_option("--report", o->report_dir, "Write an HTML report to DIR/index.html")
+        ->check(not_empty());
+    cmd->add_option("--junit", o->junit, "Write JUnit XML here")->check(not_empty());
     cmd->add_option("--only", o->only, "Run only these graphs (names without .json)");
     cmd->add_flag("--update",
                   o->update,

@@ -40,6 +40,9 @@ struct FilePart {
     bool deep = false;
     std::int64_t deep_samples = -1;  ///< Deep parts: samples in the part (read by info).
     int deep_max_samples = -1;       ///< Deep parts: most samples in one pixel.
+    /// Frame attributes of this part's header that FileInfo::attributes (another part's) lacks
+    /// or gives otherwise; empty for the part those come from.
+    OIIO::ParamValueList own_attributes;
 };
 
 struct FileInfo {

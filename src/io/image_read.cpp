@@ -199,6 +199,11 @@ Opened open_file(const std::string &path, const ReadOptions &options)
         other_parts.push_back(&spec.extra_attribs);
     }
     info.cryptomattes = cryptomatte::with_declarations_of(info.attributes, other_parts);
+    for (std::size_t p = 0; p < info.parts.size(); ++p) {
+        if (p != camera_part) {
+            info.parts[p].own_attributes = own_attributes(o.specs[p], info.attributes);
+        }
+    }
     if (deep) {
         // Flattened deep channels: Z is the nearest sample's, ZBack is dropped.
         for (MappedChannel &m : channels) {

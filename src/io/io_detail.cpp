@@ -526,4 +526,22 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string &path,
     return in;
 }
 
+OIIO::ParamValueList own_attributes(const OIIO::ImageSpec &spec, const OIIO::ParamValueList &shown)
+{
+    OIIO::ParamValueList own;
+    for (const OIIO::ParamValue &p : spec.extra_attribs) {
+        if (!is_frame_attribute(p.name().string())) {
+            continue;
+        }
+        const auto same = std::find_if(shown.begin(), shown.end(), [&](const OIIO::ParamValue &q) {
+            return q.name() == p.name() && q.type() == p.type() &&
+                   q.get_string(1 << 20) == p.get_string(1 << 20);
+        });
+        if (same == shown.end()) {
+            own.push_back(p);
+        }
+    }
+    return own;
+}
+
 }  // namespace posthaste::io_detail

@@ -27,6 +27,9 @@ inline bool is_frame_attribute(const std::string &name)
 {
     return !is_structural_attribute(name) && !is_camera_attribute(name) && name != "multiView";
 }
+/// The frame attributes of a part's header (`spec`) that `shown` (the frame's, from another
+/// part) lacks or gives another value: what `info` lists under that part.
+OIIO::ParamValueList own_attributes(const OIIO::ImageSpec &spec, const OIIO::ParamValueList &shown);
 /// "half", "float", "uint", or OIIO's name for other types.
 std::string type_name(OIIO::TypeDesc t);
 /// 8/16-bit integer types (normalised on read).

@@ -367,10 +367,19 @@ Scene parse_scene(const std::string &text, const std::string &origin)
     s.fps = root.number("fps", s.fps, 1e-3, 1e4);
     if (root.has("frame_range")) {
         const Json &r = root.get("frame_range");
-        if (!r.is_array() || r.size() != 2 || !r[0].is_number_integer() ||
-            !r[1].is_number_integer() || r[1].get<int>() < r[0].get<int>()) {
+        // The frame numbers --frames takes, at most as many (a range of 2e9 frames took
+        // memory without bound; a number past int's range was cut).
+        const auto within = [&](const Json &v) {
+            return v.is_number_integer() && v.get<long long>() >= -100000000 &&
+                   v.get<long long>() <= 100000000;
+        };
+        if (!r.is_array() || r.size() != 2 || !within(r[0]) || !within(r[1]) ||
+            r[1].get<int>() < r[0].get<int>() ||
+            r[1].get<long long>() - r[0].get<long long>() >= 1000000) {
             root.fail("frame_range",
-                      "expected [first, last] integers with first <= last, got " + r.dump());
+                      "expected [first, last] integers in -1e8..1e8 with first <= last, at most "
+                      "1000000 frames, got " +
+                          r.dump());
         }
         s.frame_start = r[0].get<int>();
         s.frame_end = r[1].get<int>();
@@ -452,7 +461,7 @@ Scene parse_scene(const std::string &text, const std::string &origin)
     root.each("movers", [&](Obj &o, int) {
         Mover m;
         m.min = o.vec3("min", m.min);
-        m.size = o.vec3("size", m.size);
+        m.size = o.vec3("size", m.size, 0.0, 1e6);  // metres (a negative size was taken)
         m.material = check_material(o, "material", o.integer("material", 1, 1, 255));
         o.child("motion", [&](Obj &mo) { m.motion = read_motion(mo); });
         s.movers.push_back(m);

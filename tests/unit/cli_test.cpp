@@ -83,6 +83,30 @@ TEST(Cli, RunsFramesFoundOnDisk)
     EXPECT_NE(out.find("valid; 3 frame(s)"), std::string::npos) << out;
 }
 
+// Options that cannot apply are usage errors, not ignored: a truth option without its truth, a
+// --size past int's range (it wrapped to a 64x36 frame), a test suite's --only name that no
+// graph has, --update with a report.
+TEST(Cli, RenderAndTestOptionsThatCannotApply)
+{
+    const std::string dir = test::scratch_dir("cli_cannot_apply");
+    const std::string scene = std::string(POSTHASTE_TEST_DIR) + "/../samples/scenes/cube.json";
+    const std::string render = kBin + " render " + scene + " -o " + dir + "/r.####.exr -f 1 ";
+    std::string out;
+    EXPECT_EQ(run_command(render + "--size 4294967360x36", &out), 2) << out;
+    EXPECT_NE(out.find("--size: expected WIDTHxHEIGHT"), std::string::npos) << out;
+    EXPECT_EQ(run_command(render + "--size 16x9 --samples 4", &out), 2) << out;
+    EXPECT_NE(out.find("--samples applies only to --truth or --probe"), std::string::npos) << out;
+    EXPECT_EQ(run_command(render + "--size 16x9 --truth motion --ao-radius 2", &out), 2) << out;
+    EXPECT_FALSE(fs::exists(dir + "/r.0001.exr"));
+    fs::create_directories(dir + "/suite");
+    std::ofstream(dir + "/suite/a.json") << "{}";
+    EXPECT_EQ(run_command(kBin + " test " + dir + "/suite --only a nosuch", &out), 2) << out;
+    EXPECT_NE(out.find("--only names \"nosuch\""), std::string::npos) << out;
+    EXPECT_EQ(
+        run_command(kBin + " test " + dir + "/suite --update --junit " + dir + "/j.xml", &out), 2)
+        << out;
+}
+
 TEST(Cli, GraphPathsResolveAgainstTheGraphsFolder)
 {
     // A graph in shot/comp/ reads ../plates/in.####.exr and writes out/o.####.exr: run from

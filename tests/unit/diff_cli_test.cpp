@@ -414,6 +414,28 @@ TEST_F(DiffCli, InfoEscapesSaysWhichMatrixAndGoesOnPastABadFile)
         ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
         ASSERT_TRUE(out->close());
     }
+    // A second part with an attribute of its own: listed under that part (it was not shown).
+    const std::string two = path("two.exr");
+    {
+        auto out = OIIO::ImageOutput::create(two);
+        ASSERT_TRUE(out);
+        OIIO::ImageSpec specs[2] = {OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::FLOAT),
+                                    OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::FLOAT)};
+        specs[0].attribute("name", "left");
+        specs[1].attribute("name", "right");
+        specs[1].attribute("onlyInPart1", "hello");
+        ASSERT_TRUE(out->open(two, 2, specs));
+        const std::vector<float> pixels(4 * 4 * 3, 0.5f);
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+        ASSERT_TRUE(out->open(two, specs[1], OIIO::ImageOutput::AppendSubimage));
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+        ASSERT_TRUE(out->close());
+    }
+    const Process parts = run_process(std::string(POSTHASTE_BINARY) + " info " + two);
+    EXPECT_EQ(parts.exit_code, 0) << parts.output;
+    EXPECT_NE(parts.output.find("    attribute onlyInPart1        string = hello"),
+              std::string::npos)
+        << parts.output;
     std::ofstream(path("text.exr")) << "not an image";
     const Process p =
         run_process(std::string(POSTHASTE_BINARY) + " info " + path("text.exr") + " " + odd);

@@ -79,6 +79,14 @@ TEST(Scene, ErrorsNameFileAndPath)
     EXPECT_NE(error_of(base + R"(, "balls": [{"spin_deg": 200}]})").find("/balls/0/spin_deg"),
               std::string::npos);
     EXPECT_NE(error_of("{nope").find("invalid JSON"), std::string::npos);
+    // A frame range of 2e9 frames took memory without bound; a mover of negative size was taken.
+    EXPECT_NE(
+        error_of(base + R"(, "frame_range": [1, 2000000000]})").find("/frame_range: expected"),
+        std::string::npos);
+    EXPECT_NE(error_of(base + R"(, "frame_range": [1, 1e19]})").find("/frame_range: expected"),
+              std::string::npos);
+    EXPECT_NE(error_of(base + R"(, "movers": [{"size": [-1, 2, 2]}]})").find("/movers/0/size"),
+              std::string::npos);
     // Vectors hold finite floats (1e39 read as infinity), an albedo reflects at most all.
     EXPECT_NE(error_of(base + R"(, "sun": {"color": [1e39, 1, 1]}})")
                   .find("test.json:/sun/color: expected numbers in 0..1e+06"),
