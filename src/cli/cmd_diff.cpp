@@ -174,7 +174,10 @@ int run(const DiffCliOptions &o)
             worst = metrics::worse(worst, Verdict::FileError);
             ++counts[int(Verdict::FileError)];
             if (sequence) {
-                std::fprintf(stderr, "frame %d: FILE ERROR: %s\n", frame, file_error.c_str());
+                std::fprintf(stderr,
+                             "frame %d: FILE ERROR: %s\n",
+                             frame,
+                             printable_line(file_error).c_str());
             } else {
                 std::fprintf(stderr, "error: %s\n", printable_line(file_error).c_str());
             }

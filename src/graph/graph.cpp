@@ -15,6 +15,7 @@
 #include <unordered_set>
 
 #include "core/error.h"
+#include "core/frame_limits.h"
 #include "core/json_error.h"
 #include "core/passes.h"
 #include "graph/mask.h"
@@ -84,7 +85,7 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
         if (pos != s.size()) {
             bad("\"" + s + "\" is not a number");
         }
-        if (v < -100000000 || v > 100000000) {
+        if (v < -kMaxFrameNumber || v > kMaxFrameNumber) {
             bad("frame number " + s + " out of range");
         }
         return v;
@@ -109,8 +110,8 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
         if (b < a) {
             bad("range end " + std::to_string(b) + " is before its start " + std::to_string(a));
         }
-        if ((b - a) / step + frames.size() > 10000000) {
-            bad("more than 10000000 frames listed");
+        if ((b - a) / step + frames.size() > 10 * std::size_t(kMaxFrameCount)) {
+            bad(str_cat("more than ", 10 * kMaxFrameCount, " frames listed"));
         }
         for (long long f = a; f <= b; f += step) {
             frames.push_back(int(f));
@@ -127,8 +128,8 @@ std::vector<int> parse_frame_list(const std::string &text, const std::string &wh
     if (frames.empty()) {
         bad("no frames");
     }
-    if (frames.size() > 1000000) {
-        bad("more than 1000000 frames");
+    if (frames.size() > std::size_t(kMaxFrameCount)) {
+        bad(str_cat("more than ", kMaxFrameCount, " frames"));
     }
     return frames;
 }

@@ -12,6 +12,13 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
+/// Two values that match whatever the thresholds: equal, or both NaN (two NaNs, or two equal
+/// infinities, are no error; the statistics and the difference image share the rule).
+inline bool same_value(float a, float b)
+{
+    return a == b || (std::isnan(a) && std::isnan(b));
+}
+
 /// Running state of one comparison, updated value by value as ImageBufAlgo::compare does it,
 /// except for non-finite values: two NaNs, or two equal infinities, are equal; a NaN or an
 /// infinity against anything else is an error of +inf that fails and warns and makes the mean
@@ -28,7 +35,7 @@ struct Accumulator {
     void add(float a, float b, int x, int y, int c, const Thresholds &t, bool &warned, bool &failed)
     {
         if (!std::isfinite(a) || !std::isfinite(b)) {
-            if ((std::isnan(a) && std::isnan(b)) || a == b) {
+            if (same_value(a, b)) {
                 return;
             }
             // Mean and RMS become +inf too: a result with NaNs never looks better than one with
@@ -304,7 +311,7 @@ Image difference_image(const Image &a, const Image &b, float scale)
                 // any other non-finite pair by infinity (the image said NaN where the verdict
                 // passed, and scale inf made 0 x inf a NaN).
                 const float va = pa[i], vb = pb[i];
-                const bool same = va == vb || (std::isnan(va) && std::isnan(vb));
+                const bool same = same_value(va, vb);
                 const float d = std::isfinite(va) && std::isfinite(vb) ? std::abs(va - vb) : kInf;
                 po[i] = same || scale == 0.0f ? 0.0f : d * scale;
             }

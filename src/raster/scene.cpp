@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/frame_limits.h"
 #include "core/json_error.h"
 
 namespace posthaste::raster {
@@ -370,16 +371,21 @@ Scene parse_scene(const std::string &text, const std::string &origin)
         // The frame numbers --frames takes, at most as many (a range of 2e9 frames took
         // memory without bound; a number past int's range was cut).
         const auto within = [&](const Json &v) {
-            return v.is_number_integer() && v.get<long long>() >= -100000000 &&
-                   v.get<long long>() <= 100000000;
+            return v.is_number_integer() && v.get<long long>() >= -kMaxFrameNumber &&
+                   v.get<long long>() <= kMaxFrameNumber;
         };
         if (!r.is_array() || r.size() != 2 || !within(r[0]) || !within(r[1]) ||
             r[1].get<int>() < r[0].get<int>() ||
-            r[1].get<long long>() - r[0].get<long long>() >= 1000000) {
+            r[1].get<long long>() - r[0].get<long long>() >= kMaxFrameCount) {
             root.fail("frame_range",
-                      "expected [first, last] integers in -1e8..1e8 with first <= last, at most "
-                      "1000000 frames, got " +
-                          r.dump());
+                      str_cat("expected [first, last] integers in ",
+                              -kMaxFrameNumber,
+                              "..",
+                              kMaxFrameNumber,
+                              " with first <= last, at most ",
+                              kMaxFrameCount,
+                              " frames, got ",
+                              r.dump()));
         }
         s.frame_start = r[0].get<int>();
         s.frame_end = r[1].get<int>();

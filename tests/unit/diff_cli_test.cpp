@@ -86,14 +86,29 @@ Image perturbed(const Image &a, float amplitude, std::uint32_t seed)
     return b;
 }
 
-void write_float_exr(const std::string &path, const Image &img)
+/// A file of one part per spec (float), each holding the same `pixels`.
+void write_parts(const std::string &path,
+                 const std::vector<OIIO::ImageSpec> &specs,
+                 const float *pixels)
 {
     auto out = OIIO::ImageOutput::create(path);
     ASSERT_TRUE(out) << OIIO::geterror();
-    const OIIO::ImageSpec spec(img.width(), img.height(), img.channels(), OIIO::TypeDesc::FLOAT);
-    ASSERT_TRUE(out->open(path, spec)) << out->geterror();
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, img.data())) << out->geterror();
+    ASSERT_TRUE(out->open(path, int(specs.size()), specs.data())) << out->geterror();
+    for (std::size_t p = 0; p < specs.size(); ++p) {
+        if (p > 0) {
+            ASSERT_TRUE(out->open(path, specs[p], OIIO::ImageOutput::AppendSubimage))
+                << out->geterror();
+        }
+        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels)) << out->geterror();
+    }
     ASSERT_TRUE(out->close()) << out->geterror();
+}
+
+void write_float_exr(const std::string &path, const Image &img)
+{
+    write_parts(path,
+                {OIIO::ImageSpec(img.width(), img.height(), img.channels(), OIIO::TypeDesc::FLOAT)},
+                img.data());
 }
 
 /// idiff's single-dash options ("-fail 0.1") as ours ("--fail 0.1").
@@ -267,13 +282,10 @@ TEST_F(DiffCli, LuminanceAgainstRgbIsASizeMismatch)
     gray.fill(0.5f);
     write_float_exr(path("gray_rgb.exr"), gray);
     {
-        auto out = OIIO::ImageOutput::create(path("gray_y.exr"));
         OIIO::ImageSpec spec(6, 4, 1, OIIO::TypeDesc::FLOAT);
         spec.channelnames = {"Y"};
-        ASSERT_TRUE(out->open(path("gray_y.exr"), spec));
-        std::vector<float> y(24, 0.5f);
-        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, y.data()));
-        ASSERT_TRUE(out->close());
+        const std::vector<float> y(24, 0.5f);
+        write_parts(path("gray_y.exr"), {spec}, y.data());
     }
     const Process p = diff(path("gray_rgb.exr") + " " + path("gray_y.exr"));
     EXPECT_EQ(p.exit_code, 3) << p.output;
@@ -384,13 +396,9 @@ TEST_F(DiffCli, ADisplayWindowThatDiffersWarns)
 {
     const Image img = noise(8, 8, 3, 1);
     write_float_exr(path("a.exr"), img);
-    auto out = OIIO::ImageOutput::create(path("b.exr"));
-    ASSERT_TRUE(out);
     OIIO::ImageSpec spec(8, 8, 3, OIIO::TypeDesc::FLOAT);
     spec.full_width = spec.full_height = 16;
-    ASSERT_TRUE(out->open(path("b.exr"), spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, img.data()));
-    ASSERT_TRUE(out->close());
+    write_parts(path("b.exr"), {spec}, img.data());
     const Process p = diff(path("a.exr") + " " + path("b.exr"));
     EXPECT_EQ(p.exit_code, 1) << p.output;
     EXPECT_NE(p.output.find("display window 8x8 at (0, 0) vs 16x16 at (0, 0)"), std::string::npos)
@@ -402,34 +410,22 @@ TEST_F(DiffCli, ADisplayWindowThatDiffersWarns)
 TEST_F(DiffCli, InfoEscapesSaysWhichMatrixAndGoesOnPastABadFile)
 {
     const std::string odd = path("odd.exr");
+    const std::vector<float> pixels(4 * 4 * 3, 0.5f);
     {
-        auto out = OIIO::ImageOutput::create(odd);
-        ASSERT_TRUE(out);
         OIIO::ImageSpec spec(4, 4, 3, OIIO::TypeDesc::FLOAT);
         spec.attribute("weird", "red\x1b[31mtext");
         const float m[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
         spec.attribute("worldToCamera", OIIO::TypeMatrix44, m);
-        ASSERT_TRUE(out->open(odd, spec));
-        const std::vector<float> pixels(4 * 4 * 3, 0.5f);
-        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
-        ASSERT_TRUE(out->close());
+        write_parts(odd, {spec}, pixels.data());
     }
     // A second part with an attribute of its own: listed under that part (it was not shown).
     const std::string two = path("two.exr");
     {
-        auto out = OIIO::ImageOutput::create(two);
-        ASSERT_TRUE(out);
-        OIIO::ImageSpec specs[2] = {OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::FLOAT),
-                                    OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::FLOAT)};
+        std::vector<OIIO::ImageSpec> specs(2, OIIO::ImageSpec(4, 4, 3, OIIO::TypeDesc::FLOAT));
         specs[0].attribute("name", "left");
         specs[1].attribute("name", "right");
         specs[1].attribute("onlyInPart1", "hello");
-        ASSERT_TRUE(out->open(two, 2, specs));
-        const std::vector<float> pixels(4 * 4 * 3, 0.5f);
-        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
-        ASSERT_TRUE(out->open(two, specs[1], OIIO::ImageOutput::AppendSubimage));
-        ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
-        ASSERT_TRUE(out->close());
+        write_parts(two, specs, pixels.data());
     }
     const Process parts = run_process(std::string(POSTHASTE_BINARY) + " info " + two);
     EXPECT_EQ(parts.exit_code, 0) << parts.output;
