@@ -35,8 +35,9 @@ CLI::Validator in_range(T lo, T hi)
     return CLI::Validator(
         [=](std::string &text) {
             T value{};
-            if (!CLI::detail::lexical_cast(text, value) || value < lo || value > hi) {
-                std::string why = "expected ";  // appended: GCC 12's -Wrestrict false positive
+            if (!CLI::detail::lexical_cast(text, value) ||
+                !(value >= lo && value <= hi)) {  // NaN too
+                std::string why = "expected ";    // appended: GCC 12's -Wrestrict false positive
                 why += kind;
                 why += " in ";
                 why += range;

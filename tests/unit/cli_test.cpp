@@ -85,7 +85,7 @@ TEST(Cli, RunsFramesFoundOnDisk)
 
 // Options that cannot apply are usage errors, not ignored: a truth option without its truth, a
 // --size past int's range (it wrapped to a 64x36 frame), a test suite's --only name that no
-// graph has, --update with a report.
+// graph has, --update with a report, a NaN for a number.
 TEST(Cli, RenderAndTestOptionsThatCannotApply)
 {
     const std::string dir = test::scratch_dir("cli_cannot_apply");
@@ -97,6 +97,11 @@ TEST(Cli, RenderAndTestOptionsThatCannotApply)
     EXPECT_EQ(run_command(render + "--size 16x9 --samples 4", &out), 2) << out;
     EXPECT_NE(out.find("--samples applies only to --truth or --probe"), std::string::npos) << out;
     EXPECT_EQ(run_command(render + "--size 16x9 --truth motion --ao-radius 2", &out), 2) << out;
+    // A NaN passed CLI11's range test (every comparison with it is false) and reached the node
+    // as JSON null: "overscan: expected a number, got null".
+    EXPECT_EQ(run_command(render + "--size 16x9 --overscan nan", &out), 2) << out;
+    EXPECT_NE(out.find("--overscan: expected a number in 0..4096, got \"nan\""), std::string::npos)
+        << out;
     EXPECT_FALSE(fs::exists(dir + "/r.0001.exr"));
     fs::create_directories(dir + "/suite");
     std::ofstream(dir + "/suite/a.json") << "{}";
