@@ -3,7 +3,9 @@
 
 #include <malloc.h>
 
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <string>
 
 #include "cli/commands.h"
@@ -11,6 +13,28 @@
 #include "core/error.h"
 #include "core/simd.h"
 #include "core/text.h"
+
+namespace {
+
+/// What a command printed must have reached its destination: `posthaste nodes > /dev/full`
+/// exited 0 with nothing written. Flushes stdout; on a failure names it on stderr and returns
+/// the worse of `code` and the command's exit code for an output it cannot write (diff's and
+/// test's FILE ERROR, 4; else 1).
+int check_stdout(int code, const char *command)
+{
+    errno = 0;
+    const bool failed = std::fflush(stdout) != 0 || std::ferror(stdout) != 0;
+    if (!failed) {
+        return code;
+    }
+    std::fprintf(
+        stderr, "error: standard output: %s\n", errno != 0 ? std::strerror(errno) : "write failed");
+    const std::string c = command ? command : "";
+    const int mine = c == "diff" || c == "test" ? 4 : int(posthaste::ExitCode::Runtime);
+    return code > mine ? code : mine;
+}
+
+}  // namespace
 
 int main(int argc, char **argv)
 {
@@ -74,7 +98,7 @@ int main(int argc, char **argv)
         app.parse(argc, argv);
     } catch (const CLI::ParseError &e) {
         if (e.get_exit_code() == 0) {
-            return app.exit(e);  // --help, --version
+            return check_stdout(app.exit(e), nullptr);  // --help, --version
         }
         std::fprintf(stderr, "error: %s (see --help)\n", printable_line(e.what()).c_str());
         return int(ExitCode::Usage);
@@ -89,5 +113,5 @@ int main(int argc, char **argv)
         std::fprintf(stderr, "error: %s\n", printable_line(e.what()).c_str());
         return int(ExitCode::Runtime);
     }
-    return exit_code;
+    return check_stdout(exit_code, argc > 1 ? argv[1] : nullptr);
 }

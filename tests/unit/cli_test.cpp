@@ -112,6 +112,29 @@ TEST(Cli, RenderAndTestOptionsThatCannotApply)
         << out;
 }
 
+// What a command prints must arrive: `nodes`, `--help` and a diff's report into a full disk
+// exited 0 (or diff's verdict) with nothing written.
+TEST(Cli, OutputThatCannotReachStandardOutputFails)
+{
+    std::string out;
+    EXPECT_EQ(run_command("{ " + kBin + " nodes > /dev/full; }", &out), 1) << out;
+    EXPECT_NE(out.find("error: standard output: No space left on device"), std::string::npos)
+        << out;
+    EXPECT_EQ(run_command("{ " + kBin + " nodes blur --help > /dev/full; }", &out), 1) << out;
+    EXPECT_EQ(run_command("{ " + kBin + " nodes > /dev/null; }", &out), 0) << out;
+    const std::string dir = test::scratch_dir("cli_stdout_full");
+    const std::string scene = std::string(POSTHASTE_TEST_DIR) + "/../samples/scenes/cube.json";
+    ASSERT_EQ(
+        run_command(kBin + " render " + scene + " -o " + dir + "/r.####.exr -f 1 --size 8x8 -q",
+                    &out),
+        0)
+        << out;
+    const std::string frame = dir + "/r.0001.exr";
+    EXPECT_EQ(run_command("{ " + kBin + " diff " + frame + " " + frame + " > /dev/full; }", &out),
+              4)
+        << out;
+}
+
 TEST(Cli, GraphPathsResolveAgainstTheGraphsFolder)
 {
     // A graph in shot/comp/ reads ../plates/in.####.exr and writes out/o.####.exr: run from
