@@ -116,7 +116,8 @@ void add_render_command(CLI::App &app, int &exit_code)
         "render", "Render a Minecrappy scene's frames with every pass, or their ground truth");
     cmd->add_option("scene", o->scene, "Scene file (samples/scenes/*.json)")->required();
     cmd->add_option("-o,--output", o->output, "Output EXR pattern, e.g. out/shot.####.exr")
-        ->required();
+        ->required()
+        ->check(not_empty());  // "" reached the write node as a preview without a format
     cmd->add_option("--frames,-f", o->frames, "Frames (default: the scene's range)");
     cmd->add_option("--passes",
                     o->passes,

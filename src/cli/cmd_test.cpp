@@ -263,6 +263,15 @@ int run(const TestOptions &o)
     std::vector<fs::path> graphs;
     for (const auto &entry : fs::directory_iterator(o.suite)) {
         const std::string file = entry.path().filename().string();
+        // A spec whose graph was renamed or removed held thresholds nothing used any more.
+        if (file.ends_with(".test.json") &&
+            !fs::is_regular_file(
+                entry.path().parent_path() / (file.substr(0, file.size() - 10) + ".json"), ec)) {
+            throw_usage(entry.path().string(),
+                        ": no graph ",
+                        file.substr(0, file.size() - 10),
+                        ".json beside it for these thresholds");
+        }
         if (entry.is_regular_file() && entry.path().extension() == ".json" &&
             !file.ends_with(".test.json")) {
             if (o.only.empty() ||

@@ -85,7 +85,7 @@ TEST(Cli, RunsFramesFoundOnDisk)
 
 // Options that cannot apply are usage errors, not ignored: a truth option without its truth, a
 // --size past int's range (it wrapped to a 64x36 frame), a test suite's --only name that no
-// graph has, --update with a report, a NaN for a number.
+// graph has, --update with a report, a NaN for a number, a NAME.test.json without its graph.
 TEST(Cli, RenderAndTestOptionsThatCannotApply)
 {
     const std::string dir = test::scratch_dir("cli_cannot_apply");
@@ -99,6 +99,8 @@ TEST(Cli, RenderAndTestOptionsThatCannotApply)
     EXPECT_EQ(run_command(render + "--size 16x9 --truth motion --ao-radius 2", &out), 2) << out;
     // A NaN passed CLI11's range test (every comparison with it is false) and reached the node
     // as JSON null: "overscan: expected a number, got null".
+    EXPECT_EQ(run_command(kBin + " render " + scene + " -o '' -f 1 --size 16x9", &out), 2) << out;
+    EXPECT_NE(out.find("--output: an empty value"), std::string::npos) << out;
     EXPECT_EQ(run_command(render + "--size 16x9 --overscan nan", &out), 2) << out;
     EXPECT_NE(out.find("--overscan: expected a number in 0..4096, got \"nan\""), std::string::npos)
         << out;
@@ -110,6 +112,10 @@ TEST(Cli, RenderAndTestOptionsThatCannotApply)
     EXPECT_EQ(
         run_command(kBin + " test " + dir + "/suite --update --junit " + dir + "/j.xml", &out), 2)
         << out;
+    // A spec left behind by a renamed graph: its thresholds applied to nothing, and the run passed.
+    std::ofstream(dir + "/suite/b.test.json") << "{\"frames\": \"1\"}";
+    EXPECT_EQ(run_command(kBin + " test " + dir + "/suite", &out), 2) << out;
+    EXPECT_NE(out.find("b.test.json: no graph b.json beside it"), std::string::npos) << out;
 }
 
 // What a command prints must arrive: `nodes`, `--help` and a diff's report into a full disk
