@@ -165,7 +165,7 @@ void execute(NodeContext &ctx)
             // A preview shows the display window (the delivered format); outside the data
             // window it is transparent black.
             const PreviewOptions po = fill(params, kPreviewFields);
-            write_display_preview(frame.image(pass::kColor, ctx.where()),
+            write_display_preview(frame.image(pass::kColor, path),
                                   frame.data_window,
                                   frame.display_window,
                                   display,

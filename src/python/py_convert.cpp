@@ -15,6 +15,7 @@
 #include "core/json_error.h"
 #include "core/text.h"
 #include "io/io_detail.h"
+#include "python/py_checks.h"
 
 namespace posthaste::python {
 namespace {
@@ -29,6 +30,7 @@ py::array_t<float> matrix_to_array(const glm::mat4 &m)
 
 glm::mat4 array_to_matrix(py::handle value, const std::string &key)
 {
+    check_real_matrix(value, key);
     py::array_t<float, py::array::c_style | py::array::forcecast> a;
     try {
         a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(value);
@@ -99,18 +101,11 @@ nlohmann::json to_json(py::handle v, const std::string &where)
         return d;
     }
     if (py::isinstance<py::str>(v) || py::hasattr(v, "__fspath__")) {
-        const py::str text = py::isinstance<py::str>(v) ? py::reinterpret_borrow<py::str>(v)
-                                                        : py::str(v.attr("__fspath__")());
-        if (PyUnicode_AsUTF8AndSize(text.ptr(), nullptr) == nullptr) {
-            PyErr_Clear();  // a lone surrogate: os.fsdecode of a name that is not UTF-8
-            throw py::value_error(where + ": not valid UTF-8 text (a file name's bytes?)");
-        }
-        const std::string s = text.cast<std::string>();
-        if (s.find('\0') != std::string::npos) {
-            // As open() does: the system would see the path up to the null, another file.
-            throw py::value_error(where + ": embedded null character");
-        }
-        return s;
+        // A path whose __fspath__ gives bytes was the text "b'/...'": decoded as open() does.
+        return checked_text(py::isinstance<py::str>(v)
+                                ? py::reinterpret_borrow<py::object>(v)
+                                : py::module_::import("os").attr("fsdecode")(v),
+                            where);
     }
     if (py::isinstance<py::dict>(v)) {
         nlohmann::json out = nlohmann::json::object();
@@ -119,7 +114,7 @@ nlohmann::json to_json(py::handle v, const std::string &where)
                 throw py::type_error(where + ": dict keys must be strings, got " +
                                      std::string(py::str(key.get_type().attr("__name__"))));
             }
-            const std::string k = key.cast<std::string>();
+            const std::string k = checked_text(key, where + ": key " + repr_text(key));
             out[k] = to_json(value, where + "/" + k);
         }
         return out;
@@ -221,41 +216,6 @@ py::dict attributes_to_dict(const OIIO::ParamValueList &attributes)
 }
 
 namespace {
-/// An int attribute's value: EXR's int attributes are 32 bits; a larger one would wrap.
-int int_attribute(py::handle value, const std::string &name)
-{
-    const long long v = value.cast<long long>();
-    if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max()) {
-        throw py::value_error("attribute \"" + name + "\": " + std::to_string(v) +
-                              " does not fit an EXR int attribute (32 bits); give a float");
-    }
-    return int(v);
-}
-
-/// A float attribute's value: a finite double that float cannot hold is an error (1e40 became
-/// infinity).
-float float_attribute(py::handle value, const std::string &name)
-{
-    const double d = value.cast<double>();
-    if (std::isfinite(d) && !std::isfinite(float(d))) {
-        throw py::value_error("attribute \"" + name + "\": " + py::repr(value).cast<std::string>() +
-                              " does not fit an EXR float attribute (32 bits)");
-    }
-    return float(d);
-}
-
-/// A string attribute's value: a null character would cut it short in the file.
-std::string string_attribute(py::handle value, const std::string &name)
-{
-    std::string s = value.cast<std::string>();
-    if (s.find('\0') != std::string::npos) {
-        throw py::value_error("attribute \"" + name + "\": embedded null character");
-    }
-    return s;
-}
-}  // namespace
-
-namespace {
 
 /// `value` (a number, a string, or a list of them) in the type of `old`, when it has as many
 /// values of a kind that type holds exactly: false otherwise.
@@ -288,7 +248,7 @@ bool in_type_of(const OIIO::ParamValue &old,
             if (!py::isinstance<py::str>(item)) {
                 return false;
             }
-            v.emplace_back(item.cast<std::string>());
+            v.emplace_back(string_attribute(item, name));
         }
         out.push_back(OIIO::ParamValue(name, t, n, v.data()));
         return true;
@@ -308,7 +268,12 @@ bool in_type_of(const OIIO::ParamValue &old,
             if (!py::isinstance<py::int_>(item)) {
                 return false;
             }
-            const long long v = item.cast<long long>();
+            long long v = 0;
+            try {
+                v = item.cast<long long>();
+            } catch (const py::cast_error &) {
+                return false;  // beyond 64 bits: refused as a new int is
+            }
             const bool fits =
                 base == OIIO::TypeDesc::INT
                     ? v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max()
@@ -319,10 +284,15 @@ bool in_type_of(const OIIO::ParamValue &old,
             const std::int32_t i32 = std::int32_t(std::uint32_t(v));
             std::memcpy(bytes.data() + i * 4, &i32, 4);
         } else if (base == OIIO::TypeDesc::DOUBLE) {
-            const double d = item.cast<double>();
+            double d = 0.0;
+            try {
+                d = item.cast<double>();
+            } catch (const py::cast_error &) {
+                return false;  // an int beyond a double's range: refused as a new value is
+            }
             std::memcpy(bytes.data() + i * 8, &d, 8);
         } else {
-            const float f = item.cast<float>();
+            const float f = float_attribute(item, name);
             std::memcpy(bytes.data() + i * 4, &f, 4);
         }
     }
@@ -342,7 +312,7 @@ void dict_to_attributes(py::handle dict, OIIO::ParamValueList &out, const OIIO::
     }
     const py::object np = py::module_::import("numpy");
     for (auto [key, v] : dict.cast<py::dict>()) {
-        const std::string name = py::str(key).cast<std::string>();
+        const std::string name = key_text(key, "attribute");
         // numpy's scalars as Python's (np.float32(2) is a float).
         py::object value = py::reinterpret_borrow<py::object>(v);
         if (py::isinstance(value, np.attr("bool_"))) {
@@ -467,7 +437,7 @@ Camera dict_to_camera(py::handle dict)
         throw py::type_error("camera: expected a dict keyed by header attribute names");
     }
     for (auto [key, value] : dict.cast<py::dict>()) {
-        const std::string k = py::str(key).cast<std::string>();
+        const std::string k = key_text(key, "camera: key");
         bool known = false;
         for (const MatrixMember &m : kMatrices) {
             if (k == m.name) {
@@ -477,16 +447,7 @@ Camera dict_to_camera(py::handle dict)
         }
         for (const CameraScalarAttribute &a : kCameraScalarAttributes) {
             if (k == a.name) {
-                if (!py::isinstance<py::float_>(value) && !py::isinstance<py::int_>(value) &&
-                    !py::isinstance(value, py::module_::import("numpy").attr("number"))) {
-                    throw py::type_error("camera \"" + k + "\": expected a number, got " +
-                                         py::repr(value).cast<std::string>());
-                }
-                const double x = value.cast<double>();
-                if (!std::isfinite(x)) {
-                    throw py::value_error("camera \"" + k + "\": not finite");
-                }
-                camera.*a.member = float(x);
+                camera.*a.member = camera_number(value, k);
                 known = true;
             }
         }
@@ -495,7 +456,7 @@ Camera dict_to_camera(py::handle dict)
                 throw py::type_error("camera \"origin\": expected a string, got " +
                                      py::repr(value).cast<std::string>());
             }
-            camera.origin = value.cast<std::string>();
+            camera.origin = checked_text(value, "camera \"origin\"");
             known = true;
         }
         if (!known) {

@@ -11,6 +11,7 @@
 #include "core/camera.h"
 #include "core/error.h"
 #include "core/frame.h"
+#include "python/py_checks.h"
 
 namespace posthaste::python {
 
@@ -35,14 +36,15 @@ T cast_arg(py::handle v, const std::string &who, const char *expected)
     }
 }
 
-/// A pass name: a str, else a TypeError naming `who`.
+/// A pass name: a str, else a TypeError naming `who`; a ValueError naming the name for a null
+/// character (the pass "a\0b" was read back as "a") or a lone surrogate.
 inline std::string pass_name_arg(py::handle v, const std::string &who)
 {
     if (!py::isinstance<py::str>(v)) {
         throw py::type_error(who + ": pass names are str, got " + type_name(v) + " " +
                              py::repr(v).cast<std::string>());
     }
-    return v.cast<std::string>();
+    return checked_text(v, who + ": pass name " + repr_text(v));
 }
 
 /// A Python value (None, bool, int, float, str, list/tuple, dict with str keys, numpy scalars

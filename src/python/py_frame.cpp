@@ -169,16 +169,8 @@ void PyFrame::set_pass(const std::string &name, py::handle array, py::handle cha
     }
     std::vector<std::string> names;
     if (!channels.is_none()) {
-        if (py::isinstance<py::str>(channels)) {
-            throw py::type_error("pass \"" + name +
-                                 "\": channels: expected a list of names, got a str");
-        }
-        try {
-            names = channels.cast<std::vector<std::string>>();
-        } catch (const py::cast_error &) {
-            throw py::type_error("pass \"" + name + "\": channels: expected a list of names, got " +
-                                 py::repr(channels).cast<std::string>());
-        }
+        // (a null cut "x\0y" to "x" in the file)
+        names = channel_names_arg(channels, "pass \"" + name + "\"");
         for (std::size_t k = 0; k < names.size(); ++k) {
             // A dot separates a layer from its channel in the file: "a.b" would come back as a
             // pass of its own; an empty name or a repeated one cannot be told apart.
@@ -320,6 +312,12 @@ void bind_frame(py::module_ &m)
                  if (!channels.is_none() && !py::isinstance<py::dict>(channels)) {
                      throw py::type_error("channels: expected a dict {pass: [names]}");
                  }
+                 if (passes.is_none() && !channels.is_none() && py::len(channels) > 0) {
+                     // (they were ignored without a word)
+                     const py::object first = py::list(channels)[0];
+                     throw py::value_error("channels: no pass \"" +
+                                           key_text(first, "channels: pass") + "\" in passes");
+                 }
                  if (!passes.is_none()) {
                      const py::dict chans =
                          channels.is_none() ? py::dict() : channels.cast<py::dict>();
@@ -331,7 +329,7 @@ void bind_frame(py::module_ &m)
                      for (auto [key, value] : chans) {
                          if (!given.contains(key)) {
                              throw py::value_error("channels: no pass \"" +
-                                                   py::str(key).cast<std::string>() +
+                                                   key_text(key, "channels: pass") +
                                                    "\" in passes");
                          }
                      }
@@ -357,22 +355,36 @@ void bind_frame(py::module_ &m)
             "passes",
             [](std::shared_ptr<PyFrame> f) { return PassMap{std::move(f)}; },
             "The passes by name (a mutable mapping of numpy arrays).")
-        .def("writable",
-             &PyFrame::writable,
-             py::arg("name"),
-             "A writable array over the pass, copied first if another frame shares it.")
-        .def("owns",
-             &PyFrame::owns,
-             py::arg("name"),
-             "True when no other frame shares the pass (its array is writable).")
-        .def("set_pass",
-             &PyFrame::set_pass,
-             py::arg("name"),
-             py::arg("array"),
-             py::arg("channels") = py::none())
+        .def(
+            "writable",
+            [](PyFrame &f, py::handle n) {
+                return f.writable(pass_name_arg(n, "posthaste.Frame.writable"));
+            },
+            py::arg("name"),
+            "A writable array over the pass, copied first if another frame shares it.")
+        .def(
+            "owns",
+            [](PyFrame &f, py::handle n) {
+                const std::string name = pass_name_arg(n, "posthaste.Frame.owns");
+                if (!f.frame().has(name)) {
+                    throw py::key_error(missing_pass(f.frame(), name));  // as writable's
+                }
+                return f.owns(name);
+            },
+            py::arg("name"),
+            "True when no other frame shares the pass (its array is writable).")
+        .def(
+            "set_pass",
+            [](PyFrame &f, py::handle n, py::handle array, py::handle channels) {
+                f.set_pass(pass_name_arg(n, "posthaste.Frame.set_pass"), array, channels);
+            },
+            py::arg("name"),
+            py::arg("array"),
+            py::arg("channels") = py::none())
         .def(
             "channels",
-            [](PyFrame &f, const std::string &n) {
+            [](PyFrame &f, py::handle name) {
+                const std::string n = pass_name_arg(name, "posthaste.Frame.channels");
                 if (!f.frame().has(n)) {
                     throw py::key_error(missing_pass(f.frame(), n));
                 }

@@ -69,10 +69,12 @@ std::vector<std::string> overrides_of(py::handle set)
     if (set.is_none()) {
         return out;
     }
-    for (auto [key, value] : set.cast<py::dict>()) {
-        const std::string k = py::str(key).cast<std::string>();
+    // (a str or a list went to dict(), whose message did not name set=)
+    for (auto [key, value] : dict_arg(set, "set", "a dict {\"node.param\": value}")) {
+        const std::string k = key_text(key, "set: key");
+        // A null cut "20\0garbage" to 20.
         out.push_back(k + "=" +
-                      (py::isinstance<py::str>(value) ? value.cast<std::string>()
+                      (py::isinstance<py::str>(value) ? checked_text(value, "set " + k)
                                                       : to_json(value, "set " + k).dump()));
     }
     return out;
@@ -84,7 +86,7 @@ std::string frames_of(py::handle frames)
         return "";
     }
     if (py::isinstance<py::str>(frames)) {
-        return frames.cast<std::string>();
+        return checked_text(frames, "Graph.run: frames");
     }
     const auto frame_number = [](py::handle f) {
         // (a float, a string in a list or a number beyond 32 bits: pybind11's "Unable to cast")
@@ -102,7 +104,9 @@ std::string frames_of(py::handle frames)
     if (py::isinstance<py::int_>(frames)) {
         return std::to_string(frame_number(frames));
     }
-    if (!py::isinstance<py::sequence>(frames)) {
+    if (!py::isinstance<py::sequence>(frames) || PyBytes_Check(frames.ptr()) ||
+        PyByteArray_Check(frames.ptr()) || PyMemoryView_Check(frames.ptr())) {
+        // (bytes are a sequence of ints: b"\x01\x02" ran frames 1 and 2)
         frame_number(frames);  // the type error
     }
     std::string out;
@@ -129,14 +133,23 @@ struct RunEvents {
 py::dict run(const PyGraph &pg,
              py::handle frames,
              py::handle set,
-             int jobs,
-             int threads,
+             py::handle jobs_arg,
+             py::handle threads_arg,
              py::object progress,
-             bool skip_existing,
-             bool keep_going,
-             bool skip_bad_frames,
-             const std::string &max_memory)
+             py::handle skip_existing,
+             py::handle keep_going,
+             py::handle skip_bad_frames,
+             py::handle max_memory)
 {
+    // Each argument's type checked here, so a wrong one is named on one line (pybind11 listed
+    // the signature over several lines and named none).
+    const int jobs = cast_arg<int>(jobs_arg, "Graph.run: jobs", "an int (32 bits)");
+    const int threads = cast_arg<int>(threads_arg, "Graph.run: threads", "an int (32 bits)");
+    RunSettings rs;
+    rs.skip_existing = cast_arg<bool>(skip_existing, "Graph.run: skip_existing", "a bool");
+    rs.keep_going = cast_arg<bool>(keep_going, "Graph.run: keep_going", "a bool");
+    rs.skip_bad_frames = cast_arg<bool>(skip_bad_frames, "Graph.run: skip_bad_frames", "a bool");
+    rs.max_memory = text_arg(max_memory, "Graph.run: max_memory");
     if (threads < 0 || threads > 1024) {
         throw py::value_error("threads: expected 0 (every core) to 1024, got " +
                               std::to_string(threads));
@@ -146,15 +159,10 @@ py::dict run(const PyGraph &pg,
                               std::to_string(jobs));
     }
     const std::shared_ptr<Graph> graph = pg.with(overrides_of(set));
-    RunSettings rs;
     rs.frames = frames_of(frames);
     rs.jobs = jobs;
     rs.threads = threads;
     rs.quiet = true;
-    rs.skip_existing = skip_existing;
-    rs.keep_going = keep_going;
-    rs.skip_bad_frames = skip_bad_frames;
-    rs.max_memory = max_memory;
     const std::size_t total = rs.frames.empty() ? graph->default_frames().size()
                                                 : parse_frame_list(rs.frames, "frames").size();
     auto events = std::make_shared<RunEvents>();
@@ -225,8 +233,9 @@ py::dict run(const PyGraph &pg,
     return out;
 }
 
-py::dict evaluate(const PyGraph &pg, int frame, py::handle outputs)
+py::dict evaluate(const PyGraph &pg, py::handle frame_arg, py::handle outputs)
 {
+    const int frame = cast_arg<int>(frame_arg, "Graph.evaluate: frame", "an int (32 bits)");
     const Graph &g = pg.graph();
     std::vector<int> targets;
     if (outputs.is_none()) {
@@ -237,17 +246,18 @@ py::dict evaluate(const PyGraph &pg, int frame, py::handle outputs)
         }
     } else {
         // A single id is one output; a string is a sequence too, of one-letter ids.
-        const std::vector<std::string> ids =
-            py::isinstance<py::str>(outputs)
-                ? std::vector<std::string>{outputs.cast<std::string>()}
-                : [&] {
-                      try {
-                          return outputs.cast<std::vector<std::string>>();
-                      } catch (const py::cast_error &) {
-                          throw py::type_error("Graph.evaluate: outputs: expected node ids, got " +
-                                               py::repr(outputs).cast<std::string>());
-                      }
-                  }();
+        // Each id checked: a null cut it short, a lone surrogate was pybind11's "Unable to cast".
+        const std::string who = "Graph.evaluate: outputs";
+        std::vector<std::string> ids;
+        if (py::isinstance<py::str>(outputs)) {
+            ids.push_back(checked_text(outputs, who));
+        } else if (py::isinstance<py::sequence>(outputs) && !PyBytes_Check(outputs.ptr())) {
+            for (py::handle id : outputs.cast<py::sequence>()) {
+                ids.push_back(text_arg(id, who, "node ids"));
+            }
+        } else {
+            throw py::type_error(who + ": expected node ids, got " + repr_text(outputs));
+        }
         for (const std::string &id : ids) {
             const int i = g.find(id);
             if (i < 0) {
@@ -291,10 +301,9 @@ void bind_graph(py::module_ &m)
         .def_static(
             "from_dict",
             [](py::handle d, py::handle base_dir, py::handle set) {
-                return PyGraph::from_text(
-                    to_json(d, "Graph.from_dict").dump(),
-                    cast_arg<std::string>(base_dir, "Graph.from_dict: base_dir", "a str"),
-                    overrides_of(set));
+                return PyGraph::from_text(to_json(d, "Graph.from_dict").dump(),
+                                          text_arg(base_dir, "Graph.from_dict: base_dir"),
+                                          overrides_of(set));
             },
             py::arg("graph"),
             py::arg("base_dir") = "",

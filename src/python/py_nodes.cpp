@@ -168,7 +168,9 @@ py::object node(const std::string &type, py::args frames, py::kwargs kwargs)
     nlohmann::json params = nlohmann::json::object();
     std::optional<int> number;
     for (auto [key, value] : kwargs) {
-        const std::string k = key.cast<std::string>();
+        // (a null cut the name short: a GraphError with a path and no reason)
+        const std::string k =
+            checked_text(key, "posthaste.node(\"" + type + "\"): param " + repr_text(key));
         if (k == "frame") {
             if (!value.is_none()) {
                 number = cast_arg<int>(
@@ -225,7 +227,7 @@ py::object diff(py::handle a, py::handle b, py::kwargs kwargs)
                                                    {"hard_warn", &t.hard_warn},
                                                    {"pixels_per_degree", &o.pixels_per_degree}};
     for (auto [key, value] : kwargs) {
-        const std::string k = key.cast<std::string>();
+        const std::string k = checked_text(key, "posthaste.diff: option " + repr_text(key));
         const std::string who = "posthaste.diff: " + k;
         if (const auto it = floats.find(k); it != floats.end()) {
             *it->second = cast_arg<float>(value, who, "a number");
@@ -360,14 +362,20 @@ py::list node_infos()
 
 void bind_nodes(py::module_ &m)
 {
-    m.def("node",
-          &node,
-          py::arg("type"),
-          py::pos_only(),
-          "Run node `type` on frames in memory: frames fill its input ports in order (or by port "
-          "name as keywords), other keywords are its parameters, validated as in a graph; "
-          "frame= sets the frame number (default: the first input's). Returns the output Frame "
-          "(None for write).");
+    m.def(
+        "node",
+        [](py::handle type, py::args frames, py::kwargs kwargs) {
+            // (a null cut the type short: unknown node type "gr")
+            return node(text_arg(type, "posthaste.node: type", "a node type (str)"),
+                        std::move(frames),
+                        std::move(kwargs));
+        },
+        py::arg("type"),
+        py::pos_only(),
+        "Run node `type` on frames in memory: frames fill its input ports in order (or by port "
+        "name as keywords), other keywords are its parameters, validated as in a graph; "
+        "frame= sets the frame number (default: the first input's). Returns the output Frame "
+        "(None for write).");
     m.def(
         "read",
         [](py::handle path, py::object frame, py::kwargs kwargs) {

@@ -240,6 +240,18 @@ def test_a_crop_to_the_display_window_with_no_pixel_inside_is_refused(tmp_path):
     assert ph.read(str(out)).data_window == (20, 20, 24, 24)
 
 
+def test_a_preview_without_colour_names_its_file_once(tmp_path):
+    """The node's prefix came twice ("node "write" (write), frame 1: node "write" ...")."""
+    f = ph.Frame(passes={"depth": np.ones((4, 4), np.float32)})
+    out = tmp_path / "x.png"
+    with pytest.raises(ph.Error) as e:
+        ph.write(f, str(out))
+    message = str(e.value)
+    assert message.count('node "write"') == 1, message
+    assert str(out) in message and 'no pass "color"' in message, message
+    assert not out.exists()
+
+
 def test_a_byte_that_is_not_utf8_comes_back_escaped(tmp_path):
     # nlohmann's error quotes the bytes it last read; a raw 0xff made the message undecodable.
     graph = tmp_path / "bad_byte.json"
@@ -254,3 +266,24 @@ def test_a_name_that_is_not_utf8_is_a_value_error_naming_the_parameter():
     # "Unable to cast Python instance to C++ type".
     with pytest.raises(ValueError, match='param "path": not valid UTF-8 text'):
         ph.read("/tmp/x\udcff.exr")
+
+
+def test_node_names_and_parameters_with_a_null_or_a_lone_surrogate_are_refused():
+    """A null cut the node type ("unknown node type "gr") or a parameter's name (a GraphError with
+    a path and no reason); a lone surrogate or a non-str type was pybind11's "Unable to cast"
+    or its several-line TypeError."""
+    f = ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)})
+    for call, error, message in [
+        (lambda: ph.node("gr\x00ade", f), ValueError, "posthaste.node: type: embedded null character"),
+        (lambda: ph.node("\ud800", f), ValueError, "posthaste.node: type: not valid UTF-8"),
+        (lambda: ph.node(5, f), TypeError, "posthaste.node: type: expected a node type \\(str\\), got int 5"),
+        (lambda: ph.node("grade", f, **{"a\x00b": 1}), ValueError,
+         "posthaste.node\\(\"grade\"\\): param 'a\\\\x00b': embedded null character"),
+        (lambda: ph.node("grade", f, **{"\ud800": 1}), ValueError,
+         "posthaste.node\\(\"grade\"\\): param '\\\\ud800': not valid UTF-8"),
+        (lambda: ph.diff(f, f, **{"\ud800": 1}), ValueError, "posthaste.diff: option '\\\\ud800'"),
+    ]:
+        with pytest.raises(error, match=message) as e:
+            call()
+        assert "\n" not in str(e.value), str(e.value)
+    assert ph.node("grade", f, gain=[2, 2, 2]).passes["color"].shape == (2, 2, 4)

@@ -202,3 +202,91 @@ def test_reassigned_attributes_keep_their_file_types(tmp_path):
     assert "smpte:TimeCode     timecode = 01:02:03:04" in text
     assert not any(line.split()[:1] == ["studio:note"] for line in text.splitlines())
     assert "studio:floats      float[3] = 1, 2, 3" in text  # a floatvector, as given
+
+
+def test_a_value_for_an_attribute_the_frame_holds_is_checked_as_a_new_one(tmp_path):
+    """A name the frame held kept its type, and that path skipped the checks: a null cut the
+    string short in the file, 1e40 became inf, 2**70 was pybind11's "Unable to cast"."""
+    f = ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)})
+    f.attributes = {"owner": "x", "fx": 1.0, "i": 1, "v": [1.0, 2.0]}
+    for attrs, error, message in [
+        ({"owner": "a\x00b"}, ValueError, 'attribute "owner": embedded null character'),
+        ({"owner": "\ud800"}, ValueError, 'attribute "owner": not valid UTF-8 text'),
+        ({"fx": 1e40}, ValueError, 'attribute "fx": 1e\\+40 does not fit an EXR float'),
+        ({"v": [1.0, 1e40]}, ValueError, 'attribute "v": 1e\\+40 does not fit an EXR float'),
+        ({"i": 2**70}, ValueError, 'attribute "i": 1180591620717411303424 does not fit an EXR int'),
+        ({"j": 2**70}, ValueError, 'attribute "j": 1180591620717411303424 does not fit an EXR int'),
+        ({"j": [1.0, 2**1100]}, ValueError, 'attribute "j": .* does not fit an EXR float'),
+        ({"\ud800": 1}, ValueError, "attribute '\\\\ud800': not valid UTF-8 text"),
+    ]:
+        with pytest.raises(error, match=message) as e:
+            f.attributes = attrs
+        assert "\n" not in str(e.value)
+    assert f.attributes == {"owner": "x", "fx": 1.0, "i": 1, "v": [1.0, 2.0]}  # left as it was
+    f.attributes = {"owner": "y", "fx": 2.5, "i": 3, "v": [3.0, 4.0]}
+    ph.write(f, tmp_path / "a.exr")
+    back = ph.read(tmp_path / "a.exr").attributes
+    assert (back["Copyright"], back["fx"], back["i"], list(back["v"])) == ("y", 2.5, 3, [3.0, 4.0])
+
+
+def test_the_camera_takes_only_values_it_can_hold():
+    """1e40 became inf, a complex number its real part (with only a ComplexWarning), a matrix of
+    strings was parsed, a null in origin cut it short; 2**1100 was pybind11's "Unable to cast"."""
+    f = ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)})
+    eye = np.eye(4)
+    for camera, error, message in [
+        ({"focalLength": 1e40}, ValueError, 'camera "focalLength": 1e\\+40 does not fit a float'),
+        ({"focalLength": 2**1100}, ValueError, 'camera "focalLength": 1358.*does not fit a float'),
+        ({"focalLength": np.complex128(1 + 2j)}, TypeError, 'camera "focalLength": expected a number'),
+        ({"worldToCamera": eye * (1 + 1j)}, TypeError,
+         'camera "worldToCamera": expected a 4x4 matrix of real numbers, got complex128'),
+        ({"worldToCamera": [[str(x) for x in row] for row in eye]}, TypeError,
+         'camera "worldToCamera": expected a 4x4 matrix of real numbers'),
+        ({"origin": "a\x00b"}, ValueError, 'camera "origin": embedded null character'),
+        ({"\ud800": 1.0}, ValueError, "camera: key '\\\\ud800': not valid UTF-8 text"),
+    ]:
+        with pytest.raises(error, match=message) as e:
+            f.camera = camera
+        assert "\n" not in str(e.value) and len(str(e.value)) < 200, str(e.value)
+    f.camera = {"worldToCamera": eye.astype(np.int64), "focalLength": np.float32(35), "origin": "x"}
+    assert f.camera["focalLength"] == 35.0 and f.camera["origin"] == "x"
+    assert (f.camera["worldToCamera"] == eye).all()
+
+
+def test_names_with_a_null_or_a_lone_surrogate_are_refused():
+    """A null cut the pass "a\\0b" to "a" and the channel "x\\0y" to "x" in the file; a lone
+    surrogate was pybind11's "Unable to cast Python instance to C++ type"."""
+    z = np.zeros((2, 2, 2), np.float32)
+    f = ph.Frame(passes={"color": z})
+    for call, message in [
+        (lambda: ph.Frame(passes={"a\x00b": z}), "passes: pass name 'a\\\\x00b': embedded null"),
+        (lambda: ph.Frame(passes={"\ud800": z}), "passes: pass name '\\\\ud800': not valid UTF-8"),
+        (lambda: f.passes.__setitem__("a\x00b", z), "pass name 'a\\\\x00b': embedded null"),
+        (lambda: f.set_pass("\ud800", z), "Frame.set_pass: pass name '\\\\ud800': not valid UTF-8"),
+        (lambda: ph.Frame(passes={"c": z}, channels={"c": ["x\x00y", "b"]}),
+         "pass \"c\": channel name 'x\\\\x00y': embedded null character"),
+        (lambda: ph.Frame(passes={"c": z}, channels={"c": ["\ud800", "b"]}),
+         "pass \"c\": channel name '\\\\ud800': not valid UTF-8"),
+    ]:
+        with pytest.raises(ValueError, match=message):
+            call()
+    assert list(f.passes) == ["color"]
+
+
+def test_pass_names_of_the_wrong_type_and_missing_passes():
+    """writable/channels/set_pass gave pybind11's several-line TypeError naming no argument;
+    owns() of a missing pass was a RunError where the others are KeyErrors; channels for a pass
+    not given were ignored without a word."""
+    f = ph.Frame(passes={"color": np.zeros((2, 2, 4), np.float32)})
+    for call, name in [(lambda: f.writable(5), "writable"), (lambda: f.channels(5), "channels"),
+                       (lambda: f.owns(5), "owns"), (lambda: f.set_pass(5, np.zeros((2, 2))), "set_pass")]:
+        with pytest.raises(TypeError, match=f"posthaste.Frame.{name}: pass names are str, got int 5") as e:
+            call()
+        assert "\n" not in str(e.value)
+    for call in [lambda: f.owns("nope"), lambda: f.writable("nope"), lambda: f.channels("nope")]:
+        with pytest.raises(KeyError, match='no pass "nope" in the frame'):
+            call()
+    assert f.owns("color")
+    with pytest.raises(ValueError, match='channels: no pass "c" in passes'):
+        ph.Frame(channels={"c": ["R"]})
+    assert ph.Frame(channels={}).passes.keys() == []

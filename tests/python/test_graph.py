@@ -185,3 +185,64 @@ def test_an_absurd_size_is_refused_before_any_allocation(scene):
     with pytest.raises(ph.Error) as e:
         ph.node("render", scene=scene, width=16384, height=16384, frame=1)
     assert code == e.value.exit_code != 0
+
+
+def test_run_and_evaluate_arguments_are_checked_on_one_line(scene, tmp_path):
+    """bytes ran as frame numbers (b"\\x01\\x02": frames 1 and 2); a wrong type was pybind11's
+    several-line TypeError naming no argument; set="a=1" and set=[1] were dict()'s own
+    message; a null in a set value cut "20\\0garbage" to 20."""
+    g = ph.Graph.from_dict(graph_dict(scene, str(tmp_path / "o.####.exr"), size=(8, 8)))
+    for call, error, message in [
+        (lambda: g.run(frames=b"\x01\x02"), TypeError, "Graph.run: frames: expected frame numbers"),
+        (lambda: g.run(frames=bytearray(b"\x01")), TypeError, "Graph.run: frames: expected frame numbers"),
+        (lambda: g.run(frames=memoryview(b"\x01")), TypeError, "Graph.run: frames: expected frame numbers"),
+        (lambda: g.run(frames="1\ud800"), ValueError, "Graph.run: frames: not valid UTF-8"),
+        (lambda: g.run(jobs="2"), TypeError, "Graph.run: jobs: expected an int \\(32 bits\\), got str '2'"),
+        (lambda: g.run(jobs=2**40), TypeError, "Graph.run: jobs: expected an int"),
+        (lambda: g.run(threads=1.5), TypeError, "Graph.run: threads: expected an int"),
+        (lambda: g.run(skip_existing="yes"), TypeError, "Graph.run: skip_existing: expected a bool"),
+        (lambda: g.run(max_memory=5), TypeError, "Graph.run: max_memory: expected a str"),
+        (lambda: g.evaluate("1"), TypeError, "Graph.evaluate: frame: expected an int \\(32 bits\\), got str"),
+        (lambda: g.evaluate(2**40), TypeError, "Graph.evaluate: frame: expected an int"),
+        (lambda: g.run(set="scene.width=3"), TypeError, 'set: expected a dict {"node.param": value}, got str'),
+        (lambda: g.run(set=[1]), TypeError, 'set: expected a dict {"node.param": value}, got list'),
+        (lambda: g.run(set={"scene.width": "20\x00garbage"}), ValueError,
+         "set scene.width: embedded null character"),
+        (lambda: g.run(set={"\ud800": 1}), ValueError, "set: key '\\\\ud800': not valid UTF-8"),
+        (lambda: g.run(set={"scene.scene": "\ud800"}), ValueError, "set scene.scene: not valid UTF-8"),
+        (lambda: ph.Graph.from_dict(graph_dict(scene, "x.exr"), set={"scene.width": "20\x00x"}),
+         ValueError, "set scene.width: embedded null character"),
+        (lambda: ph.Graph.from_dict({"nodes": [], "\ud800": 1}), ValueError,
+         "Graph.from_dict: key '\\\\ud800': not valid UTF-8"),
+        (lambda: g.evaluate(1, outputs="wr\x00ite"), ValueError,
+         "Graph.evaluate: outputs: embedded null character"),
+        (lambda: g.evaluate(1, outputs=["\ud800"]), ValueError, "Graph.evaluate: outputs: not valid UTF-8"),
+        (lambda: g.evaluate(1, outputs=[1]), TypeError, "Graph.evaluate: outputs: expected node ids, got int 1"),
+        (lambda: ph.Graph.from_dict({"nodes": []}, base_dir="/tmp\x00/x"), ValueError,
+         "Graph.from_dict: base_dir: embedded null character"),
+    ]:
+        with pytest.raises(error, match=message) as e:
+            call()
+        assert "\n" not in str(e.value), str(e.value)
+    assert not list(tmp_path.iterdir())  # nothing ran
+    assert g.run(frames=[1], jobs=np.int64(1), skip_existing=np.bool_(False))["frames"] == [1]
+    assert list(g.evaluate(np.int32(2))) == ["write"]
+    assert g.run(frames=(2,), set={"scene.width": "8"}, max_memory="")["frames"] == [2]
+
+
+def test_a_path_whose_fspath_gives_bytes_is_decoded(scene, tmp_path):
+    """os.PathLike.__fspath__ may return bytes: the path was the text "b'/...'"."""
+    class BytesPath:
+        def __init__(self, p):
+            self.p = p
+
+        def __fspath__(self):
+            return os.fsencode(self.p)
+
+    f = ph.Frame(passes={"color": np.ones((2, 2, 4), np.float32)})
+    out = tmp_path / "bytes.exr"
+    ph.write(f, BytesPath(str(out)))
+    assert out.exists()
+    assert ph.read(BytesPath(str(out))).passes["color"].shape == (2, 2, 4)
+    with pytest.raises(ValueError, match="embedded null character"):
+        ph.write(f, BytesPath(str(out) + "\x00x"))
