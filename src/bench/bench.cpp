@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "bench/bench_metrics.h"
 #include "bench/chart.h"
 #include "core/error.h"
 #include "core/json_error.h"
@@ -19,8 +20,6 @@
 #include "graph/graph.h"
 #include "io/image_file.h"
 #include "io/sequence.h"
-#include "metrics/flip.h"
-#include "metrics/metrics.h"
 #include "nodes/registry.h"
 
 namespace posthaste::bench {
@@ -80,11 +79,20 @@ std::vector<std::string> get_strings(const json &v, const std::string &where)
 
 int get_int(const json &obj, const std::string &key, int lo, int hi, const std::string &where)
 {
+    // Compared as the JSON holds them (unsigned above LLONG_MAX), never truncated to int first.
     const json &v = obj.at(key);
-    if (!v.is_number_integer() || v.get<long long>() < lo || v.get<long long>() > hi) {
+    bool in_range = false;
+    if (v.is_number_unsigned()) {
+        const unsigned long long u = v.get<unsigned long long>();
+        in_range =
+            hi >= 0 && u <= (unsigned long long)(hi) && (lo <= 0 || u >= (unsigned long long)(lo));
+    } else if (v.is_number_integer()) {
+        in_range = v.get<long long>() >= lo && v.get<long long>() <= hi;
+    }
+    if (!in_range) {
         throw_usage(where, "/", key, ": expected an integer in ", lo, "..", hi, ", got ", v.dump());
     }
-    return v.get<int>();
+    return int(v.get<long long>());
 }
 
 std::string resolve(const std::string &path, const std::string &base_dir)
@@ -96,29 +104,6 @@ std::string resolve(const std::string &path, const std::string &base_dir)
 }
 
 // --- Running -------------------------------------------------------------------------------
-
-/// The part of `image` (a pass of `frame`) inside the frame's display window: what the metrics
-/// measure. An overscan's margin is the nodes' input, not their result, and a truth rendered
-/// without it covers the display window alone.
-ImagePtr display_part(const Frame &frame, const ImagePtr &image)
-{
-    const Rect d = frame.display_window.intersect(frame.data_window);
-    if (d == frame.data_window || d.empty()) {
-        return image;
-    }
-    return std::make_shared<const Image>(place_in_window(*image, frame.data_window, d));
-}
-
-ImagePtr measured_pass(const Frame &frame, const std::string &pass, const std::string &who)
-{
-    return display_part(frame, frame.pass(pass, who).image);
-}
-
-/// A frame's pass names, for messages.
-std::string listed(const Frame &frame)
-{
-    return join(frame.pass_names(), ", ");
-}
 
 /// Channel `channel` of `image` alone (-1: the image itself).
 ImagePtr select_channel(const ImagePtr &image, int channel, const std::string &where)
@@ -133,32 +118,6 @@ ImagePtr select_channel(const ImagePtr &image, int channel, const std::string &w
     auto out = std::make_shared<Image>(image->width(), image->height(), 1);
     for (std::size_t i = 0; i < out->pixel_count(); ++i) {
         out->data()[i] = image->data()[i * std::size_t(image->channels()) + std::size_t(channel)];
-    }
-    return out;
-}
-
-/// First three channels, sRGB-encoded, clamped, box-downscaled so the longer side is <= max_side.
-Image display_thumbnail(const Image &img, float scale, int max_side = 160)
-{
-    const int step = std::max(1, (std::max(img.width(), img.height()) + max_side - 1) / max_side);
-    const int w = std::max(1, img.width() / step), h = std::max(1, img.height() / step);
-    Image out(w, h, 3);
-    for (int y = 0; y < h; ++y) {
-        for (int x = 0; x < w; ++x) {
-            for (int c = 0; c < 3; ++c) {
-                double sum = 0.0;
-                int n = 0;
-                for (int yy = y * step; yy < std::min(img.height(), (y + 1) * step); ++yy) {
-                    for (int xx = x * step; xx < std::min(img.width(), (x + 1) * step); ++xx) {
-                        const float v = img.at(xx, yy, std::min(c, img.channels() - 1));
-                        sum += std::isfinite(v) ? double(v) : 0.0;
-                        ++n;
-                    }
-                }
-                const float v = float(sum / std::max(n, 1)) * scale;
-                out.at(x, y, c) = metrics::flip::linear_to_srgb(std::clamp(v, 0.0f, 1.0f));
-            }
-        }
     }
     return out;
 }
@@ -225,8 +184,12 @@ BenchSpec parse_spec(const std::string &text,
         s.description = get_string(j, "description", w);
     }
     if (j.contains("frames")) {
-        s.frames = j["frames"].is_number_integer() ? std::to_string(j["frames"].get<int>())
-                                                   : get_string(j, "frames", w);
+        s.frames = j["frames"].is_number() ? std::to_string(get_int(j,
+                                                                    "frames",
+                                                                    std::numeric_limits<int>::min(),
+                                                                    std::numeric_limits<int>::max(),
+                                                                    w))
+                                           : get_string(j, "frames", w);
         parse_frame_list(s.frames, w + "/frames");
     }
     if (j.contains("pass")) {
@@ -244,11 +207,7 @@ BenchSpec parse_spec(const std::string &text,
         s.truth_pass = get_string(truth, "pass", tw);
     }
     if (truth.contains("channel")) {
-        if (!truth["channel"].is_number_integer() || truth["channel"].get<int>() < 0 ||
-            truth["channel"].get<int>() > 63) {
-            throw_usage(tw, "/channel: expected a channel index 0..63");
-        }
-        s.truth_channel = truth["channel"].get<int>();
+        s.truth_channel = get_int(truth, "channel", 0, 63, tw);
     }
     if (j.contains("exclude")) {
         if (get_string(j, "exclude", w) != "sky") {
@@ -368,16 +327,26 @@ BenchSpec parse_spec(const std::string &text,
         s.threads = get_int(j, "threads", 0, 1024, w);
     }
     if (j.contains("diff_scale")) {
-        if (!j["diff_scale"].is_number() || !(j["diff_scale"].get<double>() >= 0.0)) {
-            throw_usage(w, "/diff_scale: expected a number >= 0, got ", j["diff_scale"].dump());
+        // Bounded so that it stays finite as a float (1e39 became inf: "xinf" on the page).
+        if (!j["diff_scale"].is_number() || !(j["diff_scale"].get<double>() >= 0.0) ||
+            !(j["diff_scale"].get<double>() <= 1e6)) {
+            throw_usage(
+                w, "/diff_scale: expected a number in 0..1e6, got ", j["diff_scale"].dump());
         }
         s.diff_scale = j["diff_scale"].get<float>();
+    }
+    if (s.flip && s.truth_channel >= 0) {
+        throw_usage(w, "/metrics: flip needs RGB, but /truth/channel compares one channel");
     }
     return s;
 }
 
 BenchSpec load_spec(const std::string &path)
 {
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) {
+        throw_usage(path, ": is a directory, not a bench spec file");
+    }
     std::ifstream in(path, std::ios::binary);
     if (!in) {
         throw_usage(path, ": cannot read the bench spec");
@@ -472,20 +441,33 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
         t.graph->check(result.frames);
         for (int f : result.frames) {
             const Frame fr = t.graph->evaluate(f);
+            if (!fr.has(truth_pass)) {
+                // As for truth files: a pass the truth lacks is the spec's mistake (exit 2).
+                throw_usage(
+                    spec.origin,
+                    spec.truth_pass.empty() ? ":/pass: truth node " : ":/truth/pass: truth node ",
+                    quoted(spec.truth_node),
+                    " gives no pass ",
+                    quoted(truth_pass),
+                    " (have: ",
+                    listed(fr),
+                    ") in frame ",
+                    f);
+            }
             truth.push_back(select_channel(
-                measured_pass(fr, truth_pass, "truth node " + quoted(spec.truth_node)),
-                spec.truth_channel,
-                spec.truth_graph));
+                display_part(fr, fr.pass(truth_pass).image), spec.truth_channel, spec.truth_graph));
         }
     }
 
-    // The measured pass, before any timing: a name the node does not give is the spec's mistake.
-    if (const Frame first = graphs.front().graph->evaluate(result.frames.front());
-        !first.has(spec.pass)) {
-        const std::string why = "node " + quoted(spec.node) + " gives no pass " + quoted(spec.pass);
-        throw_usage(spec.origin, ":/pass: ", why, " (have: ", listed(first), ")");
-    }
+    // One untimed evaluation of every setting before any timing: it checks what the spec asks
+    // of the output (a setting may lose the pass), gives the errors and thumbnails, and is every
+    // setting's first, cold, evaluation alike, so no setting is timed cold.
     const std::size_t count = spec.settings.size();
+    for (std::size_t s = 0; s < count; ++s) {
+        result.settings.push_back(
+            measure_setting(spec, spec.settings[s], *graphs[s].graph, result.frames, truth));
+    }
+    say(str_cat("errors of ", count, " setting(s) measured"));
     std::vector<std::vector<double>> node_ms(count), graph_ms(count);
     const double frames = double(result.frames.size());
     for (int run = 0; run < spec.warmup + spec.runs; ++run) {
@@ -509,60 +491,9 @@ BenchResult run_bench(const BenchSpec &spec, const std::function<void(const std:
                     : str_cat(spec.runs, " timed run(s) of ", count, " setting(s) done"));
         }
     }
-
     for (std::size_t s = 0; s < count; ++s) {
-        SettingResult r;
-        r.setting = spec.settings[s];
-        r.node = summarize(node_ms[s]);
-        r.graph = summarize(graph_ms[s]);
-        double rmse = 0.0, psnr = 0.0, flip = 0.0;
-        for (std::size_t i = 0; i < result.frames.size(); ++i) {
-            const int f = result.frames[i];
-            const Frame out = graphs[s].graph->evaluate(f);
-            const std::string who = str_cat(
-                "setting ", quoted(r.setting.name), ", node ", quoted(spec.node), ", frame ", f);
-            const ImagePtr test_part = measured_pass(out, spec.pass, who);
-            const Image &test = *test_part;
-            const Image &ref = *truth[i];
-            if (test.width() != ref.width() || test.height() != ref.height() ||
-                test.channels() != ref.channels()) {
-                throw_runtime(spec.origin,
-                              ": ",
-                              who,
-                              ": pass ",
-                              quoted(spec.pass),
-                              " is ",
-                              test.width(),
-                              "x",
-                              test.height(),
-                              "x",
-                              test.channels(),
-                              " but the truth is ",
-                              ref.width(),
-                              "x",
-                              ref.height(),
-                              "x",
-                              ref.channels());
-            }
-            const metrics::CompareStats stats =
-                spec.exclude_sky
-                    ? metrics::compare_surface(ref, test, *measured_pass(out, "depth", who))
-                    : metrics::compare(ref, test);
-            rmse += stats.all.rms_error;
-            psnr += stats.all.psnr;
-            if (spec.flip && ref.channels() >= 3) {
-                flip += metrics::flip_hdr(ref, test).mean;
-            }
-            if (i == 0) {
-                r.thumbnail = display_thumbnail(test, 1.0f);
-                r.difference =
-                    display_thumbnail(metrics::difference_image(ref, test, 1.0f), spec.diff_scale);
-            }
-        }
-        r.rmse = rmse / frames;
-        r.psnr = psnr / frames;
-        r.flip = spec.flip && truth.front()->channels() >= 3 ? flip / frames : kNaN;
-        result.settings.push_back(std::move(r));
+        result.settings[s].node = summarize(node_ms[s]);
+        result.settings[s].graph = summarize(graph_ms[s]);
     }
 
     const auto base =

@@ -25,6 +25,7 @@
 #include <functional>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/image.h"
@@ -99,8 +100,9 @@ struct BenchResult {
 };
 
 /// Run the sweep: every setting's graph is loaded and checked first, the truth computed once,
-/// then warm-up and timed runs go round-robin over the settings (so drift affects them alike),
-/// each run evaluating every frame in order. Errors come from one more untimed evaluation.
+/// then every setting evaluated once, untimed, over every frame (its errors and the checks of
+/// its output, alike for all before any timing), then warm-up and timed runs go round-robin
+/// over the settings (so drift affects them alike), each run evaluating every frame in order.
 /// `log` receives progress lines (may be empty).
 BenchResult run_bench(const BenchSpec &spec,
                       const std::function<void(const std::string &)> &log = {});
@@ -118,7 +120,10 @@ std::string results_svg(const BenchResult &result);
 std::string results_html(const BenchResult &result);
 
 /// Write results.csv, chart.svg, index.html, results.json and thumbs/ under `dir` (created),
-/// each atomically.
-void write_results(const BenchResult &result, const std::string &dir);
+/// with `extra` (file name, text) beside them: all staged first, then renamed into place, so a
+/// failure leaves none of them half-written. Text is made valid UTF-8 (U+FFFD for bad bytes).
+void write_results(const BenchResult &result,
+                   const std::string &dir,
+                   const std::vector<std::pair<std::string, std::string>> &extra = {});
 
 }  // namespace posthaste::bench

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "bench/bench.h"
+#include "bench/bench_metrics.h"
 #include "bench/chart.h"
 #include "core/error.h"
 #include "core/text.h"
@@ -154,20 +155,20 @@ std::string results_html(const BenchResult &result)
     return os.str();
 }
 
-void write_results(const BenchResult &result, const std::string &dir)
+void write_results(const BenchResult &result,
+                   const std::string &dir,
+                   const std::vector<std::pair<std::string, std::string>> &extra)
 {
-    const fs::path d(dir);
-    write_text_file((d / "results.csv").string(), results_csv(result));
-    write_text_file((d / "chart.svg").string(), results_svg(result));
-    write_text_file((d / "index.html").string(), results_html(result));
+    // Every text is made first (invalid UTF-8, e.g. from a spec path, becomes U+FFFD, as the
+    // pages and JSON declare UTF-8), then every file is staged beside its destination and only
+    // then renamed into place: a failure leaves none of the outputs half-written.
     json j = {{"spec", result.spec.origin},
               {"node", result.spec.node},
               {"frames", result.frames},
               {"threads", result.threads},
               {"baseline", result.spec.baseline}};
     json settings = json::array();
-    for (std::size_t i = 0; i < result.settings.size(); ++i) {
-        const SettingResult &r = result.settings[i];
+    for (const SettingResult &r : result.settings) {
         settings.push_back({{"name", r.setting.name},
                             {"set", r.setting.overrides},
                             {"node_ms", r.node.runs_ms},
@@ -179,12 +180,63 @@ void write_results(const BenchResult &result, const std::string &dir)
                             {"psnr", json_number(r.psnr)},
                             {"flip", json_number(r.flip)},
                             {"pareto", r.pareto}});
-        write_preview(r.thumbnail, (d / "thumbs" / (std::to_string(i) + ".png")).string(), false);
-        write_preview(
-            r.difference, (d / "thumbs" / (std::to_string(i) + "_diff.png")).string(), false);
     }
     j["settings"] = settings;
-    write_text_file((d / "results.json").string(), j.dump(2) + "\n");
+    std::vector<std::pair<std::string, std::string>> texts = {
+        {"results.csv", valid_utf8(results_csv(result))},
+        {"chart.svg", valid_utf8(results_svg(result))},
+        {"index.html", valid_utf8(results_html(result))},
+        {"results.json", j.dump(2, ' ', false, json::error_handler_t::replace) + "\n"}};
+    for (const auto &[name, text] : extra) {
+        texts.emplace_back(name, valid_utf8(text));
+    }
+
+    const fs::path d(dir);
+    std::error_code ec;
+    fs::create_directories(d / "thumbs", ec);
+    if (ec) {
+        throw_runtime((d / "thumbs").string(), ": cannot create the output folder: ", ec.message());
+    }
+    std::vector<std::pair<fs::path, fs::path>> staged;  // (staged, final)
+    auto unstage = [&] {
+        for (const auto &[tmp, final_path] : staged) {
+            fs::remove(tmp, ec);
+        }
+    };
+    try {
+        for (const auto &[name, text] : texts) {
+            const fs::path final_path = d / name;
+            staged.emplace_back(d / ("." + name + ".part"), final_path);
+            write_text_file(staged.back().first.string(), text);
+        }
+        for (std::size_t i = 0; i < result.settings.size(); ++i) {
+            const SettingResult &r = result.settings[i];
+            for (const auto &[suffix, image] :
+                 {std::pair<std::string, const Image *>{"", &r.thumbnail},
+                  std::pair<std::string, const Image *>{"_diff", &r.difference}}) {
+                const std::string name = std::to_string(i) + suffix + ".png";
+                staged.emplace_back(d / "thumbs" / (".part_" + name), d / "thumbs" / name);
+                write_preview(*image, staged.back().first.string(), false);
+            }
+        }
+        for (const auto &[tmp, final_path] : staged) {
+            if (fs::is_directory(final_path, ec)) {
+                throw_runtime(final_path.string(),
+                              ": is a directory; cannot write the bench output");
+            }
+        }
+    } catch (...) {
+        unstage();
+        throw;
+    }
+    for (const auto &[tmp, final_path] : staged) {
+        fs::rename(tmp, final_path, ec);
+        if (ec) {
+            const std::string why = ec.message();
+            unstage();
+            throw_runtime(final_path.string(), ": cannot write the bench output: ", why);
+        }
+    }
 }
 
 }  // namespace posthaste::bench

@@ -14,6 +14,19 @@ bool finite_point(const ChartPoint &p)
     return std::isfinite(p.x) && std::isfinite(p.y);
 }
 
+/// On the front's terms: finite, or at the best possible error (PSNR +inf: an exact result).
+bool ranked_point(const ChartPoint &p, bool higher_y_is_better)
+{
+    return finite_point(p) ||
+           (std::isfinite(p.x) && std::isinf(p.y) && (p.y > 0) == higher_y_is_better);
+}
+
+/// Drawn: a finite time and a y that is not NaN (an infinite y goes on the top or bottom edge).
+bool drawn_point(const ChartPoint &p)
+{
+    return std::isfinite(p.x) && !std::isnan(p.y);
+}
+
 std::string num(double v)
 {
     char buf[32];
@@ -40,6 +53,8 @@ double nice_step(double lo, double hi, int count)
 struct Axis {
     double lo = 0.0, hi = 1.0;
     bool log = false;
+    /// Log scale with values <= 0: the bottom decade is theirs, its tick labelled 0.
+    bool zero_row = false;
     std::vector<double> ticks;
 
     /// Position in [0, 1] along the axis.
@@ -70,11 +85,12 @@ Axis linear_axis(double lo, double hi)
     return a;
 }
 
-Axis log_axis(double lo, double hi)
+Axis log_axis(double lo, double hi, bool zero_row)
 {
     Axis a;
     a.log = true;
-    a.lo = std::pow(10.0, std::floor(std::log10(lo)));
+    a.zero_row = zero_row;
+    a.lo = std::pow(10.0, std::floor(std::log10(lo)) - (zero_row ? 1.0 : 0.0));
     a.hi = std::pow(10.0, std::ceil(std::log10(hi)));
     if (!(a.hi > a.lo)) {
         a.hi = a.lo * 10.0;
@@ -94,14 +110,14 @@ std::vector<std::size_t> pareto_front(const std::vector<ChartPoint> &points,
     std::vector<std::size_t> front;
     for (std::size_t i = 0; i < points.size(); ++i) {
         const ChartPoint &p = points[i];
-        if (!finite_point(p)) {
+        if (!ranked_point(p, higher_y_is_better)) {
             continue;
         }
         bool dominated = false;
         for (std::size_t j = 0; j < points.size() && !dominated; ++j) {
             const ChartPoint &q = points[j];
-            dominated = j != i && finite_point(q) && q.x <= p.x && sign * q.y <= sign * p.y &&
-                        (q.x < p.x || sign * q.y < sign * p.y);
+            dominated = j != i && ranked_point(q, higher_y_is_better) && q.x <= p.x &&
+                        sign * q.y <= sign * p.y && (q.x < p.x || sign * q.y < sign * p.y);
         }
         if (!dominated) {
             front.push_back(i);
@@ -121,9 +137,10 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
 
     double xmin = std::numeric_limits<double>::infinity(), xmax = -xmin;
     double ymin = xmin, ymax = -xmin, ypos_min = xmin;
+    bool any_y = false, nonpositive = false, inf_top = false, inf_bottom = false;
     std::vector<std::string> undrawn;
     for (const ChartPoint &p : points) {
-        if (!finite_point(p)) {
+        if (!drawn_point(p)) {
             undrawn.push_back(p.label);
             continue;
         }
@@ -131,6 +148,13 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
         const double hi = std::isfinite(p.x_hi) ? std::max(p.x_hi, p.x) : p.x;
         xmin = std::min(xmin, lo);
         xmax = std::max(xmax, hi);
+        if (!std::isfinite(p.y)) {
+            inf_top = inf_top || p.y > 0;
+            inf_bottom = inf_bottom || p.y < 0;
+            continue;
+        }
+        any_y = true;
+        nonpositive = nonpositive || p.y <= 0.0;
         ymin = std::min(ymin, p.y);
         ymax = std::max(ymax, p.y);
         if (p.y > 0.0) {
@@ -140,10 +164,21 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
     const bool any = std::isfinite(xmin);
     const Axis ax = linear_axis(any ? std::min(0.0, xmin) : 0.0, any ? xmax : 1.0);
     const bool log_y = o.log_y && std::isfinite(ypos_min);
-    const Axis ay = log_y ? log_axis(ypos_min, std::max(ymax, ypos_min))
-                          : linear_axis(any ? std::min(0.0, ymin) : 0.0, any ? ymax : 1.0);
+    const Axis ay = log_y ? log_axis(ypos_min, std::max(ymax, ypos_min), nonpositive)
+                          : linear_axis(any_y ? std::min(0.0, ymin) : 0.0, any_y ? ymax : 1.0);
     auto px = [&](double x) { return left + pw * ax.unit(x); };
-    auto py = [&](double y) { return top + ph * (1.0 - ay.unit(y)); };
+    // An infinite y (PSNR of an exact result) on the edge it points to, in a band of its own
+    // so that it stands apart from the largest finite value.
+    const double band = 24.0;
+    const double y_top = top + (inf_top ? band : 0.0),
+                 y_bottom = top + ph - (inf_bottom ? band : 0.0);
+    auto py = [&](double y) {
+        return std::isinf(y) ? (y > 0 ? top : top + ph)
+                             : y_top + (y_bottom - y_top) * (1.0 - ay.unit(y));
+    };
+    auto y_text = [&](double y) {
+        return ay.zero_row && y <= 0.0 ? std::string("0") : tick_label(y);
+    };
 
     std::ostringstream s;
     s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << o.width << "\" height=\""
@@ -165,7 +200,15 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
         s << "<line x1=\"" << num(left) << "\" y1=\"" << y << "\" x2=\"" << num(left + pw)
           << "\" y2=\"" << y << "\" stroke=\"#ddd\"/>\n";
         s << "<text x=\"" << num(left - 6) << "\" y=\"" << y
-          << "\" text-anchor=\"end\" dominant-baseline=\"middle\">" << tick_label(t) << "</text>\n";
+          << "\" text-anchor=\"end\" dominant-baseline=\"middle\">"
+          << (ay.zero_row && t == ay.ticks.front() ? "0" : tick_label(t)) << "</text>\n";
+    }
+    for (const double edge : {inf_top ? top : -1.0, inf_bottom ? top + ph : -1.0}) {
+        if (edge >= 0.0) {
+            s << "<text x=\"" << num(left - 6) << "\" y=\"" << num(edge)
+              << "\" text-anchor=\"end\" dominant-baseline=\"middle\">"
+              << (edge == top ? "inf" : "-inf") << "</text>\n";
+        }
     }
     s << "<rect x=\"" << num(left) << "\" y=\"" << num(top) << "\" width=\"" << num(pw)
       << "\" height=\"" << num(ph) << "\" fill=\"none\" stroke=\"black\"/>\n";
@@ -190,7 +233,7 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
     }
     for (std::size_t i = 0; i < points.size(); ++i) {
         const ChartPoint &p = points[i];
-        if (!finite_point(p)) {
+        if (!drawn_point(p)) {
             continue;
         }
         const std::string x = num(px(p.x)), y = num(py(p.y));
@@ -202,10 +245,13 @@ std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions 
           << "\" cy=\"" << y << "\" r=\"4.5\" "
           << (on_front[i] ? "fill=\"#d62728\" stroke=\"#d62728\""
                           : "fill=\"white\" stroke=\"#1f77b4\" stroke-width=\"1.5\"")
-          << "><title>" << xml_escape(p.label) << ": " << tick_label(p.x) << " ms, "
-          << tick_label(p.y) << "</title></circle>\n";
-        s << "<text x=\"" << num(px(p.x) + 7) << "\" y=\"" << num(py(p.y) - 7) << "\">"
-          << xml_escape(p.label) << "</text>\n";
+          << "><title>" << xml_escape(p.label) << ": " << tick_label(p.x) << " ms, " << y_text(p.y)
+          << "</title></circle>\n";
+        // Off the scale (inf) or below a log scale (0): said beside the label.
+        const bool edge = !std::isfinite(p.y) || (ay.zero_row && p.y <= 0.0);
+        s << "<text x=\"" << num(px(p.x) + 7) << "\" y=\""
+          << num(py(p.y) + (py(p.y) <= top ? 14 : -7)) << "\">" << xml_escape(p.label)
+          << (edge ? " (" + y_text(p.y) + ")" : "") << "</text>\n";
     }
     if (!undrawn.empty()) {
         std::string names;

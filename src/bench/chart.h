@@ -22,8 +22,9 @@ struct ChartPoint {
 
 /// Indices of the points no other point dominates (another is at most as slow and at most as
 /// wrong, and strictly better in one), sorted by x then by error. Error is y, or -y when
-/// `higher_y_is_better` (PSNR). Points with a non-finite x or y are never on the front and
-/// dominate nothing; identical points are all on it.
+/// `higher_y_is_better` (PSNR). A y at the best possible infinity (PSNR +inf: exact) takes part
+/// and dominates as any value would; other points with a non-finite x or y are never on the
+/// front and dominate nothing; identical points are all on it.
 std::vector<std::size_t> pareto_front(const std::vector<ChartPoint> &points,
                                       bool higher_y_is_better = false);
 
@@ -31,7 +32,7 @@ struct ChartOptions {
     std::string title;
     std::string x_label = "time per frame (ms)";
     std::string y_label = "error";
-    /// Log scale on y (points with y <= 0 are then drawn on the bottom edge).
+    /// Log scale on y (points with y <= 0 then get the bottom decade, its tick labelled 0).
     bool log_y = false;
     /// y is a quality (PSNR) rather than an error: the front maximises it.
     bool higher_y_is_better = false;
@@ -40,10 +41,9 @@ struct ChartOptions {
 };
 
 /// A self-contained SVG document: axes with ticks, every point labelled, the Pareto front drawn
-/// as filled red points joined by a line, the rest hollow. Points with non-finite x or y are
-/// listed under the chart instead of drawn.
+/// as filled red points joined by a line, the rest hollow. An infinite y is drawn on the top or
+/// bottom edge, "(inf)" after its label; points with a non-finite x or a NaN y are listed under
+/// the chart instead of drawn.
 std::string svg_chart(const std::vector<ChartPoint> &points, const ChartOptions &options);
-
-/// Escape &, <, >, " and ' for XML or HTML text and attributes.
 
 }  // namespace posthaste::bench

@@ -27,14 +27,26 @@ std::vector<Case> parse_cases(const std::string &text, const std::string &origin
         throw_usage(origin, ": expected a stability record {\"cases\": [...]}");
     }
     std::vector<Case> cases;
-    for (const auto &c : j["cases"]) {
+    for (std::size_t i = 0; i < j["cases"].size(); ++i) {
+        const nlohmann::json &c = j["cases"][i];
         if (!c.is_object()) {
             throw_usage(origin, ":/cases: expected objects");
         }
+        // A field of another type is named with the file, not left to json's type_error.
+        auto text = [&](const char *key, const char *missing) {
+            if (!c.contains(key)) {
+                return std::string(missing);
+            }
+            if (!c[key].is_string()) {
+                throw_usage(
+                    origin, ":/cases/", i, "/", key, ": expected a string, got ", c[key].dump());
+            }
+            return c[key].get<std::string>();
+        };
         Case k;
-        k.row = c.value("node", "?") + " / " + c.value("params", "?");
-        k.frame = c.value("frame", "?");
-        k.status = c.value("status", "?");
+        k.row = text("node", "?") + " / " + text("params", "?");
+        k.frame = text("frame", "?");
+        k.status = text("status", "?");
         std::ostringstream t;
         t << k.row << " on " << k.frame << ": " << k.status;
         if (c.contains("max_abs")) {
@@ -46,7 +58,7 @@ std::vector<Case> parse_cases(const std::string &text, const std::string &origin
         if (c.contains("ms")) {
             t << "; " << c["ms"].dump() << " ms";
         }
-        const std::string message = c.value("message", "");
+        const std::string message = text("message", "");
         if (!message.empty()) {
             t << "; " << message;
         }
