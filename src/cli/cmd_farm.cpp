@@ -30,14 +30,16 @@
 namespace posthaste::cli {
 namespace {
 
+using farm::apply_sets;
 using farm::capture;
 using farm::check_command;
 using farm::frame_states;
 using farm::FrameState;
 using farm::json;
 using farm::load_job_graph;
+using farm::make_chunks;
 using farm::on_path;
-using farm::read_json;
+using farm::read_job;
 using farm::require_slurm;
 using farm::sbatch;
 using farm::sbatch_quote;
@@ -69,48 +71,6 @@ std::string self_binary()
     std::error_code ec;
     const fs::path p = fs::read_symlink("/proc/self/exe", ec);
     return ec ? std::string("posthaste") : p.string();
-}
-
-/// The graph file with the --set values written into its node params (values parsed as JSON
-/// when they are JSON, else taken as strings), validated by loading it back. The copy lives in
-/// the job folder, so it says where its relative paths point: "base_dir" is the original
-/// graph's folder, and relative --set file paths (relative to the current folder, as on the
-/// command line) become absolute.
-std::string apply_sets(const std::string &graph_path,
-                       const Graph &graph,
-                       const std::vector<std::string> &sets)
-{
-    std::ifstream in(graph_path);
-    json g = json::parse(in, nullptr, false);
-    if (g.is_discarded() || !g.contains("nodes")) {
-        throw_usage(graph_path, ": not a graph file");
-    }
-    for (const std::string &s : sets) {
-        const auto eq = s.find('='), dot = s.find('.');
-        const std::string id = s.substr(0, dot), name = s.substr(dot + 1, eq - dot - 1);
-        const std::string text = s.substr(eq + 1);
-        json value = json::parse(text, nullptr, false);
-        if (value.is_discarded()) {
-            value = text;
-        }
-        if (const int n = graph.find(id); n >= 0) {
-            for (const ParamSpec &ps : graph.nodes()[std::size_t(n)].type->spec.params) {
-                if (ps.name == name && ps.file && value.is_string() &&
-                    !value.get<std::string>().empty() &&
-                    fs::path(value.get<std::string>()).is_relative()) {
-                    value = fs::absolute(value.get<std::string>()).lexically_normal().string();
-                }
-            }
-        }
-        for (json &node : g["nodes"]) {
-            if (node.value("id", "") == id) {
-                node["params"][name] = value;
-            }
-        }
-    }
-    g["base_dir"] =
-        fs::absolute(graph.base_dir().empty() ? "." : graph.base_dir()).lexically_normal().string();
-    return g.dump(2) + "\n";
 }
 
 std::string join_frames(const std::vector<int> &frames)
@@ -185,30 +145,6 @@ int chunk_size(const std::string &text, const SlurmOptions &s, std::size_t frame
     return *chunk;
 }
 
-/// Chunks of `chunk` frames: contiguous, or `interleaved` (chunk k of n takes frames k, k + n,
-/// ...), so that a cost drifting along the sequence is shared evenly by the tasks; only for
-/// graphs that do not look back (Graph::looks_back), where a frame costs the same in any chunk.
-std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames,
-                                          int chunk,
-                                          bool interleaved)
-{
-    std::vector<std::vector<int>> chunks;
-    if (interleaved) {
-        const std::size_t n = (frames.size() + std::size_t(chunk) - 1) / std::size_t(chunk);
-        chunks.resize(n);
-        for (std::size_t i = 0; i < frames.size(); ++i) {
-            chunks[i % n].push_back(frames[i]);
-        }
-        return chunks;
-    }
-    for (std::size_t i = 0; i < frames.size(); i += std::size_t(chunk)) {
-        chunks.emplace_back(
-            frames.begin() + std::ptrdiff_t(i),
-            frames.begin() + std::ptrdiff_t(std::min(frames.size(), i + std::size_t(chunk))));
-    }
-    return chunks;
-}
-
 std::string batch_script(const json &job, const fs::path &dir, int submission, int chunks)
 {
     const json &s = job["slurm"];
@@ -234,7 +170,7 @@ std::string batch_script(const json &job, const fs::path &dir, int submission, i
     if (!s.value("time", "").empty()) {
         o << "#SBATCH --time=" << s["time"].get<std::string>() << "\n";
     }
-    o << "# One task per chunk; the task index selects the chunk (chunks.json).\n"
+    o << "# One task per chunk; the task index selects the chunk (job.json's submissions).\n"
       << "cd " << shell_quote(job["cwd"]) << " || exit 1\n"
       << "exec " << shell_quote(job["binary"]) << " farm task " << shell_quote(dir.string())
       << " --submission " << submission
@@ -283,7 +219,8 @@ int submit_command(const SubmitOptions &o)
         bool automatic = false;
         chunk_size(o.chunk, o.slurm, 0, &automatic);  // a bad count fails before anything else
     }
-    const fs::path dir = fs::absolute(o.job_dir);
+    fs::path dir = fs::absolute(o.job_dir).lexically_normal();
+    dir = dir.has_filename() ? dir : dir.parent_path();  // "job/", ".": the folder's own name
     if (dir.string().find_first_of("\n\r") != std::string::npos) {
         throw_usage("farm submit: a line break in the job directory's name (#SBATCH lines)");
     }
@@ -352,6 +289,15 @@ int submit_command(const SubmitOptions &o)
     sub["chunks"] = make_chunks(frames, chunk, interleaved);
     job["submissions"] = json::array({sub});
     const std::string graph_text = apply_sets(o.graph, graph, o.sets);
+    if (o.force) {
+        std::vector<std::string> outputs;
+        for (int f : frames) {
+            for (std::string &p : graph.outputs(f)) {
+                outputs.push_back(std::move(p));
+            }
+        }
+        farm::require_replaceable(dir, o.graph, outputs);
+    }
     if (o.dry_run) {
         std::printf(
             "# %s/graph.json: %s with %zu --set value(s); %zu frame(s) in %zu chunk(s) of %d%s\n",
@@ -368,11 +314,24 @@ int submit_command(const SubmitOptions &o)
                     check_script(job, dir, 0).c_str());
         return 0;
     }
-    if (o.force) {
-        fs::remove_all(dir, ec);
+    // --force: the old job directory goes aside, back when nothing was queued, and away once
+    // the new job is.
+    const fs::path aside = dir.parent_path() / ("." + dir.filename().string() + ".replaced-" +
+                                                std::to_string(::getpid()));
+    const bool replacing = o.force && fs::exists(fs::symlink_status(dir, ec));
+    if (replacing) {
+        fs::rename(dir, aside, ec);
+        if (ec) {
+            throw_runtime(
+                dir.string(), ": cannot move the old job directory aside: ", ec.message());
+        }
     }
     fs::create_directories(dir / "logs", ec);
     if (ec) {
+        std::error_code rm;
+        if (replacing) {
+            fs::rename(aside, dir, rm);
+        }
         throw_runtime(dir.string(), ": cannot create the job directory: ", ec.message());
     }
     bool array_refused = false;
@@ -383,10 +342,12 @@ int submit_command(const SubmitOptions &o)
         write_text_file((dir / "frames.txt").string(), join_frames(frames) + "\n");
         submit(job, dir, 0, &array_refused);
     } catch (const Error &e) {
+        std::error_code rm;
         const json &sub = job["submissions"][0];
         if (sub.contains("array_job")) {
             // The array is queued and only the check job was refused: the directory stays.
             write_text_file((dir / "job.json").string(), job.dump(2) + "\n");
+            fs::remove_all(aside, rm);
             throw Error(e.code(),
                         str_cat(e.what(),
                                 " (array job ",
@@ -397,11 +358,18 @@ int submit_command(const SubmitOptions &o)
         }
         if (array_refused || !fs::exists(dir / "run-s0.sbatch")) {
             // Nothing was queued (sbatch refused the array, or it was never called): no half-made
-            // job directory is left to block the next submit.
-            std::error_code rm;
+            // job directory is left to block the next submit, and a replaced one comes back.
             fs::remove_all(dir, rm);
+            if (replacing) {
+                fs::rename(aside, dir, rm);
+            }
+        } else if (replacing) {
+            throw Error(e.code(), str_cat(e.what(), " (the old job directory is ", aside, ")"));
         }
         throw;
+    }
+    if (replacing) {
+        fs::remove_all(aside, ec);
     }
     std::printf("%s %s\n",
                 job["submissions"][0]["array_job"].get<std::string>().c_str(),
@@ -412,7 +380,11 @@ int submit_command(const SubmitOptions &o)
 int resubmit_command(const std::string &dir_text, bool dry_run)
 {
     const fs::path dir = fs::absolute(dir_text);
-    json job = read_json(dir / "job.json");
+    json job = read_job(dir);
+    if (!dry_run) {
+        // Without squeue a running chunk would look missing and be rendered twice.
+        require_slurm("squeue");
+    }
     const std::string cwd = fs::current_path().string();
     const Graph graph = load_job_graph(job, dir);
     std::vector<int> todo;
@@ -458,7 +430,7 @@ int resubmit_command(const std::string &dir_text, bool dry_run)
 int task_command(const std::string &dir_text, int submission, int chunk, int threads)
 {
     const fs::path dir = fs::absolute(dir_text);
-    const json job = read_json(dir / "job.json");
+    const json job = read_job(dir);
     const json &subs = job["submissions"];
     if (submission < 0 || submission >= int(subs.size()) || chunk < 0 ||
         chunk >= int(subs[std::size_t(submission)]["chunks"].size())) {
@@ -471,6 +443,10 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
         dir / "logs" /
         ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".jsonl");
     std::ofstream log(log_path, std::ios::app);
+    if (!log) {
+        throw_runtime(log_path.string(), ": cannot write the task's log");
+    }
+    bool log_failed = false;
     RunSettings rs;
     rs.frames = join_frames(frames);
     rs.threads = threads;
@@ -497,7 +473,7 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
             }
             line["outputs"] = farm::records_json(records);
         }
-        log << line.dump() << "\n" << std::flush;
+        log_failed = log_failed || !(log << line.dump() << "\n" << std::flush);
         ++finished;
         std::printf("openjd_status: frame %d %s\nopenjd_progress: %.1f\n",
                     frame,
@@ -518,13 +494,17 @@ int task_command(const std::string &dir_text, int submission, int chunk, int thr
         code = e.exit_code();
         failure = e.what();
     }
-    json times(node_seconds);
-    std::ofstream(
+    const fs::path times_path =
         dir / "logs" /
-        ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".nodes.json"))
-        << times.dump() << "\n";
+        ("s" + std::to_string(submission) + "-chunk" + std::to_string(chunk) + ".nodes.json");
+    std::ofstream times(times_path);
+    const bool times_failed = !(times << json(node_seconds).dump() << "\n" << std::flush);
     if (!failure.empty()) {
         throw Error(ExitCode(code), failure);
+    }
+    // A frame whose line is lost counts as never run: the task must not say it succeeded.
+    if (log_failed || times_failed) {
+        throw_runtime((log_failed ? log_path : times_path).string(), ": cannot be written");
     }
     return code;
 }
@@ -546,18 +526,22 @@ void add_farm_command(CLI::App &app, int &exit_code)
                     "Frames per array task (default 8), or auto: the frames spread over the "
                     "tasks the partition runs at once (its CPUs over --cpus-per-task, at most "
                     "--max-running), so each task starts once");
-    sub->add_option("--job-dir", so->job_dir, "Job directory (must not exist)")->required();
+    sub->add_option("--job-dir",
+                    so->job_dir,
+                    "Job directory (must not exist, unless --force and it is a job directory)")
+        ->required();
     sub->add_option("--max-running", so->slurm.max_running, "Array tasks running at once")
         ->check(in_range(0, 100000));
     sub->add_option("--partition", so->slurm.partition, "Slurm partition");
     sub->add_option("--cpus-per-task", so->slurm.cpus_per_task, "CPUs per task (the threads)")
-        ->check(in_range(0, 4096));
+        ->check(in_range(0, 1024));  // farm task --threads' range
     sub->add_option("--mem", so->slurm.mem, "Memory per task (Slurm syntax: 8G)");
     sub->add_option("--time", so->slurm.time, "Time limit per task (Slurm syntax: 1:00:00)");
     sub->add_option("--set,-s", so->sets, "Override a parameter: node.param=value")
         ->allow_extra_args(false);
     sub->add_flag("--dry-run", so->dry_run, "Validate and print the scripts; submit nothing");
-    sub->add_flag("--force", so->force, "Replace an existing job directory");
+    sub->add_flag(
+        "--force", so->force, "Replace an existing job directory (once the new job is queued)");
     sub->callback([so, &exit_code] { exit_code = submit_command(*so); });
 
     auto dir = std::make_shared<std::string>();

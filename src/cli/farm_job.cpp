@@ -4,10 +4,12 @@
 
 #include "cli/farm_job.h"
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <climits>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -25,19 +27,24 @@
 
 namespace posthaste::cli::farm {
 
-/// Run a command; its stdout, and whether it exited 0.
 bool capture(const std::string &command, std::string &out)
+{
+    return capture_status(command, out) == 0;
+}
+
+int capture_status(const std::string &command, std::string &out)
 {
     out.clear();
     FILE *pipe = ::popen((command + " 2>&1").c_str(), "r");
     if (!pipe) {
-        return false;
+        return -1;
     }
     char buf[4096];
     while (std::size_t n = std::fread(buf, 1, sizeof(buf), pipe)) {
         out.append(buf, n);
     }
-    return ::pclose(pipe) == 0;
+    const int status = ::pclose(pipe);
+    return status != -1 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 std::string shell_quote(const std::string &s)
@@ -191,8 +198,10 @@ std::vector<OutputRecord> records_from(const json &line)
         return out;
     }
     for (const json &r : *it) {
-        if (r.is_object() && r.value("path", "").size() && r.contains("bytes") &&
-            r["bytes"].is_number_unsigned() && r.value("hash", "").size() == 16) {
+        if (r.is_object() && r.contains("path") && r["path"].is_string() &&
+            !r["path"].get<std::string>().empty() && r.contains("bytes") &&
+            r["bytes"].is_number_unsigned() && r.contains("hash") && r["hash"].is_string() &&
+            r["hash"].get<std::string>().size() == 16) {
             out.push_back({r["path"].get<std::string>(),
                            r["bytes"].get<std::uint64_t>(),
                            r["hash"].get<std::string>()});
@@ -206,8 +215,10 @@ std::vector<OutputRecord> records_from(const json &line)
 
 namespace {
 
-/// squeue's view of the job's tasks: "JOB_TASK" -> state (RUNNING, PENDING...).
-std::map<std::string, std::string> scheduler_states(const json &job)
+/// squeue's view of the job's tasks: "JOB_TASK" -> state (RUNNING, PENDING...). None without
+/// squeue on PATH (docs/FARM.md). A failing squeue throws, or with `tolerant` warns: running
+/// chunks would look missing, and resubmit would render them twice.
+std::map<std::string, std::string> scheduler_states(const json &job, bool tolerant)
 {
     std::map<std::string, std::string> states;
     if (!on_path("squeue")) {
@@ -223,7 +234,19 @@ std::map<std::string, std::string> scheduler_states(const json &job)
         return states;
     }
     std::string out;
-    capture("squeue -h -r -j " + ids + " -o '%i %T'", out);
+    // The ids are digits (read_job checks them); quoted all the same.
+    if (const int rc = capture_status("squeue -h -r -j " + shell_quote(ids) + " -o '%i %T'", out);
+        rc != 0) {
+        const std::string said = out.substr(0, out.find('\n'));
+        const std::string message =
+            str_cat("farm: squeue failed (exit status ", rc, said.empty() ? "" : ": ", said, ")");
+        if (!tolerant) {
+            throw_runtime(message, ": cannot tell running and queued frames from missing ones");
+        }
+        std::fprintf(
+            stderr, "warning: %s: no frame counts as running or queued\n", message.c_str());
+        return {};
+    }
     std::istringstream lines(out);
     std::string id, state;
     while (lines >> id >> state) {
@@ -234,7 +257,41 @@ std::map<std::string, std::string> scheduler_states(const json &job)
 
 }  // namespace
 
-std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, const Graph &graph)
+namespace {
+
+/// A log line's reason to be skipped ("" when it is whole): a cut line (a killed task) or one
+/// with a bad type; a frame of another job counts as bad too.
+std::string bad_log_line(const json &l, const std::map<int, FrameState> &states)
+{
+    if (l.is_discarded() || !l.is_object() || !l.contains("frame")) {
+        return "cut";
+    }
+    const json &f = l["frame"];
+    if (!f.is_number_integer() ||
+        (f.is_number_unsigned() ? f.get<unsigned long long>() > INT_MAX
+                                : f.get<long long>() < INT_MIN || f.get<long long>() > INT_MAX)) {
+        return "\"frame\" is not a frame number";
+    }
+    if (!states.count(l["frame"].get<int>())) {
+        return str_cat("frame ", l["frame"].get<int>(), " is not one of the job's");
+    }
+    for (const char *key : {"status", "error"}) {
+        if (l.contains(key) && !l[key].is_string()) {
+            return str_cat("\"", key, "\" is not a string");
+        }
+    }
+    if (l.contains("seconds") && !l["seconds"].is_number()) {
+        return "\"seconds\" is not a number";
+    }
+    return "";
+}
+
+}  // namespace
+
+std::map<int, FrameState> frame_states(const json &job,
+                                       const fs::path &dir,
+                                       const Graph &graph,
+                                       bool tolerant)
 {
     std::map<int, FrameState> states;
     for (int f : job["frames"].get<std::vector<int>>()) {
@@ -250,13 +307,21 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
                 st.submission = int(s);
                 st.chunk = int(k);
             }
-            std::ifstream log(dir / "logs" /
-                              ("s" + std::to_string(s) + "-chunk" + std::to_string(k) + ".jsonl"));
+            const fs::path log_path =
+                dir / "logs" / ("s" + std::to_string(s) + "-chunk" + std::to_string(k) + ".jsonl");
+            std::ifstream log(log_path);
             std::string line;
-            while (std::getline(log, line)) {
+            for (int number = 1; std::getline(log, line); ++number) {
                 const json l = json::parse(line, nullptr, false);
-                if (l.is_discarded() || !l.contains("frame")) {
-                    continue;  // a line cut by a killed task
+                if (const std::string bad = bad_log_line(l, states); !bad.empty()) {
+                    if (bad != "cut") {  // a line cut by a killed task is expected
+                        std::fprintf(stderr,
+                                     "warning: %s:%d: skipped: %s\n",
+                                     log_path.string().c_str(),
+                                     number,
+                                     bad.c_str());
+                    }
+                    continue;
                 }
                 FrameState &st = states[l["frame"].get<int>()];
                 if (st.submission != int(s)) {
@@ -269,7 +334,7 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
             }
         }
     }
-    const std::map<std::string, std::string> sched = scheduler_states(job);
+    const std::map<std::string, std::string> sched = scheduler_states(job, tolerant);
     // Read every output back, frames in parallel (the check job's main cost).
     std::vector<int> numbers;
     for (const auto &[f, st] : states) {
@@ -278,9 +343,12 @@ std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, con
     std::vector<std::string> damaged_of(numbers.size());
     std::vector<char> whole_of(numbers.size(), 0);
     parallel_for(0, int(numbers.size()), [&](int i) {
+        const FrameState &st = std::as_const(states).at(numbers[std::size_t(i)]);
+        if (st.state != "logged") {
+            return;  // no task wrote it (files of an earlier run are not this job's), or it failed
+        }
         const std::vector<std::string> outputs = graph.outputs(numbers[std::size_t(i)]);
-        const std::vector<OutputRecord> &written =
-            std::as_const(states).at(numbers[std::size_t(i)]).written;
+        const std::vector<OutputRecord> &written = st.written;
         // The task's records, when they name exactly these outputs; else read every pixel.
         bool recorded = written.size() == outputs.size();
         for (const std::string &p : outputs) {
@@ -384,7 +452,7 @@ std::string summary_line(const json &status)
 int status_command(const std::string &dir_text, bool as_json)
 {
     const fs::path dir = fs::absolute(dir_text);
-    const json job = read_json(dir / "job.json");
+    const json job = read_job(dir);
     const Graph graph = load_job_graph(job, dir);
     const json status = status_json(frame_states(job, dir, graph));
     if (as_json) {
@@ -407,9 +475,10 @@ int status_command(const std::string &dir_text, bool as_json)
 int check_command(const std::string &dir_text)
 {
     const fs::path dir = fs::absolute(dir_text);
-    const json job = read_json(dir / "job.json");
+    const json job = read_job(dir);
     const Graph graph = load_job_graph(job, dir);
-    json report = status_json(frame_states(job, dir, graph));
+    // The check job runs once the array has ended: a failing squeue only warns there.
+    json report = status_json(frame_states(job, dir, graph, /*tolerant=*/true));
     // Time per frame, the slowest frames, and node times summed over every chunk's log.
     std::vector<std::pair<double, int>> times;
     for (const json &f : report["frames"]) {
@@ -427,9 +496,14 @@ int check_command(const std::string &dir_text)
         if (entry.path().string().ends_with(".nodes.json")) {
             std::ifstream in(entry.path());
             const json n = json::parse(in, nullptr, false);
-            if (n.is_object()) {
-                for (auto it = n.begin(); it != n.end(); ++it) {
+            for (auto it = n.begin(); n.is_object() && it != n.end(); ++it) {
+                if (it.value().is_number()) {
                     nodes[it.key()] += it.value().get<double>();
+                } else {
+                    std::fprintf(stderr,
+                                 "warning: %s: \"%s\": not a number of seconds, skipped\n",
+                                 entry.path().string().c_str(),
+                                 it.key().c_str());
                 }
             }
         }

@@ -18,6 +18,8 @@ using json = nlohmann::json;
 
 /// Run a command; its stdout, and whether it exited 0.
 bool capture(const std::string &command, std::string &out);
+/// As capture: the command's exit status (-1 when it could not be run or was killed).
+int capture_status(const std::string &command, std::string &out);
 /// `s` in single quotes for a shell (a quote inside closes, escapes and reopens).
 std::string shell_quote(const std::string &s);
 /// `s` as one value of an #SBATCH line: in double quotes, with " and \ escaped by a backslash
@@ -36,8 +38,28 @@ std::string sbatch(const std::string &args, bool *refused = nullptr);
 bool on_path(const std::string &program);
 /// A job file (job.json, a chunk's state); a one-line error when unreadable or malformed.
 json read_json(const fs::path &path);
+/// DIR/job.json, its shape checked (farm_dir.cpp): every key the commands read, with its type,
+/// chunk frames among "frames", job ids of digits only (they go into squeue's command line).
+/// One line naming the file and the key otherwise.
+json read_job(const fs::path &dir);
 /// Load the job's graph from its working directory (graph paths are relative to it).
 Graph load_job_graph(const json &job, const fs::path &dir);
+/// The graph file with the --set values written into its node params, typed as `run` types
+/// them (farm_dir.cpp).
+std::string apply_sets(const std::string &graph_path,
+                       const Graph &graph,
+                       const std::vector<std::string> &sets);
+/// Chunks of `chunk` frames: contiguous, or `interleaved` (chunk k of n takes frames k, k + n,
+/// ...; farm_dir.cpp says when).
+std::vector<std::vector<int>> make_chunks(const std::vector<int> &frames,
+                                          int chunk,
+                                          bool interleaved);
+/// `submit --force`: refuses to replace `dir` unless it is a job directory (holds job.json) or
+/// empty, and not the current folder, nor a folder holding the graph or an output (one line
+/// naming it, exit 2).
+void require_replaceable(const fs::path &dir,
+                         const std::string &graph_path,
+                         const std::vector<std::string> &outputs);
 
 /// What a task records of an output it wrote (after the atomic rename): its size and a 64-bit
 /// hash of its bytes (core/hash.h hash_bytes, hex).
@@ -64,7 +86,12 @@ struct FrameState {
 /// squeue. Done means every output of the frame is there and whole: byte for byte what the task
 /// recorded having written (its size and hash), or, for a frame without records (a job
 /// directory of an older version), every pixel of every part and level read back.
-std::map<int, FrameState> frame_states(const json &job, const fs::path &dir, const Graph &graph);
+/// Only frames whose latest log line says done are read back: leftover files of frames no task
+/// ran are not this job's. A failing squeue is an error, or with `tolerant` a warning.
+std::map<int, FrameState> frame_states(const json &job,
+                                       const fs::path &dir,
+                                       const Graph &graph,
+                                       bool tolerant = false);
 
 /// `farm status DIR [--json]`.
 int status_command(const std::string &dir_text, bool as_json);
