@@ -6,6 +6,7 @@
 // outward), so overscan keeps its share of the frame. The camera needs no change: worldToNDC
 // spans the display window, whatever its resolution.
 
+#include <algorithm>
 #include <cmath>
 
 #include "filter/frame_ops.h"
@@ -42,10 +43,10 @@ Rect new_display(const NodeParams &p, const Rect &d)
     if (w == 0 && h == 0) {
         w = int(std::lround(d.width() * p.get_real(kScale)));
         h = int(std::lround(d.height() * p.get_real(kScale)));
-    } else if (w == 0) {
-        w = int(std::lround(double(d.width()) * h / d.height()));
+    } else if (w == 0) {  // (bounded before the cast: a 1xN frame's width could pass int's)
+        w = int(std::lround(std::min(double(d.width()) * h / d.height(), 1e9)));
     } else if (h == 0) {
-        h = int(std::lround(double(d.height()) * w / d.width()));
+        h = int(std::lround(std::min(double(d.height()) * w / d.width(), 1e9)));
     }
     w = std::max(w, 1);
     h = std::max(h, 1);
@@ -64,7 +65,13 @@ void execute(NodeContext &ctx)
     filter::FrameWarp w;
     w.to_output = filter::window_map(in.display_window, display);
     w.window = filter::transformed_bounds(w.to_output, in.data_window);
-    check_window_size(ctx.where(), w.window, ctx.params().given(kScale) ? "scale" : "width");
+    // The parameter that made the size: a height alone sets the width too (it named "width").
+    const NodeParams &p = ctx.params();
+    const char *param = p.given(kScale)                                               ? "scale"
+                        : p.get_int(kWidth) == 0                                      ? "height"
+                        : p.get_int(kHeight) == 0 || w.window.width() > kMaxImageSide ? "width"
+                                                                                      : "height";
+    check_window_size(ctx.where(), w.window, param);
     w.display = display;
     w.resize = true;
     fill_into(w, ctx.params(), std::span<const Binding<filter::FrameWarp>>(kWarpFields<kFilter>));

@@ -249,6 +249,28 @@ TEST(FogFilteredEdges, FourPixelsByHand)
     }
 }
 
+// A sigma whose square float cannot hold (the parameter's range starts at 0): the filter is the
+// pixel alone and nothing changes, where the centre's weight 0 / 0 made every edge pixel NaN.
+TEST(FogFilteredEdges, ASigmaTooSmallToSquareChangesNothing)
+{
+    Image color(4, 1, 3), t(4, 1, 3), i(4, 1, 3), depth(4, 1, 1), out(4, 1, 3);
+    for (int x = 0; x < 4; ++x) {
+        const bool sky = x >= 2;
+        depth.at(x, 0, 0) = sky ? std::numeric_limits<float>::infinity() : 5.0f;
+        for (int c = 0; c < 3; ++c) {
+            color.at(x, 0, c) = sky ? std::numeric_limits<float>::infinity() : 1.0f;
+            t.at(x, 0, c) = sky ? 0.0f : 1.0f;
+            i.at(x, 0, c) = sky ? 0.8f : 0.0f;
+            out.at(x, 0, c) = sky ? 0.8f : 1.0f;
+        }
+    }
+    const Image before = out;
+    for (const float sigma : {1e-30f, 1e-23f, 1e-20f}) {
+        shading::correct_filtered_edges(color, t, i, depth, sigma, out);
+        EXPECT_TRUE(out.bit_equal(before)) << sigma;
+    }
+}
+
 // Uniform T and I: nothing changes, bit for bit; a NaN depth neither changes nor counts, and
 // the result stays within [0, max T * max c + max I] at a contrast that would overshoot.
 TEST(FogFilteredEdges, UniformFogIsUntouchedAndNaNDepthsAreLeftOut)

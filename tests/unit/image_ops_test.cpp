@@ -192,6 +192,32 @@ TEST(ImageOps, ReformatResizesEveryPassAndScalesMotion)
     EXPECT_NEAR(at_abs(up, "color", 64, 10, 0), (64.5 / 2.0 / 64.0) * 2.0, 2e-3);
 }
 
+// An output too large names the parameter that made it: a height alone sets the width too, and
+// the error named "width" for it.
+TEST(ImageOps, ReformatNamesTheParameterOfAnOutputTooLarge)
+{
+    const Frame f = test::make_sample_frame(48, 27, 1);
+    const auto message = [&](const char *params) {
+        try {
+            test::run_node("reformat", f, params);
+        } catch (const Error &e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(message(R"({"height": 65536})").find("param \"height\""), std::string::npos)
+        << message(R"({"height": 65536})");
+    EXPECT_NE(message(R"({"width": 65536})").find("param \"width\""), std::string::npos);
+    // A 1-pixel-high frame: the width follows the height past int's range; refused, not wrapped.
+    const Frame thin = test::make_sample_frame(60000, 1, 1);
+    try {
+        test::run_node("reformat", thin, R"({"height": 65536})");
+        ADD_FAILURE() << "a 3.9e9-pixel-wide output was not refused";
+    } catch (const Error &e) {
+        EXPECT_NE(std::string(e.what()).find("param \"height\""), std::string::npos) << e.what();
+    }
+}
+
 TEST(ImageOps, TransformShiftsAndTurnsExactlyAndTheCameraFollows)
 {
     const Frame f = test::make_sample_frame(48, 48, 1);

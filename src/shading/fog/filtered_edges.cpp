@@ -52,7 +52,10 @@ void correct_filtered_edges(const Image &color,
     float weight[3][3];
     for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
-            weight[dy + 1][dx + 1] = std::exp(-float(dx * dx + dy * dy) / (2.0f * sigma * sigma));
+            // The centre weighs 1 outright: below sigma 1e-23 sigma^2 is 0 in float, and its
+            // 0 / 0 was NaN in every edge pixel. The neighbours' weights then fall to 0.
+            const int d2 = dx * dx + dy * dy;
+            weight[dy + 1][dx + 1] = d2 == 0 ? 1.0f : std::exp(-float(d2) / (2.0f * sigma * sigma));
         }
     }
     // Reads the inputs only: each tile writes its own pixels of `out`.
@@ -92,6 +95,9 @@ void correct_filtered_edges(const Image &color,
                             continue;
                         }
                         const float wq = weight[dy + 1][dx + 1];
+                        if (wq == 0.0f) {
+                            continue;  // not in the filter (0 times an infinite colour is NaN)
+                        }
                         total += wq;
                         const float *tq = transmittance.pixel(qx, qy);
                         const float *iq = inscatter.pixel(qx, qy);
