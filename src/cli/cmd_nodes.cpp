@@ -1,8 +1,6 @@
 // posthaste nodes [TYPE]: every node type and its parameters, printed from the declarations.
 
-#include <cmath>
 #include <cstdio>
-#include <string>
 
 #include "cli/commands.h"
 #include "core/error.h"
@@ -12,26 +10,11 @@
 namespace posthaste::cli {
 namespace {
 
-/// An integer parameter's range with its bounds exact ("0..2147483647"): describe_range writes
-/// numbers as %g would (2.14748e+09). Other types as describe_range gives them.
-std::string range_text(const ParamSpec &p)
-{
-    if (p.type != ParamType::Int) {
-        return describe_range(p);
-    }
-    auto whole = [](double v) { return std::to_string(static_cast<long long>(v)); };
-    const bool lo = std::isfinite(p.min), hi = std::isfinite(p.max);
-    return lo && hi ? whole(p.min) + ".." + whole(p.max)
-           : lo     ? ">= " + whole(p.min)
-           : hi     ? "<= " + whole(p.max)
-                    : "";
-}
-
 /// One parameter's line and help, indented by `indent`; a Records parameter's fields follow,
 /// indented further.
 void print_param(const ParamSpec &p, int indent)
 {
-    const std::string range = range_text(p);
+    const std::string range = describe_range(p);
     const std::string condition = describe_condition(p);
     const std::string pad(std::size_t(indent), ' ');
     const int width = 20 - indent;

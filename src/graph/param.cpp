@@ -109,15 +109,20 @@ std::string describe_default(const ParamSpec &spec)
 
 std::string describe_range(const ParamSpec &spec)
 {
+    // An integer's bounds exactly: 2147483647 read "2.14748e+09".
+    const auto bound = [&](double v) {
+        return spec.type == ParamType::Int ? std::to_string(static_cast<long long>(v))
+                                           : format_number(v);
+    };
     const bool lo = std::isfinite(spec.min), hi = std::isfinite(spec.max);
     if (lo && hi) {
-        return format_number(spec.min) + ".." + format_number(spec.max);
+        return bound(spec.min) + ".." + bound(spec.max);
     }
     if (lo) {
-        return ">= " + format_number(spec.min);
+        return ">= " + bound(spec.min);
     }
     if (hi) {
-        return "<= " + format_number(spec.max);
+        return "<= " + bound(spec.max);
     }
     return "";
 }

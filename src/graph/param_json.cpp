@@ -207,10 +207,13 @@ ParamValue convert_value(const ParamSpec &spec,
                 fail(with_range("integer"));
             }
             const double x = v.get<double>();
-            if (x != std::floor(x) || std::abs(x) > 2147483647.0) {
+            if (x != std::floor(x)) {
                 fail("integer");
             }
-            check_range(x);
+            check_range(x);  // before int's own bounds: "integer in 0..2147483647, got 2147483648"
+            if (std::abs(x) > 2147483647.0) {
+                fail(with_range("integer"));
+            }
             out.number = x;
             break;
         }

@@ -57,6 +57,11 @@ TEST(GraphValidation, LocatedMessages)
         error_of(
             R"({"nodes": [{"id": "a", "type": "read", "params": {"path": "x", "frame_offset": 1.5}}]})"),
         "param \"frame_offset\": expected integer, got 1.5");
+    // A whole number past int's range is out of the parameter's range, said with the range
+    // (its bound was printed as 2.14748e+09; the message said only "expected integer").
+    EXPECT_CONTAINS(
+        error_of(R"({"nodes": [{"id": "r", "type": "render", "params": {"seed": 2147483648}}]})"),
+        "param \"seed\": expected integer in 0..2147483647, got 2147483648");
     EXPECT_CONTAINS(error_of(R"({"nodes": [{"id": "a", "type": "read"}]})"),
                     "node \"a\" (read): required param \"path\" is missing");
     EXPECT_CONTAINS(
