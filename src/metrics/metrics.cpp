@@ -253,7 +253,11 @@ CompareStats compare_surface(
             keep.push_back(i);
         }
     }
-    const int n = std::max<int>(1, int(keep.size()));
+    if (keep.empty()) {
+        // (one zeroed pixel stood in for none: RMSE 0, PSNR inf, a perfect score for nothing)
+        throw_runtime("compare_surface: no surface pixel (every depth is the sky or not finite)");
+    }
+    const int n = int(keep.size());
     Image pa(n, 1, nc), pb(n, 1, nc);
     const std::size_t ca = std::size_t(a.channels()), cb = std::size_t(b.channels());
     for (std::size_t k = 0; k < keep.size(); ++k) {

@@ -70,7 +70,8 @@ CompareStats compare(const Image &a, const Image &b, const Thresholds &threshold
 
 /// compare() over the surface pixels only (those whose `depth` is finite: not the sky) and the
 /// first `channels` channels of both images (0: all of them). For truths that hold nothing on the
-/// sky (Cycles writes AO 0 there). The images and `depth` share a width and height.
+/// sky (Cycles writes AO 0 there). The images and `depth` share a width and height; a frame
+/// with no surface pixel is an error.
 CompareStats compare_surface(const Image &a,
                              const Image &b,
                              const Image &depth,

@@ -200,6 +200,21 @@ TEST(Metrics, ShapeMismatchThrows)
     EXPECT_THROW(compare(Image(3, 2, 1), Image(3, 2, 2)), Error);
 }
 
+// compare_surface over the pixels with a finite depth; none left is an error (a zeroed pixel
+// stood in for none, scoring RMSE 0).
+TEST(Metrics, SurfaceComparisonLeavesTheSkyOutAndNeedsAPixel)
+{
+    Image a(2, 1, 1), b(2, 1, 1), depth(2, 1, 1);
+    a.at(0, 0, 0) = 1.0f;
+    b.at(0, 0, 0) = 0.5f;
+    a.at(1, 0, 0) = 9.0f;  // under the sky: left out
+    depth.at(0, 0, 0) = 2.0f;
+    depth.at(1, 0, 0) = std::numeric_limits<float>::infinity();
+    EXPECT_DOUBLE_EQ(metrics::compare_surface(a, b, depth).all.rms_error, 0.5);
+    depth.at(0, 0, 0) = std::numeric_limits<float>::infinity();
+    EXPECT_THROW(metrics::compare_surface(a, b, depth), Error);
+}
+
 TEST(Metrics, TiesAcrossTilesPickScanOrderAndThreadsAgree)
 {
     // (100, 0) lies in tile 1, (5, 10) in tile 0; scan order puts (100, 0) first.
