@@ -21,6 +21,7 @@
 #include "core/error.h"
 #include "core/frame.h"
 #include "io/image_file.h"
+#include "scratch_folder_test.h"
 
 namespace posthaste::bench {
 namespace {
@@ -41,17 +42,9 @@ std::pair<std::string, int> error_of(F &&f)
     return {"no error", 0};
 }
 
-class BenchChecks : public ::testing::Test {
+class BenchChecks : public test::ScratchFolderTest {
    protected:
-    void SetUp() override
-    {
-        dir_ = fs::temp_directory_path() /
-               ("posthaste_benchchk_" + std::to_string(::getpid()) + "_" +
-                ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
-    std::string path(const std::string &name) const { return (dir_ / name).string(); }
+    BenchChecks() : ScratchFolderTest("posthaste_benchchk_") {}
 
     /// An 8x4 frame file: color RGB, depth (infinite in the columns x >= sky_from) and a grey
     /// 1-channel ao; the truth file's color equals it on the surface and differs on the sky.
@@ -93,8 +86,6 @@ class BenchChecks : public ::testing::Test {
                                       << (extra.empty() ? "" : ", ") << extra << "}";
         return run_bench(load_spec(path("s.json")));
     }
-
-    fs::path dir_;
 };
 
 // 1. The sky is left out of FLIP as of RMSE; a frame that is all sky is an error, not "exact".

@@ -21,6 +21,7 @@
 #include "bench/stability_chart.h"
 #include "core/error.h"
 #include "io/image_file.h"
+#include "scratch_folder_test.h"
 
 namespace posthaste::bench {
 namespace {
@@ -266,14 +267,12 @@ void write_exr(const std::string &path, int w, int h, float base)
     ASSERT_TRUE(out->close());
 }
 
-class BenchEndToEnd : public ::testing::Test {
+class BenchEndToEnd : public test::ScratchFolderTest {
    protected:
+    BenchEndToEnd() : ScratchFolderTest("posthaste_bench_") {}
     void SetUp() override
     {
-        dir_ = fs::temp_directory_path() /
-               ("posthaste_bench_" + std::to_string(::getpid()) + "_" +
-                ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
+        ScratchFolderTest::SetUp();
         for (int f = 1; f <= 2; ++f) {
             write_exr(path("fg.000" + std::to_string(f) + ".exr"), 24, 16, 0.2f * float(f));
             write_exr(path("bg.000" + std::to_string(f) + ".exr"), 24, 16, 0.6f);
@@ -289,10 +288,6 @@ class BenchEndToEnd : public ::testing::Test {
              "params": {"path": ")" << path("out/w.####.exr")
                                       << R"("}}]})";
     }
-    void TearDown() override { fs::remove_all(dir_); }
-    std::string path(const std::string &name) const { return (dir_ / name).string(); }
-
-    fs::path dir_;
 };
 
 TEST_F(BenchEndToEnd, TwoSettingsTwoRunsAgainstATruthGraph)

@@ -18,6 +18,7 @@
 #include "core/error.h"
 #include "core/hash.h"
 #include "metrics/metrics.h"
+#include "scratch_folder_test.h"
 
 namespace posthaste {
 namespace {
@@ -134,24 +135,14 @@ nlohmann::json read_json(const fs::path &path)
     return nlohmann::json::parse(in);
 }
 
-class DiffCli : public ::testing::Test {
+class DiffCli : public test::ScratchFolderTest {
    protected:
-    void SetUp() override
-    {
-        dir_ = fs::temp_directory_path() /
-               ("posthaste_diff_cli_" + std::to_string(::getpid()) + "_" +
-                ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::create_directories(dir_);
-    }
-    void TearDown() override { fs::remove_all(dir_); }
+    DiffCli() : ScratchFolderTest("posthaste_diff_cli_") {}
 
-    std::string path(const std::string &name) const { return (dir_ / name).string(); }
     Process diff(const std::string &args) const
     {
         return run_process(std::string(POSTHASTE_BINARY) + " diff --flip off " + args);
     }
-
-    fs::path dir_;
 };
 
 // --- Agreement with idiff ----------------------------------------------------------------

@@ -221,6 +221,25 @@ TEST(FogNode, SameBitsForOneAndManyThreads)
     }
 }
 
+/// Four pixels in a row: a surface left unfogged (0-1: T 1, I 0, colour 1) beside the sky
+/// (2-3: T 0, I 0.8, colour `sky_colour`), each already fogged (T c + I).
+struct EdgeRow {
+    Image color{4, 1, 3}, t{4, 1, 3}, i{4, 1, 3}, depth{4, 1, 1}, out{4, 1, 3};
+    explicit EdgeRow(float sky_colour)
+    {
+        for (int x = 0; x < 4; ++x) {
+            const bool sky = x >= 2;
+            depth.at(x, 0, 0) = sky ? std::numeric_limits<float>::infinity() : 5.0f;
+            for (int c = 0; c < 3; ++c) {
+                color.at(x, 0, c) = sky ? sky_colour : 1.0f;
+                t.at(x, 0, c) = sky ? 0.0f : 1.0f;
+                i.at(x, 0, c) = sky ? 0.8f : 0.0f;
+                out.at(x, 0, c) = sky ? 0.8f : 1.0f;  // T c + I
+            }
+        }
+    }
+};
+
 // A filtered edge by hand, four pixels in a row: 0 and 1 a surface left unfogged (T 1, I 0,
 // colour 1), 2 and 3 the sky (T 0, I 0.8, colour 0.2), sigma 1 (a side neighbour weighs
 // w = exp(-1/2)). Pixel 1 takes w ((0 - 1) 0.2 + 0.8 - 0) / (1 + 2 w) of the sky beside it,
@@ -228,18 +247,9 @@ TEST(FogNode, SameBitsForOneAndManyThreads)
 // line through them and stay.
 TEST(FogFilteredEdges, FourPixelsByHand)
 {
-    Image color(4, 1, 3), t(4, 1, 3), i(4, 1, 3), depth(4, 1, 1), out(4, 1, 3);
-    for (int x = 0; x < 4; ++x) {
-        const bool sky = x >= 2;
-        depth.at(x, 0, 0) = sky ? std::numeric_limits<float>::infinity() : 5.0f;
-        for (int c = 0; c < 3; ++c) {
-            color.at(x, 0, c) = sky ? 0.2f : 1.0f;
-            t.at(x, 0, c) = sky ? 0.0f : 1.0f;
-            i.at(x, 0, c) = sky ? 0.8f : 0.0f;
-            out.at(x, 0, c) = sky ? 0.8f : 1.0f;  // T c + I
-        }
-    }
-    shading::correct_filtered_edges(color, t, i, depth, 1.0f, out);
+    EdgeRow row(0.2f);
+    Image &out = row.out;
+    shading::correct_filtered_edges(row.color, row.t, row.i, row.depth, 1.0f, out);
     const double w = std::exp(-0.5);
     for (int c = 0; c < 3; ++c) {
         EXPECT_EQ(out.at(0, 0, c), 1.0f);
@@ -253,21 +263,11 @@ TEST(FogFilteredEdges, FourPixelsByHand)
 // pixel alone and nothing changes, where the centre's weight 0 / 0 made every edge pixel NaN.
 TEST(FogFilteredEdges, ASigmaTooSmallToSquareChangesNothing)
 {
-    Image color(4, 1, 3), t(4, 1, 3), i(4, 1, 3), depth(4, 1, 1), out(4, 1, 3);
-    for (int x = 0; x < 4; ++x) {
-        const bool sky = x >= 2;
-        depth.at(x, 0, 0) = sky ? std::numeric_limits<float>::infinity() : 5.0f;
-        for (int c = 0; c < 3; ++c) {
-            color.at(x, 0, c) = sky ? std::numeric_limits<float>::infinity() : 1.0f;
-            t.at(x, 0, c) = sky ? 0.0f : 1.0f;
-            i.at(x, 0, c) = sky ? 0.8f : 0.0f;
-            out.at(x, 0, c) = sky ? 0.8f : 1.0f;
-        }
-    }
-    const Image before = out;
+    EdgeRow row(std::numeric_limits<float>::infinity());
+    const Image before = row.out;
     for (const float sigma : {1e-30f, 1e-23f, 1e-20f}) {
-        shading::correct_filtered_edges(color, t, i, depth, sigma, out);
-        EXPECT_TRUE(out.bit_equal(before)) << sigma;
+        shading::correct_filtered_edges(row.color, row.t, row.i, row.depth, sigma, row.out);
+        EXPECT_TRUE(row.out.bit_equal(before)) << sigma;
     }
 }
 
