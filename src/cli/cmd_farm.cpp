@@ -44,6 +44,7 @@ using farm::require_slurm;
 using farm::sbatch;
 using farm::sbatch_quote;
 using farm::shell_quote;
+using farm::slurm_filename;
 using farm::status_command;
 namespace fs = std::filesystem;
 
@@ -156,7 +157,8 @@ std::string batch_script(const json &job, const fs::path &dir, int submission, i
         o << "%" << s["max_running"].get<int>();
     }
     o << "\n#SBATCH --output="
-      << sbatch_quote((dir / "logs").string() + "/slurm-s" + std::to_string(submission) + "-%a.out")
+      << sbatch_quote(slurm_filename((dir / "logs").string()) + "/slurm-s" +
+                      std::to_string(submission) + "-%a.out")
       << "\n";
     if (!s.value("partition", "").empty()) {
         o << "#SBATCH --partition=" << s["partition"].get<std::string>() << "\n";
@@ -184,7 +186,8 @@ std::string check_script(const json &job, const fs::path &dir, int submission)
     o << "#!/bin/bash\n"
       << "#SBATCH --job-name=" << sbatch_quote("posthaste-check-" + dir.filename().string())
       << "\n#SBATCH --output="
-      << sbatch_quote((dir / "logs").string() + "/check-s" + std::to_string(submission) + ".out")
+      << sbatch_quote(slurm_filename((dir / "logs").string()) + "/check-s" +
+                      std::to_string(submission) + ".out")
       << "\n";
     if (!job["slurm"].value("partition", "").empty()) {
         o << "#SBATCH --partition=" << job["slurm"]["partition"].get<std::string>() << "\n";
@@ -223,6 +226,11 @@ int submit_command(const SubmitOptions &o)
     dir = dir.has_filename() ? dir : dir.parent_path();  // "job/", ".": the folder's own name
     if (dir.string().find_first_of("\n\r") != std::string::npos) {
         throw_usage("farm submit: a line break in the job directory's name (#SBATCH lines)");
+    }
+    if (dir.string().find('\\') != std::string::npos) {
+        // Slurm expands no %a in an --output path holding a backslash: every task's log would
+        // go to one file.
+        throw_usage("farm submit: a backslash in the job directory's name (Slurm's log names)");
     }
     farm::require_sbatch_value("--partition", o.slurm.partition);
     farm::require_sbatch_value("--mem", o.slurm.mem);

@@ -65,19 +65,31 @@ std::string sbatch_quote(const std::string &s)
     return q + "\"";
 }
 
+std::string slurm_filename(const std::string &path)
+{
+    std::string out;
+    for (const char c : path) {
+        out.push_back(c);
+        if (c == '%') {
+            out.push_back('%');
+        }
+    }
+    return out;
+}
+
 void require_sbatch_value(const std::string &option, const std::string &value)
 {
     for (const char c : value) {
         if (!std::isalnum(static_cast<unsigned char>(c)) &&
             std::string_view("_-.:,+").find(c) == std::string_view::npos) {
-            throw_usage("farm submit: ",
-                        option,
-                        ": ",
-                        c == '\n' || c == '\r' ? std::string("a line break")
-                                               : "\"" + std::string(1, c) + "\"",
-                        " in \"",
-                        value.substr(0, value.find_first_of("\r\n")),
-                        "\" is not Slurm syntax (a partition name, 8G, 1:00:00)");
+            throw_usage(
+                "farm submit: ",
+                option,
+                ": ",
+                c == '\n' || c == '\r' ? std::string("a line break") : std::string{'"', c, '"'},
+                " in \"",
+                value.substr(0, value.find_first_of("\r\n")),
+                "\" is not Slurm syntax (a partition name, 8G, 1:00:00)");
         }
     }
 }

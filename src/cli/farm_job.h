@@ -29,6 +29,9 @@ std::string shell_quote(const std::string &s);
 /// script (and end its #SBATCH directives there); one line naming the option.
 void require_sbatch_value(const std::string &option, const std::string &value);
 std::string sbatch_quote(const std::string &s);
+/// A path as text inside an #SBATCH --output pattern: each "%" doubled (Slurm reads "%a",
+/// "%j", ... in it; "50%all" would name a file per array task and job).
+std::string slurm_filename(const std::string &path);
 /// An Error naming how to get Slurm's `program` unless it is on PATH.
 void require_slurm(const std::string &program);
 /// `sbatch --parsable ARGS`: the job id, or an Error with what sbatch said; `refused` is set

@@ -287,5 +287,25 @@ TEST(FarmCli, SetValuesAreWrittenAsRunTypesThem)
     EXPECT_EQ(g["nodes"][0]["params"]["width"], 40) << g;
 }
 
+// A "%" in the job directory went into the log pattern as Slurm's own ("job%a" named a log per
+// task elsewhere); a backslash turns Slurm's patterns off (every task's log in one file).
+TEST(FarmCli, JobDirectoryNamesAreLiteralInSlurmsLogPatterns)
+{
+    const FarmScratch s("farm_percent");
+    std::string out;
+    ASSERT_EQ(s.farm(s.submit(s.dir + "/50%all"), &out), 0) << out;
+    std::ifstream run(s.dir + "/50%all/run-s0.sbatch");
+    const std::string script((std::istreambuf_iterator<char>(run)), {});
+    EXPECT_NE(script.find("#SBATCH --output=\"" + s.dir + "/50%%all/logs/slurm-s0-%a.out\""),
+              std::string::npos)
+        << script;
+    std::ifstream check(s.dir + "/50%all/check-s0.sbatch");
+    const std::string check_text((std::istreambuf_iterator<char>(check)), {});
+    EXPECT_NE(check_text.find("/50%%all/logs/check-s0.out"), std::string::npos) << check_text;
+    EXPECT_EQ(s.farm(s.submit(s.dir + "/a\\\\b"), &out), 2) << out;
+    EXPECT_NE(out.find("a backslash in the job directory's name"), std::string::npos) << out;
+    EXPECT_EQ(line_count(out), 1) << out;
+}
+
 }  // namespace
 }  // namespace posthaste
