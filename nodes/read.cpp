@@ -246,7 +246,7 @@ void execute(NodeContext &ctx)
                          counts.c_str());
         }
     } catch (const Error &e) {
-        throw Error(e.code(), ctx.where() + ": " + e.what());
+        rethrow_with_prefix(e, ctx.where() + ": ");
     }
 }
 

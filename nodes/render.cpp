@@ -31,7 +31,8 @@ constexpr ParamSpec kTruth =
         .doc(
             "Replace color by ground truth accumulated over the shutter, the aperture, or both; "
             "ao: add pass \"ao\", ambient occlusion by exact ray casting; reflections: color "
-            "with exactly traced glossy reflections (samples: GGX rays a pixel; supersample 1); gi: "
+            "with exactly traced glossy reflections (samples: GGX rays a pixel; supersample 1); "
+            "gi: "
             "color plus one bounce of diffuse light, exactly traced (samples: cosine-weighted "
             "rays a pixel; each hit lit by the sun with an exact shadow ray and the sky).");
 constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
@@ -39,10 +40,9 @@ constexpr ParamSpec kSamples = ParamSpec::integer("samples", 64)
                                    .doc(
                                        "Renders accumulated for the ground truth (rays a texel "
                                        "for the latlong probe).");
-constexpr ParamSpec kSeed =
-    ParamSpec::integer("seed", 0)
-        .range(0, 2147483647)
-        .doc("Jitter seed for the ground truth and the latlong probe.");
+constexpr ParamSpec kSeed = ParamSpec::integer("seed", 0)
+                                .range(0, 2147483647)
+                                .doc("Jitter seed for the ground truth and the latlong probe.");
 constexpr ParamSpec kAoRadius =
     ParamSpec::real("ao_radius", 1.0)
         .range(1e-3, 100.0)
@@ -112,10 +112,7 @@ std::pair<int, int> overscan_pixels(const NodeParams &params, const std::string 
                 int(std::lround(v * 0.5 * params.get_int(kHeight)))};
     }
     if (v != std::floor(v)) {
-        throw_param_expected(where,
-                             kOverscan.name,
-                             "a fraction below 1 or whole pixels a side",
-                             v);
+        throw_param_expected(where, kOverscan.name, "a fraction below 1 or whole pixels a side", v);
     }
     return {int(v), int(v)};
 }
@@ -160,8 +157,8 @@ const raster::Scene &scene_of(NodeContext &ctx)
 void add_sun_attributes(const raster::Scene &scene, Frame &frame)
 {
     const glm::vec3 d = scene.sun.direction;
-    // The sky is computed for this illuminance (shading/atmosphere/sky.h): the fog node's atmosphere, which
-    // defaults to it, then draws the same sky.
+    // The sky is computed for this illuminance (shading/atmosphere/sky.h): the fog node's
+    // atmosphere, which defaults to it, then draws the same sky.
     const glm::vec3 e(shading::kSkyIlluminance);
     frame.attributes.push_back(OIIO::ParamValue("posthaste:sunDirection", OIIO::TypeVector, 1, &d));
     frame.attributes.push_back(
@@ -272,7 +269,7 @@ void execute(NodeContext &ctx)
         }
         ctx.output() = std::move(truth_frame);
     } catch (const Error &e) {
-        throw Error(e.code(), ctx.where() + ": " + e.what());
+        rethrow_with_prefix(e, ctx.where() + ": ");
     }
 }
 
@@ -325,8 +322,13 @@ void check(CheckContext &ctx)
     if (wide_w > kMaxImageSide / 4 || wide_h > kMaxImageSide / 4) {
         throw_param(ctx,
                     kOverscan,
-                    str_cat("makes a ", wide_w, "x", wide_h, " frame, over ",
-                            kMaxImageSide / 4, " pixels a side"));
+                    str_cat("makes a ",
+                            wide_w,
+                            "x",
+                            wide_h,
+                            " frame, over ",
+                            kMaxImageSide / 4,
+                            " pixels a side"));
     }
     // What a frame will allocate, before any is: the requested passes plus the rasterizer's
     // own buffers (G-buffer, depth, ids, about 16 floats a pixel), at the supersampled size.
@@ -345,8 +347,7 @@ void check(CheckContext &ctx)
             const pass::CanonicalPass *cp = pass::find_canonical(p);
             channels += cp ? cp->channels.size() : 4;
         }
-        const std::size_t pixels =
-            std::size_t(wide_w) * std::size_t(wide_h) * std::size_t(ss * ss);
+        const std::size_t pixels = std::size_t(wide_w) * std::size_t(wide_h) * std::size_t(ss * ss);
         const std::size_t estimate = pixels * channels * sizeof(float);
         if (estimate > budget) {
             throw_runtime(where,
@@ -391,9 +392,9 @@ extern const NodeType kRender{{"render",
                               nullptr,
                               &check,
                               &discover,
-    [](std::vector<std::string> &problems) {
-        audit(kRender, kRenderFields, problems);
-        audit(kRender, kTruthFields, problems);
-    }};
+                              [](std::vector<std::string> &problems) {
+                                  audit(kRender, kRenderFields, problems);
+                                  audit(kRender, kTruthFields, problems);
+                              }};
 
 }  // namespace posthaste::nodes

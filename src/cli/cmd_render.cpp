@@ -2,6 +2,7 @@
 // or their ground truth, to EXR. Built as a two-node graph (render -> write) so it shares run's
 // validation, parallel frames, progress and summary.
 
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -32,6 +33,52 @@ struct RenderCommand : RunSettings {
     std::string compression = "piz";
     std::vector<std::string> given;  ///< Truth options on the command line (--samples, ...).
 };
+
+/// An error of the command's two-node graph in the command's own terms: the location in a JSON
+/// the user never wrote ("posthaste render s.json:/nodes/1/params/path: node \"write\"
+/// (write): param \"path\": ") becomes the option the value came from ("render -o: ").
+std::string command_message(const std::string &what, const std::string &origin)
+{
+    const std::string at = origin + ":/nodes/";
+    const std::size_t colon = what.find(": ", at.size());
+    if (what.rfind(at, 0) != 0 || colon == std::string::npos) {
+        return what;  // a frame's error names its node and frame already
+    }
+    const std::string pointer = what.substr(at.size(), colon - at.size());  // "1/params/path"
+    const std::size_t slash = pointer.find("/params/");
+    const std::string param = slash == std::string::npos ? "" : pointer.substr(slash + 8);
+    std::string rest = what.substr(colon + 2);
+    for (const std::string &prefix : {std::string("node \"render\" (render): "),
+                                      std::string("node \"write\" (write): "),
+                                      "param \"" + param + "\": "}) {
+        if (rest.rfind(prefix, 0) == 0) {
+            rest.erase(0, prefix.size());
+        }
+    }
+    static const std::map<std::string, std::string> kOptions = {{"0/width", "--size"},
+                                                                {"0/height", "--size"},
+                                                                {"0/supersample", "--supersample"},
+                                                                {"0/truth", "--truth"},
+                                                                {"0/samples", "--samples"},
+                                                                {"0/seed", "--seed"},
+                                                                {"0/ao_radius", "--ao-radius"},
+                                                                {"0/overscan", "--overscan"},
+                                                                {"0/projection", "--probe"},
+                                                                {"1/path", "-o"},
+                                                                {"1/passes", "--passes"},
+                                                                {"1/compression", "--compression"}};
+    std::string option;
+    if (const auto it = kOptions.find(pointer.substr(0, 1) + "/" + param); it != kOptions.end()) {
+        option = " " + it->second;
+    }
+    const std::string downstream = "; a node downstream reads it";  // the graph's wording
+    if (rest.size() > downstream.size() &&
+        rest.compare(rest.size() - downstream.size(), downstream.size(), downstream) == 0) {
+        rest.erase(rest.size() - downstream.size());
+        option = " --passes";
+    }
+    return "render" + option + ": " + rest;
+}
 
 int render(const RenderCommand &o)
 {
@@ -103,8 +150,13 @@ int render(const RenderCommand &o)
             "motion,"
             "diffuse_motion,specular_depth";
     }
-    Graph graph = Graph::parse(g.dump(), "posthaste render " + o.scene, nodes::catalog());
-    return run_graph(graph, o);
+    const std::string origin = "posthaste render " + o.scene;
+    try {
+        Graph graph = Graph::parse(g.dump(), origin, nodes::catalog());
+        return run_graph(graph, o);
+    } catch (const Error &e) {
+        throw Error(e.code(), command_message(e.what(), origin));
+    }
 }
 
 }  // namespace

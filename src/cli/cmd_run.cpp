@@ -66,7 +66,8 @@ void add_run_command(CLI::App &app, int &exit_code)
     cmd->add_option("--max-memory",
                     opts->max_memory,
                     "Budget for pass images, all frames in flight (8G, 512M; 0: none; default 80 "
-                    "% of available memory)")
+                    "% of available memory); frames it refuses run again with half as many at "
+                    "once")
         ->check(not_empty());
     cmd->add_flag("--skip-existing",
                   opts->skip_existing,

@@ -45,6 +45,33 @@ class OutputError : public Error {
     using Error::Error;
 };
 
+/// A pass image refused by the memory budget (--max-memory) while it was shared: a run with
+/// several frames in flight runs the frame again with fewer (graph/run.cpp).
+class MemoryBudgetError : public Error {
+   public:
+    MemoryBudgetError(ExitCode code, std::string message, bool output = false)
+        : Error(code, std::move(message)), output_(output)
+    {
+    }
+    /// Refused to a sink: with one frame in flight it fails the run as an OutputError does.
+    bool output() const { return output_; }
+
+   private:
+    bool output_;
+};
+
+/// `e` again with `prefix` before its message, of its own kind (a budget refusal stays one).
+[[noreturn]] inline void rethrow_with_prefix(const Error &e, const std::string &prefix)
+{
+    if (const auto *m = dynamic_cast<const MemoryBudgetError *>(&e)) {
+        throw MemoryBudgetError(e.code(), prefix + e.what(), m->output());
+    }
+    if (dynamic_cast<const OutputError *>(&e)) {
+        throw OutputError(e.code(), prefix + e.what());
+    }
+    throw Error(e.code(), prefix + e.what());
+}
+
 /// A usage or graph error (exit code 2).
 template <typename... Args>
 [[noreturn]] void throw_usage(Args &&...args)

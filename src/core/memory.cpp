@@ -176,19 +176,20 @@ void reserve_image_memory(std::size_t bytes, int width, int height, int channels
     const std::size_t budget = g_budget.load();
     if (budget != 0 && before + bytes > budget) {
         g_in_use.fetch_sub(bytes);
-        throw_runtime("memory budget: a ",
-                      width,
-                      "x",
-                      height,
-                      "x",
-                      channels,
-                      " image (",
-                      format_bytes(bytes),
-                      ") would take pass images to ",
-                      format_bytes(before + bytes),
-                      ", over --max-memory ",
-                      format_bytes(budget),
-                      " (fewer --jobs, a smaller frame, or a larger budget)");
+        throw MemoryBudgetError(ExitCode::Runtime,
+                                str_cat("memory budget: a ",
+                                        width,
+                                        "x",
+                                        height,
+                                        "x",
+                                        channels,
+                                        " image (",
+                                        format_bytes(bytes),
+                                        ") would take pass images to ",
+                                        format_bytes(before + bytes),
+                                        ", over --max-memory ",
+                                        format_bytes(budget),
+                                        " (fewer --jobs, a smaller frame, or a larger budget)"));
     }
     const std::size_t now = before + bytes;
     std::size_t peak = g_peak.load();

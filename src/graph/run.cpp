@@ -111,19 +111,24 @@ int run_graph(Graph &graph, const RunSettings &o)
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
 
-    // Frames [next, last) with `tokens` of them in flight.
-    std::size_t last = frames.size();
+    // Frames queue[next, last) with `tokens` of them in flight. A frame the memory budget
+    // refuses while others are in flight goes to `over_budget` and stops the round; the next
+    // round runs it and the rest with half the frames at once (alone, a refusal fails it).
+    std::vector<int> queue(frames.begin(), frames.end());
+    std::vector<int> over_budget;
+    std::atomic<bool> throttle{false};
+    std::size_t last = queue.size();
     const auto run_frames = [&](int tokens) {
         tbb::parallel_pipeline(
             std::size_t(tokens),
             tbb::make_filter<void, int>(tbb::filter_mode::serial_in_order,
                                         [&](tbb::flow_control &fc) -> int {
-                                            if (next >= last || stop.load() ||
+                                            if (next >= last || stop.load() || throttle.load() ||
                                                 (o.should_stop && o.should_stop())) {
                                                 fc.stop();
                                                 return 0;
                                             }
-                                            return frames[next++];
+                                            return queue[next++];
                                         }) &
                 tbb::make_filter<int, void>(tbb::filter_mode::parallel, [&](int frame) {
                     const auto t0 = std::chrono::steady_clock::now();
@@ -132,6 +137,16 @@ int run_graph(Graph &graph, const RunSettings &o)
                     bool output = false;  // a sink failed: no bad input to pass over
                     try {
                         graph.evaluate(frame, &times);
+                    } catch (const MemoryBudgetError &e) {
+                        if (tokens > 1) {
+                            std::lock_guard lock(mutex);
+                            over_budget.push_back(frame);
+                            throttle = true;
+                            return;
+                        }
+                        error = e.what();
+                        code = e.exit_code();
+                        output = e.output();
                     } catch (const OutputError &e) {
                         error = e.what();
                         code = e.exit_code();
@@ -240,6 +255,33 @@ int run_graph(Graph &graph, const RunSettings &o)
         }
     }
     run_frames(jobs);
+    while (!over_budget.empty() && !stop.load() && !(o.should_stop && o.should_stop())) {
+        // The refused frames first (in the order they were given), then those not started.
+        std::vector<int> again;
+        for (const int f : queue) {
+            if (std::find(over_budget.begin(), over_budget.end(), f) != over_budget.end()) {
+                again.push_back(f);
+            }
+        }
+        again.insert(again.end(), queue.begin() + std::ptrdiff_t(next), queue.end());
+        const int before = jobs;
+        jobs = std::max(1, jobs / 2);
+        std::fprintf(stderr,
+                     "%swarning: over the memory budget (%s) with %d frames at once: the %zu "
+                     "frame(s) left, from frame %d, run %d at once\n",
+                     terminal ? "\r\033[K" : "",
+                     format_bytes(image_memory_budget()).c_str(),
+                     before,
+                     again.size(),
+                     again.front(),
+                     jobs);
+        queue = std::move(again);
+        over_budget.clear();
+        throttle = false;
+        next = 0;
+        last = queue.size();
+        run_frames(jobs);
+    }
     if (terminal) {
         std::fprintf(stderr, "\n");
     }
