@@ -7,9 +7,13 @@
 // format OCIO reads). A point operation: a NaN or infinite value stays in its pixel. At the
 // defaults the node passes its input through untouched.
 
+#include <cfloat>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 
+#include "core/text.h"
 #include "graph/mask.h"
 #include "nodes/color_pass.h"
 
@@ -93,6 +97,47 @@ constexpr Binding<ColorProcessor::Grade> kGradeFields[] = {
     bind<&ColorProcessor::Grade::interpolation>(kInterpolation),
 };
 
+/// The first number in a LUT file that float cannot hold (nan, inf, 1e39) as "line N holds
+/// TOKEN, ..."; empty when there is none. OpenColorIO takes them, and they reached finite frames
+/// as infinities. The LUT formats OpenColorIO reads are text: whitespace-, comma- or
+/// tag-separated numbers.
+std::string non_finite_entry(const std::string &path)
+{
+    std::ifstream in(path, std::ios::binary);
+    std::string line;
+    for (long n = 1; std::getline(in, line); ++n) {
+        std::size_t i = line.find_first_not_of(" \t");
+        if (i == std::string::npos || line[i] == '#' || line.compare(i, 5, "TITLE") == 0) {
+            continue;  // a comment or a title may say "inf" in words
+        }
+        while (i < line.size()) {
+            const auto separator = [](char c) {
+                return std::isspace(static_cast<unsigned char>(c)) || c == ',' || c == '<' ||
+                       c == '>' || c == '"' || c == '(' || c == ')' || c == '{' || c == '}';
+            };
+            while (i < line.size() && separator(line[i])) {
+                ++i;
+            }
+            std::size_t j = i;
+            while (j < line.size() && !separator(line[j])) {
+                ++j;
+            }
+            if (j > i) {
+                const std::string token = line.substr(i, j - i);
+                char *end = nullptr;
+                const double v = std::strtod(token.c_str(), &end);
+                if (end == token.c_str() + token.size() &&
+                    !(std::isfinite(v) && std::fabs(v) <= double(FLT_MAX))) {
+                    return "line " + std::to_string(n) + " holds " + printable_line(token) +
+                           ", a value float cannot hold (a LUT's entries must be finite)";
+                }
+            }
+            i = j;
+        }
+    }
+    return "";
+}
+
 ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node)
 {
     const std::string where = node.json_path + "/params: " + node.describe();
@@ -122,8 +167,19 @@ ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node
                         "]"));
         }
     }
-    if (!g.lut.empty() && !std::filesystem::exists(g.lut)) {
-        throw_param(where, kLut.name, g.lut + ": no such file");
+    if (!g.lut.empty()) {
+        std::error_code ec;  // a name too long for the system is an error, not a throw
+        if (!std::filesystem::is_regular_file(g.lut, ec)) {
+            throw_param(
+                where,
+                kLut.name,
+                g.lut + (ec && ec != std::errc::no_such_file_or_directory ? ": " + ec.message()
+                         : std::filesystem::exists(g.lut, ec)             ? ": not a regular file"
+                                                                          : ": no such file"));
+        }
+        if (const std::string bad = non_finite_entry(g.lut); !bad.empty()) {
+            throw_param(where, kLut.name, g.lut + ": " + bad);
+        }
     }
     return ColorProcessor::grade(g, where);
 }

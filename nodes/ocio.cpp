@@ -25,17 +25,34 @@ constexpr ParamSpec kUnpremultiply =
         .doc("Divide color by alpha before the transform and multiply after.");
 constexpr ParamSpec kPass =
     ParamSpec::string("pass", "color").doc("The pass to transform.").reads_passes();
-constexpr ParamSpec kParams[] = {kMode, kFrom, kTo, kDisplay, kView, kUnpremultiply, kPass, kMaskPass, kMaskChannel, kMaskInvert};
+constexpr ParamSpec kParams[] = {kMode,
+                                 kFrom,
+                                 kTo,
+                                 kDisplay,
+                                 kView,
+                                 kUnpremultiply,
+                                 kPass,
+                                 kMaskPass,
+                                 kMaskChannel,
+                                 kMaskInvert};
 constexpr PortSpec kInputs[] = {{"image", "", false, "The frame to transform."}, kMaskPort};
 
 ColorProcessor make_processor(const NodeParams &params, const NodeIdentity &node)
 {
     const std::string where = node.json_path + "/params: " + node.describe();
     if (params.get_choice(kMode) == 0) {
-        return ColorProcessor::between(params.get_string(kFrom), params.get_string(kTo), where);
+        return ColorProcessor::between(params.get_string(kFrom),
+                                       params.get_string(kTo),
+                                       where,
+                                       std::string(kFrom.name),
+                                       std::string(kTo.name));
     }
-    return ColorProcessor::display_view(
-        params.get_string(kFrom), params.get_string(kDisplay), params.get_string(kView), where);
+    return ColorProcessor::display_view(params.get_string(kFrom),
+                                        params.get_string(kDisplay),
+                                        params.get_string(kView),
+                                        where,
+                                        false,
+                                        std::string(kFrom.name));
 }
 
 void execute(NodeContext &ctx)
@@ -53,10 +70,16 @@ void check(CheckContext &ctx)
 
 }  // namespace
 
-extern const NodeType kOcio{
-    {"ocio", "OpenColorIO color space or display transform.", kInputs, kParams, "", /*sink=*/false, /*keeps_specular=*/false, /*maskable=*/true},
-    &execute,
-    nullptr,
-    &check};
+extern const NodeType kOcio{{"ocio",
+                             "OpenColorIO color space or display transform.",
+                             kInputs,
+                             kParams,
+                             "",
+                             /*sink=*/false,
+                             /*keeps_specular=*/false,
+                             /*maskable=*/true},
+                            &execute,
+                            nullptr,
+                            &check};
 
 }  // namespace posthaste::nodes

@@ -110,7 +110,8 @@ ColorProcessor make_display(const NodeParams &params, const NodeIdentity &node)
                                         params.get_string(kDisplay),
                                         params.get_string(kView),
                                         node.json_path + "/params: " + node.describe(),
-                                        /*for_8bit=*/true);
+                                        /*for_8bit=*/true,
+                                        std::string(kColorSpace.name));
 }
 
 constexpr Binding<PreviewOptions> kPreviewFields[] = {
@@ -207,7 +208,7 @@ void execute(NodeContext &ctx)
         }
         write_exr(frame, path, options);
     } catch (const Error &e) {
-        throw Error(e.code(), ctx.where() + ": " + e.what());
+        rethrow_with_prefix(e, ctx.where() + ": ");
     }
 }
 
@@ -254,6 +255,26 @@ void check(CheckContext &ctx)
         if (!out) {
             throw_param_expected(ctx, kPath, "a .exr, .png, .jpg or .tif file", quoted(path));
         }
+        // Before any frame: a JPEG dropped the alpha without a word, a PPM failed at frame 1.
+        if (ctx.params.get_bool(kAlpha) && !out->supports("alpha")) {
+            throw_param(ctx,
+                        kAlpha,
+                        str_cat("a ",
+                                out->format_name(),
+                                " preview has no alpha channel (",
+                                path,
+                                "; a .png or .tif has)"));
+        }
+    }
+    if (ctx.frames.size() > 1 && !has_frame_placeholder(path)) {
+        throw_param(ctx,
+                    kPath,
+                    str_cat(quoted(path),
+                            " has no frame placeholder (####) but ",
+                            ctx.frames.size(),
+                            " frames would be written to it"));
+    }
+    if (preview) {
         return;
     }
     check_compression(ctx.params.get_string(kCompression), where + ": param \"compression\"");
@@ -265,14 +286,6 @@ void check(CheckContext &ctx)
     if (const auto twice = std::adjacent_find(listed.begin(), listed.end());
         twice != listed.end()) {
         throw_param(ctx, kPasses, str_cat("lists \"", *twice, "\" twice"));
-    }
-    if (ctx.frames.size() > 1 && !has_frame_placeholder(path)) {
-        throw_param(ctx,
-                    kPath,
-                    str_cat(quoted(path),
-                            " has no frame placeholder (####) but ",
-                            ctx.frames.size(),
-                            " frames would be written to it"));
     }
 }
 

@@ -33,6 +33,12 @@ HWY_INLINE V Curve(D d, V x, ToneCurve curve, float white)
 {
     const V zero = hn::Zero(d), one = hn::Set(d, 1.0f);
     x = hn::Max(x, zero);
+    if (curve != ToneCurve::Reinhard) {
+        // Past max(1e6, white) both curves are at 1 already (ACES's from 7.25, Hable's from
+        // white / 2); above about 1e19 their squares overflowed to inf / inf, NaN, and the
+        // clamp below made the brightest values black.
+        x = hn::Min(x, hn::Set(d, std::max(1e6f, white)));
+    }
     V y;
     if (curve == ToneCurve::Reinhard) {
         const V num = hn::Mul(x, hn::MulAdd(x, hn::Set(d, 1.0f / (white * white)), one));

@@ -233,7 +233,26 @@ void Graph::plan()
             }
             for (std::size_t p = 0; spec.maskable && p < spec.inputs.size(); ++p) {
                 if (spec.inputs[p].name == kMaskPort.name) {
-                    gn.input_passes[p].add(fill(gn.params, kMaskFields).pass);
+                    const std::string mask_pass = fill(gn.params, kMaskFields).pass;
+                    gn.input_passes[p].add(mask_pass);
+                    // Another view's pass takes that view's mask where the mask's frame has one
+                    // (apply_mask): ask for it, or a read never loads it and the pass took the
+                    // chosen view's mask.
+                    std::set<std::string> named(gn.input_passes[0].names);
+                    named.insert(gn.input_passes[0].optional.begin(),
+                                 gn.input_passes[0].optional.end());
+                    for (const ParamSpec &ps : spec.params) {  // also when every pass is asked
+                        if (ps.passes) {
+                            for (const std::string &n : split_list(gn.params.get_string(ps))) {
+                                named.insert(n);
+                            }
+                        }
+                    }
+                    for (const std::string &n : named) {
+                        if (const auto at = n.find('@'); at != std::string::npos) {
+                            gn.input_passes[p].add_optional(mask_pass + n.substr(at));
+                        }
+                    }
                 }
             }
         }
@@ -346,6 +365,9 @@ void Graph::execute_step(const GraphNode &gn, NodeContext &ctx, const Frame *fir
                 ctx.where(), gn.params, *first_input, ctx.input(kMaskPort.name), ctx.output());
         }
     } catch (const Error &e) {
+        if (const auto *m = dynamic_cast<const MemoryBudgetError *>(&e); m && !m->output()) {
+            throw MemoryBudgetError(e.code(), e.what(), gn.type->spec.sink);
+        }
         if (gn.type->spec.sink) {
             throw OutputError(e.code(), e.what());
         }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <mutex>
 #include <sstream>
@@ -31,6 +32,22 @@ struct ConfigHolder {
 const ConfigHolder &config_holder()
 {
     static const ConfigHolder holder = [] {
+        // OpenColorIO's own warnings ("[OpenColorIO Warning]: At line 39, unknown key ...") as
+        // the project's: one line each, prefixed "warning:".
+        OCIO::SetLoggingFunction([](const char *message) {
+            std::string m = message ? message : "";
+            std::string label = "warning: OpenColorIO: ";  // its warnings and errors
+            if (m.rfind("[OpenColorIO ", 0) == 0 && m.find("]: ") != std::string::npos) {
+                const std::string level = m.substr(13, m.find("]: ") - 13);
+                label = level == "Info" || level == "Debug" ? "OpenColorIO: " : label;
+                m.erase(0, m.find("]: ") + 3);
+            }
+            while (!m.empty() && (m.back() == '\n' || m.back() == '\r' || m.back() == ' ')) {
+                m.pop_back();
+            }
+            std::replace(m.begin(), m.end(), '\n', ' ');
+            std::fprintf(stderr, "%s%s\n", label.c_str(), printable_line(m).c_str());
+        });
         ConfigHolder h;
         const char *env = std::getenv("OCIO");
         try {
@@ -100,11 +117,13 @@ std::vector<std::string> color_view_names(const std::string &display)
 
 namespace {
 
-void require_space(const std::string &name, const std::string &where)
+/// `param`: the parameter that named it, for the message ("" for none).
+void require_space(const std::string &name, const std::string &where, const std::string &param)
 {
     const auto &cfg = config_holder().config;
     if (!cfg->getColorSpace(name.c_str())) {
         throw_usage(where,
+                    param.empty() ? "" : ": param \"" + param + "\"",
                     ": unknown color space \"",
                     name,
                     "\" in ",
@@ -119,10 +138,12 @@ void require_space(const std::string &name, const std::string &where)
 
 ColorProcessor ColorProcessor::between(const std::string &from,
                                        const std::string &to,
-                                       const std::string &where)
+                                       const std::string &where,
+                                       const std::string &from_param,
+                                       const std::string &to_param)
 {
-    require_space(from, where);
-    require_space(to, where);
+    require_space(from, where, from_param);
+    require_space(to, where, to_param);
     auto impl = std::make_shared<Impl>();
     try {
         auto proc = config_holder().config->getProcessor(from.c_str(), to.c_str());
@@ -140,16 +161,24 @@ ColorProcessor ColorProcessor::display_view(const std::string &from,
                                             const std::string &display,
                                             const std::string &view,
                                             const std::string &where,
-                                            bool for_8bit)
+                                            bool for_8bit,
+                                            const std::string &from_param)
 {
-    require_space(from, where);
+    require_space(from, where, from_param);
     const std::vector<std::string> displays = color_display_names();
     if (std::find(displays.begin(), displays.end(), display) == displays.end()) {
-        throw_usage(where, ": unknown display \"", display, "\" (have: ", join(displays), ")");
+        throw_usage(where,
+                    from_param.empty() ? "" : ": param \"display\"",
+                    ": unknown display \"",
+                    display,
+                    "\" (have: ",
+                    join(displays),
+                    ")");
     }
     const std::vector<std::string> views = color_view_names(display);
     if (std::find(views.begin(), views.end(), view) == views.end()) {
         throw_usage(where,
+                    from_param.empty() ? "" : ": param \"view\"",
                     ": unknown view \"",
                     view,
                     "\" for display \"",

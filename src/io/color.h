@@ -38,9 +38,12 @@ class ColorProcessor {
    public:
     /// From one color space to another. Throws a usage Error naming `where` and listing the
     /// config's spaces when a name is unknown.
+    /// `from_param`, `to_param`: the node parameters that named them, for the messages.
     static ColorProcessor between(const std::string &from,
                                   const std::string &to,
-                                  const std::string &where);
+                                  const std::string &where,
+                                  const std::string &from_param = "",
+                                  const std::string &to_param = "");
     /// From a color space to a display and view.
     /// `for_8bit`: the result feeds 8-bit output, so OpenColorIO may approximate (look-up
     /// tables; within one 8-bit code).
@@ -48,7 +51,8 @@ class ColorProcessor {
                                        const std::string &display,
                                        const std::string &view,
                                        const std::string &where,
-                                       bool for_8bit = false);
+                                       bool for_8bit = false,
+                                       const std::string &from_param = "");
 
     /// A grade as one OpenColorIO group, in this order: `matrix` (white balance and exposure,
     /// row-major 3x3 on linear RGB), the ASC CDL (slope, offset, power, saturation; OCIO's

@@ -3,10 +3,12 @@
 // levels), or rebuilt with canonical channel names; 8-bit previews (atomic writes:
 // atomic_file.cpp).
 
-#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -44,10 +46,17 @@ bool is_png_path(const std::string &path)
     return lower_extension(path) == ".png";
 }
 
+/// Closes a descriptor when it goes out of scope.
+struct FdCloser {
+    int fd;
+    ~FdCloser() { ::close(fd); }
+};
+
 /// Write 8-bit interleaved pixels atomically: a PNG through the parallel encoder (png_write.h),
-/// any other format through OpenImageIO, encoded in memory where its writer can (then written
-/// as bytes, as the PNG is: libtiff left a truncated file on a full disk and said nothing, and
-/// libjpeg ended the process), else into the temporary and read back whole before the rename.
+/// any other format encoded by OpenImageIO into a file that lives in memory (memfd), read back
+/// whole, then written as bytes as the PNG is. Encoding onto the output's disk left a truncated
+/// TIFF on a full disk without a word (libjpeg ended the process); OpenImageIO 2.4's in-memory
+/// output (IOVecOutput) gave TIFFs whose header pointed at the wrong directory, unreadable.
 void write_8bit(const std::string &path,
                 const std::vector<std::uint8_t> &buf,
                 int w,
@@ -64,33 +73,47 @@ void write_8bit(const std::string &path,
     }
     OIIO::ImageSpec spec(w, h, nch, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
+    // The same bytes for the same pixels: OpenImageIO stamps a TIFF with the time of writing
+    // unless DateTime is given, and leaves out an empty one.
+    spec.attribute("DateTime", "");
     auto out = OIIO::ImageOutput::create(path);
     if (!out) {
         throw_runtime(path, ": no writer for this file type: ", OIIO::geterror());
     }
-    if (out->supports("ioproxy")) {
-        OIIO::Filesystem::IOVecOutput bytes;
-        if (!out->set_ioproxy(&bytes) || !out->open(path, spec) ||
-            !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) || !out->close()) {
-            throw_runtime(path, ": cannot encode preview: ", out->geterror());
-        }
-        write_file_bytes(path, bytes.buffer().data(), bytes.buffer().size());
-        return;
+    const int fd = ::memfd_create("posthaste-preview", MFD_CLOEXEC);
+    if (fd < 0) {
+        throw_runtime(path, ": cannot encode preview: memfd_create: ", std::strerror(errno));
     }
-    atomic_write(path, [&](const std::string &tmp) {
-        if (!out->open(tmp, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
-            !out->close()) {
-            throw_runtime(path, ": cannot write preview: ", out->geterror());
+    const FdCloser closer{fd};
+    const std::string at = "/proc/self/fd/" + std::to_string(fd);
+    if (!out->open(at, spec) || !out->write_image(OIIO::TypeDesc::UINT8, buf.data()) ||
+        !out->close()) {
+        throw_runtime(path, ": cannot encode preview: ", out->geterror());
+    }
+    // The encoder's file must decode whole (its reader by the writer's format name: the memory
+    // file has no extension, and a reader made from the output's path looked for that file).
+    std::vector<std::uint8_t> back(buf.size());
+    auto in = OIIO::ImageInput::create(out->format_name());
+    OIIO::ImageSpec read_spec;
+    if (!in || !in->open(at, read_spec) ||
+        !in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, back.data())) {
+        throw_runtime(path,
+                      ": cannot encode preview: it does not read back (",
+                      in ? in->geterror() : OIIO::geterror(),
+                      ")");
+    }
+    in.reset();
+    const off_t size = ::lseek(fd, 0, SEEK_END);
+    std::vector<std::uint8_t> bytes(size > 0 ? std::size_t(size) : 0);
+    std::size_t got = 0;
+    while (got < bytes.size()) {
+        const ssize_t n = ::pread(fd, bytes.data() + got, bytes.size() - got, off_t(got));
+        if (n <= 0) {
+            throw_runtime(path, ": cannot encode preview: reading it back: ", std::strerror(errno));
         }
-        std::vector<std::uint8_t> back(buf.size());
-        auto in = OIIO::ImageInput::open(tmp);
-        if (!in || !in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, back.data())) {
-            throw_runtime(path,
-                          ": cannot write preview: the file written does not read back whole (",
-                          in ? in->geterror() : OIIO::geterror(),
-                          ")");
-        }
-    });
+        got += std::size_t(n);
+    }
+    write_file_bytes(path, bytes.data(), bytes.size());
 }
 
 /// Say once when an asked storage rounds a file's uint ids: float holds whole numbers to 2^24,
@@ -259,7 +282,11 @@ void write_display_preview(const Image &color,
                                          {51, 19, 59, 27, 49, 17, 57, 25},
                                          {15, 47, 7, 39, 13, 45, 5, 37},
                                          {63, 31, 55, 23, 61, 29, 53, 21}};
-    const int in_ch = color.channels();
+    // A grey colour pass (Y, or Y and alpha) is grey on screen: its value in R, G and B (it
+    // bypassed the display transform, which takes three channels, and G and B read 1: cyan).
+    const int src_ch = color.channels();
+    const bool grey = src_ch < 3;
+    const int in_ch = grey ? src_ch + 2 : src_ch;
     const int nch = options.alpha && in_ch >= 4 ? 4 : 3;
     const int w = display.width(), h = display.height();
     std::vector<std::uint8_t> buf(std::size_t(w) * std::size_t(h) * std::size_t(nch));
@@ -290,7 +317,16 @@ void write_display_preview(const Image &color,
         thread_local std::vector<float> row;
         row.assign(std::size_t(w) * std::size_t(in_ch), 0.0f);
         const int ay = y + display.y0;
-        if (!inside.empty() && ay >= inside.y0 && ay < inside.y1) {
+        if (!inside.empty() && ay >= inside.y0 && ay < inside.y1 && grey) {
+            const float *p = color.pixel(inside.x0 - data.x0, ay - data.y0);
+            float *o = row.data() + std::size_t(inside.x0 - display.x0) * std::size_t(in_ch);
+            for (int x = 0; x < inside.width(); ++x, p += src_ch, o += in_ch) {
+                o[0] = o[1] = o[2] = p[0];
+                if (src_ch == 2) {
+                    o[3] = p[1];
+                }
+            }
+        } else if (!inside.empty() && ay >= inside.y0 && ay < inside.y1) {
             std::copy_n(color.pixel(inside.x0 - data.x0, ay - data.y0),
                         std::size_t(inside.width()) * std::size_t(in_ch),
                         row.data() + std::size_t(inside.x0 - display.x0) * std::size_t(in_ch));

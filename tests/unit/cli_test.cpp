@@ -49,6 +49,19 @@ void write_inputs(const std::string &dir, std::initializer_list<int> frames)
     }
 }
 
+/// dir/g.json: dir/in.####.exr -> dof -> dir/OUTPUT; its path.
+std::string write_dof_graph(const std::string &dir, const std::string &output)
+{
+    std::ofstream(dir + "/g.json") << R"({"nodes": [
+        {"id": "in", "type": "read", "params": {"path": ")"
+                                   << dir << R"(/in.####.exr"}},
+        {"id": "d", "type": "dof", "inputs": {"image": "in"}, "params": {}},
+        {"id": "out", "type": "write", "inputs": {"image": "d"},
+         "params": {"path": ")" << dir
+                                   << "/" << output << R"("}}]})";
+    return dir + "/g.json";
+}
+
 TEST(Cli, RunsFramesFoundOnDisk)
 {
     const std::string dir = test::scratch_dir("cli_run");
@@ -281,7 +294,7 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
     const std::string graph = write_graph(dir);
     std::string out;
     EXPECT_EQ(run_command(kBin + " run " + graph + " --set cc.to=srgbb", &out), 2) << out;
-    EXPECT_NE(out.find("unknown color space \"srgbb\""), std::string::npos) << out;
+    EXPECT_NE(out.find("param \"to\": unknown color space \"srgbb\""), std::string::npos) << out;
     EXPECT_NE(out.find("[command line: "), std::string::npos) << out;
     EXPECT_EQ(line_count(out), 1) << out;
     // A byte that is not UTF-8 (in a file name, or in what nlohmann last read) is printed in
@@ -313,11 +326,31 @@ TEST(Cli, UsageErrorsAreOneLineWithExitCodeTwo)
                           &out),
               2)
         << out;
-    EXPECT_NE(out.find("param \"passes\": lists \"color\" twice"), std::string::npos) << out;
+    // In the command's terms: the option, not the location in the command's own graph.
+    EXPECT_NE(out.find("error: render --passes: lists \"color\" twice"), std::string::npos) << out;
     EXPECT_EQ(run_command(kBin + " render " + dir + " --frames 1 -o " + dir + "/r.exr", &out), 2)
         << out;
-    EXPECT_NE(out.find("is a folder, not a scene file"), std::string::npos) << out;
+    EXPECT_NE(out.find("error: render: " + dir + ": is a folder, not a scene file"),
+              std::string::npos)
+        << out;
     EXPECT_EQ(out.find("error: ", 1), std::string::npos) << out;  // said once
+    EXPECT_EQ(run_command(kBin + " render " + test::scene_path("minecrappy.json") +
+                              " --frames 1-2 --size 16x16 -o " + dir + "/r.exr",
+                          &out),
+              2)
+        << out;
+    EXPECT_NE(out.find("error: render -o: \"" + dir + "/r.exr\" has no frame placeholder"),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(run_command(kBin + " render " + test::scene_path("minecrappy.json") +
+                              " --passes colr --frames 1 --size 16x16 -o " + dir + "/r.####.exr",
+                          &out),
+              2)
+        << out;
+    EXPECT_NE(out.find("error: render --passes: the renderer makes no pass \"colr\" (it makes: "),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(out.find("downstream"), std::string::npos) << out;
     // A bound is said as a bound (CLI11's own check wrote out DBL_MAX).
     EXPECT_EQ(run_command(kBin + " diff a.exr b.exr --ppd 0", &out), 2) << out;
     EXPECT_NE(out.find("--ppd: must be a number above 0 and at most 1000, got 0"),
@@ -361,13 +394,7 @@ TEST(Cli, MemoryBudgetStopsAFrameBeforeItIsAllocated)
     // The allocation itself is budgeted too: a read -> dof graph under 64 KiB.
     Frame f = test::make_sample_frame(64, 64, 1);
     write_exr(f, dir + "/in.0001.exr", {});
-    std::ofstream(dir + "/g.json") << R"({"nodes": [
-        {"id": "in", "type": "read", "params": {"path": ")"
-                                   << dir << R"(/in.####.exr"}},
-        {"id": "d", "type": "dof", "inputs": {"image": "in"}, "params": {}},
-        {"id": "out", "type": "write", "inputs": {"image": "d"},
-         "params": {"path": ")" << dir
-                                   << R"(/out.####.exr"}}]})";
+    write_dof_graph(dir, "out.####.exr");
     EXPECT_EQ(run_command(bin + " run " + dir + "/g.json --frames 1 --max-memory 64K", &out), 1)
         << out;
     EXPECT_NE(out.find("memory budget: a 64x64x"), std::string::npos) << out;
@@ -439,6 +466,121 @@ TEST(Cli, JobsAutoTakesAThreadEachUnlessTheBudgetHoldsFewer)
         << out;
 }
 
+// Frames that the budget holds one at a time but not two: with --jobs 2 the refused frames ran
+// into the budget's error and failed the run; now they run again with half the frames at once,
+// and every output is the one a single job makes.
+TEST(Cli, JobsOverTheBudgetRunAgainWithFewerFramesAtOnce)
+{
+    const std::string dir = test::scratch_dir("cli_jobs_budget");
+    for (int f = 1; f <= 6; ++f) {
+        write_exr(test::make_sample_frame(192, 128, f),
+                  expand_frame_pattern(dir + "/in.####.exr", f),
+                  {});
+    }
+    const std::string graph = write_dof_graph(dir, "out/o.####.exr");
+    std::string out;
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 2 --jobs 1 --quiet", &out), 0)
+        << out;
+    fs::rename(dir + "/out", dir + "/ref");
+    // The first frame's peak, from --jobs auto (which then runs one at a time under the budget).
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 2 --jobs auto --frames 1-2", &out),
+              0)
+        << out;
+    const std::size_t at = out.find("peaked at ");
+    ASSERT_NE(at, std::string::npos) << out;
+    const double peak = std::stod(out.substr(at + 10));
+    const bool mib = out.compare(out.find(' ', at + 10) + 1, 3, "MiB") == 0;
+    const long budget_k = long((mib ? peak * 1024 : peak) * 1.25) + 1;
+    fs::remove_all(dir + "/out");
+    const std::string budget = " --max-memory " + std::to_string(budget_k) + "K";
+    ASSERT_EQ(run_command(kBin + " run " + graph + " --threads 2 --jobs 2" + budget, &out), 0)
+        << out;
+    EXPECT_NE(out.find("6 frame(s) in"), std::string::npos) << out;
+    const std::size_t warned = out.find("warning: over the memory budget");
+    if (warned != std::string::npos) {  // two frames met (nearly always on two threads)
+        EXPECT_NE(out.find("with 2 frames at once: the ", warned), std::string::npos) << out;
+        EXPECT_NE(out.find("1 job(s), 2 thread(s)"), std::string::npos) << out;
+    }
+    for (int f = 1; f <= 6; ++f) {
+        const std::string name = expand_frame_pattern("/o.####.exr", f);
+        std::string diff;
+        EXPECT_EQ(run_command(kBin + " diff " + dir + "/ref" + name + " " + dir + "/out" + name +
+                                  " --fail 0 --quiet",
+                              &diff),
+                  0)
+            << f << ": " << diff;
+    }
+    // One frame at a time, the budget's refusal is the run's error, as before.
+    EXPECT_EQ(run_command(kBin + " run " + graph + " --threads 2 --jobs 1 --max-memory " +
+                              std::to_string(budget_k / 3) + "K",
+                          &out),
+              1)
+        << out;
+    EXPECT_NE(out.find("memory budget: a "), std::string::npos) << out;
+    EXPECT_EQ(out.find("warning: over the memory budget"), std::string::npos) << out;
+}
+
+// OpenColorIO's own warnings came as "[OpenColorIO Warning]: ..." on stderr, outside the
+// project's format; they are "warning: OpenColorIO: ...", one line each.
+TEST(Cli, OpenColorIOWarningsAreTheProjectsLines)
+{
+    const std::string dir = test::scratch_dir("cli_ocio_warning");
+    write_inputs(dir, {1});
+    const std::string graph = write_graph(dir);
+    std::ifstream in(std::string(POSTHASTE_TEST_DIR) + "/../samples/ocio/config.ocio");
+    std::string config((std::istreambuf_iterator<char>(in)), {});
+    const std::string at = "    name: srgb\n";
+    ASSERT_NE(config.find(at), std::string::npos);
+    config.insert(config.find(at) + at.size(), "    dummyKey: dummyValue\n");
+    std::ofstream(dir + "/config.ocio") << config;
+    std::string out;
+    ASSERT_EQ(run_command("OCIO=" + dir + "/config.ocio " + kBin + " run " + graph + " -q", &out),
+              0)
+        << out;
+    EXPECT_NE(out.find("warning: OpenColorIO: At line "), std::string::npos) << out;
+    EXPECT_NE(out.find("unknown key 'dummyKey'"), std::string::npos) << out;
+    EXPECT_EQ(out.find("[OpenColorIO"), std::string::npos) << out;
+}
+
+// A preview path without a frame placeholder took every frame in turn (the last one stayed);
+// alpha on a format without it was dropped (JPEG) or failed at frame 1 (PPM). Both are the
+// graph's errors now, before any frame.
+TEST(Cli, PreviewPathsAndAlphaAreCheckedBeforeAnyFrame)
+{
+    const std::string dir = test::scratch_dir("cli_preview_checks");
+    write_inputs(dir, {1, 2});
+    const auto graph = [&](const std::string &params) {
+        std::ofstream(dir + "/g.json") << R"({"nodes": [
+            {"id": "src", "type": "read", "params": {"path": ")"
+                                       << dir << R"(/in.####.exr"}},
+            {"id": "p", "type": "write", "inputs": {"image": "src"}, "params": )"
+                                       << params << "}]}";
+        return dir + "/g.json";
+    };
+    std::string out;
+    EXPECT_EQ(run_command(kBin + " run " + graph(R"({"path": "p.png"})") + " --frames 1-2", &out),
+              2)
+        << out;
+    EXPECT_NE(out.find("/p.png\" has no frame placeholder (####) but 2 frames"), std::string::npos)
+        << out;
+    EXPECT_EQ(run_command(kBin + " run " + graph(R"({"path": "p.png"})") + " --frames 1 -q", &out),
+              0)
+        << out;
+    for (const char *ext : {"jpg", "ppm"}) {
+        const std::string params =
+            std::string(R"({"path": "p.####.)") + ext + R"(", "alpha": true})";
+        EXPECT_EQ(run_command(kBin + " run " + graph(params) + " --frames 1-2", &out), 2) << out;
+        EXPECT_NE(out.find("param \"alpha\": a "), std::string::npos) << out;
+        EXPECT_NE(out.find(" preview has no alpha channel"), std::string::npos) << out;
+        EXPECT_FALSE(fs::exists(dir + "/p.0001." + ext)) << ext;
+    }
+    EXPECT_EQ(run_command(kBin + " run " + graph(R"({"path": "p.####.tif", "alpha": true})") +
+                              " --frames 1-2 -q",
+                          &out),
+              0)
+        << out;
+}
+
 TEST(Cli, RenderProbeWritesTheMapWithItsDistancesAndPosition)
 {
     const std::string dir = test::scratch_dir("cli_probe");
@@ -461,7 +603,8 @@ TEST(Cli, RenderProbeWritesTheMapWithItsDistancesAndPosition)
                           &out),
               2)
         << out;
-    EXPECT_NE(out.find("projection"), std::string::npos) << out;
+    EXPECT_NE(out.find("error: render --probe: latlong makes no ground truth"), std::string::npos)
+        << out;
     EXPECT_EQ(std::count(out.begin(), out.end(), '\n'), 1) << out;
 }
 

@@ -210,6 +210,39 @@ TEST(Grade, NonFiniteValuesStayInTheirPixel)
     EXPECT_FALSE(std::isfinite(out.image("color").at(1, 0, 0)));
 }
 
+// A LUT whose entries float cannot hold put infinities into finite frames; a folder, and a
+// name too long for the system (a raw std::filesystem throw, exit 1), are the parameter's
+// errors too.
+TEST(Grade, LutFilesWithNonFiniteEntriesOrBadNamesAreRefused)
+{
+    const std::string dir = test::scratch_dir("grade_bad_lut");
+    const Frame in = rgb_frame(kValues);
+    const std::pair<std::string, std::string> luts[] = {
+        {"inf.spi1d", "Version 1\nFrom 0 1\nLength 4\nComponents 1\n{\n0\ninf\n0.5\n1\n}\n"},
+        {"nan.cube", "# a comment may say inf\nLUT_1D_SIZE 2\n0 0 0\n1 nan 1\n"},
+        {"big.cube", "LUT_1D_SIZE 2\n0 0 0\n1 1 1e39\n"}};
+    // The grade's error for `path`, which must name the parameter, the file and `want`.
+    const auto refused = [&](const std::string &path, const std::string &want) {
+        try {
+            test::run_node("grade", in, R"({"lut": ")" + path + R"("})");
+            ADD_FAILURE() << path << ": no error";
+        } catch (const Error &e) {
+            const std::string what = e.what();
+            EXPECT_EQ(e.code(), ExitCode::Usage) << what;
+            EXPECT_NE(what.find("param \"lut\": " + path + ": "), std::string::npos) << what;
+            EXPECT_NE(what.find(want), std::string::npos) << what;
+        }
+    };
+    const std::string wants[] = {"line 7 holds inf", "line 4 holds nan", "line 3 holds 1e39"};
+    for (std::size_t i = 0; i < std::size(luts); ++i) {
+        const std::string path = dir + "/" + luts[i].first;
+        std::ofstream(path) << luts[i].second;
+        refused(path, wants[i]);
+    }
+    refused(dir, "not a regular file");
+    refused(dir + "/" + std::string(300, 'a') + ".cube", "too long");
+}
+
 TEST(Grade, BadParametersAreOneLineErrors)
 {
     const Frame in = rgb_frame(kValues);

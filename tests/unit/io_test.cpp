@@ -1111,7 +1111,8 @@ TEST(IoWrite, PreviewCodesByHand)
                         const float t =
                             dither ? (float(kBayer[y & 7][x & 7]) + 0.5f) / 64.0f : 0.5f;
                         for (int c = 0; c < nch; ++c) {
-                            const float v = c < in_ch ? img.at(x - data.x0, y - data.y0, c) : 1.0f;
+                            // A one-channel pass is grey: its value in R, G and B.
+                            const float v = img.at(x - data.x0, y - data.y0, in_ch == 1 ? 0 : c);
                             const float q = std::isfinite(v) ? std::floor(v * 255.0f + t) : 0.0f;
                             const int want = int(std::clamp(q, 0.0f, 255.0f));
                             const std::size_t i =
@@ -1131,6 +1132,63 @@ TEST(IoWrite, PreviewCodesByHand)
                 EXPECT_EQ(int(got[0]), 0);
             }
         }
+    }
+}
+
+// A TIFF preview reads back (OpenImageIO 2.4's in-memory output wrote a header pointing at the
+// wrong directory: every TIFF unreadable, exit 0), the same bytes twice, with no time of
+// writing; a grey colour pass (Y, or Y and alpha) goes through the display transform as grey
+// (it bypassed it and G and B read 1: cyan).
+TEST(IoWrite, TiffPreviewsReadBackAndGreyStaysGrey)
+{
+    const std::string dir = scratch_dir("preview_tiff");
+    const ColorProcessor to_display =
+        ColorProcessor::display_view("lin_rec709", "sRGB", "Standard", "test");
+    Image rgb(8, 4, 3), grey(8, 4, 1), grey_alpha(8, 4, 2);
+    for (int y = 0; y < 4; ++y) {
+        for (int x = 0; x < 8; ++x) {
+            const float v = 0.18f * float(x) / 4.0f;
+            for (int c = 0; c < 3; ++c) {
+                rgb.at(x, y, c) = v;
+            }
+            grey.at(x, y, 0) = v;
+            grey_alpha.at(x, y, 0) = v;
+            grey_alpha.at(x, y, 1) = 1.0f;
+        }
+    }
+    const Rect window{0, 0, 8, 4};
+    PreviewOptions o;
+    o.dither = false;
+    auto read8 = [](const std::string &path, int nch) {
+        auto in = OIIO::ImageInput::open(path);
+        std::vector<unsigned char> px(std::size_t(8 * 4 * nch));
+        EXPECT_TRUE(in && in->spec().nchannels == nch &&
+                    in->read_image(0, 0, 0, nch, OIIO::TypeDesc::UINT8, px.data()))
+            << path << ": " << (in ? in->geterror() : OIIO::geterror());
+        return px;
+    };
+    write_display_preview(rgb, window, window, to_display, dir + "/rgb.tif", o);
+    const std::vector<unsigned char> want = read8(dir + "/rgb.tif", 3);
+    EXPECT_EQ(want[3 * 4], 118) << "0.18 through sRGB";  // x = 4
+    // No time of writing in the file (two runs a second apart differed in it).
+    EXPECT_EQ(OIIO::ImageInput::open(dir + "/rgb.tif")->spec().find_attribute("DateTime"), nullptr);
+    std::ifstream first(dir + "/rgb.tif", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(first)), {});
+    write_display_preview(rgb, window, window, to_display, dir + "/rgb.tif", o);
+    std::ifstream second(dir + "/rgb.tif", std::ios::binary);
+    EXPECT_EQ(std::string((std::istreambuf_iterator<char>(second)), {}), bytes);
+    for (const Image *g : {&grey, &grey_alpha}) {
+        write_display_preview(*g, window, window, to_display, dir + "/grey.png", o);
+        EXPECT_EQ(read8(dir + "/grey.png", 3), want) << g->channels() << " channel(s)";
+        write_display_preview(*g, window, window, to_display, dir + "/grey.tif", o);
+        EXPECT_EQ(read8(dir + "/grey.tif", 3), want) << g->channels() << " channel(s)";
+    }
+    o.alpha = true;
+    write_display_preview(grey_alpha, window, window, to_display, dir + "/grey_a.png", o);
+    const std::vector<unsigned char> with_alpha = read8(dir + "/grey_a.png", 4);
+    for (int i = 0; i < 8 * 4; ++i) {
+        ASSERT_EQ(with_alpha[std::size_t(i) * 4 + 3], 255) << i;
+        ASSERT_EQ(with_alpha[std::size_t(i) * 4 + 1], want[std::size_t(i) * 3 + 1]) << i;
     }
 }
 

@@ -144,6 +144,24 @@ TEST(Mask, AnotherViewsPassTakesThatViewsMask)
     }
 }
 
+// A read feeding the mask is asked for each view's mask pass (optionally, as the file may not
+// have it): it loaded only "matte", so color@right took the chosen view's mask.
+TEST(Mask, AMaskReadIsAskedForTheOtherViewsMasks)
+{
+    const Graph g = Graph::parse(R"({"nodes": [
+        {"id": "src", "type": "read", "params": {"path": "unused.exr"}},
+        {"id": "m", "type": "read", "params": {"path": "mask.exr"}},
+        {"id": "n", "type": "exposure", "inputs": {"image": "src", "mask": "m"},
+         "params": {"exposure": 1, "pass": "color@right", "mask_pass": "matte"}},
+        {"id": "out", "type": "write", "inputs": {"image": "n"}, "params": {"path": "x.exr"}}]})",
+                                 "mask test",
+                                 nodes::catalog());
+    const PassSet &asked = g.nodes()[std::size_t(g.find("m"))].requested;
+    EXPECT_TRUE(asked.contains("matte"));
+    EXPECT_FALSE(asked.contains("matte@right"));
+    EXPECT_TRUE(asked.wants("matte@right"));
+}
+
 // Unconnected, the mask changes nothing: the node's own bits.
 // A fractional mask keeps infinities: the sky's +inf depth blurred under a half mask stayed
 // +inf on both sides and came out NaN (inf - inf in the lerp); finite values keep the lerp's bits.

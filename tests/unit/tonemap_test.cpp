@@ -99,6 +99,32 @@ TEST(Tonemap, LuminanceModeKeepsRatiosAndAlpha)
     EXPECT_NEAR(o.at(0, 0, 1), 0.4 * k * 0.5, 1e-6);
 }
 
+// ACES and Hable squared their input: from about 1e19 up inf / inf made NaN, and the clamp
+// turned the brightest finite values black. They stay at 1, in luminance mode too.
+TEST(Tonemap, TheBrightestFiniteValuesStayWhite)
+{
+    const std::vector<float> huge = {1e3f, 1e10f, 1e18f, 1e19f, 3e19f, 1e20f, 1e30f, 3e38f};
+    for (const char *curve : {"aces", "hable", "reinhard"}) {
+        SCOPED_TRACE(curve);
+        const Frame o = test::run_node(
+            "tonemap", ramp_frame(huge), std::string(R"({"curve": ")") + curve + "\"}");
+        for (int i = 0; i < int(huge.size()); ++i) {
+            EXPECT_EQ(o.image("color").at(i, 0, 0), 1.0f) << huge[std::size_t(i)];
+        }
+    }
+    Frame f;
+    f.set_size(1, 1);
+    Image img(1, 1, 4);
+    const float px[4] = {1e30f, 0.5f, 0.5f, 1.0f};
+    std::copy(px, px + 4, img.pixel(0, 0));
+    f.set("color", std::make_shared<const Image>(std::move(img)), {"R", "G", "B", "A"});
+    const Frame o = test::run_node("tonemap", f, R"({"curve": "aces", "mode": "luminance"})");
+    // The luminance maps to 1 and the channels keep their ratios to it.
+    const double lum = 0.2126 * 1e30 + 0.7152 * 0.5 + 0.0722 * 0.5;
+    EXPECT_NEAR(o.image("color").at(0, 0, 0), 1e30 / lum, 1e-5);
+    EXPECT_GT(o.image("color").at(0, 0, 0), 4.0f);
+}
+
 TEST(Tonemap, NonFinitePixelsStay)
 {
     Frame f = ramp_frame({1.0f, std::numeric_limits<float>::quiet_NaN(), 2.0f});
