@@ -107,21 +107,25 @@ bool id_entry(const std::string &e, float &id)
     return end != inner.c_str() && *end == '\0' && std::isfinite(id);
 }
 
-/// Whether the file the pass came from holds an ID channel (R or B) of it as half floats.
-bool stored_as_half(const Frame &f, const Pass &p)
+/// The type the file the pass came from holds an ID channel (R or B) of it in, when that is
+/// not float32 (half, uint, ...), else UNKNOWN. A uint channel reads as its value, not as the
+/// bits of a float ID, and a half cannot hold a 32-bit hash: neither keys anything.
+OIIO::TypeDesc stored_id_type(const Frame &f, const Pass &p)
 {
     if (!f.source) {
-        return false;
+        return OIIO::TypeDesc::UNKNOWN;
     }
     for (std::size_t c = 0; c < p.origin.size(); c += 2) {
         const ChannelOrigin &o = p.origin[c];
-        if (o.part >= 0 && std::size_t(o.part) < f.source->parts.size() &&
-            f.source->parts[std::size_t(o.part)].spec.channelformat(o.channel) ==
-                OIIO::TypeDesc::HALF) {
-            return true;
+        if (o.part >= 0 && std::size_t(o.part) < f.source->parts.size()) {
+            const OIIO::TypeDesc t =
+                f.source->parts[std::size_t(o.part)].spec.channelformat(o.channel);
+            if (t != OIIO::TypeDesc::FLOAT) {
+                return t;
+            }
         }
     }
-    return false;
+    return OIIO::TypeDesc::UNKNOWN;
 }
 
 const cryptomatte::Layer &choose_layer(const std::vector<cryptomatte::Layer> &layers,
@@ -147,16 +151,43 @@ const cryptomatte::Layer &choose_layer(const std::vector<cryptomatte::Layer> &la
     // layer's prefix; two such are ambiguous.
     std::vector<const cryptomatte::Layer *> by_suffix;
     std::string matching;
+    const cryptomatte::Layer *exact = nullptr;
     for (const cryptomatte::Layer &l : layers) {
         if (l.name.empty()) {
             continue;  // (a declaration without a name: its problem is said where it is used)
         }
         if (l.name == type) {
-            return l;
+            // Two keys of one name share its rank layers: which is meant cannot be told (the
+            // first by key order was taken silently).
+            if (exact) {
+                throw_runtime(where,
+                              ": cryptomatte \"",
+                              type,
+                              "\" is declared twice, under keys ",
+                              exact->key,
+                              " and ",
+                              l.key);
+            }
+            exact = &l;
+            continue;
         }
         if (l.is(type)) {
             by_suffix.push_back(&l);
             matching += (matching.empty() ? "" : ", ") + l.name;
+        }
+    }
+    if (exact) {
+        return *exact;
+    }
+    for (std::size_t i = 1; i < by_suffix.size(); ++i) {
+        if (by_suffix[i]->name == by_suffix[i - 1]->name) {  // (sorted by name)
+            throw_runtime(where,
+                          ": cryptomatte \"",
+                          by_suffix[i]->name,
+                          "\" is declared twice, under keys ",
+                          by_suffix[i - 1]->key,
+                          " and ",
+                          by_suffix[i]->key);
         }
     }
     if (by_suffix.size() > 1) {
@@ -301,9 +332,11 @@ Image preview_of(const std::vector<const Image *> &ranks, int w, int h)
                     if (!(cov > 0.0f) || !std::isfinite(cov)) {
                         continue;
                     }
+                    // Within [0, 1] as the matte's sum is: a coverage of 3e38 made inf here.
+                    const float c = std::min(cov, 1.0f);
                     const std::uint32_t bits = cryptomatte::bits_of(id);
-                    o[1] += cov * float(double(std::uint32_t(bits << 8)) / kMax);
-                    o[2] += cov * float(double(std::uint32_t(bits << 16)) / kMax);
+                    o[1] += c * float(double(std::uint32_t(bits << 8)) / kMax);
+                    o[2] += c * float(double(std::uint32_t(bits << 16)) / kMax);
                 }
             }
         }
@@ -320,7 +353,7 @@ void execute(NodeContext &ctx)
     try {
         layers = cryptomatte::find_layers(cryptomatte::declarations(in), path);
     } catch (const Error &e) {
-        throw Error(e.code(), where + ": " + e.what());
+        rethrow_with_prefix(e, where + ": ");
     }
     const KeySettings ks = fill(ctx.params(), kFields);
     const cryptomatte::Layer &layer = choose_layer(layers, ks.layer, where);
@@ -349,12 +382,23 @@ void execute(NodeContext &ctx)
                           p.image->channels(),
                           " channels, expected 4 (id, coverage, id, coverage)");
         }
-        if (p.storage == PixelStorage::Half || stored_as_half(in, p)) {
+        const OIIO::TypeDesc stored =
+            p.storage == PixelStorage::Half ? OIIO::TypeDesc::HALF : stored_id_type(in, p);
+        if (stored == OIIO::TypeDesc::HALF) {
             throw_runtime(where,
                           ": rank layer \"",
                           name,
                           "\" holds its IDs as half floats, which cannot hold a 32-bit hash "
                           "(write cryptomatte layers as float)");
+        }
+        if (stored != OIIO::TypeDesc::UNKNOWN) {
+            throw_runtime(where,
+                          ": rank layer \"",
+                          name,
+                          "\" holds its IDs as ",
+                          stored.c_str(),
+                          ", not as the float32 bits of the hash (write cryptomatte layers as "
+                          "float)");
         }
         // The channels by name where the file names them (r, g, b, a in any case and order).
         int order[4] = {0, 1, 2, 3};

@@ -211,16 +211,22 @@ int info(const std::vector<std::string> &files, const std::string &convention)
         print_scalar("shutter", camera.shutter, " (fraction of a frame)");
         print_scalar("nearClip", camera.near_clip, "");
         print_scalar("farClip", camera.far_clip, "");
-        // Cryptomattes: their ranks and manifests, or why the file breaks the specification.
+        // Cryptomattes: their ranks and manifests, or why the file breaks the specification;
+        // each on its own (one invalid layer hid the valid ones after it).
+        std::vector<std::string> pass_names;
+        for (const PassSource &ps : fi.passes) {
+            pass_names.push_back(ps.pass);
+        }
+        std::vector<cryptomatte::Layer> layers;
         try {
-            std::vector<std::string> pass_names;
-            for (const PassSource &ps : fi.passes) {
-                pass_names.push_back(ps.pass);
-            }
-            for (const cryptomatte::Layer &l : cryptomatte::find_layers(fi.cryptomattes, fi.path)) {
+            layers = cryptomatte::find_layers(fi.cryptomattes, fi.path);
+        } catch (const Error &e) {
+            std::printf("cryptomatte        invalid: %s\n", printable_line(e.what()).c_str());
+        }
+        for (const cryptomatte::Layer &l : layers) {
+            try {
                 if (!l.problem.empty()) {
-                    std::printf("cryptomatte        invalid: %s\n", l.problem.c_str());
-                    continue;
+                    throw_runtime(l.problem);
                 }
                 const std::vector<std::string> ranks =
                     cryptomatte::rank_passes(l, pass_names, fi.path);
@@ -230,14 +236,14 @@ int info(const std::vector<std::string> &files, const std::string &convention)
                                (l.manifest_from == "header" ? "header" : l.manifest_from) + ")";
                 }
                 std::printf("cryptomatte        %s (key %s): %zu rank layers (%zu ranks), %s\n",
-                            l.name.c_str(),
-                            l.key.c_str(),
+                            printable_line(l.name).c_str(),
+                            printable_line(l.key).c_str(),
                             ranks.size(),
                             2 * ranks.size(),
-                            manifest.c_str());
+                            printable_line(manifest).c_str());
+            } catch (const Error &e) {
+                std::printf("cryptomatte        invalid: %s\n", printable_line(e.what()).c_str());
             }
-        } catch (const Error &e) {
-            std::printf("cryptomatte        invalid: %s\n", e.what());
         }
         std::printf("attributes\n");
         for (const OIIO::ParamValue &p : fi.attributes) {

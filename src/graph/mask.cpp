@@ -13,14 +13,44 @@ namespace posthaste {
 
 namespace {
 
-/// The channel of the mask pass the mask is (0..3, or 4 for the luminance), or an error naming
-/// the pass and channel when the frame on the mask port cannot give it.
+/// mask_channel's answer for an alpha the file lacks: a grey pixel's own value, else the
+/// luminance.
+constexpr int kGrey = 5;
+
+/// Whether the alpha of `p` (a four-channel pass read from a file) is no channel of the file
+/// but the constant the reader added, and still that constant everywhere (a node that wrote an
+/// alpha into the pass kept its origin).
+bool alpha_made_by_reader(const Pass &p)
+{
+    const Image &img = *p.image;
+    if (img.channels() != 4 || p.origin.size() != 4 || p.origin[3].part != -1) {
+        return false;
+    }
+    if (p.untouched()) {
+        return true;
+    }
+    const float made = p.origin[3].offset;
+    for (std::size_t i = 0; i < img.pixel_count(); ++i) {
+        if (img.data()[4 * i + 3] != made) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/// The channel of the mask pass the mask is (0..3, 4 for the luminance, kGrey), or an error
+/// naming the pass and channel when the frame on the mask port cannot give it.
 int mask_channel(const std::string &who, const MaskSettings &m, const Frame &mask)
 {
     const std::string &name = m.pass;
     const Image &src = mask.image(name, who + ": mask input");
     // r, g, b, a, luminance; a one-channel pass (a matte) is its own mask whichever is named.
-    const int channel = src.channels() == 1 ? 0 : int(m.channel);
+    int channel = src.channels() == 1 ? 0 : int(m.channel);
+    // An alpha the file lacks is the reader's 1, a mask that is everywhere: a matte written as
+    // luminance alone (Blender's matte outputs: Y) is then its own mask, as a one-channel pass.
+    if (channel == 3 && alpha_made_by_reader(mask.pass(name))) {
+        channel = kGrey;
+    }
     if (channel < 4 && channel >= src.channels()) {
         throw_runtime(who,
                       ": mask pass \"",
@@ -55,7 +85,10 @@ Image mask_image(const std::string &who,
     parallel_for(0, one.height(), [&](int y) {
         for (int x = 0; x < one.width(); ++x) {
             const float *p = src.pixel(x, y);
-            float m = channel < 4 ? p[channel] : 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+            const bool grey = channel == kGrey && p[0] == p[1] && p[1] == p[2];
+            float m = channel < 4 ? p[channel]
+                      : grey      ? p[0]
+                                  : 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
             m = std::isnan(m) ? 0.0f : std::clamp(m, 0.0f, 1.0f);
             one.at(x, y, 0) = invert ? 1.0f - m : m;
         }

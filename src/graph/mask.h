@@ -29,7 +29,8 @@ inline constexpr ParamSpec kMaskChannel =
     ParamSpec::choice("mask_channel", "r|g|b|a|luminance", "a")
         .doc(
             "Channel of mask_pass used as the mask (luminance: Rec.709 weights of R, G, B); a "
-            "one-channel pass is the mask whichever is named.");
+            "one-channel pass is the mask whichever is named; a, where the file has no alpha, is "
+            "the luminance (a grey pixel's value).");
 inline constexpr ParamSpec kMaskInvert =
     ParamSpec::boolean("mask_invert", false).doc("Use 1 - mask: the node applies outside it.");
 
@@ -48,7 +49,9 @@ inline constexpr Binding<MaskSettings> kMaskFields[] = {
 
 /// a + (b - a) * t, exactly a at t = 0 and b at t = 1. Where a or b is infinite the weighted
 /// sum instead, so +inf (the sky's depth) stays +inf under a fractional mask (inf - inf made
-/// NaN); finite values keep the lerp's bits.
+/// NaN); finite values keep the lerp's bits, except where b - a overflows (a = 3e38,
+/// b = -3e38): there the weighted sum, which stays finite for t in [0, 1]. Scalar: the mask's
+/// blend and merge's call it per value.
 inline float mask_mix(float a, float b, float t)
 {
     if (t == 0.0f) {
@@ -58,7 +61,8 @@ inline float mask_mix(float a, float b, float t)
         return b;
     }
     if (std::isfinite(a) && std::isfinite(b)) {
-        return a + (b - a) * t;
+        const float d = b - a;
+        return std::isfinite(d) ? a + d * t : a * (1.0f - t) + b * t;
     }
     return a == b ? a : (1.0f - t) * a + t * b;
 }

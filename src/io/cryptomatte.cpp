@@ -21,6 +21,9 @@ namespace {
 
 constexpr std::string_view kPrefix = "cryptomatte/";
 constexpr std::string_view kRequest = "cryptomatte:";
+/// A sidecar manifest larger than this is refused (the largest production manifests hold a few
+/// hundred thousand names: some tens of MB).
+constexpr std::uintmax_t kMaxSidecarBytes = 256u << 20;
 
 /// Whether `pass` is a rank layer of the cryptomatte `name`: the name and two digits.
 bool is_rank_of(const std::string &name, const std::string &pass)
@@ -49,13 +52,28 @@ std::vector<std::pair<std::string, float>> parse_manifest(const std::string &tex
                                                           const std::string &what)
 {
     nlohmann::json j;
+    // The top level's names as the parser meets them: JSON keeps the last of a name given twice
+    // silently, and which ID is that name's is not for the reader to guess.
+    std::set<std::string> names;
+    std::string twice;
+    const nlohmann::json::parser_callback_t note =
+        [&](int depth, nlohmann::json::parse_event_t event, nlohmann::json &parsed) {
+            if (event == nlohmann::json::parse_event_t::key && depth == 1 && twice.empty() &&
+                !names.insert(parsed.get<std::string>()).second) {
+                twice = parsed.get<std::string>();
+            }
+            return true;
+        };
     try {
-        j = nlohmann::json::parse(text);
+        j = nlohmann::json::parse(text, note);
     } catch (const nlohmann::json::parse_error &e) {
         throw_runtime(what, ": the manifest is not JSON (", e.what(), ")");
     }
     if (!j.is_object()) {
         throw_runtime(what, ": the manifest is not a JSON object of name: \"8 hex digits\"");
+    }
+    if (!twice.empty()) {
+        throw_runtime(what, ": the manifest gives name \"", twice, "\" twice");
     }
     std::vector<std::pair<std::string, float>> out;
     for (auto it = j.begin(); it != j.end(); ++it) {
@@ -110,8 +128,30 @@ void check_declaration(Layer &l,
     } else if (fields.count("manif_file")) {
         const std::filesystem::path sidecar =
             std::filesystem::path(image_path).parent_path() / field("manif_file");
+        // Checked before it is opened: a FIFO blocked the open forever, and /dev/zero was read
+        // until memory ran out.
+        std::error_code ec;
+        const auto status = std::filesystem::status(sidecar, ec);
+        if (std::filesystem::is_directory(status)) {
+            throw_runtime(what, ": its manifest file ", sidecar.string(), " is a folder");
+        }
+        if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status)) {
+            throw_runtime(what, ": its manifest file ", sidecar.string(), " is not a regular file");
+        }
+        const std::uintmax_t size =
+            std::filesystem::is_regular_file(status) ? std::filesystem::file_size(sidecar, ec) : 0;
+        if (!ec && size > kMaxSidecarBytes) {
+            throw_runtime(what,
+                          ": its manifest file ",
+                          sidecar.string(),
+                          " is ",
+                          size,
+                          " bytes, more than the ",
+                          kMaxSidecarBytes,
+                          " a manifest may have");
+        }
         std::ifstream in(sidecar);
-        if (!in) {
+        if (!in || !std::filesystem::is_regular_file(status)) {
             throw_runtime(what, ": cannot read its manifest file ", sidecar.string());
         }
         std::stringstream text;
@@ -161,7 +201,7 @@ std::vector<Layer> find_layers(const OIIO::ParamValueList &attributes,
         }
         layers.push_back(std::move(l));
     }
-    std::sort(layers.begin(), layers.end(), [](const Layer &a, const Layer &b) {
+    std::stable_sort(layers.begin(), layers.end(), [](const Layer &a, const Layer &b) {
         return a.name < b.name;
     });
     return layers;
