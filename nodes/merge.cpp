@@ -82,7 +82,13 @@ void execute(NodeContext &ctx)
     const float mix = ctx.get_float(kMix);
     // A one-channel pass (a cryptomatte matte) is the mask whichever channel is named, as on
     // every masked node (mask_channel's default, a, refused it here).
-    const int mask_channel = mask && mask->channels() == 1 ? 0 : ctx.get_choice(kMaskChannel);
+    int mask_channel = mask && mask->channels() == 1 ? 0 : ctx.get_choice(kMaskChannel);
+    // The reader's alpha of a file without one (a matte written as Y alone) is no mask: as on
+    // every masked node, the luminance instead (graph/mask.h).
+    if (mask && mask_channel == 3 &&
+        alpha_made_by_reader(ctx.input("mask").pass(ctx.get_string(kMaskPass)))) {
+        mask_channel = kMaskGrey;
+    }
     if (mask && mask_channel < 4 && mask_channel >= mask->channels()) {
         throw_runtime(ctx.where(),
                       ": mask pass \"",
@@ -92,7 +98,7 @@ void execute(NodeContext &ctx)
                       " channels, no channel ",
                       "rgba"[mask_channel]);
     }
-    if (mask && mask_channel == 4 && mask->channels() < 3) {
+    if (mask && mask_channel >= 4 && mask->channels() < 3) {
         throw_runtime(ctx.where(),
                       ": mask luminance needs 3 channels in pass \"",
                       ctx.get_string(kMaskPass),
@@ -109,9 +115,7 @@ void execute(NodeContext &ctx)
                 float m = mix;
                 if (mask) {
                     const float *pm = mask->pixel(x, y);
-                    const float mv = mask_channel < 4
-                                         ? pm[mask_channel]
-                                         : 0.2126f * pm[0] + 0.7152f * pm[1] + 0.0722f * pm[2];
+                    const float mv = mask_sample(pm, mask_channel);
                     // As every masked node: NaN is 0, the rest within [0, 1] (a NaN mask made
                     // its pixel's colour NaN).
                     m *= std::isnan(mv) ? 0.0f : std::clamp(mv, 0.0f, 1.0f);

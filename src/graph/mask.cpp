@@ -11,15 +11,6 @@
 
 namespace posthaste {
 
-namespace {
-
-/// mask_channel's answer for an alpha the file lacks: a grey pixel's own value, else the
-/// luminance.
-constexpr int kGrey = 5;
-
-/// Whether the alpha of `p` (a four-channel pass read from a file) is no channel of the file
-/// but the constant the reader added, and still that constant everywhere (a node that wrote an
-/// alpha into the pass kept its origin).
 bool alpha_made_by_reader(const Pass &p)
 {
     const Image &img = *p.image;
@@ -38,7 +29,9 @@ bool alpha_made_by_reader(const Pass &p)
     return true;
 }
 
-/// The channel of the mask pass the mask is (0..3, 4 for the luminance, kGrey), or an error
+namespace {
+
+/// The channel of the mask pass the mask is (0..3, 4 for the luminance, kMaskGrey), or an error
 /// naming the pass and channel when the frame on the mask port cannot give it.
 int mask_channel(const std::string &who, const MaskSettings &m, const Frame &mask)
 {
@@ -49,7 +42,7 @@ int mask_channel(const std::string &who, const MaskSettings &m, const Frame &mas
     // An alpha the file lacks is the reader's 1, a mask that is everywhere: a matte written as
     // luminance alone (Blender's matte outputs: Y) is then its own mask, as a one-channel pass.
     if (channel == 3 && alpha_made_by_reader(mask.pass(name))) {
-        channel = kGrey;
+        channel = kMaskGrey;
     }
     if (channel < 4 && channel >= src.channels()) {
         throw_runtime(who,
@@ -85,10 +78,7 @@ Image mask_image(const std::string &who,
     parallel_for(0, one.height(), [&](int y) {
         for (int x = 0; x < one.width(); ++x) {
             const float *p = src.pixel(x, y);
-            const bool grey = channel == kGrey && p[0] == p[1] && p[1] == p[2];
-            float m = channel < 4 ? p[channel]
-                      : grey      ? p[0]
-                                  : 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+            float m = mask_sample(p, channel);
             m = std::isnan(m) ? 0.0f : std::clamp(m, 0.0f, 1.0f);
             one.at(x, y, 0) = invert ? 1.0f - m : m;
         }

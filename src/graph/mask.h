@@ -47,6 +47,28 @@ inline constexpr Binding<MaskSettings> kMaskFields[] = {
     bind<&MaskSettings::invert>(kMaskInvert),
 };
 
+/// A mask channel past mask_channel's five: the alpha a mask's file lacks, read as a grey
+/// pixel's own value, else the luminance.
+inline constexpr int kMaskGrey = 5;
+
+/// Whether the alpha of `p` (a four-channel pass read from a file) is no channel of the file
+/// but the constant the reader added, and still that constant everywhere (a node that wrote an
+/// alpha into the pass kept its origin): as a mask it would apply everywhere.
+bool alpha_made_by_reader(const Pass &p);
+
+/// The mask's value at pixel `p` for `channel` (0..3, 4 the luminance, kMaskGrey), before the
+/// clamp.
+inline float mask_sample(const float *p, int channel)
+{
+    if (channel < 4) {
+        return p[channel];
+    }
+    if (channel == kMaskGrey && p[0] == p[1] && p[1] == p[2]) {
+        return p[0];
+    }
+    return 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2];
+}
+
 /// a + (b - a) * t, exactly a at t = 0 and b at t = 1. Where a or b is infinite the weighted
 /// sum instead, so +inf (the sky's depth) stays +inf under a fractional mask (inf - inf made
 /// NaN); finite values keep the lerp's bits, except where b - a overflows (a = 3e38,

@@ -292,15 +292,22 @@ TEST(MaskProbe, BlendOfFarApartValuesIsFinite)
 }
 
 /// The colour of `in` graded by +1 stop through the mask read from `mask` (mask_channel a).
-Image graded_through(const std::string &in, const std::string &mask)
+/// `in` through a grade of one stop (or, `merge`, a multiply of `in` by itself) masked by the
+/// file `mask` (none: "").
+Image graded_through(const std::string &in, const std::string &mask, bool merge = false)
 {
+    const std::string node =
+        merge ? std::string(R"({"id": "x", "type": "merge", "inputs": {"a": "in", "b": "in")") +
+                    (mask.empty() ? "" : R"(, "mask": "m")") +
+                    R"(}, "params": {"operation": "multiply"}})"
+              : R"({"id": "x", "type": "grade", "inputs": {"image": "in", "mask": "m"},
+         "params": {"exposure": 1}})";
     Graph g = Graph::parse(R"({"nodes": [
         {"id": "in", "type": "read", "params": {"path": ")" +
                                in + R"("}},
         {"id": "m", "type": "read", "params": {"path": ")" +
-                               mask + R"("}},
-        {"id": "x", "type": "grade", "inputs": {"image": "in", "mask": "m"},
-         "params": {"exposure": 1}},
+                               (mask.empty() ? in : mask) + R"("}},
+        )" + node + R"(,
         {"id": "out", "type": "write", "inputs": {"image": "x"},
          "params": {"path": ")" +
                                in + R"(.out.exr", "passes": "color"}}]})",
@@ -341,6 +348,18 @@ TEST(MaskProbe, LuminanceOnlyFileIsItsOwnMask)
                 const float want =
                     half[std::size_t(i)] == 1.0f && c < 3 ? 2.0f * colour[c] : colour[c];
                 EXPECT_EQ(out.data()[4 * i + c], want) << mask << " " << i << " " << c;
+            }
+        }
+    }
+    // merge reads its mask itself and keeps the same rule: the multiply where Y is 1, B where 0.
+    const Image multiplied = graded_through(in, "", true);
+    for (const std::string &mask : {y, ya, rgb}) {
+        const Image out = graded_through(in, mask, true);
+        for (int i = 0; i < 8; ++i) {
+            for (int c = 0; c < 4; ++c) {
+                const float want =
+                    half[std::size_t(i)] == 1.0f ? multiplied.data()[4 * i + c] : colour[c];
+                EXPECT_EQ(out.data()[4 * i + c], want) << "merge " << mask << " " << i << " " << c;
             }
         }
     }
