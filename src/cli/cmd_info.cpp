@@ -228,6 +228,18 @@ int info(const std::vector<std::string> &files, const std::string &convention)
                 if (!l.problem.empty()) {
                     throw_runtime(l.problem);
                 }
+                for (const cryptomatte::Layer &other : layers) {
+                    if (&other != &l && !l.name.empty() && other.name == l.name) {
+                        throw_runtime(fi.path,
+                                      ": cryptomatte \"",
+                                      l.name,
+                                      "\" is declared twice, under keys ",
+                                      l.key,
+                                      " and ",
+                                      other.key,
+                                      " (a cryptomatte node refuses it)");
+                    }
+                }
                 const std::vector<std::string> ranks =
                     cryptomatte::rank_passes(l, pass_names, fi.path);
                 std::string manifest = "no manifest";

@@ -188,6 +188,15 @@ TEST(CryptomatteProbe, OneNameDeclaredTwiceIsRefused)
                          "\" is declared twice, under keys 0000000 and 542cafa"),
                   std::string::npos)
             << e;
+        // info says so on each declaration's line (it listed both as valid).
+        std::string out;
+        ASSERT_EQ(test::run_command(std::string(POSTHASTE_BINARY) + " info " + path, &out), 0)
+            << out;
+        EXPECT_NE(out.find("cryptomatte        invalid: " + path + ": cryptomatte \"" + name +
+                           "\" is declared twice, under keys 0000000 and 542cafa"),
+                  std::string::npos)
+            << out;
+        EXPECT_NE(out.find("under keys 542cafa and 0000000"), std::string::npos) << out;
     }
     // One declaration keys as before.
     const std::string one = write_exr(
